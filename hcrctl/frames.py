@@ -1,0 +1,350 @@
+"""Sans-IO framing for the HCR protocol: encode frames, decode byte streams.
+
+The decoder never reads a port, never sleeps and never raises: it is fed bytes
+and hands back frames and diagnostics. Everything above it (the client, the
+monitor, ``hex decode``, the simulator) reuses it, so a debugging tool and the
+robot agree on what a byte stream means.
+
+Frames are delimited by the length field, never by the terminator, because
+binary content can hold ``0D 0A`` (a compass heading of 333.8 degrees does).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+from typing import NamedTuple
+
+HEADER = b"\x55\xaa"
+TERMINATOR = b"\x0d\x0a"
+#: header (2) + address + length + command + checksum + terminator (2)
+OVERHEAD = 8
+MAX_CONTENT = 255
+MAX_FRAME = MAX_CONTENT + OVERHEAD
+#: Skipped bytes kept verbatim in one diagnostic; the rest are only counted.
+MAX_KEPT = 512
+
+
+class ChecksumRule(str, Enum):
+    """Where the checksum sum starts. HEADER is the document's text rule."""
+
+    HEADER = "header"
+    ADDRESS = "address"
+
+    @property
+    def other(self) -> ChecksumRule:
+        return ChecksumRule.ADDRESS if self is ChecksumRule.HEADER else ChecksumRule.HEADER
+
+
+def checksum(body: bytes, rule: ChecksumRule = ChecksumRule.HEADER) -> int:
+    """Checksum of ``body`` (the frame from its header to the end of its content).
+
+    0x55 + 0xAA is 0xFF, so the address rule is always the text rule plus one.
+    """
+    start = 2 if rule is ChecksumRule.ADDRESS else 0
+    return sum(body[start:]) & 0xFF
+
+
+def encode(
+    address: int, command: int, content: bytes = b"", rule: ChecksumRule = ChecksumRule.HEADER
+) -> bytes:
+    """One complete frame, checksum and terminator included."""
+    if not 0 <= address <= 0xFF or not 0 <= command <= 0xFF:
+        raise ValueError("address and command are single bytes")
+    if len(content) > MAX_CONTENT:
+        raise ValueError(f"content is at most {MAX_CONTENT} bytes, got {len(content)}")
+    body = HEADER + bytes((address, len(content), command)) + bytes(content)
+    return body + bytes((checksum(body, rule),)) + TERMINATOR
+
+
+class Frame(NamedTuple):
+    """A well-formed frame whose checksum passed under the active rule.
+
+    A tuple, not a dataclass: the decoder builds a million of these a second.
+    """
+
+    address: int
+    command: int
+    content: bytes
+    checksum: int
+    offset: int
+
+    def to_bytes(self) -> bytes:
+        """The frame exactly as it stood on the wire."""
+        head = HEADER + bytes((self.address, len(self.content), self.command))
+        return head + self.content + bytes((self.checksum,)) + TERMINATOR
+
+
+@dataclass(frozen=True)
+class Junk:
+    """Bytes skipped while looking for a header. ``size`` counts beyond ``data``."""
+
+    offset: int
+    data: bytes
+    size: int
+
+
+@dataclass(frozen=True)
+class BadChecksum:
+    """A frame in the right shape whose checksum fails under the active rule."""
+
+    offset: int
+    address: int
+    command: int
+    content: bytes
+    received: int
+    expected: int
+    other: int
+    rule: ChecksumRule
+    data: bytes
+
+    @property
+    def matches_other_rule(self) -> bool:
+        return self.received == self.other
+
+
+@dataclass(frozen=True)
+class Malformed:
+    """A header whose length field does not put the terminator where it stands.
+
+    When a terminator does stand further on (before the next header), the frame
+    is re-read as if the length field said so: ``suggested_length`` is how many
+    content bytes stand before its checksum, and ``received``/``expected``/
+    ``other`` are the checksum verdicts of that reading.
+    """
+
+    offset: int
+    declared_length: int
+    data: bytes
+    size: int
+    suggested_length: int | None = None
+    received: int | None = None
+    expected: int | None = None
+    other: int | None = None
+
+    @property
+    def reason(self) -> str:
+        head = f"length field 0x{self.declared_length:02X}, but "
+        if self.suggested_length is None:
+            return head + "no terminator stands where it puts the end"
+        n = self.suggested_length
+        return head + f"{n} byte{'' if n == 1 else 's'} stand{'s' if n == 1 else ''} before the terminator"
+
+
+@dataclass(frozen=True)
+class Truncated:
+    """The input ended inside a frame."""
+
+    offset: int
+    data: bytes
+    needed: int
+
+
+_new_frame = tuple.__new__
+
+Diagnostic = Junk | BadChecksum | Malformed | Truncated
+Event = Frame | Diagnostic
+
+
+class _Pending:
+    """A diagnostic whose skipped region is still growing (until the next header)."""
+
+    __slots__ = ("extra", "kept", "kind", "offset", "size")
+
+    def __init__(self, kind: str, offset: int, extra: tuple = ()) -> None:
+        self.kind, self.offset, self.extra = kind, offset, extra
+        self.kept = bytearray()
+        self.size = 0
+
+    def add(self, buf: bytearray, start: int, stop: int) -> None:
+        room = MAX_KEPT - len(self.kept)
+        if room > 0:
+            self.kept += buf[start : min(stop, start + room)]
+        self.size += stop - start
+
+
+class FrameDecoder:
+    """Incremental decoder: ``feed(chunk)`` returns the events that chunk completes.
+
+    Memory is bounded: the buffer never holds more than one incomplete frame
+    (at most ``MAX_FRAME`` bytes) between calls, and skipped bytes are kept only
+    up to ``MAX_KEPT`` per diagnostic.
+    """
+
+    def __init__(self, rule: ChecksumRule = ChecksumRule.HEADER) -> None:
+        self.rule = ChecksumRule(rule)
+        self._buf = bytearray()
+        self._base = 0  # stream offset of _buf[0]
+        self._pending: _Pending | None = None
+
+    @property
+    def buffered(self) -> int:
+        """Bytes held back, waiting to complete a frame."""
+        return len(self._buf)
+
+    def feed(self, data: bytes | bytearray | memoryview) -> list[Event]:
+        """Decode what ``data`` completes. Never raises on any input."""
+        out: list[Event] = []
+        if data:
+            self._buf += data
+            self._scan(out)
+        return out
+
+    def flush(self) -> list[Event]:
+        """End of input: report whatever is still held back, and reset."""
+        out: list[Event] = []
+        buf = self._buf
+        if buf[:2] != HEADER:
+            self._skip(out, 0, len(buf))
+            buf = bytearray()
+        self._close_pending(out)
+        if buf:
+            size = buf[3] + OVERHEAD if len(buf) >= 4 else OVERHEAD
+            out.append(Truncated(self._base, bytes(buf), size - len(buf)))
+        self._base += len(self._buf)
+        self._buf = bytearray()
+        return out
+
+    # -- the scanner ------------------------------------------------------
+
+    def _scan(self, out: list[Event]) -> None:
+        buf = self._buf
+        n = len(buf)
+        pos = 0
+        bias = 0 if self.rule is ChecksumRule.HEADER else 1
+        find = buf.find
+        base = self._base
+        append = out.append
+        while True:
+            h = find(HEADER, pos)
+            if h != pos:
+                if h < 0:
+                    keep = max(pos, n - 1 if buf[n - 1 :] == b"\x55" else n)
+                    self._skip(out, pos, keep)
+                    pos = keep
+                    break
+                self._skip(out, pos, h)
+            if n - h < OVERHEAD:
+                pos = h
+                break
+            length = buf[h + 3]
+            end = h + length + OVERHEAD
+            if end > n:
+                resync = self._complete_frame_after(h)
+                if resync < 0:
+                    pos = h
+                    break
+                self._skip(out, h, resync, abandon=True)
+                pos = resync
+                continue
+            ck = end - 3
+            if buf[end - 2] == 0x0D and buf[end - 1] == 0x0A:
+                if (sum(buf[h:ck]) + bias) & 0xFF == buf[ck]:
+                    if self._pending is not None:
+                        self._close_pending(out)
+                    append(
+                        _new_frame(Frame, (buf[h + 2], buf[h + 4], bytes(buf[h + 5 : ck]), buf[ck], base + h))
+                    )
+                    pos = end
+                    continue
+                self._open_bad_checksum(out, h, ck)
+            else:
+                self._open(out, "malformed", h, (length,))
+            self._pending.add(buf, h, h + 1)
+            pos = h + 1
+        self._compact(pos)
+
+    def _skip(self, out: list[Event], start: int, stop: int, abandon: bool = False) -> None:
+        """Attribute buf[start:stop] to the open diagnostic, or to new junk."""
+        if stop <= start:
+            return
+        if self._pending is None or abandon:
+            self._open(out, "junk", start)
+        self._pending.add(self._buf, start, stop)
+
+    def _open(self, out: list[Event], kind: str, at: int, extra: tuple = ()) -> None:
+        self._close_pending(out)
+        self._pending = _Pending(kind, self._base + at, extra)
+
+    def _open_bad_checksum(self, out: list[Event], h: int, ck: int) -> None:
+        buf = self._buf
+        body = bytes(buf[h:ck])
+        extra = (
+            buf[h + 2],
+            buf[h + 4],
+            body[5:],
+            buf[ck],
+            checksum(body, self.rule),
+            checksum(body, self.rule.other),
+        )
+        self._open(out, "checksum", h, extra)
+
+    def _close_pending(self, out: list[Event]) -> None:
+        p = self._pending
+        if p is None:
+            return
+        self._pending = None
+        data = bytes(p.kept)
+        if p.kind == "junk":
+            out.append(Junk(p.offset, data, p.size))
+            return
+        if p.kind == "checksum":
+            address, command, content, received, expected, other = p.extra
+            used = min(len(content) + OVERHEAD, p.size)
+            out.append(
+                BadChecksum(
+                    p.offset, address, command, content, received, expected, other, self.rule, data[:used]
+                )
+            )
+        else:
+            event = self._malformed(p, data)
+            used = event.size
+            out.append(event)
+        if p.size > used:
+            out.append(Junk(p.offset + used, data[used:], p.size - used))
+
+    def _malformed(self, p: _Pending, data: bytes) -> Malformed:
+        (declared,) = p.extra
+        term = data.find(TERMINATOR, 6)
+        if term < 0:
+            return Malformed(p.offset, declared, data, p.size)
+        body = data[: term - 1]
+        return Malformed(
+            p.offset,
+            declared,
+            data[: term + 2],
+            term + 2,
+            suggested_length=term - 6,
+            received=data[term - 1],
+            expected=checksum(body, self.rule),
+            other=checksum(body, self.rule.other),
+        )
+
+    def _complete_frame_after(self, h: int) -> int:
+        """Index of a later header that starts a complete, valid frame, or -1.
+
+        An incomplete candidate may be a false header in line noise announcing
+        a long frame; rather than stall a reply behind it, yield to a frame
+        that is already whole and checks out.
+        """
+        buf = self._buf
+        n = len(buf)
+        at = buf.find(HEADER, h + 1)
+        while at >= 0 and n - at >= OVERHEAD:
+            end = at + buf[at + 3] + OVERHEAD
+            whole = end <= n and buf[end - 2 : end] == TERMINATOR
+            if whole and checksum(buf[at : end - 3], self.rule) == buf[end - 3]:
+                return at
+            at = buf.find(HEADER, at + 1)
+        return -1
+
+    def _compact(self, pos: int) -> None:
+        if pos:
+            del self._buf[:pos]
+            self._base += pos
+
+
+def decode_all(data: bytes, rule: ChecksumRule = ChecksumRule.HEADER) -> list[Event]:
+    """Decode a whole capture: every frame and every diagnostic, in order."""
+    decoder = FrameDecoder(rule)
+    return decoder.feed(data) + decoder.flush()
