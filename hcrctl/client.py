@@ -1,0 +1,294 @@
+"""``Robot``: blocking request/reply over any serial-like object.
+
+A reader thread owns the port's input and runs the shared ``FrameDecoder``.
+A frame that answers the pending request (same address and command) goes to
+the waiting caller; everything else (0xA0 positioning, 0xB0 maps, strays) goes
+to the ``unsolicited`` queue and callback, so a broadcast arriving between a
+request and its reply disturbs nothing.
+
+If the robot was ever told to move, closing it sends stop first: a library
+user who forgets, or whose program crashes inside ``with Robot(...)``, must
+not leave the motors running.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import queue
+import threading
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+from . import commands as C
+from .errors import DeviceRefused, DeviceTimeout, PortError, ProtocolError
+from .frames import BadChecksum, ChecksumRule, Event, Frame, FrameDecoder, Junk, Malformed, Truncated
+
+#: How long the reader blocks in one read; bounds how fast close() returns.
+READ_SLICE = 0.05
+UNSOLICITED_BACKLOG = 1000
+
+
+@dataclass(frozen=True)
+class Traffic:
+    """One frame or diagnostic on the link, as the traffic hook sees it."""
+
+    time: float  # wall clock, time.time()
+    direction: str  # "tx" or "rx"
+    data: bytes
+    event: Event | None = None
+
+
+@dataclass
+class LinkStats:
+    """Counters a monitor, the shell's toolbar and ``ping`` report."""
+
+    tx_frames: int = 0
+    rx_frames: int = 0
+    checksum_errors: int = 0
+    malformed: int = 0
+    junk_bytes: int = 0
+    timeouts: int = 0
+    retries: int = 0
+    unsolicited: int = 0
+    last_rx: float | None = None
+    by_command: dict[int, int] = field(default_factory=dict)
+
+    def count(self, event: Event) -> None:
+        if isinstance(event, Frame):
+            self.rx_frames += 1
+            self.last_rx = time.monotonic()
+        elif isinstance(event, BadChecksum):
+            self.checksum_errors += 1
+        elif isinstance(event, Malformed):
+            self.malformed += 1
+        elif isinstance(event, Junk):
+            self.junk_bytes += event.size
+        elif isinstance(event, Truncated):
+            self.junk_bytes += len(event.data)
+
+
+TrafficHook = Callable[[Traffic], None]
+FrameHook = Callable[[Frame], None]
+
+
+class Robot:
+    """A connection to one HCR controller (and whatever else shares its line)."""
+
+    def __init__(
+        self,
+        port: Any,
+        *,
+        baud: int = 115200,
+        address: int = C.MAIN_CONTROLLER,
+        timeout: float = 0.5,
+        retries: int = 2,
+        rule: ChecksumRule | str = ChecksumRule.HEADER,
+        on_unsolicited: FrameHook | None = None,
+        on_traffic: TrafficHook | None = None,
+    ) -> None:
+        self.address = address
+        self.timeout = timeout
+        self.retries = retries
+        self.on_unsolicited = on_unsolicited
+        self.on_traffic = on_traffic
+        self.stats = LinkStats()
+        self.unsolicited: queue.Queue[Frame] = queue.Queue(UNSOLICITED_BACKLOG)
+        self.moved = False
+        self.error: PortError | None = None
+        self._rule = ChecksumRule(rule)
+        self._decoder = FrameDecoder(self._rule)
+        self._io = threading.Lock()  # one transaction at a time
+        self._tx = threading.Lock()  # one write at a time (stop may cut in)
+        self._waiting: tuple[int, int] | None = None
+        self._last_tx = b""
+        self._replies: queue.SimpleQueue[Frame] = queue.SimpleQueue()
+        self._closing = threading.Event()
+        self.serial, self.port = self._open(port, baud)
+        self._reader = threading.Thread(target=self._read_loop, name="hcrctl-reader", daemon=True)
+        self._reader.start()
+
+    # -- lifecycle -----------------------------------------------------------
+
+    @staticmethod
+    def _open(port: Any, baud: int) -> tuple[Any, str]:
+        from .transport import describe, open_port
+
+        if isinstance(port, str):
+            return open_port(port, baud, timeout=READ_SLICE), port
+        return port, describe(port)
+
+    def __enter__(self) -> Robot:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Stop the motors if this session moved them, then release the port."""
+        if self._closing.is_set():
+            return
+        with contextlib.suppress(Exception):
+            if self.moved:
+                self.stop()
+        self._closing.set()
+        with contextlib.suppress(Exception):
+            self.serial.cancel_read()
+        self._reader.join(timeout=1.0)
+        with contextlib.suppress(Exception):
+            self.serial.close()
+
+    @property
+    def connected(self) -> bool:
+        return self.error is None and not self._closing.is_set()
+
+    @property
+    def rule(self) -> ChecksumRule:
+        return self._rule
+
+    @rule.setter
+    def rule(self, rule: ChecksumRule | str) -> None:
+        self._rule = ChecksumRule(rule)
+        self._decoder.rule = self._rule
+
+    # -- sending -------------------------------------------------------------
+
+    def send(self, value: C.Request, *, address: int | None = None) -> C.Reply | None:
+        """Send a request; wait for its reply if the command has one."""
+        cmd = C.command_for(value)
+        frame = C.encode_request(value, self._address(address), self._rule)
+        if cmd.reply is None:
+            self.write(frame)
+            return None
+        reply = self.transact(frame, (self._address(address), cmd.code), cmd.name)
+        return cmd.reply.from_content(reply.content)
+
+    def read(self, sensor: str | C.Command, *, address: int | None = None) -> C.Reply:
+        """Read one sensor by table name (``compass``) or table row."""
+        cmd = C.BY_NAME[sensor] if isinstance(sensor, str) else sensor
+        if cmd.kind != "read":
+            raise ValueError(f"{cmd.name} is not a sensor")
+        addr = self._address(address)
+        frame = C.encode_request(cmd, addr, self._rule)
+        reply = self.transact(frame, (addr, cmd.code), cmd.name)
+        try:
+            return cmd.reply.from_content(reply.content)
+        except ProtocolError as exc:
+            raise ProtocolError(f"{exc.message} from 0x{addr:02X} on {self.port}") from exc
+
+    def read_many(self, sensors: Iterable[str]) -> dict[str, C.Reply]:
+        return {name: self.read(name) for name in sensors}
+
+    def stop(self) -> None:
+        """Motor power 0x80 0x80. Sent even when already stopped: cheap, and safe."""
+        self.write(C.encode_request(C.STOP, self.address, self._rule))
+
+    def set_pid(self, p: int, i: int, d: int) -> None:
+        """Set the gains; raises DeviceRefused when the device answers 0x00."""
+        ack = self.send(C.Pid(p, i, d))
+        if not ack.ok:
+            raise DeviceRefused(f"the device at 0x{self.address:02X} on {self.port} refused PID {p} {i} {d}")
+
+    def write(self, frame: bytes) -> None:
+        """Put bytes on the wire as given, telling the traffic hook."""
+        with self._tx:
+            self._check_link()
+            try:
+                self.serial.write(frame)
+                self.serial.flush()
+            except Exception as exc:
+                raise self._lost(exc) from exc
+            self._last_tx = bytes(frame)
+            self.stats.tx_frames += 1
+        if len(frame) > 4 and 0x01 <= frame[4] <= 0x10:  # the motor command range
+            self.moved = True
+        if self.on_traffic is not None:
+            self._tell(Traffic(time.time(), "tx", bytes(frame), _decode_one(frame, self._rule)))
+
+    def transact(self, frame: bytes, expect: tuple[int, int], what: str = "request") -> Frame:
+        """Write ``frame`` and return the frame answering it, retrying on timeout."""
+        with self._io:
+            for attempt in range(1 + max(self.retries, 0)):
+                if attempt:
+                    self.stats.retries += 1
+                reply = self._attempt(frame, expect)
+                if reply is not None:
+                    return reply
+            self.stats.timeouts += 1
+            attempts = 1 + max(self.retries, 0)
+            raise DeviceTimeout(what, expect[0], self.port, self.timeout, attempts)
+
+    def _attempt(self, frame: bytes, expect: tuple[int, int]) -> Frame | None:
+        while not self._replies.empty():  # a late reply to an earlier attempt
+            self._replies.get_nowait()
+        self._waiting = expect
+        try:
+            self.write(frame)
+            return self._replies.get(timeout=self.timeout)
+        except queue.Empty:
+            self._check_link()
+            return None
+        finally:
+            self._waiting = None
+
+    def _address(self, address: int | None) -> int:
+        return self.address if address is None else address
+
+    # -- receiving -----------------------------------------------------------
+
+    def _read_loop(self) -> None:
+        ser = self.serial
+        while not self._closing.is_set():
+            try:
+                data = ser.read(ser.in_waiting or 1)
+            except Exception as exc:
+                if not self._closing.is_set():
+                    self._lost(exc)
+                return
+            if data:
+                self._dispatch(self._decoder.feed(data))
+
+    def _dispatch(self, events: list[Event]) -> None:
+        now = time.time()
+        for event in events:
+            self.stats.count(event)
+            if isinstance(event, Frame):
+                self._route(event)
+            if self.on_traffic is not None:
+                data = event.to_bytes() if isinstance(event, Frame) else event.data
+                self._tell(Traffic(now, "rx", data, event))
+
+    def _route(self, frame: Frame) -> None:
+        if self._waiting == (frame.address, frame.command) and not self._is_echo(frame):
+            self._waiting = None
+            self._replies.put(frame)
+            return
+        self.stats.unsolicited += 1
+        with contextlib.suppress(queue.Full):
+            self.unsolicited.put_nowait(frame)
+        if self.on_unsolicited is not None:
+            self.on_unsolicited(frame)
+
+    def _is_echo(self, frame: Frame) -> bool:
+        """A half-duplex adapter (or loop://) hands our own request back."""
+        return frame.to_bytes() == self._last_tx
+
+    def _tell(self, traffic: Traffic) -> None:
+        if self.on_traffic is not None:
+            self.on_traffic(traffic)
+
+    def _lost(self, exc: Exception) -> PortError:
+        self.error = PortError(f"lost the link ({exc})", self.port, hint="is the device still connected?")
+        return self.error
+
+    def _check_link(self) -> None:
+        if self.error is not None:
+            raise self.error
+
+
+def _decode_one(frame: bytes, rule: ChecksumRule) -> Event | None:
+    """What we sent, as the decoder reads it, for the traffic hook and the log."""
+    decoder = FrameDecoder(rule)
+    events = decoder.feed(frame) + decoder.flush()
+    return events[0] if events else None
