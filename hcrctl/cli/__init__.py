@@ -16,6 +16,7 @@ import click
 
 from .. import __version__
 from ..errors import HcrError
+from ..signals import Terminated, stop_signals_raise
 from .settings import GLOBAL_OPTIONS, Settings
 
 #: name -> ("module:attribute", one-line help). The help is here so that
@@ -63,7 +64,11 @@ def main(argv: list[str] | None = None) -> None:
     """Console-script entry point: run the CLI and map every failure to an exit code."""
     debug = "--debug" in (sys.argv[1:] if argv is None else argv)
     try:
-        code = cli.main(args=argv, prog_name="hcrctl", standalone_mode=False)
+        with stop_signals_raise():
+            code = cli.main(args=argv, prog_name="hcrctl", standalone_mode=False)
+    except Terminated as exc:
+        click.echo(f"hcrctl: {exc}", err=True)
+        code = exc.exit_code
     except click.UsageError as exc:
         code = _usage_error(exc)
     except click.ClickException as exc:
