@@ -62,3 +62,23 @@ class PortError(HcrError):
 
 def _num(x: float) -> str:
     return f"{x:g}" if isinstance(x, float) else str(x)
+
+
+class HexSyntaxError(HcrError):
+    """Input that should be hex is not: a usage error, so nothing is decoded or sent."""
+
+    exit_code = 2
+
+    def __init__(self, token: str, where: str, hint: str | None = None) -> None:
+        super().__init__(f"not hex: {token!r} at {where}", hint=hint)
+        self.token, self.where = token, where
+
+
+class FrameRefused(HcrError):
+    """A typed frame whose checksum, terminator or length is wrong; ``--force`` sends it anyway."""
+
+
+class LogFormatError(HcrError):
+    """A traffic log line that is not what ``--log`` writes: the wrong file was given."""
+
+    exit_code = 2
