@@ -82,3 +82,14 @@ class LogFormatError(HcrError):
     """A traffic log line that is not what ``--log`` writes: the wrong file was given."""
 
     exit_code = 2
+
+
+class ConfigError(HcrError):
+    """A bad config file: a usage error (exit 2) naming the file and the key."""
+
+    exit_code = 2
+
+    def __init__(self, path: object, key: str | None, problem: str) -> None:
+        where = f"{path}: {key}" if key else f"{path}"
+        super().__init__(f"config file {where}: {problem}")
+        self.path, self.key = path, key
