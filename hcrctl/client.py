@@ -18,7 +18,7 @@ import queue
 import threading
 import time
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from . import commands as C
@@ -52,8 +52,8 @@ class LinkStats:
     timeouts: int = 0
     retries: int = 0
     unsolicited: int = 0
+    echoes: int = 0
     last_rx: float | None = None
-    by_command: dict[int, int] = field(default_factory=dict)
 
     def count(self, event: Event) -> None:
         if isinstance(event, Frame):
@@ -192,19 +192,21 @@ class Robot:
 
     def write(self, frame: bytes) -> None:
         """Put bytes on the wire as given, telling the traffic hook."""
+        frame = bytes(frame)
         with self._tx:
             self._check_link()
+            if len(frame) > 4 and C.is_motion(frame[4]):
+                self.moved = True
+            self._last_tx = frame
+            # Told before the bytes leave, so the hook never sees the reply first.
+            if self.on_traffic is not None:
+                self._tell(Traffic(time.time(), "tx", frame, _decode_one(frame, self._rule)))
             try:
                 self.serial.write(frame)
                 self.serial.flush()
             except Exception as exc:
                 raise self._lost(exc) from exc
-            self._last_tx = bytes(frame)
             self.stats.tx_frames += 1
-        if len(frame) > 4 and 0x01 <= frame[4] <= 0x10:  # the motor command range
-            self.moved = True
-        if self.on_traffic is not None:
-            self._tell(Traffic(time.time(), "tx", bytes(frame), _decode_one(frame, self._rule)))
 
     def transact(self, frame: bytes, expect: tuple[int, int], what: str = "request") -> Frame:
         """Write ``frame`` and return the frame answering it, retrying on timeout."""
@@ -260,7 +262,10 @@ class Robot:
                 self._tell(Traffic(now, "rx", data, event))
 
     def _route(self, frame: Frame) -> None:
-        if self._waiting == (frame.address, frame.command) and not self._is_echo(frame):
+        if self._is_echo(frame):
+            self.stats.echoes += 1
+            return
+        if self._waiting == (frame.address, frame.command):
             self._waiting = None
             self._replies.put(frame)
             return
@@ -271,8 +276,11 @@ class Robot:
             self.on_unsolicited(frame)
 
     def _is_echo(self, frame: Frame) -> bool:
-        """A half-duplex adapter (or loop://) hands our own request back."""
-        return frame.to_bytes() == self._last_tx
+        """A half-duplex adapter (or loop://) hands our own request back.
+
+        No reply is ever byte-for-byte its request, so the copy is dropped.
+        """
+        return len(frame.content) + 8 == len(self._last_tx) and frame.to_bytes() == self._last_tx
 
     def _tell(self, traffic: Traffic) -> None:
         if self.on_traffic is not None:

@@ -397,6 +397,11 @@ class GridMap(Reply):
 # -- the table --------------------------------------------------------------
 
 
+def is_motion(code: int) -> bool:
+    """The document's motor-control range, 0x01-0x10: what stop must undo."""
+    return 0x01 <= code <= 0x10
+
+
 @dataclass(frozen=True)
 class Command:
     """One row of the table. ``kind`` is write, read or broadcast."""
@@ -411,7 +416,7 @@ class Command:
 
     @property
     def motion(self) -> bool:
-        return 0x01 <= self.code <= 0x10
+        return is_motion(self.code)
 
     @property
     def request_fields(self) -> tuple[FieldInfo, ...]:
