@@ -28,6 +28,9 @@ from .frames import BadChecksum, ChecksumRule, Event, Frame, FrameDecoder, Junk,
 #: How long the reader blocks in one read; bounds how fast close() returns.
 READ_SLICE = 0.05
 UNSOLICITED_BACKLOG = 1000
+#: Cap on one blocking read: a false header announcing a long frame must not
+#: keep a real reply waiting in the OS buffer for a whole read slice.
+MAX_READ = 16
 
 
 @dataclass(frozen=True)
@@ -203,7 +206,6 @@ class Robot:
                 self._tell(Traffic(time.time(), "tx", frame, _decode_one(frame, self._rule)))
             try:
                 self.serial.write(frame)
-                self.serial.flush()
             except Exception as exc:
                 raise self._lost(exc) from exc
             self.stats.tx_frames += 1
@@ -243,7 +245,7 @@ class Robot:
         ser = self.serial
         while not self._closing.is_set():
             try:
-                data = ser.read(ser.in_waiting or 1)
+                data = ser.read(max(ser.in_waiting, min(self._decoder.wanted, MAX_READ)))
             except Exception as exc:
                 if not self._closing.is_set():
                     self._lost(exc)
