@@ -1,19 +1,23 @@
 """Pure functions from readings to rich renderables, and to JSON-ready dicts.
 
 No I/O here: the one-shot commands, the shell and the live panels all draw
-with these, and tests render them on a fixed-width capture console.
+with these, and tests render them on a fixed-width capture console. rich is
+imported inside the table builders, so the text helpers (``cardinal``,
+``reading_rows``) cost nothing to a caller that only prints lines.
 """
 
 from __future__ import annotations
 
-from typing import Any
-
-from rich import box
-from rich.table import Table
+from typing import TYPE_CHECKING, Any
 
 from . import commands as C
 
+if TYPE_CHECKING:
+    from rich.table import Table
+
+# fmt: off
 CARDINALS = ("N", "NNE", "NE", "ENE", "E", "ESE", "SE", "SSE", "S", "SSW", "SW", "WSW", "W", "WNW", "NW", "NNW")
+# fmt: on
 
 
 def cardinal(heading: float) -> str:
@@ -21,14 +25,25 @@ def cardinal(heading: float) -> str:
     return CARDINALS[round(heading % 360 / 22.5) % 16]
 
 
+def heading_text(heading: float) -> str:
+    """``123.4° ESE``."""
+    return f"{heading:.1f}° {cardinal(heading)}"
+
+
 def bumper_text(bump: tuple[bool, ...]) -> str:
-    hits = [name for name, hit in zip(C.BUMPER_NAMES, bump) if hit]
+    """The bumpers by name: ``hit: left, front`` or ``clear``."""
+    hits = [name for name, hit in zip(C.BUMPER_NAMES, bump, strict=False) if hit]
     return "hit: " + ", ".join(hits) if hits else "clear"
 
 
 def _values(values: tuple[int, ...], unit: str) -> str:
-    suffix = f" {unit}" if unit else ""
-    return "  ".join(f"{v}{suffix}" for v in values)
+    """Several sensors of one kind, the unit said once: ``120  80  200 cm``."""
+    return "  ".join(str(v) for v in values) + (f" {unit}" if unit else "")
+
+
+def _unit(reply: C.Reply, name: str) -> str:
+    """A reply field's unit, from the command table."""
+    return next((f.unit for f in C.fields_of(type(reply)) if f.name == name), "")
 
 
 def reading_rows(name: str, reply: C.Reply) -> list[tuple[str, str]]:
@@ -36,21 +51,28 @@ def reading_rows(name: str, reply: C.Reply) -> list[tuple[str, str]]:
     if isinstance(reply, C.Bumpers):
         return [("bumpers", bumper_text(reply.bump))]
     if isinstance(reply, C.Infrared):
-        return [("IR", _values(reply.ir, "raw"))]
+        return [("infrared", _values(reply.ir, f"({_unit(reply, 'ir')})"))]
     if isinstance(reply, C.Ultrasonic):
-        return [("ultrasonic", _values(reply.sonar, "cm"))]
+        return [("ultrasonic", _values(reply.sonar, _unit(reply, "sonar")))]
     if isinstance(reply, C.Compass):
-        return [("compass", f"{reply.heading:.1f}° {cardinal(reply.heading)}")]
+        return [("compass", heading_text(reply.heading))]
     if isinstance(reply, C.WheelSpeed):
         left, right = reply.wheels
-        return [("wheels", f"left {left} cm/s  right {right} cm/s")]
+        unit = _unit(reply, "wheels")
+        return [("wheels", f"left {left} {unit}  right {right} {unit}")]
     if isinstance(reply, C.Environment):
-        return [("temperature", f"{reply.temperature} °C"), ("humidity", f"{reply.humidity} %")]
+        return [
+            ("temperature", f"{reply.temperature} {_unit(reply, 'temperature')}"),
+            ("humidity", f"{reply.humidity} {_unit(reply, 'humidity')}"),
+        ]
     return [(name, str(reply.fields()))]
 
 
 def readings_table(readings: dict[str, C.Reply], *, borders: bool = True) -> Table:
-    """One table of sensor readings; borderless for pipes and scripts."""
+    """One table of sensor readings; borderless and headerless for pipes and scripts."""
+    from rich import box
+    from rich.table import Table
+
     table = Table(box=box.ROUNDED if borders else None, show_header=borders, pad_edge=borders)
     table.add_column("sensor", style="bold cyan")
     table.add_column("value")
@@ -60,8 +82,18 @@ def readings_table(readings: dict[str, C.Reply], *, borders: bool = True) -> Tab
     return table
 
 
+def readings_text(readings: dict[str, C.Reply]) -> str:
+    """The readings as aligned plain lines, for pipes: no colour, no padding at line ends."""
+    rows = [row for name, reply in readings.items() for row in reading_rows(name, reply)]
+    width = max((len(label) for label, _ in rows), default=0)
+    return "\n".join(f"{label:<{width}}  {value}".rstrip() for label, value in rows)
+
+
 def readings_json(readings: dict[str, C.Reply]) -> dict[str, Any]:
-    """The ``read --json`` object: the replies' fields, merged."""
+    """The ``read --json`` object: the replies' fields, merged.
+
+    Keys: bump, ir, sonar, heading, wheels, humidity, temperature.
+    """
     out: dict[str, Any] = {}
     for reply in readings.values():
         out.update(reply.fields())

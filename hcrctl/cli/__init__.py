@@ -9,21 +9,40 @@ here, and only here.
 from __future__ import annotations
 
 import importlib
+import os
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from .. import __version__
 from ..errors import HcrError
 from ..signals import Terminated, stop_signals_raise
-from .settings import GLOBAL_OPTIONS, Settings
+from .settings import GLOBAL_OPTIONS, Settings, config_keys
+
+if TYPE_CHECKING:
+    from click.shell_completion import CompletionItem
+
+#: Click >= 8.2 raises this for a bare group; older Clicks print the help themselves.
+NoArgsIsHelpError = getattr(click.exceptions, "NoArgsIsHelpError", ())
 
 #: name -> ("module:attribute", one-line help). The help is here so that
 #: ``hcrctl --help`` lists everything without importing every module.
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "read": ("hcrctl.cli.read:read", "Read sensors once and print them."),
+    "drive": ("hcrctl.cli.drive:drive", "Drive both motors (power, speed, velocity); stop on exit."),
+    "turn": ("hcrctl.cli.turn:turn", "Turn in place by an angle, wait until done, then stop."),
+    "stop": ("hcrctl.cli.drive:stop", "Stop both motors (motor power 0x80 0x80)."),
+    "servo": ("hcrctl.cli.servo:servo", "Move servos 1 and 2."),
+    "pid": ("hcrctl.cli.pid:pid", "Set the speed controller's PID gains."),
+    "ping": ("hcrctl.cli.ping:ping", "Check the link with the cheapest read, like ping."),
+    "ports": ("hcrctl.cli.ports:ports", "List the serial ports present."),
     "sim": ("hcrctl.cli.sim:sim", "Serve the simulated robot on a pty or TCP port."),
+    "watch": ("hcrctl.cli.watch:watch", "Live full-screen dashboard of the sensors and the link."),
+    "teleop": ("hcrctl.cli.teleop:teleop", "Drive the robot with the arrow keys or WASD (deadman stop)."),
+    "hex": ("hcrctl.cli.hex:hex_group", "Decode, encode and send raw frames (the hex debugger)."),
+    "monitor": ("hcrctl.cli.monitor:monitor", "Watch every frame on the line, decoded, with counters."),
+    "replay": ("hcrctl.cli.replay:replay", "Re-send the requests of a --log file with their timing."),
 }
 
 CONTEXT = {"help_option_names": ["-h", "--help"], "auto_envvar_prefix": "HCRCTL", "max_content_width": 100}
@@ -47,6 +66,14 @@ class LazyGroup(click.Group):
         with formatter.section("Commands"):
             formatter.write_dl(rows)
 
+    def shell_complete(self, ctx: click.Context, incomplete: str) -> list[CompletionItem]:
+        """Subcommand names and help from SUBCOMMANDS, so a TAB imports no module."""
+        from click.shell_completion import CompletionItem
+
+        names = [n for n in self.list_commands(ctx) if n.startswith(incomplete)]
+        items = [CompletionItem(n, help=SUBCOMMANDS[n][1]) for n in names]
+        return items + click.Command.shell_complete(self, ctx, incomplete)
+
 
 @click.group(cls=LazyGroup, context_settings=CONTEXT)
 @click.version_option(__version__, "--version", prog_name="hcrctl")
@@ -62,37 +89,60 @@ def cli(ctx: click.Context, **options: Any) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point: run the CLI and map every failure to an exit code."""
-    debug = "--debug" in (sys.argv[1:] if argv is None else argv)
+    args = sys.argv[1:] if argv is None else list(argv)
     try:
         with stop_signals_raise():
-            code = cli.main(args=argv, prog_name="hcrctl", standalone_mode=False)
-    except Terminated as exc:
-        click.echo(f"hcrctl: {exc}", err=True)
-        code = exc.exit_code
-    except click.UsageError as exc:
-        code = _usage_error(exc)
-    except click.ClickException as exc:
-        click.echo(f"hcrctl: error: {exc.format_message()}", err=True)
-        code = exc.exit_code
-    except (click.Abort, KeyboardInterrupt):
-        click.echo("hcrctl: interrupted", err=True)
-        code = 130
-    except HcrError as exc:
-        if debug:
+            code = cli.main(
+                args=args, prog_name="hcrctl", standalone_mode=False, default_map=config_defaults()
+            )
+    except SystemExit:
+        raise
+    except BaseException as exc:  # the one place errors become exit codes
+        if _debug(args) and isinstance(exc, Exception) and not isinstance(exc, click.ClickException):
             raise
-        click.echo(f"hcrctl: error: {exc.one_line()}", err=True)
-        code = exc.exit_code
-    except Exception as exc:
-        if debug:
-            raise
-        click.echo(f"hcrctl: internal error: {exc!r} (run with --debug for the traceback)", err=True)
-        code = 1
+        code = exit_code_for(exc)
     sys.exit(code if isinstance(code, int) else 0)
+
+
+def config_defaults() -> dict[str, Any]:
+    """The config file's values for the global options (checked), or {}."""
+    from ..config import option_defaults
+
+    return option_defaults(config_keys(cli))
+
+
+def _debug(args: list[str]) -> bool:
+    return "--debug" in args or os.environ.get("HCRCTL_DEBUG", "").lower() in ("1", "true", "yes", "on")
+
+
+def exit_code_for(exc: BaseException) -> int:
+    """Say what went wrong on one stderr line; the exit code that goes with it."""
+    if isinstance(exc, Terminated):
+        click.echo(f"hcrctl: {exc}", err=True)
+        return exc.exit_code
+    if isinstance(exc, NoArgsIsHelpError):
+        exc.show()  # a bare group: its help, as Click shows it
+        return exc.exit_code
+    if isinstance(exc, click.UsageError):
+        return _usage_error(exc)
+    if isinstance(exc, click.ClickException):
+        click.echo(f"hcrctl: error: {exc.format_message()}", err=True)
+        return exc.exit_code
+    if isinstance(exc, (click.Abort, KeyboardInterrupt)):
+        click.echo("hcrctl: interrupted", err=True)
+        return 130
+    if isinstance(exc, HcrError):
+        click.echo(f"hcrctl: error: {exc.one_line()}", err=True)
+        return exc.exit_code
+    if not isinstance(exc, Exception):
+        raise exc
+    click.echo(f"hcrctl: internal error: {exc!r} (run with --debug for the traceback)", err=True)
+    return 1
 
 
 def _usage_error(exc: click.UsageError) -> int:
     """Click's message on one line, naming the parameter, plus where help is."""
     path = exc.ctx.command_path if exc.ctx else "hcrctl"
-    message = exc.format_message().replace("\n", " ")
+    message = " ".join(exc.format_message().split())
     click.echo(f"{path}: error: {message} (see '{path} --help')", err=True)
     return exc.exit_code

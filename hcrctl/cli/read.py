@@ -1,4 +1,8 @@
-"""``hcrctl read [SENSOR...]``: one sweep of the sensors, as a table or JSON."""
+"""``hcrctl read [SENSOR...]``: one sweep of the sensors, as a table or JSON.
+
+The sensor names are the command table's read rows, so a Click ``Choice``
+refuses an unknown name (exit 2) and completes the known ones in the shell.
+"""
 
 from __future__ import annotations
 
@@ -7,14 +11,20 @@ import json
 import click
 
 from .. import commands as C
+from .params import NamedArgument
 from .settings import Settings, stdout_is_terminal
 
 
-@click.command()
-@click.argument("sensors", nargs=-1, type=click.Choice(C.SENSORS))
+def _sensor_help() -> str:
+    return "\n".join(f"{c.name:<8} {c.help}" for c in C.COMMANDS if c.kind == "read")
+
+
+@click.command(
+    help="Read SENSORS once and print them; none means all of them.\n\n\b\n" + _sensor_help(),
+)
+@click.argument("sensors", nargs=-1, type=click.Choice(C.SENSORS), metavar="[SENSOR]...", cls=NamedArgument)
 @click.pass_obj
 def read(settings: Settings, sensors: tuple[str, ...]) -> None:
-    """Read SENSORS (bump, ir, sonar, compass, wheels, env); none means all."""
     names = list(dict.fromkeys(sensors)) or list(C.SENSORS)
     with settings.robot() as robot:
         readings = robot.read_many(names)
@@ -22,8 +32,9 @@ def read(settings: Settings, sensors: tuple[str, ...]) -> None:
 
     if settings.as_json:
         click.echo(json.dumps(render.readings_json(readings)))
-        return
-    from rich.console import Console
+    elif not stdout_is_terminal():
+        click.echo(render.readings_text(readings))
+    else:
+        from rich.console import Console
 
-    console = Console()
-    console.print(render.readings_table(readings, borders=stdout_is_terminal()))
+        Console(highlight=False).print(render.readings_table(readings))

@@ -3,6 +3,10 @@
 The shell changes these at runtime (``set timeout 0.2``) and keeps one robot
 connected across commands, so subcommands never open ports themselves: they
 ask ``Settings.robot()`` for one.
+
+Each global option also comes from ``HCRCTL_<NAME>`` and from the config file
+(key ``<name>``), both derived here from the option's long name so the three
+spellings can never drift apart.
 """
 
 from __future__ import annotations
@@ -16,18 +20,25 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from ..frames import ChecksumRule
+from .params import FloatRange, IntRange
 
 if TYPE_CHECKING:
+    from click.shell_completion import CompletionItem
+
     from ..client import Robot
+
+ENV_PREFIX = "HCRCTL_"
+SIM_URL = "sim://"
 
 
 class ByteNumber(click.ParamType):
     """A byte given in decimal or 0x-hex, such as an address: 1, 0x01, 0x50."""
 
     name = "0..255"
+    accepts_int = True  # the config file may say address = 0x50 or "0x50"
 
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> int:
-        if isinstance(value, int):
+        if isinstance(value, int) and not isinstance(value, bool):
             number = value
         else:
             try:
@@ -39,16 +50,60 @@ class ByteNumber(click.ParamType):
         return number
 
 
-def _options() -> list[Callable[[Callable], Callable]]:
+def complete_port(ctx: click.Context, param: click.Parameter, incomplete: str) -> list[CompletionItem]:
+    """The serial ports present (and their by-id links), plus sim://."""
+    from click.shell_completion import CompletionItem
+
+    from .ports import list_ports
+
+    names = [SIM_URL]
+    for port in list_ports():
+        names += [port.device, *([port.by_id] if port.by_id else [])]
+    matches = [CompletionItem(name) for name in names if name.startswith(incomplete)]
+    return matches or [CompletionItem(incomplete, type="file")]
+
+
+class GlobalOption(click.Option):
+    """Names its env var in an error only when the bad value came from there."""
+
+    def get_error_hint(self, ctx: click.Context) -> str:
+        hint = click.Parameter.get_error_hint(self, ctx)
+        from click.core import ParameterSource
+
+        if self.name and ctx.get_parameter_source(self.name) is ParameterSource.ENVIRONMENT:
+            hint += f" (from {self.envvar})"
+        return hint
+
+
+def _option(*decls: str, **attrs: Any) -> click.Option:
+    """A global option whose env var is HCRCTL_ plus its long name."""
+    long_name = next(d for d in decls if d.startswith("--"))[2:]
+    envvar = ENV_PREFIX + long_name.upper().replace("-", "_")
+    return GlobalOption(list(decls), envvar=envvar, show_envvar=True, allow_from_autoenv=False, **attrs)
+
+
+def global_options() -> list[click.Option]:
+    """Fresh option objects (Click mutates them), in --help order."""
     return [
-        click.option("--port", "-p", metavar="PORT", help="Device path or pyserial URL; sim:// is the simulator."),
-        click.option("--baud", type=click.IntRange(50, 4_000_000), default=115200, show_default=True),
-        click.option("--address", type=ByteNumber(), default="0x01", show_default=True, help="Device address."),
-        click.option(
-            "--timeout", type=click.FloatRange(0.001, 60), default=0.5, show_default=True, help="Reply timeout, s."
+        _option(
+            "--port",
+            "-p",
+            metavar="PORT",
+            shell_complete=complete_port,
+            help="Device path or pyserial URL (socket://, rfc2217://, spy://); sim:// is the simulator. "
+            "Default: the only USB serial port.",
         ),
-        click.option("--retries", type=click.IntRange(0, 20), default=2, show_default=True, help="Read retries."),
-        click.option(
+        _option("--baud", type=IntRange(50, 4_000_000), default=115200, show_default=True),
+        _option("--address", type=ByteNumber(), default="0x01", show_default=True, help="Device address."),
+        _option(
+            "--timeout",
+            type=FloatRange(0.001, 60),
+            default=0.5,
+            show_default=True,
+            help="Reply timeout, s.",
+        ),
+        _option("--retries", type=IntRange(0, 20), default=2, show_default=True, help="Read retries."),
+        _option(
             "--checksum-from",
             "checksum",
             type=click.Choice([r.value for r in ChecksumRule]),
@@ -56,15 +111,26 @@ def _options() -> list[Callable[[Callable], Callable]]:
             show_default=True,
             help="Where the checksum sum starts: header (the document's rule) or address.",
         ),
-        click.option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout."),
-        click.option("--log", type=click.Path(dir_okay=False), help="Append every frame to FILE as JSON lines."),
-        click.option("--debug", is_flag=True, help="Show tracebacks."),
+        _option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout."),
+        _option("--log", type=click.Path(dir_okay=False), help="Append every frame to FILE."),
+        _option("--debug", is_flag=True, help="Show tracebacks."),
     ]
 
 
-def GLOBAL_OPTIONS(func: Callable) -> Callable:  # noqa: N802 - reads as a decorator
-    for option in reversed(_options()):
-        func = option(func)
+def config_keys(command: click.Command) -> dict[str, click.Option]:
+    """Config-file key (the long option name) -> the group's option."""
+    keys = {}
+    for param in command.params:
+        if isinstance(param, click.Option) and param.envvar and str(param.envvar).startswith(ENV_PREFIX):
+            keys[str(param.envvar)[len(ENV_PREFIX) :].lower().replace("_", "-")] = param
+    return keys
+
+
+def GLOBAL_OPTIONS(func: Callable) -> Callable:
+    """Attach the global options to a Click command function."""
+    params = getattr(func, "__click_params__", [])
+    params.extend(reversed(global_options()))
+    func.__click_params__ = params  # type: ignore[attr-defined]
     return func
 
 
@@ -113,12 +179,20 @@ class Settings:
             retries=self.retries,
             rule=self.checksum,
         )
+        if self.log:
+            from ..trafficlog import attach
+
+            attach(robot, self.log)
         for hook in self.robot_hooks:
             hook(robot)
         return robot
 
     def resolve_port(self) -> str:
-        """--port, or the one USB serial port present (said on stderr)."""
+        """--port, or the one USB serial port present (said on stderr).
+
+        Without either it is a PortError (exit 1), not a usage error: the same
+        command works once the robot is plugged in.
+        """
         if self.port:
             return self.port
         from ..errors import PortError
@@ -128,8 +202,12 @@ class Settings:
         if len(usb) == 1:
             click.echo(f"hcrctl: using {usb[0]}, the only USB serial port", err=True)
             return usb[0]
-        what = "no --port given and no USB serial port found" if not usb else "several USB serial ports"
-        raise PortError(what, "", hint=f"give --port; {ports_hint()}")
+        what = (
+            "no --port given and no USB serial port found"
+            if not usb
+            else "no --port given and several USB serial ports"
+        )
+        raise PortError(what, "", hint=f"give --port PORT; {ports_hint()}")
 
 
 def _usb_ports() -> list[str]:

@@ -1,0 +1,105 @@
+"""``hcrctl drive power|speed|velocity L R`` and ``hcrctl stop``.
+
+A one-shot drive must never leave the robot running after hcrctl is gone, so
+it holds the motion in the foreground (``--for SECONDS``, or until Ctrl-C,
+SIGTERM or SIGHUP) and then sends stop. Inside the shell the session owns the
+robot and its stop, so there drive returns at once.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING, Any
+
+import click
+
+from .. import commands as C
+from .params import FloatRange, request_value, table_command
+from .settings import Settings
+from .writes import describe, emit, hex_bytes, say, send_request, send_stop, sent_record, stopping
+
+if TYPE_CHECKING:
+    from ..client import Robot
+
+#: The table rows under ``drive``; turn, a bounded motion, has its own command.
+DRIVE_COMMANDS = ("power", "speed", "velocity")
+#: How often a held drive checks that the link is still up.
+HOLD_POLL_S = 0.1
+
+
+@click.group()
+def drive() -> None:
+    """Drive both motors: power or speed in percent, velocity in cm/s.
+
+    One-shot, the motion is held until --for SECONDS elapses or Ctrl-C, then
+    stop is sent. Negative values need no '--': hcrctl drive power -50 -50
+    """
+
+
+def _drive_command(name: str) -> click.Command:
+    @table_command(name)
+    @click.option(
+        "--for",
+        "hold_for",
+        type=FloatRange(0, 86_400),
+        metavar="SECONDS",
+        help="Stop after SECONDS (default: hold until Ctrl-C).",
+    )
+    @click.pass_obj
+    def command(settings: Settings, hold_for: float | None, **fields: Any) -> None:
+        run_drive(settings, request_value(C.BY_NAME[name], fields), hold_for)
+
+    return command
+
+
+for _name in DRIVE_COMMANDS:
+    drive.add_command(_drive_command(_name))
+
+
+def run_drive(settings: Settings, value: C.Request, hold_for: float | None) -> None:
+    """Send the motion; one-shot, hold it and stop; in the shell, return at once."""
+    with settings.robot() as robot:
+        if settings.session is not None:
+            record, _ = send_request(robot, value)
+            emit(settings, record, f"sent {describe(value)}: {record['hex']}")
+            return
+        with stopping(robot):
+            record, _ = send_request(robot, value)
+            until = f"for {hold_for:g} s" if hold_for is not None else "until Ctrl-C"
+            say(f"driving: {describe(value)} {until} — Ctrl-C to stop")
+            record["held_s"] = round(hold(robot, hold_for), 3)
+        record["stop_hex"] = hex_bytes(C.encode_request(C.STOP, robot.address, robot.rule))
+    say(f"stopped after {record['held_s']:g} s")
+    if settings.as_json:
+        emit(settings, record, "")
+
+
+def hold(robot: Robot, seconds: float | None) -> float:
+    """Wait while the motion runs; the seconds it was held.
+
+    Ctrl-C is the normal end of an open-ended drive (exit 0); with --for it
+    interrupts (exit 130). SIGTERM/SIGHUP raise through, and the caller's
+    ``stopping()`` still sends stop. A lost link ends the hold with its error.
+    """
+    start = time.monotonic()
+    deadline = None if seconds is None else start + seconds
+    try:
+        while deadline is None or time.monotonic() < deadline:
+            if robot.error is not None:
+                raise robot.error
+            left = HOLD_POLL_S if deadline is None else deadline - time.monotonic()
+            time.sleep(max(0.0, min(HOLD_POLL_S, left)))
+    except KeyboardInterrupt:
+        if deadline is not None:
+            raise
+    return time.monotonic() - start
+
+
+@click.command()
+@click.pass_obj
+def stop(settings: Settings) -> None:
+    """Stop both motors (motor power 0x80 0x80)."""
+    with settings.robot() as robot:
+        record = sent_record(robot, C.STOP)
+        send_stop(robot)
+    emit(settings, record, f"sent stop: {record['hex']}")

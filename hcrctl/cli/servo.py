@@ -1,0 +1,22 @@
+"""``hcrctl servo P1 P2``: move servos 1 and 2 (0..255 each, from the table)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import click
+
+from .. import commands as C
+from .params import request_value, table_command
+from .settings import Settings
+from .writes import describe, emit, send_request
+
+
+@table_command("servo")
+@click.pass_obj
+def servo(settings: Settings, **fields: Any) -> None:
+    """Move servos 1 and 2 to positions P1 and P2."""
+    value = request_value(C.BY_NAME["servo"], fields)
+    with settings.robot() as robot:
+        record, _ = send_request(robot, value)
+    emit(settings, record, f"sent {describe(value)}: {record['hex']}")

@@ -1,0 +1,115 @@
+"""``hcrctl turn ANGLE [--cw|--ccw] [--rate RV]``: turn in place, wait, stop.
+
+The protocol has no "turn finished" reply, so the compass is the only witness:
+it is polled until the heading has changed by about ANGLE, or has stopped
+changing (the robot finished short, or hit something), bounded by a timeout
+derived from the angle and the rate. Stop is sent at the end however the turn
+ends; Ctrl-C ends it at once.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import click
+
+from .. import commands as C
+from ..errors import HcrError
+from ..render import heading_text
+from .params import request_value, table_command
+from .settings import Settings
+from .writes import emit, say, send_request, stopping
+
+POLL_S = 0.05
+#: Within this of ANGLE the turn counts as done (compass noise, overshoot).
+TOLERANCE_DEG = 1.0
+#: No heading change beyond STALL_DEG for STALL_S: the robot has stopped turning.
+STALL_DEG = 0.3
+STALL_S = 1.0
+#: The slowest full-rate (RV 255) turn we allow for before giving up.
+SLOWEST_FULL_RATE_DEG_S = 45.0
+TIMEOUT_MARGIN_S = 2.0
+
+
+def turn_timeout(angle: int, rate: int) -> float:
+    """Seconds a turn may take: the angle at the slowest rate RV allows, plus a margin."""
+    return TIMEOUT_MARGIN_S + angle / (SLOWEST_FULL_RATE_DEG_S * max(rate, 1) / 255)
+
+
+def heading_delta(before: float, after: float) -> float:
+    """The signed change from ``before`` to ``after`` across north, in -180..180."""
+    return (after - before + 180.0) % 360.0 - 180.0
+
+
+@dataclass
+class TurnProgress:
+    """How far a turn has gone, fed one compass reading at a time (pure, no I/O)."""
+
+    start: float
+    angle: float
+    ccw: bool
+    started_at: float
+    turned: float = 0.0
+    last: float = field(init=False)
+    moved_at: float = field(init=False)
+    still_from: float = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.last = self.still_from = self.start
+        self.moved_at = self.started_at
+
+    def feed(self, heading: float, now: float) -> bool:
+        """Take a reading; True once the turn is done (reached, or stalled)."""
+        step = heading_delta(self.last, heading)
+        self.turned += -step if self.ccw else step
+        self.last = heading
+        if abs(heading_delta(self.still_from, heading)) > STALL_DEG:
+            self.still_from, self.moved_at = heading, now
+        return self.reached or now - self.moved_at >= STALL_S
+
+    @property
+    def reached(self) -> bool:
+        return self.turned >= self.angle - TOLERANCE_DEG
+
+
+@table_command("turn")
+@click.pass_obj
+def turn(settings: Settings, **fields: Any) -> None:
+    """Turn in place by ANGLE degrees, wait until done, then stop."""
+    value = request_value(C.BY_NAME["turn"], fields)
+    with settings.robot() as robot, stopping(robot):
+        start = robot.read("compass").heading
+        record, _ = send_request(robot, value)
+        say(
+            f"turning: {value.angle}° {_way(value)} at rate {value.rate} from {heading_text(start)} — Ctrl-C to stop"
+        )
+        progress = watch_turn(robot, value, start)
+    record.update(heading_start=start, heading_end=progress.last, turned=round(progress.turned, 1))
+    text = (
+        f"turned {progress.turned:.1f}° {_way(value)}: {heading_text(start)} → {heading_text(progress.last)}"
+    )
+    emit(settings, record, text)
+
+
+def _way(value: C.Turn) -> str:
+    return "counter-clockwise" if value.ccw else "clockwise"
+
+
+def watch_turn(robot: Any, value: C.Turn, start: float) -> TurnProgress:
+    """Poll the compass until the turn is done; an HcrError if it never settles."""
+    now = time.monotonic()
+    progress = TurnProgress(start, value.angle, value.ccw, now)
+    deadline = now + turn_timeout(value.angle, value.rate)
+    done = value.angle == 0
+    while not done:
+        if time.monotonic() > deadline:
+            raise HcrError(
+                f"turn did not finish within {deadline - now:.1f} s on {robot.port} "
+                f"(turned {progress.turned:.1f}° of {value.angle}°); stop sent",
+                hint="is the compass working? try a higher --rate",
+            )
+        time.sleep(POLL_S)
+        done = progress.feed(robot.read("compass").heading, time.monotonic())
+    return progress

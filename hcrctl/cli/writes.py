@@ -1,0 +1,121 @@
+"""What every write command shares: send, say what went on the wire, always stop.
+
+A write command reports the exact frame it sent (``--json`` gives command,
+address, fields and hex), so a user debugging firmware can compare it with a
+logic analyser. Anything that moved the motors ends inside ``stopping()``,
+which sends stop however the block ends, with Ctrl-C, SIGTERM and SIGHUP held
+back for the few microseconds the stop frame needs.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import signal
+import threading
+from collections.abc import Iterator
+from typing import TYPE_CHECKING, Any
+
+import click
+
+from .. import commands as C
+
+if TYPE_CHECKING:
+    from ..client import Robot
+    from .settings import Settings
+
+#: Signals that would cut a stop frame short; held while it is written.
+_DEFERRED = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
+
+
+def hex_bytes(data: bytes) -> str:
+    """The spaced upper-case hex of protocol.md: ``55 AA 01 ...``."""
+    return data.hex(" ").upper()
+
+
+def frame_of(robot: Robot, value: C.Request) -> bytes:
+    """The exact bytes ``robot.send(value)`` puts on the wire."""
+    return C.encode_request(value, robot.address, robot.rule)
+
+
+def sent_record(robot: Robot, value: C.Request) -> dict[str, Any]:
+    """The ``--json`` description of one request: what, to whom, and the bytes."""
+    cmd = C.command_for(value)
+    return {
+        "command": cmd.name,
+        "code": cmd.code,
+        "address": robot.address,
+        "port": robot.port,
+        "fields": dataclasses.asdict(value),
+        "hex": hex_bytes(frame_of(robot, value)),
+    }
+
+
+def describe(value: C.Request) -> str:
+    """``power 60 60``: the request as the user would type it."""
+    cmd = C.command_for(value)
+    args = [_arg_text(info, getattr(value, info.name)) for info in cmd.request_fields]
+    return " ".join([cmd.name, *(a for a in args if a)])
+
+
+def _arg_text(info: C.FieldInfo, value: Any) -> str:
+    if info.is_flag:
+        return f"--{info.name}" if value else ""
+    if info.default is not None:
+        return "" if value == info.default else f"--{info.name} {value}"
+    return str(value)
+
+
+def send_request(robot: Robot, value: C.Request) -> tuple[dict[str, Any], C.Reply | None]:
+    """Send ``value``; its record and the device's reply, if the command has one."""
+    record = sent_record(robot, value)
+    return record, robot.send(value)
+
+
+def emit(settings: Settings, record: dict[str, Any], text: str) -> None:
+    """The one JSON document with --json, else a line for people."""
+    click.echo(json.dumps(record) if settings.as_json else text)
+
+
+def say(message: str) -> None:
+    """Progress and notes go to stderr, so stdout stays clean for --json and pipes."""
+    click.echo(f"hcrctl: {message}", err=True)
+
+
+def send_stop(robot: Robot) -> bytes:
+    """Stop the motors; the robot is then at rest, so close() need not repeat it."""
+    with signals_deferred():
+        robot.stop()
+        robot.moved = False
+    return frame_of(robot, C.STOP)
+
+
+@contextlib.contextmanager
+def stopping(robot: Robot) -> Iterator[None]:
+    """Send stop when the block ends, however it ends.
+
+    When the block raised, a failing stop must not hide the first error (the
+    link is probably gone); on a normal exit a failing stop is the error.
+    """
+    try:
+        yield
+    except BaseException:
+        with contextlib.suppress(Exception):
+            send_stop(robot)
+        raise
+    send_stop(robot)
+
+
+@contextlib.contextmanager
+def signals_deferred() -> Iterator[None]:
+    """Block Ctrl-C, SIGTERM and SIGHUP for the block; they are delivered after it."""
+    main = threading.current_thread() is threading.main_thread()
+    if not main or not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, _DEFERRED)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
