@@ -1,0 +1,38 @@
+"""``hcrctl teleop [--speed PERCENT] [--turn PERCENT] [--timeout S]``: keyboard driving."""
+
+from __future__ import annotations
+
+import click
+
+from .. import commands as C
+from .settings import Settings
+
+#: Percent ranges come from the motor-speed command (0x02) in the table.
+_PERCENT = C.BY_NAME["speed"].request_fields[0]
+PERCENT = click.IntRange(0, int(_PERCENT.hi))
+
+
+@click.command()
+@click.option(
+    "--speed", type=PERCENT, default=50, show_default=True, help="Forward/back speed, % of maximum."
+)
+@click.option("--turn", type=PERCENT, default=30, show_default=True, help="Turning speed, % of maximum.")
+@click.option(
+    "--timeout",
+    type=click.FloatRange(0.05, 10),
+    default=0.5,
+    show_default=True,
+    metavar="S",
+    help="Deadman: stop when no key arrives for S seconds.",
+)
+@click.pass_obj
+def teleop(settings: Settings, speed: int, turn: int, timeout: float) -> None:
+    """Drive with the arrow keys or WASD; space or k stops, +/- change the speed, q quits.
+
+    Motion lasts only while keys keep arriving (hold a key: its repeat keeps
+    the robot going). A bumper hit stops forward motion. Stop is sent
+    whenever teleop ends, however it ends.
+    """
+    from ..teleop import run_teleop
+
+    run_teleop(settings, speed, turn, timeout)

@@ -1,0 +1,54 @@
+"""``hcrctl watch [SENSOR...] [--rate HZ|max] [--duration S]``: the live dashboard."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import click
+
+from .. import commands as C
+from .settings import Settings
+
+MAX_RATE = 1000.0
+
+
+class Rate(click.ParamType):
+    """Polls per second, or ``max``: as fast as the device answers."""
+
+    name = "HZ|max"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> float | None:
+        if value is None or (isinstance(value, str) and value.lower() == "max"):
+            return None
+        try:
+            rate = float(value)
+        except (TypeError, ValueError):
+            self.fail(f"{value!r} is not a number of Hz or 'max'", param, ctx)
+        if not 0 < rate <= MAX_RATE:
+            self.fail(f"{value} is not in the range 0<x<={MAX_RATE:g} Hz (or 'max')", param, ctx)
+        return rate
+
+
+@click.command()
+@click.argument("sensors", nargs=-1, type=click.Choice(C.SENSORS))
+@click.option("--rate", type=Rate(), default="10", show_default=True, help="Sweeps per second, or max.")
+@click.option(
+    "--duration",
+    type=click.FloatRange(0, min_open=True),
+    metavar="S",
+    help="Exit by itself after S seconds (for scripts and tests).",
+)
+@click.pass_obj
+def watch(settings: Settings, sensors: tuple[str, ...], rate: float | None, duration: float | None) -> None:
+    """Live dashboard of SENSORS (bump, ir, sonar, compass, wheels, env); none means all.
+
+    Keys: q quits, space sends stop, p pauses polling, r resets the counters.
+    With --json nothing is drawn and a summary (sweeps per second, counters,
+    latest values) is printed at the end.
+    """
+    from ..watch import run_watch
+
+    summary = run_watch(settings, sensors, rate, duration)
+    if settings.as_json:
+        click.echo(json.dumps(summary))

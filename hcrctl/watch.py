@@ -1,0 +1,167 @@
+"""``watch``: the full-screen sensor dashboard, and the drawing loop teleop shares.
+
+Two loops that never wait for each other: the ``Poller`` thread talks to the
+robot at ``--rate``, and this module's loop reads keys and redraws. It redraws
+only when the state's version moved (at most ``FPS`` times a second) and
+otherwise once a ``TICK`` so ages and rates stay true, which keeps a 10 Hz
+watch cheap. ``run_watch`` is what both ``hcrctl watch`` and the shell call:
+it returns when ``q`` is pressed (or ``duration`` ends) with the terminal as
+it found it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import math
+import time
+from collections.abc import Callable, Iterator
+from typing import TYPE_CHECKING, Any
+
+from . import commands as C
+from .errors import HcrError
+from .keys import KeyReader
+from .livestate import LiveState
+from .poller import Poller
+
+if TYPE_CHECKING:
+    from rich.console import Console, RenderableType
+    from rich.live import Live
+
+    from .cli.settings import Settings
+    from .client import Robot
+
+#: The most frames drawn per second, and the longest gap between two frames.
+FPS = 20
+TICK = 1.0
+QUIT_KEYS = frozenset({"q", "Q", "ctrl-d", "ctrl-c"})
+
+
+def run_watch(
+    settings: Settings,
+    sensors: list[str] | tuple[str, ...] = (),
+    rate: float | None = 10.0,
+    duration: float | None = None,
+    *,
+    console: Console | None = None,
+) -> dict[str, Any]:
+    """Show the dashboard until ``q`` or ``duration``; returns the run's summary."""
+    names = list(dict.fromkeys(sensors)) or list(C.SENSORS)
+    console = console or _console()
+    state = LiveState(names, target_rate=rate)
+    draw = not settings.as_json
+    with settings.robot() as robot:
+        poller = Poller(robot, state, names, rate, reconnect=reconnector(settings, robot))
+        poller.start()
+        try:
+            _watch_loop(state, poller, console if draw else None, duration)
+        finally:
+            poller.stop()
+    if draw and not console.is_terminal:
+        console.print(_dashboard(state)(time.monotonic()))
+    return state.summary()
+
+
+def _watch_loop(state: LiveState, poller: Poller, console: Console | None, duration: float | None) -> None:
+    deadline = time.monotonic() + duration if duration else math.inf
+    with KeyReader() as keys, live_screen(console) as live:
+        redraw = Redrawer(live, _dashboard(state), lambda: state.version)
+        while (now := time.monotonic()) < deadline:
+            raise_from(poller)
+            key = keys.read(min(1 / FPS, deadline - now))
+            if key in QUIT_KEYS or (key == "eof" and keys.is_terminal):
+                return
+            if key:
+                on_watch_key(key, state, poller)
+            redraw()
+
+
+def on_watch_key(key: str, state: LiveState, poller: Poller) -> None:
+    """space: stop the motors; p: pause polling; r: reset the counters."""
+    if key == " ":
+        state.note(send_stop(poller.robot))
+    elif key in ("p", "P"):
+        state.note("polling paused (p resumes)" if poller.toggle_pause() else "polling resumed")
+    elif key in ("r", "R"):
+        state.reset_counters()
+        state.note("counters reset")
+
+
+def send_stop(robot: Robot | None) -> str:
+    """Send stop and say how it went, for the footer."""
+    if robot is None:
+        return "stop not sent: not connected"
+    try:
+        robot.stop()
+    except HcrError as exc:
+        return f"stop failed: {exc.one_line()}"
+    return f"stop sent at {time.strftime('%H:%M:%S')}"
+
+
+def _dashboard(state: LiveState) -> Callable[[float], RenderableType]:
+    from .panels import dashboard
+
+    return lambda now: dashboard(state.view(), now)
+
+
+# -- shared with teleop ---------------------------------------------------------
+
+
+def reconnector(settings: Settings, robot: Robot) -> Callable[[], Robot]:
+    """Reopen the same port (no second auto-detection, no shell session)."""
+    return dataclasses.replace(settings, port=robot.port, session=None).connect
+
+
+def raise_from(poller: Poller) -> None:
+    """Hand a poller thread's failure to the drawing thread, which can report it."""
+    if poller.crash is not None:
+        raise poller.crash
+    if poller.lost is not None:
+        raise poller.lost
+
+
+def _console() -> Console:
+    from rich.console import Console
+
+    return Console()
+
+
+@contextlib.contextmanager
+def live_screen(console: Console | None) -> Iterator[Live | None]:
+    """A full-screen Live on a terminal (alternate screen, restored on exit); else None."""
+    if console is None or not console.is_terminal:
+        yield None
+        return
+    from rich.live import Live
+
+    live = Live(
+        console=console, auto_refresh=False, screen=True, redirect_stdout=False, redirect_stderr=False
+    )
+    with live:
+        yield live
+
+
+class Redrawer:
+    """Redraw when the version moved (at most FPS/s), or every ``tick`` s regardless."""
+
+    def __init__(
+        self,
+        live: Live | None,
+        render: Callable[[float], RenderableType],
+        version: Callable[[], object],
+        tick: float = TICK,
+    ) -> None:
+        self.live, self.render, self.version, self.tick = live, render, version, tick
+        self.frames = 0
+        self._drawn: object = None
+        self._last = -math.inf
+
+    def __call__(self, *, force: bool = False) -> None:
+        if self.live is None:
+            return
+        now, version = time.monotonic(), self.version()
+        since = now - self._last
+        if force or since >= self.tick or (version != self._drawn and since >= 1 / FPS):
+            self.live.update(self.render(now), refresh=True)
+            self._drawn, self._last = version, now
+            self.frames += 1
