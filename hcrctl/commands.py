@@ -238,6 +238,10 @@ class ReadRequest(Request):
 # -- replies ----------------------------------------------------------------
 
 
+#: Bumpers 1-3 (bits 0-2) by where they sit on the robot, for display.
+BUMPER_NAMES = ("left", "front", "right")
+
+
 @dataclass(frozen=True)
 class Bumpers(Reply):
     CODE: ClassVar[int] = 0x11

@@ -1,0 +1,96 @@
+"""``hcrctl sim``: serve the simulated robot on a pseudo-terminal or a TCP port.
+
+The first stdout line is what a client opens (the device path, or the
+``socket://`` URL), flushed at once, so scripts and tests can start the server
+and read one line; how to stop goes to stderr.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from typing import TYPE_CHECKING
+
+import click
+
+from ..simoptions import MAX_BAUD, MIN_BAUD, SimOptions
+
+if TYPE_CHECKING:
+    from ..simserve import Stopper
+
+DEFAULT_HOST = "127.0.0.1"
+
+
+@click.command()
+@click.option("--pty", "use_pty", is_flag=True, help="Serve on a new pseudo-terminal and print its path.")
+@click.option(
+    "--tcp",
+    metavar="[HOST:]PORT",
+    help=f"Serve on TCP, one client at a time, and print its socket:// URL (host {DEFAULT_HOST}; port 0 picks one).",
+)
+@click.option("--pace", is_flag=True, help="Deliver bytes no faster than a UART at --baud (8N1).")
+@click.option(
+    "--baud", type=click.IntRange(MIN_BAUD, MAX_BAUD), help="Line rate for --pace.  [default: 115200]"
+)
+@click.option(
+    "--options",
+    "query",
+    default="",
+    metavar="QUERY",
+    help="Simulator options, as in sim://?QUERY: drop, corrupt, noise, delay_ms, checksum, address, "
+    "silent, pid, broadcast_hz, map_hz, seed, pace, baud (e.g. 'drop=0.1&delay_ms=20').",
+)
+@click.option("--seed", type=int, help="Seed for sensor noise and faults (overrides seed= in --options).")
+def sim(use_pty: bool, tcp: str | None, pace: bool, baud: int | None, query: str, seed: int | None) -> None:
+    """Serve the simulated robot on a pty or a TCP port until Ctrl-C or SIGTERM."""
+    if use_pty == (tcp is not None):
+        raise click.UsageError("give exactly one of --pty and --tcp")
+    options = _options(query, pace, baud, seed)
+    address = parse_tcp(tcp) if tcp is not None else None
+    from .. import simserve
+
+    try:
+        with simserve.Stopper() as stopper:
+            _serve(options, address, stopper)
+    except OSError as exc:
+        raise click.ClickException(f"cannot serve: {exc}") from None
+
+
+def _serve(options: SimOptions, address: tuple[str, int] | None, stopper: Stopper) -> None:
+    from .. import simserve
+
+    if address is None:
+        simserve.serve_pty(options, stopper, _announce)
+    else:
+        simserve.serve_tcp(options, address[0], address[1], stopper, _announce)
+
+
+def _options(query: str, pace: bool, baud: int | None, seed: int | None) -> SimOptions:
+    """--options first, then the dedicated flags on top of it."""
+    try:
+        options = SimOptions.from_query(query)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--options'") from None
+    changes: dict[str, object] = {"pace": options.pace or pace}
+    if baud is not None:
+        changes["baud"] = baud
+    if seed is not None:
+        changes["seed"] = seed
+    return dataclasses.replace(options, **changes)
+
+
+def parse_tcp(text: str) -> tuple[str, int]:
+    """``HOST:PORT``, ``:PORT`` or ``PORT``; the host defaults to the loopback address."""
+    host, _, port = text.rpartition(":")
+    host = host.strip("[]") or DEFAULT_HOST
+    if not port.isdigit() or int(port) > 65535:
+        raise click.BadParameter(
+            f"expected [HOST:]PORT with PORT 0..65535, got {text!r}", param_hint="'--tcp'"
+        )
+    return host, int(port)
+
+
+def _announce(where: str) -> None:
+    click.echo(where)
+    sys.stdout.flush()
+    click.echo(f"hcrctl sim: serving on {where}; press Ctrl-C (or send SIGTERM) to stop", err=True)
