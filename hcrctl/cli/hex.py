@@ -1,0 +1,312 @@
+"""``hcrctl hex decode|encode|send``: the frame debugger a firmware author reaches for.
+
+``decode`` runs pasted hex or a binary capture through the same decoder the
+client uses and gives every frame and every problem a row. ``encode`` prints
+the exact bytes a one-shot command would send, with the same grammar and
+ranges (generated from the command table by ``params``). ``send`` puts typed
+bytes on the wire, completing or checking the checksum first.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import sys
+from collections.abc import Iterator
+from typing import TYPE_CHECKING, Any
+
+import click
+
+from .. import commands as C
+from ..errors import ProtocolError
+from ..frames import ChecksumRule, Frame, decode_all
+from ..hexparse import STYLES, format_hex, parse_hex, parse_hex_args
+from .params import request_value, table_command
+from .settings import Settings, stdout_is_terminal
+
+if TYPE_CHECKING:
+    from ..client import Robot
+
+STDIN_HINT = "for a binary capture use --file"
+
+
+@click.group("hex")
+def hex_group() -> None:
+    """Decode, encode and send raw frames.
+
+    \b
+    hcrctl hex decode 55 AA 01 02 14 0D 0A 2D 0D 0A
+    hcrctl hex encode drive power 60 60
+    hcrctl --port sim:// hex send 55 AA 01 01 14 FF
+    """
+
+
+# -- decode -------------------------------------------------------------------------
+
+
+@hex_group.command()
+@click.argument("hex_text", nargs=-1, metavar="[HEX...|-]")
+@click.option(
+    "--file",
+    "capture",
+    type=click.Path(exists=True, dir_okay=False),
+    help="Decode a binary capture file (raw bytes, not hex text).",
+)
+@click.pass_context
+def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None) -> None:
+    """Decode HEX (any common form), stdin ('-') or a capture; one row per frame or problem.
+
+    Exit 0 if every frame is good, 1 if any frame or byte is bad, 2 if the
+    input is not hex. The checksum is judged under --checksum-from; a bad one
+    also shows what the other rule gives.
+    """
+    settings: Settings = ctx.obj
+    data = _decode_input(hex_text, capture)
+    from ..hexview import Tally, event_dict
+
+    rows = [event_dict(event, settings.checksum) for event in decode_all(data, settings.checksum)]
+    tally = Tally()
+    for row in rows:
+        tally.add(row)
+    _print_rows(settings, rows)
+    click.echo(f"hcrctl: {len(data)} bytes: {tally.text()}", err=True)
+    ctx.exit(0 if tally.all_good else 1)
+
+
+def _decode_input(hex_text: tuple[str, ...], capture: str | None) -> bytes:
+    if capture is not None and hex_text:
+        raise click.UsageError("give HEX arguments or --file CAPTURE, not both")
+    if capture is not None:
+        with open(capture, "rb") as handle:
+            return handle.read()
+    if hex_text == ("-",) or (not hex_text and not sys.stdin.isatty()):
+        return _stdin_hex()
+    if not hex_text:
+        raise click.UsageError("give HEX bytes, '-' to read them from stdin, or --file CAPTURE")
+    return parse_hex_args(hex_text)
+
+
+def _stdin_hex() -> bytes:
+    from ..errors import HexSyntaxError
+
+    raw = sys.stdin.buffer.read()
+    try:
+        return parse_hex(raw.decode("utf-8", errors="replace"), "stdin")
+    except HexSyntaxError as exc:
+        exc.hint = f"{exc.hint}; {STDIN_HINT}"
+        raise
+
+
+def _print_rows(settings: Settings, rows: list[dict[str, Any]]) -> None:
+    from .. import hexview
+
+    if settings.as_json:
+        click.echo(json.dumps(rows, ensure_ascii=False))
+    elif stdout_is_terminal():
+        from rich.console import Console
+
+        Console().print(hexview.decode_table(rows))
+    else:
+        for row in rows:
+            click.echo(hexview.plain_line(row))
+
+
+# -- encode -------------------------------------------------------------------------
+
+
+@hex_group.group()
+def encode() -> None:
+    """Print the frame a command would send, without sending it.
+
+    Same grammar and ranges as the one-shot commands, under the global
+    --address and --checksum-from:
+
+    \b
+    hcrctl hex encode drive power 60 60     ->  55 AA 01 02 01 CC CC 9B 0D 0A
+    hcrctl hex encode read compass          ->  55 AA 01 01 14 FF 14 0D 0A
+    hcrctl --address 0x10 hex encode --style c stop
+    """
+
+
+def _style_option(func: Any) -> Any:
+    return click.option(
+        "--style",
+        type=click.Choice(STYLES),
+        default="spaced",
+        show_default=True,
+        help="spaced: 55 AA 01; compact: 55AA01; c: {0x55, 0xAA}; escaped: \\x55\\xAA.",
+    )(func)
+
+
+def _encode_command(name: str, label: str | None = None) -> click.Command:
+    @table_command(name, label)
+    @_style_option
+    @click.pass_obj
+    def command(settings: Settings, style: str, **fields: Any) -> None:
+        value = request_value(C.BY_NAME[name], fields)
+        _print_frame(settings, C.encode_request(value, settings.address, settings.checksum), style)
+
+    command.help = f"{command.help}\n\nPrints the frame; sends nothing."
+    return command
+
+
+@encode.group("drive")
+def encode_drive() -> None:
+    """drive power|speed|velocity LEFT RIGHT, as 'hcrctl drive' takes it."""
+
+
+for _name in ("power", "speed", "velocity"):
+    encode_drive.add_command(_encode_command(_name))
+for _name in ("turn", "servo", "pid"):
+    encode.add_command(_encode_command(_name))
+
+
+@encode.command("stop")
+@_style_option
+@click.pass_obj
+def encode_stop(settings: Settings, style: str) -> None:
+    """The stop frame: motor power 0x80 0x80."""
+    _print_frame(settings, C.encode_request(C.STOP, settings.address, settings.checksum), style)
+
+
+@encode.command("read")
+@click.argument("sensors", nargs=-1, type=click.Choice(C.SENSORS))
+@_style_option
+@click.pass_obj
+def encode_read(settings: Settings, sensors: tuple[str, ...], style: str) -> None:
+    """Read requests (content 0xFF, length 1), one line per SENSOR; none means all."""
+    for name in dict.fromkeys(sensors) or C.SENSORS:
+        _print_frame(settings, C.encode_request(C.BY_NAME[name], settings.address, settings.checksum), style)
+
+
+def _print_frame(settings: Settings, frame: bytes, style: str) -> None:
+    if settings.as_json:
+        click.echo(json.dumps(_traffic_row(frame, settings.checksum, "tx"), ensure_ascii=False))
+    else:
+        click.echo(format_hex(frame, style))
+
+
+def _traffic_row(frame: bytes, rule: ChecksumRule, direction: str) -> dict[str, Any]:
+    """``{"hex": ...}`` plus the decode shape of the first event in ``frame``."""
+    from ..hexview import event_dict, hexs
+
+    events = decode_all(frame, rule)
+    row = event_dict(events[0], rule, direction) if events else {}
+    return {"hex": hexs(frame), **row}
+
+
+# -- send ---------------------------------------------------------------------------
+
+
+@hex_group.command()
+@click.argument("hex_text", nargs=-1, required=True, metavar="HEX...")
+@click.option(
+    "--force", is_flag=True, help="Send the bytes exactly as typed, even with a wrong checksum or end."
+)
+@click.option(
+    "--for",
+    "hold_for",
+    type=click.FloatRange(0, 86_400),
+    metavar="SECONDS",
+    help="For a motion frame: stop after SECONDS (default: hold until Ctrl-C), as drive does.",
+)
+@click.pass_context
+def send(ctx: click.Context, hex_text: tuple[str, ...], force: bool, hold_for: float | None) -> None:
+    """Send HEX as typed; a missing checksum and end are appended (and said).
+
+    A checksum or end that is present but wrong is refused (exit 1) unless
+    --force. A command with a reply waits up to --timeout and prints it
+    decoded; the frame goes out once unless --retries is given. A motion
+    frame is held like 'hcrctl drive': until --for SECONDS or Ctrl-C, then
+    stop is sent.
+    """
+    from ..hexframes import complete_frame
+
+    settings: Settings = ctx.obj
+    frame, note = complete_frame(parse_hex_args(hex_text), settings.checksum, force)
+    if note:
+        click.echo(f"hcrctl: {note}", err=True)
+    with settings.robot() as robot, _retries(robot, _explicit_retries(ctx)):
+        result = {"sent": _traffic_row(frame, robot.rule, "tx"), "reply": None}
+        result["reply"] = _send_frame(robot, frame)
+        _report(settings, result)
+        if _holds(robot, frame) and settings.session is None:
+            _hold_motion(robot, hold_for)
+
+
+def _send_frame(robot: Robot, frame: bytes) -> dict[str, Any] | None:
+    """Write ``frame``; when it is a valid request with a reply, wait for and return it."""
+    from ..hexview import hexs
+
+    request = _valid_frame(frame, robot.rule)
+    cmd = C.BY_CODE.get(request.command) if request else None
+    if request is None or cmd is None or cmd.reply is None or not C.is_request(cmd.code, request.content):
+        robot.write(frame)
+        if request is None:
+            click.echo(
+                f"hcrctl: not waiting for a reply: this is no valid frame under the {robot.rule.value} rule",
+                err=True,
+            )
+        return None
+    reply = robot.transact(frame, (request.address, request.command), f"{cmd.name} (hex send)")
+    return _traffic_row(reply.to_bytes(), robot.rule, "rx") | {"hex": hexs(reply.to_bytes())}
+
+
+def _valid_frame(frame: bytes, rule: ChecksumRule) -> Frame | None:
+    events = decode_all(frame, rule)
+    return events[0] if len(events) == 1 and isinstance(events[0], Frame) else None
+
+
+def _report(settings: Settings, result: dict[str, Any]) -> None:
+    from ..hexview import summary_text
+
+    if settings.as_json:
+        click.echo(json.dumps(result, ensure_ascii=False))
+        return
+    click.echo(f"sent   {result['sent']['hex']}   {summary_text(result['sent'])}")
+    if result["reply"] is not None:
+        click.echo(f"reply  {result['reply']['hex']}   {summary_text(result['reply'])}")
+
+
+def _holds(robot: Robot, frame: bytes) -> bool:
+    """A valid motion frame that is not itself a stop keeps the robot moving."""
+    request = _valid_frame(frame, robot.rule)
+    cmd = C.BY_CODE.get(request.command) if request else None
+    if request is None or cmd is None or not cmd.motion:
+        return False
+    try:
+        fields = C.decode_fields(request.command, request.content, "tx")
+    except ProtocolError:
+        return True
+    return request.command == 0x04 or any(fields.values())
+
+
+def _hold_motion(robot: Robot, hold_for: float | None) -> None:
+    from .drive import hold
+    from .writes import say, stopping
+
+    with stopping(robot):
+        until = f"for {hold_for:g} s" if hold_for is not None else "until Ctrl-C"
+        say(f"holding the motion {until} — Ctrl-C to stop")
+        held = hold(robot, hold_for)
+    say(f"stopped after {held:.3g} s")
+
+
+def _explicit_retries(ctx: click.Context) -> int | None:
+    """--retries when the user set it (flag, env or config); None means send once."""
+    from click.core import ParameterSource
+
+    root = ctx.find_root()
+    source = root.get_parameter_source("retries")
+    return ctx.obj.retries if source not in (None, ParameterSource.DEFAULT) else None
+
+
+@contextlib.contextmanager
+def _retries(robot: Robot, retries: int | None) -> Iterator[None]:
+    """Set ``robot.retries`` for one block; the shell's robot gets its own back."""
+    saved = robot.retries
+    robot.retries = 0 if retries is None else retries
+    try:
+        yield
+    finally:
+        robot.retries = saved

@@ -1,0 +1,196 @@
+"""The ``--log FILE`` traffic log: one JSON object per frame, both directions.
+
+Each line is the ``hex decode --json`` shape plus ``time`` (ISO 8601, local
+time with offset, microseconds), ``direction`` (``tx``/``rx``) and ``hex``
+(the bytes exactly as they crossed the wire). Lines are written whole and
+flushed one by one, so a crash or a ``kill -9`` loses nothing already seen;
+the file is opened for appending, so several sessions build one history.
+``monitor --from`` and ``replay`` read it back with ``read_log``.
+
+``Robot`` has one ``on_traffic`` slot; ``add_listener`` turns it into a
+fan-out so the log, a monitor and the shell can all watch the same link.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import threading
+import weakref
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from datetime import datetime
+from typing import TYPE_CHECKING, Any
+
+from .errors import LogFormatError
+from .frames import ChecksumRule, decode_all
+from .hexview import event_dict, hexs
+
+if TYPE_CHECKING:
+    from .client import Robot, Traffic
+
+Listener = Callable[["Traffic"], None]
+LOG_HINT = "give a file written by hcrctl --log"
+
+
+def iso_time(t: float) -> str:
+    """Local time with its UTC offset and microseconds: sortable, and unambiguous across zones."""
+    return datetime.fromtimestamp(t).astimezone().isoformat(timespec="microseconds")
+
+
+def record(traffic: Traffic, rule: ChecksumRule) -> dict[str, Any]:
+    """The log line for one piece of traffic, before JSON encoding."""
+    direction = traffic.direction
+    event = traffic.event
+    if event is None:
+        events = decode_all(traffic.data, rule)
+        event = events[0] if events else None
+    head = {"time": iso_time(traffic.time), "direction": direction, "hex": hexs(traffic.data)}
+    if event is None:
+        return head
+    # rx may hold another host's requests on a shared line: let the content say which it is.
+    return {**head, **event_dict(event, rule, "tx" if direction == "tx" else None)}
+
+
+class TrafficLog:
+    """A traffic listener that appends each frame to a file as one flushed JSON line."""
+
+    def __init__(
+        self, path: str, rule: ChecksumRule | Callable[[], ChecksumRule] = ChecksumRule.HEADER
+    ) -> None:
+        self.path = path
+        self._rule = rule
+        self._lock = threading.Lock()  # tx comes from the caller's thread, rx from the reader's
+        try:
+            self._file = open(path, "a", encoding="utf-8")  # noqa: SIM115 - closed by close()
+        except OSError as exc:
+            raise LogFormatError(
+                f"cannot open the log {path} ({exc.strerror})", hint="check the path"
+            ) from exc
+
+    @property
+    def rule(self) -> ChecksumRule:
+        return self._rule() if callable(self._rule) else self._rule
+
+    def __call__(self, traffic: Traffic) -> None:
+        line = json.dumps(record(traffic, self.rule), ensure_ascii=False) + "\n"
+        with self._lock:
+            if self._file.closed:
+                return
+            self._file.write(line)
+            self._file.flush()
+
+    def close(self) -> None:
+        with self._lock:
+            self._file.close()
+
+
+def attach(robot: Robot, path: str) -> TrafficLog:
+    """Log every frame ``robot`` sends or receives to ``path``; closed when the robot goes.
+
+    If the file cannot be opened the robot is closed before the error rises,
+    so a failed connect leaves no port open behind it.
+    """
+    ref = weakref.ref(robot)
+    try:
+        log = TrafficLog(path, rule=lambda: _rule_of(ref))
+    except LogFormatError:
+        robot.close()
+        raise
+    add_listener(robot, log)
+    weakref.finalize(robot, log.close)
+    return log
+
+
+def _rule_of(ref: weakref.ref) -> ChecksumRule:
+    robot = ref()
+    return robot.rule if robot is not None else ChecksumRule.HEADER
+
+
+# -- several listeners on one robot ---------------------------------------------
+
+
+class Fanout:
+    """Calls every listener; one that raises is dropped with a warning, never kills the reader."""
+
+    def __init__(self, *listeners: Listener) -> None:
+        self.listeners: list[Listener] = list(listeners)
+
+    def __call__(self, traffic: Traffic) -> None:
+        for listener in tuple(self.listeners):
+            try:
+                listener(traffic)
+            except Exception as exc:
+                self.listeners.remove(listener)
+                sys.stderr.write(
+                    f"hcrctl: warning: traffic listener {listener!r} failed and was removed ({exc})\n"
+                )
+
+
+def add_listener(robot: Robot, listener: Listener) -> None:
+    """Add ``listener`` to ``robot.on_traffic``, keeping whatever is already there."""
+    current = robot.on_traffic
+    if isinstance(current, Fanout):
+        current.listeners.append(listener)
+    elif current is None:
+        robot.on_traffic = Fanout(listener)
+    else:
+        robot.on_traffic = Fanout(current, listener)
+
+
+def remove_listener(robot: Robot, listener: Listener) -> None:
+    current = robot.on_traffic
+    if isinstance(current, Fanout) and listener in current.listeners:
+        current.listeners.remove(listener)
+    elif current == listener:
+        robot.on_traffic = None
+
+
+# -- reading it back --------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class LogRecord:
+    """One line of a traffic log: when, which way, the bytes, and the line as written."""
+
+    time: float
+    direction: str
+    data: bytes
+    line: int
+    fields: dict[str, Any]
+
+
+def read_log(path: str) -> Iterator[LogRecord]:
+    """The records of ``path`` in order; a last line cut short by a crash is skipped."""
+    try:
+        handle = open(path, encoding="utf-8")  # noqa: SIM115 - closed below, lazily iterated
+    except OSError as exc:
+        raise LogFormatError(f"cannot read the log {path} ({exc.strerror})", hint=LOG_HINT) from exc
+    with handle:
+        for number, text in enumerate(handle, 1):
+            if not text.strip():
+                continue
+            try:
+                record = _parse(text, number)
+            except LogFormatError as exc:
+                if not text.endswith("\n"):
+                    return  # the process died while writing it
+                raise _bad(path, number, f"not a traffic log record ({exc.message})") from None
+            yield record
+
+
+def _parse(text: str, number: int) -> LogRecord:
+    try:
+        obj = json.loads(text)
+        moment = datetime.fromisoformat(obj["time"]).timestamp()
+        direction = obj["direction"]
+        data = bytes.fromhex(obj["hex"])
+    except (ValueError, KeyError, TypeError) as exc:
+        raise LogFormatError(str(exc)) from exc
+    if direction not in ("tx", "rx"):
+        raise LogFormatError(f"direction {direction!r}")
+    return LogRecord(moment, direction, data, number, obj)
+
+
+def _bad(path: str, number: int, why: str) -> LogFormatError:
+    return LogFormatError(f"{path} line {number} is {why}", hint=LOG_HINT)
