@@ -63,8 +63,11 @@ _SPECS: dict[str, tuple[Callable[[str], Any], Callable[[Any], bool], str]] = {
 class SimOptions:
     """Faults, identity, broadcast rates and line pacing of one simulated robot.
 
-    ``silent`` mutes the robot (replies and its map); the positioning stations
-    are other devices and keep broadcasting (``broadcast_hz=0`` mutes them).
+    ``drop``, ``corrupt``, ``noise`` and ``delay_ms`` apply to replies only:
+    they model a flaky robot, while broadcasts stay clean so a test of one
+    fault is not muddied by another. ``silent`` mutes the robot (replies and
+    its map); the positioning stations are other devices and keep
+    broadcasting (``broadcast_hz=0`` mutes them).
     """
 
     drop: float = 0.0

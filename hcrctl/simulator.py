@@ -111,7 +111,11 @@ class _Periodic:
 
 
 class Simulator:
-    """One robot in one room, with its positioning stations and its faults."""
+    """One robot in one room, with its positioning stations and its faults.
+
+    State (``pose``, ``wheels``, ``servos``, ``pid``, ``body``) is as of the
+    last call; ``advance()`` brings it to the clock's now.
+    """
 
     def __init__(
         self,
@@ -170,6 +174,7 @@ class Simulator:
 
     def next_due(self) -> float | None:
         """Clock time at which poll() will next return something; None if never."""
+        self.advance()
         times = [s.next_time for s, _ in self._senders]
         if self._outbox:
             times.append(self._outbox[0][0])
