@@ -1,0 +1,85 @@
+"""Shared by the hex debugger's tests: the installed executable, a simulator on a pty, a pty we play.
+
+Everything here has a timeout: a hung subprocess fails the test instead of
+hanging the suite.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import tty
+from collections.abc import Iterator
+from pathlib import Path
+
+RUN_TIMEOUT = 30
+
+
+def hcrctl_exe() -> str:
+    """The installed console script next to this interpreter (or on PATH)."""
+    local = Path(sys.executable).parent / "hcrctl"
+    found = str(local) if local.exists() else shutil.which("hcrctl")
+    assert found, "the hcrctl executable is not installed (pip install -e .)"
+    return found
+
+
+def run(
+    *args: str, input: str | bytes | None = None, timeout: float = RUN_TIMEOUT
+) -> subprocess.CompletedProcess:
+    """Run ``hcrctl ARGS`` to completion; text output unless ``input`` is bytes."""
+    text = not isinstance(input, bytes)
+    env = {k: v for k, v in os.environ.items() if not k.startswith("HCRCTL_")}
+    env["XDG_CONFIG_HOME"] = "/nonexistent/hcrctl-tests"  # no user config may change what a test sees
+    return subprocess.run(
+        [hcrctl_exe(), *args], input=input, capture_output=True, text=text, timeout=timeout, env=env
+    )
+
+
+@contextlib.contextmanager
+def sim_pty(*extra: str) -> Iterator[str]:
+    """``hcrctl sim --pty`` in a subprocess; yields the device path, stops it with SIGINT."""
+    proc = subprocess.Popen(
+        [hcrctl_exe(), "sim", "--pty", *extra], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        path = proc.stdout.readline().strip()
+        assert path.startswith("/dev/"), (path, proc.stderr.read() if proc.poll() is not None else "")
+        yield path
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=5)
+
+
+@contextlib.contextmanager
+def device_pty() -> Iterator[tuple[int, str]]:
+    """A raw pty whose master end the test reads and writes, playing the robot."""
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    try:
+        yield master, os.ttyname(slave)
+    finally:
+        os.close(slave)
+        os.close(master)
+
+
+def read_for(fd: int, seconds: float) -> list[tuple[float, bytes]]:
+    """Chunks arriving on ``fd`` for ``seconds``, each with its arrival time (monotonic)."""
+    import select
+
+    out = []
+    deadline = time.monotonic() + seconds
+    while (left := deadline - time.monotonic()) > 0:
+        ready, _, _ = select.select([fd], [], [], min(left, 0.05))
+        if ready:
+            with contextlib.suppress(OSError):
+                out.append((time.monotonic(), os.read(fd, 4096)))
+    return out
