@@ -65,8 +65,8 @@ def run_drive(settings: Settings, value: C.Request, hold_for: float | None) -> N
             return
         with stopping(robot):
             record, _ = send_request(robot, value)
-            until = f"for {hold_for:g} s" if hold_for is not None else "until Ctrl-C"
-            say(f"driving: {describe(value)} {until} — Ctrl-C to stop")
+            until = "" if hold_for is None else f" for {hold_for:g} s"
+            say(f"driving: {describe(value)}{until} — Ctrl-C to stop")
             record["held_s"] = round(hold(robot, hold_for), 3)
         record["stop_hex"] = hex_bytes(C.encode_request(C.STOP, robot.address, robot.rule))
     say(f"stopped after {record['held_s']:g} s")
