@@ -12,15 +12,9 @@ import os
 import serial
 
 from .errors import PortError
+from .transport_sim import register as register_sim
 
-SIM_HANDLERS = "hcrctl.urlhandler"
 SIM_HINT = "use --port sim:// for the built-in simulator"
-
-
-def register_sim() -> None:
-    """Let ``serial_for_url`` find ``sim://`` (pyserial imports the handler lazily)."""
-    if SIM_HANDLERS not in serial.protocol_handler_packages:
-        serial.protocol_handler_packages.append(SIM_HANDLERS)
 
 
 def open_port(url: str, baud: int = 115200, timeout: float | None = 0.1) -> serial.SerialBase:
