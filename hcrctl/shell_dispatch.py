@@ -1,0 +1,101 @@
+"""Running one shell line: split it, find its Click command, run it, report failure in one line.
+
+Whatever a line does wrong, the session goes on: usage errors, device errors,
+a command's own ``sys.exit`` and Ctrl-C all end that line only, with one line
+on stderr and an exit code the script mode adds up. SIGTERM and SIGHUP
+(``Terminated``) are not caught: they end the session, which sends stop.
+"""
+
+from __future__ import annotations
+
+import traceback
+
+import click
+
+from .errors import HcrError
+from .shell_builtins import builtins
+from .shell_grammar import ShellCommands, root_context, split
+from .shell_session import Session
+
+#: The shell's namespace; stateless, so one serves every session.
+COMMANDS = ShellCommands(builtins())
+INTERRUPTED = 130
+
+
+def run_line(session: Session, line: str) -> int:
+    """Run one line in the session's current mode; 0 if it succeeded, else its exit code."""
+    try:
+        if session.hex_mode:
+            from .shell_hex import run_hex_line
+
+            run_hex_line(session, line)
+        else:
+            invoke(session, split(line))
+        return 0
+    except KeyboardInterrupt:
+        return _interrupted(session)
+    except click.exceptions.Exit as exc:
+        return exc.exit_code
+    except SystemExit as exc:
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    except Exception as exc:
+        return report(session, exc)
+    finally:
+        session.link.settle()
+
+
+def invoke(session: Session, words: list[str]) -> None:
+    """Run ``words`` as a command of the shell's namespace, reusing the session's robot."""
+    if not words:
+        return
+    root = root_context(COMMANDS, session, session.settings)
+    with root:
+        command = COMMANDS.shell_form(words)
+        if command is not None:
+            name, args = words[0], words[1:]
+        elif words[0] == "shell":
+            raise click.UsageError("already in the shell")
+        else:
+            name, found, args = COMMANDS.resolve_command(root, words)
+            assert found is not None and name is not None
+            command = found
+        ctx = command.make_context(name, args, parent=root)
+        with ctx:
+            command.invoke(ctx)
+
+
+def report(session: Session, exc: Exception) -> int:
+    """One line on stderr for any failure; the exit code the CLI would have used."""
+    if isinstance(exc, click.UsageError):
+        click.echo(usage_line(exc), err=True)
+        return exc.exit_code
+    if isinstance(exc, click.ClickException):
+        click.echo(f"error: {exc.format_message()}", err=True)
+        return exc.exit_code
+    if isinstance(exc, HcrError):
+        click.echo(f"error: {exc.one_line()}", err=True)
+        return exc.exit_code
+    if isinstance(exc, click.Abort):
+        return _interrupted(session)
+    if session.settings.debug:
+        traceback.print_exc()
+    click.echo(f"internal error: {exc!r} (run hcrctl --debug shell for the traceback)", err=True)
+    return 1
+
+
+def usage_line(exc: click.UsageError) -> str:
+    """Click's message on one line, naming the command and where its help is."""
+    path = exc.ctx.command_path.strip() if exc.ctx else ""
+    message = exc.format_message().replace("\n", " ")
+    if not path:
+        return f"error: {message} (help lists the commands)"
+    return f"error: {path}: {message} (see 'help {path}')"
+
+
+def _interrupted(session: Session) -> int:
+    """Ctrl-C ends the command, not the session; a robot that moved is stopped."""
+    note = ""
+    if session.link.moved:
+        note = "; " + session.send_stop()
+    click.echo(f"interrupted{note}", err=True)
+    return INTERRUPTED

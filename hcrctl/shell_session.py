@@ -1,0 +1,98 @@
+"""One shell session: the settings, the link, the broadcast counts, the current mode.
+
+Shared by the interactive prompt and script mode, so both run lines the same
+way. Nothing here imports prompt-toolkit: the prompt is one front end, a
+script file is another.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import click
+
+from .errors import HcrError
+from .frames import Frame
+from .shell_broadcasts import Collapser
+from .shell_link import Link
+
+if TYPE_CHECKING:
+    from .cli.settings import Settings
+
+Printer = Callable[[str], None]
+
+
+class Session:
+    """What every line of one session shares."""
+
+    def __init__(self, settings: Settings, *, interactive: bool) -> None:
+        self.settings = settings
+        self.interactive = interactive
+        self.broadcasts = Collapser()
+        self.link = Link(settings, on_frame=self._unsolicited, on_event=self.say)
+        self.monitor = interactive  # print unsolicited frames; scripts stay quiet unless asked
+        self.hex_mode = False
+        self.done = False
+        self.stop_note: str | None = None  # the toolbar's "stop sent" notice
+        #: Where asynchronous lines go; None while a command owns the terminal.
+        self.printer: Printer | None = None
+        self._say_lock = threading.Lock()
+
+    # -- the prompt --------------------------------------------------------
+
+    @property
+    def prompt_text(self) -> str:
+        """``hcr sim:// ok> `` normally, ``hex> `` in raw hex mode, ``hcr> `` in scripts."""
+        if self.hex_mode:
+            return "hex> "
+        if not self.interactive:
+            return "hcr> "
+        return f"hcr {self.link.port or '-'} {self.link.state}> "
+
+    # -- output from other threads -------------------------------------------
+
+    def say(self, text: str) -> None:
+        """A notice (link lost, reconnected): above the prompt, or on stderr."""
+        printer = self.printer
+        if printer is not None:
+            printer(text)
+        else:
+            with self._say_lock:
+                click.echo(f"hcrctl: {text}", err=True)
+
+    def _unsolicited(self, frame: Frame) -> None:
+        line = self.broadcasts.offer(frame)
+        printer = self.printer
+        if line is not None and self.monitor and printer is not None:
+            printer(line)
+
+    # -- safety ----------------------------------------------------------------
+
+    def send_stop(self) -> str:
+        """The stop key: stop now, whatever is being typed. Returns what happened."""
+        robot = self.link.robot
+        if robot is None or not robot.connected:
+            note = "stop NOT sent: not connected"
+        else:
+            try:
+                robot.stop()
+                note = f"stop sent to 0x{robot.address:02X} on {robot.port}"
+            except HcrError as exc:
+                note = f"stop NOT sent: {exc.one_line()}"
+        self.stop_note = note
+        return note
+
+    def connect_at_start(self) -> HcrError | None:
+        """Open the port named by --port (or the one USB port); the error, if any."""
+        try:
+            self.link.open()
+        except HcrError as exc:
+            return exc
+        return None
+
+    def close(self) -> None:
+        """However the session ends: stop if anything moved, then release the port."""
+        self.printer = None
+        self.link.close()
