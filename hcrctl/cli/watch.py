@@ -31,7 +31,7 @@ class Rate(click.ParamType):
 
 
 @click.command()
-@click.argument("sensors", nargs=-1, type=click.Choice(C.SENSORS))
+@click.argument("sensors", nargs=-1, type=click.Choice(C.SENSORS), metavar="[SENSOR]...")
 @click.option("--rate", type=Rate(), default="10", show_default=True, help="Sweeps per second, or max.")
 @click.option(
     "--duration",

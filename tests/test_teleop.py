@@ -1,0 +1,241 @@
+"""``hcrctl teleop`` for real: keys into a pty, frames out on a scripted robot's pty."""
+
+from __future__ import annotations
+
+import math
+import signal
+import subprocess
+import time
+
+import pytest
+from helpers_live import FakeRobot, hcrctl_exe, is_stop, speed_of, terminal
+
+from hcrctl import commands as C
+from hcrctl.livestate import LiveState
+from hcrctl.teleop import Drive, Sender, step
+
+UP, DOWN, LEFT, RIGHT = "\x1b[A", "\x1b[B", "\x1b[D", "\x1b[C"
+
+
+def _teleop(robot: FakeRobot, *extra: str, timeout: str = "0.5"):  # noqa: ANN202 - a context manager
+    return terminal(["--port", robot.path, "teleop", "--timeout", timeout, *extra])
+
+
+def _speed_after(robot: FakeRobot, after: float) -> tuple[int, int]:
+    t = robot.wait_frame(lambda f: speed_of(f) is not None, after=after)
+    return next(speed_of(f) for ft, f in robot.frames() if ft == t and speed_of(f) is not None)
+
+
+@pytest.mark.parametrize(
+    ("key", "expected"),
+    [("w", (50, 50)), (UP, (50, 50)), ("s", (-50, -50)), (DOWN, (-50, -50)), ("a", (-30, 30)), (LEFT, (-30, 30)),
+     ("d", (30, -30)), (RIGHT, (30, -30))],
+)  # fmt: skip
+def test_each_key_sends_its_differential_mix(key: str, expected: tuple[int, int]) -> None:
+    with FakeRobot() as robot, _teleop(robot, "--speed", "50", "--turn", "30") as term:
+        term.wait_for("sending")
+        sent = time.monotonic()
+        term.send(key)
+        assert _speed_after(robot, sent) == expected
+        term.wait_for(r"sending +\w+ +left +[-+]\d+ %")
+        term.send("q")
+        assert term.finish() == 0
+
+
+def test_plus_and_minus_change_the_speed_by_ten() -> None:
+    with FakeRobot() as robot, _teleop(robot, "--speed", "50", timeout="5") as term:
+        term.wait_for("sending")
+        term.send("w")
+        assert _speed_after(robot, 0) == (50, 50)
+        sent = time.monotonic()
+        term.send("+")
+        assert _speed_after(robot, sent) == (60, 60)
+        sent = time.monotonic()
+        term.send("--")
+        robot.wait_frame(lambda f: speed_of(f) == (40, 40), after=sent)
+        term.wait_for(r"speed +40 %")
+        term.send("q")
+        assert term.finish() == 0
+
+
+def test_the_deadman_stops_when_no_key_comes() -> None:
+    with FakeRobot() as robot, _teleop(robot, timeout="0.4") as term:
+        term.wait_for("sending")
+        term.send("w")
+        moved = robot.wait_frame(lambda f: speed_of(f) == (50, 50))
+        stopped = robot.wait_frame(is_stop, after=moved)
+        assert stopped - moved >= 0.3  # not before the deadman's time (no upper bound: noisy machine)
+        term.wait_for("deadman: no key for 0.4 s")
+        term.send("q")
+        assert term.finish() == 0
+
+
+def test_key_repeat_keeps_the_deadman_alive() -> None:
+    with FakeRobot() as robot, _teleop(robot, timeout="0.4") as term:
+        term.wait_for("sending")
+        start = time.monotonic()
+        while time.monotonic() - start < 1.2:  # a held key: repeats every 50 ms
+            term.send("w")
+            term.pump(0.05)
+        assert not [t for t, f in robot.frames() if is_stop(f) and t >= start]
+        term.send("q")
+        assert term.finish() == 0
+
+
+def test_a_bumper_hit_stops_forward_but_not_reverse() -> None:
+    with FakeRobot() as robot, _teleop(robot, timeout="5") as term:
+        term.wait_for("sending")
+        term.send("w")
+        moved = robot.wait_frame(lambda f: speed_of(f) == (50, 50))
+        robot.values["bump"] = C.Bumpers((False, True, False))
+        robot.wait_frame(is_stop, after=moved)
+        term.wait_for("bumper hit")
+        tried = time.monotonic()
+        term.send("w")
+        term.wait_for("forward blocked")
+        time.sleep(0.3)
+        assert [f for t, f in robot.frames() if t >= tried and speed_of(f) == (50, 50)] == []
+        term.send("s")
+        robot.wait_frame(lambda f: speed_of(f) == (-50, -50), after=tried)
+        term.send("q")
+        assert term.finish() == 0
+
+
+def test_q_sends_stop_even_when_already_stopped() -> None:
+    with FakeRobot() as robot, _teleop(robot) as term:
+        term.wait_for(r"sending +stop")
+        quit_at = time.monotonic()
+        term.send("q")
+        assert term.finish() == 0
+        robot.wait_frame(is_stop, after=quit_at)
+
+
+def test_space_and_k_send_stop() -> None:
+    with FakeRobot() as robot, _teleop(robot, timeout="5") as term:
+        term.wait_for("sending")
+        for key in (" ", "k"):
+            term.send("w")
+            moved = robot.wait_frame(lambda f: speed_of(f) == (50, 50), after=time.monotonic() - 0.05)
+            term.send(key)
+            robot.wait_frame(is_stop, after=moved)
+        term.send("q")
+        assert term.finish() == 0
+
+
+@pytest.mark.parametrize(("how", "status"), [("SIGTERM", 128 + 15), ("SIGHUP", 128 + 1), ("ctrl-c", 130)])
+def test_every_way_out_sends_stop(how: str, status: int) -> None:
+    with FakeRobot() as robot, _teleop(robot, timeout="5") as term:
+        term.wait_for("sending")
+        term.send("w")
+        moved = robot.wait_frame(lambda f: speed_of(f) == (50, 50))
+        if how == "ctrl-c":
+            term.send("\x03")
+        else:
+            term.child.kill(getattr(signal, how))
+        robot.wait_frame(is_stop, after=moved)
+        assert term.finish() == status
+
+
+def test_a_lost_link_exits_1_with_one_line() -> None:
+    robot = FakeRobot()
+    with robot, _teleop(robot) as term:
+        term.wait_for("sending")
+        robot.__exit__(None, None, None)  # the cable is pulled: both pty ends close
+        assert term.finish() == 1
+    last = term.output().strip().splitlines()[-1]
+    assert "hcrctl: error:" in last and robot.path in last
+
+
+@pytest.mark.parametrize(
+    ("args", "name", "allowed"),
+    [(["--speed", "101"], "--speed", "0<=x<=100"), (["--turn", "-5"], "--turn", "0<=x<=100"),
+     (["--timeout", "0"], "--timeout", "0.05<=x<=10")],
+)  # fmt: skip
+def test_usage_errors_exit_2_and_send_nothing(args: list[str], name: str, allowed: str) -> None:
+    with FakeRobot() as robot:
+        out = subprocess.run(
+            [hcrctl_exe(), "--port", robot.path, "teleop", *args],
+            capture_output=True,
+            text=True,
+            timeout=30,
+            stdin=subprocess.DEVNULL,
+        )
+        time.sleep(0.1)
+        assert robot.frames() == []
+    assert out.returncode == 2
+    assert name in out.stderr and allowed in out.stderr
+    assert len(out.stderr.strip().splitlines()) == 1
+
+
+# -- the rules, without a terminal ------------------------------------------------
+
+
+class _Wire:
+    """A stand-in robot for ``Sender``: remembers what would have gone out."""
+
+    def __init__(self) -> None:
+        self.sent: list[object] = []
+
+    def stop(self) -> None:
+        self.sent.append("stop")
+
+    def send(self, value: C.Request) -> None:
+        self.sent.append(value)
+
+
+def _rig(timeout: float = 0.5) -> tuple[Drive, Sender, LiveState, _Wire]:
+    wire = _Wire()
+    return Drive(50, 30, timeout), Sender(wire), LiveState(["bump", "wheels"]), wire
+
+
+def test_step_deadman_sends_one_stop_then_nothing() -> None:
+    drive, sender, state, wire = _rig(timeout=0.5)
+    step(drive, sender, state, "w", now=10.0)
+    step(drive, sender, state, None, now=10.4)
+    assert wire.sent == [C.MotorSpeed(50, 50)]
+    step(drive, sender, state, None, now=10.6)
+    step(drive, sender, state, None, now=11.0)
+    assert wire.sent == [C.MotorSpeed(50, 50), "stop"]
+    assert drive.why_stopped.startswith("deadman")
+
+
+def test_step_repeats_are_resent_at_most_every_resend_interval() -> None:
+    drive, sender, state, wire = _rig()
+    for i in range(10):  # ten repeats in 90 ms
+        step(drive, sender, state, "w", now=10.0 + i * 0.01)
+    assert wire.sent == [C.MotorSpeed(50, 50)]
+    step(drive, sender, state, "w", now=10.2)
+    assert wire.sent == [C.MotorSpeed(50, 50)] * 2
+
+
+def test_step_bumper_blocks_forward_only() -> None:
+    drive, sender, state, wire = _rig()
+    state.record("bump", C.Bumpers((True, False, False)), 0.001)
+    step(drive, sender, state, "w", now=1.0)
+    assert wire.sent == [] and "forward blocked" in drive.why_stopped
+    step(drive, sender, state, "s", now=1.1)
+    assert wire.sent == [C.MotorSpeed(-50, -50)]
+
+
+def test_step_stale_bumper_reading_does_not_block() -> None:
+    drive, sender, state, wire = _rig()
+    state.record("bump", C.Bumpers((True, False, False)), 0.001)
+    state.fail("bump", "no reply")
+    step(drive, sender, state, "w", now=1.0)
+    assert wire.sent == [C.MotorSpeed(50, 50)]
+
+
+def test_speed_is_clamped_to_the_table_range() -> None:
+    drive = Drive(95, 30, 0.5)
+    drive.press("+", 0.0, False)
+    assert drive.speed == 100
+    drive.speed = 5
+    drive.press("-", 0.0, False)
+    assert drive.speed == 0
+    drive.press("W", 0.0, False)  # caps lock still drives
+    assert drive.motion == "forward" and drive.wheels() == (0, 0)
+
+
+def test_drive_never_expires_while_stopped() -> None:
+    drive = Drive(50, 30, 0.5)
+    assert not drive.expired(math.inf)

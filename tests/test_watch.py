@@ -1,0 +1,174 @@
+"""``hcrctl watch`` for real: in a pty, rendered by pyte, against the simulator or a scripted robot."""
+
+from __future__ import annotations
+
+import json
+import re
+import socket
+import subprocess
+import time
+
+import pytest
+from helpers_live import FakeRobot, hcrctl_exe, is_stop, sim_server, terminal
+
+from hcrctl.render import cardinal
+
+HEADING = re.compile(r"(\d{1,3}\.\d)° ([NESW]{1,3}) ")
+ALT_SCREEN_OFF = b"\x1b[?1049l"
+
+
+def test_values_appear_from_the_simulator_on_a_pty_and_q_quits() -> None:
+    with sim_server("--pty") as (_, path), terminal(["--port", path, "watch"]) as term:
+        screen = term.wait_for(lambda t: HEADING.search(t) and re.search(r"US1 \S+ +\d+ cm", t))
+        heading, point = HEADING.search(screen).groups()
+        assert point == cardinal(float(heading))
+        assert re.search(r"temperature -?\d+ °C", screen)
+        assert "IR1" in screen and "left" in screen and "cm/s" in screen
+        term.wait_for(r"status +ok")
+        term.wait_for(r"0x50 +\d+ +\d+ +\d+")  # a positioning station's broadcast
+        term.send("q")
+        assert term.finish() == 0
+    assert ALT_SCREEN_OFF in term.raw  # left the alternate screen
+
+
+def test_q_restores_the_terminal_mode() -> None:
+    with (
+        FakeRobot() as robot,
+        terminal(["--port", robot.path, "watch"], shell_suffix='echo "rc=$?"; stty -a') as term,
+    ):
+        term.wait_for("123.4° ESE")
+        term.send("q")
+        term.finish()
+    tail = term.output().split("rc=")[-1]
+    assert tail.startswith("0")
+    assert re.search(r"(?<!-)icanon", tail) and re.search(r"(?<!-)echo ", tail)
+
+
+def test_a_device_that_stops_answering_goes_stale_but_keeps_its_values() -> None:
+    args = ["--port", "", "--timeout", "0.2", "watch", "compass", "sonar"]
+    with FakeRobot() as robot:
+        args[1] = robot.path
+        with terminal(args) as term:
+            term.wait_for(lambda t: "123.4° ESE" in t and "42 cm" in t)
+            robot.mute = True
+            screen = term.wait_for(lambda t: t.count("stale") >= 2 and "no reply for" in t)
+            assert "123.4° ESE" in screen and "42 cm" in screen  # dimmed, never blanked
+            assert re.search(r"stale · \d+\.\d s old · no reply", screen)
+            robot.mute = False
+            term.wait_for(lambda t: "stale" not in t and re.search(r"status +ok", t))
+            term.send("q")
+            assert term.finish() == 0
+
+
+@pytest.mark.parametrize("query", ["silent=1", "drop=1"])
+def test_a_silent_device_says_no_reply(query: str) -> None:
+    with terminal(["--port", f"sim://?{query}", "--timeout", "0.1", "watch"]) as term:
+        screen = term.wait_for(r"status +no reply for")
+        assert "no reply yet" in screen  # a sensor that never answered: said, not blank
+        term.wait_for(r"timeouts +[1-9]")
+        term.send("q")
+        assert term.finish() == 0
+
+
+def test_keys_pause_reset_and_send_stop() -> None:
+    with FakeRobot() as robot, terminal(["--port", robot.path, "watch"]) as term:
+        term.wait_for(r"sweeps +[1-9]")
+        term.send("p")
+        term.wait_for(r"status +paused")
+        paused = len(robot.frames())
+        time.sleep(0.5)
+        assert len(robot.frames()) == paused  # polling really stopped
+        term.send("p")
+        term.wait_for(r"status +ok")
+        term.send("r")
+        term.wait_for("counters reset")
+        sent = time.monotonic()
+        term.send(" ")
+        term.wait_for("stop sent")
+        robot.wait_frame(is_stop, after=sent)
+        term.send("q")
+        assert term.finish() == 0
+
+
+def test_a_port_that_disappears_is_retried_and_recovers() -> None:
+    port = _free_port()
+    with sim_server("--tcp", f"127.0.0.1:{port}") as (proc, url), terminal(["--port", url, "watch"]) as term:
+        term.wait_for(r"status +ok")
+        proc.terminate()
+        proc.wait(timeout=5)
+        term.wait_for("disconnected, retrying")
+        with sim_server("--tcp", f"127.0.0.1:{port}"):
+            screen = term.wait_for(lambda t: re.search(r"status +ok", t) and "reconnects 1" in t, timeout=15)
+            assert HEADING.search(screen)
+            term.send("q")
+            assert term.finish() == 0
+
+
+def test_duration_and_json_summary_without_a_terminal() -> None:
+    out = subprocess.run(
+        [hcrctl_exe(), "--port", "sim://", "--json", "watch", "compass", "--rate", "20", "--duration", "1"],
+        capture_output=True,
+        text=True,
+        timeout=30,
+        stdin=subprocess.DEVNULL,
+    )
+    assert out.returncode == 0, out.stderr
+    summary = json.loads(out.stdout)
+    assert summary["sweeps"] >= 5 and summary["timeouts"] == 0
+    assert 0 <= summary["latest"]["compass"]["heading"] < 360
+    assert summary["stale"] == []
+
+
+def test_without_a_terminal_the_last_dashboard_is_printed_once() -> None:
+    out = subprocess.run(
+        [hcrctl_exe(), "--port", "sim://", "watch", "--duration", "0.5"],
+        capture_output=True,
+        text=True,
+        timeout=30,
+        stdin=subprocess.DEVNULL,
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.count("hcrctl watch") == 1 and "\x1b[" not in out.stdout
+    assert "ultrasonic" in out.stdout and "link" in out.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "names"),
+    [
+        (["--rate", "0"], "--rate"),
+        (["--rate", "fast"], "--rate"),
+        (["--duration", "-1"], "--duration"),
+        (["warp"], "SENSOR"),
+    ],
+)
+def test_usage_errors_exit_2_with_one_line_and_send_nothing(args: list[str], names: str) -> None:
+    with FakeRobot() as robot:
+        out = subprocess.run(
+            [hcrctl_exe(), "--port", robot.path, "watch", *args],
+            capture_output=True,
+            text=True,
+            timeout=30,
+            stdin=subprocess.DEVNULL,
+        )
+        time.sleep(0.1)
+        assert robot.frames() == []
+    assert out.returncode == 2
+    assert len(out.stderr.strip().splitlines()) == 1 and names in out.stderr
+
+
+def test_a_missing_port_is_one_line_exit_1() -> None:
+    out = subprocess.run(
+        [hcrctl_exe(), "--port", "/dev/does-not-exist", "watch", "--duration", "1"],
+        capture_output=True,
+        text=True,
+        timeout=30,
+        stdin=subprocess.DEVNULL,
+    )
+    assert out.returncode == 1
+    assert len(out.stderr.strip().splitlines()) == 1 and "/dev/does-not-exist" in out.stderr
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
