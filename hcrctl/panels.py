@@ -134,9 +134,10 @@ def dial(heading: float, rows: int = DIAL_ROWS, cols: int = DIAL_COLS) -> list[s
     for label, y, x in (("N", 0, cx), ("S", rows - 1, cx), ("E", cy, cols - 1), ("W", cy, 0)):
         grid[y][x] = label
     h = math.radians(heading)
-    for t in (0.35, 0.6):
-        grid[round(cy - t * cy * math.cos(h))][round(cx + t * cx * math.sin(h))] = "•"
-    grid[round(cy - 0.85 * cy * math.cos(h))][round(cx + 0.85 * cx * math.sin(h))] = arrow(heading)
+    ry, rx = cy - 1, cx - 2  # the needle stays inside the ring and its labels
+    for t in (0.4, 0.7):
+        grid[round(cy - t * ry * math.cos(h))][round(cx + t * rx * math.sin(h))] = "•"
+    grid[round(cy - ry * math.cos(h))][round(cx + rx * math.sin(h))] = arrow(heading)
     grid[cy][cx] = "o"
     return ["".join(row) for row in grid]
 

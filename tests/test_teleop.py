@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import signal
 import subprocess
 import time
 
 import pytest
-from helpers_live import FakeRobot, hcrctl_exe, is_stop, speed_of, terminal
+from helpers_live import FakeRobot, Terminal, hcrctl_exe, is_stop, speed_of, terminal
 
 from hcrctl import commands as C
 from hcrctl.livestate import LiveState
@@ -17,7 +18,9 @@ from hcrctl.teleop import Drive, Sender, step
 UP, DOWN, LEFT, RIGHT = "\x1b[A", "\x1b[B", "\x1b[D", "\x1b[C"
 
 
-def _teleop(robot: FakeRobot, *extra: str, timeout: str = "0.5"):  # noqa: ANN202 - a context manager
+def _teleop(
+    robot: FakeRobot, *extra: str, timeout: str = "0.5"
+) -> contextlib.AbstractContextManager[Terminal]:
     return terminal(["--port", robot.path, "teleop", "--timeout", timeout, *extra])
 
 
