@@ -1,0 +1,180 @@
+"""The ``--log FILE`` format: one flushed JSON object per frame, ISO time with microseconds, appends."""
+
+from __future__ import annotations
+
+import json
+import re
+import signal
+import subprocess
+import time
+from datetime import datetime
+from pathlib import Path
+
+import pytest
+from helpers_hex import hcrctl_exe, run, sim_pty
+
+from hcrctl.client import Robot, Traffic
+from hcrctl.errors import LogFormatError
+from hcrctl.frames import Frame, decode_all, encode
+from hcrctl.trafficlog import Fanout, TrafficLog, add_listener, attach, read_log, remove_listener
+
+ISO_MICRO = re.compile(r"^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{6}[+-]\d\d:\d\d$")
+COMPASS = encode(1, 0x14, bytes.fromhex("0D 0A"))
+
+
+def lines_of(path: Path) -> list[dict]:
+    return [json.loads(line) for line in path.read_text().splitlines()]
+
+
+def traffic(direction: str, data: bytes, t: float = 1_700_000_000.123456) -> Traffic:
+    events = decode_all(data)
+    return Traffic(t, direction, data, events[0] if events else None)
+
+
+def test_a_record_holds_time_direction_hex_name_fields_and_verdict(tmp_path: Path) -> None:
+    path = tmp_path / "log.jsonl"
+    log = TrafficLog(str(path))
+    log(traffic("rx", COMPASS))
+    (rec,) = lines_of(path)  # readable before close: flushed per line
+    log.close()
+    assert ISO_MICRO.match(rec["time"])
+    assert datetime.fromisoformat(rec["time"]).timestamp() == pytest.approx(1_700_000_000.123456, abs=1e-6)
+    assert rec["direction"] == "rx"
+    assert rec["hex"] == "55 AA 01 02 14 0D 0A 2D 0D 0A"
+    assert (rec["name"], rec["fields"], rec["checksum_ok"]) == ("compass", {"heading": 333.8}, True)
+
+
+def test_a_tx_read_request_is_decoded_as_a_request(tmp_path: Path) -> None:
+    path = tmp_path / "log.jsonl"
+    with_log = TrafficLog(str(path))
+    with_log(traffic("tx", encode(1, 0x14, b"\xff")))
+    with_log.close()
+    assert lines_of(path)[0]["kind"] == "request"
+
+
+def test_problems_are_logged_with_a_problem_key(tmp_path: Path) -> None:
+    path = tmp_path / "log.jsonl"
+    log = TrafficLog(str(path))
+    log(traffic("rx", b"\x00\x01"))
+    log.close()
+    (rec,) = lines_of(path)
+    assert rec["problem"] == "junk" and rec["hex"] == "00 01"
+
+
+def test_the_log_appends(tmp_path: Path) -> None:
+    path = tmp_path / "log.jsonl"
+    for _ in range(2):
+        log = TrafficLog(str(path))
+        log(traffic("rx", COMPASS))
+        log.close()
+    assert len(lines_of(path)) == 2
+
+
+def test_read_log_round_trips_and_skips_a_line_cut_by_a_crash(tmp_path: Path) -> None:
+    path = tmp_path / "log.jsonl"
+    log = TrafficLog(str(path))
+    log(traffic("tx", encode(1, 0x14, b"\xff"), t=10.5))
+    log(traffic("rx", COMPASS, t=10.75))
+    log.close()
+    with path.open("a") as handle:
+        handle.write('{"time": "2026-01-01T00:00')  # the process died mid-line
+    records = list(read_log(str(path)))
+    assert [(r.direction, r.data, r.line) for r in records] == [
+        ("tx", encode(1, 0x14, b"\xff"), 1),
+        ("rx", COMPASS, 2),
+    ]
+    assert records[1].time - records[0].time == pytest.approx(0.25, abs=1e-6)
+
+
+def test_a_bad_line_in_the_middle_names_file_and_line(tmp_path: Path) -> None:
+    path = tmp_path / "log.jsonl"
+    path.write_text('{"time": "2026-01-01T00:00:00.000001+00:00", "direction": "tx", "hex": "55"}\nnope\n')
+    with pytest.raises(LogFormatError, match=r"log.jsonl line 2 is not a traffic log record"):
+        list(read_log(str(path)))
+
+
+def test_fanout_drops_a_failing_listener_and_keeps_the_rest(capsys: pytest.CaptureFixture) -> None:
+    seen: list[Traffic] = []
+
+    def broken(_: Traffic) -> None:
+        raise OSError("disk full")
+
+    fan = Fanout(broken, seen.append)
+    fan(traffic("rx", COMPASS))
+    fan(traffic("rx", COMPASS))
+    assert len(seen) == 2
+    assert fan.listeners == [seen.append]
+    assert "disk full" in capsys.readouterr().err
+
+
+def test_listeners_share_one_robot_and_both_see_both_directions(tmp_path: Path) -> None:
+    first: list[Traffic] = []
+    second: list[Traffic] = []
+    with Robot("sim://?seed=1&broadcast_hz=0&map_hz=0", on_traffic=first.append) as robot:
+        add_listener(robot, second.append)
+        log = attach(robot, str(tmp_path / "log.jsonl"))
+        robot.read("compass")
+        deadline = time.monotonic() + 2
+        while len(second) < 2 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        remove_listener(robot, second.append)
+        robot.read("compass")
+    assert [t.direction for t in second] == ["tx", "rx"]
+    assert [t.direction for t in first][:2] == ["tx", "rx"] and len(first) >= 3
+    assert isinstance(second[1].event, Frame)
+    assert [r["direction"] for r in lines_of(Path(log.path))][:4] == ["tx", "rx", "tx", "rx"]
+
+
+# -- the installed executable ----------------------------------------------------------
+
+
+def test_global_log_records_a_read_both_ways_and_appends(tmp_path: Path) -> None:
+    path = tmp_path / "session.jsonl"
+    with sim_pty("--options", "broadcast_hz=0&map_hz=0") as port:
+        for _ in range(2):
+            proc = run("--port", port, "--log", str(path), "read", "compass")
+            assert proc.returncode == 0, proc.stderr
+    records = lines_of(path)
+    assert [(r["direction"], r["name"]) for r in records] == [("tx", "compass"), ("rx", "compass")] * 2
+    assert all(ISO_MICRO.match(r["time"]) for r in records)
+    assert all(r["checksum_ok"] for r in records)
+    assert "heading" in records[1]["fields"]
+
+
+def test_global_log_records_a_drive_and_its_stop(tmp_path: Path) -> None:
+    path = tmp_path / "drive.jsonl"
+    with sim_pty("--options", "broadcast_hz=0&map_hz=0") as port:
+        proc = run("--port", port, "--log", str(path), "drive", "power", "30", "30", "--for", "0.2")
+    assert proc.returncode == 0, proc.stderr
+    tx = [r for r in lines_of(path) if r["direction"] == "tx"]
+    assert [r["fields"] for r in tx] == [{"left": 30, "right": 30}, {"left": 0, "right": 0}]
+
+
+def test_the_log_survives_kill_9(tmp_path: Path) -> None:
+    """Flushed line by line: SIGKILL (no cleanup at all) loses nothing already logged."""
+    path = tmp_path / "killed.jsonl"
+    with sim_pty() as port:
+        proc = subprocess.Popen(
+            [hcrctl_exe(), "--port", port, "--log", str(path), "monitor"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        try:
+            printed = [proc.stdout.readline() for _ in range(3)]
+            proc.send_signal(signal.SIGKILL)
+            proc.wait(timeout=10)
+        finally:
+            proc.kill()
+    records = lines_of(path)  # every line whole and parseable
+    assert len(records) >= 3
+    assert all(r["name"] == "position" or r["name"] == "map" for r in records)
+    assert all(line.strip() for line in printed)
+
+
+def test_an_unwritable_log_is_one_line_and_exit_2(tmp_path: Path) -> None:
+    proc = run("--port", "sim://", "--log", str(tmp_path / "missing" / "x.jsonl"), "read", "compass")
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "cannot open the log" in lines[0]
+    assert proc.stdout == ""
