@@ -77,6 +77,23 @@ def finish(proc: subprocess.Popen[str], timeout: float = TIMEOUT) -> tuple[str, 
             proc.communicate()
 
 
+def readline(proc: subprocess.Popen[str], timeout: float = TIMEOUT) -> str:
+    """The next stdout line of a running hcrctl, read byte by byte from the pipe.
+
+    Byte by byte, so nothing beyond the line is buffered away from a later
+    ``communicate()``, and ``select`` never waits on data already read.
+    """
+    fd, line = proc.stdout.fileno(), bytearray()
+    deadline = time.monotonic() + timeout
+    while not line.endswith(b"\n"):
+        ready, _, _ = select.select([fd], [], [], max(0.0, deadline - time.monotonic()))
+        assert ready, f"hcrctl printed no whole line in {timeout} s (got {bytes(line)!r})"
+        byte = os.read(fd, 1)
+        assert byte, f"hcrctl closed stdout (got {bytes(line)!r})"
+        line += byte
+    return line.decode().rstrip("\n")
+
+
 class Wire:
     """A pty pair: hcrctl writes to ``path``; ``read()`` returns what arrived."""
 

@@ -32,13 +32,17 @@ _SIZES = range(1, 17)
 
 
 def cheapest_read() -> C.Command:
-    """The read whose reply carries the fewest bytes; fixed sizes beat variable ones."""
+    """The read whose reply carries the fewest bytes, judged by what its decoder accepts.
+
+    A reply of one fixed size beats one whose size depends on the robot (one
+    byte per IR sensor, say): only the fixed one is known to be small.
+    """
     return min((c for c in C.COMMANDS if c.kind == "read"), key=_reply_cost)
 
 
-def _reply_cost(cmd: C.Command) -> tuple[int, bool, int]:
+def _reply_cost(cmd: C.Command) -> tuple[bool, int, int]:
     sizes = [n for n in _SIZES if _parses(cmd, n)]
-    return (min(sizes, default=len(_SIZES) + 1), len(sizes) != 1, cmd.code)
+    return (len(sizes) != 1, min(sizes, default=len(_SIZES) + 1), cmd.code)
 
 
 def _parses(cmd: C.Command, size: int) -> bool:

@@ -1,0 +1,80 @@
+"""A one-shot command loads only what it uses: no prompt-toolkit, no simulator, no TOML parser.
+
+A tiny harness runs hcrctl's real entry point in a fresh interpreter against a
+pty device and reports ``sys.modules`` afterwards. This is a correctness check
+of what gets imported; how long start-up takes is measured in bench/.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+from helpers_cli import clean_env, sim_pty, wire
+
+HARNESS = """
+import json, sys
+from hcrctl.cli import main
+sys.argv = ["hcrctl", *json.loads(sys.argv[1])]
+try:
+    main()
+except SystemExit as exc:
+    code = exc.code
+sys.stderr.write("\\nMODULES " + json.dumps({"code": code, "modules": sorted(sys.modules)}) + "\\n")
+"""
+
+NEVER_IN_ONE_SHOT = (
+    "prompt_toolkit",
+    "hcrctl.simulator",
+    "hcrctl.cli.shell",
+    "tomllib",
+    "tomli",
+    "importlib.metadata",
+)
+
+
+def modules_after(args: list[str], env: dict[str, str]) -> tuple[int, set[str]]:
+    result = subprocess.run(
+        [sys.executable, "-c", HARNESS, json.dumps(args)], env=env, capture_output=True, text=True, timeout=60
+    )
+    report = json.loads(result.stderr.rsplit("MODULES ", 1)[1])
+    return report["code"], set(report["modules"])
+
+
+def loaded(modules: set[str], name: str) -> bool:
+    return any(m == name or m.startswith(name + ".") for m in modules)
+
+
+@pytest.fixture(scope="module")
+def device(tmp_path_factory):
+    with sim_pty(clean_env(tmp_path_factory.mktemp("sim")), "--options", "broadcast_hz=0&map_hz=0") as path:
+        yield path
+
+
+@pytest.mark.parametrize("args", [["read", "compass"], ["--json", "read"], ["ping", "-c", "1"]])
+def test_one_shot_reads_do_not_import_what_they_do_not_use(tmp_path, device, args):
+    code, modules = modules_after(["--port", device, *args], clean_env(tmp_path))
+    assert code == 0
+    assert loaded(modules, "hcrctl.client")  # the harness really ran a command
+    for name in NEVER_IN_ONE_SHOT:
+        assert not loaded(modules, name), name
+
+
+def test_one_shot_writes_do_not_import_rich_either(tmp_path):
+    with wire() as tap:
+        code, modules = modules_after(
+            ["--port", tap.path, "drive", "power", "10", "10", "--for", "0"], clean_env(tmp_path)
+        )
+    assert code == 0
+    for name in (*NEVER_IN_ONE_SHOT, "rich"):
+        assert not loaded(modules, name), name
+
+
+def test_the_config_parser_loads_only_when_there_is_a_file(tmp_path, device):
+    (tmp_path / "hcrctl").mkdir()
+    (tmp_path / "hcrctl" / "config.toml").write_text("retries = 1\n")
+    code, modules = modules_after(["--port", device, "read", "compass"], clean_env(tmp_path))
+    assert code == 0
+    assert loaded(modules, "tomllib") or loaded(modules, "tomli")
