@@ -254,6 +254,15 @@ def test_send_a_motion_frame_holds_for_the_time_given_then_stops() -> None:
     assert b"".join(c for _, c in chunks) == H("55 AA 01 02 01 CC CC 9B 0D 0A") + STOP
 
 
+def test_a_motion_frame_to_another_address_stops_that_address() -> None:
+    moved = encode(0x10, 0x02, H("CC CC"))
+    with device_pty() as (master, path):
+        proc = run("--port", path, "hex", "send", moved.hex(" "), "--for", "0.2")
+        arrived = b"".join(c for _, c in read_for(master, 0.2))
+    assert proc.returncode == 0, proc.stderr
+    assert arrived == moved + encode(0x10, 0x01, H("80 80")) + STOP
+
+
 def test_sigterm_during_an_open_ended_motion_hold_sends_stop() -> None:
     with device_pty() as (master, path):
         proc = subprocess.Popen(
@@ -278,3 +287,32 @@ def test_a_stop_frame_is_not_held() -> None:
         proc = run("--port", port, "hex", "send", STOP.hex(" "), timeout=10)
     assert proc.returncode == 0, proc.stderr
     assert "holding" not in proc.stderr
+
+
+def test_on_a_terminal_decode_draws_a_table_with_bad_rows_marked() -> None:
+    """Through a real pty (pexpect), rendered by pyte as a terminal would show it."""
+    import pexpect
+    import pyte
+
+    frames = printed("55 AA 01 02 01 CC CC", 0x9D).hex(" ") + " 00 " + encode(1, 0x14, H("0D 0A")).hex(" ")
+    child = pexpect.spawn(
+        hcrctl_exe(),
+        ["hex", "decode", frames],
+        dimensions=(24, 140),
+        env={"TERM": "xterm", "PATH": "/usr/bin:/bin"},
+    )
+    try:
+        child.expect(pexpect.EOF, timeout=20)
+    finally:
+        child.close(force=True)
+    screen = pyte.Screen(140, 24)
+    stream = pyte.ByteStream(screen)
+    stream.feed(child.before.replace(b"\n", b"\r\n"))
+    text = "\n".join(screen.display)
+    assert child.exitstatus == 1
+    header = next(line for line in screen.display if "offset" in line)
+    assert all(word in header for word in ("addr", "command", "content", "fields", "checksum"))
+    assert "9D bad: header rule 9B, address rule 9C" in text
+    assert "junk" in text and "heading=333.8 deg" in text
+    bad_row = next(i for i, line in enumerate(screen.display) if "9D bad" in line)
+    assert screen.buffer[bad_row][2].fg == "red"

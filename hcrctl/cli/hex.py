@@ -231,7 +231,7 @@ def send(ctx: click.Context, hex_text: tuple[str, ...], force: bool, hold_for: f
         result["reply"] = _send_frame(robot, frame)
         _report(settings, result)
         if _holds(robot, frame) and settings.session is None:
-            _hold_motion(robot, hold_for)
+            _hold_motion(robot, frame[2], hold_for)
 
 
 def _send_frame(robot: Robot, frame: bytes) -> dict[str, Any] | None:
@@ -281,15 +281,30 @@ def _holds(robot: Robot, frame: bytes) -> bool:
     return request.command == 0x04 or any(fields.values())
 
 
-def _hold_motion(robot: Robot, hold_for: float | None) -> None:
+def _hold_motion(robot: Robot, address: int, hold_for: float | None) -> None:
+    """Hold like ``drive``, then stop the address the frame moved, which need not be --address."""
     from .drive import hold
-    from .writes import say, stopping
+    from .writes import say
 
-    with stopping(robot):
-        until = f"for {hold_for:g} s" if hold_for is not None else "until Ctrl-C"
-        say(f"holding the motion {until} — Ctrl-C to stop")
+    until = f"for {hold_for:g} s" if hold_for is not None else "until Ctrl-C"
+    say(f"holding the motion {until} — Ctrl-C to stop")
+    try:
         held = hold(robot, hold_for)
+    except BaseException:
+        with contextlib.suppress(Exception):
+            _stop_at(robot, address)
+        raise
+    _stop_at(robot, address)
     say(f"stopped after {held:.3g} s")
+
+
+def _stop_at(robot: Robot, address: int) -> None:
+    """Stop at ``address``; close() still stops the robot's own address if it differs."""
+    from .writes import signals_deferred
+
+    with signals_deferred():
+        robot.write(C.encode_request(C.STOP, address, robot.rule))
+    robot.moved = address != robot.address
 
 
 def _explicit_retries(ctx: click.Context) -> int | None:
