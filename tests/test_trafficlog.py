@@ -178,3 +178,32 @@ def test_an_unwritable_log_is_one_line_and_exit_2(tmp_path: Path) -> None:
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and "cannot open the log" in lines[0]
     assert proc.stdout == ""
+
+
+def test_global_log_works_for_the_shell_and_its_raw_hex_mode(tmp_path: Path) -> None:
+    """In a real terminal (pexpect): a shell command and a raw hex line both reach the log."""
+    import pexpect
+
+    path = tmp_path / "shell.jsonl"
+    args = ["--port", "sim://?broadcast_hz=0&map_hz=0", "--log", str(path), "shell"]
+    child = pexpect.spawn(hcrctl_exe(), args, dimensions=(24, 100), timeout=15)
+    try:
+        child.expect("hcr")
+        child.sendline("read compass")
+        child.expect("compass")
+        child.sendline("hex")
+        child.expect("raw hex mode")
+        child.sendline("55 AA 01 01 16 FF")
+        child.expect("reply")
+        child.sendline("exit")
+        child.sendline("exit")
+        child.expect(pexpect.EOF)
+    finally:
+        child.close(force=True)
+    records = lines_of(path)
+    assert [(r["direction"], r["name"]) for r in records] == [
+        ("tx", "compass"),
+        ("rx", "compass"),
+        ("tx", "env"),
+        ("rx", "env"),
+    ]
