@@ -316,3 +316,12 @@ def test_on_a_terminal_decode_draws_a_table_with_bad_rows_marked() -> None:
     assert "junk" in text and "heading=333.8 deg" in text
     bad_row = next(i for i, line in enumerate(screen.display) if "9D bad" in line)
     assert screen.buffer[bad_row][2].fg == "red"
+
+
+def test_json_may_follow_the_subcommand_as_the_issue_spells_it() -> None:
+    text = "55 AA 01 02 14 0D 0A 2D 0D 0A"
+    assert json.loads(run("hex", "decode", "--json", text).stdout) == json.loads(
+        run("--json", "hex", "decode", text).stdout
+    )
+    row = json.loads(run("hex", "encode", "read", "compass", "--json").stdout)
+    assert row["hex"] == "55 AA 01 01 14 FF 14 0D 0A"

@@ -34,7 +34,7 @@ def test_monitor_sees_the_stations_broadcasts_for_the_duration() -> None:
 
 def test_monitor_json_lines_have_the_decode_shape() -> None:
     with sim_pty() as port:
-        proc = run("--port", port, "--json", "monitor", "--duration", "1.2", "--filter", "position")
+        proc = run("--port", port, "monitor", "--json", "--duration", "1.2", "--filter", "position")
     assert proc.returncode == 0, proc.stderr
     rows = [json.loads(line) for line in proc.stdout.splitlines()]
     assert len(rows) >= 2

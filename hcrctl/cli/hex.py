@@ -10,6 +10,7 @@ bytes on the wire, completing or checking the checksum first.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import sys
 from collections.abc import Iterator
@@ -41,6 +42,27 @@ def hex_group() -> None:
     """
 
 
+def json_option(func: Any) -> Any:
+    """``--json`` after the subcommand as well (``hex decode --json``), the same as the global one.
+
+    It sets JSON on a copy of the settings for this one command, so inside
+    the shell it does not stick to the session.
+    """
+
+    def use_json(ctx: click.Context, param: click.Parameter, value: bool) -> None:
+        if value and ctx.obj is not None and not ctx.obj.as_json:
+            ctx.obj = dataclasses.replace(ctx.obj, as_json=True)
+
+    return click.option(
+        "--json",
+        "json_here",
+        is_flag=True,
+        expose_value=False,
+        callback=use_json,
+        help="Print JSON (as the global --json).",
+    )(func)
+
+
 # -- decode -------------------------------------------------------------------------
 
 
@@ -52,6 +74,7 @@ def hex_group() -> None:
     type=click.Path(exists=True, dir_okay=False),
     help="Decode a binary capture file (raw bytes, not hex text).",
 )
+@json_option
 @click.pass_context
 def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None) -> None:
     """Decode HEX (any common form), stdin ('-') or a capture; one row per frame or problem.
@@ -129,6 +152,8 @@ def encode() -> None:
 
 
 def _style_option(func: Any) -> Any:
+    """``--style``, and ``--json`` for the whole frame as decoded."""
+    func = json_option(func)
     return click.option(
         "--style",
         type=click.Choice(STYLES),
@@ -210,6 +235,7 @@ def _traffic_row(frame: bytes, rule: ChecksumRule, direction: str) -> dict[str, 
     metavar="SECONDS",
     help="For a motion frame: stop after SECONDS (default: hold until Ctrl-C), as drive does.",
 )
+@json_option
 @click.pass_context
 def send(ctx: click.Context, hex_text: tuple[str, ...], force: bool, hold_for: float | None) -> None:
     """Send HEX as typed; a missing checksum and end are appended (and said).

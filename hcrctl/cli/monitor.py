@@ -21,6 +21,7 @@ import click
 
 from .. import commands as C
 from ..frames import ChecksumRule, Event, decode_all
+from .hex import json_option
 from .settings import ByteNumber, Settings, stdout_is_terminal
 
 if TYPE_CHECKING:
@@ -175,6 +176,7 @@ def traffic_rows(traffic: Traffic, rule: ChecksumRule) -> list[dict[str, Any]]:
     metavar="LOGFILE",
     help="Render a recorded --log file instead of listening to a port.",
 )
+@json_option
 @click.pass_obj
 def monitor(
     settings: Settings, duration: float | None, filters: tuple, timestamps: str, source: str | None

@@ -22,6 +22,7 @@ import click
 from .. import commands as C
 from ..errors import HcrError, LogFormatError
 from ..frames import ChecksumRule, Frame, decode_all, encode
+from .hex import json_option
 from .monitor import FrameFilter, TrafficPrinter, traffic_rows
 from .settings import Settings
 
@@ -95,6 +96,7 @@ def _frame_under_either_rule(data: bytes, rule: ChecksumRule) -> tuple[Frame | N
     metavar="N",
     help="Replay N times; 0 repeats until Ctrl-C.",
 )
+@json_option
 @click.pass_obj
 def replay(settings: Settings, logfile: str, speed: float, ignore_timestamps: bool, loops: int) -> None:
     """Re-send the tx frames of LOGFILE (written by --log) and print the replies decoded.
