@@ -147,7 +147,7 @@ def encode() -> None:
     \b
     hcrctl hex encode drive power 60 60     ->  55 AA 01 02 01 CC CC 9B 0D 0A
     hcrctl hex encode read compass          ->  55 AA 01 01 14 FF 14 0D 0A
-    hcrctl --address 0x10 hex encode --style c stop
+    hcrctl --address 0x10 hex encode stop --style c
     """
 
 
