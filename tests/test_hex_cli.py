@@ -115,6 +115,26 @@ def test_file_decodes_a_binary_capture(tmp_path: Path) -> None:
     ]
 
 
+def test_file_of_hex_text_is_read_as_hex_and_errors_name_the_file(tmp_path: Path) -> None:
+    dump = tmp_path / "dump.txt"
+    dump.write_text("55 AA 01 02 14\n0D 0A 2D 0D 0A\n")
+    proc = run("hex", "decode", "--file", str(dump))
+    assert proc.returncode == 0 and "heading=333.8 deg" in proc.stdout
+    assert "reading it as hex" in proc.stderr
+    dump.write_text("55 AA\n01 XX\n")
+    bad = run("hex", "decode", "--file", str(dump))
+    assert bad.returncode == 2
+    assert f"not hex: 'XX' at {dump} line 2, column 4" in one_line_error(bad)
+
+
+def test_file_that_is_a_traffic_log_points_to_monitor_from(tmp_path: Path) -> None:
+    log = tmp_path / "session.jsonl"
+    log.write_text('{"time": "2026-01-01T00:00:00.000000+00:00", "direction": "tx", "hex": "55"}\n')
+    proc = run("hex", "decode", "--file", str(log))
+    assert proc.returncode == 2
+    assert "monitor --from" in one_line_error(proc)
+
+
 def test_hex_and_file_together_is_a_usage_error(tmp_path: Path) -> None:
     capture = tmp_path / "c.bin"
     capture.write_bytes(b"")

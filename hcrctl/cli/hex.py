@@ -100,13 +100,26 @@ def _decode_input(hex_text: tuple[str, ...], capture: str | None) -> bytes:
     if capture is not None and hex_text:
         raise click.UsageError("give HEX arguments or --file CAPTURE, not both")
     if capture is not None:
-        with open(capture, "rb") as handle:
-            return handle.read()
+        return _capture(capture)
     if hex_text == ("-",) or (not hex_text and not sys.stdin.isatty()):
         return _stdin_hex()
     if not hex_text:
         raise click.UsageError("give HEX bytes, '-' to read them from stdin, or --file CAPTURE")
     return parse_hex_args(hex_text)
+
+
+def _capture(path: str) -> bytes:
+    """A binary capture; an ASCII-only file cannot hold a frame (0xAA), so it is read as hex text."""
+    with open(path, "rb") as handle:
+        data = handle.read()
+    if not data.isascii() or not data.strip():
+        return data
+    if data.lstrip().startswith(b"{"):
+        raise click.UsageError(
+            f"{path} looks like a --log file; render it with: hcrctl monitor --from {path}"
+        )
+    click.echo(f"hcrctl: {path} is text, not a binary capture: reading it as hex", err=True)
+    return parse_hex(data.decode("ascii"), path)
 
 
 def _stdin_hex() -> bytes:
