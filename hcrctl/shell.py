@@ -79,9 +79,12 @@ class _Prompts:
         common: dict[str, Any] = {"bottom_toolbar": toolbar, "refresh_interval": REFRESH}
         common |= {"key_bindings": keys, "style": style}
         self.commands = PromptSession(
-            _history("history"), completer=ShellCompleter(session), complete_while_typing=True, **common
+            history=_history("history"),
+            completer=ShellCompleter(session),
+            complete_while_typing=True,
+            **common,
         )
-        self.hex = PromptSession(_history("hex_history"), **common)
+        self.hex = PromptSession(history=_history("hex_history"), **common)
         self.session = session
 
     def current(self) -> PromptSession:

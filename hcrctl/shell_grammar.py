@@ -85,14 +85,27 @@ def split(line: str) -> list[str]:
 
 
 def split_partial(text: str) -> tuple[list[str], str]:
-    """The complete words before the cursor, and the word being typed ("" after a space)."""
-    lexer = shlex.shlex(text, posix=True)
-    lexer.whitespace_split = True
-    lexer.commenters = ""
-    try:
-        words = list(lexer)
-    except ValueError:  # an open quote: the rest is the word being typed
+    """The complete words before the cursor, and the word being typed ("" after a space).
+
+    An open quote means the quoted word is still being typed, spaces and all.
+    """
+    for closer in ("", "'", '"'):
+        try:
+            words = _words(text + closer)
+        except ValueError:
+            continue
+        if closer:
+            return words[:-1], words[-1]
+        break
+    else:
         words = text.split()
     if not text or text[-1].isspace():
         return words, ""
     return words[:-1], words[-1] if words else ""
+
+
+def _words(text: str) -> list[str]:
+    lexer = shlex.shlex(text, posix=True)
+    lexer.whitespace_split = True
+    lexer.commenters = ""
+    return list(lexer)

@@ -184,7 +184,7 @@ class Link:
                     return False
                 self.open()
         except HcrError as exc:
-            self.reconnect_error = exc.one_line()
+            self.reconnect_error = exc.message
             return False
         self.reconnect_error = None
         self.on_event(f"reconnected to {self.port}")

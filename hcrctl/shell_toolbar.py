@@ -71,7 +71,10 @@ def link_fragments(session: Session) -> Fragments:
         ("", "  "),
         ("class:toolbar.stop", f" {STOP_KEY_SHORT}: stop "),
         ("", f"  {link.port or '-'} {settings.baud} baud addr {shown('address', settings.address)}"),
-        ("", f"  tx {totals.tx} rx {totals.rx}  errors: checksum {totals.checksum} timeout {totals.timeouts}"),
+        (
+            "",
+            f"  tx {totals.tx} rx {totals.rx}  errors: checksum {totals.checksum} timeout {totals.timeouts}",
+        ),
         ("", f"  {session.stop_note}" if session.stop_note else ""),
     ]
 

@@ -243,9 +243,14 @@ def table_field(path: tuple[str, ...], name: str) -> C.FieldInfo | None:
 def type_text(kind: click.ParamType) -> str:
     """A parameter type's range or choices, as the user may type them."""
     if isinstance(kind, (click.IntRange, click.FloatRange)):
-        lo = "" if kind.min is None else f"{kind.min:g}"
-        hi = "" if kind.max is None else f"{kind.max:g}"
+        lo = "" if kind.min is None else _number(kind.min)
+        hi = "" if kind.max is None else _number(kind.max)
         return f"{lo}..{hi}"
     if isinstance(kind, click.Choice):
         return "|".join(str(c) for c in kind.choices)
     return kind.name
+
+
+def _number(value: float) -> str:
+    """60, 4000000, 0.001: as typed, without exponents or a trailing .0."""
+    return str(int(value)) if float(value).is_integer() else repr(float(value))

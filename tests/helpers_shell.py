@@ -7,7 +7,9 @@ prompt) rather than on a stream of escape sequences.
 
 from __future__ import annotations
 
+import copy
 import os
+import re
 import shutil
 import signal
 import sys
@@ -17,6 +19,7 @@ import tty
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
+from typing import Any
 
 import pexpect
 import pyte
@@ -26,6 +29,8 @@ from hcrctl.frames import Frame, FrameDecoder
 
 ROWS, COLS = 30, 100
 STOP_FRAME = bytes.fromhex("55 AA 01 02 01 80 80 03 0D 0A")
+ENTER_ALT, LEAVE_ALT = b"\x1b[?1049h", b"\x1b[?1049l"
+ALT_SCREEN = re.compile(b"(" + re.escape(ENTER_ALT) + b"|" + re.escape(LEAVE_ALT) + b")")
 
 
 def hcrctl_exe() -> str:
@@ -56,6 +61,7 @@ class Term:
         self.stream = pyte.ByteStream(self.screen)
         self.timeout = timeout
         self.raw = bytearray()
+        self._saved: tuple[Any, Any] | None = None
         self.child = pexpect.spawn(
             hcrctl_exe(), args, env=shell_env(state_home), dimensions=(ROWS, COLS), timeout=timeout
         )
@@ -70,9 +76,24 @@ class Term:
             except (pexpect.TIMEOUT, pexpect.EOF):
                 return
             self.raw += data
-            self.stream.feed(data)
+            self._feed(data)
             self._answer_cpr(data)
             wait = 0.01
+
+    def _feed(self, data: bytes) -> None:
+        """pyte lacks the alternate screen the live panels use: save and restore around it."""
+        for piece in ALT_SCREEN.split(data):
+            if piece == ENTER_ALT:
+                self._saved = (copy.deepcopy(self.screen.buffer), copy.copy(self.screen.cursor))
+            elif piece == LEAVE_ALT and self._saved is not None:
+                buffer, cursor = self._saved
+                self.screen.buffer.clear()
+                self.screen.buffer.update(buffer)
+                self.screen.cursor = cursor
+                self.screen.dirty.update(range(self.screen.lines))
+                self._saved = None
+            else:
+                self.stream.feed(piece)
 
     def _answer_cpr(self, data: bytes) -> None:
         """Answer cursor-position requests as a terminal does (prompt-toolkit sizes its toolbar by them)."""

@@ -1,0 +1,286 @@
+"""The real ``hcrctl shell`` in a pseudo-terminal: pexpect types, pyte shows the screen."""
+
+from __future__ import annotations
+
+import re
+import signal
+import stat
+import time
+
+import pytest
+from helpers_shell import STOP_FRAME, PtyRobot, shell, stop_after_motion
+
+SIM = "sim://"
+
+
+@pytest.fixture
+def robot():
+    r = PtyRobot()
+    yield r
+    r.close()
+
+
+def lines_with(screen: str, text: str) -> list[str]:
+    return [line for line in screen.splitlines() if text in line]
+
+
+def printed_frames(screen: str, station: str) -> list[str]:
+    """Lines printed above the prompt for one station (not the toolbar's 'last ...')."""
+    return [line for line in screen.splitlines() if line.startswith(f"{station} position  did ")]
+
+
+# -- commands, the prompt, errors -------------------------------------------------
+
+
+def test_commands_print_what_they_print_on_the_command_line(tmp_path):
+    with shell(["--port", SIM, "shell"], tmp_path) as term:
+        assert term.wait_prompt().count("hcr sim:// ok>") == 1
+        assert term.prompt_line() == "hcr sim:// ok>"
+        screen = term.run("read compass")
+        assert re.search(r"compass\s+│\s+90\.0° E", screen)
+        screen = term.run("set timeout 0.2")
+        assert "timeout 0.2" in screen.splitlines()[-4:] or lines_with(screen, "timeout 0.2")
+        screen = term.run("drive power 60 60")
+        assert "55 AA 01 02 01 CC CC 9B 0D 0A" in screen
+
+
+def test_errors_print_one_line_and_the_session_goes_on(tmp_path):
+    with shell(["--port", SIM, "shell"], tmp_path) as term:
+        screen = term.run("read compas")
+        (error,) = lines_with(screen, "error: read:")
+        assert "'compas' is not one of" in error
+        screen = term.run("set timeout 99")
+        assert lines_with(screen, "0.001<=x<=60")
+        screen = term.run("bogus")
+        assert lines_with(screen, "No such command 'bogus'")
+        screen = term.run("shell")
+        assert lines_with(screen, "already in the shell")
+        screen = term.run("read compass")
+        assert re.search(r"compass\s+│\s+90\.0° E", screen)
+
+
+def test_ctrl_c_cancels_the_running_command_not_the_session(tmp_path):
+    with shell(["--port", SIM, "shell"], tmp_path) as term:
+        term.wait_prompt()
+        term.send("sleep 60\r")
+        term.wait_for(lambda s: "sleep 60" in s and not term._at_prompt())
+        time.sleep(0.3)
+        term.send("\x03")
+        screen = term.wait_for("interrupted")
+        term.wait_prompt()
+        assert term.child.isalive()
+        screen = term.run("read compass")
+        assert re.search(r"compass\s+│\s+90\.0° E", screen)
+
+
+def test_help_lists_shell_and_cli_commands(tmp_path):
+    with shell(["--port", SIM, "shell"], tmp_path) as term:
+        screen = term.run("help")  # longer than the screen: its end is visible
+        for name in ("read", "drive", "ping", "watch"):
+            assert lines_with(screen, f"  {name} "), name
+        assert lines_with(screen, "sends stop at any time")
+        screen = term.run("help connect")
+        assert "Usage: connect [OPTIONS] [PORT]" in screen
+        screen = term.run("help read")
+        assert "Usage: read [OPTIONS] [SENSOR]..." in screen
+
+
+# -- completion and the toolbar ----------------------------------------------------
+
+
+def test_tab_completes_commands_and_sensor_names_with_descriptions(tmp_path):
+    with shell(["--port", SIM, "shell"], tmp_path) as term:
+        term.wait_prompt()
+        term.send("read comp")
+        term.wait_for(lambda s: term.prompt_line().endswith("read comp"))
+        term.send("\t")
+        term.wait_for(lambda s: term.prompt_line().endswith("read compass"))
+        term.send("\x15")  # Ctrl-U: clear the line
+        term.send("dis")
+        term.wait_for("dis")
+        term.send("\t")
+        screen = term.wait_for(lambda s: term.prompt_line().endswith("disconnect"))
+        assert lines_with(screen, "Close the port")
+
+
+def test_toolbar_shows_the_argument_being_typed_and_its_range(tmp_path):
+    with shell(["--port", SIM, "shell"], tmp_path) as term:
+        term.wait_prompt()
+        term.send("drive power 60 ")
+        screen = term.wait_for("drive power ▸ RIGHT")
+        (hint,) = lines_with(screen, "▸ RIGHT")
+        assert "-100..100 %" in hint
+        (status,) = lines_with(screen, "^Space/F12: stop")
+        assert "sim:// 115200 baud addr 0x01" in status
+
+
+# -- history -------------------------------------------------------------------
+
+
+def test_history_persists_across_sessions_privately_and_ctrl_r_searches_it(tmp_path):
+    with shell(["--port", SIM, "shell"], tmp_path) as term:
+        term.run("read compass")
+        term.run("set timeout 0.3")
+        term.send("exit\r")
+        assert term.finish() == 0
+    path = tmp_path / "hcrctl" / "history"
+    assert stat.S_IMODE(path.stat().st_mode) == 0o600
+    assert "set timeout 0.3" in path.read_text()
+    with shell(["--port", SIM, "shell"], tmp_path) as term:
+        term.wait_prompt()
+        term.send("\x1b[A")  # Up: the last line of the previous session
+        term.wait_for(lambda s: term.prompt_line().endswith("ok> exit"))
+        term.send("\x1b[A")
+        term.wait_for(lambda s: term.prompt_line().endswith("ok> set timeout 0.3"))
+        term.send("\x15\x12")  # Ctrl-U, Ctrl-R
+        term.send("comp")
+        screen = term.wait_for("read compass")
+        assert lines_with(screen, "comp")
+        term.send("\r")
+        term.wait_for(lambda s: term.prompt_line().endswith("read compass"))
+        term.send("\r")
+        screen = term.wait_prompt()
+        assert re.search(r"compass\s+│\s+90\.0° E", screen)
+
+
+# -- unsolicited frames --------------------------------------------------------------
+
+
+def test_broadcasts_appear_above_the_prompt_collapsed_and_monitor_off_silences_them(tmp_path):
+    with shell(["--port", "sim://?broadcast_hz=20", "shell"], tmp_path) as term:
+        term.wait_prompt()
+        started = time.monotonic()
+        term.send("read comp")  # a half-typed line must survive the lines printed above it
+        time.sleep(3)
+        screen = term.wait_for(lambda s: len(printed_frames(s, "0x50")) >= 2)
+        elapsed = time.monotonic() - started
+        assert term.prompt_line() == "hcr sim://?broadcast_hz=20 ok> read comp"
+        printed = printed_frames(screen, "0x50")
+        assert len(printed) <= elapsed + 2  # at most one per second (plus the first)
+        assert all(re.search(r"\(\+\d+ more\)$", line) for line in printed[1:]), printed
+        seen = int(re.search(r"0x50×(\d+)", screen).group(1))
+        assert seen > 2 * len(printed)  # the toolbar counts what was collapsed
+        term.send("\x15")
+        screen = term.run("monitor off")
+        before = len(printed_frames(screen, "0x50"))
+        count_before = int(re.search(r"0x50×(\d+)", screen).group(1))
+        time.sleep(2.5)
+        screen = term.wait_for(lambda s: int(re.search(r"0x50×(\d+)", s).group(1)) > count_before + 5)
+        assert len(printed_frames(screen, "0x50")) == before
+        assert "monitor off" in screen.splitlines()[-1]
+
+
+# -- raw hex mode --------------------------------------------------------------------
+
+
+def test_hex_mode_completes_sends_decodes_and_exit_returns(tmp_path):
+    with shell(["--port", SIM, "shell"], tmp_path) as term:
+        term.run("hex")
+        assert term.prompt_line() == "hex>"
+        screen = term.run("55 AA 01 01 14 FF")
+        assert lines_with(screen, "appended checksum 14")
+        (reply,) = lines_with(screen, "reply  55 AA 01 02 14")
+        assert "compass" in reply and "90.0" in reply
+        screen = term.run("55 AA 01 01 14 FF 00")
+        assert lines_with(screen, "error: checksum 00 is wrong")
+        assert term.prompt_line() == "hex>"
+        term.run("exit")
+        assert term.prompt_line() == "hcr sim:// ok>"
+
+
+# -- the link ------------------------------------------------------------------------
+
+
+def test_a_device_that_disappears_shows_disconnected_and_is_reconnected(tmp_path):
+    link = tmp_path / "robot"
+    first = PtyRobot(link)
+    second = None
+    try:
+        with shell(["--port", str(link), "shell"], tmp_path) as term:
+            term.run("read compass")
+            first.close()
+            term.wait_for(lambda s: term.prompt_line() == f"hcr {link} disconnected>")
+            assert lines_with(term.text(), "disconnected, retrying")
+            second = PtyRobot(link)
+            term.wait_for(lambda s: term.prompt_line() == f"hcr {link} ok>")
+            assert lines_with(term.text(), "reconnected to")
+            screen = term.run("read compass")
+            assert re.search(r"compass\s+│\s+90\.0° E", screen)
+            assert "compass" in second.commands()
+    finally:
+        first.close()
+        if second is not None:
+            second.close()
+
+
+# -- safety: stop however the session ends ------------------------------------------
+
+
+def _drive_then(term, robot: PtyRobot) -> None:
+    term.run("drive power 60 60")
+    robot.wait_for(lambda frames: any(f[4] == 0x01 and f != STOP_FRAME for f in frames))
+    assert STOP_FRAME not in robot.received()
+
+
+@pytest.mark.parametrize("ending", ["ctrl-d", "exit", "sigterm", "sighup", "terminal-closed"])
+def test_stop_is_sent_when_the_session_ends(tmp_path, robot, ending):
+    with shell(["--port", robot.port, "shell"], tmp_path) as term:
+        _drive_then(term, robot)
+        if ending == "ctrl-d":
+            term.send("\x04")
+        elif ending == "exit":
+            term.send("exit\r")
+        elif ending == "sigterm":
+            term.child.kill(signal.SIGTERM)
+        elif ending == "sighup":
+            term.child.kill(signal.SIGHUP)
+        else:
+            term.child.close(force=False)  # the terminal window closes: the line hangs up
+        frames = robot.wait_for(stop_after_motion)
+        assert frames[-1] == STOP_FRAME
+        if ending in ("ctrl-d", "exit", "sigterm", "sighup"):
+            status = term.finish()
+            expected = {"ctrl-d": 0, "exit": 0, "sigterm": 128 + 15, "sighup": 128 + 1}[ending]
+            assert status == expected
+
+
+def test_the_stop_key_works_mid_line_and_keeps_the_line(tmp_path, robot):
+    with shell(["--port", robot.port, "shell"], tmp_path) as term:
+        _drive_then(term, robot)
+        term.send("read comp")
+        term.wait_for(lambda s: term.prompt_line().endswith("read comp"))
+        term.send("\x00")  # Ctrl-Space
+        robot.wait_for(lambda frames: STOP_FRAME in frames)
+        screen = term.wait_for("stop sent to 0x01")
+        assert term.prompt_line().endswith("ok> read comp")
+        assert lines_with(screen, "^Space/F12: stop")
+        term.send("ass\r")
+        screen = term.wait_prompt()
+        assert "compass" in robot.commands()
+
+
+def test_ctrl_c_during_a_command_stops_a_robot_that_moved(tmp_path, robot):
+    with shell(["--port", robot.port, "shell"], tmp_path) as term:
+        _drive_then(term, robot)
+        term.send("sleep 60\r")
+        term.wait_for(lambda s: "sleep 60" in s and not term._at_prompt())
+        time.sleep(0.3)
+        term.send("\x03")
+        robot.wait_for(lambda frames: STOP_FRAME in frames)
+        term.wait_for("interrupted; stop sent")
+
+
+# -- the live panels inside the shell -----------------------------------------------
+
+
+@pytest.mark.parametrize("panel, title", [("watch", "hcrctl watch"), ("teleop", "hcrctl teleop")])
+def test_live_panels_run_inside_and_q_returns_to_the_prompt(tmp_path, panel, title):
+    with shell(["--port", SIM, "shell"], tmp_path) as term:
+        term.wait_prompt()
+        term.send(panel + "\r")
+        term.wait_for(title)
+        term.send("q")
+        term.wait_prompt()
+        assert term.prompt_line() == "hcr sim:// ok>"
+        screen = term.run("read compass")
+        assert re.search(r"compass\s+│\s+90\.0° E", screen)

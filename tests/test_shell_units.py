@@ -1,0 +1,342 @@
+"""Fast tests of the shell's parts: collapsing, the Click-tree walk, completion, toolbar, history, dispatch."""
+
+from __future__ import annotations
+
+import itertools
+import os
+import stat
+import threading
+import time
+
+import click
+import pytest
+from prompt_toolkit import PromptSession
+from prompt_toolkit.input import create_pipe_input
+from prompt_toolkit.output import DummyOutput
+
+from hcrctl import commands as C
+from hcrctl.cli.settings import Settings
+from hcrctl.errors import PortError
+from hcrctl.frames import Frame, decode_all, encode
+from hcrctl.shell_broadcasts import Collapser, describe
+from hcrctl.shell_dispatch import COMMANDS, run_line, usage_line
+from hcrctl.shell_grammar import root_context, split, split_partial
+from hcrctl.shell_history import history_file, state_dir
+from hcrctl.shell_link import Unplugged
+from hcrctl.shell_script import script_lines
+from hcrctl.shell_session import Session
+from hcrctl.shell_toolbar import argument_hint, broadcast_text, prompt_fragments, toolbar_fragments
+from hcrctl.shell_tree import candidates, locate
+
+
+def frame(address: int, code: int, content: bytes) -> Frame:
+    (only,) = decode_all(encode(address, code, content))
+    assert isinstance(only, Frame)
+    return only
+
+
+def position(station: int, did: int) -> Frame:
+    return frame(station, 0xA0, bytes((did, 120, 98, 200)))
+
+
+def wait_until(predicate, timeout: float = 10.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not predicate() and time.monotonic() < deadline:
+        time.sleep(0.01)
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.now = 1000.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+@pytest.fixture
+def session():
+    s = Session(Settings(port="sim://?broadcast_hz=0&map_hz=0"), interactive=True)
+    assert s.connect_at_start() is None
+    yield s
+    s.close()
+
+
+# -- collapsing broadcasts ----------------------------------------------------
+
+
+def test_twenty_hz_from_two_stations_prints_one_line_per_station_per_second():
+    clock = FakeClock()
+    collapser = Collapser(interval=1.0, clock=clock)
+    printed: dict[int, list[tuple[float, str]]] = {0x50: [], 0x51: []}
+    for tick in range(60):  # 3 s at 20 Hz
+        clock.now = 1000.0 + tick * 0.05
+        for station in (0x50, 0x51):
+            line = collapser.offer(position(station, tick))
+            if line is not None:
+                printed[station].append((clock.now, line))
+    for lines in printed.values():
+        assert len(lines) == 3, lines
+        times = [t for t, _ in lines]
+        assert all(b - a >= 1.0 for a, b in itertools.pairwise(times))
+        assert "(+" not in lines[0][1]
+        assert all(line.endswith("(+19 more)") for _, line in lines[1:]), lines
+    assert collapser.counts() == [(0x50, 60), (0x51, 60)]
+
+
+def test_a_quiet_station_is_printed_at_once_while_a_busy_one_is_collapsed():
+    clock = FakeClock()
+    collapser = Collapser(clock=clock)
+    assert collapser.offer(position(0x50, 1)) is not None
+    clock.now += 0.1
+    assert collapser.offer(position(0x50, 2)) is None
+    assert collapser.offer(frame(0x01, 0xB0, bytes(16))) is not None
+    assert collapser.last_seen() == ("0x01 map", 0.0)
+    clock.now += 2.5
+    assert collapser.last_seen() == ("0x01 map", pytest.approx(2.5))
+
+
+def test_describe_uses_the_table_fields_and_units():
+    assert describe(position(0x50, 7)) == "0x50 position  did 7  d1 120 cm  d2 98 cm  ts 200 ms"
+    grid = describe(frame(0x01, 0xB0, bytes(range(16))))
+    assert grid == "0x01 map  00 01 02 03 04 05 06 07 08 09 0A 0B 0C 0D 0E 0F"
+    assert describe(frame(0x50, 0x77, b"\x01\x02")) == "0x50 0x77  [2] 01 02"
+    bad = describe(frame(0x50, 0xA0, b"\x01"))
+    assert bad.startswith("0x50 position  01  (") and "4 bytes" in bad
+
+
+def test_toolbar_counts_per_station():
+    clock = FakeClock()
+    collapser = Collapser(clock=clock)
+    assert broadcast_text(collapser, True).startswith("unsolicited: none yet")
+    for did in range(3):
+        collapser.offer(position(0x51, did))
+    collapser.offer(position(0x50, 0))
+    clock.now += 0.4
+    text = broadcast_text(collapser, False)
+    assert "0x50×1 0x51×3" in text
+    assert "last 0x50 position 0.4 s ago" in text
+    assert "monitor off" in text
+
+
+# -- splitting and the Click tree -----------------------------------------------
+
+
+def test_split_is_shell_like_with_comments():
+    assert split("drive power 60 60  # forward") == ["drive", "power", "60", "60"]
+    assert split("hex send '55 AA'") == ["hex", "send", "55 AA"]
+    with pytest.raises(click.UsageError):
+        split("read 'compass")
+
+
+@pytest.mark.parametrize(
+    "text, words, prefix",
+    [
+        ("", [], ""),
+        ("rea", [], "rea"),
+        ("read ", ["read"], ""),
+        ("read com", ["read"], "com"),
+        ("hex send '55 A", ["hex", "send"], "55 A"),
+    ],
+)
+def test_split_partial(text, words, prefix):
+    assert split_partial(text) == (words, prefix)
+
+
+def spot_for(session: Session, text: str):
+    words, prefix = split_partial(text)
+    return locate(COMMANDS, root_context(COMMANDS, session, session.settings), words, prefix)
+
+
+def values(session: Session, text: str) -> dict[str, str]:
+    spot = spot_for(session, text)
+    return {c.value: c.help for c in candidates(COMMANDS, spot)}
+
+
+def test_top_level_offers_builtins_and_every_cli_command_but_shell(session):
+    found = values(session, "")
+    assert {"help", "exit", "set", "connect", "hex", "monitor", "read", "sim"} <= set(found)
+    assert "shell" not in found
+    assert found["read"] == "Read sensors once and print them."
+
+
+def test_sensor_names_come_with_the_tables_help(session):
+    found = values(session, "read co")
+    assert found == {"compass": C.BY_NAME["compass"].help}
+
+
+def test_set_offers_the_settings_and_checksum_choices(session):
+    assert set(values(session, "set ")) >= {"timeout", "address", "checksum", "retries", "baud", "json"}
+    assert set(values(session, "set checksum ")) == {"header", "address"}
+
+
+def test_monitor_offers_on_and_off(session):
+    assert {"on", "off"} <= set(values(session, "monitor "))
+
+
+def test_hint_names_the_argument_and_its_range_from_the_table(session):
+    info = C.BY_NAME["power"].request_fields[1]
+    hint = argument_hint(session, "drive power 60 ")
+    assert hint.startswith("drive power ▸ RIGHT")
+    assert info.range_text in hint and info.help in hint
+
+
+def test_hint_uses_click_ranges_outside_the_table(session):
+    assert "TIMEOUT  0.001..60" in argument_hint(session, "set timeout ")
+    assert "no such command" in argument_hint(session, "bogus ")
+    assert argument_hint(session, "") == ""
+
+
+def test_completion_through_a_real_prompt(session):
+    from hcrctl.shell_completion import ShellCompleter
+
+    with create_pipe_input() as pipe:
+        prompt = PromptSession(completer=ShellCompleter(session), input=pipe, output=DummyOutput())
+
+        def type_then_enter() -> None:  # completion is asynchronous: each key once the last one landed
+            buffer = prompt.default_buffer
+            pipe.send_text("read comp")
+            wait_until(lambda: buffer.complete_state is not None)
+            pipe.send_text("\t")
+            wait_until(lambda: buffer.text != "read comp")
+            pipe.send_text("\r")
+
+        typist = threading.Thread(target=type_then_enter, daemon=True)
+        typist.start()
+        assert prompt.prompt() == "read compass"
+        typist.join(5)
+
+
+def test_no_completion_in_hex_mode(session):
+    from prompt_toolkit.completion import CompleteEvent
+    from prompt_toolkit.document import Document
+
+    from hcrctl.shell_completion import ShellCompleter
+
+    completer = ShellCompleter(session)
+    assert list(completer.get_completions(Document("rea"), CompleteEvent()))
+    session.hex_mode = True
+    assert not list(completer.get_completions(Document("rea"), CompleteEvent()))
+
+
+# -- prompt and toolbar ----------------------------------------------------------
+
+
+def test_prompt_shows_port_and_link_state(session):
+    text = "".join(t for _, t in prompt_fragments(session))
+    assert text == "hcr sim://?broadcast_hz=0&map_hz=0 ok> "
+    session.hex_mode = True
+    assert "".join(t for _, t in prompt_fragments(session)) == "hex> "
+
+
+def test_toolbar_shows_link_counters_and_the_stop_key(session):
+    assert run_line(session, "read compass") == 0
+    text = "".join(t for _, t in toolbar_fragments(session, "set baud "))
+    assert "BAUD  50..4000000" in text
+    assert "ok" in text and "115200 baud addr 0x01" in text
+    assert "tx 1 rx 1" in text and "checksum 0 timeout 0" in text
+    assert "^Space/F12: stop" in text
+
+
+def test_link_state_no_reply_then_ok_then_disconnected():
+    s = Session(Settings(port="sim://?silent=1", timeout=0.05, retries=0), interactive=True)
+    try:
+        assert s.connect_at_start() is None
+        assert run_line(s, "read compass") == 1
+        assert s.link.state == "no reply"
+        assert "".join(t for _, t in prompt_fragments(s)) == "hcr sim://?silent=1 no reply> "
+        assert run_line(s, "connect sim://") == 0
+        s.link.no_reply = True  # as if the last request had timed out: a reply clears it
+        assert run_line(s, "read compass") == 0
+        assert s.link.state == "ok"
+        assert run_line(s, "disconnect") == 0
+        assert s.link.state == "disconnected"
+        assert "".join(t for _, t in prompt_fragments(s)) == "hcr sim:// disconnected> "
+    finally:
+        s.close()
+
+
+# -- dispatch ------------------------------------------------------------------
+
+
+def test_exit_codes_of_lines(session, capsys):
+    assert run_line(session, "") == 0
+    assert run_line(session, "# just a comment") == 0
+    assert run_line(session, "read compas") == 2
+    assert run_line(session, "set timeout 99") == 2
+    assert run_line(session, "bogus") == 2
+    assert run_line(session, "shell") == 2
+    assert run_line(session, "set address 0x02") == 0
+    assert run_line(session, "read compass") == 1  # nobody answers at 0x02
+    assert run_line(session, "set address 1") == 0
+    assert run_line(session, "read compass") == 0
+    err = capsys.readouterr().err.splitlines()
+    assert err[0].startswith("error: read: Invalid value for 'SENSOR'")
+    assert "(see 'help read')" in err[0]
+    assert "0.001<=x<=60" in err[1]
+    assert err[2].startswith("error: No such command 'bogus'")
+    assert err[3].startswith("error: already in the shell")
+    assert err[4].startswith("error: no reply to compass from address 0x02")
+
+
+def test_set_changes_the_live_robot(session, capsys):
+    robot = session.link.robot
+    assert run_line(session, "set timeout 0.25") == 0
+    assert run_line(session, "set checksum address") == 0
+    assert run_line(session, "set retries 0") == 0
+    assert (robot.timeout, robot.rule.value, robot.retries) == (0.25, "address", 0)
+    assert session.settings.timeout == 0.25
+    assert run_line(session, "set") == 0
+    out = capsys.readouterr().out
+    assert "timeout 0.25" in out and "checksum address" in out and "retries 0" in out
+
+
+def test_disconnected_commands_fail_in_one_line_without_opening_a_port(session, capsys):
+    assert run_line(session, "disconnect") == 0
+    assert isinstance(session.settings.session, Unplugged)
+    assert run_line(session, "read compass") == 1
+    assert "not connected on sim://" in capsys.readouterr().err
+    with pytest.raises(PortError):
+        session.settings.session.read("compass")
+    assert run_line(session, "connect") == 0
+    assert run_line(session, "read compass") == 0
+
+
+def test_exit_and_hex_mode_switch(session, capsys):
+    assert run_line(session, "hex") == 0
+    assert session.hex_mode
+    assert run_line(session, "55 AA 01 01 14 FF") == 0
+    assert run_line(session, "55 AA 01 01 14 FF 00") == 1  # wrong checksum: refused, nothing sent
+    assert run_line(session, "exit") == 0
+    assert not session.hex_mode and not session.done
+    assert run_line(session, "exit") == 0
+    assert session.done
+    out = capsys.readouterr().out
+    assert "reply  55 AA 01 02 14" in out and "compass" in out
+
+
+def test_usage_line_is_one_line():
+    ctx = click.Context(click.Command("read"), info_name="read")
+    assert usage_line(click.UsageError("a\nb", ctx)) == "error: read: a b (see 'help read')"
+
+
+# -- scripts and history -------------------------------------------------------
+
+
+def test_script_lines_skip_blanks_and_comments():
+    text = ["# header\n", "\n", "  read compass  \n", "drive power 60 60 # go\n", "   # indented\n"]
+    assert list(script_lines(text)) == [(3, "read compass"), (4, "drive power 60 60 # go")]
+
+
+def test_history_file_is_private_under_xdg_state_home(tmp_path):
+    path = history_file(env={"XDG_STATE_HOME": str(tmp_path)})
+    assert path == tmp_path / "hcrctl" / "history"
+    assert stat.S_IMODE(path.stat().st_mode) == 0o600
+    os.chmod(path, 0o644)
+    history_file(env={"XDG_STATE_HOME": str(tmp_path)})
+    assert stat.S_IMODE(path.stat().st_mode) == 0o600
+
+
+def test_relative_xdg_state_home_is_ignored(monkeypatch, tmp_path):
+    monkeypatch.setenv("HOME", str(tmp_path))
+    assert state_dir({"XDG_STATE_HOME": "relative/dir"}) == tmp_path / ".local" / "state" / "hcrctl"
+    assert state_dir({}) == tmp_path / ".local" / "state" / "hcrctl"
