@@ -83,3 +83,17 @@ def read_for(fd: int, seconds: float) -> list[tuple[float, bytes]]:
             with contextlib.suppress(OSError):
                 out.append((time.monotonic(), os.read(fd, 4096)))
     return out
+
+
+def read_until(fd: int, needle: bytes, timeout: float = 15.0) -> list[tuple[float, bytes]]:
+    """Chunks arriving on ``fd`` until ``needle`` has arrived (or ``timeout``: a slow machine is no failure)."""
+    import select
+
+    out: list[tuple[float, bytes]] = []
+    deadline = time.monotonic() + timeout
+    while needle not in b"".join(c for _, c in out) and (left := deadline - time.monotonic()) > 0:
+        ready, _, _ = select.select([fd], [], [], min(left, 0.05))
+        if ready:
+            with contextlib.suppress(OSError):
+                out.append((time.monotonic(), os.read(fd, 4096)))
+    return out

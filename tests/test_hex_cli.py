@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 import pytest
-from helpers_hex import device_pty, hcrctl_exe, read_for, run, sim_pty
+from helpers_hex import device_pty, hcrctl_exe, read_for, read_until, run, sim_pty
 from test_hexview import DOCUMENT_FRAMES, expected_verdict, printed, verdict_of
 
 from hcrctl.frames import encode
@@ -291,7 +291,7 @@ def test_sigterm_during_an_open_ended_motion_hold_sends_stop() -> None:
             stderr=subprocess.PIPE,
         )
         try:
-            first = read_for(master, 1.5)
+            first = read_until(master, H("55 AA 01 02 01 CC CC 9B 0D 0A"))
             proc.send_signal(signal.SIGTERM)
             proc.wait(timeout=10)
             rest = read_for(master, 0.2)

@@ -87,9 +87,8 @@ def test_junk_and_checksum_errors_are_shown_and_counted() -> None:
             text=True,
         )
         try:
-            import time
-
-            time.sleep(0.5)  # let it open the port; the bytes wait in the pty buffer anyway
+            # opening the port flushes its input: write only once it says it is listening
+            assert proc.stderr.readline().startswith("hcrctl: monitoring")
             os.write(master, wire)
             out, err = proc.communicate(timeout=15)
         finally:

@@ -13,7 +13,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from helpers_hex import device_pty, hcrctl_exe, read_for, run, sim_pty
+from helpers_hex import device_pty, hcrctl_exe, read_for, read_until, run, sim_pty
 
 from hcrctl.frames import encode
 from hcrctl.trafficlog import iso_time, read_log
@@ -96,7 +96,7 @@ def test_original_timing_is_kept_and_scaled_by_speed(tmp_path: Path) -> None:
                 stderr=subprocess.PIPE,
             )
             try:
-                chunks = read_for(master, 2.5)
+                chunks = read_until(master, frames[1][1])
                 proc.wait(timeout=10)
             finally:
                 proc.kill()
@@ -124,7 +124,7 @@ def test_interrupted_replay_sends_stop(tmp_path: Path, sig: signal.Signals) -> N
             [hcrctl_exe(), "--port", path, "replay", str(log)], stdout=subprocess.PIPE, stderr=subprocess.PIPE
         )
         try:
-            first = b"".join(c for _, c in read_for(master, 1.0))
+            first = b"".join(c for _, c in read_until(master, drive))
             proc.send_signal(sig)
             proc.wait(timeout=10)
             rest = b"".join(c for _, c in read_for(master, 0.2))

@@ -222,6 +222,8 @@ def _listen(settings: Settings, printer: TrafficPrinter, duration: float | None)
     listener = inbox.put
     with settings.robot() as robot:
         add_listener(robot, listener)
+        until = f"for {duration:g} s" if duration is not None else "until Ctrl-C"
+        click.echo(f"hcrctl: monitoring {robot.port} {until}", err=True)
         try:
             _drain_until(robot, inbox, printer, None if duration is None else start + duration)
         finally:
