@@ -29,7 +29,7 @@ def test_monitor_sees_the_stations_broadcasts_for_the_duration() -> None:
     assert {m.group(3) for m in positions} == {"@50", "@51"}
     assert len(positions) >= 3
     assert all(m.group(2) == "rx" for m in parsed)
-    assert re.search(r"monitor: \d+ frames, 0 checksum errors, 0 junk bytes in 1\.\d s", proc.stderr)
+    assert re.search(r"monitor: \d+ frames, 0 checksum errors, 0 junk bytes in \d+\.\d s", proc.stderr)
 
 
 def test_monitor_json_lines_have_the_decode_shape() -> None:

@@ -218,10 +218,10 @@ def _listen(settings: Settings, printer: TrafficPrinter, duration: float | None)
     from ..trafficlog import add_listener, remove_listener
 
     inbox: queue.SimpleQueue[Traffic] = queue.SimpleQueue()
-    start = time.monotonic()
     listener = inbox.put
     with settings.robot() as robot:
         add_listener(robot, listener)
+        start = time.monotonic()  # the duration counts from an open port, however slow opening was
         until = f"for {duration:g} s" if duration is not None else "until Ctrl-C"
         click.echo(f"hcrctl: monitoring {robot.port} {until}", err=True)
         try:
