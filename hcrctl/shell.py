@@ -101,7 +101,10 @@ def _history(name: str) -> History:
 
 def _toolbar(session: Session) -> Any:
     def toolbar() -> Any:
-        return toolbar_fragments(session, get_app().current_buffer.document.text_before_cursor)
+        try:
+            return toolbar_fragments(session, get_app().current_buffer.document.text_before_cursor)
+        except Exception as exc:  # a drawing bug must not end the session (and skip its stop)
+            return f" toolbar error: {exc!r}"
 
     return toolbar
 

@@ -32,8 +32,11 @@ class ShellCompleter(Completer):
             return
         words, prefix = split_partial(document.text_before_cursor)
         root = root_context(self.commands, self.session, self.session.settings)
-        spot = locate(self.commands, root, words, prefix)
-        for candidate in candidates(self.commands, spot):
+        try:
+            found = candidates(self.commands, locate(self.commands, root, words, prefix))
+        except Exception:  # a subcommand that cannot describe itself completes nothing
+            return
+        for candidate in found:
             if candidate.files:
                 yield from self.paths.get_completions(Document(prefix, len(prefix)), complete_event)
             elif candidate.value.startswith(prefix):

@@ -229,14 +229,9 @@ class Link:
 
     def _adopt(self, robot: Robot) -> None:
         """A ``Settings.robot_hooks`` entry: wire every robot the session opens."""
-        previous = robot.on_traffic
+        from .trafficlog import add_listener  # shares the one on_traffic slot with --log and monitor
 
-        def traffic(item: Traffic) -> None:
-            self._saw(robot, item)
-            if previous is not None:
-                previous(item)
-
-        robot.on_traffic = traffic
+        add_listener(robot, lambda item: self._saw(robot, item))
         robot.on_unsolicited = self.on_frame
 
     def _saw(self, robot: Robot, item: Traffic) -> None:

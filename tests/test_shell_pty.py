@@ -186,6 +186,10 @@ def test_hex_mode_completes_sends_decodes_and_exit_returns(tmp_path):
         assert term.prompt_line() == "hex>"
         term.run("exit")
         assert term.prompt_line() == "hcr sim:// ok>"
+        term.run("hex")
+        term.send("\x04")  # Ctrl-D leaves hex mode, not the session
+        term.wait_for(lambda s: term.prompt_line() == "hcr sim:// ok>")
+        assert term.child.isalive()
 
 
 # -- the link ------------------------------------------------------------------------
@@ -222,11 +226,20 @@ def _drive_then(term, robot: PtyRobot) -> None:
     assert STOP_FRAME not in robot.received()
 
 
-@pytest.mark.parametrize("ending", ["ctrl-d", "exit", "sigterm", "sighup", "terminal-closed"])
+ENDINGS = ["ctrl-d", "exit", "sigterm", "sighup", "sigterm-mid-command", "terminal-closed"]
+STATUS = {"ctrl-d": 0, "exit": 0, "sigterm": 143, "sighup": 129, "sigterm-mid-command": 143}
+
+
+@pytest.mark.parametrize("ending", ENDINGS)
 def test_stop_is_sent_when_the_session_ends(tmp_path, robot, ending):
     with shell(["--port", robot.port, "shell"], tmp_path) as term:
         _drive_then(term, robot)
-        if ending == "ctrl-d":
+        if ending == "sigterm-mid-command":
+            term.send("sleep 60\r")
+            term.wait_for(lambda s: "sleep 60" in s and not term._at_prompt())
+            time.sleep(0.3)
+            term.child.kill(signal.SIGTERM)
+        elif ending == "ctrl-d":
             term.send("\x04")
         elif ending == "exit":
             term.send("exit\r")
@@ -238,10 +251,8 @@ def test_stop_is_sent_when_the_session_ends(tmp_path, robot, ending):
             term.child.close(force=False)  # the terminal window closes: the line hangs up
         frames = robot.wait_for(stop_after_motion)
         assert frames[-1] == STOP_FRAME
-        if ending in ("ctrl-d", "exit", "sigterm", "sighup"):
-            status = term.finish()
-            expected = {"ctrl-d": 0, "exit": 0, "sigterm": 128 + 15, "sighup": 128 + 1}[ending]
-            assert status == expected
+        if ending in STATUS:
+            assert term.finish() == STATUS[ending]
 
 
 def test_the_stop_key_works_mid_line_and_keeps_the_line(tmp_path, robot):

@@ -5,6 +5,8 @@ from __future__ import annotations
 import itertools
 import os
 import stat
+import subprocess
+import sys
 import threading
 import time
 
@@ -340,3 +342,19 @@ def test_relative_xdg_state_home_is_ignored(monkeypatch, tmp_path):
     monkeypatch.setenv("HOME", str(tmp_path))
     assert state_dir({"XDG_STATE_HOME": "relative/dir"}) == tmp_path / ".local" / "state" / "hcrctl"
     assert state_dir({}) == tmp_path / ".local" / "state" / "hcrctl"
+
+
+# -- lazy imports ------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "module, absent",
+    [
+        ("hcrctl.cli.shell", "prompt_toolkit"),
+        ("hcrctl.shell_script", "prompt_toolkit"),
+        ("hcrctl.cli.read", "hcrctl.shell_session"),
+    ],
+)
+def test_imports_stay_lazy(module, absent):
+    code = f"import sys, {module}; assert {absent!r} not in sys.modules, sorted(sys.modules)"
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=60)
