@@ -26,6 +26,7 @@ from prompt_toolkit.key_binding import KeyBindings
 from prompt_toolkit.patch_stdout import StdoutProxy
 from prompt_toolkit.styles import Style
 
+from .errors import HcrError
 from .shell_builtins import STOP_KEY_LABEL
 from .shell_completion import ShellCompleter
 from .shell_dispatch import run_line
@@ -53,18 +54,19 @@ def run_interactive(session: Session) -> None:
                 break
             run_line(session, line)
     finally:
-        moved = session.link.moved
+        moved = session.link.moved and session.link.state != "disconnected"
         session.close()  # stop first, while nothing else can fail
     if moved:
         click.echo("hcrctl: stop sent (the robot had been told to move)", err=True)
 
 
-def _banner(session: Session, error: Exception | None) -> None:
+def _banner(session: Session, error: HcrError | None) -> None:
     link, settings = session.link, session.settings
     if error is None:
         where = f"connected to {link.port} at {settings.baud} baud, address 0x{settings.address:02X}"
     else:
-        where = f"error: {getattr(error, 'one_line', lambda: str(error))()}; connect PORT to retry"
+        retry = "retrying in the background, or connect PORT" if settings.port else "connect PORT"
+        where = f"not connected: {error.one_line()}; {retry}"
     click.echo(f"hcrctl shell: {where}")
     click.echo(f"help lists the commands; Tab completes; {STOP_KEY_LABEL} sends stop; Ctrl-D exits")
 
@@ -152,6 +154,9 @@ def _printing_above(session: Session) -> Iterator[None]:
         session.printer = lambda text: proxy.write(DIM.format(text))
         try:
             yield
+        except BaseException:
+            session.close()  # SIGTERM, SIGHUP, a bug: stop before the terminal (maybe gone) is touched
+            raise
         finally:
             session.printer = None
             sys.stdout, sys.stderr = saved

@@ -139,9 +139,9 @@ class Link:
             old.close()  # sends stop if it moved and the line still works
         self.robot, self.no_reply, self._timeouts_seen = robot, False, 0
         self.settings.session = robot if robot is not None else Unplugged(self.settings.port)
-        if robot is not None and old is not None and old.moved and old.error is not None:
+        if robot is not None and old is not None and _came_back(old, robot):
             with contextlib.suppress(HcrError):
-                robot.stop()  # the link dropped while the robot may have been moving
+                robot.stop()
                 self.on_event(
                     f"sent stop on {robot.port}: the robot had been told to move before the link dropped"
                 )
@@ -240,3 +240,8 @@ class Link:
             cmd = C.BY_CODE.get(event.command)
             if cmd is not None and cmd.kind != "broadcast":
                 self.no_reply = False
+
+
+def _came_back(old: Robot, new: Robot) -> bool:
+    """The same device, back after dropping the link while it may have been moving."""
+    return old.moved and old.error is not None and old.port == new.port

@@ -326,7 +326,7 @@ def test_usage_line_is_one_line():
 
 def test_script_lines_skip_blanks_and_comments():
     text = ["# header\n", "\n", "  read compass  \n", "drive power 60 60 # go\n", "   # indented\n"]
-    assert list(script_lines(text)) == [(3, "read compass"), (4, "drive power 60 60 # go")]
+    assert list(script_lines(text)) == ["read compass", "drive power 60 60 # go"]
 
 
 def test_history_file_is_private_under_xdg_state_home(tmp_path):
