@@ -159,8 +159,14 @@ def make_set() -> click.Group:
 # -- the link ----------------------------------------------------------------
 
 
+class PortName(click.types.StringParamType):
+    """A port as --port takes it; the name is what the toolbar shows while it is typed."""
+
+    name = "a device path or pyserial URL; sim:// is the simulator"
+
+
 @click.command("connect")
-@click.argument("port", required=False, shell_complete=complete_port)
+@click.argument("port", required=False, type=PortName(), shell_complete=complete_port)
 def connect(port: str | None) -> None:
     """Connect to PORT (default: the current port again); the old link closes, with stop if it moved."""
     robot = session().link.open(port)

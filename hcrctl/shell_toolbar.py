@@ -100,7 +100,7 @@ def argument_hint(session: Session, typed: str) -> str:
 
     words, prefix = split_partial(typed)
     root = root_context(COMMANDS, session, session.settings)
-    return hint(locate(COMMANDS, root, words, prefix))
+    return hint(COMMANDS, locate(COMMANDS, root, words, prefix))
 
 
 def status_lines(session: Session) -> list[str]:

@@ -65,7 +65,7 @@ def _subcommand(group: click.Group, ctx: click.Context, name: str) -> click.Comm
 
 
 def _is_option(word: str) -> bool:
-    return word.startswith("-") and len(word) > 1 and not NUMBER.match(word)
+    return word.startswith("-") and not NUMBER.match(word)
 
 
 def _next_param(
@@ -196,32 +196,56 @@ def _first_line(text: str) -> str:
 # -- the toolbar's hint ------------------------------------------------------
 
 
-def hint(spot: Spot) -> str:
+def hint(group: ShellCommands, spot: Spot) -> str:
     """The argument being typed, its range and its meaning, for the toolbar."""
     where = " ".join(spot.path)
+    if not spot.path:
+        known = spot.prefix in spot.ctx.command.list_commands(spot.ctx) if spot.command else False
+        return f"{spot.prefix}: {group.help_for(spot.ctx, spot.prefix)}" if known else ""
     if spot.command is None:
-        return f"{where}: no such command (help lists them)" if spot.path else ""
-    if spot.wants == "command":
-        return _group_hint(spot, where)
-    if spot.wants == "nothing":
-        return f"{where}: complete, press Enter" if spot.path else ""
-    if spot.param is None:
-        return f"{where}: options — Tab lists them"
+        return f"{where}: no such command (help lists them)"
+    text = _hint_body(spot, where)
+    shell_form = _overlay_hint(group, spot)
+    return f"{text}  · {shell_form}" if shell_form else text
+
+
+def _hint_body(spot: Spot, where: str) -> str:
+    command = spot.command
+    assert command is not None
+    if isinstance(command, click.Group) and spot.wants == "command":
+        return f"{where} ▸ {'|'.join(command.list_commands(spot.ctx))}"
+    if spot.wants == "option" or (spot.wants == "value" and spot.param is None):
+        return f"{where}: options, Tab lists them"
+    if spot.wants == "nothing" or spot.param is None:
+        names = [max(p.opts, key=len) for p in _visible_options(command, spot.ctx)]
+        return f"{where}: Enter runs it" + (f"; options {' '.join(names)}" if names else "")
     return f"{where} ▸ {param_text(spot.path, spot.param)}"
 
 
-def _group_hint(spot: Spot, where: str) -> str:
-    if not spot.path:
+def _visible_options(command: click.Command, ctx: click.Context) -> list[click.Option]:
+    """Options worth naming in a hint: not hidden, not --help."""
+    help_option = command.get_help_option(ctx)
+    return [
+        p
+        for p in command.get_params(ctx)
+        if isinstance(p, click.Option) and not p.hidden and p is not help_option
+    ]
+
+
+def _overlay_hint(group: ShellCommands, spot: Spot) -> str:
+    """``hex`` alone, ``monitor on|off``: the shell's own form of a CLI command's name."""
+    name = spot.path[0]
+    builtin = group.builtins.get(name)
+    if len(spot.path) != 1 or spot.consumed or name not in OVERLAYS or builtin in (None, spot.command):
         return ""
-    assert isinstance(spot.command, click.Group)
-    names = spot.command.list_commands(spot.ctx)
-    return f"{where} ▸ {'|'.join(names)}"
+    forms = "|".join(" ".join(form) for form in OVERLAYS[name] if form) or "alone"
+    return f"{name} {forms}: {builtin.get_short_help_str(limit=50)}"
 
 
 def param_text(path: tuple[str, ...], param: click.Parameter) -> str:
     """NAME  RANGE  help: the table's field if the parameter is one, else Click's own."""
     info = table_field(path, param.name or "")
-    name = param.human_readable_name
+    name = "/".join(param.opts) if isinstance(param, click.Option) else param.human_readable_name
     if info is not None:
         return "  ".join(part for part in (name, info.range_text, info.help) if part)
     help_text = _first_line(getattr(param, "help", None) or "")
@@ -248,7 +272,7 @@ def type_text(kind: click.ParamType) -> str:
         return f"{lo}..{hi}"
     if isinstance(kind, click.Choice):
         return "|".join(str(c) for c in kind.choices)
-    return kind.name
+    return "" if kind is click.STRING else kind.name
 
 
 def _number(value: float) -> str:

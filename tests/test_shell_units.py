@@ -182,6 +182,16 @@ def test_hint_names_the_argument_and_its_range_from_the_table(session):
     assert info.range_text in hint and info.help in hint
 
 
+def test_hint_names_options_and_the_shells_own_forms(session):
+    assert argument_hint(session, "turn 90 ") == "turn: Enter runs it; options --ccw --rate"
+    assert argument_hint(session, "ping") == "ping: Check the link with the cheapest read, like ping."
+    assert argument_hint(session, "ping -c ").startswith("ping ▸ -c/--count  1..")
+    monitor = argument_hint(session, "monitor ")
+    assert "monitor on|off: Print unsolicited frames" in monitor
+    assert "hex alone: Raw hex mode" in argument_hint(session, "hex ")
+    assert argument_hint(session, "hex send ") == "hex send ▸ HEX..."
+
+
 def test_hint_uses_click_ranges_outside_the_table(session):
     assert "TIMEOUT  0.001..60" in argument_hint(session, "set timeout ")
     assert "no such command" in argument_hint(session, "bogus ")
