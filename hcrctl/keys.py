@@ -103,9 +103,10 @@ class KeyReader:
         self.eof = False
         self._keys: list[str] = []
         self._saved: list[Any] | None = None
+        self._told_eof = False
         try:
             self.fd: int | None = self.stream.fileno()
-        except (AttributeError, OSError, ValueError):
+        except (AttributeError, OSError, ValueError):  # no real input at all: it has ended
             self.fd = None
             self.eof = True
 
@@ -134,13 +135,16 @@ class KeyReader:
         if self._keys:
             return self._keys.pop(0)
         if self.eof:
+            if not self._told_eof:
+                self._told_eof = True
+                return "eof"
             time.sleep(timeout)
             return None
         if not _readable(self.fd, timeout):
             return None
         data = os.read(self.fd, 1024)
         if not data:
-            self.eof = True
+            self.eof = self._told_eof = True
             return "eof"
         self._keys = self.decoder.feed(data)
         if self.decoder.pending and not _readable(self.fd, ESC_WAIT):

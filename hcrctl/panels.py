@@ -10,7 +10,7 @@ panel's bottom border; it is never blanked.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
 
 from rich.console import Console, ConsoleOptions, Group, RenderableType, RenderResult
 from rich.panel import Panel
@@ -211,7 +211,7 @@ def map_panel(grid: Reading, now: float) -> Panel:
             f"{r.replace('#', '██').replace('.', '··')}  {b:02X}"
             for r, b in zip(rows, value.rows, strict=True)
         ]
-        lines.append(f"received {age_text(grid.age(now))} ago")
+        lines.append(f"received {_whole_seconds(grid.age(now))} ago")
         body = Text("\n".join(lines))
     return Panel(body, title="map (0xB0)", title_align="left", border_style="cyan")
 
@@ -281,62 +281,114 @@ def _rtt_text(rtt: Sequence[float]) -> str:
 # -- whole screens ----------------------------------------------------------------
 
 
-def sensor_panels(view: View, now: float) -> dict[str, Panel]:
-    """The panel of each watched sensor, by table name."""
+def sensor_panels(view: View, now: float) -> dict[str, Keyed]:
+    """The panel of each watched sensor, by table name, keyed by what it shows."""
+    history = tuple(view.history.get("wheels", ())[-SPARK_WIDTH:])
     makers = {
         "bump": lambda r: bumpers_panel(r, now),
         "ir": lambda r: bars_panel("ir", r, now),
         "sonar": lambda r: bars_panel("sonar", r, now),
         "compass": lambda r: compass_panel(r, now),
-        "wheels": lambda r: wheels_panel(r, view.history.get("wheels", ()), now),
+        "wheels": lambda r: wheels_panel(r, history, now),
         "env": lambda r: env_panel(r, now),
     }
-    return {name: makers[name](view.readings[name]) for name in view.sensors if name in makers}
+    out = {}
+    for name in view.sensors:
+        if name in makers:
+            reading = view.readings[name]
+            key = (name, reading_key(reading, now), history if name == "wheels" else None)
+            out[name] = Keyed(key, lambda m=makers[name], r=reading: m(r))
+    return out
 
 
-def dashboard(view: View, now: float, keys: str = WATCH_KEYS) -> Group:
-    """The ``watch`` screen: three columns of panels between a header and a footer."""
+def reading_key(reading: Reading, now: float) -> tuple[object, ...]:
+    """Everything a sensor panel shows of a reading: equal keys draw equal panels."""
+    age = age_text(reading.age(now)) if reading.stale else None
+    return reading.value, reading.stale, reading.error, age
+
+
+def dashboard(view: View, now: float, keys: str = WATCH_KEYS, cache: dict | None = None) -> Group:
+    """The ``watch`` screen: three columns of panels between a header and a footer.
+
+    ``cache`` (a dict the caller keeps between frames) lets unchanged panels
+    reuse their rendered lines; the picture is the same with or without it.
+    """
     panels = sensor_panels(view, now)
+    stations_key = tuple((a, r.value, age_text(r.age(now))) for a, r in view.stations.items())
+    grid_key = (view.grid.value, _whole_seconds(view.grid.age(now)))
     columns = [
         [panels[n] for n in ("bump", "ir", "sonar", "env") if n in panels]
-        + [positioning_panel(view.stations, now)],
+        + [Keyed(("stations", stations_key), lambda: positioning_panel(view.stations, now))],
         [panels[n] for n in ("compass", "wheels") if n in panels] + [link_panel(view, now)],
-        [map_panel(view.grid, now)],
+        [Keyed(("map", grid_key), lambda: map_panel(view.grid, now))],
     ]
-    return Group(header("hcrctl watch", view), SideBySide(columns), footer(keys, view.note))
+    return Group(header("hcrctl watch", view), SideBySide(columns, cache=cache), footer(keys, view.note))
+
+
+def _whole_seconds(age: float | None) -> str:
+    return "never" if age is None else f"{age:.0f} s"
+
+
+class Keyed:
+    """A renderable made on demand, with a key that changes whenever its look does."""
+
+    __slots__ = ("key", "make")
+
+    def __init__(self, key: Hashable, make: Callable[[], RenderableType]) -> None:
+        self.key, self.make = key, make
+
+    def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
+        yield self.make()
 
 
 class SideBySide:
     """Columns of stacked panels at equal fixed widths, fewer on a narrow screen.
 
     A ``Table.grid`` measures every cell on every frame, which cost most of a
-    frame's time; fixed widths let each column render straight to lines.
+    frame's time; fixed widths let each column render straight to lines, and
+    ``Keyed`` items whose key is in ``cache`` are not rendered again at all.
     When fewer than the preferred columns fit, the panels are poured, in
     order, into as many columns as fit, balancing their heights.
     """
 
     def __init__(
-        self, columns: list[list[RenderableType]], gap: int = 1, min_width: int = COLUMN_WIDTH
+        self,
+        columns: list[list[RenderableType]],
+        gap: int = 1,
+        min_width: int = COLUMN_WIDTH,
+        cache: dict | None = None,
     ) -> None:
         self.columns = [c for c in columns if c]
         self.gap, self.min_width = gap, min_width
+        self.cache = cache
 
     def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
         fits = (options.max_width + self.gap) // (self.min_width + self.gap)
         n = max(1, min(len(self.columns), fits))
         width = (options.max_width - self.gap * (n - 1)) // n
         opts = options.update_width(width)
+        fresh: dict = {}
+        blocks = [[self._lines(console, opts, item, fresh) for item in col] for col in self.columns]
+        if self.cache is not None:  # keep only what this frame used
+            self.cache.clear()
+            self.cache.update(fresh)
         if n == len(self.columns):
-            rendered = [
-                [line for item in col for line in _lines(console, opts, item)] for col in self.columns
-            ]
+            rendered = [[line for block in col for line in block] for col in blocks]
         else:
-            rendered = _pour([_lines(console, opts, item) for col in self.columns for item in col], n)
+            rendered = _pour([block for col in blocks for block in col], n)
         yield from _stitch(rendered, width, self.gap)
 
-
-def _lines(console: Console, options: ConsoleOptions, item: RenderableType) -> list[list[Segment]]:
-    return console.render_lines(item, options, pad=True)
+    def _lines(
+        self, console: Console, options: ConsoleOptions, item: RenderableType, fresh: dict
+    ) -> list[list[Segment]]:
+        if self.cache is None or not isinstance(item, Keyed):
+            return console.render_lines(item, options, pad=True)
+        key = (item.key, options.max_width)
+        lines = self.cache.get(key)
+        if lines is None:
+            lines = console.render_lines(item, options, pad=True)
+        fresh[key] = lines
+        return lines
 
 
 def _pour(blocks: list[list[list[Segment]]], n: int) -> list[list[list[Segment]]]:

@@ -10,9 +10,10 @@ Within a watch a retry is pointless (the next sweep is one), so the poller
 sets the robot's retries to 0 while it polls and restores them afterwards: a
 silent device then costs one timeout per sensor, not three.
 
-When the port disappears, a poller given ``reconnect`` keeps trying it once a
-second and carries on with the new robot; without it, the poller stops and
-leaves the error in ``lost`` for its owner to raise.
+When the port disappears, a poller given ``reconnect`` keeps calling it once a
+second and carries on with the robot it returns (closing it at the end unless
+``reconnect.owned`` is false, as for the shell's session robot); without it,
+the poller stops and leaves the error in ``lost`` for its owner to raise.
 """
 
 from __future__ import annotations
@@ -58,9 +59,9 @@ class Poller(threading.Thread):
         self.paused = threading.Event()
         self._stopping = threading.Event()
         self._first = robot
-        self._retries = robot.retries
+        self._retries: list[tuple[Robot, int]] = []
         self._seen = _error_counts(robot)
-        robot.retries = 0
+        self._quiet(robot)
         state.connected(robot.port)
 
     # -- control, from the drawing thread -------------------------------------
@@ -70,7 +71,8 @@ class Poller(threading.Thread):
         self._stopping.set()
         if self.is_alive():
             self.join(wait if wait is not None else self._join_time())
-        self._first.retries = self._retries
+        for robot, retries in self._retries:
+            robot.retries = retries
 
     def toggle_pause(self) -> bool:
         if self.paused.is_set():
@@ -162,7 +164,7 @@ class Poller(threading.Thread):
 
     def _on_lost(self, robot: Robot, exc: PortError) -> None:
         self.robot = None
-        if robot is not self._first:
+        if self._owns(robot):
             robot.close()
         if self.reconnect is None:
             self.lost = exc
@@ -181,7 +183,7 @@ class Poller(threading.Thread):
             except HcrError as exc:
                 self.state.set_status("disconnected", f"retrying (attempt {attempt}): {exc.one_line()}")
                 continue
-            robot.retries = 0
+            self._quiet(robot)
             self.robot, self._seen = robot, _error_counts(robot)
             self.state.connected(robot.port, again=True)
             return True
@@ -189,8 +191,17 @@ class Poller(threading.Thread):
 
     def _close_own(self) -> None:
         robot = self.robot
-        if robot is not None and robot is not self._first:
+        if robot is not None and self._owns(robot):
             robot.close()
+
+    def _owns(self, robot: Robot) -> bool:
+        """Robots this poller opened itself; not the one it was given, nor a shell's."""
+        return robot is not self._first and getattr(self.reconnect, "owned", True)
+
+    def _quiet(self, robot: Robot) -> None:
+        """No retries while polling (remembered, and restored by stop())."""
+        self._retries.append((robot, robot.retries))
+        robot.retries = 0
 
     def _join_time(self) -> float:
         robot = self.robot or self._first

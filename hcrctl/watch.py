@@ -2,7 +2,8 @@
 
 Two loops that never wait for each other: the ``Poller`` thread talks to the
 robot at ``--rate``, and this module's loop reads keys and redraws. It redraws
-only when the state's version moved (at most ``FPS`` times a second) and
+only when the state's version moved (at most ``FPS`` times a second, and
+no faster than the poll rate unless that is below ``MIN_FPS``) and
 otherwise once a ``TICK`` so ages and rates stay true, which keeps a 10 Hz
 watch cheap. ``run_watch`` is what both ``hcrctl watch`` and the shell call:
 it returns when ``q`` is pressed (or ``duration`` ends) with the terminal as
@@ -14,12 +15,13 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import math
+import sys
 import time
 from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any
 
 from . import commands as C
-from .errors import HcrError
+from .errors import HcrError, PortError
 from .keys import KeyReader
 from .livestate import LiveState
 from .poller import Poller
@@ -33,7 +35,11 @@ if TYPE_CHECKING:
 
 #: The most frames drawn per second, and the longest gap between two frames.
 FPS = 20
+#: Drawing faster than the values change buys nothing: a 10 Hz poll gets 10 frames a second.
+MIN_FPS = 10
 TICK = 1.0
+#: The GIL switch interval while polling (Python's default is 5 ms).
+SWITCH_INTERVAL = 0.0005
 QUIT_KEYS = frozenset({"q", "Q", "ctrl-d", "ctrl-c"})
 
 
@@ -50,8 +56,8 @@ def run_watch(
     console = console or _console()
     state = LiveState(names, target_rate=rate)
     draw = not settings.as_json
-    with settings.robot() as robot:
-        poller = Poller(robot, state, names, rate, reconnect=reconnector(settings, robot))
+    with settings.robot() as robot, quick_handoff():
+        poller = Poller(robot, state, names, rate, reconnect=Reconnect(settings, robot))
         poller.start()
         try:
             _watch_loop(state, poller, console if draw else None, duration)
@@ -64,16 +70,22 @@ def run_watch(
 
 def _watch_loop(state: LiveState, poller: Poller, console: Console | None, duration: float | None) -> None:
     deadline = time.monotonic() + duration if duration else math.inf
+    fps = frame_rate(state.target_rate)
     with KeyReader() as keys, live_screen(console) as live:
-        redraw = Redrawer(live, _dashboard(state), lambda: state.version)
+        redraw = Redrawer(live, _dashboard(state), lambda: state.version, fps=fps)
         while (now := time.monotonic()) < deadline:
             raise_from(poller)
-            key = keys.read(min(1 / FPS, deadline - now))
+            key = keys.read(min(1 / fps, deadline - now))
             if key in QUIT_KEYS or (key == "eof" and keys.is_terminal):
                 return
             if key:
                 on_watch_key(key, state, poller)
             redraw()
+
+
+def frame_rate(poll_rate: float | None) -> float:
+    """Frames per second: the poll rate, kept within MIN_FPS..FPS (``max`` polls get FPS)."""
+    return MIN_FPS if poll_rate is None else min(FPS, max(MIN_FPS, poll_rate))
 
 
 def on_watch_key(key: str, state: LiveState, poller: Poller) -> None:
@@ -101,15 +113,36 @@ def send_stop(robot: Robot | None) -> str:
 def _dashboard(state: LiveState) -> Callable[[float], RenderableType]:
     from .panels import dashboard
 
-    return lambda now: dashboard(state.view(), now)
+    cache: dict = {}
+    return lambda now: dashboard(state.view(), now, cache=cache)
 
 
 # -- shared with teleop ---------------------------------------------------------
 
 
-def reconnector(settings: Settings, robot: Robot) -> Callable[[], Robot]:
-    """Reopen the same port (no second auto-detection, no shell session)."""
-    return dataclasses.replace(settings, port=robot.port, session=None).connect
+class Reconnect:
+    """How the poller gets a robot back after its port disappeared.
+
+    From the command line: reopen the same port (no second auto-detection).
+    Inside the shell, whose own watchdog reconnects the session, opening a
+    second robot would fight it for the port; so wait for the session's robot
+    to be connected again and borrow it (``owned`` false: never closed here).
+    """
+
+    def __init__(self, settings: Settings, robot: Robot) -> None:
+        self.owned = settings.session is not robot
+        self.port = robot.port
+        self._settings = (
+            dataclasses.replace(settings, port=robot.port, session=None) if self.owned else settings
+        )
+
+    def __call__(self) -> Robot:
+        if self.owned:
+            return self._settings.connect()
+        session = self._settings.session
+        if not getattr(session, "connected", False):
+            raise PortError("not connected", self.port, hint="the shell is reconnecting")
+        return session
 
 
 def raise_from(poller: Poller) -> None:
@@ -124,6 +157,23 @@ def _console() -> Console:
     from rich.console import Console
 
     return Console()
+
+
+@contextlib.contextmanager
+def quick_handoff(seconds: float = SWITCH_INTERVAL) -> Iterator[None]:
+    """Let a thread woken by a reply take the GIL from the drawing thread sooner.
+
+    Drawing a frame holds the GIL for milliseconds; with the default 5 ms
+    switch interval a reply that lands meanwhile waits up to that long, which
+    costs a fast poll loop a third of its sweeps. Restored on the way out,
+    since the shell shares the interpreter.
+    """
+    previous = sys.getswitchinterval()
+    sys.setswitchinterval(seconds)
+    try:
+        yield
+    finally:
+        sys.setswitchinterval(previous)
 
 
 @contextlib.contextmanager
@@ -142,7 +192,7 @@ def live_screen(console: Console | None) -> Iterator[Live | None]:
 
 
 class Redrawer:
-    """Redraw when the version moved (at most FPS/s), or every ``tick`` s regardless."""
+    """Redraw when the version moved (at most ``fps`` a second), or every ``tick`` s regardless."""
 
     def __init__(
         self,
@@ -150,8 +200,10 @@ class Redrawer:
         render: Callable[[float], RenderableType],
         version: Callable[[], object],
         tick: float = TICK,
+        fps: float = FPS,
     ) -> None:
         self.live, self.render, self.version, self.tick = live, render, version, tick
+        self.interval = 1 / fps
         self.frames = 0
         self._drawn: object = None
         self._last = -math.inf
@@ -161,7 +213,7 @@ class Redrawer:
             return
         now, version = time.monotonic(), self.version()
         since = now - self._last
-        if force or since >= self.tick or (version != self._drawn and since >= 1 / FPS):
+        if force or since >= self.tick or (version != self._drawn and since >= self.interval):
             self.live.update(self.render(now), refresh=True)
             self._drawn, self._last = version, now
             self.frames += 1

@@ -151,7 +151,7 @@ def test_map_panel_draws_the_bit_grid_msb_first() -> None:
     text = text_of(panels.map_panel(state.view().grid, clock.now + 2), width=40)
     assert "██··············  80" in text
     assert "··············██  01" in text
-    assert "received 2.0 s ago" in text
+    assert "received 2 s ago" in text
 
 
 def test_link_panel_says_no_reply_and_disconnected() -> None:
@@ -194,6 +194,23 @@ def test_narrow_screen_pours_panels_into_fewer_columns() -> None:
     for text in (wide, narrow, single):
         assert "212.5° SSW" in text and "humidity" in text and "status   ok" in text
     assert len(single.splitlines()) > len(narrow.splitlines()) > len(wide.splitlines())
+
+
+def test_the_render_cache_draws_the_same_picture() -> None:
+    clock = Clock()
+    state = full_state(clock)
+    broadcast(state, 0x50, 0xA0, bytes((1, 100, 80, 200)))
+    cache: dict = {}
+    first = text_of(panels.dashboard(state.view(), clock.now, cache=cache))
+    assert cache and first == text_of(panels.dashboard(state.view(), clock.now))
+    assert text_of(panels.dashboard(state.view(), clock.now, cache=cache)) == first  # from the cache
+    clock.now += 2
+    state.fail("compass", "no reply")
+    state.record("sonar", C.Ultrasonic((99, 128, 255)), 0.001)
+    again = text_of(panels.dashboard(state.view(), clock.now, cache=cache))
+    assert again == text_of(panels.dashboard(state.view(), clock.now))
+    assert "stale · 2.0 s old" in again and " 99 cm" in again
+    assert len(cache) <= 10  # only what the last frame used is kept
 
 
 def test_only_the_chosen_sensors_get_panels() -> None:

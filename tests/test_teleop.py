@@ -4,16 +4,20 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
 import signal
 import subprocess
+import threading
 import time
 
 import pytest
 from helpers_live import FakeRobot, Terminal, hcrctl_exe, is_stop, speed_of, terminal
 
 from hcrctl import commands as C
+from hcrctl.cli.settings import Settings
+from hcrctl.client import Robot
 from hcrctl.livestate import LiveState
-from hcrctl.teleop import Drive, Sender, step
+from hcrctl.teleop import Drive, Sender, run_teleop, step
 
 UP, DOWN, LEFT, RIGHT = "\x1b[A", "\x1b[B", "\x1b[D", "\x1b[C"
 
@@ -242,3 +246,24 @@ def test_speed_is_clamped_to_the_table_range() -> None:
 def test_drive_never_expires_while_stopped() -> None:
     drive = Drive(50, 30, 0.5)
     assert not drive.expired(math.inf)
+
+
+def test_run_teleop_in_the_shell_stops_and_leaves_the_session_open(monkeypatch: pytest.MonkeyPatch) -> None:
+    read_end, write_end = os.pipe()
+    os.write(write_end, b"w")
+    monkeypatch.setattr("sys.stdin", os.fdopen(read_end))
+    with FakeRobot() as fake:
+        robot = Robot(fake.path, timeout=0.3)
+        settings = Settings(port=fake.path, session=robot)
+        try:
+            runner = threading.Thread(target=run_teleop, args=(settings, 40, 20, 5.0))
+            runner.start()
+            moved = fake.wait_frame(lambda f: speed_of(f) == (40, 40))
+            os.write(write_end, b"q")
+            runner.join(10)
+            assert not runner.is_alive()
+            fake.wait_frame(is_stop, after=moved)
+            assert robot.connected  # the shell's robot is still the shell's
+        finally:
+            os.close(write_end)
+            robot.close()

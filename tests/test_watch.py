@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import json
 import re
 import socket
@@ -11,7 +12,11 @@ import time
 import pytest
 from helpers_live import FakeRobot, hcrctl_exe, is_stop, sim_server, terminal
 
+from hcrctl.cli.settings import Settings
+from hcrctl.client import Robot
+from hcrctl.errors import PortError
 from hcrctl.render import cardinal
+from hcrctl.watch import FPS, MIN_FPS, Reconnect, frame_rate, run_watch
 
 HEADING = re.compile(r"(\d{1,3}\.\d)° ([NESW]{1,3}) ")
 ALT_SCREEN_OFF = b"\x1b[?1049l"
@@ -172,3 +177,44 @@ def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
+
+
+# -- inside the shell: the session robot is reused, never closed ---------------------
+
+
+def _session_settings(port: str) -> tuple[Settings, Robot]:
+    robot = Robot(port, timeout=0.3, retries=3)
+    return Settings(port=port, timeout=0.3, retries=3, as_json=True, session=robot), robot
+
+
+def test_run_watch_borrows_the_shell_session_robot(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr("sys.stdin", io.StringIO(""))  # no keys: the shell's terminal is elsewhere
+    with FakeRobot() as fake:
+        settings, robot = _session_settings(fake.path)
+        try:
+            summary = run_watch(settings, ["compass", "sonar"], 20.0, 0.5)
+            assert summary["sweeps"] >= 3 and summary["latest"]["compass"] == {"heading": 123.4}
+            assert robot.connected and robot.retries == 3  # still the shell's, as it was
+            assert robot.read("compass").heading == 123.4
+        finally:
+            robot.close()
+
+
+def test_reconnect_in_the_shell_waits_for_the_session_robot() -> None:
+    class Lost:
+        port, connected, retries = "/dev/ttyUSB0", False, 2
+
+    lost = Lost()
+    settings = Settings(port="/dev/ttyUSB0", session=lost)
+    again = Reconnect(settings, lost)
+    assert not again.owned
+    with pytest.raises(PortError, match="not connected"):
+        again()
+    settings.session = back = type("Back", (), {"connected": True})()
+    assert again() is back
+    assert Reconnect(Settings(port="sim://"), lost).owned  # from the command line: opens its own
+
+
+def test_frame_rate_follows_the_poll_rate_within_bounds() -> None:
+    assert frame_rate(10) == 10 and frame_rate(1) == MIN_FPS and frame_rate(100) == FPS
+    assert frame_rate(None) == MIN_FPS  # --rate max: drawing must not steal the link's time

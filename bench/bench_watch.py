@@ -1,0 +1,208 @@
+"""Issue 6 targets, against ``hcrctl sim --pty --pace --baud 115200``, as ratios from one run:
+
+1. ``watch --rate max``: full sensor sweeps per second reach >= 90 % of the limit set by
+   the bytes on the wire (one sweep's requests and replies, 10 bits a byte, 115200 baud;
+   one request at a time, nothing pipelined).
+2. ``watch --rate 10`` on a 120x40 terminal uses <= 10 % of one core.
+
+The sweep rate is measured three ways on the same simulator, in alternating rounds (medians):
+``hcrctl --json watch --rate max`` (no drawing; the poller's own count), the full-screen
+dashboard in a pty (its link panel's sweep count over the run), and a minimal baseline
+client (pyserial write, then read until the reply frame) showing what the simulator and
+pty allow at all. The simulator also broadcasts (2 stations at 5 Hz, a map at 1 Hz); their
+share of the line is printed, not subtracted. CPU is the process's own utime+stime from
+/proc/<pid>/stat over a steady window after start-up, divided by the same wall time.
+
+    python bench/bench_watch.py [--rounds 3] [--seconds 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import os
+import re
+import select
+import statistics
+import struct
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from _common import check, record  # noqa: E402
+from _simpty import hcrctl_exe, sim_pty  # noqa: E402
+
+from hcrctl import commands as C  # noqa: E402
+from hcrctl.client import Robot  # noqa: E402
+from hcrctl.frames import Frame, FrameDecoder, encode  # noqa: E402
+
+BAUD = 115200
+BITS_PER_BYTE = 10
+SWEEP_TARGET = 0.90
+CPU_TARGET = 0.10
+ROWS, COLS = 40, 120
+BROADCAST_BYTES_PER_S = 2 * 5 * (8 + 4) + 1 * (8 + 16)  # two 0xA0 stations at 5 Hz, one 0xB0 at 1 Hz
+TICKS = os.sysconf("SC_CLK_TCK")
+
+
+def sweep_bytes(path: str) -> int:
+    """Bytes on the wire for one sweep of every sensor: each request plus its reply."""
+    with Robot(path, baud=BAUD, timeout=1) as robot:
+        replies = robot.read_many(C.SENSORS)
+    total = 0
+    for name, reply in replies.items():
+        cmd = C.BY_NAME[name]
+        total += len(C.encode_request(cmd)) + len(encode(C.MAIN_CONTROLLER, cmd.code, reply.content()))
+    return total
+
+
+def baseline_sweeps(path: str, seconds: float) -> float:
+    """The least a client can do: write a request, read until its reply frame, repeat."""
+    import serial
+
+    requests = [(C.encode_request(C.BY_NAME[n]), C.BY_NAME[n].code) for n in C.SENSORS]
+    decoder, sweeps = FrameDecoder(), 0
+    with serial.Serial(path, BAUD, timeout=1) as port:
+        end = time.monotonic() + seconds
+        start = time.monotonic()
+        while time.monotonic() < end:
+            for frame, code in requests:
+                port.write(frame)
+                while not any(isinstance(e, Frame) and e.command == code for e in decoder.feed(port.read(1))):
+                    pass
+            sweeps += 1
+        return sweeps / (time.monotonic() - start)
+
+
+def headless_sweeps(path: str, seconds: float) -> float:
+    args = [hcrctl_exe(), "--port", path, "--json", "watch", "--rate", "max", "--duration", str(seconds)]
+    out = subprocess.run(args, capture_output=True, text=True, timeout=seconds + 30, stdin=subprocess.DEVNULL)
+    if out.returncode != 0:
+        raise RuntimeError(f"watch --json failed: {out.stderr.strip()}")
+    return float(json.loads(out.stdout)["sweeps_per_s"])
+
+
+@contextlib.contextmanager
+def on_terminal(args: list[str]) -> Iterator[tuple[subprocess.Popen[bytes], bytearray]]:
+    """Run ``hcrctl ARGS`` on a 120x40 pty whose output is read (and kept) but not rendered."""
+    import fcntl
+    import termios
+
+    master, slave = os.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", ROWS, COLS, 0, 0))
+    env = dict(os.environ, COLUMNS=str(COLS), LINES=str(ROWS), TERM="xterm-256color")
+    proc = subprocess.Popen(
+        [hcrctl_exe(), *args], stdin=slave, stdout=slave, stderr=slave, env=env, start_new_session=True
+    )
+    os.close(slave)
+    output = bytearray()
+    reader = threading.Thread(target=_drain, args=(master, output), daemon=True)
+    reader.start()
+    try:
+        yield proc, output
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        with contextlib.suppress(ChildProcessError):
+            os.waitpid(proc.pid, 0)
+        reader.join(5)
+        os.close(master)
+
+
+def _drain(fd: int, output: bytearray) -> None:
+    while True:
+        ready, _, _ = select.select([fd], [], [], 0.5)
+        if not ready:
+            continue
+        try:
+            data = os.read(fd, 65536)
+        except OSError:
+            return
+        if not data:
+            return
+        output += data
+        del output[: max(0, len(output) - 512 * 1024)]  # the last frames are enough
+
+
+def dashboard_sweeps(path: str, seconds: float) -> float:
+    """``watch --rate max`` drawing on a terminal: its own sweep count over the run."""
+    import pyte
+
+    with on_terminal(["--port", path, "watch", "--rate", "max", "--duration", str(seconds)]) as (proc, out):
+        proc.wait(timeout=seconds + 30)
+        time.sleep(0.2)
+        screen = pyte.Screen(COLS, ROWS)
+        pyte.ByteStream(screen).feed(bytes(out).split(b"\x1b[?1049l")[0])  # up to leaving the screen
+    match = re.search(r"sweeps +(\d+)", "\n".join(screen.display))
+    if match is None:
+        raise RuntimeError("no sweep count on the dashboard")
+    return int(match.group(1)) / seconds
+
+
+def cpu_share(path: str, seconds: float, warmup: float = 2.0) -> float:
+    """CPU seconds per wall second of ``watch --rate 10`` drawing, after start-up."""
+    args = ["--port", path, "watch", "--rate", "10", "--duration", str(seconds + warmup + 1)]
+    with on_terminal(args) as (proc, _):
+        time.sleep(warmup)
+        cpu0, wall0 = _cpu_seconds(proc.pid), time.monotonic()
+        time.sleep(seconds)
+        cpu1, wall1 = _cpu_seconds(proc.pid), time.monotonic()
+        proc.wait(timeout=30)
+    return (cpu1 - cpu0) / (wall1 - wall0)
+
+
+def _cpu_seconds(pid: int) -> float:
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / TICKS  # utime, stime
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--seconds", type=float, default=5.0)
+    args = parser.parse_args()
+    runs: dict[str, list[float]] = {"baseline": [], "headless": [], "dashboard": [], "cpu": []}
+    with sim_pty(BAUD, options="") as path:
+        per_sweep = sweep_bytes(path)
+        for _ in range(args.rounds):
+            runs["headless"].append(headless_sweeps(path, args.seconds))
+            runs["dashboard"].append(dashboard_sweeps(path, args.seconds))
+            runs["baseline"].append(baseline_sweeps(path, args.seconds))
+            runs["cpu"].append(cpu_share(path, args.seconds))
+    return report(per_sweep, {k: statistics.median(v) for k, v in runs.items()}, runs)
+
+
+def report(per_sweep: int, medians: dict[str, float], runs: dict[str, list[float]]) -> int:
+    limit = BAUD / (BITS_PER_BYTE * per_sweep)
+    share = BROADCAST_BYTES_PER_S * BITS_PER_BYTE / BAUD
+    print(f"one sweep = {per_sweep} bytes on the wire -> limit {limit:.1f} sweeps/s at {BAUD} baud")
+    print(f"broadcasts take {share:.1%} of the line on top (not subtracted)")
+    for key in ("baseline", "headless", "dashboard"):
+        shown = ", ".join(f"{v:.1f}" for v in runs[key])
+        print(f"  {key:<9} {medians[key]:6.1f} sweeps/s = {medians[key] / limit:.1%} of the limit  ({shown})")
+    ok = check("headless sweeps / wire limit", medians["headless"] / limit, SWEEP_TARGET)
+    ok &= check("dashboard sweeps / wire limit", medians["dashboard"] / limit, SWEEP_TARGET)
+    cpu = medians["cpu"]
+    cpu_ok = cpu <= CPU_TARGET
+    print(f"  {'ok  ' if cpu_ok else 'MISS'} watch --rate 10 CPU: {cpu:.1%} of one core (target <= {CPU_TARGET:.0%})")
+    record(
+        "bench_watch",
+        {
+            "sweep_bytes": per_sweep,
+            "wire_limit_sweeps_per_s": round(limit, 2),
+            **{f"{k}_sweeps_per_s": round(medians[k], 2) for k in ("baseline", "headless", "dashboard")},
+            **{f"{k}_ratio": round(medians[k] / limit, 4) for k in ("baseline", "headless", "dashboard")},
+            "cpu_share_at_10hz": round(cpu, 4),
+        },
+    )
+    return 0 if ok and cpu_ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
