@@ -218,6 +218,30 @@ def test_completion_through_a_real_prompt(session):
         typist.join(5)
 
 
+def test_the_stop_key_sends_stop_and_leaves_the_line_alone(session):
+    from hcrctl.shell import _stop_keys
+
+    robot = session.link.robot
+    with create_pipe_input() as pipe:
+        prompt = PromptSession(key_bindings=_stop_keys(session), input=pipe, output=DummyOutput())
+
+        def type_stop_enter() -> None:
+            pipe.send_text("read com")
+            wait_until(lambda: prompt.default_buffer.text == "read com")
+            pipe.send_text("\x00")  # Ctrl-Space arrives as NUL
+            wait_until(lambda: session.stop_note is not None)
+            pipe.send_text("\x1b[24~")  # F12
+            wait_until(lambda: robot.stats.tx_frames == 2)
+            pipe.send_text("\r")
+
+        typist = threading.Thread(target=type_stop_enter, daemon=True)
+        typist.start()
+        assert prompt.prompt() == "read com"
+        typist.join(5)
+    assert robot.stats.tx_frames == 2 and robot.moved
+    assert session.stop_note == "stop sent to 0x01 on sim://?broadcast_hz=0&map_hz=0"
+
+
 def test_no_completion_in_hex_mode(session):
     from prompt_toolkit.completion import CompleteEvent
     from prompt_toolkit.document import Document
