@@ -43,10 +43,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "hex": ("hcrctl.cli.hex:hex_group", "Decode, encode and send raw frames (the hex debugger)."),
     "monitor": ("hcrctl.cli.monitor:monitor", "Watch every frame on the line, decoded, with counters."),
     "replay": ("hcrctl.cli.replay:replay", "Re-send the requests of a --log file with their timing."),
-    "shell": (
-        "hcrctl.cli.shell:shell",
-        "Interactive session: every command on one connection, plus hex mode.",
-    ),
+    "shell": ("hcrctl.cli.shell:shell", "The interactive session: every command, one connection."),
 }
 
 CONTEXT = {"help_option_names": ["-h", "--help"], "auto_envvar_prefix": "HCRCTL", "max_content_width": 100}
