@@ -74,9 +74,11 @@ class Request:
     def __post_init__(self) -> None:
         for info in fields_of(type(self)):
             value = getattr(self, info.name)
-            if info.is_flag:
-                continue
-            if isinstance(value, bool) or not isinstance(value, int) or not info.lo <= value <= info.hi:
+            if info.is_flag:  # a truthy "no" must not turn the robot counter-clockwise
+                ok = isinstance(value, int) and value in (0, 1)
+            else:
+                ok = not isinstance(value, bool) and isinstance(value, int) and info.lo <= value <= info.hi
+            if not ok:
                 raise RangeError(info.name, value, info.lo, info.hi, info.unit)
 
     def content(self) -> bytes:

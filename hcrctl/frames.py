@@ -11,6 +11,7 @@ binary content can hold ``0D 0A`` (a compass heading of 333.8 degrees does).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum
 from typing import NamedTuple
@@ -40,8 +41,10 @@ def checksum(body: bytes, rule: ChecksumRule = ChecksumRule.HEADER) -> int:
     """Checksum of ``body`` (the frame from its header to the end of its content).
 
     0x55 + 0xAA is 0xFF, so the address rule is always the text rule plus one.
+    ``rule`` may be given by name ("address"): a str enum invites that, and an
+    identity test would silently fall back to the text rule.
     """
-    start = 2 if rule is ChecksumRule.ADDRESS else 0
+    start = 2 if ChecksumRule(rule) is ChecksumRule.ADDRESS else 0
     return sum(body[start:]) & 0xFF
 
 
@@ -208,15 +211,20 @@ class FrameDecoder:
     # -- the scanner ------------------------------------------------------
 
     def _scan(self, out: list[Event]) -> None:
-        buf = self._buf
+        """One pass over the buffer, one header at a time.
+
+        Runs of valid frames go to ``_valid_run`` (the hot path); whatever it
+        cannot take is examined here and explained. It scans an immutable
+        snapshot, so that slices come out as ``bytes`` in a single copy.
+        """
+        raw = self._buf
+        buf = bytes(raw)
         n = len(buf)
         pos = 0
         bias = 0 if self.rule is ChecksumRule.HEADER else 1
         find = buf.find
-        base = self._base
-        append = out.append
+        h = find(HEADER)
         while True:
-            h = find(HEADER, pos)
             if h != pos:
                 if h < 0:
                     keep = max(pos, n - 1 if buf[n - 1 :] == b"\x55" else n)
@@ -227,32 +235,50 @@ class FrameDecoder:
             if n - h < OVERHEAD:
                 pos = h
                 break
-            length = buf[h + 3]
-            end = h + length + OVERHEAD
+            if self._pending is None:
+                pos, h = _valid_run(buf, h, bias, self._base, out.append)
+                if h != pos or n - h < OVERHEAD:
+                    continue
+            end = h + buf[h + 3] + OVERHEAD
             if end > n:
-                resync = self._complete_frame_after(h)
+                resync = self._complete_frame_after(h, n)
                 if resync < 0:
                     pos = h
                     break
                 self._skip(out, h, resync, abandon=True)
-                pos = resync
+                pos = h = resync
                 continue
             ck = end - 3
             if buf[end - 2] == 0x0D and buf[end - 1] == 0x0A:
                 if (sum(buf[h:ck]) + bias) & 0xFF == buf[ck]:
-                    if self._pending is not None:
-                        self._close_pending(out)
-                    append(
-                        _new_frame(Frame, (buf[h + 2], buf[h + 4], bytes(buf[h + 5 : ck]), buf[ck], base + h))
-                    )
-                    pos = end
+                    pos, h = self._take(out, buf, h, end)
                     continue
                 self._open_bad_checksum(out, h, ck)
             else:
-                self._open(out, "malformed", h, (length,))
-            self._pending.add(buf, h, h + 1)
+                self._open(out, "malformed", h, (buf[h + 3],))
+            self._pending.add(raw, h, h + 1)
             pos = h + 1
+            h = find(HEADER, pos)
         self._compact(pos)
+
+    def _take(self, out: list[Event], buf: bytes, h: int, end: int) -> tuple[int, int]:
+        """Emit the valid frame ``buf[h:end]``; return where to go on, and the next header.
+
+        A header inside its content may start a valid frame that ends first. A
+        byte-at-a-time reader would meet that one whole first and yield to it,
+        so this does too: then the frames found do not depend on chunking.
+        """
+        nxt = buf.find(HEADER, h + 2)
+        if 0 <= nxt < end:
+            inner = self._complete_frame_after(h, end - 1) if nxt < end - OVERHEAD else -1
+            if inner >= 0:
+                self._skip(out, h, inner, abandon=True)
+                return inner, inner
+            nxt = buf.find(HEADER, end)
+        self._close_pending(out)
+        ck = end - 3
+        out.append(_new_frame(Frame, (buf[h + 2], buf[h + 4], buf[h + 5 : ck], buf[ck], self._base + h)))
+        return end, nxt
 
     def _skip(self, out: list[Event], start: int, stop: int, abandon: bool = False) -> None:
         """Attribute buf[start:stop] to the open diagnostic, or to new junk."""
@@ -320,28 +346,81 @@ class FrameDecoder:
             other=checksum(body, self.rule.other),
         )
 
-    def _complete_frame_after(self, h: int) -> int:
-        """Index of a later header that starts a complete, valid frame, or -1.
+    def _complete_frame_after(self, h: int, limit: int) -> int:
+        """Index of the later header whose valid frame ends first, by ``limit``; or -1.
 
         An incomplete candidate may be a false header in line noise announcing
         a long frame; rather than stall a reply behind it, yield to a frame
-        that is already whole and checks out.
+        that is already whole and checks out. Picking the frame that *ends*
+        first (the earliest on a tie) is what a byte-at-a-time reader sees, and
+        applying the same choice to a complete frame holding another one keeps
+        the frames found independent of how the input was chunked.
         """
         buf = self._buf
-        n = len(buf)
+        best, best_end = -1, limit + 1
         at = buf.find(HEADER, h + 1)
-        while at >= 0 and n - at >= OVERHEAD:
+        while at >= 0 and at + OVERHEAD < best_end:
             end = at + buf[at + 3] + OVERHEAD
-            whole = end <= n and buf[end - 2 : end] == TERMINATOR
+            whole = end < best_end and buf[end - 2 : end] == TERMINATOR
             if whole and checksum(buf[at : end - 3], self.rule) == buf[end - 3]:
-                return at
+                best, best_end = at, end
             at = buf.find(HEADER, at + 1)
-        return -1
+        return best
 
     def _compact(self, pos: int) -> None:
         if pos:
             del self._buf[:pos]
             self._base += pos
+
+
+#: A fast run splits at no more than this many headers at once. It starts small and doubles its
+#: reach, so a run that stops early (a noisy link) has split little for nothing.
+MAX_SPLIT = 256
+
+
+def _valid_run(buf: bytes, h: int, bias: int, base: int, append: Callable[[Event], None]) -> tuple[int, int]:
+    """Decode frames standing back to back from the header at ``h``: the common case, nothing to report.
+
+    The hot path. Splitting at every header (in C) leaves one part per frame,
+    and a part holds one frame and nothing else exactly when its size agrees
+    with its length byte: no header inside it (so no nested frame can end
+    first) and no junk after it. Returns ``(pos, h)``: where decoding stopped,
+    and the header at or after it (-1 for none). The first frame the run
+    cannot take is left to the caller, which explains it.
+    """
+    start = 0xFF + bias  # 0x55 + 0xAA: the header's share of the sum under the text rule
+    pos, count = h, 4
+    while True:
+        parts = buf[pos + 2 :].split(HEADER, count)
+        more = len(parts) > count
+        if more:
+            parts.pop()  # the rest, which may hold more headers: split it in the next round
+        pos, taken = _take_frames(parts, pos, start, base, append)
+        if not taken:
+            return pos, pos
+        if not more:
+            return pos, -1  # the last part ran to the end of the buffer
+        count = min(2 * count, MAX_SPLIT)
+
+
+def _take_frames(
+    parts: list[bytes], pos: int, start: int, base: int, append: Callable[[Event], None]
+) -> tuple[int, bool]:
+    """Append the frame each part holds, in order; stop at the first part that is not one valid frame."""
+    new, frame = _new_frame, Frame
+    try:
+        for part in parts:
+            address, length, command = part[0], part[1], part[2]
+            if len(part) != length + 6 or part[-2] != 0x0D or part[-1] != 0x0A:
+                return pos, False
+            content, received = part[3:-3], part[-3]
+            if (start + address + length + command + sum(content)) & 0xFF != received:
+                return pos, False
+            append(new(frame, (address, command, content, received, base + pos)))
+            pos += length + OVERHEAD
+    except IndexError:  # a part too short to hold a length: a header right after a header, or the tail
+        return pos, False
+    return pos, True
 
 
 def decode_all(data: bytes, rule: ChecksumRule = ChecksumRule.HEADER) -> list[Event]:
