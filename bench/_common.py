@@ -1,0 +1,81 @@
+"""Helpers every benchmark shares: best-of-N timing, a target check, one result line and a JSON record.
+
+Benchmarks are scripts, not tests: timings depend on the machine, so they report figures and
+exit non-zero when a target is missed, and the test suite never asserts on time.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import platform
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+#: Where results land (git-ignored): one JSON file per benchmark, overwritten on each run.
+RESULTS = Path(__file__).resolve().parent / "results"
+#: The repository root, so a benchmark runs from a checkout without installing the package.
+ROOT = Path(__file__).resolve().parent.parent
+
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+
+def best_of(run: Callable[[], object], repeat: int = 5) -> float:
+    """Seconds taken by the fastest of ``repeat`` calls.
+
+    The minimum, not the mean: other load on the machine only ever adds time, so the fastest
+    run is the best estimate of what the code itself costs.
+    """
+    best = math.inf
+    for _ in range(repeat):
+        start = time.perf_counter()
+        run()
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
+def best_of_each(runs: dict[str, Callable[[], object]], repeat: int = 5) -> dict[str, float]:
+    """``best_of`` for several callables, taking turns, so that a burst of load on a shared
+    machine lands on all of them alike and a ratio between them stays meaningful."""
+    best = dict.fromkeys(runs, math.inf)
+    for _ in range(repeat):
+        for name, run in runs.items():
+            start = time.perf_counter()
+            run()
+            best[name] = min(best[name], time.perf_counter() - start)
+    return best
+
+
+def check(label: str, value: float, target: float) -> bool:
+    """Print whether ``value`` reaches ``target`` (higher is better); return the verdict."""
+    ok = value >= target
+    print(f"  {'ok  ' if ok else 'MISS'} {label}: {value:,.2f} (target >= {target:,.2f})")
+    return ok
+
+
+def record(name: str, metrics: dict[str, Any]) -> Path:
+    """Print one result line and write ``bench/results/<name>.json`` with the machine it ran on."""
+    shown = " ".join(f"{key}={_fmt(value)}" for key, value in metrics.items())
+    print(f"{name}: {shown}")
+    RESULTS.mkdir(exist_ok=True)
+    path = RESULTS / f"{name}.json"
+    document = {
+        "name": name,
+        "when": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "python": platform.python_version(),
+        "implementation": platform.python_implementation(),
+        "machine": platform.machine(),
+        "metrics": metrics,
+    }
+    path.write_text(json.dumps(document, indent=2) + "\n")
+    return path
+
+
+def _fmt(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:,.3g}" if abs(value) < 1000 else f"{value:,.0f}"
+    return str(value)
