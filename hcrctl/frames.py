@@ -185,6 +185,18 @@ class FrameDecoder:
         """Bytes held back, waiting to complete a frame."""
         return len(self._buf)
 
+    @property
+    def wanted(self) -> int:
+        """Bytes still missing from the frame in progress (at least 1).
+
+        A reader can ask its port for exactly this many, instead of waking
+        once per byte while a frame trickles in at line speed.
+        """
+        buf = self._buf
+        if len(buf) >= 4 and buf[:2] == HEADER:
+            return max(1, buf[3] + OVERHEAD - len(buf))
+        return max(1, OVERHEAD - len(buf))
+
     def feed(self, data: bytes | bytearray | memoryview) -> list[Event]:
         """Decode what ``data`` completes. Never raises on any input."""
         out: list[Event] = []

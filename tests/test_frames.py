@@ -511,3 +511,17 @@ def test_memory_stays_bounded_on_ten_megabytes_of_garbage(make: object) -> None:
 def test_module_constants_agree() -> None:
     assert MAX_FRAME == MAX_CONTENT + OVERHEAD == 263
     assert frames.HEADER == b"\x55\xaa" and frames.TERMINATOR == b"\r\n"
+
+
+def test_wanted_counts_the_bytes_a_frame_in_progress_still_lacks() -> None:
+    from hcrctl.frames import FrameDecoder, encode
+
+    frame = encode(1, 0x14, b"\x0d\x0a")
+    decoder = FrameDecoder()
+    assert decoder.wanted == 8  # nothing yet: at least a minimal frame
+    decoder.feed(frame[:3])
+    assert decoder.wanted == 5
+    decoder.feed(frame[3:6])
+    assert decoder.wanted == len(frame) - 6
+    assert decoder.feed(frame[6:])[0].content == b"\x0d\x0a"
+    assert decoder.wanted == 8
