@@ -174,11 +174,12 @@ def _overlay_values(group: ShellCommands, spot: Spot) -> list[Candidate]:
     builtin = group.builtins.get(spot.path[0])
     if builtin is None or builtin is spot.command:
         return []
-    sub = locate_builtin(group, spot, builtin)
+    sub = _locate_builtin(spot, builtin)
     return _values(sub) if sub.param is not None else []
 
 
-def locate_builtin(group: ShellCommands, spot: Spot, builtin: click.Command) -> Spot:
+def _locate_builtin(spot: Spot, builtin: click.Command) -> Spot:
+    """The same spot, in the builtin that shares the CLI command's name."""
     ctx = click.Context(builtin, info_name=spot.path[0], parent=spot.ctx.parent, resilient_parsing=True)
     param, wants = _next_param(builtin, ctx, [], spot.prefix)
     return Spot(spot.path, builtin, ctx, wants, param, spot.prefix)
