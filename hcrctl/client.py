@@ -289,7 +289,10 @@ class Robot:
             self.on_traffic(traffic)
 
     def _lost(self, exc: Exception) -> PortError:
-        self.error = PortError(f"lost the link ({exc})", self.port, hint="is the device still connected?")
+        """Record a dead link; pyserial's own wording is long, so keep its gist."""
+        text = str(exc)
+        reason = "the device went away" if "returned no data" in text or "Input/output" in text else text
+        self.error = PortError(f"lost the link ({reason})", self.port, hint="is the device still connected?")
         return self.error
 
     def _check_link(self) -> None:
