@@ -35,12 +35,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import check, record  # noqa: E402
-from _simpty import hcrctl_exe, sim_pty  # noqa: E402
+from _common import check, record
+from _simpty import hcrctl_exe, sim_pty
 
-from hcrctl import commands as C  # noqa: E402
-from hcrctl.client import Robot  # noqa: E402
-from hcrctl.frames import Frame, FrameDecoder, encode  # noqa: E402
+from hcrctl import commands as C
+from hcrctl.client import Robot
+from hcrctl.frames import Frame, FrameDecoder, encode
 
 BAUD = 115200
 BITS_PER_BYTE = 10
@@ -190,7 +190,9 @@ def report(per_sweep: int, medians: dict[str, float], runs: dict[str, list[float
     ok &= check("dashboard sweeps / wire limit", medians["dashboard"] / limit, SWEEP_TARGET)
     cpu = medians["cpu"]
     cpu_ok = cpu <= CPU_TARGET
-    print(f"  {'ok  ' if cpu_ok else 'MISS'} watch --rate 10 CPU: {cpu:.1%} of one core (target <= {CPU_TARGET:.0%})")
+    print(
+        f"  {'ok  ' if cpu_ok else 'MISS'} watch --rate 10 CPU: {cpu:.1%} of one core (target <= {CPU_TARGET:.0%})"
+    )
     record(
         "bench_watch",
         {

@@ -269,7 +269,9 @@ class LiveState:
         with self._lock:
             now = self.clock()
             sweeps = self._counters.sweeps
-            span = self._sweep_ends[-1] - self._first_sweep if sweeps and self._first_sweep is not None else 0.0
+            span = (
+                self._sweep_ends[-1] - self._first_sweep if sweeps and self._first_sweep is not None else 0.0
+            )
             rtt = list(self._rtt)
             latest = {n: r.value.fields() for n, r in self._readings.items() if r.value is not None}
             return {

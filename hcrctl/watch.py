@@ -51,19 +51,21 @@ def run_watch(
     *,
     console: Console | None = None,
 ) -> dict[str, Any]:
-    """Show the dashboard until ``q`` or ``duration``; returns the run's summary."""
+    """Show the dashboard until ``q`` or ``duration``; returns the run's summary.
+
+    With ``settings.as_json`` nothing is drawn (and rich is never imported).
+    """
     names = list(dict.fromkeys(sensors)) or list(C.SENSORS)
-    console = console or _console()
+    console = None if settings.as_json else console or _console()
     state = LiveState(names, target_rate=rate)
-    draw = not settings.as_json
     with settings.robot() as robot, quick_handoff():
         poller = Poller(robot, state, names, rate, reconnect=Reconnect(settings, robot))
         poller.start()
         try:
-            _watch_loop(state, poller, console if draw else None, duration)
+            _watch_loop(state, poller, console, duration)
         finally:
             poller.stop()
-    if draw and not console.is_terminal:
+    if console is not None and not console.is_terminal:
         console.print(_dashboard(state)(time.monotonic()))
     return state.summary()
 
@@ -72,7 +74,7 @@ def _watch_loop(state: LiveState, poller: Poller, console: Console | None, durat
     deadline = time.monotonic() + duration if duration else math.inf
     fps = frame_rate(state.target_rate)
     with KeyReader() as keys, live_screen(console) as live:
-        redraw = Redrawer(live, _dashboard(state), lambda: state.version, fps=fps)
+        redraw = Redrawer(live, _dashboard(state) if live else None, lambda: state.version, fps=fps)
         while (now := time.monotonic()) < deadline:
             raise_from(poller)
             key = keys.read(min(1 / fps, deadline - now))
@@ -197,7 +199,7 @@ class Redrawer:
     def __init__(
         self,
         live: Live | None,
-        render: Callable[[float], RenderableType],
+        render: Callable[[float], RenderableType] | None,
         version: Callable[[], object],
         tick: float = TICK,
         fps: float = FPS,
@@ -209,7 +211,7 @@ class Redrawer:
         self._last = -math.inf
 
     def __call__(self, *, force: bool = False) -> None:
-        if self.live is None:
+        if self.live is None or self.render is None:
             return
         now, version = time.monotonic(), self.version()
         since = now - self._last

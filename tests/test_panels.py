@@ -94,7 +94,9 @@ def test_a_sensor_that_never_answered_says_so() -> None:
     assert "waiting…" in text_of(panels.env_panel(Reading(), 6.0), width=40)
 
 
-@pytest.mark.parametrize(("heading", "arrow"), [(0, "↑"), (44, "↗"), (90, "→"), (180, "↓"), (270, "←"), (315, "↖")])
+@pytest.mark.parametrize(
+    ("heading", "arrow"), [(0, "↑"), (44, "↗"), (90, "→"), (180, "↓"), (270, "←"), (315, "↖")]
+)
 def test_compass_dial_points_the_needle(heading: float, arrow: str) -> None:
     dial = panels.dial(heading)
     assert len(dial) == panels.DIAL_ROWS and {len(r) for r in dial} == {panels.DIAL_COLS}
@@ -230,7 +232,9 @@ def test_teleop_screen_shows_what_is_sent_and_read_back() -> None:
     assert "forward  left  +40 %  right  +40 %" in text
     assert "7 frames, last 0.1 s ago" in text and "(0.3 s left)" in text
     assert "left   20 cm/s" in text and "● 1 HIT" in text
-    stopped = DriveStatus("stop", 0, 0, 40, 30, 0.5, clock.now - 2, clock.now - 1, 8, "deadman: no key for 0.5 s")
+    stopped = DriveStatus(
+        "stop", 0, 0, 40, 30, 0.5, clock.now - 2, clock.now - 1, 8, "deadman: no key for 0.5 s"
+    )
     assert "deadman: no key for 0.5 s" in text_of(panels.teleop_screen(stopped, state.view(), clock.now))
 
 

@@ -7,6 +7,7 @@ import json
 import re
 import socket
 import subprocess
+import sys
 import time
 
 import pytest
@@ -24,10 +25,15 @@ ALT_SCREEN_OFF = b"\x1b[?1049l"
 
 def test_values_appear_from_the_simulator_on_a_pty_and_q_quits() -> None:
     with sim_server("--pty") as (_, path), terminal(["--port", path, "watch"]) as term:
-        screen = term.wait_for(lambda t: HEADING.search(t) and re.search(r"US1 \S+ +\d+ cm", t))
+        screen = term.wait_for(
+            lambda t: (
+                HEADING.search(t)
+                and re.search(r"US1 \S+ +\d+ cm", t)
+                and re.search(r"temperature -?\d+ °C", t)
+            )
+        )
         heading, point = HEADING.search(screen).groups()
         assert point == cardinal(float(heading))
-        assert re.search(r"temperature -?\d+ °C", screen)
         assert "IR1" in screen and "left" in screen and "cm/s" in screen
         term.wait_for(r"status +ok")
         term.wait_for(r"0x50 +\d+ +\d+ +\d+")  # a positioning station's broadcast
@@ -80,6 +86,7 @@ def test_keys_pause_reset_and_send_stop() -> None:
         term.wait_for(r"sweeps +[1-9]")
         term.send("p")
         term.wait_for(r"status +paused")
+        time.sleep(0.3)  # a read already on its way may finish
         paused = len(robot.frames())
         time.sleep(0.5)
         assert len(robot.frames()) == paused  # polling really stopped
@@ -218,3 +225,20 @@ def test_reconnect_in_the_shell_waits_for_the_session_robot() -> None:
 def test_frame_rate_follows_the_poll_rate_within_bounds() -> None:
     assert frame_rate(10) == 10 and frame_rate(1) == MIN_FPS and frame_rate(100) == FPS
     assert frame_rate(None) == MIN_FPS  # --rate max: drawing must not steal the link's time
+
+
+def test_json_watch_imports_neither_rich_nor_prompt_toolkit() -> None:
+    code = (
+        "import sys, io, contextlib\n"
+        "from hcrctl.cli import main\n"
+        "sys.stdin = open('/dev/null')\n"
+        "try:\n"
+        "    with contextlib.redirect_stdout(io.StringIO()):\n"
+        "        main(['--port', 'sim://', '--json', 'watch', '--duration', '0.2'])\n"
+        "except SystemExit as exc:\n"
+        "    assert exc.code == 0, exc.code\n"
+        "print(sorted(m for m in ('rich', 'prompt_toolkit') if m in sys.modules))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]"
