@@ -16,7 +16,7 @@ from __future__ import annotations
 import contextlib
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -24,7 +24,7 @@ from . import commands as C
 from .keys import KeyReader
 from .livestate import DriveStatus, LiveState
 from .poller import Poller
-from .watch import Redrawer, live_screen, raise_from
+from .watch import Redrawer, default_console, live_screen, raise_from
 
 if TYPE_CHECKING:
     from rich.console import Console, RenderableType
@@ -146,25 +146,32 @@ def run_teleop(
     console: Console | None = None,
 ) -> None:
     """Drive until ``q``; stop is sent on every way out of here."""
-    from .watch import _console
-
-    console = console or _console()
     drive = Drive(speed, turn, timeout)
     with settings.robot() as robot:
         state = LiveState(["bump", "wheels"], target_rate=POLL_HZ)
         poller = Poller(robot, state, state.sensors, POLL_HZ)
-        sender = Sender(robot)
         try:
-            poller.start()
-            _teleop_loop(drive, sender, state, poller, console)
-        except BaseException:
-            with contextlib.suppress(Exception):
-                robot.stop()
-            raise
-        else:
-            robot.stop()
+            with stopping(robot):
+                poller.start()
+                _teleop_loop(drive, Sender(robot), state, poller, console or default_console())
         finally:
             poller.stop()
+
+
+@contextlib.contextmanager
+def stopping(robot: Robot) -> Iterator[None]:
+    """Send stop however the block ends, even if already stopped.
+
+    After an error the stop is best effort (the link may be what failed, and
+    the error is the news); after a normal end a failed stop is the error.
+    """
+    try:
+        yield
+    except BaseException:
+        with contextlib.suppress(Exception):
+            robot.stop()
+        raise
+    robot.stop()
 
 
 def _teleop_loop(drive: Drive, sender: Sender, state: LiveState, poller: Poller, console: Console) -> None:

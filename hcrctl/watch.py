@@ -56,7 +56,7 @@ def run_watch(
     With ``settings.as_json`` nothing is drawn (and rich is never imported).
     """
     names = list(dict.fromkeys(sensors)) or list(C.SENSORS)
-    console = None if settings.as_json else console or _console()
+    console = None if settings.as_json else console or default_console()
     state = LiveState(names, target_rate=rate)
     with settings.robot() as robot, quick_handoff():
         poller = Poller(robot, state, names, rate, reconnect=Reconnect(settings, robot))
@@ -155,7 +155,7 @@ def raise_from(poller: Poller) -> None:
         raise poller.lost
 
 
-def _console() -> Console:
+def default_console() -> Console:
     from rich.console import Console
 
     return Console()
