@@ -98,17 +98,18 @@ def sparkline(values: Sequence[float], hi: float | None = None) -> str:
 
 
 def bumpers_panel(reading: Reading, now: float) -> Panel:
-    """Three indicators, lit (red, reversed) when hit."""
+    """Three indicators, named as in the table, lit (white on red) when hit."""
     value = reading.value
     if not isinstance(value, C.Bumpers):
         return sensor_panel("bump", waiting(reading), reading, now)
     text = Text()
-    for number, hit in enumerate(value.bump, start=1):
+    for name, hit in zip(C.BUMPER_NAMES, value.bump, strict=False):
         if hit:
-            text.append(f" ● {number} HIT ", style="bold white on red")
+            text.append(f"● {name} HIT", style="bold white on red")
         else:
-            text.append(f" ○ {number} clear ", style="green")
-        text.append(" ")
+            text.append(f"○ {name}", style="green")
+        text.append("  ")
+    text.rstrip()
     return sensor_panel("bump", text, reading, now)
 
 

@@ -64,7 +64,7 @@ def test_dashboard_shows_every_value_with_units_from_the_table() -> None:
     assert "IR5" in text and "255 raw" in text
     assert "temperature -3 °C" in text and "humidity    48 %" in text
     assert "left   12 cm/s" in text and "right  30 cm/s" in text
-    assert "○ 1 clear" in text and "● 2 HIT" in text
+    assert "○ left  ● front HIT  ○ right" in text  # names from the command table
     assert "no broadcast yet" in text and "no map yet" in text
     assert "status   ok" in text and "/dev/ttyUSB0" in text
 
@@ -231,7 +231,7 @@ def test_teleop_screen_shows_what_is_sent_and_read_back() -> None:
     text = text_of(panels.teleop_screen(drive, state.view(), clock.now))
     assert "forward  left  +40 %  right  +40 %" in text
     assert "7 frames, last 0.1 s ago" in text and "(0.3 s left)" in text
-    assert "left   20 cm/s" in text and "● 1 HIT" in text
+    assert "left   20 cm/s" in text and "● left HIT" in text
     stopped = DriveStatus(
         "stop", 0, 0, 40, 30, 0.5, clock.now - 2, clock.now - 1, 8, "deadman: no key for 0.5 s"
     )
