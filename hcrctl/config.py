@@ -8,7 +8,8 @@ file, ``HCRCTL_<NAME>`` and ``--<name>`` read the same.
 Every value is checked here, with the option's own Click type, so a typo in a
 file the user forgot about is reported as that file and that key, not as a
 mysterious ``--baud`` error. The file is only parsed when it exists: a
-one-shot command must not pay for ``tomllib`` otherwise.
+one-shot command must not pay for ``tomllib`` otherwise (nor for ``pathlib``:
+plain ``os.path`` strings keep this module cheap to import).
 """
 
 from __future__ import annotations
@@ -16,7 +17,6 @@ from __future__ import annotations
 import os
 import sys
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
 import click
@@ -27,17 +27,18 @@ APP_DIR = "hcrctl"
 FILE_NAME = "config.toml"
 
 
-def config_path(environ: Mapping[str, str] = os.environ) -> Path:
+def config_path(environ: Mapping[str, str] = os.environ) -> str:
     """Where the file lives: XDG_CONFIG_HOME if set and absolute, else ~/.config."""
     base = environ.get("XDG_CONFIG_HOME", "")
-    root = Path(base) if os.path.isabs(base) else Path.home() / ".config"
-    return root / APP_DIR / FILE_NAME
+    root = base if os.path.isabs(base) else os.path.join(os.path.expanduser("~"), ".config")
+    return os.path.join(root, APP_DIR, FILE_NAME)
 
 
-def load_table(path: Path) -> dict[str, Any]:
+def load_table(path: str) -> dict[str, Any]:
     """The file's top-level table; {} when there is no file."""
     try:
-        data = path.read_bytes()
+        with open(path, "rb") as file:
+            data = file.read()
     except FileNotFoundError:
         return {}
     except OSError as exc:
@@ -59,14 +60,14 @@ def _toml_module() -> Any:
     return tomli
 
 
-def option_defaults(options: Mapping[str, click.Option], path: Path | None = None) -> dict[str, Any]:
+def option_defaults(options: Mapping[str, click.Option], path: str | None = None) -> dict[str, Any]:
     """The file's values as Click ``default_map`` entries, each one checked.
 
     ``options`` maps each config key to its Click option; the result is keyed
     by the option's parameter name, the way ``default_map`` wants it.
     """
     path = config_path() if path is None else path
-    if not path.is_file():
+    if not os.path.isfile(path):
         return {}
     defaults: dict[str, Any] = {}
     for key, value in load_table(path).items():
@@ -86,7 +87,7 @@ def _unknown_key(key: str, options: Mapping[str, click.Option]) -> str:
     return f"unknown key; {hint}known keys: {', '.join(options)}"
 
 
-def _check(path: Path, key: str, option: click.Option, value: Any) -> None:
+def _check(path: str, key: str, option: click.Option, value: Any) -> None:
     """The TOML type must fit, then the option's own type checks the range."""
     expected = _toml_types(option)
     if isinstance(value, bool) is not (bool in expected) or not isinstance(value, expected):

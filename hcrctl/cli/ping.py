@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import contextlib
 import itertools
-import json
 import math
 import time
 from collections.abc import Iterator
@@ -177,6 +176,8 @@ def single_attempts(robot: Robot) -> Iterator[None]:
 def report(settings: Settings, stats: PingStats, probe: C.Command, timeout: float) -> None:
     """The summary (or the JSON document); exit 1 if nothing came back."""
     if settings.as_json:
+        import json
+
         click.echo(json.dumps(stats.as_json()))
     else:
         click.echo("\n".join(stats.summary_lines()))

@@ -7,7 +7,6 @@ best named by its ``/dev/serial/by-id`` link, which survives replugging when
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import asdict, dataclass
 
@@ -69,6 +68,8 @@ def ports(settings: Settings) -> None:
     """List the serial ports present (device, description, hardware id, by-id link)."""
     found = list_ports()
     if settings.as_json:
+        import json
+
         click.echo(json.dumps([asdict(p) for p in found]))
         return
     if not found:
@@ -76,4 +77,6 @@ def ports(settings: Settings) -> None:
         return
     from rich.console import Console
 
-    Console(highlight=False).print(ports_table(found, borders=stdout_is_terminal()))
+    Console(highlight=False, emoji=False, markup=False).print(
+        ports_table(found, borders=stdout_is_terminal())
+    )

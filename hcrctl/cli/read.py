@@ -6,8 +6,6 @@ refuses an unknown name (exit 2) and completes the known ones in the shell.
 
 from __future__ import annotations
 
-import json
-
 import click
 
 from .. import commands as C
@@ -31,10 +29,12 @@ def read(settings: Settings, sensors: tuple[str, ...]) -> None:
     from .. import render
 
     if settings.as_json:
+        import json
+
         click.echo(json.dumps(render.readings_json(readings)))
     elif not stdout_is_terminal():
         click.echo(render.readings_text(readings))
     else:
         from rich.console import Console
 
-        Console(highlight=False).print(render.readings_table(readings))
+        Console(highlight=False, emoji=False, markup=False).print(render.readings_table(readings))

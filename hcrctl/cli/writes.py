@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import json
 import signal
 import threading
 from collections.abc import Iterator
@@ -75,7 +74,11 @@ def send_request(robot: Robot, value: C.Request) -> tuple[dict[str, Any], C.Repl
 
 def emit(settings: Settings, record: dict[str, Any], text: str) -> None:
     """The one JSON document with --json, else a line for people."""
-    click.echo(json.dumps(record) if settings.as_json else text)
+    if settings.as_json:
+        import json
+
+        text = json.dumps(record)
+    click.echo(text)
 
 
 def say(message: str) -> None:
