@@ -20,10 +20,10 @@ import serial
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _simpty import sim_pty  # noqa: E402
+from _simpty import sim_pty
 
-from hcrctl import commands as C  # noqa: E402
-from hcrctl.client import Robot  # noqa: E402
+from hcrctl import commands as C
+from hcrctl.client import Robot
 
 TARGET = 1.05
 REQUEST = C.encode_request(C.BY_NAME["compass"])

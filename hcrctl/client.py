@@ -17,12 +17,13 @@ import contextlib
 import queue
 import threading
 import time
+from collections import deque
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any
 
 from . import commands as C
-from .errors import DeviceRefused, DeviceTimeout, PortError, ProtocolError
+from .errors import DeviceRefused, DeviceTimeout, HcrError, PortError, ProtocolError
 from .frames import BadChecksum, ChecksumRule, Event, Frame, FrameDecoder, Junk, Malformed, Truncated
 
 #: How long the reader blocks in one read; bounds how fast close() returns.
@@ -31,6 +32,8 @@ UNSOLICITED_BACKLOG = 1000
 #: Cap on one blocking read: a false header announcing a long frame must not
 #: keep a real reply waiting in the OS buffer for a whole read slice.
 MAX_READ = 16
+#: How many recent requests an echo is compared with (a pipelined sweep's worth).
+ECHO_MEMORY = 16
 
 
 @dataclass(frozen=True)
@@ -104,8 +107,8 @@ class Robot:
         self._decoder = FrameDecoder(self._rule)
         self._io = threading.Lock()  # one transaction at a time
         self._tx = threading.Lock()  # one write at a time (stop may cut in)
-        self._waiting: tuple[int, int] | None = None
-        self._last_tx = b""
+        self._waiting: set[tuple[int, int]] = set()
+        self._recent_tx: deque[bytes] = deque(maxlen=ECHO_MEMORY)
         self._replies: queue.SimpleQueue[Frame] = queue.SimpleQueue()
         self._closing = threading.Event()
         self.serial, self.port = self._open(port, baud)
@@ -169,19 +172,49 @@ class Robot:
 
     def read(self, sensor: str | C.Command, *, address: int | None = None) -> C.Reply:
         """Read one sensor by table name (``compass``) or table row."""
+        result = self.sweep([sensor], address=address, pipeline=False)
+        return _value(next(iter(result.values())))
+
+    def read_many(self, sensors: Iterable[str | C.Command], *, pipeline: bool = True) -> dict[str, C.Reply]:
+        """Read several sensors; raises the first failure."""
+        return {name: _value(result) for name, result in self.sweep(sensors, pipeline=pipeline).items()}
+
+    def sweep(
+        self, sensors: Iterable[str | C.Command], *, address: int | None = None, pipeline: bool = True
+    ) -> dict[str, C.Reply | HcrError]:
+        """Read each sensor once; a failure comes back as its value, not raised.
+
+        Pipelined, every request goes out at once and replies are matched by
+        (address, command) as they come: the line is full duplex, so replies
+        stream back while later requests are still arriving. That is what lets
+        a live panel approach the speed of the wire. Without pipelining, one
+        request at a time, for firmware with a one-frame receive buffer.
+        """
+        addr = self._address(address)
+        cmds = [self._sensor(s) for s in dict.fromkeys(sensors)]
+        batch = {(addr, cmd.code): (C.encode_request(cmd, addr, self._rule), cmd.name) for cmd in cmds}
+        if pipeline:
+            frames = self._exchange(batch)
+        else:
+            frames = {}
+            for key, item in batch.items():
+                frames.update(self._exchange({key: item}))
+        return {cmd.name: self._result(cmd, addr, frames.get((addr, cmd.code))) for cmd in cmds}
+
+    def _result(self, cmd: C.Command, addr: int, frame: Frame | None) -> C.Reply | HcrError:
+        if frame is None:
+            return DeviceTimeout(cmd.name, addr, self.port, self.timeout, 1 + max(self.retries, 0))
+        try:
+            return cmd.reply.from_content(frame.content)
+        except ProtocolError as exc:
+            return ProtocolError(f"{exc.message} from 0x{addr:02X} on {self.port}")
+
+    @staticmethod
+    def _sensor(sensor: str | C.Command) -> C.Command:
         cmd = C.BY_NAME[sensor] if isinstance(sensor, str) else sensor
         if cmd.kind != "read":
             raise ValueError(f"{cmd.name} is not a sensor")
-        addr = self._address(address)
-        frame = C.encode_request(cmd, addr, self._rule)
-        reply = self.transact(frame, (addr, cmd.code), cmd.name)
-        try:
-            return cmd.reply.from_content(reply.content)
-        except ProtocolError as exc:
-            raise ProtocolError(f"{exc.message} from 0x{addr:02X} on {self.port}") from exc
-
-    def read_many(self, sensors: Iterable[str]) -> dict[str, C.Reply]:
-        return {name: self.read(name) for name in sensors}
+        return cmd
 
     def stop(self) -> None:
         """Motor power 0x80 0x80. Sent even when already stopped: cheap, and safe."""
@@ -200,7 +233,7 @@ class Robot:
             self._check_link()
             if len(frame) > 4 and C.is_motion(frame[4]):
                 self.moved = True
-            self._last_tx = frame
+            self._recent_tx.append(frame)
             # Told before the bytes leave, so the hook never sees the reply first.
             if self.on_traffic is not None:
                 self._tell(Traffic(time.time(), "tx", frame, _decode_one(frame, self._rule)))
@@ -212,29 +245,42 @@ class Robot:
 
     def transact(self, frame: bytes, expect: tuple[int, int], what: str = "request") -> Frame:
         """Write ``frame`` and return the frame answering it, retrying on timeout."""
+        reply = self._exchange({expect: (frame, what)}).get(expect)
+        if reply is None:
+            raise DeviceTimeout(what, expect[0], self.port, self.timeout, 1 + max(self.retries, 0))
+        return reply
+
+    def _exchange(self, batch: dict[tuple[int, int], tuple[bytes, str]]) -> dict[tuple[int, int], Frame]:
+        """Send every frame of ``batch``; collect replies by key, retrying the missing."""
+        got: dict[tuple[int, int], Frame] = {}
         with self._io:
             for attempt in range(1 + max(self.retries, 0)):
+                missing = {key: frame for key, (frame, _) in batch.items() if key not in got}
+                if not missing:
+                    break
                 if attempt:
-                    self.stats.retries += 1
-                reply = self._attempt(frame, expect)
-                if reply is not None:
-                    return reply
-            self.stats.timeouts += 1
-            attempts = 1 + max(self.retries, 0)
-            raise DeviceTimeout(what, expect[0], self.port, self.timeout, attempts)
+                    self.stats.retries += len(missing)
+                got.update(self._attempt(missing))
+            self.stats.timeouts += len(batch) - len(got)
+        return got
 
-    def _attempt(self, frame: bytes, expect: tuple[int, int]) -> Frame | None:
+    def _attempt(self, frames: dict[tuple[int, int], bytes]) -> dict[tuple[int, int], Frame]:
+        """One try: replies until all are in or none came for ``timeout``."""
         while not self._replies.empty():  # a late reply to an earlier attempt
             self._replies.get_nowait()
-        self._waiting = expect
+        got: dict[tuple[int, int], Frame] = {}
+        self._waiting = set(frames)
         try:
-            self.write(frame)
-            return self._replies.get(timeout=self.timeout)
+            for frame in frames.values():
+                self.write(frame)
+            while len(got) < len(frames):
+                reply = self._replies.get(timeout=self.timeout)
+                got[(reply.address, reply.command)] = reply
         except queue.Empty:
             self._check_link()
-            return None
         finally:
-            self._waiting = None
+            self._waiting = set()
+        return got
 
     def _address(self, address: int | None) -> int:
         return self.address if address is None else address
@@ -267,8 +313,9 @@ class Robot:
         if self._is_echo(frame):
             self.stats.echoes += 1
             return
-        if self._waiting == (frame.address, frame.command):
-            self._waiting = None
+        key = (frame.address, frame.command)
+        if key in self._waiting:
+            self._waiting.discard(key)
             self._replies.put(frame)
             return
         self.stats.unsolicited += 1
@@ -278,11 +325,11 @@ class Robot:
             self.on_unsolicited(frame)
 
     def _is_echo(self, frame: Frame) -> bool:
-        """A half-duplex adapter (or loop://) hands our own request back.
+        """A half-duplex adapter (or loop://) hands our own requests back.
 
-        No reply is ever byte-for-byte its request, so the copy is dropped.
+        No reply is ever byte-for-byte a request, so such copies are dropped.
         """
-        return len(frame.content) + 8 == len(self._last_tx) and frame.to_bytes() == self._last_tx
+        return bool(self._recent_tx) and frame.to_bytes() in self._recent_tx
 
     def _tell(self, traffic: Traffic) -> None:
         if self.on_traffic is not None:
@@ -305,3 +352,9 @@ def _decode_one(frame: bytes, rule: ChecksumRule) -> Event | None:
     decoder = FrameDecoder(rule)
     events = decoder.feed(frame) + decoder.flush()
     return events[0] if events else None
+
+
+def _value(result: C.Reply | HcrError) -> C.Reply:
+    if isinstance(result, HcrError):
+        raise result
+    return result

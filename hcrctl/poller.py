@@ -1,6 +1,6 @@
 """The polling thread behind ``watch`` and ``teleop``.
 
-It sweeps the chosen sensors through ``Robot.read`` at a fixed rate (or as
+It sweeps the chosen sensors through ``Robot.sweep`` at a fixed rate (or as
 fast as the link answers), records each reply or failure in a ``LiveState``,
 and moves unsolicited frames (0xA0, 0xB0) into it while it waits. It never
 draws and never reads keys, so a slow terminal cannot slow the polling and a
@@ -24,8 +24,9 @@ import threading
 import time
 from collections.abc import Callable
 
+from . import commands as C
 from .client import Robot
-from .errors import DeviceTimeout, HcrError, PortError, ProtocolError
+from .errors import DeviceTimeout, HcrError, PortError
 from .livestate import LiveState
 
 #: Seconds between attempts to reopen a port that disappeared.
@@ -46,6 +47,7 @@ class Poller(threading.Thread):
         *,
         reconnect: Callable[[], Robot] | None = None,
         retry_every: float = RETRY_EVERY,
+        pipeline: bool = True,
     ) -> None:
         super().__init__(name="hcrctl-poller", daemon=True)
         self.robot: Robot | None = robot
@@ -54,6 +56,7 @@ class Poller(threading.Thread):
         self.period = 1.0 / rate if rate else 0.0
         self.reconnect = reconnect
         self.retry_every = retry_every
+        self.pipeline = pipeline
         self.lost: PortError | None = None
         self.crash: BaseException | None = None
         self.paused = threading.Event()
@@ -117,25 +120,28 @@ class Poller(threading.Thread):
                 self._on_lost(robot, exc)
 
     def sweep(self, robot: Robot) -> None:
-        """Read every sensor once, one request at a time."""
+        """Read every sensor once, pipelined unless the firmware needs one at a time."""
+        if self._stopping.is_set() or self.paused.is_set():
+            return
         started = self.state.clock()
-        for name in self.sensors:
-            if self._stopping.is_set() or self.paused.is_set():
-                return
-            self._read_one(robot, name)
+        t0 = time.perf_counter()
+        results = robot.sweep(self.sensors, pipeline=self.pipeline)
+        rtt = (time.perf_counter() - t0) / max(len(results), 1)
+        for name, result in results.items():
+            self._record(name, result, rtt)
+        self._count_errors(robot)
         self.state.sweep_done(started)
 
-    def _read_one(self, robot: Robot, name: str) -> None:
-        t0 = time.perf_counter()
-        try:
-            value = robot.read(name)
-        except DeviceTimeout:
+    def _record(self, name: str, result: C.Reply | HcrError, rtt: float) -> None:
+        """One sensor's outcome; ``rtt`` is the sweep's time per reading."""
+        if isinstance(result, DeviceTimeout):
             self.state.fail(name, "no reply")
-        except ProtocolError as exc:
-            self.state.fail(name, exc.message, timeout=False)
+        elif isinstance(result, PortError):
+            raise result
+        elif isinstance(result, HcrError):
+            self.state.fail(name, result.message, timeout=False)
         else:
-            self.state.record(name, value, time.perf_counter() - t0)
-        self._count_errors(robot)
+            self.state.record(name, result, rtt)
 
     def _drain(self, robot: Robot, until: float) -> None:
         """Move unsolicited frames into the state until ``until`` (monotonic)."""

@@ -50,6 +50,7 @@ def run_watch(
     duration: float | None = None,
     *,
     console: Console | None = None,
+    pipeline: bool = True,
 ) -> dict[str, Any]:
     """Show the dashboard until ``q`` or ``duration``; returns the run's summary.
 
@@ -59,7 +60,7 @@ def run_watch(
     console = None if settings.as_json else console or default_console()
     state = LiveState(names, target_rate=rate)
     with settings.robot() as robot, quick_handoff():
-        poller = Poller(robot, state, names, rate, reconnect=Reconnect(settings, robot))
+        poller = Poller(robot, state, names, rate, reconnect=Reconnect(settings, robot), pipeline=pipeline)
         poller.start()
         try:
             _watch_loop(state, poller, console, duration)

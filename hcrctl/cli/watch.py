@@ -39,8 +39,17 @@ class Rate(click.ParamType):
     metavar="S",
     help="Exit by itself after S seconds (for scripts and tests).",
 )
+@click.option(
+    "--pipeline/--no-pipeline",
+    default=True,
+    show_default=True,
+    help="Send a sweep's requests at once (replies matched as they come); "
+    "--no-pipeline asks one at a time, for firmware with a one-frame receive buffer.",
+)
 @click.pass_obj
-def watch(settings: Settings, sensors: tuple[str, ...], rate: float | None, duration: float | None) -> None:
+def watch(
+    settings: Settings, sensors: tuple[str, ...], rate: float | None, duration: float | None, pipeline: bool
+) -> None:
     """Live dashboard of SENSORS (bump, ir, sonar, compass, wheels, env); none means all.
 
     Keys: q quits, space sends stop, p pauses polling, r resets the counters.
@@ -49,6 +58,6 @@ def watch(settings: Settings, sensors: tuple[str, ...], rate: float | None, dura
     """
     from ..watch import run_watch
 
-    summary = run_watch(settings, sensors, rate, duration)
+    summary = run_watch(settings, sensors, rate, duration, pipeline=pipeline)
     if settings.as_json:
         click.echo(json.dumps(summary))
