@@ -77,7 +77,9 @@ def test_traffic_hook_sees_both_directions_with_timestamps(robot: Robot, traffic
     while not any(t.direction == "rx" and t.data[4] == 0x14 for t in traffic) and time.monotonic() < deadline:
         time.sleep(0.01)
     tx = [t for t in traffic if t.direction == "tx"]
-    rx = [t for t in traffic if t.direction == "rx" and isinstance(t.event, Frame) and t.event.command == 0x14]
+    rx = [
+        t for t in traffic if t.direction == "rx" and isinstance(t.event, Frame) and t.event.command == 0x14
+    ]
     assert tx[0].data == bytes.fromhex("55 AA 01 01 14 FF 14 0D 0A")
     assert rx and len(rx[0].event.content) == 2
     assert before <= tx[0].time <= rx[0].time
@@ -178,7 +180,8 @@ def test_thread_safe_concurrent_reads(robot: Robot) -> None:
                 errors.append(f"{sensor} got {value!r}")
 
     threads = [
-        threading.Thread(target=worker, args=(name, C.BY_NAME[name].reply)) for name in ("compass", "sonar", "env")
+        threading.Thread(target=worker, args=(name, C.BY_NAME[name].reply))
+        for name in ("compass", "sonar", "env")
     ]
     for t in threads:
         t.start()
@@ -219,7 +222,9 @@ def test_frames_from_elsewhere_are_unsolicited_and_the_reply_still_matches(pty_p
         asker.start()
         request = os.read(master, 64)
         assert request == bytes.fromhex("55 AA 01 01 14 FF 14 0D 0A")
-        os.write(master, encode(0x02, 0x14, b"\x00\x10") + b"\x00junk" + encode(0x50, 0xA0, bytes((1, 2, 3, 4))))
+        os.write(
+            master, encode(0x02, 0x14, b"\x00\x10") + b"\x00junk" + encode(0x50, 0xA0, bytes((1, 2, 3, 4)))
+        )
         os.write(master, encode(0x01, 0x14, b"\x0d\x0a"))  # 333.8 degrees: 0D 0A inside the content
         asker.join(timeout=5)
         assert reply == [C.Compass(333.8)]
@@ -256,7 +261,45 @@ def test_installed_read_json_against_sim() -> None:
 def test_python_dash_m_runs_the_same_cli() -> None:
     env = {**os.environ, "HCRCTL_PORT": "sim://"}
     result = subprocess.run(
-        [sys.executable, "-m", "hcrctl", "--json", "read", "compass"], capture_output=True, text=True, env=env, timeout=30
+        [sys.executable, "-m", "hcrctl", "--json", "read", "compass"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=30,
     )
     assert result.returncode == 0, result.stderr
     assert json.loads(result.stdout)["heading"] == pytest.approx(90.0, abs=0.5)
+
+
+def test_pipelined_sweep_sends_every_request_before_the_first_reply(traffic: list[Traffic]) -> None:
+    with Robot("sim://?broadcast_hz=0&map_hz=0", on_traffic=traffic.append) as r:
+        readings = r.read_many(C.SENSORS)
+    assert list(readings) == list(C.SENSORS)
+    directions = [t.direction for t in traffic if isinstance(t.event, Frame)]
+    assert directions[: len(C.SENSORS)] == ["tx"] * len(C.SENSORS)
+    assert directions.count("rx") == len(C.SENSORS)
+
+
+def test_one_at_a_time_sweep_alternates(traffic: list[Traffic]) -> None:
+    with Robot("sim://?broadcast_hz=0&map_hz=0", on_traffic=traffic.append) as r:
+        r.sweep(["compass", "sonar", "env"], pipeline=False)
+    directions = [t.direction for t in traffic if isinstance(t.event, Frame)]
+    assert directions == ["tx", "rx"] * 3
+
+
+def test_sweep_returns_failures_as_values() -> None:
+    with Robot("sim://?silent=1", timeout=0.05, retries=1) as r:
+        results = r.sweep(["compass", "bump"])
+        assert set(results) == {"compass", "bump"}
+        assert all(isinstance(v, DeviceTimeout) for v in results.values())
+        assert r.stats.tx_frames == 4  # two requests, each retried once
+        assert r.stats.timeouts == 2
+        with pytest.raises(DeviceTimeout):
+            r.read_many(["compass"])
+
+
+def test_pipelined_sweep_retries_only_what_was_lost() -> None:
+    with Robot("sim://?drop=0.3&seed=3&broadcast_hz=0&map_hz=0", timeout=0.05, retries=10) as r:
+        for _ in range(5):
+            assert len(r.read_many(C.SENSORS)) == len(C.SENSORS)
+        assert 0 < r.stats.retries < r.stats.tx_frames
