@@ -78,3 +78,26 @@ def test_the_config_parser_loads_only_when_there_is_a_file(tmp_path, device):
     code, modules = modules_after(["--port", device, "read", "compass"], clean_env(tmp_path))
     assert code == 0
     assert loaded(modules, "tomllib") or loaded(modules, "tomli")
+
+
+FAST_EXIT = """
+import atexit, sys, threading
+from hcrctl.cli import fast_exit
+atexit.register(lambda: print("atexit ran", flush=True))
+print("unflushed output", end="")
+if sys.argv[1] == "thread":
+    threading.Thread(target=lambda: (__import__("time").sleep(0.3), print(" thread done", end=""))).start()
+fast_exit(3)
+"""
+
+
+@pytest.mark.parametrize(
+    ("mode", "out"),
+    [("plain", "unflushed outputatexit ran\n"), ("thread", "unflushed output thread doneatexit ran\n")],
+)
+def test_fast_exit_flushes_runs_atexit_and_waits_for_threads(mode, out):
+    result = subprocess.run(
+        [sys.executable, "-c", FAST_EXIT, mode], capture_output=True, text=True, timeout=60
+    )
+    assert result.returncode == 3
+    assert result.stdout == out

@@ -88,6 +88,42 @@ def cli(ctx: click.Context, **options: Any) -> None:
     ctx.obj = Settings.from_options(options)
 
 
+def entry() -> None:
+    """The console script: ``main()``, then an exit without the interpreter's teardown.
+
+    Freeing every module and object at exit takes about 12 ms, some 15 % of a
+    one-shot command; mypy exits the same way. Output is flushed and atexit
+    handlers run first, and a live non-daemon thread means a normal exit.
+    Tests and library users call ``main()``, which raises SystemExit as usual.
+    """
+    try:
+        main()
+    except SystemExit as exc:
+        code = exc.code
+    if not isinstance(code, int):
+        if code is not None:
+            click.echo(code, err=True)
+        code = 0 if code is None else 1
+    fast_exit(code)
+
+
+def fast_exit(code: int) -> None:
+    """``os._exit(code)`` once nothing can be lost by it, else ``sys.exit(code)``."""
+    import atexit
+    import threading
+
+    try:
+        sys.stdout.flush()
+        sys.stderr.flush()
+    except (OSError, ValueError):  # a closed pipe: let the normal exit report it
+        sys.exit(code)
+    main_thread = threading.main_thread()
+    if any(t is not main_thread and not t.daemon and t.is_alive() for t in threading.enumerate()):
+        sys.exit(code)
+    atexit._run_exitfuncs()
+    os._exit(code)
+
+
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point: run the CLI and map every failure to an exit code."""
     args = sys.argv[1:] if argv is None else list(argv)
