@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import math
+import time
 
 import click
 import pytest
 
 from hcrctl import commands as C
 from hcrctl.cli.params import FieldRange, command_help, field_param, request_value
-from hcrctl.cli.ping import PingStats, cheapest_read
+from hcrctl.cli.ping import PingStats, cheapest_read, probe_once
 from hcrctl.cli.turn import STALL_S, TurnProgress, heading_delta, turn_timeout
 from hcrctl.cli.writes import describe, hex_bytes, sent_record
 from hcrctl.frames import ChecksumRule
@@ -111,3 +112,30 @@ def test_ping_statistics_follow_ping():
     assert (stats.received, stats.lost) == (3, 1)
     assert stats.summary_lines()[1].startswith("4 sent, 3 received, 1 lost (25.0% loss)")
     assert PingStats("x", 1, sent=2).rtt_ms() == dict.fromkeys(("min", "avg", "max", "mdev"))
+
+
+class ProbeRobot:
+    """transact() 'decodes' the reply at a chosen moment, as the reader thread would."""
+
+    address, timeout = 1, 0.5
+
+    def __init__(self, decoded_after: float | None) -> None:
+        self.decoded_after = decoded_after
+        self.stats = type("Stats", (), {"last_rx": None})()
+
+    def transact(self, frame, expect, what):
+        began = time.monotonic()
+        time.sleep(0.02)
+        if self.decoded_after is not None:
+            self.stats.last_rx = began + self.decoded_after
+        time.sleep(0.02)  # the caller wakes up later than the reply arrived
+
+
+def test_ping_rtt_ends_when_the_reply_was_decoded():
+    rtt = probe_once(ProbeRobot(decoded_after=0.02), b"", C.BY_NAME["bump"])
+    assert 0.02 <= rtt < 0.04
+
+
+def test_ping_rtt_ignores_a_stale_or_missing_receive_time():
+    for robot in (ProbeRobot(decoded_after=None), ProbeRobot(decoded_after=-5.0)):
+        assert probe_once(robot, b"", C.BY_NAME["bump"]) >= 0.04

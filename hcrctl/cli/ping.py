@@ -154,13 +154,22 @@ def probe_loop(
 
 
 def probe_once(robot: Robot, frame: bytes, probe: C.Command) -> float | None:
-    """One request, one attempt: the round trip in seconds, or None if lost."""
-    began = time.perf_counter()
+    """One request, one attempt: the round trip in seconds, or None if lost.
+
+    The round trip ends when the reader thread has decoded the reply
+    (``stats.last_rx``), not when this thread wakes up to see it: like ping's
+    kernel timestamps, it measures the link rather than thread scheduling.
+    A frame arriving after the reply can only make it longer, never shorter.
+    """
+    began = time.monotonic()
     try:
         robot.transact(frame, (robot.address, probe.code), probe.name)
     except DeviceTimeout:
         return None
-    return time.perf_counter() - began
+    returned = time.monotonic()
+    arrived = robot.stats.last_rx
+    ended = arrived if arrived is not None and began <= arrived <= returned else returned
+    return ended - began
 
 
 @contextlib.contextmanager
