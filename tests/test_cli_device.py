@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 
 import pytest
 import serial
@@ -41,7 +42,10 @@ def test_read_plain_when_piped(env, device):
     assert result.returncode == 0, result.stderr
     lines = result.stdout.splitlines()
     assert [line.split()[0] for line in lines] == ["compass", "bumpers", "temperature", "humidity"]
-    assert lines[0].endswith((" N", " E", " S", " W")) or lines[0].split()[-1].isalpha()
+    assert re.fullmatch(
+        r"compass +\d{1,3}\.\d° (N|NNE|NE|ENE|E|ESE|SE|SSE|S|SSW|SW|WSW|W|WNW|NW|NNW)", lines[0]
+    )
+    assert re.fullmatch(r"bumpers +(clear|hit: (left|front|right)(, (front|right))*)", lines[1])
     assert "°C" in lines[2] and lines[3].endswith("%")
     assert not any(ch in result.stdout for ch in "\x1b╭│")  # no colour, no borders
     assert all(line == line.rstrip() for line in lines)

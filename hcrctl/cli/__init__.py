@@ -127,15 +127,16 @@ def fast_exit(code: int) -> None:
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point: run the CLI and map every failure to an exit code."""
     args = sys.argv[1:] if argv is None else list(argv)
+    defaults: dict[str, Any] = {}
     try:
         with stop_signals_raise():
-            code = cli.main(
-                args=args, prog_name="hcrctl", standalone_mode=False, default_map=config_defaults()
-            )
+            defaults = config_defaults()
+            code = cli.main(args=args, prog_name="hcrctl", standalone_mode=False, default_map=defaults)
     except SystemExit:
         raise
     except BaseException as exc:  # the one place errors become exit codes
-        if _debug(args) and isinstance(exc, Exception) and not isinstance(exc, click.ClickException):
+        debug = _debug(args) or defaults.get("debug") is True
+        if debug and isinstance(exc, Exception) and not isinstance(exc, click.ClickException):
             raise
         code = exit_code_for(exc)
     sys.exit(code if isinstance(code, int) else 0)
