@@ -81,6 +81,7 @@ class PingStats:
         return {k: round(v, 3) for k, v in (("min", min(ms)), ("avg", avg), ("max", max(ms)), ("mdev", mdev))}
 
     def as_json(self) -> dict[str, Any]:
+        """The ``ping --json`` document."""
         return {
             "sent": self.sent,
             "received": self.received,
@@ -93,6 +94,7 @@ class PingStats:
         }
 
     def summary_lines(self) -> list[str]:
+        """The closing lines, in ping(8)'s words."""
         loss = 100.0 * self.lost / self.sent if self.sent else 0.0
         lines = [
             f"--- 0x{self.address:02X} on {self.port} ping statistics ---",

@@ -169,6 +169,7 @@ class Settings:
             robot.close()
 
     def connect(self) -> Robot:
+        """A new robot on the resolved port, with the traffic log and hooks attached."""
         from ..client import Robot
 
         robot = Robot(
