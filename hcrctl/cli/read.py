@@ -18,7 +18,7 @@ def _sensor_help() -> str:
 
 
 @click.command(
-    help="Read SENSORS once and print them; none means all of them.\n\n\b\n" + _sensor_help(),
+    help="Read each SENSOR once and print it; none means all of them.\n\n\b\n" + _sensor_help(),
 )
 @click.argument("sensors", nargs=-1, type=click.Choice(C.SENSORS), metavar="[SENSOR]...", cls=NamedArgument)
 @click.pass_obj
