@@ -102,6 +102,9 @@ class Robot:
         self.stats = LinkStats()
         self.unsolicited: queue.Queue[Frame] = queue.Queue(UNSOLICITED_BACKLOG)
         self.moved = False
+        #: When the reader decoded the latest awaited reply (monotonic): a round
+        #: trip measured to here is the link's, not the waiting thread's wake-up.
+        self.last_reply_at: float | None = None
         self.error: PortError | None = None
         self._rule = ChecksumRule(rule)
         self._decoder = FrameDecoder(self._rule)
@@ -316,6 +319,7 @@ class Robot:
         key = (frame.address, frame.command)
         if key in self._waiting:
             self._waiting.discard(key)
+            self.last_reply_at = time.monotonic()
             self._replies.put(frame)
             return
         self.stats.unsolicited += 1

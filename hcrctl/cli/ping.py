@@ -158,10 +158,9 @@ def probe_loop(
 def probe_once(robot: Robot, frame: bytes, probe: C.Command) -> float | None:
     """One request, one attempt: the round trip in seconds, or None if lost.
 
-    The round trip ends when the reader thread has decoded the reply
-    (``stats.last_rx``), not when this thread wakes up to see it: like ping's
-    kernel timestamps, it measures the link rather than thread scheduling.
-    A frame arriving after the reply can only make it longer, never shorter.
+    The round trip ends when the reader thread decoded the reply
+    (``robot.last_reply_at``), not when this thread wakes up to see it: like
+    ping's kernel timestamps, it measures the link rather than scheduling.
     """
     began = time.monotonic()
     try:
@@ -169,7 +168,7 @@ def probe_once(robot: Robot, frame: bytes, probe: C.Command) -> float | None:
     except DeviceTimeout:
         return None
     returned = time.monotonic()
-    arrived = robot.stats.last_rx
+    arrived = robot.last_reply_at
     ended = arrived if arrived is not None and began <= arrived <= returned else returned
     return ended - began
 
