@@ -44,7 +44,9 @@ def _port_error(url: str, exc: Exception) -> PortError:
     if code == errno.EBUSY or "busy" in text or "exclusively lock" in text:
         return PortError("the port is busy", url, hint="another program has it open; close it and retry")
     if code == errno.ECONNREFUSED or "refused" in text:
-        return PortError("connection refused", url, hint="is the server (for example hcrctl sim --tcp) running?")
+        return PortError(
+            "connection refused", url, hint="is the server (for example hcrctl sim --tcp) running?"
+        )
     return PortError(f"cannot open ({text})", url, hint=SIM_HINT)
 
 
