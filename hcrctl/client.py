@@ -178,20 +178,21 @@ class Robot:
         result = self.sweep([sensor], address=address, pipeline=False)
         return _value(next(iter(result.values())))
 
-    def read_many(self, sensors: Iterable[str | C.Command], *, pipeline: bool = True) -> dict[str, C.Reply]:
+    def read_many(self, sensors: Iterable[str | C.Command], *, pipeline: bool = False) -> dict[str, C.Reply]:
         """Read several sensors; raises the first failure."""
         return {name: _value(result) for name, result in self.sweep(sensors, pipeline=pipeline).items()}
 
     def sweep(
-        self, sensors: Iterable[str | C.Command], *, address: int | None = None, pipeline: bool = True
+        self, sensors: Iterable[str | C.Command], *, address: int | None = None, pipeline: bool = False
     ) -> dict[str, C.Reply | HcrError]:
         """Read each sensor once; a failure comes back as its value, not raised.
 
         Pipelined, every request goes out at once and replies are matched by
         (address, command) as they come: the line is full duplex, so replies
         stream back while later requests are still arriving. That is what lets
-        a live panel approach the speed of the wire. Without pipelining, one
-        request at a time, for firmware with a one-frame receive buffer.
+        a live panel approach the speed of the wire. The default is one request
+        at a time: the document says nothing of how much a device buffers, so
+        only a caller that measures the link (watch) should opt in.
         """
         addr = self._address(address)
         cmds = [self._sensor(s) for s in dict.fromkeys(sensors)]

@@ -121,13 +121,13 @@ class ProbeRobot:
 
     def __init__(self, decoded_after: float | None) -> None:
         self.decoded_after = decoded_after
-        self.stats = type("Stats", (), {"last_rx": None})()
+        self.last_reply_at: float | None = None
 
     def transact(self, frame, expect, what):
         began = time.monotonic()
         time.sleep(0.02)
         if self.decoded_after is not None:
-            self.stats.last_rx = began + self.decoded_after
+            self.last_reply_at = began + self.decoded_after
         time.sleep(0.02)  # the caller wakes up later than the reply arrived
 
 

@@ -273,7 +273,7 @@ def test_python_dash_m_runs_the_same_cli() -> None:
 
 def test_pipelined_sweep_sends_every_request_before_the_first_reply(traffic: list[Traffic]) -> None:
     with Robot("sim://?broadcast_hz=0&map_hz=0", on_traffic=traffic.append) as r:
-        readings = r.read_many(C.SENSORS)
+        readings = r.read_many(C.SENSORS, pipeline=True)
     assert list(readings) == list(C.SENSORS)
     directions = [t.direction for t in traffic if isinstance(t.event, Frame)]
     assert directions[: len(C.SENSORS)] == ["tx"] * len(C.SENSORS)
@@ -282,7 +282,7 @@ def test_pipelined_sweep_sends_every_request_before_the_first_reply(traffic: lis
 
 def test_one_at_a_time_sweep_alternates(traffic: list[Traffic]) -> None:
     with Robot("sim://?broadcast_hz=0&map_hz=0", on_traffic=traffic.append) as r:
-        r.sweep(["compass", "sonar", "env"], pipeline=False)
+        r.sweep(["compass", "sonar", "env"])  # one at a time is the default
     directions = [t.direction for t in traffic if isinstance(t.event, Frame)]
     assert directions == ["tx", "rx"] * 3
 
@@ -301,5 +301,5 @@ def test_sweep_returns_failures_as_values() -> None:
 def test_pipelined_sweep_retries_only_what_was_lost() -> None:
     with Robot("sim://?drop=0.3&seed=3&broadcast_hz=0&map_hz=0", timeout=0.05, retries=10) as r:
         for _ in range(5):
-            assert len(r.read_many(C.SENSORS)) == len(C.SENSORS)
+            assert len(r.read_many(C.SENSORS, pipeline=True)) == len(C.SENSORS)
         assert 0 < r.stats.retries < r.stats.tx_frames

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from .. import __version__
+from .. import commands as C
 from ..errors import HcrError
 from ..signals import Terminated, stop_signals_raise
 from .settings import GLOBAL_OPTIONS, Settings, config_keys
@@ -33,8 +34,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "drive": ("hcrctl.cli.drive:drive", "Drive both motors (power, speed, velocity); stop on exit."),
     "turn": ("hcrctl.cli.turn:turn", "Turn in place by an angle, wait until done, then stop."),
     "stop": ("hcrctl.cli.drive:stop", "Stop both motors (motor power 0x80 0x80)."),
-    "servo": ("hcrctl.cli.servo:servo", "Move servos 1 and 2."),
-    "pid": ("hcrctl.cli.pid:pid", "Set the speed controller's PID gains."),
+    "servo": ("hcrctl.cli.servo:servo", C.BY_NAME["servo"].help),
+    "pid": ("hcrctl.cli.pid:pid", C.BY_NAME["pid"].help),
     "ping": ("hcrctl.cli.ping:ping", "Check the link with the cheapest read, like ping."),
     "ports": ("hcrctl.cli.ports:ports", "List the serial ports present."),
     "sim": ("hcrctl.cli.sim:sim", "Serve the simulated robot on a pty or TCP port."),
