@@ -235,6 +235,7 @@ def decode_table(rows: list[dict[str, Any]]) -> Table:
     """The terminal rendering of ``hex decode``: bad rows in red."""
     from rich import box
     from rich.table import Table
+    from rich.text import Text
 
     table = Table(box=box.SIMPLE_HEAD)
     for title, justify in (("offset", "right"), ("addr", "left"), ("command", "left")):
@@ -245,7 +246,9 @@ def decode_table(rows: list[dict[str, Any]]) -> Table:
     for row in rows:
         c = columns(row)
         style = None if c.good else "red"
-        table.add_row(c.offset, c.address, c.command, c.content, c.detail, c.checksum, style=style)
+        # Text, not str: a bumper list "[yes, no, no]" is not rich markup.
+        cells = (c.offset, c.address, c.command, c.content, c.detail, c.checksum)
+        table.add_row(*(Text(cell) for cell in cells), style=style)
     return table
 
 

@@ -188,3 +188,10 @@ def test_table_renders_every_row_on_a_fixed_width_console() -> None:
     text = console.export_text()
     assert "power" in text and "junk" in text and "heading=333.8 deg" in text
     assert "9D bad: header rule 9B, address rule 9C" in text
+
+
+def test_table_cells_are_text_not_rich_markup() -> None:
+    """A bumper reading prints as ``[yes, no, no]``, which rich would otherwise eat as a style tag."""
+    console = Console(width=160, record=True, color_system=None)
+    console.print(decode_table(rows(encode(1, 0x11, b"\x01"))))
+    assert "bump=[yes, no, no]" in console.export_text()
