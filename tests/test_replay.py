@@ -151,3 +151,19 @@ def test_a_log_without_tx_frames_is_a_usage_error(tmp_path: Path) -> None:
     proc = run("--port", "sim://", "replay", str(path))
     assert proc.returncode == 2
     assert "holds no tx frames" in proc.stderr
+
+
+def test_an_answered_request_is_no_longer_owed() -> None:
+    """Once every reply is in, nothing is owed: --ignore-timestamps sends on, no timeout wait."""
+    from hcrctl.cli.replay import Pending
+    from hcrctl.client import Traffic
+    from hcrctl.frames import ChecksumRule, decode_all
+
+    pending = Pending()
+    pending.sent(encode(1, 0x14, b"\xff"), ChecksumRule.HEADER)
+    assert pending.owed
+    reply = encode(1, 0x14, H("03 84"))
+    pending.received(Traffic(0.0, "rx", reply, decode_all(reply)[0]))
+    assert not pending.owed
+    pending.give_up()
+    assert pending.missed == 0

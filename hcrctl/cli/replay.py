@@ -55,8 +55,8 @@ class Pending:
         event = traffic.event
         if not isinstance(event, Frame) or C.is_request(event.command, event.content):
             return  # an echo of our own request on a half-duplex line is no answer
-        if self.owed[(event.address, event.command)] > 0:
-            self.owed[(event.address, event.command)] -= 1
+        # Counter's "-=" drops keys that reach zero, so an answered request leaves ``owed`` empty.
+        self.owed -= Counter([(event.address, event.command)])
 
     def give_up(self) -> None:
         self.missed += sum(self.owed.values())
