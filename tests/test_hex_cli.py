@@ -192,6 +192,12 @@ def test_encode_out_of_range_is_a_one_line_usage_error() -> None:
     assert proc.stdout == ""
 
 
+def test_encode_read_names_sensor_as_read_does() -> None:
+    proc = run("hex", "encode", "read", "comp")
+    assert proc.returncode == 2
+    assert "Invalid value for 'SENSOR': 'comp' is not one of" in one_line_error(proc)
+
+
 def test_encode_styles_read_back_through_decode() -> None:
     for style in ("compact", "c", "escaped"):
         text = run("hex", "encode", "read", "sonar", "--style", style).stdout.strip()

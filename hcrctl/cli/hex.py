@@ -22,7 +22,7 @@ from .. import commands as C
 from ..errors import ProtocolError
 from ..frames import ChecksumRule, Frame, decode_all
 from ..hexparse import STYLES, format_hex, parse_hex, parse_hex_args
-from .params import request_value, table_command
+from .params import NamedArgument, request_value, table_command
 from .settings import Settings, stdout_is_terminal
 
 if TYPE_CHECKING:
@@ -208,7 +208,7 @@ def encode_stop(settings: Settings, style: str) -> None:
 
 
 @encode.command("read")
-@click.argument("sensors", nargs=-1, type=click.Choice(C.SENSORS))
+@click.argument("sensors", nargs=-1, type=click.Choice(C.SENSORS), metavar="[SENSOR]...", cls=NamedArgument)
 @_style_option
 @click.pass_obj
 def encode_read(settings: Settings, sensors: tuple[str, ...], style: str) -> None:
