@@ -48,6 +48,23 @@ def test_document_frames_decode_with_the_errata_verdicts() -> None:
     assert [verdict_of(r) for r in rows].count("address") == 1
 
 
+def test_document_frames_as_text_say_the_errata_verdicts() -> None:
+    """One line per frame, ending in the verdict: ok, bad with both rules, and which rule matches."""
+    text = " ".join(printed(body, ck).hex(" ") for _, body, ck, _, _ in DOCUMENT_FRAMES)
+    proc = run("hex", "decode", text)
+    assert proc.returncode == 1
+    lines = proc.stdout.splitlines()
+    assert len(lines) == 12
+    for line, (example, _, ck, text_ck, address_ck) in zip(lines, DOCUMENT_FRAMES, strict=True):
+        verdict = {
+            "text": f"checksum {ck:02X} ok",
+            "address": f"checksum {ck:02X} bad: header rule {text_ck:02X}, address rule {address_ck:02X} matches",
+            "neither": f"checksum {ck:02X} bad: header rule {text_ck:02X}, address rule {address_ck:02X}",
+        }[expected_verdict(ck, text_ck, address_ck)]
+        assert line.endswith(verdict), (example, line)
+    assert "3 frames, 7 checksum errors, 0 junk bytes, 2 malformed" in proc.stderr
+
+
 def test_good_frames_exit_0_and_print_plain_rows_when_piped() -> None:
     proc = run("hex", "decode", "55 AA 01 02 14 0D 0A 2D 0D 0A", "55AA50 04 A0 01 78 50 C8 84 0D 0A")
     assert proc.returncode == 0, proc.stderr
