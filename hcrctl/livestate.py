@@ -28,7 +28,8 @@ from .frames import Frame
 HISTORY = 40
 #: The poll rate is measured over this many recent sweeps.
 RATE_WINDOW = 50
-#: This many consecutive timeouts (at most one per sensor) mean "no reply".
+#: "no reply" takes a whole sweep's worth of consecutive timeouts, and at least
+#: this many: a lossy link that still answers is counted, not called silent.
 SILENT_AFTER = 2
 
 
@@ -140,14 +141,15 @@ class LiveState:
 
     # -- what the poller reports ----------------------------------------------
 
-    def record(self, name: str, value: C.Reply, rtt: float) -> None:
+    def record(self, name: str, value: C.Reply, rtt: float | None) -> None:
         """A good reply; the version moves only if what is shown changed."""
         now = self.clock()
         with self._lock:
             old = self._readings[name]
             self._readings[name] = old.ok(value, now)
             self._history[name].append(_numbers(value))
-            self._rtt.append(rtt)
+            if rtt is not None:
+                self._rtt.append(rtt)
             self._counters.reads += 1
             self._last_reply, self._silent = now, 0
             changed = old.stale or old.value != value or self._status == "no reply"
@@ -164,7 +166,7 @@ class LiveState:
                 self._silent += 1
             else:
                 self._counters.bad_replies += 1
-            if self._silent >= min(SILENT_AFTER, len(self.sensors)) and self._status in ("ok", "connecting"):
+            if self._silent >= max(SILENT_AFTER, len(self.sensors)) and self._status in ("ok", "connecting"):
                 self._set_status_locked("no reply")
             self._bump(True)
 
@@ -208,6 +210,15 @@ class LiveState:
         """connecting, ok, no reply, disconnected, paused (``detail`` says more)."""
         with self._lock:
             self._set_status_locked(status, detail)
+
+    def disconnected(self, detail: str) -> None:
+        """The port went away: every value stays, but none of them is current any more."""
+        now = self.clock()
+        with self._lock:
+            for name, reading in self._readings.items():
+                self._readings[name] = reading.failed("disconnected", now)
+            self._set_status_locked("disconnected", detail)
+            self._bump(True)
 
     def connected(self, port: str, *, again: bool = False) -> None:
         with self._lock:
@@ -289,8 +300,11 @@ class LiveState:
     # -- internals --------------------------------------------------------------
 
     def _set_status_locked(self, status: str, detail: str = "") -> None:
+        """``since`` is when the status changed: a new detail (retry attempt 3) keeps it."""
+        if status != self._status:
+            self._since = self.clock()
         if (status, detail) != (self._status, self._detail):
-            self._status, self._detail, self._since = status, detail, self.clock()
+            self._status, self._detail = status, detail
             self._bump(True)
 
     def _bump(self, changed: bool) -> None:

@@ -226,12 +226,12 @@ def status_text(view: View, now: float) -> Text:
     if view.status == "ok":
         return Text("ok", style="bold green")
     if view.status == "no reply":
-        last = f"last reply {age_text(now - view.last_reply)} ago" if view.last_reply else "nothing yet"
-        return Text(f"no reply for {since} ({last})", style="bold red")
+        if view.last_reply is None:
+            return Text(f"no reply for {since} (nothing yet)", style="bold red")
+        return Text(f"no reply for {age_text(now - view.last_reply)}", style="bold red")
     if view.status == "disconnected":
-        text = Text(f"disconnected, retrying for {since}", style="bold red")
-        if view.detail:
-            text.append(f"\n{view.detail}", style="red")
+        text = Text("disconnected, retrying", style="bold red")
+        text.append(f"\nfor {since}" + (f" · {view.detail}" if view.detail else ""), style="red")
         return text
     style = "bold yellow" if view.status == "paused" else "yellow"
     return Text(f"{view.status} ({since})", style=style)

@@ -124,15 +124,15 @@ class Poller(threading.Thread):
         if self._stopping.is_set() or self.paused.is_set():
             return
         started = self.state.clock()
-        t0 = time.perf_counter()
+        t0 = time.monotonic()
         results = robot.sweep(self.sensors, pipeline=self.pipeline)
-        rtt = (time.perf_counter() - t0) / max(len(results), 1)
+        rtt = _reply_time(robot, t0, results)
         for name, result in results.items():
             self._record(name, result, rtt)
         self._count_errors(robot)
         self.state.sweep_done(started)
 
-    def _record(self, name: str, result: C.Reply | HcrError, rtt: float) -> None:
+    def _record(self, name: str, result: C.Reply | HcrError, rtt: float | None) -> None:
         """One sensor's outcome; ``rtt`` is the sweep's time per reading."""
         if isinstance(result, DeviceTimeout):
             self.state.fail(name, "no reply")
@@ -174,10 +174,10 @@ class Poller(threading.Thread):
             robot.close()
         if self.reconnect is None:
             self.lost = exc
-            self.state.set_status("disconnected", exc.one_line())
+            self.state.disconnected(exc.one_line())
             self._stopping.set()
             return
-        self.state.set_status("disconnected", f"retrying: {exc.one_line()}")
+        self.state.disconnected(exc.one_line())
 
     def _reopen(self) -> bool:
         """Try the port once a second until it opens or we are stopped."""
@@ -187,7 +187,7 @@ class Poller(threading.Thread):
             try:
                 robot = self.reconnect()
             except HcrError as exc:
-                self.state.set_status("disconnected", f"retrying (attempt {attempt}): {exc.one_line()}")
+                self.state.set_status("disconnected", f"attempt {attempt}: {exc.one_line()}")
                 continue
             self._quiet(robot)
             self.robot, self._seen = robot, _error_counts(robot)
@@ -212,6 +212,19 @@ class Poller(threading.Thread):
     def _join_time(self) -> float:
         robot = self.robot or self._first
         return robot.timeout * (1 + robot.retries) + 1.0
+
+
+def _reply_time(robot: Robot, t0: float, results: dict[str, C.Reply | HcrError]) -> float | None:
+    """Seconds per answered reading, up to the last reply the reader decoded.
+
+    Timing the whole sweep would count the wait for a reply that never came
+    (a dropped frame) as round-trip time.
+    """
+    answered = sum(not isinstance(r, (DeviceTimeout, PortError)) for r in results.values())
+    end = robot.last_reply_at
+    if not answered or end is None or end < t0:
+        return None
+    return (end - t0) / answered
 
 
 def _error_counts(robot: Robot) -> tuple[int, int, int]:

@@ -165,7 +165,7 @@ def test_link_panel_says_no_reply_and_disconnected() -> None:
     clock.now += 3
     text = text_of(panels.link_panel(state.view(), clock.now), width=60)
     assert "no reply for 3.0 s (nothing yet)" in text and "timeouts 2" in text
-    state.set_status("disconnected", "retrying (attempt 2): no such port on /dev/pts/4")
+    state.set_status("disconnected", "attempt 2: no such port on /dev/pts/4")
     text = text_of(panels.link_panel(state.view(), clock.now), width=60)
     assert "disconnected, retrying" in text and "attempt 2" in text
 
@@ -272,17 +272,53 @@ def test_stale_then_fresh_again() -> None:
     assert not state.reading("compass").stale and state.status == "ok"
 
 
-def test_no_reply_after_consecutive_timeouts_only() -> None:
+def test_no_reply_after_a_whole_sweep_of_consecutive_timeouts_only() -> None:
     state = LiveState(["compass", "sonar", "env"], clock=Clock())
     state.connected("x")
     state.fail("compass", "no reply")
-    assert state.status == "connecting"
     state.fail("sonar", "bad length", timeout=False)
-    assert state.status == "connecting"
     state.fail("env", "no reply")
+    assert state.status == "connecting"  # two timeouts of three sensors
+    state.fail("compass", "no reply")
     assert state.status == "no reply"
     state.record("compass", C.Compass(1.0), 0.001)
     assert state.status == "ok"
+
+
+def test_a_lossy_link_that_still_answers_is_not_called_silent() -> None:
+    state = LiveState(C.SENSORS, clock=Clock())
+    state.connected("x")
+    for _ in range(20):  # every other read lost, as with sim://?drop=0.5
+        state.fail("compass", "no reply")
+        state.fail("sonar", "no reply")
+        state.record("ir", C.Infrared((1, 2, 3, 4, 5)), 0.001)
+    assert state.status == "ok" and state.view().counters.timeouts == 40
+
+
+def test_no_reply_counts_from_the_last_reply() -> None:
+    clock = Clock()
+    state = LiveState(["compass"], clock=clock)
+    state.record("compass", C.Compass(1.0), 0.001)
+    clock.now += 4
+    state.fail("compass", "no reply")
+    state.fail("compass", "no reply")
+    clock.now += 1
+    text = text_of(panels.link_panel(state.view(), clock.now), width=60)
+    assert "no reply for 5.0 s" in text
+
+
+def test_a_disconnect_marks_every_value_stale_and_keeps_it() -> None:
+    clock = Clock()
+    state = full_state(clock)
+    state.disconnected("connection refused")
+    clock.now += 2
+    state.set_status("disconnected", "attempt 3: connection refused")
+    view = state.view()
+    assert all(r.stale and r.value is not None for r in view.readings.values())
+    text = text_of(panels.dashboard(view, clock.now), width=120)
+    assert "disconnected, retrying" in text and "for 2.0 s · attempt 3" in text  # the clock runs on
+    assert "212.5° SSW" in text and "stale · 2.0 s old · disconnected" in text
+    assert view.counters.timeouts == 0
 
 
 def test_reset_clears_counters_not_values() -> None:
@@ -355,3 +391,17 @@ def test_any_split_decodes_the_same(chunks: list[bytes], data: st.DataObject) ->
     cut = data.draw(st.integers(0, len(whole)))
     decoder = KeyDecoder()
     assert decoder.feed(whole[:cut]) + decoder.feed(whole[cut:]) == KeyDecoder().feed(whole)
+
+
+def test_rtt_ends_at_the_last_reply_not_at_a_timeout() -> None:
+    from types import SimpleNamespace
+
+    from hcrctl.errors import DeviceTimeout
+    from hcrctl.poller import _reply_time
+
+    lost = DeviceTimeout("sonar", 1, "sim://", 0.5, 1)
+    results = {"compass": C.Compass(1.0), "sonar": lost, "env": C.Environment(40, 20)}
+    robot = SimpleNamespace(last_reply_at=10.006)  # the sweep itself ended at 10.5, on the timeout
+    assert _reply_time(robot, 10.0, results) == pytest.approx(0.003)
+    assert _reply_time(robot, 10.0, {"sonar": lost}) is None
+    assert _reply_time(SimpleNamespace(last_reply_at=9.0), 10.0, results) is None  # an older sweep's
