@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import queue
+import sys
 import threading
 import time
 from collections import deque
@@ -98,7 +99,10 @@ class Robot:
         self.timeout = timeout
         self.retries = retries
         self.on_unsolicited = on_unsolicited
-        self.on_traffic = on_traffic
+        #: Everyone watching the link (--log, a monitor, the shell's toolbar); a
+        #: tuple replaced whole, so the reader thread iterates a stable snapshot.
+        self._traffic_hooks: tuple[TrafficHook, ...] = (on_traffic,) if on_traffic else ()
+        self._hooks_lock = threading.Lock()
         self.stats = LinkStats()
         self.unsolicited: queue.Queue[Frame] = queue.Queue(UNSOLICITED_BACKLOG)
         self.moved = False
@@ -239,7 +243,7 @@ class Robot:
                 self.moved = True
             self._recent_tx.append(frame)
             # Told before the bytes leave, so the hook never sees the reply first.
-            if self.on_traffic is not None:
+            if self._traffic_hooks:
                 self._tell(Traffic(time.time(), "tx", frame, _decode_one(frame, self._rule)))
             try:
                 self.serial.write(frame)
@@ -309,7 +313,7 @@ class Robot:
             self.stats.count(event)
             if isinstance(event, Frame):
                 self._route(event)
-            if self.on_traffic is not None:
+            if self._traffic_hooks:
                 data = event.to_bytes() if isinstance(event, Frame) else event.data
                 self._tell(Traffic(now, "rx", data, event))
 
@@ -336,9 +340,23 @@ class Robot:
         """
         return bool(self._recent_tx) and frame.to_bytes() in self._recent_tx
 
+    def add_traffic_hook(self, hook: TrafficHook) -> None:
+        """Also call ``hook`` with every frame sent and every event received."""
+        with self._hooks_lock:
+            self._traffic_hooks = (*self._traffic_hooks, hook)
+
+    def remove_traffic_hook(self, hook: TrafficHook) -> None:
+        with self._hooks_lock:
+            self._traffic_hooks = tuple(h for h in self._traffic_hooks if h != hook)
+
     def _tell(self, traffic: Traffic) -> None:
-        if self.on_traffic is not None:
-            self.on_traffic(traffic)
+        """Every hook; one that raises is dropped with a warning rather than kill the reader."""
+        for hook in self._traffic_hooks:
+            try:
+                hook(traffic)
+            except Exception as exc:
+                self.remove_traffic_hook(hook)
+                sys.stderr.write(f"hcrctl: warning: traffic hook {hook!r} failed and was removed ({exc})\n")
 
     def _lost(self, exc: Exception) -> PortError:
         """Record a dead link; pyserial's own wording is long, so keep its gist."""

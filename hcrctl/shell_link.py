@@ -229,9 +229,7 @@ class Link:
 
     def _adopt(self, robot: Robot) -> None:
         """A ``Settings.robot_hooks`` entry: wire every robot the session opens."""
-        from .trafficlog import add_listener  # shares the one on_traffic slot with --log and monitor
-
-        add_listener(robot, lambda item: self._saw(robot, item))
+        robot.add_traffic_hook(lambda item: self._saw(robot, item))
         robot.on_unsolicited = self.on_frame
 
     def _saw(self, robot: Robot, item: Traffic) -> None:

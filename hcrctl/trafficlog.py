@@ -5,16 +5,13 @@ time with offset, microseconds), ``direction`` (``tx``/``rx``) and ``hex``
 (the bytes exactly as they crossed the wire). Lines are written whole and
 flushed one by one, so a crash or a ``kill -9`` loses nothing already seen;
 the file is opened for appending, so several sessions build one history.
-``monitor --from`` and ``replay`` read it back with ``read_log``.
-
-``Robot`` has one ``on_traffic`` slot; ``add_listener`` turns it into a
-fan-out so the log, a monitor and the shell can all watch the same link.
+``monitor --from`` and ``replay`` read it back with ``read_log``. The log
+is one of ``Robot``'s traffic hooks, beside a monitor and the shell's toolbar.
 """
 
 from __future__ import annotations
 
 import json
-import sys
 import threading
 import weakref
 from collections.abc import Callable, Iterator
@@ -29,7 +26,6 @@ from .hexview import event_dict, hexs
 if TYPE_CHECKING:
     from .client import Robot, Traffic
 
-Listener = Callable[["Traffic"], None]
 LOG_HINT = "give a file written by hcrctl --log"
 
 
@@ -97,7 +93,7 @@ def attach(robot: Robot, path: str) -> TrafficLog:
     except LogFormatError:
         robot.close()
         raise
-    add_listener(robot, log)
+    robot.add_traffic_hook(log)
     weakref.finalize(robot, log.close)
     return log
 
@@ -105,45 +101,6 @@ def attach(robot: Robot, path: str) -> TrafficLog:
 def _rule_of(ref: weakref.ref) -> ChecksumRule:
     robot = ref()
     return robot.rule if robot is not None else ChecksumRule.HEADER
-
-
-# -- several listeners on one robot ---------------------------------------------
-
-
-class Fanout:
-    """Calls every listener; one that raises is dropped with a warning, never kills the reader."""
-
-    def __init__(self, *listeners: Listener) -> None:
-        self.listeners: list[Listener] = list(listeners)
-
-    def __call__(self, traffic: Traffic) -> None:
-        for listener in tuple(self.listeners):
-            try:
-                listener(traffic)
-            except Exception as exc:
-                self.listeners.remove(listener)
-                sys.stderr.write(
-                    f"hcrctl: warning: traffic listener {listener!r} failed and was removed ({exc})\n"
-                )
-
-
-def add_listener(robot: Robot, listener: Listener) -> None:
-    """Add ``listener`` to ``robot.on_traffic``, keeping whatever is already there."""
-    current = robot.on_traffic
-    if isinstance(current, Fanout):
-        current.listeners.append(listener)
-    elif current is None:
-        robot.on_traffic = Fanout(listener)
-    else:
-        robot.on_traffic = Fanout(current, listener)
-
-
-def remove_listener(robot: Robot, listener: Listener) -> None:
-    current = robot.on_traffic
-    if isinstance(current, Fanout) and listener in current.listeners:
-        current.listeners.remove(listener)
-    elif current == listener:
-        robot.on_traffic = None
 
 
 # -- reading it back --------------------------------------------------------------

@@ -16,7 +16,7 @@ from helpers_hex import hcrctl_exe, run, sim_pty
 from hcrctl.client import Robot, Traffic
 from hcrctl.errors import LogFormatError
 from hcrctl.frames import Frame, decode_all, encode
-from hcrctl.trafficlog import Fanout, TrafficLog, add_listener, attach, read_log, remove_listener
+from hcrctl.trafficlog import TrafficLog, attach, read_log
 
 ISO_MICRO = re.compile(r"^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{6}[+-]\d\d:\d\d$")
 COMPASS = encode(1, 0x14, bytes.fromhex("0D 0A"))
@@ -93,31 +93,35 @@ def test_a_bad_line_in_the_middle_names_file_and_line(tmp_path: Path) -> None:
         list(read_log(str(path)))
 
 
-def test_fanout_drops_a_failing_listener_and_keeps_the_rest(capsys: pytest.CaptureFixture) -> None:
+def test_a_failing_traffic_hook_is_dropped_and_the_rest_keep_going(capsys: pytest.CaptureFixture) -> None:
+    """A full disk under the log must not kill the reader thread or the other watchers."""
     seen: list[Traffic] = []
+    calls: list[Traffic] = []
 
-    def broken(_: Traffic) -> None:
+    def broken(item: Traffic) -> None:
+        calls.append(item)
         raise OSError("disk full")
 
-    fan = Fanout(broken, seen.append)
-    fan(traffic("rx", COMPASS))
-    fan(traffic("rx", COMPASS))
-    assert len(seen) == 2
-    assert fan.listeners == [seen.append]
+    with Robot("sim://?seed=1&broadcast_hz=0&map_hz=0", on_traffic=broken) as robot:
+        robot.add_traffic_hook(seen.append)
+        robot.read("compass")
+        robot.read("compass")
+    assert len(calls) == 1
+    assert sorted(t.direction for t in seen) == ["rx", "rx", "tx", "tx"]  # closed: the reader told all
     assert "disk full" in capsys.readouterr().err
 
 
-def test_listeners_share_one_robot_and_both_see_both_directions(tmp_path: Path) -> None:
+def test_traffic_hooks_share_one_robot_and_each_sees_both_directions(tmp_path: Path) -> None:
     first: list[Traffic] = []
     second: list[Traffic] = []
     with Robot("sim://?seed=1&broadcast_hz=0&map_hz=0", on_traffic=first.append) as robot:
-        add_listener(robot, second.append)
+        robot.add_traffic_hook(second.append)
         log = attach(robot, str(tmp_path / "log.jsonl"))
         robot.read("compass")
         deadline = time.monotonic() + 2
         while len(second) < 2 and time.monotonic() < deadline:
             time.sleep(0.01)
-        remove_listener(robot, second.append)
+        robot.remove_traffic_hook(second.append)
         robot.read("compass")
     assert [t.direction for t in second] == ["tx", "rx"]
     assert [t.direction for t in first][:2] == ["tx", "rx"] and len(first) >= 3

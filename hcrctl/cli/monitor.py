@@ -1,6 +1,6 @@
 """``hcrctl monitor``: a passive listener, one decoded line per frame, counters at the end.
 
-It opens the port through ``Robot`` and watches ``on_traffic``, so it decodes
+It opens the port through ``Robot`` and adds a traffic hook, so it decodes
 and counts exactly as every other command does, and sends nothing. With
 ``--from LOG`` it renders a recorded ``--log`` file instead of a port.
 ``TrafficPrinter`` (filters, timestamps, text or JSON lines, counters) is
@@ -215,19 +215,17 @@ def _render_log(printer: TrafficPrinter, path: str, rule: ChecksumRule, duration
 
 
 def _listen(settings: Settings, printer: TrafficPrinter, duration: float | None) -> None:
-    from ..trafficlog import add_listener, remove_listener
-
     inbox: queue.SimpleQueue[Traffic] = queue.SimpleQueue()
     listener = inbox.put
     with settings.robot() as robot:
-        add_listener(robot, listener)
+        robot.add_traffic_hook(listener)
         start = time.monotonic()  # the duration counts from an open port, however slow opening was
         until = f"for {duration:g} s" if duration is not None else "until Ctrl-C"
         click.echo(f"hcrctl: monitoring {robot.port} {until}", err=True)
         try:
             _drain_until(robot, inbox, printer, None if duration is None else start + duration)
         finally:
-            remove_listener(robot, listener)
+            robot.remove_traffic_hook(listener)
             click.echo(f"hcrctl: monitor: {printer.counters(time.monotonic() - start)}", err=True)
 
 

@@ -141,11 +141,9 @@ def _run(
     robot: Robot, records: list[LogRecord], printer: TrafficPrinter, pending: Pending, timing: Timing
 ) -> None:
     """Every pass, then stop; the listener sees our tx and the robot's rx in wire order."""
-    from ..trafficlog import add_listener, remove_listener
-
     inbox: queue.SimpleQueue[Traffic] = queue.SimpleQueue()
     listener = inbox.put
-    add_listener(robot, listener)
+    robot.add_traffic_hook(listener)
     try:
         done = 0
         while timing.loops == 0 or done < timing.loops:
@@ -156,7 +154,7 @@ def _run(
     finally:
         _stop_everything(robot, pending)
         _drain(robot, inbox, printer, pending)
-        remove_listener(robot, listener)
+        robot.remove_traffic_hook(listener)
 
 
 def _one_pass(
