@@ -8,24 +8,20 @@ from __future__ import annotations
 
 import contextlib
 import os
-import shutil
 import signal
 import subprocess
-import sys
 import time
 import tty
 from collections.abc import Iterator
 from pathlib import Path
 
+from helpers_cli import clean_env, hcrctl_exe
+
+__all__ = ["device_pty", "hcrctl_exe", "read_for", "read_until", "run", "sim_pty"]
+
 RUN_TIMEOUT = 30
-
-
-def hcrctl_exe() -> str:
-    """The installed console script next to this interpreter (or on PATH)."""
-    local = Path(sys.executable).parent / "hcrctl"
-    found = str(local) if local.exists() else shutil.which("hcrctl")
-    assert found, "the hcrctl executable is not installed (pip install -e .)"
-    return found
+#: No user config may change what a test sees.
+NO_CONFIG = Path("/nonexistent/hcrctl-tests")
 
 
 def run(
@@ -33,10 +29,13 @@ def run(
 ) -> subprocess.CompletedProcess:
     """Run ``hcrctl ARGS`` to completion; text output unless ``input`` is bytes."""
     text = not isinstance(input, bytes)
-    env = {k: v for k, v in os.environ.items() if not k.startswith("HCRCTL_")}
-    env["XDG_CONFIG_HOME"] = "/nonexistent/hcrctl-tests"  # no user config may change what a test sees
     return subprocess.run(
-        [hcrctl_exe(), *args], input=input, capture_output=True, text=text, timeout=timeout, env=env
+        [hcrctl_exe(), *args],
+        input=input,
+        capture_output=True,
+        text=text,
+        timeout=timeout,
+        env=clean_env(NO_CONFIG),
     )
 
 
