@@ -151,7 +151,7 @@ def _printing_above(session: Session) -> Iterator[None]:
     saved = sys.stdout, sys.stderr
     with StdoutProxy(raw=True, sleep_between_writes=FLUSH_PAUSE) as proxy:
         sys.stdout = sys.stderr = proxy  # type: ignore[assignment]
-        session.printer = lambda text: proxy.write(DIM.format(text))
+        session.attach(lambda text: proxy.write(DIM.format(text)))
         try:
             yield
         except BaseException:

@@ -38,6 +38,7 @@ class Session:
         self.stop_note: str | None = None  # the toolbar's "stop sent" notice
         #: Where asynchronous lines go; None while a command owns the terminal.
         self.printer: Printer | None = None
+        self._held: list[str] = []  # notices that came while a command owned the terminal
         self._say_lock = threading.Lock()
 
     # -- the prompt --------------------------------------------------------
@@ -54,13 +55,30 @@ class Session:
     # -- output from other threads -------------------------------------------
 
     def say(self, text: str) -> None:
-        """A notice (link lost, reconnected): above the prompt, or on stderr."""
-        printer = self.printer
+        """A notice (link lost, reconnected): above the prompt, or on stderr.
+
+        While a command owns the terminal (``watch`` drawing its panel, a
+        ``ping`` printing its lines) a write to stderr would land in the middle
+        of its screen, so an interactive session holds the notice until
+        ``attach`` gives it a printer again at the next prompt.
+        """
+        with self._say_lock:
+            printer = self.printer
+            if printer is None and self.interactive:
+                self._held.append(text)
+                return
         if printer is not None:
             printer(text)
         else:
-            with self._say_lock:
-                click.echo(f"hcrctl: {text}", err=True)
+            click.echo(f"hcrctl: {text}", err=True)
+
+    def attach(self, printer: Printer) -> None:
+        """The prompt is back: print the notices held meanwhile, then print as they come."""
+        with self._say_lock:
+            held, self._held = self._held, []
+            self.printer = printer
+        for text in held:
+            printer(text)
 
     def _unsolicited(self, frame: Frame) -> None:
         line = self.broadcasts.offer(frame)
@@ -93,6 +111,14 @@ class Session:
         return None
 
     def close(self) -> None:
-        """However the session ends: stop if anything moved, then release the port."""
+        """However the session ends: stop if anything moved, then release the port.
+
+        Notices still held (the link dropped during the last command) go to
+        stderr afterwards: the terminal is nobody's now.
+        """
         self.printer = None
         self.link.close()
+        with self._say_lock:
+            held, self._held = self._held, []
+        for text in held:
+            click.echo(f"hcrctl: {text}", err=True)

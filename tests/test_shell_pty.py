@@ -10,6 +10,8 @@ import time
 import pytest
 from helpers_shell import STOP_FRAME, PtyRobot, shell, stop_after_motion
 
+from hcrctl.shell_link import RECONNECT_EVERY
+
 SIM = "sim://"
 
 
@@ -295,3 +297,24 @@ def test_live_panels_run_inside_and_q_returns_to_the_prompt(tmp_path, panel, tit
         assert term.prompt_line() == "hcr sim:// ok>"
         screen = term.run("read compass")
         assert re.search(r"compass\s+│\s+90\.0° E", screen)
+
+
+def test_a_link_lost_during_watch_is_told_at_the_prompt_not_over_the_panel(tmp_path):
+    link = tmp_path / "robot"
+    robot = PtyRobot(link)
+    try:
+        with shell(["--port", str(link), "shell"], tmp_path) as term:
+            term.wait_prompt()
+            term.send("watch\r")
+            term.wait_for("hcrctl watch")
+            robot.close()
+            panel = term.wait_for(lambda s: "hcrctl watch" in s and "disconnected" in s)
+            time.sleep(3 * RECONNECT_EVERY)  # the shell's own watchdog has noticed by now
+            assert not term.raw.count(b"hcrctl: "), "a notice was written over the panel"
+            term.send("q")
+            screen = term.wait_for(lambda s: term._at_prompt() and "disconnected>" in term.prompt_line())
+            (notice,) = lines_with(screen, "lost the link")  # once, above the prompt
+            assert notice.startswith("lost the link (the device went away) on ")
+            assert "hcrctl watch" not in screen and "hcrctl watch" in panel
+    finally:
+        robot.close()

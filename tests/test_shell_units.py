@@ -350,6 +350,27 @@ def test_exit_and_hex_mode_switch(session, capsys):
     assert "reply  55 AA 01 02 14" in out and "compass" in out
 
 
+def test_notices_wait_while_a_command_owns_the_terminal(capsys):
+    s = Session(Settings(port="sim://?broadcast_hz=0&map_hz=0"), interactive=True)
+    shown: list[str] = []
+    s.say("lost the link on sim://")  # watch is drawing: nothing may reach the terminal
+    assert capsys.readouterr().err == ""
+    s.attach(shown.append)  # the prompt is back
+    s.say("reconnected to sim://")
+    assert shown == ["lost the link on sim://", "reconnected to sim://"]
+    s.printer = None
+    s.say("lost it again")
+    s.close()  # the session ends before another prompt: the notice still gets out
+    assert capsys.readouterr().err == "hcrctl: lost it again\n"
+
+
+def test_a_script_says_notices_at_once(capsys):
+    s = Session(Settings(port="sim://?broadcast_hz=0&map_hz=0"), interactive=False)
+    s.say("lost the link on sim://")
+    assert capsys.readouterr().err == "hcrctl: lost the link on sim://\n"
+    s.close()
+
+
 def test_usage_line_is_one_line():
     ctx = click.Context(click.Command("read"), info_name="read")
     assert usage_line(click.UsageError("a\nb", ctx)) == "error: read: a b (see 'help read')"
