@@ -122,3 +122,18 @@ def test_a_script_that_never_moved_sends_no_stop(tmp_path):
         assert robot.commands() == ["compass"]
     finally:
         robot.close()
+
+
+def test_drive_for_seconds_is_held_and_stopped_inside_the_shell_too(tmp_path):
+    robot = PtyRobot()
+    try:
+        done = run(
+            ["--port", robot.port, "shell"], tmp_path, stdin="drive power 50 50 --for 0.2\nread compass\n"
+        )
+        assert done.returncode == 0, done.stderr
+        frames = robot.received()
+        compass = robot.commands().index("compass")
+        assert STOP_FRAME in frames[1:compass]  # stopped when the 0.2 s were up, not at the end
+        assert "stopped after 0.2 s" in done.stderr
+    finally:
+        robot.close()

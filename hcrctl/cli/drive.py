@@ -3,7 +3,8 @@
 A one-shot drive must never leave the robot running after hcrctl is gone, so
 it holds the motion in the foreground (``--for SECONDS``, or until Ctrl-C,
 SIGTERM or SIGHUP) and then sends stop. Inside the shell the session owns the
-robot and its stop, so there drive returns at once.
+robot and its stop, so there drive returns at once, unless --for asks for a
+timed move, which is held and stopped there too.
 """
 
 from __future__ import annotations
@@ -57,9 +58,9 @@ for _name in DRIVE_COMMANDS:
 
 
 def run_drive(settings: Settings, value: C.Request, hold_for: float | None) -> None:
-    """Send the motion; one-shot, hold it and stop; in the shell, return at once."""
+    """Send the motion; one-shot or with --for, hold it and stop; in the shell without --for, return."""
     with settings.robot() as robot:
-        if settings.session is not None:
+        if settings.session is not None and hold_for is None:
             record, _ = send_request(robot, value)
             emit(settings, record, f"sent {describe(value)}: {record['hex']}")
             return
