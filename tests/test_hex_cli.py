@@ -325,6 +325,23 @@ def test_sigterm_during_an_open_ended_motion_hold_sends_stop() -> None:
     assert proc.returncode == 128 + signal.SIGTERM
 
 
+def test_a_turn_is_held_and_stopped_but_a_zero_speed_is_not_held() -> None:
+    turn = encode(1, 0x04, H("00 00 00"))  # even angle 0 at rate 0: a turn is motion, not a stop
+    with device_pty() as (master, path):
+        proc = run("--port", path, "hex", "send", turn.hex(" "), "--for", "0.2")
+        arrived = b"".join(c for _, c in read_for(master, 0.2))
+    assert proc.returncode == 0, proc.stderr
+    assert "holding the motion for 0.2 s" in proc.stderr
+    assert arrived == turn + STOP
+    zero = encode(1, 0x02, H("80 80"))
+    with device_pty() as (master, path):
+        proc = run("--port", path, "hex", "send", zero.hex(" "))
+        arrived = b"".join(c for _, c in read_for(master, 0.2))
+    assert proc.returncode == 0, proc.stderr
+    assert "holding" not in proc.stderr
+    assert arrived.startswith(zero)
+
+
 def test_a_stop_frame_is_not_held() -> None:
     with sim_pty() as port:
         proc = run("--port", port, "hex", "send", STOP.hex(" "), timeout=10)

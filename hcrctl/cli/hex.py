@@ -22,6 +22,7 @@ from .. import commands as C
 from ..errors import ProtocolError
 from ..frames import ChecksumRule, Frame, decode_all
 from ..hexparse import STYLES, format_hex, parse_hex, parse_hex_args
+from .drive import DRIVE_COMMANDS
 from .params import NamedArgument, request_value, table_command
 from .settings import Settings, stdout_is_terminal
 
@@ -188,15 +189,15 @@ def _encode_command(name: str, label: str | None = None) -> click.Command:
     return command
 
 
-@encode.group("drive")
+@encode.group("drive", help=f"drive {'|'.join(DRIVE_COMMANDS)} LEFT RIGHT, as 'hcrctl drive' takes it.")
 def encode_drive() -> None:
-    """drive power|speed|velocity LEFT RIGHT, as 'hcrctl drive' takes it."""
+    """(help= is built from DRIVE_COMMANDS, so it names exactly what drive takes.)"""
 
 
-for _name in ("power", "speed", "velocity"):
-    encode_drive.add_command(_encode_command(_name))
-for _name in ("turn", "servo", "pid"):
-    encode.add_command(_encode_command(_name))
+for _cmd in C.COMMANDS:
+    if _cmd.kind == "write":
+        _group = encode_drive if _cmd.name in DRIVE_COMMANDS else encode
+        _group.add_command(_encode_command(_cmd.name))
 
 
 @encode.command("stop")
@@ -308,7 +309,7 @@ def _report(settings: Settings, result: dict[str, Any]) -> None:
 
 
 def _holds(robot: Robot, frame: bytes) -> bool:
-    """A valid motion frame that is not itself a stop keeps the robot moving."""
+    """A valid motion frame that is not itself a stop (a drive of all zeros) keeps the robot moving."""
     request = _valid_frame(frame, robot.rule)
     cmd = C.BY_CODE.get(request.command) if request else None
     if request is None or cmd is None or not cmd.motion:
@@ -317,7 +318,7 @@ def _holds(robot: Robot, frame: bytes) -> bool:
         fields = C.decode_fields(request.command, request.content, "tx")
     except ProtocolError:
         return True
-    return request.command == 0x04 or any(fields.values())
+    return cmd.name not in DRIVE_COMMANDS or any(fields.values())
 
 
 def _hold_motion(robot: Robot, address: int, hold_for: float | None) -> None:
