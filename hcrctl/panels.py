@@ -31,7 +31,7 @@ SPARK_WIDTH = 18
 COLUMN_WIDTH = 38
 DIAL_ROWS, DIAL_COLS = 7, 15
 WATCH_KEYS = "q quit · space stop · p pause · r reset counters"
-TELEOP_KEYS = "↑/w forward · ↓/s back · ←/a left · →/d right · +/- speed · space/k stop · q quit"
+TELEOP_KEYS = "↑↓←→/wasd drive · +/- speed · space/k stop · q quit"
 PANEL_TITLES = {
     "bump": "bumpers",
     "ir": "IR",
@@ -40,6 +40,8 @@ PANEL_TITLES = {
     "env": "environment",
 }
 POSITION_TITLE = "positioning (0xA0)"
+#: The drive panel's height at most (borders, four rows and why it stopped, wrapped).
+DRIVE_ROWS = 8
 
 
 # -- helpers ------------------------------------------------------------------
@@ -65,9 +67,9 @@ def age_text(seconds: float | None) -> str:
     return f"{seconds / 60:.0f} min"
 
 
-def sensor_panel(name: str, body: RenderableType, reading: Reading, now: float) -> Panel:
+def sensor_panel(name: str, body: RenderableType, reading: Reading, now: float, title: str = "") -> Panel:
     """A panel titled from the table; stale readings are dimmed with their age."""
-    title = PANEL_TITLES.get(name, C.BY_NAME[name].title if name in C.BY_NAME else name)
+    title = title or PANEL_TITLES.get(name, C.BY_NAME[name].title if name in C.BY_NAME else name)
     if not reading.stale:
         return Panel(body, title=title, title_align="left", border_style="cyan")
     why = f" · {reading.error}" if reading.error else ""
@@ -113,13 +115,16 @@ def bumpers_panel(reading: Reading, now: float) -> Panel:
     return sensor_panel("bump", text, reading, now)
 
 
-def bars_panel(sensor: str, reading: Reading, now: float) -> Panel:
+def bars_panel(sensor: str, reading: Reading, now: float, compact: bool = False) -> Panel:
     """IR or ultrasonic: one bar per sensor, scaled to the table's range."""
     value = reading.value
     if value is None:
         return sensor_panel(sensor, waiting(reading), reading, now)
     info, shown = field_info(sensor), unit(sensor)
     values = next(iter(value.fields().values()))
+    if compact:  # one line of upright bars, the unit in the title
+        line = "  ".join(f"{sparkline([v], info.hi)} {v}" for v in values)
+        return sensor_panel(sensor, Text(line), reading, now, f"{PANEL_TITLES[sensor]} ({shown})")
     prefix = "IR" if sensor == "ir" else "US"
     lines = [f"{prefix}{i} {bar(v, info.hi)} {v:>3} {shown}".rstrip() for i, v in enumerate(values, start=1)]
     return sensor_panel(sensor, Text("\n".join(lines)), reading, now)
@@ -147,13 +152,14 @@ def arrow(heading: float) -> str:
     return ARROWS[round(heading % 360 / 45) % 8]
 
 
-def compass_panel(reading: Reading, now: float) -> Panel:
+def compass_panel(reading: Reading, now: float, with_dial: bool = True) -> Panel:
+    """The heading, its cardinal point and an arrow; above them a dial when there is room."""
     value = reading.value
     if not isinstance(value, C.Compass):
         return sensor_panel("compass", waiting(reading), reading, now)
     heading = value.heading
     label = Text(f"{heading:5.1f}{unit('compass')} {cardinal(heading)} {arrow(heading)}", style="bold")
-    body = Group(Text("\n".join(dial(heading))), label)
+    body = Group(Text("\n".join(dial(heading))), label) if with_dial else label
     return sensor_panel("compass", body, reading, now)
 
 
@@ -172,14 +178,15 @@ def wheels_panel(reading: Reading, history: Iterable[tuple[int, ...]], now: floa
     return sensor_panel("wheels", Text("\n".join(lines)), reading, now)
 
 
-def env_panel(reading: Reading, now: float) -> Panel:
+def env_panel(reading: Reading, now: float, compact: bool = False) -> Panel:
     value = reading.value
     if not isinstance(value, C.Environment):
         return sensor_panel("env", waiting(reading), reading, now)
-    text = Text()
-    text.append(f"temperature {value.temperature} {unit('env', 1)}\n")
-    text.append(f"humidity    {value.humidity} {unit('env', 0)}")
-    return sensor_panel("env", text, reading, now)
+    temperature = f"temperature {value.temperature} {unit('env', 1)}"
+    humidity = f"humidity {value.humidity} {unit('env', 0)}"
+    if compact:
+        return sensor_panel("env", Text(f"{temperature} · {humidity}"), reading, now)
+    return sensor_panel("env", Text(f"{temperature}\n{humidity.replace(' ', '    ', 1)}"), reading, now)
 
 
 # -- unsolicited frames --------------------------------------------------------
@@ -201,20 +208,36 @@ def positioning_panel(stations: dict[int, Reading], now: float) -> Panel:
     return Panel(text, title=POSITION_TITLE, title_align="left", border_style="cyan")
 
 
-def map_panel(grid: Reading, now: float) -> Panel:
-    """The 0xB0 bit grid, one byte per row (MSB first), with the raw byte beside it."""
+def map_panel(grid: Reading, now: float, compact: bool = False) -> Panel:
+    """The 0xB0 bit grid, one byte per row (MSB first), with the raw byte beside it.
+
+    Compact, two rows share a line (half blocks) and the age moves to the border.
+    """
     value = grid.value
+    title = "map (0xB0)"
     if not isinstance(value, C.GridMap):
-        body: RenderableType = Text("no map yet", style="dim italic")
-    else:
-        rows = value.grid()
-        lines = [
-            f"{r.replace('#', '██').replace('.', '··')}  {b:02X}"
-            for r, b in zip(rows, value.rows, strict=True)
-        ]
-        lines.append(f"received {_whole_seconds(grid.age(now))} ago")
-        body = Text("\n".join(lines))
-    return Panel(body, title="map (0xB0)", title_align="left", border_style="cyan")
+        return Panel(Text("no map yet", style="dim italic"), title=title, title_align="left")
+    received = f"received {_whole_seconds(grid.age(now))} ago"
+    if compact:
+        body = Text("\n".join(_half_block_rows(value)))
+        return Panel(body, title=title, title_align="left", subtitle=received, border_style="cyan")
+    lines = [
+        f"{r.replace('#', '██').replace('.', '··')}  {b:02X}"
+        for r, b in zip(value.grid(), value.rows, strict=True)
+    ]
+    return Panel(Text("\n".join([*lines, received])), title=title, title_align="left", border_style="cyan")
+
+
+def _half_block_rows(value: C.GridMap) -> list[str]:
+    """Rows in pairs: upper bit ▀, lower ▄, both █, neither ·; the two raw bytes beside."""
+    rows, raw = value.grid(), value.rows
+    cells = {("#", "#"): "██", ("#", "."): "▀▀", (".", "#"): "▄▄", (".", "."): "··"}
+    out = []
+    for i in range(0, len(rows), 2):
+        lower = rows[i + 1] if i + 1 < len(rows) else "." * len(rows[i])
+        pair = "".join(cells[top, bottom] for top, bottom in zip(rows[i], lower, strict=True))
+        out.append(f"{pair}  {raw[i]:02X} {raw[i + 1]:02X}" if i + 1 < len(raw) else f"{pair}  {raw[i]:02X}")
+    return out
 
 
 # -- the link --------------------------------------------------------------------
@@ -237,8 +260,18 @@ def status_text(view: View, now: float) -> Text:
     return Text(f"{view.status} ({since})", style=style)
 
 
-def link_panel(view: View, now: float) -> Panel:
+def link_panel(view: View, now: float, compact: bool = False) -> Panel:
+    """Status, poll rate, RTT and the error counters; compact keeps what the issue asks for."""
     c = view.counters
+    if compact:  # the port is in the header already
+        rows = [
+            ("status", status_text(view, now)),
+            ("polling", _rate_text(view, now)),
+            ("rtt", _rtt_text(view.rtt)),
+            ("timeouts", f"{c.timeouts}  bad replies {c.bad_replies}"),
+            ("checksum", f"{c.checksum_errors} errors  junk {c.junk_bytes} B"),
+        ]
+        return Panel(labelled(rows), title="link", title_align="left", border_style="cyan")
     rows = [
         ("status", status_text(view, now)),
         ("port", view.port or "?"),
@@ -282,22 +315,22 @@ def _rtt_text(rtt: Sequence[float]) -> str:
 # -- whole screens ----------------------------------------------------------------
 
 
-def sensor_panels(view: View, now: float) -> dict[str, Keyed]:
+def sensor_panels(view: View, now: float, compact: bool = False) -> dict[str, Keyed]:
     """The panel of each watched sensor, by table name, keyed by what it shows."""
     history = tuple(view.history.get("wheels", ())[-SPARK_WIDTH:])
     makers = {
         "bump": lambda r: bumpers_panel(r, now),
-        "ir": lambda r: bars_panel("ir", r, now),
-        "sonar": lambda r: bars_panel("sonar", r, now),
-        "compass": lambda r: compass_panel(r, now),
+        "ir": lambda r: bars_panel("ir", r, now, compact),
+        "sonar": lambda r: bars_panel("sonar", r, now, compact),
+        "compass": lambda r: compass_panel(r, now, with_dial=not compact),
         "wheels": lambda r: wheels_panel(r, history, now),
-        "env": lambda r: env_panel(r, now),
+        "env": lambda r: env_panel(r, now, compact),
     }
     out = {}
     for name in view.sensors:
         if name in makers:
             reading = view.readings[name]
-            key = (name, reading_key(reading, now), history if name == "wheels" else None)
+            key = (name, compact, reading_key(reading, now), history if name == "wheels" else None)
             out[name] = Keyed(key, lambda m=makers[name], r=reading: m(r))
     return out
 
@@ -308,22 +341,34 @@ def reading_key(reading: Reading, now: float) -> tuple[object, ...]:
     return reading.value, reading.stale, reading.error, age
 
 
-def dashboard(view: View, now: float, keys: str = WATCH_KEYS, cache: dict | None = None) -> Group:
+def dashboard(
+    view: View, now: float, keys: str = WATCH_KEYS, cache: dict | None = None, fit: bool = False
+) -> Group:
     """The ``watch`` screen: three columns of panels between a header and a footer.
 
     ``cache`` (a dict the caller keeps between frames) lets unchanged panels
     reuse their rendered lines; the picture is the same with or without it.
+    ``fit`` (a full-screen terminal) switches to compact panels when the full
+    ones would not fit its height (80x24 shows every panel), and crops what
+    still does not, so the keys in the footer stay on the screen.
     """
-    panels = sensor_panels(view, now)
+    body = SideBySide(
+        dashboard_columns(view, now), cache=cache, compact=dashboard_columns(view, now, compact=True), fit=fit
+    )
+    return Group(header("hcrctl watch", view), body, footer(keys, view.note))
+
+
+def dashboard_columns(view: View, now: float, compact: bool = False) -> list[list[RenderableType]]:
+    """Sensors, then heading, wheels and link, then the map: the columns of a wide screen."""
+    panels = sensor_panels(view, now, compact)
     stations_key = tuple((a, r.value, age_text(r.age(now))) for a, r in view.stations.items())
-    grid_key = (view.grid.value, _whole_seconds(view.grid.age(now)))
-    columns = [
+    grid_key = ("map", compact, view.grid.value, _whole_seconds(view.grid.age(now)))
+    return [
         [panels[n] for n in ("bump", "ir", "sonar", "env") if n in panels]
         + [Keyed(("stations", stations_key), lambda: positioning_panel(view.stations, now))],
-        [panels[n] for n in ("compass", "wheels") if n in panels] + [link_panel(view, now)],
-        [Keyed(("map", grid_key), lambda: map_panel(view.grid, now))],
+        [panels[n] for n in ("compass", "wheels") if n in panels] + [link_panel(view, now, compact)],
+        [Keyed(grid_key, lambda: map_panel(view.grid, now, compact))],
     ]
-    return Group(header("hcrctl watch", view), SideBySide(columns, cache=cache), footer(keys, view.note))
 
 
 def _whole_seconds(age: float | None) -> str:
@@ -358,26 +403,41 @@ class SideBySide:
         gap: int = 1,
         min_width: int = COLUMN_WIDTH,
         cache: dict | None = None,
+        compact: list[list[RenderableType]] | None = None,
+        fit: bool = False,
+        reserve: int = 2,
     ) -> None:
         self.columns = [c for c in columns if c]
+        self.compact = [c for c in compact or [] if c]
         self.gap, self.min_width = gap, min_width
         self.cache = cache
+        self.fit, self.reserve = fit, reserve
 
     def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
-        fits = (options.max_width + self.gap) // (self.min_width + self.gap)
-        n = max(1, min(len(self.columns), fits))
-        width = (options.max_width - self.gap * (n - 1)) // n
-        opts = options.update_width(width)
         fresh: dict = {}
-        blocks = [[self._lines(console, opts, item, fresh) for item in col] for col in self.columns]
+        rendered, width = self._layout(console, options, self.columns, fresh)
+        if self.fit:  # the screen's height, less the header and footer lines
+            room = max(1, options.max_height - self.reserve)
+            if self.compact and max(map(len, rendered), default=0) > room:
+                rendered, width = self._layout(console, options, self.compact, fresh)
+            rendered = [lines[:room] for lines in rendered]
         if self.cache is not None:  # keep only what this frame used
             self.cache.clear()
             self.cache.update(fresh)
-        if n == len(self.columns):
-            rendered = [[line for block in col for line in block] for col in blocks]
-        else:
-            rendered = _pour([block for col in blocks for block in col], n)
         yield from _stitch(rendered, width, self.gap)
+
+    def _layout(
+        self, console: Console, options: ConsoleOptions, columns: list[list[RenderableType]], fresh: dict
+    ) -> tuple[list[list[list[Segment]]], int]:
+        """The lines of each screen column, and its width."""
+        fits = (options.max_width + self.gap) // (self.min_width + self.gap)
+        n = max(1, min(len(columns), fits))
+        width = (options.max_width - self.gap * (n - 1)) // n
+        opts = options.update_width(width)
+        blocks = [[self._lines(console, opts, item, fresh) for item in col] for col in columns]
+        if n == len(columns):
+            return [[line for block in col for line in block] for col in blocks], width
+        return _pour([block for col in blocks for block in col], n), width
 
     def _lines(
         self, console: Console, options: ConsoleOptions, item: RenderableType, fresh: dict
@@ -448,16 +508,16 @@ def drive_text(drive: DriveStatus, now: float) -> Text:
     return labelled(rows)
 
 
-def teleop_screen(drive: DriveStatus, view: View, now: float) -> Group:
-    """The ``teleop`` screen: what is sent, wheel speeds read back, bumpers, link."""
+def teleop_screen(drive: DriveStatus, view: View, now: float, fit: bool = False) -> Group:
+    """The ``teleop`` screen: what is sent, wheel speeds read back, bumpers, link.
+
+    The readings and the link sit side by side when the width allows, so an
+    80x24 terminal holds it all.
+    """
     body = Panel(
         drive_text(drive, now), title="drive (0x02 motor speed)", title_align="left", border_style="cyan"
     )
     panels = sensor_panels(view, now)
-    return Group(
-        header("hcrctl teleop", view),
-        body,
-        *(panels[n] for n in ("wheels", "bump") if n in panels),
-        link_panel(view, now),
-        footer(TELEOP_KEYS, view.note),
-    )
+    readings = [panels[n] for n in ("wheels", "bump") if n in panels]
+    below = SideBySide([readings, [link_panel(view, now)]], fit=fit, reserve=2 + DRIVE_ROWS)
+    return Group(header("hcrctl teleop", view), body, below, footer(TELEOP_KEYS, view.note))

@@ -227,6 +227,6 @@ def _screen(drive: Drive, sender: Sender, state: LiveState) -> Callable[[float],
             sender.frames,
             drive.why_stopped,
         )
-        return teleop_screen(status, state.view(), now)
+        return teleop_screen(status, state.view(), now, fit=True)
 
     return render

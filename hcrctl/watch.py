@@ -75,7 +75,7 @@ def _watch_loop(state: LiveState, poller: Poller, console: Console | None, durat
     deadline = time.monotonic() + duration if duration else math.inf
     fps = frame_rate(state.target_rate)
     with KeyReader() as keys, live_screen(console) as live:
-        redraw = Redrawer(live, _dashboard(state) if live else None, lambda: state.version, fps=fps)
+        redraw = Redrawer(live, _dashboard(state, fit=True) if live else None, lambda: state.version, fps=fps)
         while (now := time.monotonic()) < deadline:
             raise_from(poller)
             key = keys.read(min(1 / fps, deadline - now))
@@ -113,11 +113,12 @@ def send_stop(robot: Robot | None) -> str:
     return f"stop sent at {time.strftime('%H:%M:%S')}"
 
 
-def _dashboard(state: LiveState) -> Callable[[float], RenderableType]:
+def _dashboard(state: LiveState, fit: bool = False) -> Callable[[float], RenderableType]:
+    """The frame for a moment; ``fit``: to the height of a full-screen terminal."""
     from .panels import dashboard
 
     cache: dict = {}
-    return lambda now: dashboard(state.view(), now, cache=cache)
+    return lambda now: dashboard(state.view(), now, cache=cache, fit=fit)
 
 
 # -- shared with teleop ---------------------------------------------------------

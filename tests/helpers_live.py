@@ -39,19 +39,27 @@ def hcrctl_exe() -> str:
     return found
 
 
-def terminal_env() -> dict[str, str]:
-    return dict(os.environ, COLUMNS=str(COLS), LINES=str(ROWS), TERM="xterm-256color")
+def terminal_env(cols: int = COLS, rows: int = ROWS) -> dict[str, str]:
+    return dict(os.environ, COLUMNS=str(cols), LINES=str(rows), TERM="xterm-256color")
 
 
 class Terminal:
-    """``hcrctl ARGS`` in a 120x40 pty, its output rendered by pyte.
+    """``hcrctl ARGS`` in a pty (120x40 unless ``size`` says), its output rendered by pyte.
 
     A thread reads the pty all the time, as a terminal would: a program whose
     output nobody reads blocks in write() and stops reading keys.
     """
 
-    def __init__(self, args: list[str], *, shell_suffix: str | None = None, timeout: float = 10) -> None:
-        self.screen = pyte.Screen(COLS, ROWS)
+    def __init__(
+        self,
+        args: list[str],
+        *,
+        shell_suffix: str | None = None,
+        timeout: float = 10,
+        size: tuple[int, int] = (COLS, ROWS),
+    ) -> None:
+        cols, rows = size
+        self.screen = pyte.Screen(cols, rows)
         self.stream = pyte.ByteStream(self.screen)
         self.raw = bytearray()
         self._lock = threading.Lock()
@@ -61,7 +69,7 @@ class Terminal:
             program = "/bin/sh"
             argv = ["-c", " ".join([_quote(hcrctl_exe()), *map(_quote, args)]) + "; " + shell_suffix]
         self.child = pexpect.spawn(
-            program, argv, dimensions=(ROWS, COLS), env=terminal_env(), timeout=timeout
+            program, argv, dimensions=(rows, cols), env=terminal_env(cols, rows), timeout=timeout
         )
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()

@@ -198,6 +198,40 @@ def test_narrow_screen_pours_panels_into_fewer_columns() -> None:
     assert len(single.splitlines()) > len(narrow.splitlines()) > len(wide.splitlines())
 
 
+def screen_of(renderable: object, width: int, height: int) -> list[str]:
+    """What a full-screen Live of that size shows."""
+    from rich.screen import Screen
+
+    console = Console(width=width, height=height, record=True, file=io.StringIO(), color_system=None)
+    console.print(Screen(renderable))
+    return console.export_text().splitlines()
+
+
+def test_a_small_terminal_gets_every_panel_compact_and_keeps_the_keys() -> None:
+    clock = Clock()
+    state = full_state(clock)
+    for address in (0x50, 0x51):
+        broadcast(state, address, 0xA0, C.Position(1, 120, 240, 200).content())
+    broadcast(state, 0x01, 0xB0, bytes([0x80, 0x01] * 8))
+    lines = screen_of(panels.dashboard(state.view(), clock.now, fit=True), 80, 24)
+    text = "\n".join(lines)
+    assert len(lines) == 24 and any(line.startswith(" q quit") for line in lines)
+    for title in ("bumpers", "IR (raw)", "ultrasonic (cm)", "compass", "wheels", "environment"):
+        assert f"─ {title} " in text, title
+    assert "212.5° SSW" in text and "█ 255" in text and "temperature -3 °C · humidity 48 %" in text
+    assert (
+        "0x51" in text and "▀▀············▄▄  80 01" in text and "timeouts 0" in text and "junk 0 B" in text
+    )
+    full = screen_of(panels.dashboard(state.view(), clock.now, fit=True), 120, 40)
+    assert any("IR5 " in line for line in full) and any(" N " in line for line in full)  # room: full panels
+
+
+def test_a_tiny_terminal_crops_the_panels_not_the_keys() -> None:
+    clock = Clock()
+    lines = screen_of(panels.dashboard(full_state(clock).view(), clock.now, fit=True), 80, 12)
+    assert lines[0].startswith(" hcrctl watch") and lines[-1].startswith(" q quit")
+
+
 def test_the_render_cache_draws_the_same_picture() -> None:
     clock = Clock()
     state = full_state(clock)

@@ -21,6 +21,7 @@ from hcrctl.watch import FPS, MIN_FPS, Reconnect, frame_rate, run_watch
 
 HEADING = re.compile(r"(\d{1,3}\.\d)° ([NESW]{1,3}) ")
 ALT_SCREEN_OFF = b"\x1b[?1049l"
+PANELS = ("bumpers", "IR", "ultrasonic", "compass", "wheels", "environment", "positioning", "map", "link")
 
 
 def test_values_appear_from_the_simulator_on_a_pty_and_q_quits() -> None:
@@ -35,11 +36,24 @@ def test_values_appear_from_the_simulator_on_a_pty_and_q_quits() -> None:
         heading, point = HEADING.search(screen).groups()
         assert point == cardinal(float(heading))
         assert "IR1" in screen and "left" in screen and "cm/s" in screen
+        assert all(f"─ {title}" in screen for title in PANELS)
         term.wait_for(r"status +ok")
         term.wait_for(r"0x50 +\d+ +\d+ +\d+")  # a positioning station's broadcast
         term.send("q")
         assert term.finish() == 0
     assert ALT_SCREEN_OFF in term.raw  # left the alternate screen
+
+
+def test_every_panel_and_the_keys_fit_an_80x24_terminal() -> None:
+    with terminal(["--port", "sim://", "watch"], size=(80, 24)) as term:
+        screen = term.wait_for(lambda t: HEADING.search(t) and "received" in t and re.search(r"0x51 +\d+", t))
+        for title in PANELS:
+            assert f"─ {title}" in screen, title
+        assert re.search(r"polling +\d+\.\d Hz", screen) and re.search(r"rtt +\d+\.\d ms", screen)
+        assert "timeouts" in screen and "checksum" in screen and "junk" in screen
+        assert any(line.startswith(" q quit") for line in screen.splitlines())  # the keys stay on the screen
+        term.send("q")
+        assert term.finish() == 0
 
 
 def test_q_restores_the_terminal_mode() -> None:
