@@ -205,8 +205,10 @@ class Redrawer:
         version: Callable[[], object],
         tick: float = TICK,
         fps: float = FPS,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.live, self.render, self.version, self.tick = live, render, version, tick
+        self.clock = clock
         self.interval = 1 / fps
         self.frames = 0
         self._drawn: object = None
@@ -215,7 +217,7 @@ class Redrawer:
     def __call__(self, *, force: bool = False) -> None:
         if self.live is None or self.render is None:
             return
-        now, version = time.monotonic(), self.version()
+        now, version = self.clock(), self.version()
         since = now - self._last
         if force or since >= self.tick or (version != self._drawn and since >= self.interval):
             self.live.update(self.render(now), refresh=True)

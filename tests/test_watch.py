@@ -17,7 +17,7 @@ from hcrctl.cli.settings import Settings
 from hcrctl.client import Robot
 from hcrctl.errors import PortError
 from hcrctl.render import cardinal
-from hcrctl.watch import FPS, MIN_FPS, Reconnect, frame_rate, run_watch
+from hcrctl.watch import FPS, MIN_FPS, Reconnect, Redrawer, frame_rate, run_watch
 
 HEADING = re.compile(r"(\d{1,3}\.\d)° ([NESW]{1,3}) ")
 ALT_SCREEN_OFF = b"\x1b[?1049l"
@@ -256,3 +256,25 @@ def test_json_watch_imports_neither_rich_nor_prompt_toolkit() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "[]"
+
+
+def test_drawing_is_capped_at_fps_and_ticks_when_nothing_changes() -> None:
+    class Live:
+        frames = 0
+
+        def update(self, renderable: object, refresh: bool) -> None:
+            self.frames += 1
+
+    now = [0.0]
+    versions = iter(range(10**6))
+    busy = Redrawer(Live(), lambda t: "frame", lambda: next(versions), fps=FPS, clock=lambda: now[0])
+    for _ in range(200):  # news every 5 ms for a simulated second
+        busy()
+        now[0] += 0.005
+    assert busy.frames == FPS
+    now[0] = 0.0
+    quiet = Redrawer(Live(), lambda t: "frame", lambda: 1, tick=1.0, clock=lambda: now[0])
+    for _ in range(300):  # nothing new for three seconds: one frame a tick
+        quiet()
+        now[0] += 0.01
+    assert quiet.frames == 3
