@@ -61,18 +61,23 @@ def test_errors_print_one_line_and_the_session_goes_on(tmp_path):
         assert re.search(r"compass\s+│\s+90\.0° E", screen)
 
 
-def test_ctrl_c_cancels_the_running_command_not_the_session(tmp_path):
+@pytest.mark.parametrize(
+    "line, cancelled",
+    [("sleep 60", "interrupted"), ("ping -c 1000 -i 0.2", "ping statistics")],
+)
+def test_ctrl_c_cancels_the_running_command_not_the_session(tmp_path, line, cancelled):
     with shell(["--port", SIM, "shell"], tmp_path) as term:
         term.wait_prompt()
-        term.send("sleep 60\r")
-        term.wait_for(lambda s: "sleep 60" in s and not term._at_prompt())
-        time.sleep(0.3)
+        term.send(line + "\r")
+        term.wait_for(lambda s: line in s and not term._at_prompt())
+        time.sleep(0.5)
         term.send("\x03")
-        screen = term.wait_for("interrupted")
+        term.wait_for(cancelled)
         term.wait_prompt()
         assert term.child.isalive()
         screen = term.run("read compass")
         assert re.search(r"compass\s+│\s+90\.0° E", screen)
+        assert "seq=999" not in screen
 
 
 def test_help_lists_shell_and_cli_commands(tmp_path):
@@ -170,6 +175,8 @@ def test_broadcasts_appear_above_the_prompt_collapsed_and_monitor_off_silences_t
         screen = term.wait_for(lambda s: int(re.search(r"0x50×(\d+)", s).group(1)) > count_before + 5)
         assert len(printed_frames(screen, "0x50")) == before
         assert "monitor off" in screen.splitlines()[-1]
+        term.run("monitor on")
+        term.wait_for(lambda s: printed_frames(s.rpartition("> monitor on")[2], "0x50"))
 
 
 # -- raw hex mode --------------------------------------------------------------------

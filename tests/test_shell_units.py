@@ -371,6 +371,35 @@ def test_a_script_says_notices_at_once(capsys):
     s.close()
 
 
+def test_an_exception_out_of_the_prompt_loop_still_sends_stop(tmp_path, monkeypatch):
+    """A bug that escapes the loop ends the session, and the robot that moved is stopped."""
+    from helpers_shell import STOP_FRAME, PtyRobot, stop_after_motion
+    from prompt_toolkit.application import create_app_session
+
+    import hcrctl.shell as front
+
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path))
+    robot = PtyRobot()
+    real_run_line = front.run_line
+
+    def run_then_fail(session: Session, line: str) -> int:
+        real_run_line(session, line)
+        raise RuntimeError("a bug after the line ran")
+
+    monkeypatch.setattr(front, "run_line", run_then_fail)
+    s = Session(Settings(port=robot.port), interactive=True)
+    try:
+        with create_pipe_input() as pipe, create_app_session(input=pipe, output=DummyOutput()):
+            pipe.send_text("drive power 20 20\r")
+            with pytest.raises(RuntimeError, match="a bug"):
+                front.run_interactive(s)
+        frames = robot.wait_for(stop_after_motion)
+        assert robot.commands()[0] == "power" and frames[-1] == STOP_FRAME
+    finally:
+        s.close()
+        robot.close()
+
+
 def test_usage_line_is_one_line():
     ctx = click.Context(click.Command("read"), info_name="read")
     assert usage_line(click.UsageError("a\nb", ctx)) == "error: read: a b (see 'help read')"
