@@ -167,3 +167,26 @@ def test_from_a_file_that_is_not_a_log_is_a_usage_error(tmp_path: Path) -> None:
     proc = run("monitor", "--from", str(junk))
     assert proc.returncode == 2
     assert f"{junk} line 1 is not a traffic log record" in proc.stderr
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["monitor", "--duration", "x"], "'--duration': 'x' is not a valid number"),
+        (["hex", "send", "55", "--for", "x"], "'--for': 'x' is not a valid number"),
+        (["replay", "LOG", "--speed", "x"], "'--speed': 'x' is not a valid number"),
+        (["replay", "LOG", "--loop", "x"], "'--loop': 'x' is not a valid integer"),
+    ],
+)
+def test_a_number_option_given_a_word_says_it_is_not_a_number(
+    tmp_path: Path, args: list[str], message: str
+) -> None:
+    log = tmp_path / "log.jsonl"
+    log.write_text("")
+    proc = run("--port", "sim://", *[str(log) if a == "LOG" else a for a in args])
+    assert proc.returncode == 2
+    assert message in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_help_spells_the_filter_forms_as_typed() -> None:
+    assert "--filter NAME|0xCODE|@ADDR" in run("monitor", "--help").stdout

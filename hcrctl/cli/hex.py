@@ -23,7 +23,7 @@ from ..errors import ProtocolError
 from ..frames import ChecksumRule, Frame, decode_all
 from ..hexparse import STYLES, format_hex, parse_hex, parse_hex_args
 from .drive import DRIVE_COMMANDS
-from .params import NamedArgument, request_value, table_command
+from .params import FloatRange, NamedArgument, request_value, table_command
 from .settings import Settings, stdout_is_terminal
 
 if TYPE_CHECKING:
@@ -245,7 +245,7 @@ def _traffic_row(frame: bytes, rule: ChecksumRule, direction: str) -> dict[str, 
 @click.option(
     "--for",
     "hold_for",
-    type=click.FloatRange(0, 86_400),
+    type=FloatRange(0, 86_400),
     metavar="SECONDS",
     help="For a motion frame: stop after SECONDS (default: hold until Ctrl-C), as drive does.",
 )

@@ -22,6 +22,7 @@ import click
 from .. import commands as C
 from ..frames import ChecksumRule, Event, decode_all
 from .hex import json_option
+from .params import FloatRange
 from .settings import ByteNumber, Settings, stdout_is_terminal
 
 if TYPE_CHECKING:
@@ -154,11 +155,12 @@ def traffic_rows(traffic: Traffic, rule: ChecksumRule) -> list[dict[str, Any]]:
 
 
 @click.command()
-@click.option("--duration", type=click.FloatRange(0, 864_000), metavar="S", help="Stop after S seconds.")
+@click.option("--duration", type=FloatRange(0, 864_000), metavar="S", help="Stop after S seconds.")
 @click.option(
     "--filter",
     "filters",
     type=FilterArg(),
+    metavar=FilterArg.name,
     multiple=True,
     help="Show only these commands (name or 0xCODE) and/or addresses (@ADDR); repeatable.",
 )

@@ -24,6 +24,7 @@ from ..errors import HcrError, LogFormatError
 from ..frames import ChecksumRule, Frame, decode_all, encode
 from .hex import json_option
 from .monitor import FrameFilter, TrafficPrinter, traffic_rows
+from .params import FloatRange, IntRange
 from .settings import Settings
 
 if TYPE_CHECKING:
@@ -76,7 +77,7 @@ def _frame_under_either_rule(data: bytes, rule: ChecksumRule) -> tuple[Frame | N
 @click.argument("logfile", type=click.Path(exists=True, dir_okay=False))
 @click.option(
     "--speed",
-    type=click.FloatRange(0.01, 1000),
+    type=FloatRange(0.01, 1000),
     default=1.0,
     show_default=True,
     metavar="FACTOR",
@@ -90,7 +91,7 @@ def _frame_under_either_rule(data: bytes, rule: ChecksumRule) -> tuple[Frame | N
 @click.option(
     "--loop",
     "loops",
-    type=click.IntRange(0, 1_000_000),
+    type=IntRange(0, 1_000_000),
     default=1,
     show_default=True,
     metavar="N",
