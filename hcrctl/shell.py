@@ -68,7 +68,7 @@ def _banner(session: Session, error: HcrError | None) -> None:
         retry = "retrying in the background, or connect PORT" if settings.port else "connect PORT"
         where = f"not connected: {error.one_line()}; {retry}"
     click.echo(f"hcrctl shell: {where}")
-    click.echo(f"help lists the commands; Tab completes; {STOP_KEY_LABEL} sends stop; Ctrl-D exits")
+    click.echo(f"Tab completes; help lists commands; {STOP_KEY_LABEL} sends stop; Ctrl-D exits")
 
 
 class _Prompts:

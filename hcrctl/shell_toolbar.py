@@ -60,23 +60,29 @@ def toolbar_fragments(session: Session, typed: str = "") -> Fragments:
 
 
 def link_fragments(session: Session) -> Fragments:
+    """Two lines, each short enough for an 80-column terminal: the link, then its counters.
+
+    On one line the counters, a reconnect error and the stop notice fell off
+    the right edge of a standard terminal, where nobody saw them.
+    """
     link, settings = session.link, session.settings
-    totals = link.totals
     state = link.state
-    if state == "disconnected" and link.reconnect_error and link.auto:
-        state = f"disconnected, retrying ({link.reconnect_error})"
+    retrying = state == "disconnected" and link.reconnect_error and link.auto
     return [
         ("", " "),
-        (state_class(link.state), state),
+        (state_class(state), "disconnected, retrying" if retrying else state),
         ("", "  "),
         ("class:toolbar.stop", f" {STOP_KEY_SHORT}: stop "),
-        ("", f"  {link.port or '-'} {settings.baud} baud addr {shown('address', settings.address)}"),
-        (
-            "",
-            f"  tx {totals.tx} rx {totals.rx}  errors: checksum {totals.checksum} timeout {totals.timeouts}",
-        ),
+        ("", f"  {link.port or '-'} {settings.baud} baud addr {shown('address', settings.address)}\n"),
+        ("", " " + counters_text(session)),
+        ("", f"  last attempt: {link.reconnect_error}" if retrying else ""),
         ("", f"  {session.stop_note}" if session.stop_note else ""),
     ]
+
+
+def counters_text(session: Session) -> str:
+    totals = session.link.totals
+    return f"tx {totals.tx} rx {totals.rx}  errors: checksum {totals.checksum} timeout {totals.timeouts}"
 
 
 def broadcast_text(broadcasts: Collapser, monitor: bool) -> str:
@@ -105,10 +111,7 @@ def argument_hint(session: Session, typed: str) -> str:
 
 def status_lines(session: Session) -> list[str]:
     """``status``: the toolbar's content as plain lines, for scripts and logs."""
-    link = session.link
-    text = "".join(text for _, text in link_fragments(session)).strip()
-    lines = [text]
-    if link.state == "disconnected" and link.reconnect_error:
-        lines.append(f"last reconnect attempt: {link.reconnect_error}")
-    lines.append(broadcast_text(session.broadcasts, session.monitor))
-    return lines
+    text = "".join(text for _, text in link_fragments(session))
+    return [line.strip() for line in text.splitlines()] + [
+        broadcast_text(session.broadcasts, session.monitor)
+    ]

@@ -213,7 +213,8 @@ def test_a_device_that_disappears_shows_disconnected_and_is_reconnected(tmp_path
             term.run("read compass")
             first.close()
             term.wait_for(lambda s: term.prompt_line() == f"hcr {link} disconnected>")
-            assert lines_with(term.text(), "disconnected, retrying")
+            (state,) = lines_with(term.wait_for("disconnected, retrying"), "disconnected, retrying")
+            assert "^Space/F12: stop" in state
             second = PtyRobot(link)
             term.wait_for(lambda s: term.prompt_line() == f"hcr {link} ok>")
             assert lines_with(term.text(), "reconnected to")

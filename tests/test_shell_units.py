@@ -271,6 +271,18 @@ def test_toolbar_shows_link_counters_and_the_stop_key(session):
     assert "ok" in text and "115200 baud addr 0x01" in text
     assert "tx 1 rx 1" in text and "checksum 0 timeout 0" in text
     assert "^Space/F12: stop" in text
+    assert max(len(line) for line in text.splitlines()) <= 80  # nothing falls off a standard terminal
+
+
+def test_toolbar_keeps_the_reconnect_error_and_the_stop_note_off_the_link_line(session):
+    session.link.disconnect()
+    session.link.auto, session.link.reconnect_error = True, "no such port on /dev/ttyUSB0"
+    session.send_stop()
+    link_line, counters = "".join(t for _, t in toolbar_fragments(session)).splitlines()[:2]
+    assert link_line.startswith(" disconnected, retrying   ^Space/F12: stop")
+    assert counters.startswith(" tx 0 rx 0  errors: checksum 0 timeout 0")
+    assert "last attempt: no such port on /dev/ttyUSB0" in counters
+    assert "stop NOT sent: not connected" in counters
 
 
 def test_link_state_no_reply_then_ok_then_disconnected():
