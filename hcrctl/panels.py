@@ -73,7 +73,10 @@ def sensor_panel(name: str, body: RenderableType, reading: Reading, now: float, 
     if not reading.stale:
         return Panel(body, title=title, title_align="left", border_style="cyan")
     why = f" · {reading.error}" if reading.error else ""
-    subtitle = f"[yellow]stale · {age_text(reading.age(now))} old{why}[/]"
+    age = reading.age(now)
+    subtitle = (
+        f"[yellow]stale · {age_text(age)} old{why}[/]" if age is not None else f"[yellow]never read{why}[/]"
+    )
     return Panel(body, title=title, title_align="left", subtitle=subtitle, border_style="dim", style="dim")
 
 

@@ -90,7 +90,8 @@ def test_stale_value_is_dimmed_with_its_age_not_blanked() -> None:
 
 def test_a_sensor_that_never_answered_says_so() -> None:
     reading = Reading().failed("no reply", 5.0)
-    assert "no reply yet" in text_of(panels.bars_panel("sonar", reading, 6.0), width=40)
+    text = text_of(panels.bars_panel("sonar", reading, 6.0), width=40)
+    assert "no reply yet" in text and "never read · no reply" in text and "old" not in text
     assert "waiting…" in text_of(panels.env_panel(Reading(), 6.0), width=40)
 
 
