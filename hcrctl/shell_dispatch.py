@@ -8,7 +8,12 @@ on stderr and an exit code the script mode adds up. SIGTERM and SIGHUP
 
 from __future__ import annotations
 
+import contextlib
+import signal
+import threading
 import traceback
+from collections.abc import Iterator
+from typing import Any
 
 import click
 
@@ -23,7 +28,19 @@ INTERRUPTED = 130
 
 
 def run_line(session: Session, line: str) -> int:
-    """Run one line in the session's current mode; 0 if it succeeded, else its exit code."""
+    """Run one line in the session's current mode; 0 if it succeeded, else its exit code.
+
+    Ctrl-C sends stop if the robot moved, also when the command catches it
+    itself (``ping`` ends with its statistics and returns normally).
+    """
+    with _ctrl_c_noted() as pressed:
+        code = _run_line(session, line)
+    if pressed and code != INTERRUPTED and session.link.moved:
+        click.echo(f"interrupted; {session.send_stop()}", err=True)
+    return code
+
+
+def _run_line(session: Session, line: str) -> int:
     try:
         if session.hex_mode:
             from .shell_hex import run_hex_line
@@ -42,6 +59,26 @@ def run_line(session: Session, line: str) -> int:
         return report(session, exc)
     finally:
         session.link.settle()
+
+
+@contextlib.contextmanager
+def _ctrl_c_noted() -> Iterator[list[bool]]:
+    """Records each SIGINT during the block, then hands it to the handler that was there."""
+    pressed: list[bool] = []
+    previous = signal.getsignal(signal.SIGINT)
+    if threading.current_thread() is not threading.main_thread() or not callable(previous):
+        yield pressed  # Ctrl-C ignored (or not ours to watch): nothing to note
+        return
+
+    def note(signum: int, frame: Any) -> None:
+        pressed.append(True)
+        previous(signum, frame)
+
+    signal.signal(signal.SIGINT, note)
+    try:
+        yield pressed
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def invoke(session: Session, words: list[str]) -> None:

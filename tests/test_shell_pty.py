@@ -280,15 +280,19 @@ def test_the_stop_key_works_mid_line_and_keeps_the_line(tmp_path, robot):
         assert "compass" in robot.commands()
 
 
-def test_ctrl_c_during_a_command_stops_a_robot_that_moved(tmp_path, robot):
+@pytest.mark.parametrize("line", ["sleep 60", "ping -c 1000 -i 0.2"])
+def test_ctrl_c_during_a_command_stops_a_robot_that_moved(tmp_path, robot, line):
+    """Also when the command handles Ctrl-C itself: ping ends with its statistics."""
     with shell(["--port", robot.port, "shell"], tmp_path) as term:
         _drive_then(term, robot)
-        term.send("sleep 60\r")
-        term.wait_for(lambda s: "sleep 60" in s and not term._at_prompt())
-        time.sleep(0.3)
+        term.send(line + "\r")
+        term.wait_for(lambda s: line in s and not term._at_prompt())
+        time.sleep(0.5)
         term.send("\x03")
         robot.wait_for(lambda frames: STOP_FRAME in frames)
         term.wait_for("interrupted; stop sent")
+        term.wait_prompt()
+        assert term.child.isalive()
 
 
 # -- the live panels inside the shell -----------------------------------------------
