@@ -216,6 +216,23 @@ class FakeRobot:
         os.write(self._master, encode(frame.address, frame.command, self.values[cmd.name].content()))
 
 
+def usage_error(*args: str) -> str:
+    """``hcrctl --port <a scripted robot> ARGS``, which must be refused: exit 2, one line, nothing sent."""
+    with FakeRobot() as robot:
+        out = subprocess.run(
+            [hcrctl_exe(), "--port", robot.path, *args],
+            capture_output=True,
+            text=True,
+            timeout=30,
+            stdin=subprocess.DEVNULL,
+        )
+        time.sleep(0.1)
+        assert robot.frames() == []
+    assert out.returncode == 2, out
+    assert len(out.stderr.strip().splitlines()) == 1, out.stderr
+    return out.stderr
+
+
 def is_stop(frame: Frame) -> bool:
     """Motor power 0x80 0x80: what ``Robot.stop()`` sends."""
     return frame.command == C.STOP.CODE and frame.content == C.STOP.content()
