@@ -78,8 +78,22 @@ def test_turn_progress_across_north_clockwise():
     turn = TurnProgress(start=350.0, angle=90, ccw=False, started_at=0.0)
     assert not turn.feed(10.0, 0.1)
     assert not turn.feed(60.0, 0.2)
-    assert turn.feed(79.5, 0.3)  # within the tolerance of 90
-    assert math.isclose(turn.turned, 89.5)
+    assert not turn.feed(79.5, 0.3)  # within the tolerance of 90, but still turning
+    assert turn.feed(79.6, 0.35)  # at rest: the device has ended its turn
+    assert math.isclose(turn.turned, 89.6)
+
+
+def test_turn_progress_waits_for_the_device_to_end_its_turn():
+    turn = TurnProgress(start=90.0, angle=10, ccw=False, started_at=0.0)
+    assert not turn.feed(99.1, 0.05)  # short by 0.9: a stop now would cut the turn
+    assert turn.feed(100.0, 0.1) is False and turn.feed(100.0, 0.15)
+    assert math.isclose(turn.turned, 10.0)
+
+
+def test_a_one_degree_turn_is_not_done_before_it_starts():
+    turn = TurnProgress(start=90.0, angle=1, ccw=False, started_at=0.0)
+    assert not turn.feed(90.0, 0.05)
+    assert not turn.feed(90.9, 0.1) and turn.feed(91.0, 0.15)
 
 
 def test_turn_progress_counter_clockwise_counts_the_other_way():
@@ -87,7 +101,8 @@ def test_turn_progress_counter_clockwise_counts_the_other_way():
     assert not turn.feed(20.0, 0.1)  # the wrong way
     assert turn.turned == -10
     assert not turn.feed(0.0, 0.2)
-    assert turn.feed(340.0, 0.3)
+    assert not turn.feed(340.0, 0.3)
+    assert turn.feed(340.0, 0.35)
 
 
 def test_turn_progress_stops_when_the_heading_does():

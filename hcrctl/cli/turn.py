@@ -61,17 +61,24 @@ class TurnProgress:
         self.moved_at = self.started_at
 
     def feed(self, heading: float, now: float) -> bool:
-        """Take a reading; True once the turn is done (reached, or stalled)."""
+        """Take a reading; True once the turn is done (reached and settled, or stalled).
+
+        Reaching the angle is not enough: the device ends its own turn, and a
+        stop sent while it is still moving would cut the last degrees off. So
+        within the tolerance, one more reading must show it has come to rest.
+        """
         step = heading_delta(self.last, heading)
         self.turned += -step if self.ccw else step
         self.last = heading
         if abs(heading_delta(self.still_from, heading)) > STALL_DEG:
             self.still_from, self.moved_at = heading, now
-        return self.reached or now - self.moved_at >= STALL_S
+        settled = abs(step) <= STALL_DEG
+        return (self.reached and settled) or now - self.moved_at >= STALL_S
 
     @property
     def reached(self) -> bool:
-        return self.turned >= self.angle - TOLERANCE_DEG
+        # A tiny turn must have begun: a reading before it starts is not "within 1°".
+        return self.turned >= self.angle - min(TOLERANCE_DEG, self.angle / 2)
 
 
 @table_command("turn")
