@@ -330,8 +330,15 @@ class Robot:
         self.stats.unsolicited += 1
         with contextlib.suppress(queue.Full):
             self.unsolicited.put_nowait(frame)
-        if self.on_unsolicited is not None:
-            self.on_unsolicited(frame)
+        callback = self.on_unsolicited
+        if callback is not None:
+            try:
+                callback(frame)
+            except Exception as exc:  # like a traffic hook: never kill the reader
+                self.on_unsolicited = None
+                sys.stderr.write(
+                    f"hcrctl: warning: on_unsolicited {callback!r} failed and was removed ({exc})\n"
+                )
 
     def _is_echo(self, frame: Frame) -> bool:
         """A half-duplex adapter (or loop://) hands our own requests back.

@@ -126,6 +126,17 @@ def test_unsolicited_callback(traffic: list[Traffic]) -> None:
     assert seen and seen[0].address >= C.FIRST_STATION and seen[0].command == 0xA0
 
 
+def test_a_failing_unsolicited_callback_does_not_kill_the_reader(capsys) -> None:
+    def broken(frame: Frame) -> None:
+        raise RuntimeError("boom")
+
+    with Robot("sim://?broadcast_hz=50", timeout=0.5, on_unsolicited=broken) as robot:
+        robot.unsolicited.get(timeout=5)  # a broadcast has been through the callback
+        assert robot.read("compass").heading == 90.0
+        assert robot.on_unsolicited is None
+    assert "on_unsolicited" in capsys.readouterr().err
+
+
 def test_timeout_names_command_address_and_port() -> None:
     with Robot("sim://?silent=1", timeout=0.05, retries=2) as r:
         with pytest.raises(DeviceTimeout) as info:
