@@ -93,3 +93,13 @@ class ConfigError(HcrError):
         where = f"{path}: {key}" if key else f"{path}"
         super().__init__(f"config file {where}: {problem}")
         self.path, self.key = path, key
+
+
+class BadPortUrl(PortError):
+    """A --port value that is wrong whatever is attached (a sim:// option, a malformed URL): exit 2."""
+
+    exit_code = 2
+
+    def __init__(self, url: str, problem: str, hint: str | None = None) -> None:
+        HcrError.__init__(self, f"Invalid value for '--port': {url}: {problem}", hint=hint)
+        self.port = url

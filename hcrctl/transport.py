@@ -11,10 +11,12 @@ import os
 
 import serial
 
-from .errors import PortError
+from .errors import BadPortUrl, PortError
 from .transport_sim import register as register_sim
 
 SIM_HINT = "use --port sim:// for the built-in simulator"
+SIM_OPTIONS_HINT = "for example sim://?drop=0.1&seed=3; the README lists every option"
+URL_HINT = "a device path, or a URL such as socket://HOST:PORT, rfc2217://HOST:PORT, loop:// or sim://"
 
 
 def open_port(url: str, baud: int = 115200, timeout: float | None = 0.1) -> serial.SerialBase:
@@ -23,10 +25,37 @@ def open_port(url: str, baud: int = 115200, timeout: float | None = 0.1) -> seri
     is_device = "://" not in url
     try:
         return serial.serial_for_url(url, baudrate=baud, timeout=timeout, exclusive=is_device or None)
-    except ValueError as exc:
-        raise PortError(f"cannot open: {exc}", url, hint=SIM_HINT) from exc
-    except (OSError, serial.SerialException) as exc:
-        raise _port_error(url, exc) from exc
+    except (OSError, ValueError, KeyError, TypeError) as exc:  # pyserial raises all four
+        raise _open_error(url, exc) from exc
+
+
+def _open_error(url: str, exc: Exception) -> PortError:
+    """A wrong URL is a usage error (exit 2); anything else is the port's failure (exit 1)."""
+    if url.startswith("sim://") and isinstance(exc, OSError):  # the simulator fails only on its options
+        return BadPortUrl(url, str(exc).removeprefix("bad sim:// option: "), hint=SIM_OPTIONS_HINT)
+    problem = _url_problem(exc) if "://" in url else None
+    if problem is not None:
+        return BadPortUrl(url, problem, hint=URL_HINT)
+    if isinstance(exc, OSError):
+        return _port_error(url, exc)
+    return PortError(f"cannot open: {exc}", url, hint=SIM_HINT)
+
+
+def _url_problem(exc: BaseException) -> str | None:
+    """Why pyserial refused a URL's text, or None when the URL was not the problem.
+
+    pyserial's parsers report a bad URL as a ValueError, which some handlers
+    wrap in a SerialException or trip over into a KeyError or TypeError; the
+    innermost ValueError of the chain says what was wrong.
+    """
+    chain: list[BaseException] = []
+    while exc is not None and len(chain) < 8:
+        chain.append(exc)
+        exc = exc.__context__
+    reasons = [str(e) for e in chain if isinstance(e, ValueError)]
+    if reasons:
+        return reasons[-1]
+    return "malformed URL" if any(isinstance(e, (KeyError, TypeError)) for e in chain) else None
 
 
 def _port_error(url: str, exc: Exception) -> PortError:
@@ -43,10 +72,15 @@ def _port_error(url: str, exc: Exception) -> PortError:
         )
     if code == errno.EBUSY or "busy" in text or "exclusively lock" in text:
         return PortError("the port is busy", url, hint="another program has it open; close it and retry")
+    if any(
+        words in text for words in ("Name or service not known", "nodename nor servname", "name resolution")
+    ):
+        return PortError("unknown host", url, hint="check the host name in the URL")
     if code == errno.ECONNREFUSED or "refused" in text:
         return PortError(
             "connection refused", url, hint="is the server (for example hcrctl sim --tcp) running?"
         )
+    text = text.removeprefix(f"Could not open port {url}: ")  # we name the port ourselves
     return PortError(f"cannot open ({text})", url, hint=SIM_HINT)
 
 

@@ -72,3 +72,35 @@ def test_drive_in_the_shell_returns_at_once_and_leaves_stop_to_the_session(capsy
     assert robot.sent == [C.MotorPower(60, -60)]
     assert not robot.stopped
     assert capsys.readouterr().out.startswith("sent power 60 -60: 55 AA 01 02 01 CC 33")
+
+
+@pytest.mark.parametrize(
+    ("port", "needle"),
+    [
+        ("sim://?bogus=1", "unknown option 'bogus'; known: drop"),
+        ("sim://?drop=2", "drop must be a probability 0..1"),
+        ("loop://?bogus=1", "unknown option: 'bogus'"),
+        ("socket://localhost:notaport", "'notaport'"),
+        ("socket://nohost", "malformed URL"),
+        ("rfc2217://", "malformed URL"),
+    ],
+)
+def test_a_wrong_port_url_is_a_usage_error_naming_it(capsys, port, needle):
+    assert exit_code(["--port", port, "read"]) == 2
+    line = one_line(capsys.readouterr().err)
+    assert f"Invalid value for '--port': {port}: " in line and needle in line
+    assert "hint: " in line and "Traceback" not in line
+
+
+@pytest.mark.parametrize(
+    "resolver_says",
+    ["[Errno -2] Name or service not known", "[Errno -3] Temporary failure in name resolution"],
+)
+def test_an_unknown_host_says_so(monkeypatch, capsys, resolver_says):
+    def unresolved(url, **kwargs):  # what pyserial's socket:// raises when getaddrinfo fails
+        raise serial.SerialException(f"Could not open port {url}: {resolver_says}")
+
+    monkeypatch.setattr(serial, "serial_for_url", unresolved)
+    assert exit_code(["--port", "socket://no-such-host.invalid:5", "read"]) == 1
+    line = one_line(capsys.readouterr().err)
+    assert "unknown host on socket://no-such-host.invalid:5" in line and "host name" in line
