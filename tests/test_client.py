@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
-import signal
 import subprocess
 import sys
 import threading
@@ -15,6 +13,8 @@ from pathlib import Path
 
 import pytest
 import serial
+from helpers_cli import clean_env, hcrctl_exe
+from helpers_cli import sim_pty as run_sim_pty
 
 from hcrctl import commands as C
 from hcrctl.client import Robot, Traffic
@@ -22,14 +22,6 @@ from hcrctl.errors import DeviceRefused, DeviceTimeout, PortError
 from hcrctl.frames import Frame, encode
 
 STOP_FRAME = bytes.fromhex("55 AA 01 02 01 80 80 03 0D 0A")
-
-
-def hcrctl_exe() -> str:
-    """The installed console script next to this interpreter (or on PATH)."""
-    local = Path(sys.executable).parent / "hcrctl"
-    found = str(local) if local.exists() else shutil.which("hcrctl")
-    assert found, "the hcrctl executable is not installed"
-    return found
 
 
 @pytest.fixture
@@ -44,21 +36,10 @@ def robot(traffic: list[Traffic]) -> Iterator[Robot]:
 
 
 @pytest.fixture
-def sim_pty() -> Iterator[str]:
+def sim_pty(tmp_path: Path) -> Iterator[str]:
     """`hcrctl sim --pty` in a subprocess; yields the device path."""
-    proc = subprocess.Popen(
-        [hcrctl_exe(), "sim", "--pty"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
-    )
-    try:
-        path = proc.stdout.readline().strip()
-        assert path.startswith("/dev/"), path
+    with run_sim_pty(clean_env(tmp_path)) as path:
         yield path
-    finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=5)
-        finally:
-            proc.kill()
 
 
 def test_reads_every_sensor_from_the_simulator(robot: Robot) -> None:
