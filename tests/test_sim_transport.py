@@ -271,10 +271,8 @@ def test_flush_waits_for_the_paced_line(open_sim: Callable[..., Any]) -> None:
 
 
 def sim_command(*args: str) -> list[str]:
-    """``python -m hcrctl sim`` once the root group exists, else the command itself."""
-    if (ROOT / "hcrctl" / "cli" / "__init__.py").read_text().find("def main") >= 0:
-        return [sys.executable, "-m", "hcrctl", "sim", *args]
-    return [sys.executable, "-c", "from hcrctl.cli.sim import sim; sim()", *args]
+    """``python -m hcrctl sim``: the tree under test, whatever is installed."""
+    return [sys.executable, "-m", "hcrctl", "sim", *args]
 
 
 @pytest.fixture
@@ -380,3 +378,14 @@ def test_usage_errors_exit_2(args: list[str]) -> None:
 )
 def test_tcp_addresses(text: str, address: tuple[str, int]) -> None:
     assert parse_tcp(text) == address
+
+
+def test_a_busy_tcp_port_is_one_line_with_a_hint(server: Callable[..., Any]) -> None:
+    _, url = server("--tcp", "127.0.0.1:0")
+    taken = url.removeprefix("socket://")
+    result = subprocess.run(sim_command("--tcp", taken), capture_output=True, text=True, timeout=30, cwd=ROOT)
+    assert result.returncode == 1 and result.stdout == ""
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, lines
+    assert f"cannot serve the simulator on TCP {taken}: address already in use" in lines[0]
+    assert "0 for a free one" in lines[0] and "while attempting" not in lines[0]

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 import click
 
+from ..errors import HcrError
 from ..simoptions import MAX_BAUD, MIN_BAUD, SimOptions
 
 if TYPE_CHECKING:
@@ -53,7 +54,22 @@ def sim(use_pty: bool, tcp: str | None, pace: bool, baud: int | None, query: str
         with simserve.Stopper() as stopper:
             _serve(options, address, stopper)
     except OSError as exc:
-        raise click.ClickException(f"cannot serve: {exc}") from None
+        raise serve_error(exc, tcp) from None
+
+
+def serve_error(exc: OSError, tcp: str | None) -> HcrError:
+    """One line: what could not be served, where, and a hint (not the socket module's wording)."""
+    import errno
+
+    where = f"TCP {tcp}" if tcp is not None else "a pty"
+    reason = (exc.strerror or str(exc)).split(" (while attempting")[0]  # we say where ourselves
+    hints = {
+        errno.EADDRINUSE: "another program listens there; pick another port, or 0 for a free one",
+        errno.EACCES: "ports below 1024 need privileges; pick a higher port, or 0 for a free one",
+        errno.EADDRNOTAVAIL: "the host is not an address of this machine; try 127.0.0.1 or 0.0.0.0",
+    }
+    hint = hints.get(exc.errno or 0, "check HOST:PORT" if tcp is not None else None)
+    return HcrError(f"cannot serve the simulator on {where}: {reason[:1].lower()}{reason[1:]}", hint=hint)
 
 
 def _serve(options: SimOptions, address: tuple[str, int] | None, stopper: Stopper) -> None:
