@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import signal
 import subprocess
 import time
 import tty
@@ -16,6 +15,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from helpers_cli import clean_env, hcrctl_exe
+from helpers_cli import sim_pty as cli_sim_pty
 
 __all__ = ["device_pty", "hcrctl_exe", "read_for", "read_until", "run", "sim_pty"]
 
@@ -39,23 +39,9 @@ def run(
     )
 
 
-@contextlib.contextmanager
-def sim_pty(*extra: str) -> Iterator[str]:
-    """``hcrctl sim --pty`` in a subprocess; yields the device path, stops it with SIGINT."""
-    proc = subprocess.Popen(
-        [hcrctl_exe(), "sim", "--pty", *extra], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
-    )
-    try:
-        path = proc.stdout.readline().strip()
-        assert path.startswith("/dev/"), (path, proc.stderr.read() if proc.poll() is not None else "")
-        yield path
-    finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=5)
+def sim_pty(*extra: str) -> contextlib.AbstractContextManager[str]:
+    """``hcrctl sim --pty`` in a subprocess, with no config file in the way; yields the device path."""
+    return cli_sim_pty(clean_env(NO_CONFIG), *extra)
 
 
 @contextlib.contextmanager

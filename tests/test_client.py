@@ -15,6 +15,7 @@ import pytest
 import serial
 from helpers_cli import clean_env, hcrctl_exe
 from helpers_cli import sim_pty as run_sim_pty
+from helpers_hex import device_pty
 
 from hcrctl import commands as C
 from hcrctl.client import Robot, Traffic
@@ -195,15 +196,8 @@ def test_works_over_a_serial_object_and_ignores_its_own_echo() -> None:
 @pytest.fixture
 def pty_pair() -> Iterator[tuple[int, str]]:
     """A raw pty: the test plays the device on the master side."""
-    import tty
-
-    master, slave = os.openpty()
-    tty.setraw(slave)
-    try:
-        yield master, os.ttyname(slave)
-    finally:
-        os.close(master)
-        os.close(slave)
+    with device_pty() as pair:
+        yield pair
 
 
 def test_frames_from_elsewhere_are_unsolicited_and_the_reply_still_matches(pty_pair: tuple[int, str]) -> None:
