@@ -169,6 +169,11 @@ class Velocity(Request):
     def from_content(cls, content: bytes) -> Request:
         _need(content, 3, "velocity")
         direction, a1, a2 = content
+        if direction & ~(DIR_MOTOR1 | DIR_MOTOR2):
+            raise ProtocolError(
+                f"velocity DIR 0x{direction:02X} sets bits other than 0x01 and 0x10 "
+                "(the content is DIR AS1 AS2; the document's examples print DIR last)"
+            )
         return cls(-a1 if direction & DIR_MOTOR1 else a1, -a2 if direction & DIR_MOTOR2 else a2)
 
 

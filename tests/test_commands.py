@@ -106,8 +106,11 @@ def test_velocity_signs_become_dir_bits_in_front(left: int, right: int, content:
 def test_velocity_uses_the_definitions_order_not_the_examples_dir_last() -> None:
     assert C.encode_request(C.Velocity(-30, 50)) == bytes.fromhex("55 AA 01 03 03 01 1E 32 57 0D 0A")
     assert C.Velocity(50, 50).content() == bytes.fromhex("00 32 32") != bytes.fromhex("32 32 00")
-    # The example's DIR-last bytes, read by the definition, are a different command altogether.
-    assert C.Velocity.from_content(bytes.fromhex("32 32 00")) == C.Velocity(50, 0)
+    # The example's DIR-last bytes, read by the definition, put 0x32 in DIR: bits the
+    # definition does not have, so decoding says so instead of guessing a speed.
+    with pytest.raises(ProtocolError, match="DIR 0x32 sets bits other than 0x01 and 0x10"):
+        C.Velocity.from_content(bytes.fromhex("32 32 00"))
+    assert C.Velocity.from_content(bytes.fromhex("11 1E 1E")) == C.Velocity(-30, -30)
 
 
 def test_turn_defaults_to_clockwise_at_full_rate() -> None:
