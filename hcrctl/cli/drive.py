@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from .. import commands as C
-from .params import FloatRange, request_value, table_command
+from .params import hold_option, request_value, table_command
 from .settings import Settings
 from .writes import describe, emit, hex_bytes, say, send_request, send_stop, sent_record, stopping
 
@@ -39,13 +39,7 @@ def drive() -> None:
 
 def _drive_command(name: str) -> click.Command:
     @table_command(name)
-    @click.option(
-        "--for",
-        "hold_for",
-        type=FloatRange(0, 86_400),
-        metavar="SECONDS",
-        help="Stop after SECONDS (default: hold until Ctrl-C).",
-    )
+    @hold_option()
     @click.pass_obj
     def command(settings: Settings, hold_for: float | None, **fields: Any) -> None:
         run_drive(settings, request_value(C.BY_NAME[name], fields), hold_for)

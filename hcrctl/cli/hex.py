@@ -23,7 +23,7 @@ from ..errors import ProtocolError
 from ..frames import ChecksumRule, Frame, decode_all
 from ..hexparse import STYLES, format_hex, parse_hex, parse_hex_args
 from .drive import DRIVE_COMMANDS
-from .params import FloatRange, NamedArgument, request_value, table_command
+from .params import NamedArgument, hold_option, request_value, table_command
 from .settings import Settings, stdout_is_terminal
 
 if TYPE_CHECKING:
@@ -242,13 +242,7 @@ def _traffic_row(frame: bytes, rule: ChecksumRule, direction: str) -> dict[str, 
 @click.option(
     "--force", is_flag=True, help="Send the bytes exactly as typed, even with a wrong checksum or end."
 )
-@click.option(
-    "--for",
-    "hold_for",
-    type=FloatRange(0, 86_400),
-    metavar="SECONDS",
-    help="For a motion frame: stop after SECONDS (default: hold until Ctrl-C), as drive does.",
-)
+@hold_option("For a motion frame: stop after SECONDS (default: hold until Ctrl-C), as drive does.")
 @json_option
 @click.pass_context
 def send(ctx: click.Context, hex_text: tuple[str, ...], force: bool, hold_for: float | None) -> None:

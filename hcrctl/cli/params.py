@@ -49,6 +49,15 @@ class FieldRange(IntRange):
         return self.info.range_text
 
 
+#: The longest motion hold: a day.
+MAX_HOLD_S = 86_400
+
+
+def hold_option(help: str = "Stop after SECONDS (default: hold until Ctrl-C).") -> Callable:
+    """``--for SECONDS``: how long a one-shot motion is held before stop (drive, hex send)."""
+    return click.option("--for", "hold_for", type=FloatRange(0, MAX_HOLD_S), metavar="SECONDS", help=help)
+
+
 def _parse_int(text: str) -> int | str:
     """Decimal, or 0x/0o/0b-prefixed; anything else is left for Click to refuse."""
     for base in (10, 0):
