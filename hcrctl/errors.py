@@ -56,6 +56,11 @@ class ImpossibleReply(ProtocolError):
         """The same error, saying where the reply came from (``from 0x01 on /dev/ttyUSB0``)."""
         return ImpossibleReply(self.field, self.raw, self.shown, self.expected, self.value, where)
 
+    @property
+    def short(self) -> str:
+        """``out of range: compass 0xFFFF (6553.5°)``: the mark a live panel puts on the value."""
+        return f"out of range: {self.field} 0x{self.raw.hex().upper()} ({self.shown})"
+
     def detail(self) -> dict[str, str]:
         """The JSON shape a debugger adds to a flagged frame."""
         return {
@@ -145,6 +150,14 @@ class HexSyntaxError(HcrError):
 
 class FrameRefused(HcrError):
     """A typed frame whose checksum, terminator or length is wrong; ``--force`` sends it anyway."""
+
+
+class LogIncomplete(HcrError):
+    """A ``--log`` write failed (a full disk): the robot work went on, the log stops there."""
+
+    def __init__(self, path: str, reason: str) -> None:
+        super().__init__(f"the log {path} is incomplete: {reason}")
+        self.path, self.reason = path, reason
 
 
 class LogFormatError(HcrError):
