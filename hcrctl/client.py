@@ -219,7 +219,7 @@ class Robot:
             frames = {}
             for key, item in batch.items():
                 frames.update(self._exchange({key: item}))
-                if key not in frames and self.rx_bytes == 0:
+                if key not in frames and self.rx_bytes == 0 and len(cmds) > 1:
                     silent = self._silent(cmds, addr)
                     break
         return {cmd.name: self._result(cmd, addr, frames.get((addr, cmd.code)), silent) for cmd in cmds}

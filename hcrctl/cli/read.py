@@ -34,6 +34,9 @@ def read(settings: Settings, sensors: tuple[str, ...]) -> None:
         results = robot.sweep(names)
     _print(settings, results)
     errors = {name: r for name, r in results.items() if isinstance(r, HcrError)}
+    causes = {id(e): e for e in errors.values()}
+    if len(causes) == 1:
+        raise next(iter(causes.values()))  # its own type, for --debug and the shell
     if errors:
         raise SensorsFailed(errors)
 
