@@ -24,7 +24,15 @@ from dataclasses import dataclass
 from typing import Any
 
 from . import commands as C
-from .errors import DeviceRefused, DeviceTimeout, HcrError, PortError, ProtocolError
+from .errors import (
+    DeviceRefused,
+    DeviceSilent,
+    DeviceTimeout,
+    HcrError,
+    ImpossibleReply,
+    PortError,
+    ProtocolError,
+)
 from .frames import BadChecksum, ChecksumRule, Event, Frame, FrameDecoder, Junk, Malformed, Truncated
 
 #: How long the reader blocks in one read; bounds how fast close() returns.
@@ -106,6 +114,9 @@ class Robot:
         self.stats = LinkStats()
         self.unsolicited: queue.Queue[Frame] = queue.Queue(UNSOLICITED_BACKLOG)
         self.moved = False
+        #: Bytes of any kind received since the port opened: zero after a timeout
+        #: means a silent line (no power, wrong port), not a lost reply.
+        self.rx_bytes = 0
         #: When the reader decoded the latest awaited reply (monotonic): a round
         #: trip measured to here is the link's, not the waiting thread's wake-up.
         self.last_reply_at: float | None = None
@@ -175,7 +186,7 @@ class Robot:
             self.write(frame)
             return None
         reply = self.transact(frame, (self._address(address), cmd.code), cmd.name)
-        return cmd.reply.from_content(reply.content)
+        return cmd.reply.decode(reply.content)
 
     def read(self, sensor: str | C.Command, *, address: int | None = None) -> C.Reply:
         """Read one sensor by table name (``compass``) or table row."""
@@ -201,19 +212,35 @@ class Robot:
         addr = self._address(address)
         cmds = [self._sensor(s) for s in dict.fromkeys(sensors)]
         batch = {(addr, cmd.code): (C.encode_request(cmd, addr, self._rule), cmd.name) for cmd in cmds}
+        silent: DeviceSilent | None = None
         if pipeline:
             frames = self._exchange(batch)
         else:
             frames = {}
             for key, item in batch.items():
                 frames.update(self._exchange({key: item}))
-        return {cmd.name: self._result(cmd, addr, frames.get((addr, cmd.code))) for cmd in cmds}
+                if key not in frames and self.rx_bytes == 0 and len(cmds) > 1:
+                    silent = self._silent(cmds, addr)
+                    break
+        return {cmd.name: self._result(cmd, addr, frames.get((addr, cmd.code)), silent) for cmd in cmds}
 
-    def _result(self, cmd: C.Command, addr: int, frame: Frame | None) -> C.Reply | HcrError:
+    def _silent(self, cmds: list[C.Command], addr: int) -> DeviceSilent:
+        """Nothing at all has come back: asking the other sensors would only wait longer."""
+        first, *rest = cmds
+        attempts = 1 + max(self.retries, 0)
+        return DeviceSilent(first.name, addr, self.port, self.timeout, attempts, [c.name for c in rest])
+
+    def _result(
+        self, cmd: C.Command, addr: int, frame: Frame | None, silent: DeviceSilent | None = None
+    ) -> C.Reply | HcrError:
         if frame is None:
+            if silent is not None:
+                return silent
             return DeviceTimeout(cmd.name, addr, self.port, self.timeout, 1 + max(self.retries, 0))
         try:
-            return cmd.reply.from_content(frame.content)
+            return cmd.reply.decode(frame.content)
+        except ImpossibleReply as exc:
+            return exc.at(f"from 0x{addr:02X} on {self.port}")
         except ProtocolError as exc:
             return ProtocolError(f"{exc.message} from 0x{addr:02X} on {self.port}")
 
@@ -305,6 +332,7 @@ class Robot:
                     self._lost(exc)
                 return
             if data:
+                self.rx_bytes += len(data)
                 self._dispatch(self._decoder.feed(data))
 
     def _dispatch(self, events: list[Event]) -> None:

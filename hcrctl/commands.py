@@ -6,8 +6,10 @@ the hex decoder's field annotations and the simulator's dispatch. Adding a
 command is one dataclass pair and one ``Command`` entry.
 
 Request values validate their ranges on construction, so an out-of-range value
-can never reach the wire. Reply values never validate: a device may send
-anything, and a debugger must still show it.
+can never reach the wire. Reply values are built from whatever a device sends
+(``from_content``), and ``Reply.decode`` then holds them to the same declared
+ranges: a compass of 0xFFFF parses, but it raises ``ImpossibleReply`` rather
+than become a reading. A debugger catches that and flags the frame.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from .errors import ProtocolError, RangeError
+from .errors import ImpossibleReply, ProtocolError, RangeError
 from .frames import ChecksumRule, encode
 
 READ_REQUEST = b"\xff"
@@ -25,9 +27,23 @@ MAIN_CONTROLLER = 0x01
 FIRST_STATION = 0x50
 
 
-def spec(lo: float, hi: float, unit: str, help: str, default: Any = dataclasses.MISSING) -> Any:
-    """A dataclass field that carries its range, unit and help text."""
-    meta = {"lo": lo, "hi": hi, "unit": unit, "help": help}
+def spec(
+    lo: float,
+    hi: float,
+    unit: str,
+    help: str,
+    default: Any = dataclasses.MISSING,
+    *,
+    count: tuple[int, int] | None = None,
+    bits: int | None = None,
+) -> Any:
+    """A dataclass field that carries its range, unit and help text.
+
+    Reply fields may also declare ``count`` (how many readings a one-byte-per-
+    sensor list may hold) and ``bits`` (the only bits a flag byte may set),
+    the two things a range of values cannot say.
+    """
+    meta = {"lo": lo, "hi": hi, "unit": unit, "help": help, "count": count, "bits": bits}
     return field(default=default, metadata=meta)
 
 
@@ -42,6 +58,8 @@ class FieldInfo:
     help: str
     default: Any = None
     is_flag: bool = False
+    count: tuple[int, int] | None = None
+    bits: int | None = None
 
     @property
     def range_text(self) -> str:
@@ -60,7 +78,15 @@ def fields_of(cls: type) -> tuple[FieldInfo, ...]:
         is_flag = isinstance(default, bool)
         out.append(
             FieldInfo(
-                f.name, m.get("lo", 0), m.get("hi", 0), m.get("unit", ""), m.get("help", ""), default, is_flag
+                f.name,
+                m.get("lo", 0),
+                m.get("hi", 0),
+                m.get("unit", ""),
+                m.get("help", ""),
+                default,
+                is_flag,
+                m.get("count"),
+                m.get("bits"),
             )
         )
     return tuple(out)
@@ -95,7 +121,19 @@ class Reply:
     CODE: ClassVar[int]
 
     @classmethod
+    def decode(cls, content: bytes) -> Reply:
+        """The one way device bytes become a reading: parse, then hold to the table's ranges.
+
+        Raises ``ProtocolError`` when the bytes do not parse and its subclass
+        ``ImpossibleReply`` when they parse to a value the field cannot have.
+        """
+        value = cls.from_content(content)
+        check_reply(value, content)
+        return value
+
+    @classmethod
     def from_content(cls, content: bytes) -> Reply:
+        """The value as sent, unchecked: ``decode`` is what callers use."""
         raise NotImplementedError
 
     def content(self) -> bytes:
@@ -103,6 +141,59 @@ class Reply:
 
     def fields(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
+
+
+def check_reply(value: Reply, content: bytes) -> None:
+    """Raise ``ImpossibleReply`` for the first field outside its declared range.
+
+    A reply of one field owns the whole content and is named by its command
+    (``compass``); a reply of several fields carries one byte per field, in
+    order, and each is named by its field (``humidity``).
+    """
+    infos = fields_of(type(value))
+    for index, info in enumerate(infos):
+        what = name_of(value.CODE) if len(infos) == 1 else info.name
+        raw = content if len(infos) == 1 else content[index : index + 1]
+        _check_field(what, info, getattr(value, info.name), raw)
+
+
+def _check_field(what: str, info: FieldInfo, value: Any, raw: bytes) -> None:
+    if info.bits is not None:
+        extra = int.from_bytes(raw, "big") & ~info.bits
+        if extra:
+            raise ImpossibleReply(what, raw, _bits_text(extra, "set"), _bits_text(info.bits), value)
+        return
+    items = value if isinstance(value, tuple) else (value,)
+    if info.count is not None and not info.count[0] <= len(items) <= info.count[1]:
+        lo, hi = info.count
+        shown = f"{len(items)} reading{'s' if len(items) != 1 else ''}"
+        raise ImpossibleReply(f"{what} length", bytes((len(raw),)), shown, f"{lo}-{hi} readings", value)
+    for i, item in enumerate(items):
+        if isinstance(item, bool) or info.lo <= item <= info.hi:
+            continue
+        item_raw = raw[i : i + 1] if isinstance(value, tuple) else raw
+        shown, expected = with_unit(item, info.unit), f"{info.lo}-{with_unit(info.hi, info.unit)}"
+        raise ImpossibleReply(what, item_raw, shown, expected, item)
+
+
+def with_unit(value: float, unit: str) -> str:
+    """``6553.5°``, ``255 %``: a value as a person reads it, degrees written as a sign."""
+    if unit == "deg":
+        return f"{value}°"
+    return f"{value} {unit}" if unit else str(value)
+
+
+def _bits_text(mask: int, verb: str = "") -> str:
+    """``bits 3-7 set``, ``bits 0-2``, ``bit 1``: the bits of a mask, as ranges."""
+    bits = [b for b in range(mask.bit_length()) if mask >> b & 1]
+    runs: list[list[int]] = []
+    for b in bits:
+        if runs and runs[-1][-1] == b - 1:
+            runs[-1].append(b)
+        else:
+            runs.append([b])
+    text = ", ".join(str(r[0]) if len(r) == 1 else f"{r[0]}-{r[-1]}" for r in runs)
+    return f"bit{'s' if len(bits) != 1 else ''} {text}" + (f" {verb}" if verb else "")
 
 
 def _need(content: bytes, size: int, what: str) -> None:
@@ -252,7 +343,7 @@ BUMPER_NAMES = ("left", "front", "right")
 @dataclass(frozen=True)
 class Bumpers(Reply):
     CODE: ClassVar[int] = 0x11
-    bump: tuple[bool, bool, bool] = spec(0, 1, "", "bumpers 1-3, true when hit")
+    bump: tuple[bool, bool, bool] = spec(0, 1, "", "bumpers 1-3, true when hit", bits=0x07)
 
     @classmethod
     def from_content(cls, content: bytes) -> Reply:
@@ -264,6 +355,12 @@ class Bumpers(Reply):
 
     def fields(self) -> dict[str, Any]:
         return {"bump": list(self.bump)}
+
+
+#: The most sensors of one kind a list reply may carry. The document's defaults
+#: are 5 IR and 3 ultrasonic, the published firmware has 7 IR; 8 is a byte's
+#: worth, and a 16-byte "IR reply" is a grid map under the wrong command.
+MAX_SENSORS = 8
 
 
 @dataclass(frozen=True)
@@ -289,14 +386,16 @@ class _ByteList(Reply):
 class Infrared(_ByteList):
     CODE: ClassVar[int] = 0x12
     KEY: ClassVar[str] = "ir"
-    ir: tuple[int, ...] = spec(0, 255, "raw", "IR readings, raw bytes (units unspecified)")
+    ir: tuple[int, ...] = spec(
+        0, 255, "raw", "IR readings, raw bytes (units unspecified)", count=(1, MAX_SENSORS)
+    )
 
 
 @dataclass(frozen=True)
 class Ultrasonic(_ByteList):
     CODE: ClassVar[int] = 0x13
     KEY: ClassVar[str] = "sonar"
-    sonar: tuple[int, ...] = spec(0, 255, "cm", "ultrasonic distances")
+    sonar: tuple[int, ...] = spec(0, 255, "cm", "ultrasonic distances", count=(1, MAX_SENSORS))
 
 
 @dataclass(frozen=True)
@@ -352,7 +451,7 @@ class Environment(Reply):
 @dataclass(frozen=True)
 class PidAck(Reply):
     CODE: ClassVar[int] = 0x21
-    ok: bool = spec(0, 1, "", "0x01 set, 0x00 failed")
+    ok: bool = spec(0, 1, "", "0x01 set, 0x00 failed", bits=0x01)
 
     @classmethod
     def from_content(cls, content: bytes) -> Reply:
@@ -544,7 +643,11 @@ def is_request(code: int, content: bytes, direction: str | None = None) -> bool:
 
 
 def decode_fields(code: int, content: bytes, direction: str | None = None) -> dict[str, Any]:
-    """The named fields of any frame, for display; raises ProtocolError if they don't parse."""
+    """The named fields of any frame, for display.
+
+    Raises ProtocolError if they don't parse, and ImpossibleReply (a
+    ProtocolError) if a reply's value is outside its field's range.
+    """
     cmd = BY_CODE.get(code)
     if cmd is None:
         raise ProtocolError(f"unknown command 0x{code:02X}")
@@ -555,7 +658,7 @@ def decode_fields(code: int, content: bytes, direction: str | None = None) -> di
         return dataclasses.asdict(value)
     if cmd.reply is None:
         raise ProtocolError(f"{cmd.name} has no reply")
-    return cmd.reply.from_content(content).fields()
+    return cmd.reply.decode(content).fields()
 
 
 def encode_request(

@@ -36,6 +36,41 @@ class ProtocolError(HcrError):
     """A frame arrived but could not be understood (bad payload, bad length)."""
 
 
+class ImpossibleReply(ProtocolError):
+    """A reply that parses to a value its field cannot have (compass 0xFFFF = 6553.5°).
+
+    It is never shown or returned as a reading. ``field`` names it as a person
+    would (``compass``, ``humidity``), ``raw`` holds its bytes as sent,
+    ``shown`` what it would have read as, ``expected`` the declared range and
+    ``value`` the decoded number, for a debugger that flags the frame.
+    """
+
+    def __init__(
+        self, field: str, raw: bytes, shown: str, expected: str, value: object = None, where: str = ""
+    ) -> None:
+        text = f"out of range: {field} 0x{raw.hex().upper()} ({shown}), expected {expected}"
+        super().__init__(f"{text} {where}" if where else text)
+        self.field, self.raw, self.shown, self.expected, self.value = field, raw, shown, expected, value
+
+    def at(self, where: str) -> ImpossibleReply:
+        """The same error, saying where the reply came from (``from 0x01 on /dev/ttyUSB0``)."""
+        return ImpossibleReply(self.field, self.raw, self.shown, self.expected, self.value, where)
+
+    @property
+    def short(self) -> str:
+        """``out of range: compass 0xFFFF (6553.5°)``: the mark a live panel puts on the value."""
+        return f"out of range: {self.field} 0x{self.raw.hex().upper()} ({self.shown})"
+
+    def detail(self) -> dict[str, str]:
+        """The JSON shape a debugger adds to a flagged frame."""
+        return {
+            "field": self.field,
+            "raw": self.raw.hex(" ").upper(),
+            "shown": self.shown,
+            "expected": self.expected,
+        }
+
+
 class DeviceTimeout(HcrError):
     """No reply within the timeout, after every retry."""
 
@@ -46,6 +81,45 @@ class DeviceTimeout(HcrError):
             hint="check the baud rate, the address and that the robot is powered",
         )
         self.command, self.address, self.port = command, address, port
+
+
+class DeviceSilent(DeviceTimeout):
+    """Not one byte came back while the first sensor was asked, so the rest were not asked.
+
+    Asking them would only wait out every timeout in turn (9 s for a whole
+    ``read``) to learn nothing more. ``skipped`` names them.
+    """
+
+    def __init__(
+        self, command: str, address: int, port: str, timeout: float, attempts: int, skipped: list[str]
+    ) -> None:
+        super().__init__(command, address, port, timeout, attempts)
+        self.seconds, self.skipped = timeout * attempts, skipped
+        rest = f": {', '.join(skipped)} not asked" if skipped else ""
+        self.message += f"; no byte from the device in {self.seconds:g} s{rest}"
+
+
+class SensorsFailed(HcrError):
+    """Some sensors of a read gave no reading; those that did were shown already.
+
+    One cause (one error, or one silent line for all of them) is said as
+    itself, hint and all; plain timeouts are said once for all the sensors
+    that timed out; anything else is joined on the one line, sensor by sensor.
+    """
+
+    def __init__(self, errors: dict[str, HcrError]) -> None:
+        causes = list({id(e): e for e in errors.values()}.values())
+        timeouts = [e for e in causes if type(e) is DeviceTimeout]
+        if len(timeouts) > 1:
+            names = ", ".join(e.command for e in timeouts)
+            together = timeouts[0].message.replace(timeouts[0].command, names, 1)
+            causes = [HcrError(together, timeouts[0].hint)] + [e for e in causes if e not in timeouts]
+        hint = next((e.hint for e in causes if e.hint), None)
+        if len(causes) == 1:
+            super().__init__(causes[0].message, hint=hint)
+        else:
+            super().__init__("; ".join(e.message for e in causes), hint=hint)
+        self.errors = errors
 
 
 class DeviceRefused(HcrError):
@@ -76,6 +150,14 @@ class HexSyntaxError(HcrError):
 
 class FrameRefused(HcrError):
     """A typed frame whose checksum, terminator or length is wrong; ``--force`` sends it anyway."""
+
+
+class LogIncomplete(HcrError):
+    """A ``--log`` write failed (a full disk): the robot work went on, the log stops there."""
+
+    def __init__(self, path: str, reason: str) -> None:
+        super().__init__(f"the log {path} is incomplete: {reason}")
+        self.path, self.reason = path, reason
 
 
 class LogFormatError(HcrError):

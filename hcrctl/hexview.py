@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from . import commands as C
-from .errors import ProtocolError
+from .errors import ImpossibleReply, ProtocolError
 from .frames import HEADER, BadChecksum, ChecksumRule, Event, Frame, Junk, Malformed, Truncated, checksum
 
 if TYPE_CHECKING:
@@ -66,7 +66,9 @@ def frame_dict(
         try:
             out["fields"] = C.decode_fields(command, content, direction)
         except ProtocolError as exc:
-            out["error"] = exc.message
+            out["error"] = exc.message  # an impossible value is flagged, never shown as a field
+            if isinstance(exc, ImpossibleReply):
+                out["out_of_range"] = exc.detail()
     return out
 
 

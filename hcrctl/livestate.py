@@ -41,6 +41,9 @@ class Reading:
     at: float | None = None  # monotonic time of the last good value
     failed_at: float | None = None
     error: str = ""
+    #: The latest try answered a value outside the table's range (``error`` says
+    #: which): a panel marks it, and shows only the last good value, dimmed.
+    impossible: bool = False
 
     @property
     def stale(self) -> bool:
@@ -52,8 +55,8 @@ class Reading:
     def ok(self, value: C.Reply, now: float) -> Reading:
         return Reading(value, now)
 
-    def failed(self, error: str, now: float) -> Reading:
-        return Reading(self.value, self.at, now, error)
+    def failed(self, error: str, now: float, impossible: bool = False) -> Reading:
+        return Reading(self.value, self.at, now, error, impossible)
 
 
 @dataclass
@@ -156,11 +159,11 @@ class LiveState:
             self._set_status_locked("ok" if self._status in ("connecting", "no reply") else self._status)
             self._bump(changed)
 
-    def fail(self, name: str, error: str, *, timeout: bool = True) -> None:
-        """A failed read: the old value stays, marked stale."""
+    def fail(self, name: str, error: str, *, timeout: bool = True, impossible: bool = False) -> None:
+        """A failed read: the old value stays, marked stale (and out of range if ``impossible``)."""
         now = self.clock()
         with self._lock:
-            self._readings[name] = self._readings[name].failed(error, now)
+            self._readings[name] = self._readings[name].failed(error, now, impossible)
             if timeout:
                 self._counters.timeouts += 1
                 self._silent += 1
@@ -185,7 +188,7 @@ class LiveState:
         with self._lock:
             self._counters.unsolicited += 1
             try:
-                value = cmd.reply.from_content(frame.content) if cmd and cmd.kind == "broadcast" else None
+                value = cmd.reply.decode(frame.content) if cmd and cmd.kind == "broadcast" else None
             except ProtocolError:
                 self._counters.bad_replies += 1
                 value = None

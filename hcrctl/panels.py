@@ -15,6 +15,7 @@ from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
 from rich.console import Console, ConsoleOptions, Group, RenderableType, RenderResult
 from rich.panel import Panel
 from rich.segment import Segment
+from rich.styled import Styled
 from rich.text import Text
 
 from . import commands as C
@@ -72,6 +73,8 @@ def sensor_panel(name: str, body: RenderableType, reading: Reading, now: float, 
     title = title or PANEL_TITLES.get(name, C.BY_NAME[name].title if name in C.BY_NAME else name)
     if not reading.stale:
         return Panel(body, title=title, title_align="left", border_style="cyan")
+    if reading.impossible:
+        return _out_of_range_panel(body, title, reading, now)
     why = f" · {reading.error}" if reading.error else ""
     age = reading.age(now)
     subtitle = (
@@ -80,8 +83,20 @@ def sensor_panel(name: str, body: RenderableType, reading: Reading, now: float, 
     return Panel(body, title=title, title_align="left", subtitle=subtitle, border_style="dim", style="dim")
 
 
+def _out_of_range_panel(body: RenderableType, title: str, reading: Reading, now: float) -> Panel:
+    """The latest reply cannot be true: say so in red; only the last good value shows, dimmed."""
+    mark = Text(f"✗ {reading.error}", style="bold red")
+    age = reading.age(now)
+    if reading.value is not None:
+        body = Group(Styled(body, "dim"), mark)
+    subtitle = f"[yellow]last good {age_text(age)} old[/]" if age is not None else None
+    return Panel(body, title=title, title_align="left", subtitle=subtitle, border_style="red")
+
+
 def waiting(reading: Reading) -> Text:
     """Shown before any value has arrived: never an empty panel."""
+    if reading.impossible:
+        return Text(f"✗ {reading.error}", style="bold red")
     return Text("no reply yet" if reading.stale else "waiting…", style="dim italic")
 
 

@@ -26,7 +26,7 @@ from collections.abc import Callable
 
 from . import commands as C
 from .client import Robot
-from .errors import DeviceTimeout, HcrError, PortError
+from .errors import DeviceTimeout, HcrError, ImpossibleReply, PortError
 from .livestate import LiveState
 
 #: Seconds between attempts to reopen a port that disappeared.
@@ -138,6 +138,8 @@ class Poller(threading.Thread):
             self.state.fail(name, "no reply")
         elif isinstance(result, PortError):
             raise result
+        elif isinstance(result, ImpossibleReply):
+            self.state.fail(name, result.short, timeout=False, impossible=True)
         elif isinstance(result, HcrError):
             self.state.fail(name, result.message, timeout=False)
         else:

@@ -11,6 +11,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from . import commands as C
+from .errors import DeviceSilent, HcrError
 
 if TYPE_CHECKING:
     from rich.table import Table
@@ -46,8 +47,26 @@ def _unit(reply: C.Reply, name: str) -> str:
     return next((f.unit for f in C.fields_of(type(reply)) if f.name == name), "")
 
 
-def reading_rows(name: str, reply: C.Reply) -> list[tuple[str, str]]:
-    """(label, value with units) rows for one sensor reply."""
+#: Marks a sensor that gave no reading, in place of its value.
+FAILED = "✗"
+
+#: A read's outcome per sensor: the reply, or why there is none.
+Result = C.Reply | HcrError
+
+
+def failure_text(name: str, error: HcrError) -> str:
+    """Why ``name`` has no reading; a sensor skipped on a silent line says so."""
+    if isinstance(error, DeviceSilent) and name in error.skipped:
+        return f"not asked: no byte from the device in {error.seconds:g} s"
+    return error.message
+
+
+def reading_rows(name: str, reply: Result) -> list[tuple[str, str]]:
+    """(label, value with units) rows for one sensor reply; a failure is one marked row."""
+    if isinstance(reply, HcrError):
+        return [
+            (C.BY_NAME[name].title if name in C.BY_NAME else name, f"{FAILED} {failure_text(name, reply)}")
+        ]
     if isinstance(reply, C.Bumpers):
         return [("bumpers", bumper_text(reply.bump))]
     if isinstance(reply, C.Infrared):
@@ -68,8 +87,8 @@ def reading_rows(name: str, reply: C.Reply) -> list[tuple[str, str]]:
     return [(name, str(reply.fields()))]
 
 
-def readings_table(readings: dict[str, C.Reply], *, borders: bool = True) -> Table:
-    """One table of sensor readings; borderless and headerless for pipes and scripts."""
+def readings_table(readings: dict[str, Result], *, borders: bool = True) -> Table:
+    """One table of sensor readings, failures in red; borderless and headerless for pipes."""
     from rich import box
     from rich.table import Table
 
@@ -77,24 +96,33 @@ def readings_table(readings: dict[str, C.Reply], *, borders: bool = True) -> Tab
     table.add_column("sensor", style="bold cyan")
     table.add_column("value")
     for name, reply in readings.items():
+        style = "red" if isinstance(reply, HcrError) else None
         for label, value in reading_rows(name, reply):
-            table.add_row(label, value)
+            table.add_row(label, value, style=style)
     return table
 
 
-def readings_text(readings: dict[str, C.Reply]) -> str:
+def readings_text(readings: dict[str, Result]) -> str:
     """The readings as aligned plain lines, for pipes: no colour, no padding at line ends."""
     rows = [row for name, reply in readings.items() for row in reading_rows(name, reply)]
     width = max((len(label) for label, _ in rows), default=0)
     return "\n".join(f"{label:<{width}}  {value}".rstrip() for label, value in rows)
 
 
-def readings_json(readings: dict[str, C.Reply]) -> dict[str, Any]:
-    """The ``read --json`` object: the replies' fields, merged.
+def readings_json(readings: dict[str, Result]) -> dict[str, Any]:
+    """The ``read --json`` object: the replies' fields, merged, and ``errors`` if any failed.
 
-    Keys: bump, ir, sonar, heading, wheels, humidity, temperature.
+    Keys: bump, ir, sonar, heading, wheels, humidity, temperature; a sensor
+    with no reading has no key of its own but one in ``errors`` (name: why),
+    so a script never takes a missing value for a reading.
     """
     out: dict[str, Any] = {}
-    for reply in readings.values():
-        out.update(reply.fields())
+    errors: dict[str, str] = {}
+    for name, reply in readings.items():
+        if isinstance(reply, HcrError):
+            errors[name] = failure_text(name, reply)
+        else:
+            out.update(reply.fields())
+    if errors:
+        out["errors"] = errors
     return out

@@ -7,11 +7,17 @@ flushed one by one, so a crash or a ``kill -9`` loses nothing already seen;
 the file is opened for appending, so several sessions build one history.
 ``monitor --from`` and ``replay`` read it back with ``read_log``. The log
 is one of ``Robot``'s traffic hooks, beside a monitor and the shell's toolbar.
+
+A write that fails (a full disk) must neither stop the robot's work nor
+pass unnoticed: the log says so at once on one stderr line, stops writing,
+and ``incomplete()`` lets the CLI's error mapper make the exit status 1.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
+import sys
 import threading
 import weakref
 from collections.abc import Callable, Iterator
@@ -19,7 +25,7 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import TYPE_CHECKING, Any
 
-from .errors import LogFormatError
+from .errors import LogFormatError, LogIncomplete
 from .frames import ChecksumRule, decode_all
 from .hexview import event_dict, hexs
 
@@ -27,6 +33,16 @@ if TYPE_CHECKING:
     from .client import Robot, Traffic
 
 LOG_HINT = "give a file written by hcrctl --log"
+
+#: Every log of this process that lost a write, for the exit status.
+_INCOMPLETE: list[LogIncomplete] = []
+_INCOMPLETE_LOCK = threading.Lock()
+
+
+def incomplete() -> list[LogIncomplete]:
+    """The logs of this process that could not write everything (said on stderr already)."""
+    with _INCOMPLETE_LOCK:
+        return list(_INCOMPLETE)
 
 
 def iso_time(t: float) -> str:
@@ -69,16 +85,34 @@ class TrafficLog:
         return self._rule() if callable(self._rule) else self._rule
 
     def __call__(self, traffic: Traffic) -> None:
+        """Append one line; never raises, as it runs in the reader thread and before stop goes out."""
         line = json.dumps(record(traffic, self.rule), ensure_ascii=False) + "\n"
         with self._lock:
             if self._file.closed:
                 return
-            self._file.write(line)
-            self._file.flush()
+            try:
+                self._file.write(line)
+                self._file.flush()
+            except OSError as exc:
+                self._give_up(exc)
 
     def close(self) -> None:
         with self._lock:
-            self._file.close()
+            try:
+                self._file.close()
+            except OSError as exc:
+                self._give_up(exc)
+
+    def _give_up(self, exc: OSError) -> None:
+        """Say once, at once, that the log is incomplete, and write no more (lock held)."""
+        error = LogIncomplete(self.path, exc.strerror or str(exc))
+        with contextlib.suppress(OSError):
+            self._file.close()  # the failed bytes stay in its buffer: dropping them is the point
+        with _INCOMPLETE_LOCK:
+            _INCOMPLETE.append(error)
+        with contextlib.suppress(OSError, ValueError):
+            sys.stderr.write(f"hcrctl: error: {error.one_line()}\n")
+            sys.stderr.flush()
 
 
 def attach(robot: Robot, path: str) -> TrafficLog:

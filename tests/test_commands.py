@@ -177,11 +177,11 @@ def test_a_read_request_accepts_length_zero_and_refuses_other_content() -> None:
 #: The documented content of every reply; the table's keys must be exactly the table's replies.
 REPLY_CONTENTS: dict[type[C.Reply], st.SearchStrategy[bytes]] = {
     C.Bumpers: st.integers(0, 7).map(lambda b: bytes((b,))),
-    C.Infrared: st.binary(min_size=1, max_size=255),
-    C.Ultrasonic: st.binary(min_size=1, max_size=255),
-    C.Compass: st.binary(min_size=2, max_size=2),
+    C.Infrared: st.binary(min_size=1, max_size=C.MAX_SENSORS),
+    C.Ultrasonic: st.binary(min_size=1, max_size=C.MAX_SENSORS),
+    C.Compass: st.integers(0, 3599).map(lambda t: t.to_bytes(2, "big")),
     C.WheelSpeed: st.binary(min_size=2, max_size=2),
-    C.Environment: st.binary(min_size=2, max_size=2),
+    C.Environment: st.tuples(st.integers(0, 100), st.integers(0, 255)).map(bytes),
     C.PidAck: st.sampled_from([b"\x00", b"\x01"]),
     C.Position: st.binary(min_size=4, max_size=4),
     C.GridMap: st.binary(min_size=C.MAP_ROWS, max_size=C.MAP_ROWS),

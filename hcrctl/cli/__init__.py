@@ -140,7 +140,15 @@ def main(argv: list[str] | None = None) -> None:
         if debug and isinstance(exc, Exception) and not isinstance(exc, click.ClickException):
             raise
         code = exit_code_for(exc)
-    sys.exit(code if isinstance(code, int) else 0)
+    sys.exit(with_log_status(code if isinstance(code, int) else 0))
+
+
+def with_log_status(code: int) -> int:
+    """1 instead of success when a --log lost a write: said at once on stderr, the status says it too."""
+    trafficlog = sys.modules.get("hcrctl.trafficlog")  # never imported: no log was written
+    if code == 0 and trafficlog is not None and trafficlog.incomplete():
+        return 1
+    return code
 
 
 def config_defaults() -> dict[str, Any]:
