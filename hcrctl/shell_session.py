@@ -15,7 +15,7 @@ import click
 
 from .errors import HcrError
 from .frames import Frame
-from .shell_broadcasts import Collapser
+from .shell_broadcasts import Broadcasts
 from .shell_link import Link
 
 if TYPE_CHECKING:
@@ -30,14 +30,17 @@ class Session:
     def __init__(self, settings: Settings, *, interactive: bool) -> None:
         self.settings = settings
         self.interactive = interactive
-        self.broadcasts = Collapser()
+        self.broadcasts = Broadcasts()
         self.link = Link(settings, on_frame=self._unsolicited, on_event=self.say)
-        self.monitor = interactive  # print unsolicited frames; scripts stay quiet unless asked
+        #: What unsolicited frames print (see shell_broadcasts.MODES); scripts stay quiet unless asked.
+        self.monitor = "changes" if interactive else "off"
         self.hex_mode = False
         self.done = False
         self.stop_note: str | None = None  # the toolbar's "stop sent" notice
         #: Where asynchronous lines go; None while a command owns the terminal.
         self.printer: Printer | None = None
+        #: ``moves.hcr:3`` while a script line runs: errors start with it.
+        self.where: str | None = None
         self._held: list[str] = []  # notices that came while a command owned the terminal
         self._say_lock = threading.Lock()
 
@@ -81,9 +84,12 @@ class Session:
             printer(text)
 
     def _unsolicited(self, frame: Frame) -> None:
-        line = self.broadcasts.offer(frame)
+        news = self.broadcasts.offer(frame)
         printer = self.printer
-        if line is not None and self.monitor and printer is not None:
+        if printer is None:
+            return
+        line = self.broadcasts.line_for(frame, news, self.monitor)
+        if line is not None:
             printer(line)
 
     # -- safety ----------------------------------------------------------------
