@@ -128,7 +128,7 @@ def link_fragments(session: Session) -> Fragments:
     """
     link, settings = session.link, session.settings
     state = link.state
-    retrying = state == "disconnected" and link.reconnect_error and link.reconnects
+    retrying = state == "disconnected" and link.reconnect_error and link.auto
     shown_state = "disconnected, retrying" if retrying else state
     if state == "disconnected" and not link.auto:
         shown_state = "disconnected (connect reconnects)"
