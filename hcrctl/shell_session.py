@@ -41,7 +41,10 @@ class Session:
         self.printer: Printer | None = None
         #: ``moves.hcr:3`` while a script line runs: errors start with it.
         self.where: str | None = None
-        self._held: list[str] = []  # notices that came while a command owned the terminal
+        self._held: list[str] = []
+        self._news: list[
+            Frame
+        ] = []  # stations first heard while no prompt could print them  # notices that came while a command owned the terminal
         self._say_lock = threading.Lock()
 
     # -- the prompt --------------------------------------------------------
@@ -76,18 +79,31 @@ class Session:
             click.echo(f"hcrctl: {text}", err=True)
 
     def attach(self, printer: Printer) -> None:
-        """The prompt is back: print the notices held meanwhile, then print as they come."""
+        """The prompt is back: print the notices and news held meanwhile, then print as they come."""
         with self._say_lock:
             held, self._held = self._held, []
+            news, self._news = self._news, []
             self.printer = printer
         for text in held:
             printer(text)
+        for frame in news:
+            line = self.broadcasts.line_for(frame, True, self.monitor)
+            if line is not None:
+                printer(line)
 
     def _unsolicited(self, frame: Frame) -> None:
+        """From the reader thread: count it; print it if the monitor mode says so.
+
+        A station first heard while a command owns the terminal (or before the
+        first prompt) is announced at the next prompt, not lost.
+        """
         news = self.broadcasts.offer(frame)
-        printer = self.printer
-        if printer is None:
-            return
+        with self._say_lock:
+            printer = self.printer
+            if printer is None:
+                if news and self.interactive:
+                    self._news.append(frame)
+                return
         line = self.broadcasts.line_for(frame, news, self.monitor)
         if line is not None:
             printer(line)
