@@ -80,31 +80,42 @@ class _Prompts:
         toolbar = _toolbar(session)
         common: dict[str, Any] = {"bottom_toolbar": toolbar, "refresh_interval": REFRESH}
         common |= {"key_bindings": keys, "style": style}
+        histories = _histories("history", "hex_history")
         self.commands = PromptSession(
-            history=_history("history"),
+            history=histories[0],
             completer=ShellCompleter(session),
             complete_while_typing=True,
             **common,
         )
-        self.hex = PromptSession(history=_history("hex_history"), **common)
+        self.hex = PromptSession(history=histories[1], **common)
         self.session = session
 
     def current(self) -> PromptSession:
         return self.hex if self.session.hex_mode else self.commands
 
 
-def _history(name: str) -> History:
-    try:
-        return FileHistory(str(history_file(name)))
-    except OSError as exc:
-        click.echo(f"hcrctl: history not kept ({exc})", err=True)
-        return InMemoryHistory()
+def _histories(*names: str) -> list[History]:
+    """One history per name, on disk if possible; one notice if not, however many fail."""
+    out: list[History] = []
+    failure: OSError | None = None
+    for name in names:
+        try:
+            out.append(FileHistory(str(history_file(name))))
+        except OSError as exc:
+            failure = failure or exc
+            out.append(InMemoryHistory())
+    if failure is not None:
+        why = f"{failure.strerror}: {failure.filename}" if failure.filename else str(failure)
+        click.echo(f"hcrctl: history not kept ({why})", err=True)
+    return out
 
 
 def _toolbar(session: Session) -> Any:
     def toolbar() -> Any:
         try:
-            return toolbar_fragments(session, get_app().current_buffer.document.text_before_cursor)
+            app = get_app()
+            typed = app.current_buffer.document.text_before_cursor
+            return toolbar_fragments(session, typed, app.output.get_size().columns)
         except Exception as exc:  # a drawing bug must not end the session (and skip its stop)
             return f" toolbar error: {exc!r}"
 

@@ -15,6 +15,7 @@ import click
 
 from .cli import cli
 from .cli.settings import complete_port, global_options
+from .shell_broadcasts import MODES
 from .shell_grammar import HIDDEN, OVERLAYS, SESSION_KEY, ShellCommands
 
 if TYPE_CHECKING:
@@ -179,7 +180,10 @@ def disconnect() -> None:
     link = session().link
     port, moved = link.port, link.moved
     link.disconnect()
-    click.echo(f"disconnected from {port or '-'}" + (" (stop sent)" if moved else ""))
+    stopped = " (stop sent)" if moved else ""
+    click.echo(
+        f"disconnected from {port or '-'}{stopped}; the shell will not reconnect until you type connect"
+    )
 
 
 @click.command("status")
@@ -195,11 +199,11 @@ def status() -> None:
 
 
 @click.command("monitor")
-@click.argument("state", type=click.Choice(["on", "off"]))
+@click.argument("state", type=click.Choice(list(MODES)))
 def monitor(state: str) -> None:
-    """Print unsolicited frames (0xA0, 0xB0, strays) above the prompt: on or off."""
-    session().monitor = state == "on"
-    click.echo(f"monitor {state}")
+    """Unsolicited frames (0xA0, 0xB0, strays) above the prompt: on (all), changes (new ones), off."""
+    session().monitor = state
+    click.echo(f"monitor {state}: {MODES[state]}")
 
 
 @click.command("hex")
@@ -208,6 +212,12 @@ def hex_mode() -> None:
     from .shell_hex import enter
 
     enter(session())
+
+
+@click.command("clear")
+def clear() -> None:
+    """Clear the screen (Ctrl-L does it too); nothing in a script."""
+    click.clear()
 
 
 @click.command("sleep")
@@ -219,5 +229,5 @@ def sleep(seconds: float) -> None:
 
 def builtins() -> dict[str, click.Command]:
     """The shell's own commands, in the order ``help`` lists them."""
-    commands = [help_, exit_, quit_, make_set(), connect, disconnect, status, monitor, hex_mode, sleep]
+    commands = [help_, exit_, quit_, make_set(), connect, disconnect, status, monitor, hex_mode, clear, sleep]
     return {c.name: c for c in commands if c.name}

@@ -9,6 +9,7 @@ on stderr and an exit code the script mode adds up. SIGTERM and SIGHUP
 from __future__ import annotations
 
 import contextlib
+import errno
 import signal
 import threading
 import traceback
@@ -56,6 +57,8 @@ def _run_line(session: Session, line: str) -> int:
     except SystemExit as exc:
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
     except Exception as exc:
+        if is_broken_pipe(exc):
+            raise  # stdout's reader is gone: the session ends (with stop), quietly
         return report(session, exc)
     finally:
         session.link.settle()
@@ -101,22 +104,31 @@ def invoke(session: Session, words: list[str]) -> None:
             command.invoke(ctx)
 
 
+def is_broken_pipe(exc: BaseException) -> bool:
+    """stdout's reader went away (``| head -1``): the end of the output, not a failure."""
+    return isinstance(exc, OSError) and exc.errno == errno.EPIPE
+
+
 def report(session: Session, exc: Exception) -> int:
-    """One line on stderr for any failure; the exit code the CLI would have used."""
+    """One line on stderr for any failure; the exit code the CLI would have used.
+
+    In a script the line starts with where the command was: ``moves.hcr:3: error: ...``.
+    """
+    where = f"{session.where}: " if session.where else ""
     if isinstance(exc, click.UsageError):
-        click.echo(usage_line(exc), err=True)
+        click.echo(where + usage_line(exc), err=True)
         return exc.exit_code
     if isinstance(exc, click.ClickException):
-        click.echo(f"error: {exc.format_message()}", err=True)
+        click.echo(f"{where}error: {exc.format_message()}", err=True)
         return exc.exit_code
     if isinstance(exc, HcrError):
-        click.echo(f"error: {exc.one_line()}", err=True)
+        click.echo(f"{where}error: {exc.one_line()}", err=True)
         return exc.exit_code
     if isinstance(exc, click.Abort):
         return _interrupted(session)
     if session.settings.debug:
         traceback.print_exc()
-    click.echo(f"internal error: {exc!r} (run hcrctl --debug shell for the traceback)", err=True)
+    click.echo(f"{where}internal error: {exc!r} (run hcrctl --debug shell for the traceback)", err=True)
     return 1
 
 
@@ -134,5 +146,6 @@ def _interrupted(session: Session) -> int:
     note = ""
     if session.link.moved:
         note = "; " + session.send_stop()
-    click.echo(f"interrupted{note}", err=True)
+    where = f"{session.where}: " if session.where else ""
+    click.echo(f"{where}interrupted{note}", err=True)
     return INTERRUPTED

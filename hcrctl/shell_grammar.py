@@ -9,6 +9,7 @@ get the same parsing, range checks, usage errors and help.
 
 from __future__ import annotations
 
+import difflib
 import shlex
 from typing import TYPE_CHECKING, Any
 
@@ -23,8 +24,8 @@ if TYPE_CHECKING:
 SESSION_KEY = "hcrctl.shell.session"
 #: CLI commands that make no sense inside the shell.
 HIDDEN = frozenset({"shell"})
-#: Builtin forms that share their name with a CLI command: ``hex`` alone, ``monitor on|off``.
-OVERLAYS = {"hex": ((),), "monitor": (("on",), ("off",))}
+#: Builtin forms that share their name with a CLI command: ``hex`` alone, ``monitor on|changes|off``.
+OVERLAYS = {"hex": ((),), "monitor": (("on",), ("changes",), ("off",))}
 
 
 class ShellCommands(click.Group):
@@ -52,6 +53,15 @@ class ShellCommands(click.Group):
             return None
         return cli.get_command(ctx, name)
 
+    def resolve_command(
+        self, ctx: click.Context, args: list[str]
+    ) -> tuple[str | None, click.Command | None, list[str]]:
+        """Click's lookup, plus "did you mean 'read'?" for a mistyped command."""
+        name = args[0] if args else ""
+        if name and not name.startswith("-") and self.get_command(ctx, name) is None:
+            raise click.UsageError(unknown_command(name, self.list_commands(ctx)), ctx)
+        return super().resolve_command(ctx, args)
+
     def shell_form(self, words: list[str]) -> click.Command | None:
         """The builtin a line means when it matches a builtin-only form of an overlaid name."""
         if not words or words[0] not in OVERLAYS:
@@ -67,6 +77,16 @@ class ShellCommands(click.Group):
             return entry[1]
         command = self.get_command(ctx, name)
         return command.get_short_help_str(limit=60) if command else ""
+
+
+def unknown_command(name: str, known: list[str]) -> str:
+    """``No such command 'raed'. Did you mean 'read'?``: the closest names, if any are close."""
+    close = difflib.get_close_matches(name, known, n=3, cutoff=0.6)
+    if not close:
+        return f"No such command {name!r}."
+    if len(close) == 1:
+        return f"No such command {name!r}. Did you mean {close[0]!r}?"
+    return f"No such command {name!r}. Did you mean one of {', '.join(map(repr, close))}?"
 
 
 def root_context(group: ShellCommands, session: Session, obj: Any) -> click.Context:

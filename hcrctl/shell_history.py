@@ -7,6 +7,8 @@ so the file is created owner-only and tightened if it was not. It lives under
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -15,20 +17,47 @@ FILE_MODE = 0o600
 DIR_MODE = 0o700
 
 
-def state_dir(env: Mapping[str, str] | None = None) -> Path:
-    """``$XDG_STATE_HOME/hcrctl``; a relative XDG value is ignored, as the spec says."""
+def base_and_dir(env: Mapping[str, str] | None = None) -> tuple[Path, Path]:
+    """(the base that must already exist, ``.../hcrctl`` under it).
+
+    The base is ``$XDG_STATE_HOME`` (a relative value is ignored, as the spec
+    says) or ``$HOME``, whose ``.local/state`` the XDG spec lets us create.
+    """
     env = os.environ if env is None else env
     base = env.get("XDG_STATE_HOME", "")
-    root = Path(base) if base and os.path.isabs(base) else Path.home() / ".local" / "state"
-    return root / "hcrctl"
+    if base and os.path.isabs(base):
+        return Path(base), Path(base) / "hcrctl"
+    home = Path(env["HOME"]) if env.get("HOME") else Path.home()
+    return home, home / ".local" / "state" / "hcrctl"
+
+
+def state_dir(env: Mapping[str, str] | None = None) -> Path:
+    """``$XDG_STATE_HOME/hcrctl``, or ``~/.local/state/hcrctl``."""
+    return base_and_dir(env)[1]
 
 
 def history_file(name: str = "history", env: Mapping[str, str] | None = None) -> Path:
-    """The history file, created owner-only if missing; raises OSError if impossible."""
-    path = state_dir(env) / name
-    path.parent.mkdir(parents=True, exist_ok=True, mode=DIR_MODE)
+    """The history file, created owner-only if missing; raises OSError if impossible.
+
+    Only hcrctl's own directories are made, under a base that exists: a
+    missing HOME (``HOME=/nonexistent``) is an error here, never created.
+    """
+    base, folder = base_and_dir(env)
+    if not base.is_dir():
+        raise FileNotFoundError(errno.ENOENT, "no such directory", str(base))
+    _make_dirs(base, folder)
+    path = folder / name
     fd = os.open(path, os.O_CREAT | os.O_APPEND | os.O_WRONLY, FILE_MODE)
     os.close(fd)
     if path.stat().st_mode & 0o777 != FILE_MODE:
         os.chmod(path, FILE_MODE)
     return path
+
+
+def _make_dirs(base: Path, folder: Path) -> None:
+    """Each directory from ``base`` down to ``folder``, owner-only; existing ones are left as they are."""
+    current = base
+    for part in folder.relative_to(base).parts:
+        current = current / part
+        with contextlib.suppress(FileExistsError):
+            current.mkdir(mode=DIR_MODE)

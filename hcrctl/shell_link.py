@@ -29,6 +29,8 @@ if TYPE_CHECKING:
 #: How often the background check looks for a device that went away.
 RECONNECT_EVERY = 0.5
 NOT_CONNECTED_HINT = "connect PORT, or wait: the shell reconnects when the device returns"
+#: After ``disconnect`` (or in a script, which has no background reconnect) nothing reconnects by itself.
+MANUAL_HINT = "connect reconnects to it, connect PORT opens another"
 
 
 class Unplugged:
@@ -37,11 +39,14 @@ class Unplugged:
     moved = False
     connected = False
 
-    def __init__(self, port: str | None) -> None:
+    def __init__(self, port: str | None, hint: Callable[[], str] = lambda: MANUAL_HINT) -> None:
         self.port = port or ""
+        self._hint = hint
 
     def __getattr__(self, name: str) -> Any:
-        raise PortError("not connected", self.port, hint=NOT_CONNECTED_HINT)
+        if name.startswith("_"):
+            raise AttributeError(name)
+        raise PortError("not connected", self.port, hint=self._hint())
 
 
 @dataclass
@@ -88,7 +93,7 @@ class Link:
         self._quit = threading.Event()
         self._watchdog: threading.Thread | None = None
         settings.robot_hooks.append(self._adopt)
-        settings.session = Unplugged(settings.port)
+        settings.session = Unplugged(settings.port, self.not_connected_hint)
 
     # -- state ---------------------------------------------------------------
 
@@ -104,6 +109,15 @@ class Link:
         if robot is None or not robot.connected:
             return "disconnected"
         return "no reply" if self.no_reply else "ok"
+
+    @property
+    def reconnects(self) -> bool:
+        """Whether a lost link comes back by itself: not after ``disconnect``, not in a script."""
+        return self.auto and self._watchdog is not None and bool(self.settings.port)
+
+    def not_connected_hint(self) -> str:
+        """A hint that promises only what will happen."""
+        return NOT_CONNECTED_HINT if self.reconnects else MANUAL_HINT
 
     @property
     def totals(self) -> Totals:
@@ -138,7 +152,9 @@ class Link:
             self._past = self._past.plus(old)
             old.close()  # sends stop if it moved and the line still works
         self.robot, self.no_reply, self._timeouts_seen = robot, False, 0
-        self.settings.session = robot if robot is not None else Unplugged(self.settings.port)
+        self.settings.session = (
+            robot if robot is not None else Unplugged(self.settings.port, self.not_connected_hint)
+        )
         if robot is not None and old is not None and _came_back(old, robot):
             with contextlib.suppress(HcrError):
                 robot.stop()

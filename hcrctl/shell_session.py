@@ -15,7 +15,7 @@ import click
 
 from .errors import HcrError
 from .frames import Frame
-from .shell_broadcasts import Collapser
+from .shell_broadcasts import Broadcasts
 from .shell_link import Link
 
 if TYPE_CHECKING:
@@ -30,15 +30,21 @@ class Session:
     def __init__(self, settings: Settings, *, interactive: bool) -> None:
         self.settings = settings
         self.interactive = interactive
-        self.broadcasts = Collapser()
+        self.broadcasts = Broadcasts()
         self.link = Link(settings, on_frame=self._unsolicited, on_event=self.say)
-        self.monitor = interactive  # print unsolicited frames; scripts stay quiet unless asked
+        #: What unsolicited frames print (see shell_broadcasts.MODES); scripts stay quiet unless asked.
+        self.monitor = "changes" if interactive else "off"
         self.hex_mode = False
         self.done = False
         self.stop_note: str | None = None  # the toolbar's "stop sent" notice
         #: Where asynchronous lines go; None while a command owns the terminal.
         self.printer: Printer | None = None
-        self._held: list[str] = []  # notices that came while a command owned the terminal
+        #: ``moves.hcr:3`` while a script line runs: errors start with it.
+        self.where: str | None = None
+        self._held: list[str] = []
+        self._news: list[
+            Frame
+        ] = []  # stations first heard while no prompt could print them  # notices that came while a command owned the terminal
         self._say_lock = threading.Lock()
 
     # -- the prompt --------------------------------------------------------
@@ -73,17 +79,33 @@ class Session:
             click.echo(f"hcrctl: {text}", err=True)
 
     def attach(self, printer: Printer) -> None:
-        """The prompt is back: print the notices held meanwhile, then print as they come."""
+        """The prompt is back: print the notices and news held meanwhile, then print as they come."""
         with self._say_lock:
             held, self._held = self._held, []
+            news, self._news = self._news, []
             self.printer = printer
         for text in held:
             printer(text)
+        for frame in news:
+            line = self.broadcasts.line_for(frame, True, self.monitor)
+            if line is not None:
+                printer(line)
 
     def _unsolicited(self, frame: Frame) -> None:
-        line = self.broadcasts.offer(frame)
-        printer = self.printer
-        if line is not None and self.monitor and printer is not None:
+        """From the reader thread: count it; print it if the monitor mode says so.
+
+        A station first heard while a command owns the terminal (or before the
+        first prompt) is announced at the next prompt, not lost.
+        """
+        news = self.broadcasts.offer(frame)
+        with self._say_lock:
+            printer = self.printer
+            if printer is None:
+                if news and self.interactive:
+                    self._news.append(frame)
+                return
+        line = self.broadcasts.line_for(frame, news, self.monitor)
+        if line is not None:
             printer(line)
 
     # -- safety ----------------------------------------------------------------

@@ -7,7 +7,9 @@ calls them. Style names are plain strings; the front end maps them to colours.
 
 from __future__ import annotations
 
-from .shell_broadcasts import Collapser
+import unicodedata
+
+from .shell_broadcasts import Broadcasts, latest_text
 from .shell_builtins import shown
 from .shell_grammar import root_context, split_partial
 from .shell_session import Session
@@ -16,6 +18,9 @@ from .shell_tree import hint, locate
 Fragments = list[tuple[str, str]]
 #: The stop keys, short enough for the toolbar (see shell.STOP_KEYS).
 STOP_KEY_SHORT = "^Space/F12"
+#: Stations the toolbar shows a line for; ``status`` lists them all.
+TOOLBAR_STATIONS = 3
+ELLIPSIS = "…"
 
 STYLE = {
     "prompt": "bold",
@@ -48,15 +53,71 @@ def prompt_fragments(session: Session) -> Fragments:
     ]
 
 
-def toolbar_fragments(session: Session, typed: str = "") -> Fragments:
-    """The bottom toolbar: the argument being typed, the link, the broadcasts."""
+def toolbar_fragments(session: Session, typed: str = "", width: int | None = None) -> Fragments:
+    """The bottom toolbar: the argument being typed, the link, each station's latest frame.
+
+    With ``width``, every line longer than the terminal ends in an ellipsis
+    instead of being silently cut at the edge.
+    """
     out: Fragments = []
     tip = argument_hint(session, typed)
     if tip:
         out += [("class:toolbar.hint", f" {tip}\n")]
     out += link_fragments(session)
-    out += [("", "\n"), ("class:toolbar.dim", " " + broadcast_text(session.broadcasts, session.monitor))]
+    out += [("", f"  monitor {session.monitor}")]
+    for line in broadcast_lines(session.broadcasts, TOOLBAR_STATIONS):
+        out += [("", "\n"), ("class:toolbar.dim", " " + line)]
+    return out if width is None else fit(out, width)
+
+
+def fit(fragments: Fragments, width: int) -> Fragments:
+    """Each line cut to ``width`` cells, ending in an ellipsis where something was cut."""
+    out: Fragments = []
+    for number, line in enumerate(_lines(fragments)):
+        if number:
+            out.append(("", "\n"))
+        out += line if sum(cells(text) for _, text in line) <= width else _cut(line, max(width - 1, 0))
     return out
+
+
+def _lines(fragments: Fragments) -> list[Fragments]:
+    lines: list[Fragments] = [[]]
+    for style, text in fragments:
+        for number, piece in enumerate(text.split("\n")):
+            if number:
+                lines.append([])
+            if piece:
+                lines[-1].append((style, piece))
+    return lines
+
+
+def _cut(line: Fragments, room: int) -> Fragments:
+    """The first ``room`` cells of ``line``, then the ellipsis in the style of the last one kept."""
+    out: Fragments = []
+    style = ""
+    for style, text in line:
+        kept = ""
+        for char in text:
+            if cells(char) > room:
+                room = 0
+                break
+            kept += char
+            room -= cells(char)
+        if kept:
+            out.append((style, kept))
+        if room <= 0 and len(kept) < len(text):
+            break
+    return [*out, (style, ELLIPSIS)]
+
+
+def cells(text: str) -> int:
+    """Terminal cells ``text`` takes: wide East Asian characters two, combining marks none."""
+    total = 0
+    for char in text:
+        if unicodedata.combining(char):
+            continue
+        total += 2 if unicodedata.east_asian_width(char) in ("W", "F") else 1
+    return total
 
 
 def link_fragments(session: Session) -> Fragments:
@@ -68,9 +129,12 @@ def link_fragments(session: Session) -> Fragments:
     link, settings = session.link, session.settings
     state = link.state
     retrying = state == "disconnected" and link.reconnect_error and link.auto
+    shown_state = "disconnected, retrying" if retrying else state
+    if state == "disconnected" and not link.auto:
+        shown_state = "disconnected (connect reconnects)"
     return [
         ("", " "),
-        (state_class(state), "disconnected, retrying" if retrying else state),
+        (state_class(state), shown_state),
         ("", "  "),
         ("class:toolbar.stop", f" {STOP_KEY_SHORT}: stop "),
         ("", f"  {link.port or '-'} {settings.baud} baud addr {shown('address', settings.address)}\n"),
@@ -85,15 +149,21 @@ def counters_text(session: Session) -> str:
     return f"tx {totals.tx} rx {totals.rx}  errors: checksum {totals.checksum} timeout {totals.timeouts}"
 
 
-def broadcast_text(broadcasts: Collapser, monitor: bool) -> str:
-    """Counts per station and the last one seen: ``0x50×31 0x51×30  last 0x51 position 0.2 s ago``."""
-    counts = broadcasts.counts()
-    if not counts:
-        return f"unsolicited: none yet  (monitor {'on' if monitor else 'off'})"
-    per_station = " ".join(f"0x{address:02X}×{n}" for address, n in counts)
-    last = broadcasts.last_seen()
-    seen = f"  last {last[0]} {last[1]:.1f} s ago" if last else ""
-    return f"unsolicited: {per_station}{seen}  (monitor {'on' if monitor else 'off'})"
+def broadcast_lines(broadcasts: Broadcasts, limit: int | None = None) -> list[str]:
+    """One line per station: its count, its age and its latest frame; ``limit`` lines at most."""
+    latest = broadcasts.latest()
+    if not latest:
+        return ["unsolicited: none yet"]
+    if limit is None or len(latest) <= limit:
+        return [latest_text(item) for item in latest]
+    shown_here = [latest_text(item) for item in latest[: limit - 1]]
+    rest = len(latest) - len(shown_here)
+    return [*shown_here, f"+{plural(rest, 'more station')} (status lists them all)"]
+
+
+def plural(count: int, noun: str) -> str:
+    """``1 frame``, ``2 frames``: the count and its noun, agreeing."""
+    return f"{count} {noun}" if count == 1 else f"{count} {noun}s"
 
 
 def argument_hint(session: Session, typed: str) -> str:
@@ -112,6 +182,5 @@ def argument_hint(session: Session, typed: str) -> str:
 def status_lines(session: Session) -> list[str]:
     """``status``: the toolbar's content as plain lines, for scripts and logs."""
     text = "".join(text for _, text in link_fragments(session))
-    return [line.strip() for line in text.splitlines()] + [
-        broadcast_text(session.broadcasts, session.monitor)
-    ]
+    lines = [line.strip() for line in text.splitlines()]
+    return [*lines, f"monitor {session.monitor}", *broadcast_lines(session.broadcasts)]

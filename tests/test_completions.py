@@ -91,3 +91,50 @@ def test_the_bash_script_completes_in_bash(tmp_path):
         ["bash", "--norc", "-c", program], env=env, capture_output=True, text=True, timeout=30
     )
     assert result.stdout.split() == ["compass"], result.stderr
+
+
+@pytest.fixture
+def bash(tmp_path):
+    """An interactive ``bash --norc`` in a pty with the committed bash script sourced (no bash-completion)."""
+    import pexpect
+
+    if shutil.which("bash") is None:
+        pytest.skip("needs bash")
+    script = ROOT / "completions" / gen_completions.FILES["bash"]
+    env = clean_env(tmp_path, PATH=os.pathsep.join([str(Path(hcrctl_exe()).parent), os.environ["PATH"]]))
+    env |= {"PS1": "$ ", "TERM": "dumb", "INPUTRC": os.devnull}
+    child = pexpect.spawn(
+        "bash", ["--norc", "--noprofile"], env=env, encoding="utf-8", timeout=30, dimensions=(24, 200)
+    )
+    child.expect_exact("$ ")
+    child.sendline(f'source "{script}" && echo "SOURCED"')
+    child.expect_exact("SOURCED")
+    child.expect_exact("$ ")
+    yield child
+    child.sendline("exit")
+    child.close(force=True)
+
+
+def tab_complete(bash, line: str) -> str:
+    """Type ``line``, press Tab, and return the edited line as bash holds it."""
+    bash.send(line + "\t")
+    bash.expect_exact(line)  # the echo of what was typed; the completion follows
+    bash.send("\x01" + "echo RESULT=[" + "\x05" + "]\r")  # Ctrl-A, Ctrl-E: wrap the line in an echo
+    bash.expect(r"\nRESULT=\[([^\r\n]*)\]\r\n")  # the echo's output, not the command line typed
+    result = bash.match.group(1)
+    bash.expect_exact("$ ")
+    return result
+
+
+@pytest.mark.parametrize(
+    "line, completed",
+    [
+        ("hcrctl read co", "hcrctl read compass "),
+        ("hcrctl --port sim:// read co", "hcrctl --port sim:// read compass "),
+        ("hcrctl -p sim://?broadcast_hz=0 drive po", "hcrctl -p sim://?broadcast_hz=0 drive power "),
+        ("hcrctl --port sim:", "hcrctl --port sim:// "),
+        ("hcrctl --port sim:// --checksum-from add", "hcrctl --port sim:// --checksum-from address "),
+    ],
+)
+def test_tab_in_a_real_bash_completes_after_a_value_with_a_colon(bash, line, completed):
+    assert tab_complete(bash, line) == completed

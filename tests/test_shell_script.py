@@ -52,7 +52,7 @@ def test_the_first_error_ends_the_script_with_its_exit_code(tmp_path):
     assert done.returncode == 2
     err = done.stderr.splitlines()
     assert err[:2] == ["hcr> read compass", "hcr> read compas"]
-    assert err[2].startswith("error: read: Invalid value for 'SENSOR'")
+    assert err[2].startswith(f"{path}:2: error: read: Invalid value for 'SENSOR'")
     assert len(err) == 3  # read env never ran
     assert "humidity" not in done.stdout
 

@@ -1,8 +1,7 @@
-"""Fast tests of the shell's parts: collapsing, the Click-tree walk, completion, toolbar, history, dispatch."""
+"""Fast tests of the shell's parts: broadcasts, the Click-tree walk, completion, toolbar, history, dispatch."""
 
 from __future__ import annotations
 
-import itertools
 import os
 import stat
 import subprocess
@@ -20,14 +19,24 @@ from hcrctl import commands as C
 from hcrctl.cli.settings import Settings
 from hcrctl.errors import PortError
 from hcrctl.frames import Frame, decode_all, encode
-from hcrctl.shell_broadcasts import Collapser, describe
+from hcrctl.shell_broadcasts import NEW_MARK, Broadcasts, describe
 from hcrctl.shell_dispatch import COMMANDS, run_line, usage_line
 from hcrctl.shell_grammar import root_context, split, split_partial
 from hcrctl.shell_history import history_file, state_dir
 from hcrctl.shell_link import Unplugged
-from hcrctl.shell_script import script_lines
+from hcrctl.shell_script import LINE_LIMIT, ScriptInputError, read_lines, script_lines
 from hcrctl.shell_session import Session
-from hcrctl.shell_toolbar import argument_hint, broadcast_text, prompt_fragments, toolbar_fragments
+from hcrctl.shell_toolbar import (
+    ELLIPSIS,
+    argument_hint,
+    broadcast_lines,
+    cells,
+    fit,
+    plural,
+    prompt_fragments,
+    status_lines,
+    toolbar_fragments,
+)
 from hcrctl.shell_tree import candidates, locate
 
 
@@ -63,38 +72,67 @@ def session():
     s.close()
 
 
-# -- collapsing broadcasts ----------------------------------------------------
+# -- broadcasts at the prompt ------------------------------------------------------
 
 
-def test_twenty_hz_from_two_stations_prints_one_line_per_station_per_second():
+def lines_printed(broadcasts: Broadcasts, frames: list[Frame], mode: str) -> list[str]:
+    return [line for f in frames if (line := broadcasts.line_for(f, broadcasts.offer(f), mode)) is not None]
+
+
+def test_changes_prints_each_station_once_however_many_broadcasts():
     clock = FakeClock()
-    collapser = Collapser(interval=1.0, clock=clock)
-    printed: dict[int, list[tuple[float, str]]] = {0x50: [], 0x51: []}
-    for tick in range(60):  # 3 s at 20 Hz
-        clock.now = 1000.0 + tick * 0.05
-        for station in (0x50, 0x51):
-            line = collapser.offer(position(station, tick))
-            if line is not None:
-                printed[station].append((clock.now, line))
-    for lines in printed.values():
-        assert len(lines) == 3, lines
-        times = [t for t, _ in lines]
-        assert all(b - a >= 1.0 for a, b in itertools.pairwise(times))
-        assert "(+" not in lines[0][1]
-        assert all(line.endswith("(+19 more)") for _, line in lines[1:]), lines
-    assert collapser.counts() == [(0x50, 60), (0x51, 60)]
+    broadcasts = Broadcasts(clock=clock)
+    frames = []
+    for tick in range(3000):  # 10 minutes at 5 Hz from two stations, the robot's map at 1 Hz
+        frames += [position(0x50, tick % 256), position(0x51, tick % 256)]
+        if tick % 5 == 0:
+            frames.append(frame(0x01, 0xB0, bytes(16)))
+    printed = lines_printed(broadcasts, frames, "changes")
+    assert printed == [
+        describe(position(0x50, 0)) + NEW_MARK,
+        describe(position(0x51, 0)) + NEW_MARK,
+        describe(frame(0x01, 0xB0, bytes(16))) + NEW_MARK,
+    ]
+    assert broadcasts.counts() == [(0x01, 600), (0x50, 3000), (0x51, 3000)]
 
 
-def test_a_quiet_station_is_printed_at_once_while_a_busy_one_is_collapsed():
+def test_changes_prints_a_new_kind_from_a_known_station_once():
+    broadcasts = Broadcasts(clock=FakeClock())
+    frames = [position(0x50, 1), frame(0x50, 0x77, b"\x01"), position(0x50, 2), frame(0x50, 0x77, b"\x02")]
+    printed = lines_printed(broadcasts, frames, "changes")
+    assert [line.split("  ")[0] for line in printed] == ["0x50 position", "0x50 0x77"]
+
+
+def test_monitor_on_prints_every_frame_and_off_none():
+    frames = [position(0x50, did) for did in range(40)]
+    assert lines_printed(Broadcasts(clock=FakeClock()), frames, "on") == [describe(f) for f in frames]
+    assert lines_printed(Broadcasts(clock=FakeClock()), frames, "off") == []
+
+
+def test_the_latest_per_station_with_count_and_age():
     clock = FakeClock()
-    collapser = Collapser(clock=clock)
-    assert collapser.offer(position(0x50, 1)) is not None
-    clock.now += 0.1
-    assert collapser.offer(position(0x50, 2)) is None
-    assert collapser.offer(frame(0x01, 0xB0, bytes(16))) is not None
-    assert collapser.last_seen() == ("0x01 map", 0.0)
-    clock.now += 2.5
-    assert collapser.last_seen() == ("0x01 map", pytest.approx(2.5))
+    broadcasts = Broadcasts(clock=clock)
+    assert broadcast_lines(broadcasts) == ["unsolicited: none yet"]
+    for did in range(3):
+        broadcasts.offer(position(0x51, did))
+    broadcasts.offer(position(0x50, 9))
+    clock.now += 0.4
+    assert broadcast_lines(broadcasts) == [
+        "0x50 ×1 0.4 s ago  position  did 9  d1 120 cm  d2 98 cm  ts 200 ms",
+        "0x51 ×3 0.4 s ago  position  did 2  d1 120 cm  d2 98 cm  ts 200 ms",
+    ]
+    for station in (0x52, 0x53):
+        broadcasts.offer(position(station, 0))
+    lines = broadcast_lines(broadcasts, limit=3)
+    assert lines[:2] == broadcast_lines(broadcasts)[:2]
+    assert lines[2] == "+2 more stations (status lists them all)"
+    broadcasts.offer(position(0x54, 0))
+    assert len(broadcast_lines(broadcasts)) == 5
+
+
+def test_plural():
+    assert plural(1, "frame") == "1 frame"
+    assert [plural(n, "frame") for n in (0, 2)] == ["0 frames", "2 frames"]
 
 
 def test_describe_uses_the_table_fields_and_units():
@@ -104,20 +142,6 @@ def test_describe_uses_the_table_fields_and_units():
     assert describe(frame(0x50, 0x77, b"\x01\x02")) == "0x50 0x77  [2] 01 02"
     bad = describe(frame(0x50, 0xA0, b"\x01"))
     assert bad.startswith("0x50 position  01  (") and "4 bytes" in bad
-
-
-def test_toolbar_counts_per_station():
-    clock = FakeClock()
-    collapser = Collapser(clock=clock)
-    assert broadcast_text(collapser, True).startswith("unsolicited: none yet")
-    for did in range(3):
-        collapser.offer(position(0x51, did))
-    collapser.offer(position(0x50, 0))
-    clock.now += 0.4
-    text = broadcast_text(collapser, False)
-    assert "0x50×1 0x51×3" in text
-    assert "last 0x50 position 0.4 s ago" in text
-    assert "monitor off" in text
 
 
 # -- splitting and the Click tree -----------------------------------------------
@@ -171,8 +195,8 @@ def test_set_offers_the_settings_and_checksum_choices(session):
     assert set(values(session, "set checksum ")) == {"header", "address"}
 
 
-def test_monitor_offers_on_and_off(session):
-    assert {"on", "off"} <= set(values(session, "monitor "))
+def test_monitor_offers_on_changes_and_off(session):
+    assert {"on", "changes", "off"} <= set(values(session, "monitor "))
 
 
 def test_hint_names_the_argument_and_its_range_from_the_table(session):
@@ -187,7 +211,7 @@ def test_hint_names_options_and_the_shells_own_forms(session):
     assert argument_hint(session, "ping") == "ping: Check the link with the cheapest read, like ping."
     assert argument_hint(session, "ping -c ").startswith("ping ▸ -c/--count  1..")
     monitor = argument_hint(session, "monitor ")
-    assert "monitor on|off: Print unsolicited frames" in monitor
+    assert "monitor on|changes|off: Unsolicited frames" in monitor
     assert "hex alone: Raw hex mode" in argument_hint(session, "hex ")
     assert argument_hint(session, "hex send ") == "hex send ▸ HEX..."
 
@@ -274,6 +298,33 @@ def test_toolbar_shows_link_counters_and_the_stop_key(session):
     assert max(len(line) for line in text.splitlines()) <= 80  # nothing falls off a standard terminal
 
 
+def test_toolbar_lines_that_do_not_fit_end_in_an_ellipsis(session):
+    typed = "drive velocity 10 "
+    full = "".join(t for _, t in toolbar_fragments(session, typed)).splitlines()
+    for width in (200, 80, 40, 12):
+        lines = "".join(t for _, t in toolbar_fragments(session, typed, width)).splitlines()
+        assert len(lines) == len(full)
+        for line, whole in zip(lines, full, strict=True):
+            assert cells(line) <= width
+            if cells(whole) <= width:
+                assert line == whole
+            else:
+                assert line.endswith(ELLIPSIS) and whole.startswith(line[:-1])
+    assert any(cells(line) > 40 for line in full)
+
+
+def test_fit_keeps_styles_and_counts_wide_characters():
+    fragments = [("class:a", "ab"), ("class:b", "界界\nxy")]
+    assert fit(fragments, 6) == [("class:a", "ab"), ("class:b", "界界"), ("", "\n"), ("class:b", "xy")]
+    assert fit(fragments, 5) == [
+        ("class:a", "ab"),
+        ("class:b", "界"),
+        ("class:b", ELLIPSIS),
+        ("", "\n"),
+        ("class:b", "xy"),
+    ]
+
+
 def test_toolbar_keeps_the_reconnect_error_and_the_stop_note_off_the_link_line(session):
     session.link.disconnect()
     session.link.auto, session.link.reconnect_error = True, "no such port on /dev/ttyUSB0"
@@ -324,6 +375,48 @@ def test_exit_codes_of_lines(session, capsys):
     assert err[2].startswith("error: No such command 'bogus'")
     assert err[3].startswith("error: already in the shell")
     assert err[4].startswith("error: no reply to compass from address 0x02")
+
+
+def test_a_mistyped_command_gets_the_closest_names(session, capsys):
+    assert run_line(session, "raed compass") == 2
+    assert run_line(session, "conect") == 2
+    assert run_line(session, "xyzzy") == 2
+    assert run_line(session, "drive powr 1 1") == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err[0] == "error: No such command 'raed'. Did you mean 'read'? (help lists the commands)"
+    assert "Did you mean one of 'connect', 'disconnect'?" in err[1]
+    assert err[2] == "error: No such command 'xyzzy'. (help lists the commands)"
+    assert "power" in err[3]
+
+
+def test_a_script_line_error_names_where_it_was(session, capsys):
+    session.where = "s.hcr:3"
+    assert run_line(session, "read compas") == 2
+    (line,) = capsys.readouterr().err.splitlines()
+    assert line.startswith("s.hcr:3: error: read: Invalid value for 'SENSOR'")
+
+
+def test_after_disconnect_no_hint_promises_a_reconnect(session, capsys):
+    session.link.start_watchdog()  # as at the prompt: a lost link would come back by itself
+    assert "reconnects when the device returns" in session.link.not_connected_hint()
+    assert run_line(session, "disconnect") == 0
+    assert run_line(session, "read compass") == 1
+    out, err = capsys.readouterr()
+    assert "the shell will not reconnect until you type connect" in out
+    assert "reconnects when the device returns" not in err
+    assert "hint: connect reconnects to it, connect PORT opens another" in err
+    status = "\n".join(status_lines(session))
+    assert "disconnected (connect reconnects)" in status and "retrying" not in status
+
+
+def test_a_script_never_promises_a_reconnect(capsys):
+    s = Session(Settings(port="sim://?broadcast_hz=0&map_hz=0"), interactive=False)
+    try:
+        s.link.robot, s.link._was_up = None, False  # never connected: no watchdog in scripts
+        assert run_line(s, "read compass") == 1
+        assert "reconnects when the device returns" not in capsys.readouterr().err
+    finally:
+        s.close()
 
 
 def test_set_changes_the_live_robot(session, capsys):
@@ -422,7 +515,39 @@ def test_usage_line_is_one_line():
 
 def test_script_lines_skip_blanks_and_comments():
     text = ["# header\n", "\n", "  read compass  \n", "drive power 60 60 # go\n", "   # indented\n"]
-    assert list(script_lines(text)) == ["read compass", "drive power 60 60 # go"]
+    numbered = list(enumerate(text, start=1))
+    assert list(script_lines(numbered)) == [(3, "read compass"), (4, "drive power 60 60 # go")]
+
+
+def lines_of(tmp_path, data: bytes, name: str = "s.hcr") -> list[tuple[int, str]]:
+    path = tmp_path / name
+    path.write_bytes(data)
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        return list(read_lines(fd, name))
+    finally:
+        os.close(fd)
+
+
+def test_read_lines_numbers_lines_across_chunks(tmp_path):
+    data = b"".join(b"read %d\r\n" % n for n in range(20000))  # crosses several 64 KiB reads
+    got = lines_of(tmp_path, b"\xef\xbb\xbf" + data + b"last")
+    assert got[0] == (1, "read 0\r") and got[19999] == (20000, "read 19999\r")
+    assert got[-1] == (20001, "last")
+
+
+def test_read_lines_refuses_a_line_over_64_kib_naming_file_and_line(tmp_path):
+    assert lines_of(tmp_path, b"x" * LINE_LIMIT + b"\n")[0][1] == "x" * LINE_LIMIT
+    with pytest.raises(ScriptInputError, match=r"^s\.hcr:2: line longer than 64 KiB$"):
+        lines_of(tmp_path, b"read\n" + b"x" * (LINE_LIMIT + 1) + b"\n")
+    with pytest.raises(ScriptInputError, match=r"^s\.hcr:1: line longer than 64 KiB$"):
+        lines_of(tmp_path, b"x" * (5 * LINE_LIMIT))  # no newline at all
+
+
+def test_read_lines_names_the_byte_offset_of_bad_utf8(tmp_path):
+    with pytest.raises(ScriptInputError) as caught:
+        lines_of(tmp_path, b"read compass\n# \xc3\xa9 ok\nread \xff\n")  # a valid é, then a bad byte
+    assert str(caught.value) == "s.hcr:3: not UTF-8 text: byte 0xFF at byte offset 26"
 
 
 def test_history_file_is_private_under_xdg_state_home(tmp_path):
@@ -432,6 +557,20 @@ def test_history_file_is_private_under_xdg_state_home(tmp_path):
     os.chmod(path, 0o644)
     history_file(env={"XDG_STATE_HOME": str(tmp_path)})
     assert stat.S_IMODE(path.stat().st_mode) == 0o600
+
+
+def test_history_makes_only_its_own_directories_under_an_existing_base(tmp_path):
+    missing = tmp_path / "nonexistent"
+    with pytest.raises(FileNotFoundError):
+        history_file(env={"HOME": str(missing)})
+    with pytest.raises(FileNotFoundError):
+        history_file(env={"XDG_STATE_HOME": str(missing)})
+    assert not missing.exists()
+    home = tmp_path / "home"
+    home.mkdir()
+    path = history_file(env={"HOME": str(home)})
+    assert path == home / ".local" / "state" / "hcrctl" / "history"
+    assert stat.S_IMODE((home / ".local").stat().st_mode) == 0o700
 
 
 def test_relative_xdg_state_home_is_ignored(monkeypatch, tmp_path):

@@ -47,12 +47,9 @@ def shell(ctx: click.Context, script: str | None, keep_going: bool) -> None:
 
 
 def _run_script(session: Session, script: str | None, keep_going: bool) -> int:
-    from ..shell_script import run_script
+    from ..shell_script import run_script_file
 
     try:
-        if script is None or script == "-":
-            return run_script(session, sys.stdin, keep_going=keep_going)
-        with open(script, encoding="utf-8") as lines:
-            return run_script(session, lines, keep_going=keep_going)
+        return run_script_file(session, script, keep_going=keep_going)
     finally:
         session.close()
