@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from .cli import cli
+from .cli.params import FloatRange
 from .cli.settings import complete_port, global_options
 from .shell_grammar import HIDDEN, OVERLAYS, SESSION_KEY, ShellCommands
 
@@ -211,7 +212,7 @@ def hex_mode() -> None:
 
 
 @click.command("sleep")
-@click.argument("seconds", type=click.FloatRange(0, 3600))
+@click.argument("seconds", type=FloatRange(0, 3600))
 def sleep(seconds: float) -> None:
     """Wait SECONDS (for scripts: drive, sleep, stop); Ctrl-C cuts it short."""
     time.sleep(seconds)

@@ -14,7 +14,9 @@ from typing import TYPE_CHECKING
 import click
 
 from ..errors import HcrError
-from ..simoptions import MAX_BAUD, MIN_BAUD, SimOptions
+from ..numtext import NumberError, parse_int
+from ..simoptions import MAX_BAUD, MAX_SEED, MIN_BAUD, SimOptions
+from .params import IntRange
 
 if TYPE_CHECKING:
     from ..simserve import Stopper
@@ -30,9 +32,7 @@ DEFAULT_HOST = "127.0.0.1"
     help=f"Serve on TCP, one client at a time, and print its socket:// URL (host {DEFAULT_HOST}; port 0 picks one).",
 )
 @click.option("--pace", is_flag=True, help="Deliver bytes no faster than a UART at --baud (8N1).")
-@click.option(
-    "--baud", type=click.IntRange(MIN_BAUD, MAX_BAUD), help="Line rate for --pace.  [default: 115200]"
-)
+@click.option("--baud", type=IntRange(MIN_BAUD, MAX_BAUD), help="Line rate for --pace.  [default: 115200]")
 @click.option(
     "--options",
     "query",
@@ -41,7 +41,11 @@ DEFAULT_HOST = "127.0.0.1"
     help="Simulator options, as in sim://?QUERY: drop, corrupt, noise, delay_ms, checksum, address, "
     "silent, pid, broadcast_hz, map_hz, seed, pace, baud (e.g. 'drop=0.1&delay_ms=20').",
 )
-@click.option("--seed", type=int, help="Seed for sensor noise and faults (overrides seed= in --options).")
+@click.option(
+    "--seed",
+    type=IntRange(0, MAX_SEED),
+    help="Seed for sensor noise and faults (overrides seed= in --options).",
+)
 def sim(use_pty: bool, tcp: str | None, pace: bool, baud: int | None, query: str, seed: int | None) -> None:
     """Serve the simulated robot on a pty or a TCP port until Ctrl-C or SIGTERM."""
     if use_pty == (tcp is not None):
@@ -99,11 +103,15 @@ def parse_tcp(text: str) -> tuple[str, int]:
     """``HOST:PORT``, ``:PORT`` or ``PORT``; the host defaults to the loopback address."""
     host, _, port = text.rpartition(":")
     host = host.strip("[]") or DEFAULT_HOST
-    if not port.isdigit() or int(port) > 65535:
+    try:
+        number = parse_int(port)
+    except NumberError:
+        number = -1
+    if not 0 <= number <= 65535:
         raise click.BadParameter(
-            f"expected [HOST:]PORT with PORT 0..65535, got {text!r}", param_hint="'--tcp'"
+            f"expected [HOST:]PORT with PORT 0..65535 (decimal), got {text!r}", param_hint="'--tcp'"
         )
-    return host, int(port)
+    return host, number
 
 
 def _announce(where: str) -> None:
