@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from ..errors import HcrError
+from ..errors import HcrError, printable
 from ..numtext import NumberError, parse_int
 from ..simoptions import MAX_BAUD, MAX_SEED, MIN_BAUD, SimOptions
 from .params import IntRange
@@ -29,7 +29,8 @@ DEFAULT_HOST = "127.0.0.1"
 @click.option(
     "--tcp",
     metavar="[HOST:]PORT",
-    help=f"Serve on TCP, one client at a time, and print its socket:// URL (host {DEFAULT_HOST}; port 0 picks one).",
+    help=f"Serve on TCP and print its socket:// URL (host {DEFAULT_HOST}; port 0 picks one). "
+    "Several clients at once share the robot; each hears its own replies and every broadcast.",
 )
 @click.option("--pace", is_flag=True, help="Deliver bytes no faster than a UART at --baud (8N1).")
 @click.option("--baud", type=IntRange(MIN_BAUD, MAX_BAUD), help="Line rate for --pace.  [default: 115200]")
@@ -82,7 +83,7 @@ def _serve(options: SimOptions, address: tuple[str, int] | None, stopper: Stoppe
     if address is None:
         simserve.serve_pty(options, stopper, _announce)
     else:
-        simserve.serve_tcp(options, address[0], address[1], stopper, _announce)
+        simserve.serve_tcp(options, address[0], address[1], stopper, _announce, _note)
 
 
 def _options(query: str, pace: bool, baud: int | None, seed: int | None) -> SimOptions:
@@ -112,6 +113,11 @@ def parse_tcp(text: str) -> tuple[str, int]:
             f"expected [HOST:]PORT with PORT 0..65535 (decimal), got {text!r}", param_hint="'--tcp'"
         )
     return host, number
+
+
+def _note(line: str) -> None:
+    """Clients coming and going, on stderr (stdout has only the URL)."""
+    click.echo(f"hcrctl sim: {printable(line)}", err=True)
 
 
 def _announce(where: str) -> None:
