@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from .cli import cli
-from .cli.params import FloatRange
+from .cli.params import FloatRange, SignedArgsCommand
 from .cli.settings import complete_port, global_options
 from .shell_grammar import HIDDEN, OVERLAYS, SESSION_KEY, ShellCommands
 
@@ -122,7 +122,8 @@ def _setter(word: str, param: click.Option) -> click.Command:
         click.echo(f"{word} {shown(param.name or word, value)}")
 
     argument = click.Argument([word], type=kind)
-    return click.Command(word, callback=apply, params=[argument], help=text, short_help=text)
+    # SignedArgsCommand: 'set timeout -1' is a bad value of TIMEOUT, not an unknown option '-1'.
+    return SignedArgsCommand(word, callback=apply, params=[argument], help=text, short_help=text)
 
 
 def shown(name: str, value: Any) -> str:
@@ -211,7 +212,7 @@ def hex_mode() -> None:
     enter(session())
 
 
-@click.command("sleep")
+@click.command("sleep", cls=SignedArgsCommand)
 @click.argument("seconds", type=FloatRange(0, 3600))
 def sleep(seconds: float) -> None:
     """Wait SECONDS (for scripts: drive, sleep, stop); Ctrl-C cuts it short."""
