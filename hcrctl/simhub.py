@@ -72,7 +72,7 @@ class Tap:
         out = bytearray()
         for event in self._decoder.feed(data):
             if isinstance(event, Frame):
-                out += self.hub.sim.feed(event.to_bytes(), owner=self)
+                out += self.hub.sim.take(event, owner=self)
         return bytes(out)
 
     def poll(self) -> bytes:

@@ -162,12 +162,17 @@ class Simulator:
         ``owner`` tags the delayed replies, so a server with several clients
         can hand each reply to the client that asked (see ``poll_owned``).
         """
-        now = self.advance()
         out = bytearray()
         for event in self._decoder.feed(data):
-            if isinstance(event, Frame) and event.address == self.options.address:
-                out += self._answer(event, now, owner)
+            if isinstance(event, Frame):
+                out += self.take(event, owner)
         return bytes(out)
+
+    def take(self, frame: Frame, owner: object = None) -> bytes:
+        """One whole frame already decoded (by a server that decodes per client); its reply due now."""
+        if frame.address != self.options.address:
+            return b""
+        return self._answer(frame, self.advance(), owner)
 
     def poll(self) -> bytes:
         """Broadcasts, map frames and delayed replies whose time has come, in time order."""
@@ -177,7 +182,9 @@ class Simulator:
         """``poll()`` frame by frame, each with its addressee: None for a broadcast (everyone),
         else the ``owner`` given to ``feed`` with the request a delayed reply answers."""
         now = self.advance()
-        due = [(t, next(self._seq), frame, None) for t, frame in self._broadcasts(now)]
+        due: list[tuple[float, int, bytes, object]] = [
+            (t, next(self._seq), frame, None) for t, frame in self._broadcasts(now)
+        ]
         while self._outbox and self._outbox[0][0] <= now:
             due.append(heapq.heappop(self._outbox))
         return [(owner, frame) for _, _, frame, owner in sorted(due, key=lambda d: d[:2])]
