@@ -34,9 +34,11 @@ from hcrctl import commands as C
 from hcrctl.cli import cli
 from hcrctl.cli import params as P
 from hcrctl.cli.settings import ENV_PREFIX, config_keys
+from hcrctl.cli.sim import parse_tcp
 from hcrctl.config import option_defaults
 from hcrctl.errors import ConfigError
 from hcrctl.shell_builtins import builtins
+from hcrctl.simoptions import SimOptions
 
 #: Every form of number the rules refuse, whatever the parameter.
 HOSTILE = ["nan", "NaN", "inf", "-inf", "0b1", "٥٠", "1_0", "9" * 25, "1" + "0" * 60, "1e999", ""]
@@ -365,3 +367,40 @@ def test_byte_parameters_still_take_hex(tmp_path: Path) -> None:
         sent = tap.wait_for(b"\x0d\x0a")
     assert result.returncode == 0, result.stderr
     assert sent == C.encode_request(C.Servo(0x20, 0x7F), address=0x10)
+
+
+# -- numbers inside strings: simulator options and the --tcp port -----------------
+
+SIM_NUMERIC_KEYS = [
+    "drop",
+    "corrupt",
+    "noise",
+    "delay_ms",
+    "address",
+    "broadcast_hz",
+    "map_hz",
+    "seed",
+    "baud",
+]
+
+
+@pytest.mark.parametrize("key", SIM_NUMERIC_KEYS)
+def test_simulator_options_refuse_hostile_numbers(key: str) -> None:
+    """``sim://?KEY=...`` and ``hcrctl sim --options`` read numbers by the same rules."""
+    for value in [*HOSTILE, "0x100" if key == "address" else "0x1"]:
+        with pytest.raises(ValueError, match=key):
+            SimOptions.from_query(f"{key}={value}")
+    assert SimOptions.from_query("address=0x10").address == 0x10
+
+
+def test_a_hostile_sim_option_in_the_port_url_is_a_usage_error(tmp_path: Path) -> None:
+    result = run(["--port", "sim://?delay_ms=٥٠", "read", "compass"], clean_env(tmp_path))
+    assert result.returncode == 2 and result.stdout == ""
+    (line,) = result.stderr.splitlines()
+    assert "delay_ms" in line and "'--port'" in line
+
+
+@pytest.mark.parametrize("text", ["٥٠٠٠", "80_80", "0x50", "nan", ""])
+def test_the_tcp_port_of_sim_is_decimal_ascii(text: str) -> None:
+    with pytest.raises(click.BadParameter, match=r"PORT 0\.\.65535"):
+        parse_tcp(f"127.0.0.1:{text}")
