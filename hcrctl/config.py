@@ -108,10 +108,10 @@ def _toml_types(option: click.Option) -> tuple[type, ...]:
     if option.is_flag:
         return (bool,)
     kind = option.type
+    if getattr(kind, "accepts_int", False):  # such as ByteNumber: 1 or "0x01"
+        return (int, str)
     if isinstance(kind, click.types.IntParamType):
         return (int,)
     if isinstance(kind, click.types.FloatParamType):
         return (int, float)
-    if getattr(kind, "accepts_int", False):  # such as ByteNumber: 1 or "0x01"
-        return (int, str)
     return (str,)

@@ -21,6 +21,26 @@ class HcrError(Exception):
         return f"{self.message} (hint: {self.hint})" if self.hint else self.message
 
 
+def printable(text: str) -> str:
+    """``text`` with every control or invisible character written as an escape (``\\x1b``).
+
+    Error lines echo what the user typed (a ``--port`` value, a file name, an
+    option value), and such text may carry an escape sequence that would
+    recolour, retitle or rewrite the user's terminal, or a newline that would
+    break the one-line promise. Device bytes are only ever shown as hex; user
+    text gets the same protection here, once, where errors are printed.
+    """
+    if text.isprintable():
+        return text
+    return "".join(ch if ch.isprintable() else _escape(ord(ch)) for ch in text)
+
+
+def _escape(code: int) -> str:
+    if code < 0x100:
+        return f"\\x{code:02x}"
+    return f"\\u{code:04x}" if code < 0x10000 else f"\\U{code:08x}"
+
+
 class RangeError(HcrError, ValueError):
     """A value outside its field's range: a usage error, so nothing is ever sent."""
 

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from .cli import cli
+from .cli.params import FloatRange, SignedArgsCommand
 from .cli.settings import complete_port, global_options
 from .shell_broadcasts import MODES
 from .shell_grammar import HIDDEN, OVERLAYS, SESSION_KEY, ShellCommands
@@ -122,7 +123,8 @@ def _setter(word: str, param: click.Option) -> click.Command:
         click.echo(f"{word} {shown(param.name or word, value)}")
 
     argument = click.Argument([word], type=kind)
-    return click.Command(word, callback=apply, params=[argument], help=text, short_help=text)
+    # SignedArgsCommand: 'set timeout -1' is a bad value of TIMEOUT, not an unknown option '-1'.
+    return SignedArgsCommand(word, callback=apply, params=[argument], help=text, short_help=text)
 
 
 def shown(name: str, value: Any) -> str:
@@ -220,8 +222,8 @@ def clear() -> None:
     click.clear()
 
 
-@click.command("sleep")
-@click.argument("seconds", type=click.FloatRange(0, 3600))
+@click.command("sleep", cls=SignedArgsCommand)
+@click.argument("seconds", type=FloatRange(0, 3600))
 def sleep(seconds: float) -> None:
     """Wait SECONDS (for scripts: drive, sleep, stop); Ctrl-C cuts it short."""
     time.sleep(seconds)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import time
 from collections import deque
 from collections.abc import Callable
+from typing import Protocol
 
 from .simoptions import SimOptions
 from .simulator import Simulator
@@ -74,10 +75,20 @@ class Wire:
         self.end = float("-inf")
 
 
+class Device(Protocol):
+    """What a line needs of the robot at its far end: a ``Simulator``, or one client's tap of a shared one."""
+
+    clock: Callable[[], float]
+
+    def feed(self, data: bytes) -> bytes: ...
+    def poll(self) -> bytes: ...
+    def next_due(self) -> float | None: ...
+
+
 class Link:
     """A simulator plus the two directions of its line."""
 
-    def __init__(self, sim: Simulator, byte_time: float = 0.0) -> None:
+    def __init__(self, sim: Device, byte_time: float = 0.0) -> None:
         self.sim = sim
         self.clock = sim.clock
         self.to_device = Wire(byte_time)

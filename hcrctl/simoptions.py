@@ -15,11 +15,13 @@ from urllib.parse import parse_qsl
 
 from .commands import MAIN_CONTROLLER
 from .frames import ChecksumRule
+from .numtext import parse_float, parse_int
 
 PID_ANSWERS = ("accept", "refuse")
 MAX_RATE_HZ = 50.0
 MAX_DELAY_MS = 60_000
 MIN_BAUD, MAX_BAUD = 50, 4_000_000
+MAX_SEED = 2**32 - 1
 
 
 def _flag(text: str) -> bool:
@@ -28,9 +30,9 @@ def _flag(text: str) -> bool:
     return text == "1"
 
 
-def _int(text: str) -> int:
+def _byte(text: str) -> int:
     """Decimal or 0x-prefixed hex, so ``address=0x10`` reads like the protocol document."""
-    return int(text, 0)
+    return parse_int(text, hex_ok=True)
 
 
 def _between(lo: float, hi: float) -> Callable[[Any], bool]:
@@ -43,19 +45,19 @@ def _is_bool(v: Any) -> bool:
 
 #: key -> (parse the query text, check the value, what is allowed)
 _SPECS: dict[str, tuple[Callable[[str], Any], Callable[[Any], bool], str]] = {
-    "drop": (float, _between(0, 1), "a probability 0..1"),
-    "corrupt": (float, _between(0, 1), "a probability 0..1"),
-    "noise": (float, _between(0, 1), "a probability 0..1"),
-    "delay_ms": (_int, _between(0, MAX_DELAY_MS), f"an integer 0..{MAX_DELAY_MS} (ms)"),
+    "drop": (parse_float, _between(0, 1), "a probability 0..1"),
+    "corrupt": (parse_float, _between(0, 1), "a probability 0..1"),
+    "noise": (parse_float, _between(0, 1), "a probability 0..1"),
+    "delay_ms": (parse_int, _between(0, MAX_DELAY_MS), f"an integer 0..{MAX_DELAY_MS} (ms)"),
     "checksum": (ChecksumRule, lambda v: isinstance(v, ChecksumRule), "header or address"),
-    "address": (_int, _between(0, 255), "an integer 0..255"),
+    "address": (_byte, _between(0, 255), "an integer 0..255 (or 0x00..0xFF)"),
     "silent": (_flag, _is_bool, "0 or 1"),
     "pid": (str, lambda v: v in PID_ANSWERS, " or ".join(PID_ANSWERS)),
-    "broadcast_hz": (float, _between(0, MAX_RATE_HZ), f"a rate 0..{MAX_RATE_HZ:g} (Hz, 0 disables)"),
-    "map_hz": (float, _between(0, MAX_RATE_HZ), f"a rate 0..{MAX_RATE_HZ:g} (Hz, 0 disables)"),
-    "seed": (_int, lambda v: isinstance(v, int) and not isinstance(v, bool), "an integer"),
+    "broadcast_hz": (parse_float, _between(0, MAX_RATE_HZ), f"a rate 0..{MAX_RATE_HZ:g} (Hz, 0 disables)"),
+    "map_hz": (parse_float, _between(0, MAX_RATE_HZ), f"a rate 0..{MAX_RATE_HZ:g} (Hz, 0 disables)"),
+    "seed": (parse_int, _between(0, MAX_SEED), f"an integer 0..{MAX_SEED}"),
     "pace": (_flag, _is_bool, "0 or 1"),
-    "baud": (_int, _between(MIN_BAUD, MAX_BAUD), f"an integer {MIN_BAUD}..{MAX_BAUD}"),
+    "baud": (parse_int, _between(MIN_BAUD, MAX_BAUD), f"an integer {MIN_BAUD}..{MAX_BAUD}"),
 }
 
 

@@ -3,7 +3,8 @@
 A real program (minicom, another tool, ``hcrctl --port /dev/pts/N``) then
 talks to the simulated robot through a real file descriptor. Both servers are
 one single-threaded select() loop that sleeps until input arrives, the stop
-pipe is written, or the link's ``next_due()`` (a paced byte, a broadcast).
+pipe is written, or a link's ``next_due()`` (a paced byte, a broadcast). The
+TCP server takes several clients at once, all on the same robot (``simhub``).
 
 Output is written non-blocking and dropped when nobody reads, as a UART's
 bytes are lost with no listener; the server never stalls on a slow client.
@@ -20,6 +21,7 @@ import tty
 from collections.abc import Callable
 from types import FrameType
 
+from .simhub import Hub
 from .simlink import Link, open_link
 from .simoptions import SimOptions
 
@@ -124,29 +126,89 @@ def _read_pty(fd: int) -> bytes | None:
         return None
 
 
-def serve_tcp(
-    options: SimOptions, host: str, port: int, stopper: Stopper, on_ready: Callable[[str], None]
-) -> None:
-    """Serve on TCP, one client at a time; ``on_ready`` gets the ``socket://`` URL.
+#: Clients served at once; one more is told so (on stderr here) and closed.
+MAX_CLIENTS = 16
 
-    The robot outlives its clients (unplugging a cable does not reset it),
-    but each client starts with a clean line. Port 0 picks a free port.
+
+def serve_tcp(
+    options: SimOptions,
+    host: str,
+    port: int,
+    stopper: Stopper,
+    on_ready: Callable[[str], None],
+    say: Callable[[str], None] = lambda _line: None,
+) -> None:
+    """Serve on TCP, several clients at once sharing one robot; ``on_ready`` gets the ``socket://`` URL.
+
+    The robot outlives its clients (unplugging a cable does not reset it);
+    each client starts with a clean line, hears the replies to its own
+    requests and every broadcast (see ``simhub``). ``say`` gets a line when a
+    client comes or goes. Port 0 picks a free port.
     """
-    with socket.create_server((host, port)) as server:
-        link = open_link(options)
+    with socket.create_server((host, port)) as server, contextlib.ExitStack() as conns:
+        server.setblocking(False)
+        hub = Hub(options)
+        clients: dict[socket.socket, tuple[Link, str]] = {}
         on_ready(socket_url(host, server.getsockname()[1]))
         while not stopper.stopped:
-            if _wait(server.fileno(), stopper):
-                conn, _ = server.accept()
-                with conn:
-                    _serve_client(link, conn, stopper)
+            timeouts = [t for link, _ in clients.values() if (t := _timeout(link)) is not None]
+            readable, _, _ = select.select([server, stopper, *clients], [], [], min(timeouts, default=None))
+            if server in readable:
+                _accept(server, hub, clients, conns, say)
+            for conn in [c for c in readable if c in clients]:
+                _take_input(conn, hub, clients, say)
+            for conn, (link, _) in list(clients.items()):
+                out = link.read()
+                if out:
+                    with contextlib.suppress(BlockingIOError, BrokenPipeError, ConnectionResetError):
+                        conn.send(out)  # nobody reading: the bytes are lost, as on a real line
 
 
-def _serve_client(link: Link, conn: socket.socket, stopper: Stopper) -> None:
+def _accept(
+    server: socket.socket,
+    hub: Hub,
+    clients: dict[socket.socket, tuple[Link, str]],
+    conns: contextlib.ExitStack,
+    say: Callable[[str], None],
+) -> None:
+    try:
+        conn, peer = server.accept()
+    except (BlockingIOError, InterruptedError, ConnectionAbortedError):
+        return
+    who = _peer_name(peer)
+    if len(clients) >= MAX_CLIENTS:
+        conn.close()
+        say(f"refused {who}: {MAX_CLIENTS} clients are connected already (the most served at once)")
+        return
+    conns.enter_context(conn)
     conn.setblocking(False)
     conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-    link.discard()
-    _serve(link, conn.fileno(), lambda: _recv(conn), conn.send, stopper)
+    clients[conn] = (hub.attach(), who)
+    say(f"{who} connected ({_count(len(clients))})")
+
+
+def _take_input(
+    conn: socket.socket, hub: Hub, clients: dict[socket.socket, tuple[Link, str]], say: Callable[[str], None]
+) -> None:
+    link, who = clients[conn]
+    data = _recv(conn)
+    if data == b"":
+        hub.detach(link)
+        del clients[conn]
+        conn.close()
+        say(f"{who} disconnected ({_count(len(clients))})")
+    elif data:
+        link.write(data)
+
+
+def _count(n: int) -> str:
+    return f"{n} client{'s' if n != 1 else ''} connected"
+
+
+def _peer_name(peer: object) -> str:
+    if isinstance(peer, tuple) and len(peer) >= 2:
+        return f"[{peer[0]}]:{peer[1]}" if ":" in str(peer[0]) else f"{peer[0]}:{peer[1]}"
+    return str(peer)
 
 
 def _recv(conn: socket.socket) -> bytes | None:

@@ -132,7 +132,8 @@ class Simulator:
         self._faults = random.Random(f"faults:{self.options.seed}")
         self._env = random.Random(f"env:{self.options.seed}")
         self._now = clock()
-        self._outbox: list[tuple[float, int, bytes]] = []
+        #: Delayed replies: (due time, sequence, frame, the owner that asked).
+        self._outbox: list[tuple[float, int, bytes, object]] = []
         self._seq = itertools.count()
         self._senders = list(self._make_senders())
 
@@ -155,22 +156,38 @@ class Simulator:
             self._now = now
         return self._now
 
-    def feed(self, data: bytes) -> bytes:
-        """Take received bytes; return the replies due now (delayed ones come from poll)."""
-        now = self.advance()
+    def feed(self, data: bytes, owner: object = None) -> bytes:
+        """Take received bytes; return the replies due now (delayed ones come from poll).
+
+        ``owner`` tags the delayed replies, so a server with several clients
+        can hand each reply to the client that asked (see ``poll_owned``).
+        """
         out = bytearray()
         for event in self._decoder.feed(data):
-            if isinstance(event, Frame) and event.address == self.options.address:
-                out += self._answer(event, now)
+            if isinstance(event, Frame):
+                out += self.take(event, owner)
         return bytes(out)
+
+    def take(self, frame: Frame, owner: object = None) -> bytes:
+        """One whole frame already decoded (by a server that decodes per client); its reply due now."""
+        if frame.address != self.options.address:
+            return b""
+        return self._answer(frame, self.advance(), owner)
 
     def poll(self) -> bytes:
         """Broadcasts, map frames and delayed replies whose time has come, in time order."""
+        return b"".join(frame for _, frame in self.poll_owned())
+
+    def poll_owned(self) -> list[tuple[object, bytes]]:
+        """``poll()`` frame by frame, each with its addressee: None for a broadcast (everyone),
+        else the ``owner`` given to ``feed`` with the request a delayed reply answers."""
         now = self.advance()
-        due = [(t, next(self._seq), frame) for t, frame in self._broadcasts(now)]
+        due: list[tuple[float, int, bytes, object]] = [
+            (t, next(self._seq), frame, None) for t, frame in self._broadcasts(now)
+        ]
         while self._outbox and self._outbox[0][0] <= now:
             due.append(heapq.heappop(self._outbox))
-        return b"".join(frame for _, _, frame in sorted(due))
+        return [(owner, frame) for _, _, frame, owner in sorted(due, key=lambda d: d[:2])]
 
     def next_due(self) -> float | None:
         """Clock time at which poll() will next return something; None if never."""
@@ -182,7 +199,7 @@ class Simulator:
 
     # -- requests and replies ---------------------------------------------
 
-    def _answer(self, frame: Frame, now: float) -> bytes:
+    def _answer(self, frame: Frame, now: float, owner: object = None) -> bytes:
         cmd = BY_CODE.get(frame.command)
         if cmd is None or cmd.request is None:
             return b""
@@ -193,7 +210,8 @@ class Simulator:
         reply = self._dispatch(cmd, request)
         if reply is None:
             return b""
-        return self._send(encode(self.options.address, cmd.code, reply.content(), self.options.checksum), now)
+        frame_out = encode(self.options.address, cmd.code, reply.content(), self.options.checksum)
+        return self._send(frame_out, now, owner)
 
     def _dispatch(self, cmd: Command, request: Request) -> Reply | None:
         if isinstance(request, ReadRequest):
@@ -202,14 +220,14 @@ class Simulator:
         handler = self._WRITES.get(type(request))
         return handler(self, request) if handler else None
 
-    def _send(self, frame: bytes, now: float) -> bytes:
+    def _send(self, frame: bytes, now: float, owner: object = None) -> bytes:
         """Apply the reply faults; a delayed reply goes to the outbox."""
         opts = self.options
         if opts.silent or self._chance(opts.drop):
             return b""
         frame = self._garble(frame)
         if opts.delay_ms:
-            heapq.heappush(self._outbox, (now + opts.delay_ms / 1000, next(self._seq), frame))
+            heapq.heappush(self._outbox, (now + opts.delay_ms / 1000, next(self._seq), frame, owner))
             return b""
         return frame
 

@@ -78,7 +78,7 @@ def test_timeout_and_retries_from_the_file(tmp_path):
 BAD_FILES = [
     ("baud = 3\n", ["baud", "50<=x<=4000000"]),
     ("address = 300\n", ["address", "0..255"]),
-    ('address = "lots"\n', ["address", "not a number"]),
+    ('address = "lots"\n', ["address", "not a valid integer"]),
     ("port = 5\n", ["port", "expected a string, got an integer"]),
     ('json = "yes"\n', ["json", "expected true/false"]),
     ("timeout = true\n", ["timeout", "expected an integer or a number"]),

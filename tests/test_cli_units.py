@@ -26,10 +26,14 @@ def test_parameters_come_from_the_table():
                 assert (param.type.min, param.type.max) == (info.lo, info.hi)
 
 
-def test_field_range_reads_hex_and_names_the_unit():
+def test_field_range_reads_hex_only_for_bytes_and_names_the_unit():
     velocity = FieldRange(C.BY_NAME["velocity"].request_fields[0])
-    assert velocity.convert("-0x10", None, None) == -16
     assert velocity.convert("255", None, None) == 255
+    assert velocity.convert("-16", None, None) == -16
+    with pytest.raises(click.BadParameter, match=r"'0x10' is a hex literal.*-255\.\.255 cm/s.*hex send"):
+        velocity.convert("0x10", None, None)  # a quantity: the user may have meant a wire byte
+    servo = FieldRange(C.BY_NAME["servo"].request_fields[0])
+    assert servo.convert("0x10", None, None) == 16  # a byte of the protocol
     with pytest.raises(click.BadParameter, match=r"256 is not in the range -255\.\.255 cm/s"):
         velocity.convert("256", None, None)
     with pytest.raises(click.BadParameter, match="not a valid integer"):

@@ -17,7 +17,7 @@ import click
 
 from .. import __version__
 from .. import commands as C
-from ..errors import HcrError
+from ..errors import HcrError, printable
 from ..signals import Terminated, stop_signals_raise
 from .settings import GLOBAL_OPTIONS, Settings, config_keys
 
@@ -165,7 +165,7 @@ def _debug(args: list[str]) -> bool:
 def exit_code_for(exc: BaseException) -> int:
     """Say what went wrong on one stderr line; the exit code that goes with it."""
     if isinstance(exc, Terminated):
-        click.echo(f"hcrctl: {exc}", err=True)
+        say_error(f"hcrctl: {exc}")
         return exc.exit_code
     if isinstance(exc, NoArgsIsHelpError):
         exc.show()  # a bare group: its help, as Click shows it
@@ -173,23 +173,32 @@ def exit_code_for(exc: BaseException) -> int:
     if isinstance(exc, click.UsageError):
         return _usage_error(exc)
     if isinstance(exc, click.ClickException):
-        click.echo(f"hcrctl: error: {exc.format_message()}", err=True)
+        say_error(f"hcrctl: error: {exc.format_message()}")
         return exc.exit_code
     if isinstance(exc, (click.Abort, KeyboardInterrupt)):
-        click.echo("hcrctl: interrupted", err=True)
+        say_error("hcrctl: interrupted")
         return 130
     if isinstance(exc, HcrError):
-        click.echo(f"hcrctl: error: {exc.one_line()}", err=True)
+        say_error(f"hcrctl: error: {exc.one_line()}")
         return exc.exit_code
     if not isinstance(exc, Exception):
         raise exc
-    click.echo(f"hcrctl: internal error: {exc!r} (run with --debug for the traceback)", err=True)
+    say_error(f"hcrctl: internal error: {exc!r} (run with --debug for the traceback)")
     return 1
+
+
+def say_error(line: str) -> None:
+    """The one way an error line reaches stderr: control characters in it made visible.
+
+    Messages quote what the user typed (a port, a file name, a value); an
+    escape sequence there must reach the terminal as text, not as a command.
+    """
+    click.echo(printable(line), err=True)
 
 
 def _usage_error(exc: click.UsageError) -> int:
     """Click's message on one line, naming the parameter, plus where help is."""
     path = exc.ctx.command_path if exc.ctx else "hcrctl"
     message = " ".join(exc.format_message().split())
-    click.echo(f"{path}: error: {message} (see '{path} --help')", err=True)
+    say_error(f"{path}: error: {message} (see '{path} --help')")
     return exc.exit_code

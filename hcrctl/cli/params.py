@@ -1,4 +1,21 @@
-"""Click arguments and options generated from the command table.
+"""Every numeric parameter's type, and the arguments and options generated from the table.
+
+This module owns how a number on the command line (or in ``HCRCTL_*``, the
+config file or the shell's ``set``) is read; the text rules themselves are in
+``hcrctl.numtext``, shared with the simulator's options:
+
+* quantities (percents, speeds, angles, durations, counts, rates) are
+  decimal only: ``drive power 0x40 0x40`` most likely meant the wire byte 0x40
+  (-50 %), not +64 %, so a hex literal there is a usage error that says how to
+  send raw bytes;
+* bytes of the protocol (servo positions, PID gains, RV, the address) also
+  take ``0x``-hex, as protocol.md writes them;
+* ASCII digits only, no ``_`` separators, no NaN or infinities, and every
+  parameter has a range.
+
+So every numeric parameter must use ``IntRange``, ``FloatRange``,
+``ByteNumber`` or ``FieldRange`` from here (``tests/test_numbers_sweep.py``
+walks the Click tree and holds every one to these rules).
 
 ``drive power LEFT RIGHT`` gets its ranges, units, defaults and help from
 ``MotorPower``'s fields in ``commands.py``; nothing here knows a range. A value
@@ -9,41 +26,113 @@ parameter and the range) before a port is even opened.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import click
 
 from .. import commands as C
+from ..numtext import NumberError, finite, parse_float, parse_int
 
 #: The spelling of a flag's "off" switch, where "--no-<name>" reads badly.
 OFF_SWITCHES = {"ccw": "cw"}
-_NUMBER = re.compile(r"^-(\d|\.\d)")
+#: A word that is a (bad) number, not an option: -50, -.5, -inf, -nan, -٥٠.
+_NUMBER = re.compile(r"^-(\d|\.\d|inf|nan)", re.IGNORECASE)
+#: Where a hex literal was probably meant as a wire byte.
+RAW_BYTES_HINT = "to send raw bytes, use 'hcrctl hex send'"
 
 
 class IntRange(click.IntRange):
-    """Click's IntRange, but 'x' is "not a valid integer", not "not a valid integer range"."""
+    """A decimal integer in a range: ASCII digits, no '_', no 0x (see the module doc)."""
 
     name = "integer"
+    #: Whether ``0x``-hex is taken too (a byte of the protocol).
+    hex_ok = False
+
+    def __init__(self, min: int | None = None, max: int | None = None, *, hint: str = "", **kw: Any) -> None:
+        super().__init__(min, max, **kw)
+        self.hint = hint
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if isinstance(value, (bool, float)):  # a config file's 1.5 or true is not an integer
+            self.fail(self._refusal(f"{value!r} is not a valid integer"), param, ctx)
+        if not isinstance(value, int):
+            try:
+                value = parse_int(str(value), hex_ok=self.hex_ok)
+            except NumberError as exc:
+                self.fail(self._refusal(exc.message, exc.hex_literal), param, ctx)
+        return super().convert(value, param, ctx)
+
+    def _refusal(self, message: str, hex_literal: bool = False) -> str:
+        kind = "a decimal or 0x-hex integer" if self.hex_ok else "a decimal integer"
+        text = f"{message}; expected {kind} in {self._describe_range()}"
+        return f"{text} ({self.hint})" if hex_literal and self.hint else text
 
 
 class FloatRange(click.FloatRange):
-    """Click's FloatRange, but 'x' is "not a valid number"."""
+    """A finite decimal number in a range, with a unit; optionally also some words (``max``)."""
 
     name = "number"
 
+    def __init__(
+        self,
+        min: float | None = None,
+        max: float | None = None,
+        *,
+        unit: str = "",
+        words: Mapping[str, Any] | None = None,
+        **kw: Any,
+    ) -> None:
+        super().__init__(min, max, **kw)
+        self.unit = unit
+        self.words = dict(words or {})
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if isinstance(value, str) and value.strip().lower() in self.words:
+            return self.words[value.strip().lower()]
+        try:
+            if isinstance(value, bool):
+                raise NumberError(f"{value!r} is not a valid number")
+            value = finite(float(value)) if isinstance(value, (int, float)) else parse_float(str(value))
+        except NumberError as exc:
+            self.fail(f"{exc.message}; expected a number in {self._describe_range()}", param, ctx)
+        return super().convert(value, param, ctx)
+
+    def _describe_range(self) -> str:
+        """Click's ``0<x<=1000``, with 1000 not 1000.0, then the unit and the words."""
+        low = "" if self.min is None else f"{self.min:g}{'<' if self.min_open else '<='}"
+        high = "" if self.max is None else f"{'<' if self.max_open else '<='}{self.max:g}"
+        unit = f" {self.unit}" if self.unit else ""
+        words = f" (or {' or '.join(repr(w) for w in self.words)})" if self.words else ""
+        return f"{low}x{high}{unit}{words}"
+
+
+class ByteNumber(IntRange):
+    """A byte given in decimal or 0x-hex, such as an address: 1, 0x01, 0x50."""
+
+    name = "0..255"
+    hex_ok = True
+    accepts_int = True  # the config file may say address = 0x50 or "0x50"
+
+    def __init__(self) -> None:
+        super().__init__(0, 0xFF)
+
+    def _describe_range(self) -> str:
+        return "0..255 (0x00..0xFF)"
+
 
 class FieldRange(IntRange):
-    """An integer field of the table: decimal or 0x-hex, range and unit from the table."""
+    """An integer field of the table, range and unit from the table.
+
+    A field with a unit (%, cm/s, deg) is a quantity: decimal only. A field
+    without one (servo position, PID gain, RV) is a byte of the protocol, so
+    0x-hex is taken as well.
+    """
 
     def __init__(self, info: C.FieldInfo) -> None:
-        super().__init__(int(info.lo), int(info.hi))
+        super().__init__(int(info.lo), int(info.hi), hint="" if not info.unit else RAW_BYTES_HINT)
         self.info = info
-
-    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> int:
-        if isinstance(value, str):
-            value = _parse_int(value)
-        return super().convert(value, param, ctx)
+        self.hex_ok = not info.unit
 
     def _describe_range(self) -> str:
         return self.info.range_text
@@ -56,16 +145,6 @@ MAX_HOLD_S = 86_400
 def hold_option(help: str = "Stop after SECONDS (default: hold until Ctrl-C).") -> Callable:
     """``--for SECONDS``: how long a one-shot motion is held before stop (drive, hex send)."""
     return click.option("--for", "hold_for", type=FloatRange(0, MAX_HOLD_S), metavar="SECONDS", help=help)
-
-
-def _parse_int(text: str) -> int | str:
-    """Decimal, or 0x/0o/0b-prefixed; anything else is left for Click to refuse."""
-    for base in (10, 0):
-        try:
-            return int(text.strip(), base)
-        except ValueError:
-            continue
-    return text
 
 
 def field_param(info: C.FieldInfo) -> click.Parameter:

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from ..frames import ChecksumRule
-from .params import FloatRange, IntRange
+from .params import ByteNumber, FloatRange, IntRange
 
 if TYPE_CHECKING:
     from click.shell_completion import CompletionItem
@@ -29,25 +29,6 @@ if TYPE_CHECKING:
 
 ENV_PREFIX = "HCRCTL_"
 SIM_URL = "sim://"
-
-
-class ByteNumber(click.ParamType):
-    """A byte given in decimal or 0x-hex, such as an address: 1, 0x01, 0x50."""
-
-    name = "0..255"
-    accepts_int = True  # the config file may say address = 0x50 or "0x50"
-
-    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> int:
-        if isinstance(value, int) and not isinstance(value, bool):
-            number = value
-        else:
-            try:
-                number = int(str(value), 0)
-            except ValueError:
-                self.fail(f"{value!r} is not a number (decimal or 0x-hex)", param, ctx)
-        if not 0 <= number <= 0xFF:
-            self.fail(f"{value} is not in the range 0..255 (0x00..0xFF)", param, ctx)
-        return number
 
 
 def complete_port(ctx: click.Context, param: click.Parameter, incomplete: str) -> list[CompletionItem]:

@@ -13,8 +13,10 @@ from typing import TYPE_CHECKING
 
 import click
 
-from ..errors import HcrError
-from ..simoptions import MAX_BAUD, MIN_BAUD, SimOptions
+from ..errors import HcrError, printable
+from ..numtext import NumberError, parse_int
+from ..simoptions import MAX_BAUD, MAX_SEED, MIN_BAUD, SimOptions
+from .params import IntRange
 
 if TYPE_CHECKING:
     from ..simserve import Stopper
@@ -27,12 +29,11 @@ DEFAULT_HOST = "127.0.0.1"
 @click.option(
     "--tcp",
     metavar="[HOST:]PORT",
-    help=f"Serve on TCP, one client at a time, and print its socket:// URL (host {DEFAULT_HOST}; port 0 picks one).",
+    help=f"Serve on TCP and print its socket:// URL (host {DEFAULT_HOST}; port 0 picks one). "
+    "Several clients at once share the robot; each hears its own replies and every broadcast.",
 )
 @click.option("--pace", is_flag=True, help="Deliver bytes no faster than a UART at --baud (8N1).")
-@click.option(
-    "--baud", type=click.IntRange(MIN_BAUD, MAX_BAUD), help="Line rate for --pace.  [default: 115200]"
-)
+@click.option("--baud", type=IntRange(MIN_BAUD, MAX_BAUD), help="Line rate for --pace.  [default: 115200]")
 @click.option(
     "--options",
     "query",
@@ -41,7 +42,11 @@ DEFAULT_HOST = "127.0.0.1"
     help="Simulator options, as in sim://?QUERY: drop, corrupt, noise, delay_ms, checksum, address, "
     "silent, pid, broadcast_hz, map_hz, seed, pace, baud (e.g. 'drop=0.1&delay_ms=20').",
 )
-@click.option("--seed", type=int, help="Seed for sensor noise and faults (overrides seed= in --options).")
+@click.option(
+    "--seed",
+    type=IntRange(0, MAX_SEED),
+    help="Seed for sensor noise and faults (overrides seed= in --options).",
+)
 def sim(use_pty: bool, tcp: str | None, pace: bool, baud: int | None, query: str, seed: int | None) -> None:
     """Serve the simulated robot on a pty or a TCP port until Ctrl-C or SIGTERM."""
     if use_pty == (tcp is not None):
@@ -78,7 +83,7 @@ def _serve(options: SimOptions, address: tuple[str, int] | None, stopper: Stoppe
     if address is None:
         simserve.serve_pty(options, stopper, _announce)
     else:
-        simserve.serve_tcp(options, address[0], address[1], stopper, _announce)
+        simserve.serve_tcp(options, address[0], address[1], stopper, _announce, _note)
 
 
 def _options(query: str, pace: bool, baud: int | None, seed: int | None) -> SimOptions:
@@ -99,11 +104,20 @@ def parse_tcp(text: str) -> tuple[str, int]:
     """``HOST:PORT``, ``:PORT`` or ``PORT``; the host defaults to the loopback address."""
     host, _, port = text.rpartition(":")
     host = host.strip("[]") or DEFAULT_HOST
-    if not port.isdigit() or int(port) > 65535:
+    try:
+        number = parse_int(port)
+    except NumberError:
+        number = -1
+    if not 0 <= number <= 65535:
         raise click.BadParameter(
-            f"expected [HOST:]PORT with PORT 0..65535, got {text!r}", param_hint="'--tcp'"
+            f"expected [HOST:]PORT with PORT 0..65535 (decimal), got {text!r}", param_hint="'--tcp'"
         )
-    return host, int(port)
+    return host, number
+
+
+def _note(line: str) -> None:
+    """Clients coming and going, on stderr (stdout has only the URL)."""
+    click.echo(f"hcrctl sim: {printable(line)}", err=True)
 
 
 def _announce(where: str) -> None:

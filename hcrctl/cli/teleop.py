@@ -5,11 +5,12 @@ from __future__ import annotations
 import click
 
 from .. import commands as C
+from .params import FloatRange, IntRange
 from .settings import Settings
 
 #: Percent ranges come from the motor-speed command (0x02) in the table.
 _PERCENT = C.BY_NAME["speed"].request_fields[0]
-PERCENT = click.IntRange(0, int(_PERCENT.hi))
+PERCENT = IntRange(0, int(_PERCENT.hi))
 
 
 @click.command()
@@ -19,7 +20,7 @@ PERCENT = click.IntRange(0, int(_PERCENT.hi))
 @click.option("--turn", type=PERCENT, default=30, show_default=True, help="Turning speed, % of maximum.")
 @click.option(
     "--timeout",
-    type=click.FloatRange(0.05, 10),
+    type=FloatRange(0.05, 10),
     default=0.5,
     show_default=True,
     metavar="S",

@@ -3,31 +3,25 @@
 from __future__ import annotations
 
 import json
-from typing import Any
 
 import click
 
 from .. import commands as C
+from .params import FloatRange
 from .settings import Settings
 
 MAX_RATE = 1000.0
+#: The longest --duration: ten days.
+MAX_DURATION_S = 864_000
 
 
-class Rate(click.ParamType):
+class Rate(FloatRange):
     """Polls per second, or ``max``: as fast as the device answers."""
 
     name = "HZ|max"
 
-    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> float | None:
-        if value is None or (isinstance(value, str) and value.lower() == "max"):
-            return None
-        try:
-            rate = float(value)
-        except (TypeError, ValueError):
-            self.fail(f"{value!r} is not a number of Hz or 'max'", param, ctx)
-        if not 0 < rate <= MAX_RATE:
-            self.fail(f"{value} is not in the range 0<x<={MAX_RATE:g} Hz (or 'max')", param, ctx)
-        return rate
+    def __init__(self) -> None:
+        super().__init__(0, MAX_RATE, min_open=True, unit="Hz", words={"max": None})
 
 
 @click.command()
@@ -35,7 +29,7 @@ class Rate(click.ParamType):
 @click.option("--rate", type=Rate(), default="10", show_default=True, help="Sweeps per second, or max.")
 @click.option(
     "--duration",
-    type=click.FloatRange(0, min_open=True),
+    type=FloatRange(0, MAX_DURATION_S, min_open=True),
     metavar="S",
     help="Exit by itself after S seconds (for scripts and tests).",
 )
