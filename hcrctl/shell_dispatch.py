@@ -18,7 +18,7 @@ from typing import Any
 
 import click
 
-from .errors import HcrError
+from .errors import HcrError, printable
 from .shell_builtins import builtins
 from .shell_grammar import ShellCommands, root_context, split
 from .shell_session import Session
@@ -113,23 +113,29 @@ def report(session: Session, exc: Exception) -> int:
     """One line on stderr for any failure; the exit code the CLI would have used.
 
     In a script the line starts with where the command was: ``moves.hcr:3: error: ...``.
+    The line echoes what the user typed, so it is made printable like the CLI's.
     """
-    where = f"{session.where}: " if session.where else ""
-    if isinstance(exc, click.UsageError):
-        click.echo(where + usage_line(exc), err=True)
-        return exc.exit_code
-    if isinstance(exc, click.ClickException):
-        click.echo(f"{where}error: {exc.format_message()}", err=True)
-        return exc.exit_code
-    if isinstance(exc, HcrError):
-        click.echo(f"{where}error: {exc.one_line()}", err=True)
-        return exc.exit_code
-    if isinstance(exc, click.Abort):
+    line, code = _failure_line(session, exc)
+    if line is None:
         return _interrupted(session)
+    where = f"{session.where}: " if session.where else ""
+    click.echo(printable(where + line), err=True)
+    return code
+
+
+def _failure_line(session: Session, exc: Exception) -> tuple[str | None, int]:
+    """The message (None for Ctrl-C) and exit code of a failed shell command."""
+    if isinstance(exc, click.UsageError):
+        return usage_line(exc), exc.exit_code
+    if isinstance(exc, click.ClickException):
+        return f"error: {exc.format_message()}", exc.exit_code
+    if isinstance(exc, HcrError):
+        return f"error: {exc.one_line()}", exc.exit_code
+    if isinstance(exc, click.Abort):
+        return None, INTERRUPTED
     if session.settings.debug:
         traceback.print_exc()
-    click.echo(f"{where}internal error: {exc!r} (run hcrctl --debug shell for the traceback)", err=True)
-    return 1
+    return f"internal error: {exc!r} (run hcrctl --debug shell for the traceback)", 1
 
 
 def usage_line(exc: click.UsageError) -> str:

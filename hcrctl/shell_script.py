@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import click
 
+from .errors import printable
 from .shell_dispatch import run_line
 from .shell_session import Session
 
@@ -161,7 +162,7 @@ def run_script(
         tally.first = error.exit_code
     session.printer = click.echo  # ``monitor on`` in a script prints frames on stdout
     for number, text in script_lines(lines):
-        echo(f"{session.prompt_text}{text}")
+        echo(session.prompt_text + printable(text))
         session.where = f"{name}:{number}"
         try:
             code = run_line(session, text)

@@ -35,3 +35,14 @@ def test_an_escape_sequence_in_user_input_reaches_the_terminal_as_text(args: lis
 def test_printable_escapes_control_and_invisible_characters_only() -> None:
     assert printable("50 % → ° ٥٠") == "50 % → ° ٥٠"
     assert printable("a\x1b[2Jb\nc\x7f\u202e\x9b") == "a\\x1b[2Jb\\x0ac\\x7f\\u202e\\x9b"
+
+
+def test_the_shell_escapes_user_input_in_its_error_lines_too(tmp_path) -> None:
+    script = tmp_path / "s.hcr"
+    script.write_text("read \x1b]0;owned\x07\n", encoding="utf-8")
+    with terminal(["--port", "sim://", "shell", "--script", str(script)]) as term:
+        status = term.finish()
+    assert status == 2
+    raw = term.output()
+    assert "\x1b]" not in raw and "\x07" not in raw
+    assert "\\x1b]0;owned\\x07" in raw
