@@ -18,7 +18,8 @@ from rich.segment import Segment
 from rich.text import Text
 
 from . import commands as C
-from .livestate import DriveStatus, Reading, View
+from .errors import other_rule_hint
+from .livestate import Counters, DriveStatus, Reading, View
 from .render import cardinal
 
 SPARKS = "▁▂▃▄▅▆▇█"
@@ -273,6 +274,7 @@ def link_panel(view: View, now: float, compact: bool = False) -> Panel:
             ("rtt", _rtt_text(view.rtt)),
             ("timeouts", f"{c.timeouts}  bad replies {c.bad_replies}"),
             ("checksum", f"{c.checksum_errors} errors  junk {c.junk_bytes} B"),
+            *_other_rule_row(c),
         ]
         return Panel(labelled(rows), title="link", title_align="left", border_style="cyan")
     rows = [
@@ -285,8 +287,17 @@ def link_panel(view: View, now: float, compact: bool = False) -> Panel:
         ("checksum", f"{c.checksum_errors} errors  malformed {c.malformed}"),
         ("junk", f"{c.junk_bytes} B"),
         ("unasked", f"{c.unsolicited} frames  reconnects {c.reconnects}"),
+        *_other_rule_row(c),
     ]
     return Panel(labelled(rows), title="link", title_align="left", border_style="cyan")
+
+
+def _other_rule_row(c: Counters) -> list[tuple[str, Text]]:
+    """The fix, when frames fail the configured checksum rule but pass the other one."""
+    if not c.other_rule or c.other_rule_name is None:
+        return []
+    why, fix = other_rule_hint(c.other_rule_name, "frames").split(": ", 1)  # two rows fit a narrow panel
+    return [("rule", Text(why, style="bold yellow")), ("fix", Text(fix, style="bold yellow"))]
 
 
 def labelled(rows: Iterable[tuple[str, str | Text]], width: int = 9) -> Text:

@@ -82,7 +82,8 @@ def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None) -
 
     Exit 0 if every frame is good, 1 if any frame or byte is bad, 2 if the
     input is not hex. The checksum is judged under --checksum-from; a bad one
-    also shows what the other rule gives.
+    also shows what the other rule gives. Lines the firmware printed between
+    frames (a boot banner, debug output) are rows of kind text, not junk.
     """
     settings: Settings = ctx.obj
     data = _decode_input(hex_text, capture)
@@ -93,7 +94,8 @@ def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None) -
     for row in rows:
         tally.add(row)
     _print_rows(settings, rows)
-    click.echo(f"hcrctl: {len(data)} bytes: {tally.text()}", err=True)
+    hint = tally.hint()
+    click.echo(f"hcrctl: {len(data)} bytes: {tally.text()}{f' (hint: {hint})' if hint else ''}", err=True)
     ctx.exit(0 if tally.all_good else 1)
 
 
