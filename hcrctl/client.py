@@ -348,7 +348,9 @@ class Robot:
                 self._dispatch(self._decoder.feed(data))
             elif self._decoder.holding:  # a quiet gap: show what the device printed without a frame after it
                 self._dispatch(self._decoder.idle())
-        self._dispatch(self._decoder.flush())  # closing: the rest, to the hooks still listening
+        # Closing: skipped bytes and text held back, to the hooks still listening. Not flush():
+        # a frame still in progress may be whole in the OS buffer, so it is no truncated frame.
+        self._dispatch(self._decoder.idle())
 
     def _dispatch(self, events: list[Event]) -> None:
         now = time.time()

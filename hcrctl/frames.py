@@ -462,7 +462,7 @@ _CLASS = bytes(
 _BLANK = b" \t\r\n\x1b"
 #: Visible characters a line ended by LF needs: "OK\r\n" is a line.
 MIN_LINE = 2
-#: A run cut short (by a frame, a quiet gap, the end of input) needs more: random bytes often end printable.
+#: A line cut short (by a frame, a quiet gap, the end of input) needs more, and must be all text.
 MIN_TAIL = 4
 
 
@@ -502,17 +502,22 @@ def _text_spans(data: bytes, tail: bool) -> list[tuple[int, int]]:
         _add_line(data, max(lo, cls.rfind(b".", lo, end) + 1), end + 1, MIN_LINE, spans)
         lo = end + 1
         end = cls.find(b"\n", lo)
-    if tail and lo < len(data) and cls[-1] == _T:
-        _add_line(data, max(lo, cls.rfind(b".", lo) + 1), len(data), MIN_TAIL, spans)
+    if tail and lo < len(data) and cls.find(b".", lo) < 0:
+        _add_line(data, lo, len(data), MIN_TAIL, spans, whole=True)
     return spans
 
 
-def _add_line(data: bytes, start: int, stop: int, least: int, spans: list[tuple[int, int]]) -> None:
+def _add_line(
+    data: bytes, start: int, stop: int, least: int, spans: list[tuple[int, int]], whole: bool = False
+) -> None:
     """Keep data[start:stop] if, from its last invalid UTF-8 byte on, it shows ``least`` visible characters.
 
     Binary bytes that happen to be printable or >= 0x80 often run straight
     into a line; the longest valid UTF-8 tail is the line, the rest stays junk.
+    ``whole``: an unterminated run is text only if all of it is (it starts a
+    line), since noise before a frame often ends in a few printable bytes.
     """
+    first = start
     line = data[start:stop]
     while not line.isascii():
         try:
@@ -525,7 +530,7 @@ def _add_line(data: bytes, start: int, stop: int, least: int, spans: list[tuple[
             else:
                 start += exc.end
                 line = line[exc.end :]
-    if len(line.translate(None, _BLANK)) >= least:
+    if len(line.translate(None, _BLANK)) >= least and not (whole and start != first):
         spans.append((start, stop))
 
 

@@ -14,12 +14,14 @@ from typing import TYPE_CHECKING
 import click
 
 from .errors import HcrError
-from .frames import Frame
+from .frames import Frame, TextLine
+from .hexview import neutral
 from .shell_broadcasts import Collapser
 from .shell_link import Link
 
 if TYPE_CHECKING:
     from .cli.settings import Settings
+    from .client import Robot, Traffic
 
 Printer = Callable[[str], None]
 
@@ -40,6 +42,7 @@ class Session:
         self.printer: Printer | None = None
         self._held: list[str] = []  # notices that came while a command owned the terminal
         self._say_lock = threading.Lock()
+        settings.robot_hooks.append(self._hear_text)
 
     # -- the prompt --------------------------------------------------------
 
@@ -79,6 +82,15 @@ class Session:
             self.printer = printer
         for text in held:
             printer(text)
+
+    def _hear_text(self, robot: Robot) -> None:
+        """A ``Settings.robot_hooks`` entry: what the firmware prints reaches the monitor output too."""
+        robot.add_traffic_hook(self._text)
+
+    def _text(self, traffic: Traffic) -> None:
+        printer = self.printer
+        if isinstance(traffic.event, TextLine) and self.monitor and printer is not None:
+            printer(f"text  {neutral(traffic.event.text)}")
 
     def _unsolicited(self, frame: Frame) -> None:
         line = self.broadcasts.offer(frame)
