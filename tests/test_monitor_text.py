@@ -193,3 +193,18 @@ def test_the_shells_monitor_output_shows_what_the_firmware_prints(tmp_path: Path
     finally:
         robot.close()
     assert any(line.startswith("text  dbg: ") for line in screen.splitlines())  # a line of its own
+
+
+def test_a_capture_of_a_device_that_only_printed_text_is_decoded_not_parsed_as_hex(tmp_path: Path) -> None:
+    capture = tmp_path / "boot.cap"
+    capture.write_bytes(b"HCR Start v0.33\r\ndbg: motor=0\r\n")
+    proc = run("hex", "decode", "--file", str(capture))
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.splitlines() == [
+        "     0       text       HCR Start v0.33",
+        "    17       text       dbg: motor=0",
+    ]
+    assert "printed text, not hex" in proc.stderr
+    typo = tmp_path / "dump.txt"
+    typo.write_text("55 AA 01\n02 14 XX\n")  # hex with a typo is still reported as such
+    assert run("hex", "decode", "--file", str(typo)).returncode == 2

@@ -121,8 +121,24 @@ def _capture(path: str) -> bytes:
         raise click.UsageError(
             f"{path} looks like a --log file; render it with: hcrctl monitor --from {path}"
         )
+    text = data.decode("ascii")
+    if not _mostly_hex(text):  # a capture of a device that only printed lines (a boot banner)
+        click.echo(f"hcrctl: {path} holds printed text, not hex: decoding its bytes", err=True)
+        return data
     click.echo(f"hcrctl: {path} is text, not a binary capture: reading it as hex", err=True)
-    return parse_hex(data.decode("ascii"), path)
+    return parse_hex(text, path)
+
+
+#: One word of hex as people write it: 55, 0x55, 55AA01, \x55\xAA, with brackets and separators around.
+HEX_WORD = r"[{(\[]?((0x)?[0-9A-Fa-f]{1,2}|(\\x[0-9A-Fa-f]{2})+|[0-9A-Fa-f]+)[,:;)}\]]*"
+
+
+def _mostly_hex(text: str) -> bool:
+    """Whether ``text`` is hex (perhaps with a typo to report), rather than lines a firmware printed."""
+    import re
+
+    words = text.split()
+    return 2 * sum(bool(re.fullmatch(HEX_WORD, w)) for w in words) >= len(words)
 
 
 def _stdin_hex() -> bytes:
