@@ -353,10 +353,11 @@ class FrameDecoder:
         events = split_skipped(p.offset, data[:cut], cut, tail=False)
         while events and not isinstance(events[-1], TextLine):
             events.pop()  # binary after the last line: it waits for what follows it
-        if not events:
+        last = events[-1] if events else None
+        if not isinstance(last, TextLine):
             return
         out += events
-        cut = events[-1].offset + events[-1].size - p.offset
+        cut = last.offset + last.size - p.offset
         if cut == len(data):
             self._pending = None
             return

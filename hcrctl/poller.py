@@ -162,9 +162,9 @@ class Poller(threading.Thread):
     def _count_errors(self, robot: Robot) -> None:
         now = _error_counts(robot)
         if now != self._seen:
-            delta = [max(0, a - b) for a, b in zip(now, self._seen, strict=True)]
+            checksum, malformed, junk, other = (max(0, a - b) for a, b in zip(now, self._seen, strict=True))
             self._seen = now
-            self.state.link_errors(*delta, other_rule_name=robot.rule.other.value)
+            self.state.link_errors(checksum, malformed, junk, other, robot.rule.other.value)
 
     # -- losing and finding the port -------------------------------------------
 
