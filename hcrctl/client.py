@@ -33,7 +33,17 @@ from .errors import (
     PortError,
     ProtocolError,
 )
-from .frames import BadChecksum, ChecksumRule, Event, Frame, FrameDecoder, Junk, Malformed, Truncated
+from .frames import (
+    BadChecksum,
+    ChecksumRule,
+    Event,
+    Frame,
+    FrameDecoder,
+    Junk,
+    Malformed,
+    TextLine,
+    Truncated,
+)
 
 #: How long the reader blocks in one read; bounds how fast close() returns.
 READ_SLICE = 0.05
@@ -43,6 +53,8 @@ UNSOLICITED_BACKLOG = 1000
 MAX_READ = 16
 #: How many recent requests an echo is compared with (a pipelined sweep's worth).
 ECHO_MEMORY = 16
+#: Stands for "some frame" among the keys of frames that passed only the other checksum rule.
+ON_THE_LINE = (-1, -1)
 
 
 @dataclass(frozen=True)
@@ -68,6 +80,10 @@ class LinkStats:
     retries: int = 0
     unsolicited: int = 0
     echoes: int = 0
+    #: Checksum errors that pass the other rule: the fix is --checksum-from, not the wiring.
+    other_rule: int = 0
+    #: Lines the firmware printed between frames (not junk).
+    text_lines: int = 0
     last_rx: float | None = None
 
     def count(self, event: Event) -> None:
@@ -76,6 +92,9 @@ class LinkStats:
             self.last_rx = time.monotonic()
         elif isinstance(event, BadChecksum):
             self.checksum_errors += 1
+            self.other_rule += event.matches_other_rule
+        elif isinstance(event, TextLine):
+            self.text_lines += 1
         elif isinstance(event, Malformed):
             self.malformed += 1
         elif isinstance(event, Junk):
@@ -126,6 +145,9 @@ class Robot:
         self._io = threading.Lock()  # one transaction at a time
         self._tx = threading.Lock()  # one write at a time (stop may cut in)
         self._waiting: set[tuple[int, int]] = set()
+        #: (address, command) of frames that failed the rule but pass the other one, this exchange;
+        #: ON_THE_LINE stands for any of them.
+        self._other_rule_keys: set[tuple[int, int]] = set()
         self._recent_tx: deque[bytes] = deque(maxlen=ECHO_MEMORY)
         self._replies: queue.SimpleQueue[Frame] = queue.SimpleQueue()
         self._closing = threading.Event()
@@ -175,6 +197,7 @@ class Robot:
     def rule(self, rule: ChecksumRule | str) -> None:
         self._rule = ChecksumRule(rule)
         self._decoder.rule = self._rule
+        self._other_rule_keys.clear()
 
     # -- sending -------------------------------------------------------------
 
@@ -236,7 +259,7 @@ class Robot:
         if frame is None:
             if silent is not None:
                 return silent
-            return DeviceTimeout(cmd.name, addr, self.port, self.timeout, 1 + max(self.retries, 0))
+            return self._no_reply(cmd.name, (addr, cmd.code))
         try:
             return cmd.reply.decode(frame.content)
         except ImpossibleReply as exc:
@@ -282,13 +305,30 @@ class Robot:
         """Write ``frame`` and return the frame answering it, retrying on timeout."""
         reply = self._exchange({expect: (frame, what)}).get(expect)
         if reply is None:
-            raise DeviceTimeout(what, expect[0], self.port, self.timeout, 1 + max(self.retries, 0))
+            raise self._no_reply(what, expect)
         return reply
+
+    def _no_reply(self, what: str, key: tuple[int, int]) -> DeviceTimeout:
+        """The timeout error; when the reply came but failed the rule and passes the other, it says so."""
+        attempts = 1 + max(self.retries, 0)
+        seen = self._other_rule_keys
+        if key not in seen and ON_THE_LINE not in seen:
+            return DeviceTimeout(what, key[0], self.port, self.timeout, attempts)
+        return DeviceTimeout(
+            what,
+            key[0],
+            self.port,
+            self.timeout,
+            attempts,
+            other_rule=self._rule.other.value,
+            seen="replies" if key in seen else "frames on the line",
+        )
 
     def _exchange(self, batch: dict[tuple[int, int], tuple[bytes, str]]) -> dict[tuple[int, int], Frame]:
         """Send every frame of ``batch``; collect replies by key, retrying the missing."""
         got: dict[tuple[int, int], Frame] = {}
         with self._io:
+            self._other_rule_keys.difference_update((*batch, ON_THE_LINE))  # only this exchange counts
             for attempt in range(1 + max(self.retries, 0)):
                 missing = {key: frame for key, (frame, _) in batch.items() if key not in got}
                 if not missing:
@@ -334,6 +374,11 @@ class Robot:
             if data:
                 self.rx_bytes += len(data)
                 self._dispatch(self._decoder.feed(data))
+            elif self._decoder.holding:  # a quiet gap: show what the device printed without a frame after it
+                self._dispatch(self._decoder.idle())
+        # Closing: skipped bytes and text held back, to the hooks still listening. Not flush():
+        # a frame still in progress may be whole in the OS buffer, so it is no truncated frame.
+        self._dispatch(self._decoder.idle())
 
     def _dispatch(self, events: list[Event]) -> None:
         now = time.time()
@@ -341,6 +386,8 @@ class Robot:
             self.stats.count(event)
             if isinstance(event, Frame):
                 self._route(event)
+            elif isinstance(event, BadChecksum) and event.matches_other_rule:
+                self._other_rule_keys.update(((event.address, event.command), ON_THE_LINE))
             if self._traffic_hooks:
                 data = event.to_bytes() if isinstance(event, Frame) else event.data
                 self._tell(Traffic(now, "rx", data, event))

@@ -91,16 +91,50 @@ class ImpossibleReply(ProtocolError):
         }
 
 
-class DeviceTimeout(HcrError):
-    """No reply within the timeout, after every retry."""
+TIMEOUT_HINT = "check the baud rate, the address and that the robot is powered"
 
-    def __init__(self, command: str, address: int, port: str, timeout: float, attempts: int) -> None:
-        super().__init__(
+
+def other_rule_hint(rule: str, what: str = "replies", one: bool = False) -> str:
+    """The exact fix when checksums fail the configured rule but pass the other one.
+
+    ``rule`` is the rule they pass (``address`` or ``header``); ``one``: ``what``
+    is singular. A device that sums from the address byte is otherwise told
+    to check its baud rate.
+    """
+    return f"{what} pass{'es' if one else ''} the {rule} rule: use --checksum-from {rule}"
+
+
+class DeviceTimeout(HcrError):
+    """No reply within the timeout, after every retry.
+
+    ``other_rule`` names the checksum rule that ``seen`` ("replies": the
+    awaited ones; "frames on the line": a device that drops our requests
+    because it checks the other rule, heard through its broadcasts) failed
+    under the configured rule but pass: then that, not the wiring, is the fix.
+    """
+
+    def __init__(
+        self,
+        command: str,
+        address: int,
+        port: str,
+        timeout: float,
+        attempts: int,
+        other_rule: str | None = None,
+        seen: str = "replies",
+    ) -> None:
+        message = (
             f"no reply to {command} from address 0x{address:02X} on {port} "
-            f"after {attempts} attempt{'s' if attempts != 1 else ''} of {timeout:g} s",
-            hint="check the baud rate, the address and that the robot is powered",
+            f"after {attempts} attempt{'s' if attempts != 1 else ''} of {timeout:g} s"
+        )
+        if other_rule is not None:
+            configured = "header" if other_rule == "address" else "address"
+            message += f"; {seen} failed the {configured} checksum rule"
+        super().__init__(
+            message, hint=TIMEOUT_HINT if other_rule is None else other_rule_hint(other_rule, seen)
         )
         self.command, self.address, self.port = command, address, port
+        self.other_rule, self.seen = other_rule, seen
 
 
 class DeviceSilent(DeviceTimeout):

@@ -143,10 +143,34 @@ class Truncated:
     needed: int
 
 
+@dataclass(frozen=True)
+class TextLine:
+    """Printable bytes between frames: a line the firmware printed (a boot banner, ``dbg: ...``).
+
+    Firmware authors print debug text on the same line as the frames; a serial
+    terminal shows it, so a debugger that hid it (or showed it as hex junk)
+    would hide the very thing they look for. ``data`` is the bytes exactly as
+    received, the line end included when there was one (a line cut short by a
+    quiet gap or a frame has none).
+    """
+
+    offset: int
+    data: bytes
+
+    @property
+    def size(self) -> int:
+        return len(self.data)
+
+    @property
+    def text(self) -> str:
+        """The line without its end; control characters are left for the renderer to neutralise."""
+        return self.data.decode("utf-8", "replace").removesuffix("\n").removesuffix("\r")
+
+
 _new_frame = tuple.__new__
 
 Diagnostic = Junk | BadChecksum | Malformed | Truncated
-Event = Frame | Diagnostic
+Event = Frame | TextLine | Diagnostic
 
 
 class _Pending:
@@ -220,6 +244,23 @@ class FrameDecoder:
         self._buf = bytearray()
         return out
 
+    def idle(self) -> list[Event]:
+        """The line went quiet: report the skipped bytes held back, keeping any frame in progress.
+
+        Skipped bytes are held until the next header says where they end, so
+        a firmware's debug line with no frame after it would never be shown. A
+        live reader calls this after a short quiet gap; at the end of input,
+        ``flush`` does the same and more.
+        """
+        out: list[Event] = []
+        self._close_pending(out)
+        return out
+
+    @property
+    def holding(self) -> bool:
+        """Whether skipped bytes wait for ``idle`` (or the next frame) to be reported."""
+        return self._pending is not None
+
     # -- the scanner ------------------------------------------------------
 
     def _scan(self, out: list[Event]) -> None:
@@ -241,6 +282,8 @@ class FrameDecoder:
                 if h < 0:
                     keep = max(pos, n - 1 if buf[n - 1 :] == b"\x55" else n)
                     self._skip(out, pos, keep)
+                    if buf.find(b"\n", pos, keep) >= 0:
+                        self._lines_so_far(out)
                     pos = keep
                     break
                 self._skip(out, pos, h)
@@ -300,6 +343,28 @@ class FrameDecoder:
             self._open(out, "junk", start)
         self._pending.add(self._buf, start, stop)
 
+    def _lines_so_far(self, out: list[Event]) -> None:
+        """Report printed lines as their line end arrives, as a terminal shows them, not at the next frame."""
+        p = self._pending
+        if p is None or p.kind != "junk" or p.size != len(p.kept):
+            return
+        data = bytes(p.kept)
+        cut = data.rfind(b"\n") + 1
+        events = split_skipped(p.offset, data[:cut], cut, tail=False)
+        while events and not isinstance(events[-1], TextLine):
+            events.pop()  # binary after the last line: it waits for what follows it
+        last = events[-1] if events else None
+        if not isinstance(last, TextLine):
+            return
+        out += events
+        cut = last.offset + last.size - p.offset
+        if cut == len(data):
+            self._pending = None
+            return
+        p.offset += cut
+        p.kept = bytearray(data[cut:])
+        p.size -= cut
+
     def _open(self, out: list[Event], kind: str, at: int, extra: tuple = ()) -> None:
         self._close_pending(out)
         self._pending = _Pending(kind, self._base + at, extra)
@@ -324,7 +389,7 @@ class FrameDecoder:
         self._pending = None
         data = bytes(p.kept)
         if p.kind == "junk":
-            out.append(Junk(p.offset, data, p.size))
+            out += split_skipped(p.offset, data, p.size)
             return
         if p.kind == "checksum":
             address, command, content, received, expected, other = p.extra
@@ -339,7 +404,7 @@ class FrameDecoder:
             used = event.size
             out.append(event)
         if p.size > used:
-            out.append(Junk(p.offset + used, data[used:], p.size - used))
+            out += split_skipped(p.offset + used, data[used:], p.size - used)
 
     def _malformed(self, p: _Pending, data: bytes) -> Malformed:
         (declared,) = p.extra
@@ -383,6 +448,91 @@ class FrameDecoder:
         if pos:
             del self._buf[:pos]
             self._base += pos
+
+
+# -- text between frames ----------------------------------------------------------------------------------
+
+_T, _N, _B = 0x74, 0x0A, 0x2E  # a byte's class: text, line end, binary
+#: What a printed line may hold: printable ASCII, tab, CR, ESC (a colour code is still text) and the
+#: bytes of UTF-8 sequences (checked as UTF-8 afterwards); LF ends a line; anything else is binary.
+_CLASS = bytes(
+    _N if b == 0x0A else _T if 0x20 <= b <= 0x7E or b in (0x09, 0x0D, 0x1B) or b >= 0x80 else _B
+    for b in range(256)
+)
+#: Not visible: a run of only these is no text (a stray 0D 0A is a frame's end, not a line).
+_BLANK = b" \t\r\n\x1b"
+#: Visible characters a line ended by LF needs: "OK\r\n" is a line.
+MIN_LINE = 2
+#: A line cut short (by a frame, a quiet gap, the end of input) needs more, and must be all text.
+MIN_TAIL = 4
+
+
+def split_skipped(offset: int, data: bytes, size: int, tail: bool = True) -> list[Event]:
+    """Bytes skipped between frames, as printed lines (``TextLine``) and binary junk (``Junk``).
+
+    ``size`` may exceed ``len(data)``: the bytes beyond were only counted, and
+    stay junk. ``tail``: the region really ends here, so an unterminated
+    printable run at its end is a line cut short (a prompt, a line interrupted
+    by a frame). Everything is found with translate and find, in C: junk is
+    rare on a good link but is all there is on a noisy one.
+    """
+    if b"\n" not in data and not (tail and data and _CLASS[data[-1]] == _T):
+        return [Junk(offset, data, size)]
+    spans = _text_spans(data, tail and size == len(data))
+    if not spans:
+        return [Junk(offset, data, size)]
+    out: list[Event] = []
+    at = 0
+    for start, stop in spans:
+        if start > at:
+            out.append(Junk(offset + at, data[at:start], start - at))
+        out.append(TextLine(offset + start, data[start:stop]))
+        at = stop
+    if size > at:
+        out.append(Junk(offset + at, data[at:], size - at))
+    return out
+
+
+def _text_spans(data: bytes, tail: bool) -> list[tuple[int, int]]:
+    """(start, stop) of every printed line in ``data``, in order."""
+    cls = data.translate(_CLASS)
+    spans: list[tuple[int, int]] = []
+    lo = 0
+    end = cls.find(b"\n")
+    while end >= 0:
+        _add_line(data, max(lo, cls.rfind(b".", lo, end) + 1), end + 1, MIN_LINE, spans)
+        lo = end + 1
+        end = cls.find(b"\n", lo)
+    if tail and lo < len(data) and cls.find(b".", lo) < 0:
+        _add_line(data, lo, len(data), MIN_TAIL, spans, whole=True)
+    return spans
+
+
+def _add_line(
+    data: bytes, start: int, stop: int, least: int, spans: list[tuple[int, int]], whole: bool = False
+) -> None:
+    """Keep data[start:stop] if, from its last invalid UTF-8 byte on, it shows ``least`` visible characters.
+
+    Binary bytes that happen to be printable or >= 0x80 often run straight
+    into a line; the longest valid UTF-8 tail is the line, the rest stays junk.
+    ``whole``: an unterminated run is text only if all of it is (it starts a
+    line), since noise before a frame often ends in a few printable bytes.
+    """
+    first = start
+    line = data[start:stop]
+    while not line.isascii():
+        try:
+            line.decode("utf-8")
+            break
+        except UnicodeDecodeError as exc:
+            if exc.reason == "unexpected end of data":  # a sequence cut off where the region ends
+                stop = start + exc.start
+                line = line[: exc.start]
+            else:
+                start += exc.end
+                line = line[exc.end :]
+    if len(line.translate(None, _BLANK)) >= least and not (whole and start != first):
+        spans.append((start, stop))
 
 
 #: A fast run splits at no more than this many headers at once. It starts small and doubles its

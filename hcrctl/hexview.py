@@ -12,8 +12,19 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from . import commands as C
-from .errors import ImpossibleReply, ProtocolError
-from .frames import HEADER, BadChecksum, ChecksumRule, Event, Frame, Junk, Malformed, Truncated, checksum
+from .errors import ImpossibleReply, ProtocolError, other_rule_hint, printable
+from .frames import (
+    HEADER,
+    BadChecksum,
+    ChecksumRule,
+    Event,
+    Frame,
+    Junk,
+    Malformed,
+    TextLine,
+    Truncated,
+    checksum,
+)
 
 if TYPE_CHECKING:
     from rich.table import Table
@@ -38,7 +49,24 @@ def event_dict(event: Event, rule: ChecksumRule | str, direction: str | None = N
         return _malformed_dict(event, rule, direction)
     if isinstance(event, Junk):
         return {"offset": event.offset, "problem": "junk", "size": event.size, "data": hexs(event.data)}
+    if isinstance(event, TextLine):
+        return text_dict(event)
     return _truncated_dict(event)
+
+
+def text_dict(event: TextLine) -> dict[str, Any]:
+    """A line the firmware printed: ``kind`` text, the line (end removed) and its exact bytes."""
+    return {
+        "offset": event.offset,
+        "kind": "text",
+        "text": event.text,
+        "size": event.size,
+        "data": hexs(event.data),
+    }
+
+
+def is_text(row: dict[str, Any]) -> bool:
+    return row.get("kind") == "text"
 
 
 def frame_dict(
@@ -186,6 +214,8 @@ class Columns:
 
 
 def columns(row: dict[str, Any]) -> Columns:
+    if is_text(row):  # the whole line, as a terminal shows it: it is what the firmware author reads
+        return Columns(str(row["offset"]), "", "text", printable(row["text"]), "", "", True)
     address = f"@{row['address']:02X}" if "address" in row else ""
     good = is_good(row)
     problem = row.get("problem")
@@ -247,7 +277,7 @@ def decode_table(rows: list[dict[str, Any]]) -> Table:
     table.add_column("checksum", overflow="fold")
     for row in rows:
         c = columns(row)
-        style = None if c.good else "red"
+        style = "cyan" if is_text(row) else None if c.good else "red"
         # Text, not str: a bumper list "[yes, no, no]" is not rich markup.
         cells = (c.offset, c.address, c.command, c.content, c.detail, c.checksum)
         table.add_row(*(Text(cell) for cell in cells), style=style)
@@ -271,13 +301,22 @@ class Tally:
     malformed: int = 0
     junk_bytes: int = 0
     truncated: int = 0
+    text_lines: int = 0
+    #: Frames that failed the configured checksum rule but pass the other one, and that rule.
+    other_rule: int = 0
+    other_rule_name: str = ""
 
     def add(self, row: dict[str, Any]) -> None:
         problem = row.get("problem")
-        if problem is None:
+        if is_text(row):
+            self.text_lines += 1
+        elif problem is None:
             self.frames += row["checksum_ok"]
             self.checksum_errors += not row["checksum_ok"]
             self.bad_frames += not is_good(row)
+            if not row["checksum_ok"] and row["other_ok"]:
+                self.other_rule += 1
+                self.other_rule_name = ChecksumRule(row["rule"]).other.value
         elif problem == "junk":
             self.junk_bytes += row["size"]
         elif problem == "malformed":
@@ -299,4 +338,14 @@ class Tally:
             parts.append(f"{self.malformed} malformed")
         if self.truncated:
             parts.append("truncated tail")
+        if self.text_lines:
+            parts.append(f"{self.text_lines} text line{'s' if self.text_lines != 1 else ''}")
         return ", ".join(parts)
+
+    def hint(self) -> str | None:
+        """The fix, when frames failed the configured checksum rule but pass the other one."""
+        if not self.other_rule:
+            return None
+        errors = self.checksum_errors
+        what = f"{self.other_rule} of {errors} checksum error{'s' if errors != 1 else ''}"
+        return other_rule_hint(self.other_rule_name, what, one=self.other_rule == 1)

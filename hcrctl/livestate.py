@@ -72,6 +72,9 @@ class Counters:
     junk_bytes: int = 0
     unsolicited: int = 0
     reconnects: int = 0
+    #: Checksum errors that pass the other rule, and that rule's name: the link panel gives the fix.
+    other_rule: int = 0
+    other_rule_name: str | None = None
 
 
 @dataclass(frozen=True)
@@ -199,14 +202,24 @@ class LiveState:
                 self._grid = self._grid.ok(value, now)
             self._bump(value is not None)
 
-    def link_errors(self, checksum: int = 0, malformed: int = 0, junk: int = 0) -> None:
+    def link_errors(
+        self,
+        checksum: int = 0,
+        malformed: int = 0,
+        junk: int = 0,
+        other_rule: int = 0,
+        other_rule_name: str | None = None,
+    ) -> None:
         """Increments seen on the client's own counters since the last call."""
-        if not (checksum or malformed or junk):
+        if not (checksum or malformed or junk or other_rule):
             return
         with self._lock:
             self._counters.checksum_errors += checksum
             self._counters.malformed += malformed
             self._counters.junk_bytes += junk
+            if other_rule:
+                self._counters.other_rule += other_rule
+                self._counters.other_rule_name = other_rule_name
             self._bump(True)
 
     def set_status(self, status: str, detail: str = "") -> None:

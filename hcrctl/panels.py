@@ -19,7 +19,7 @@ from rich.styled import Styled
 from rich.text import Text
 
 from . import commands as C
-from .livestate import DriveStatus, Reading, View
+from .livestate import Counters, DriveStatus, Reading, View
 from .render import cardinal
 
 SPARKS = "▁▂▃▄▅▆▇█"
@@ -288,6 +288,7 @@ def link_panel(view: View, now: float, compact: bool = False) -> Panel:
             ("rtt", _rtt_text(view.rtt)),
             ("timeouts", f"{c.timeouts}  bad replies {c.bad_replies}"),
             ("checksum", f"{c.checksum_errors} errors  junk {c.junk_bytes} B"),
+            *_other_rule_row(c),
         ]
         return Panel(labelled(rows), title="link", title_align="left", border_style="cyan")
     rows = [
@@ -300,8 +301,23 @@ def link_panel(view: View, now: float, compact: bool = False) -> Panel:
         ("checksum", f"{c.checksum_errors} errors  malformed {c.malformed}"),
         ("junk", f"{c.junk_bytes} B"),
         ("unasked", f"{c.unsolicited} frames  reconnects {c.reconnects}"),
+        *_other_rule_row(c),
     ]
     return Panel(labelled(rows), title="link", title_align="left", border_style="cyan")
+
+
+def _other_rule_row(c: Counters) -> list[tuple[str, Text]]:
+    """The fix, when frames fail the configured checksum rule but pass the other one.
+
+    What ``other_rule_hint`` says elsewhere, in rows that fit the panel.
+    """
+    if not c.other_rule or c.other_rule_name is None:
+        return []
+    name = c.other_rule_name  # two short rows: the panel is a third of an 80-column screen
+    return [
+        ("rule", Text(f"{name} rule passes", style="bold yellow")),
+        ("fix", Text(f"--checksum-from {name}", style="bold yellow")),
+    ]
 
 
 def labelled(rows: Iterable[tuple[str, str | Text]], width: int = 9) -> Text:

@@ -164,9 +164,9 @@ class Poller(threading.Thread):
     def _count_errors(self, robot: Robot) -> None:
         now = _error_counts(robot)
         if now != self._seen:
-            delta = [max(0, a - b) for a, b in zip(now, self._seen, strict=True)]
+            checksum, malformed, junk, other = (max(0, a - b) for a, b in zip(now, self._seen, strict=True))
             self._seen = now
-            self.state.link_errors(*delta)
+            self.state.link_errors(checksum, malformed, junk, other, robot.rule.other.value)
 
     # -- losing and finding the port -------------------------------------------
 
@@ -229,6 +229,6 @@ def _reply_time(robot: Robot, t0: float, results: dict[str, C.Reply | HcrError])
     return (end - t0) / answered
 
 
-def _error_counts(robot: Robot) -> tuple[int, int, int]:
+def _error_counts(robot: Robot) -> tuple[int, int, int, int]:
     stats = robot.stats
-    return stats.checksum_errors, stats.malformed, stats.junk_bytes
+    return stats.checksum_errors, stats.malformed, stats.junk_bytes, stats.other_rule

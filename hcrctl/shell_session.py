@@ -13,13 +13,14 @@ from typing import TYPE_CHECKING
 
 import click
 
-from .errors import HcrError
-from .frames import Frame
+from .errors import HcrError, printable
+from .frames import Frame, TextLine
 from .shell_broadcasts import Broadcasts
 from .shell_link import Link
 
 if TYPE_CHECKING:
     from .cli.settings import Settings
+    from .client import Robot, Traffic
 
 Printer = Callable[[str], None]
 
@@ -46,6 +47,8 @@ class Session:
             Frame
         ] = []  # stations first heard while no prompt could print them  # notices that came while a command owned the terminal
         self._say_lock = threading.Lock()
+        self._last_text: str | None = None  # the firmware's last printed line
+        settings.robot_hooks.append(self._hear_text)
 
     # -- the prompt --------------------------------------------------------
 
@@ -90,6 +93,19 @@ class Session:
             line = self.broadcasts.line_for(frame, True, self.monitor)
             if line is not None:
                 printer(line)
+
+    def _hear_text(self, robot: Robot) -> None:
+        """A ``Settings.robot_hooks`` entry: what the firmware prints reaches the monitor output too."""
+        robot.add_traffic_hook(self._text)
+
+    def _text(self, traffic: Traffic) -> None:
+        """A line the firmware printed: every one with ``monitor on``, a changed one with ``changes``."""
+        event, printer = traffic.event, self.printer
+        if not isinstance(event, TextLine) or printer is None:
+            return
+        changed, self._last_text = event.text != self._last_text, event.text
+        if self.monitor == "on" or (self.monitor == "changes" and changed):
+            printer(f"text  {printable(event.text)}")
 
     def _unsolicited(self, frame: Frame) -> None:
         """From the reader thread: count it; print it if the monitor mode says so.

@@ -1,5 +1,9 @@
 """The ``--log FILE`` traffic log: one JSON object per frame, both directions.
 
+Lines the firmware printed between frames are records too (``"kind": "text"``,
+the line in ``text``, direction rx), so a log keeps what a serial terminal
+showed; ``replay`` sends only tx records and so never sends them back.
+
 Each line is the ``hex decode --json`` shape plus ``time`` (ISO 8601, local
 time with offset, microseconds), ``direction`` (``tx``/``rx``) and ``hex``
 (the bytes exactly as they crossed the wire). Lines are written whole and

@@ -33,12 +33,54 @@ def _open_error(url: str, exc: Exception) -> PortError:
     """A wrong URL is a usage error (exit 2); anything else is the port's failure (exit 1)."""
     if url.startswith("sim://") and isinstance(exc, OSError):  # the simulator fails only on its options
         return BadPortUrl(url, str(exc).removeprefix("bad sim:// option: "), hint=SIM_OPTIONS_HINT)
+    refused = _rfc2217_error(url, str(exc)) if url.startswith("rfc2217://") else None
+    if refused is not None:
+        return refused
     problem = _url_problem(exc) if "://" in url else None
     if problem is not None:
         return BadPortUrl(url, problem, hint=URL_HINT)
     if isinstance(exc, OSError):
         return _port_error(url, exc)
     return PortError(f"cannot open: {exc}", url, hint=SIM_HINT)
+
+
+RAW_TCP = "for a raw TCP port use socket://HOST:PORT"
+
+
+def _rfc2217_error(url: str, text: str) -> PortError | None:
+    """An RFC 2217 negotiation that stopped short, named with the URL option that gets past it.
+
+    pyserial reports a server's refusal as a ValueError, which would read as a
+    bad URL. ser2net in telnet mode never confirms the flow-control setting,
+    which is what ``?ign_set_control`` tells pyserial not to wait for; a hint
+    never suggests the option when the URL has it already.
+    """
+    ign = (
+        ""
+        if "ign_set_control" in url
+        else f"add ?ign_set_control: --port '{with_option(url, 'ign_set_control')}'"
+    )
+    if "option 'control'" in text:  # rejected, or never answered
+        what, hint = "the server did not confirm the flow-control setting (ser2net does not)", ign
+    elif "does not seem to support RFC2217" in text:
+        what = "the server does not speak RFC 2217 (plain telnet or raw TCP)"
+        enable = "for ser2net enable RFC 2217 (telnet(rfc2217) in ser2net.yaml, remctl in ser2net.conf)"
+        hint = f"{enable}{' and ' + ign if ign else ''}; {RAW_TCP}"
+    elif "does not accept parameter change" in text:
+        what = "the server did not confirm the baud rate and framing"
+        enabled = "is RFC 2217 enabled on the server (ser2net: telnet(rfc2217))?"
+        hint = f"{enabled}{' then ' + ign if ign else ''}; {RAW_TCP}"
+    elif "waiting for option" in text:  # 'purge' and the like: some ser2net versions never answer
+        what = "the server did not answer an RFC 2217 request"
+        hint = f"{ign + '; ' if ign else ''}or serve the port raw: {RAW_TCP}"
+    else:
+        return None
+    return PortError(f"RFC 2217 negotiation failed: {what}", url, hint=hint or None)
+
+
+def with_option(url: str, option: str) -> str:
+    """``url`` with one more query option."""
+    return f"{url}{'&' if '?' in url else '?'}{option}"
 
 
 def _url_problem(exc: BaseException) -> str | None:

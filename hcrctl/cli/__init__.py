@@ -139,7 +139,7 @@ def main(argv: list[str] | None = None) -> None:
         debug = _debug(args) or defaults.get("debug") is True
         if debug and isinstance(exc, Exception) and not isinstance(exc, click.ClickException):
             raise
-        code = exit_code_for(exc)
+        code = exit_code_for(exc, args)
     sys.exit(with_log_status(code if isinstance(code, int) else 0))
 
 
@@ -162,8 +162,11 @@ def _debug(args: list[str]) -> bool:
     return "--debug" in args or os.environ.get("HCRCTL_DEBUG", "").lower() in ("1", "true", "yes", "on")
 
 
-def exit_code_for(exc: BaseException) -> int:
-    """Say what went wrong on one stderr line; the exit code that goes with it."""
+def exit_code_for(exc: BaseException, args: list[str] | None = None) -> int:
+    """Say what went wrong on one stderr line; the exit code that goes with it.
+
+    ``args`` is the command line, for errors that show it corrected.
+    """
     if isinstance(exc, Terminated):
         say_error(f"hcrctl: {exc}")
         return exc.exit_code
@@ -171,7 +174,7 @@ def exit_code_for(exc: BaseException) -> int:
         exc.show()  # a bare group: its help, as Click shows it
         return exc.exit_code
     if isinstance(exc, click.UsageError):
-        return _usage_error(exc)
+        return _usage_error(exc, args)
     if isinstance(exc, click.ClickException):
         say_error(f"hcrctl: error: {exc.format_message()}")
         return exc.exit_code
@@ -196,9 +199,63 @@ def say_error(line: str) -> None:
     click.echo(printable(line), err=True)
 
 
-def _usage_error(exc: click.UsageError) -> int:
-    """Click's message on one line, naming the parameter, plus where help is."""
+def _usage_error(exc: click.UsageError, args: list[str] | None = None) -> int:
+    """Click's message on one line, naming the parameter, plus where help is.
+
+    A global option after the subcommand is "no such option" to Click; the
+    user meant it, so say where it goes instead, with the line corrected.
+    """
     path = exc.ctx.command_path if exc.ctx else "hcrctl"
-    message = " ".join(exc.format_message().split())
+    message = _misplaced_global(exc, args) or " ".join(exc.format_message().split())
     say_error(f"{path}: error: {message} (see '{path} --help')")
     return exc.exit_code
+
+
+def _misplaced_global(exc: click.UsageError, args: list[str] | None) -> str | None:
+    """``--checksum-from is a global option: put it before the subcommand: hcrctl --checksum-from ...``."""
+    if not isinstance(exc, click.NoSuchOption) or exc.ctx is None or exc.ctx.parent is None:
+        return None
+    option = _global_option(exc.option_name)
+    if option is None:
+        return None
+    fixed = _moved_before_subcommand(args or [], exc.option_name, option)
+    where = f"hcrctl {fixed}" if fixed else exc.ctx.find_root().command_path
+    return f"{exc.option_name} is a global option: put it before the subcommand: {where}"
+
+
+def _global_option(name: str) -> click.Option | None:
+    """The group's option spelled ``name`` (derived from its own list, so every global option is known)."""
+    for param in cli.params:
+        if isinstance(param, click.Option) and name in (*param.opts, *param.secondary_opts):
+            return param
+    return None
+
+
+def _takes(token: str, name: str, option: click.Option) -> int:
+    """How many tokens from ``token`` on are ``option`` (0: it is not that option)."""
+    if token == name:
+        return 1 if option.is_flag or option.count else 2
+    if token.startswith(name + "=") or (not name.startswith("--") and token.startswith(name)):
+        return 1  # --port=sim://, -psim://
+    return 0
+
+
+def _moved_before_subcommand(args: list[str], name: str, option: click.Option) -> str | None:
+    """``args`` with the misplaced option (and its value) moved in front of the subcommand, quoted."""
+    import shlex
+
+    sub = 0
+    while sub < len(args) and args[sub].startswith("-") and args[sub] != "--":
+        given = args[sub].split("=", 1)[0]
+        known = _global_option(given)
+        sub += _takes(args[sub], given, known) if known is not None else 1
+    for at in range(sub, len(args)):
+        if args[at] == "--":
+            break
+        size = _takes(args[at], name, option)
+        if size:
+            moved = args[at : at + size]
+            fixed = [*args[:sub], *moved, *args[sub:at], *args[at + size :]]
+            text = shlex.join(fixed)
+            return text if len(text) <= 120 else text[:117] + " …"
+    return None

@@ -82,7 +82,8 @@ def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None) -
 
     Exit 0 if every frame is good, 1 if any frame or byte is bad, 2 if the
     input is not hex. The checksum is judged under --checksum-from; a bad one
-    also shows what the other rule gives.
+    also shows what the other rule gives. Lines the firmware printed between
+    frames (a boot banner, debug output) are rows of kind text, not junk.
     """
     settings: Settings = ctx.obj
     data = _decode_input(hex_text, capture)
@@ -93,7 +94,8 @@ def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None) -
     for row in rows:
         tally.add(row)
     _print_rows(settings, rows)
-    click.echo(f"hcrctl: {len(data)} bytes: {tally.text()}", err=True)
+    hint = tally.hint()
+    click.echo(f"hcrctl: {len(data)} bytes: {tally.text()}{f' (hint: {hint})' if hint else ''}", err=True)
     ctx.exit(0 if tally.all_good else 1)
 
 
@@ -119,8 +121,24 @@ def _capture(path: str) -> bytes:
         raise click.UsageError(
             f"{path} looks like a --log file; render it with: hcrctl monitor --from {path}"
         )
+    text = data.decode("ascii")
+    if not _mostly_hex(text):  # a capture of a device that only printed lines (a boot banner)
+        click.echo(f"hcrctl: {path} holds printed text, not hex: decoding its bytes", err=True)
+        return data
     click.echo(f"hcrctl: {path} is text, not a binary capture: reading it as hex", err=True)
-    return parse_hex(data.decode("ascii"), path)
+    return parse_hex(text, path)
+
+
+#: One word of hex as people write it: 55, 0x55, 55AA01, \x55\xAA, with brackets and separators around.
+HEX_WORD = r"[{(\[]?((0x)?[0-9A-Fa-f]{1,2}|(\\x[0-9A-Fa-f]{2})+|[0-9A-Fa-f]+)[,:;)}\]]*"
+
+
+def _mostly_hex(text: str) -> bool:
+    """Whether ``text`` is hex (perhaps with a typo to report), rather than lines a firmware printed."""
+    import re
+
+    words = text.split()
+    return 2 * sum(bool(re.fullmatch(HEX_WORD, w)) for w in words) >= len(words)
 
 
 def _stdin_hex() -> bytes:

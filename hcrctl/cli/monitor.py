@@ -127,19 +127,22 @@ class TrafficPrinter:
         sys.stdout.flush()
 
     def _line(self, t: float, direction: str, data: bytes, row: dict[str, Any]) -> None:
-        from ..hexview import hexs, is_good, plain_line
+        from ..hexview import hexs, is_good, is_text, plain_line
         from ..trafficlog import iso_time
 
         if self.as_json:
             click.echo(json.dumps({"time": iso_time(t), "direction": direction, "hex": hexs(data), **row}))
             return
         text = f"{self.stamp(t)}{direction}  {plain_line(row, offset=False)}"
-        click.echo(click.style(text, fg="red") if self.color and not is_good(row) else text)
+        colour = "cyan" if is_text(row) else None if is_good(row) else "red"
+        click.echo(click.style(text, fg=colour) if self.color and colour else text)
 
     def counters(self, seconds: float | None = None) -> str:
+        """The closing tally; when checksums failed the rule but pass the other one, the fix too."""
         span = f" in {seconds:.1f} s" if seconds is not None else ""
         sent = f", {self.sent} sent" if self.sent else ""
-        return f"{self.tally.text()}{sent}{span}"
+        hint = self.tally.hint()
+        return f"{self.tally.text()}{sent}{span}" + (f" (hint: {hint})" if hint else "")
 
 
 def rows_of(events: list[Event], rule: ChecksumRule, direction: str) -> list[dict[str, Any]]:
@@ -186,8 +189,10 @@ def monitor(
     """Decode every frame on the line, one line each, without sending anything.
 
     Counters (frames, checksum errors, junk bytes) go to stderr at the end,
-    after --duration or on Ctrl-C. With --json, one JSON object per line in
-    the 'hex decode --json' shape, plus time, direction and hex.
+    after --duration or on Ctrl-C. Lines the firmware prints between frames
+    show as text rows (control characters escaped), shown after a short
+    quiet gap even when no frame follows. With --json, one JSON object per
+    line in the 'hex decode --json' shape, plus time, direction and hex.
 
     \b
     hcrctl --port sim:// monitor --duration 2 --filter position
@@ -217,18 +222,36 @@ def _render_log(printer: TrafficPrinter, path: str, rule: ChecksumRule, duration
 
 
 def _listen(settings: Settings, printer: TrafficPrinter, duration: float | None) -> None:
+    """Print traffic as it comes; the listener stays on while the port closes.
+
+    Closing makes the reader report what it still held (a line printed just
+    before the end, a frame cut short), so that is printed too.
+    """
     inbox: queue.SimpleQueue[Traffic] = queue.SimpleQueue()
     listener = inbox.put
-    with settings.robot() as robot:
-        robot.add_traffic_hook(listener)
-        start = time.monotonic()  # the duration counts from an open port, however slow opening was
-        until = f"for {duration:g} s" if duration is not None else "until Ctrl-C"
-        click.echo(f"hcrctl: monitoring {robot.port} {until}", err=True)
-        try:
+    robot = None
+    start = time.monotonic()
+    try:
+        with settings.robot() as robot:
+            robot.add_traffic_hook(listener)
+            start = time.monotonic()  # the duration counts from an open port, however slow opening was
+            until = f"for {duration:g} s" if duration is not None else "until Ctrl-C"
+            click.echo(f"hcrctl: monitoring {robot.port} {until}", err=True)
             _drain_until(robot, inbox, printer, None if duration is None else start + duration)
-        finally:
+    finally:
+        if robot is not None:
             robot.remove_traffic_hook(listener)
+            _print_rest(inbox, printer, robot.rule)
             click.echo(f"hcrctl: monitor: {printer.counters(time.monotonic() - start)}", err=True)
+
+
+def _print_rest(inbox: queue.SimpleQueue, printer: TrafficPrinter, rule: ChecksumRule) -> None:
+    while True:
+        try:
+            traffic = inbox.get_nowait()
+        except queue.Empty:
+            return
+        printer.show(traffic.time, traffic.direction, traffic.data, traffic_rows(traffic, rule))
 
 
 def _drain_until(

@@ -62,6 +62,8 @@ class PingStats:
     rtts: list[float] = field(default_factory=list)
     checksum_errors: int = 0
     junk_bytes: int = 0
+    #: The last lost probe's evidence that the other checksum rule is the fix (see DeviceTimeout).
+    other_rule: DeviceTimeout | None = None
 
     @property
     def received(self) -> int:
@@ -146,17 +148,24 @@ def probe_loop(
     for seq in itertools.count(1) if count is None else range(1, count + 1):
         time.sleep(max(0.0, start + (seq - 1) * interval - time.monotonic()))
         stats.sent += 1
-        rtt = probe_once(robot, frame, probe)
+        lost: list[DeviceTimeout] = []
+        rtt = probe_once(robot, frame, probe, lost)
         where = f"0x{robot.address:02X} on {robot.port}"
         if rtt is None:
-            _line(settings, f"no reply from {where}: seq={seq} timeout={robot.timeout:g} s")
+            why = ""
+            if lost and lost[0].other_rule is not None:
+                stats.other_rule = lost[0]
+                why = f" ({lost[0].hint})"
+            _line(settings, f"no reply from {where}: seq={seq} timeout={robot.timeout:g} s{why}")
         else:
             stats.rtts.append(rtt)
             _line(settings, f"reply from {where}: seq={seq} time={rtt * 1000:.2f} ms")
 
 
-def probe_once(robot: Robot, frame: bytes, probe: C.Command) -> float | None:
-    """One request, one attempt: the round trip in seconds, or None if lost.
+def probe_once(
+    robot: Robot, frame: bytes, probe: C.Command, lost: list[DeviceTimeout] | None = None
+) -> float | None:
+    """One request, one attempt: the round trip in seconds, or None if lost (the error goes to ``lost``).
 
     The round trip ends when the reader thread decoded the reply
     (``robot.last_reply_at``), not when this thread wakes up to see it: like
@@ -165,7 +174,9 @@ def probe_once(robot: Robot, frame: bytes, probe: C.Command) -> float | None:
     began = time.monotonic()
     try:
         robot.transact(frame, (robot.address, probe.code), probe.name)
-    except DeviceTimeout:
+    except DeviceTimeout as exc:
+        if lost is not None:
+            lost.append(exc)
         return None
     returned = time.monotonic()
     arrived = robot.last_reply_at
@@ -192,7 +203,16 @@ def report(settings: Settings, stats: PingStats, probe: C.Command, timeout: floa
     else:
         click.echo("\n".join(stats.summary_lines()))
     if stats.sent and not stats.received:
-        raise DeviceTimeout(f"ping ({probe.name})", stats.address, stats.port, timeout, stats.sent)
+        evidence = stats.other_rule
+        raise DeviceTimeout(
+            f"ping ({probe.name})",
+            stats.address,
+            stats.port,
+            timeout,
+            stats.sent,
+            other_rule=evidence.other_rule if evidence else None,
+            seen=evidence.seen if evidence else "replies",
+        )
 
 
 def _line(settings: Settings, text: str) -> None:
