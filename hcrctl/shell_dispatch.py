@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import functools
+import re
 import signal
 import threading
 import traceback
@@ -18,8 +20,9 @@ from typing import Any
 
 import click
 
+from .cli.settings import global_options
 from .errors import HcrError, printable
-from .shell_builtins import builtins
+from .shell_builtins import SETTABLE, builtins
 from .shell_grammar import ShellCommands, root_context, split
 from .shell_session import Session
 
@@ -119,8 +122,31 @@ def report(session: Session, exc: Exception) -> int:
     if line is None:
         return _interrupted(session)
     where = f"{session.where}: " if session.where else ""
-    click.echo(printable(where + line), err=True)
+    click.echo(printable(where + as_set_commands(line)), err=True)
     return code
+
+
+def as_set_commands(hint: str) -> str:
+    """A hint's global options (``--checksum-from address``) as the shell's ``set checksum address``.
+
+    Library errors name the fix as the one-shot CLI spells it; in the shell
+    the same fix is a ``set`` command, and telling the user to type an option
+    the shell does not take would be a false hint.
+    """
+    for word, pattern in _set_patterns():
+        hint = pattern.sub(lambda m, word=word: f"set {word} {m.group(1)}", hint)
+    return hint
+
+
+@functools.cache
+def _set_patterns() -> tuple[tuple[str, re.Pattern[str]], ...]:
+    """(set word, a regex matching its global option and value), from SETTABLE and the options."""
+    flags = {opt.name: max(opt.opts, key=len) for opt in global_options()}
+    return tuple(
+        (word, re.compile(re.escape(flags[attr]) + r"[ =](\S+)"))
+        for word, attr in SETTABLE.items()
+        if attr in flags
+    )
 
 
 def _failure_line(session: Session, exc: Exception) -> tuple[str | None, int]:

@@ -126,3 +126,16 @@ def test_the_watch_json_summary_counts_them() -> None:
     summary = json.loads(proc.stdout)
     assert summary["other_rule"] > 0 and summary["other_rule_name"] == "address"
     assert summary["other_rule"] == summary["checksum_errors"]
+
+
+def test_the_shell_gives_the_fix_as_its_own_set_command(tmp_path: Path) -> None:
+    """In the shell the fix is ``set checksum address``; following it there works too."""
+    script = tmp_path / "s.hcr"
+    script.write_text("read compass\nset checksum address\nread compass\n", encoding="utf-8")
+    with AddressRuleRobot() as robot:
+        proc = run("--port", robot.path, "--timeout", "0.3", "shell", "--keep-going", "--script", str(script))
+    errors = [line for line in proc.stderr.splitlines() if "error" in line]
+    assert len(errors) == 1, proc.stderr
+    assert errors[0].endswith("(hint: replies pass the address rule: use set checksum address)"), errors[0]
+    assert "--checksum-from" not in proc.stderr
+    assert "123.4" in proc.stdout
