@@ -13,7 +13,6 @@ it found it.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import math
 import sys
 import time
@@ -21,10 +20,11 @@ from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any
 
 from . import commands as C
-from .errors import HcrError, PortError
+from .errors import HcrError
 from .keys import KeyReader
 from .livestate import LiveState
 from .poller import Poller
+from .rescue import Reconnect
 
 if TYPE_CHECKING:
     from rich.console import Console, RenderableType
@@ -122,31 +122,6 @@ def _dashboard(state: LiveState, fit: bool = False) -> Callable[[float], Rendera
 
 
 # -- shared with teleop ---------------------------------------------------------
-
-
-class Reconnect:
-    """How the poller gets a robot back after its port disappeared.
-
-    From the command line: reopen the same port (no second auto-detection).
-    Inside the shell, whose own watchdog reconnects the session, opening a
-    second robot would fight it for the port; so wait for the session's robot
-    to be connected again and borrow it (``owned`` false: never closed here).
-    """
-
-    def __init__(self, settings: Settings, robot: Robot) -> None:
-        self.owned = settings.session is not robot
-        self.port = robot.port
-        self._settings = (
-            dataclasses.replace(settings, port=robot.port, session=None) if self.owned else settings
-        )
-
-    def __call__(self) -> Robot:
-        if self.owned:
-            return self._settings.connect()
-        session = self._settings.session
-        if not getattr(session, "connected", False):
-            raise PortError("not connected", self.port, hint="the shell is reconnecting")
-        return session
 
 
 def raise_from(poller: Poller) -> None:
