@@ -215,6 +215,50 @@ def signals_deferred() -> Iterator[None]:
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
+class OwedStop:
+    """watch's stop key, pressed while the link was down: delivered the moment it is back.
+
+    The dashboard keeps running (its poller re-opens the port by itself), so
+    the stop is retried as its loop turns; if watch ends with the stop still
+    owed, ``finish`` hands over to ``rescue``, as any other command would.
+    """
+
+    def __init__(self) -> None:
+        self.since: float | None = None
+
+    def ask(self, robot: Robot | None) -> str:
+        """The key was pressed: send stop now, or owe it; what to show in the footer."""
+        if _send_stop(robot):
+            self.since = None
+            return f"stop sent at {time.strftime('%H:%M:%S')}"
+        if self.since is None:
+            self.since = time.monotonic()
+        return "stop NOT delivered: the link is down; it is sent the moment the port is back"
+
+    def deliver(self, robot: Robot | None) -> str | None:
+        """Send an owed stop once ``robot`` is connected; a note when it went out."""
+        if self.since is None or not _send_stop(robot):
+            return None
+        took, self.since = time.monotonic() - self.since, None
+        return f"stop delivered after {took:.1f} s, at {time.strftime('%H:%M:%S')}"
+
+    def finish(self, current: Robot | None, first: Robot) -> None:
+        """At the end: deliver what is owed, or raise ``rescue``'s outcome."""
+        if self.since is not None and self.deliver(current) is None:
+            raise rescue(first, lambda: [stop_frame(first)])
+
+
+def _send_stop(robot: Robot | None) -> bool:
+    """Stop on a connected robot; whether it went out."""
+    if robot is None or not robot.connected:
+        return False
+    try:
+        write_stops(robot, [stop_frame(robot)])
+    except HcrError:
+        return False
+    return True
+
+
 class Reconnect:
     """How to get a robot on the same port back after the port disappeared.
 
