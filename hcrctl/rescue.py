@@ -106,14 +106,14 @@ def rescue(robot: Robot, frames: StopFrames) -> LinkLostWhileMoving:
     cause = robot.error or PortError("lost the link", robot.port)
     reopen = robot.reopen or _same_port(robot)
     wait = robot.stop_wait
-    warn(
-        f"lost the link on {robot.port} while the robot was moving: stop could NOT be delivered; "
-        f"re-opening {robot.port} for up to {wait:g} s to send it (Ctrl-C gives up)"
-    )
-    if getattr(reopen, "owned", True):
-        robot.close()  # release the dead port (nothing can be sent on it) before re-opening
     started = time.monotonic()
-    try:
+    try:  # a signal from here on is giving up, even one that lands before the warning is out
+        warn(
+            f"lost the link on {robot.port} while the robot was moving: stop could NOT be delivered; "
+            f"re-opening {robot.port} for up to {wait:g} s to send it (Ctrl-C gives up)"
+        )
+        if getattr(reopen, "owned", True):
+            robot.close()  # release the dead port (nothing can be sent on it) before re-opening
         took = _wait_and_stop(robot.port, reopen, list(frames()), started + wait)
     except KeyboardInterrupt:
         return _not_delivered(cause, "gave up on Ctrl-C", 130)
