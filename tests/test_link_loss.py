@@ -291,3 +291,23 @@ def test_socket_url_reconnects_and_gets_stop(env, tmp_path):
     sent = [json.loads(line) for line in log.read_text().splitlines()]
     tx = [rec["hex"] for rec in sent if rec["direction"] == "tx"]
     assert tx[-1] == STOP_FRAME.hex(" ").upper() and len(tx) >= 2
+
+
+def test_a_held_drive_in_the_shell_reports_the_stop_its_session_delivered(tmp_path):
+    """In the shell the session reconnects by itself; the held drive borrows it to send stop."""
+    from helpers_shell import shell
+
+    link = tmp_path / "robot"
+    with robots(link) as plugged:
+        plugged.append(PtyRobot(link))
+        with shell(["--port", str(link), "shell"], tmp_path, timeout=TIMEOUT) as term:
+            term.wait_prompt()
+            term.send("drive power 40 40 --for 600\r")
+            plugged[0].wait_for(moving, timeout=TIMEOUT)
+            plugged[0].close()
+            term.wait_for(lambda screen: WARNING in "".join(screen.split("\n")), timeout=TIMEOUT)
+            again = PtyRobot(link)
+            plugged.append(again)
+            again.wait_for(lambda frames: STOP_FRAME in frames, timeout=TIMEOUT)
+            term.wait_for(lambda screen: DELIVERED in "".join(screen.split("\n")), timeout=TIMEOUT)
+            assert not moving(again.received())
