@@ -311,3 +311,22 @@ def test_a_held_drive_in_the_shell_reports_the_stop_its_session_delivered(tmp_pa
             again.wait_for(lambda frames: STOP_FRAME in frames, timeout=TIMEOUT)
             term.wait_for(lambda screen: DELIVERED in "".join(screen.split("\n")), timeout=TIMEOUT)
             assert not moving(again.received())
+
+
+def test_watch_quit_with_a_stop_still_owed_waits_for_the_port_like_any_command(tmp_path):
+    link = tmp_path / "robot"
+    with robots(link) as plugged:
+        plugged.append(PtyRobot(link))
+        with terminal(["--port", str(link), "watch", "compass"], timeout=TIMEOUT) as term:
+            term.wait_for(r"status +ok", timeout=TIMEOUT)
+            plugged[0].close()
+            term.wait_for("disconnected", timeout=TIMEOUT)
+            term.send(" ")
+            term.wait_for("stop NOT delivered: the link is down", timeout=TIMEOUT)
+            term.send("q")
+            term.wait_for(lambda _: WARNING in " ".join(term.output().split()), timeout=TIMEOUT)
+            again = PtyRobot(link)
+            plugged.append(again)
+            again.wait_for(lambda frames: STOP_FRAME in frames, timeout=TIMEOUT)
+            assert term.finish(timeout=TIMEOUT) == 1
+            assert DELIVERED in " ".join(term.output().split())
