@@ -149,6 +149,8 @@ def test_lost_link_during_drive_warns_then_exits_1_with_the_outcome(env):
         assert proc.returncode == 1, err
         driving, warning, error = err.splitlines()
         assert driving.startswith("hcrctl: driving: power 10 10")
-        assert warning.startswith("hcrctl: warning: lost the link") and "stop could NOT be delivered" in warning
+        assert (
+            warning.startswith("hcrctl: warning: lost the link") and "stop could NOT be delivered" in warning
+        )
         assert error.startswith("hcrctl: error: lost the link") and tap.path in error and "hint:" in error
         assert "stop NOT delivered: the robot may still be moving" in error
