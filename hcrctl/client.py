@@ -44,6 +44,7 @@ from .frames import (
     TextLine,
     Truncated,
 )
+from .rescue import DEFAULT_WAIT_S
 
 #: How long the reader blocks in one read; bounds how fast close() returns.
 READ_SLICE = 0.05
@@ -140,6 +141,11 @@ class Robot:
         #: trip measured to here is the link's, not the waiting thread's wake-up.
         self.last_reply_at: float | None = None
         self.error: PortError | None = None
+        #: How to reach this device again after the link dropped, and for how
+        #: long to try, so stop can still be delivered (``rescue``); None means
+        #: the same port with the same parameters.
+        self.reopen: Callable[[], Robot] | None = None
+        self.stop_wait = DEFAULT_WAIT_S
         self._rule = ChecksumRule(rule)
         self._decoder = FrameDecoder(self._rule)
         self._io = threading.Lock()  # one transaction at a time
@@ -426,6 +432,11 @@ class Robot:
         """Also call ``hook`` with every frame sent and every event received."""
         with self._hooks_lock:
             self._traffic_hooks = (*self._traffic_hooks, hook)
+
+    @property
+    def traffic_hooks(self) -> tuple[TrafficHook, ...]:
+        """Everyone watching the link, so a re-opened robot can be watched the same way."""
+        return self._traffic_hooks
 
     def remove_traffic_hook(self, hook: TrafficHook) -> None:
         with self._hooks_lock:

@@ -188,6 +188,18 @@ class PortError(HcrError):
         self.port = port
 
 
+class LinkLostWhileMoving(PortError):
+    """The link dropped while the robot was moving; the message says whether stop got through.
+
+    Exit 1, or the status of the signal that cut the wait for the port short.
+    """
+
+    def __init__(self, cause: HcrError, outcome: str, delivered: bool, hint: str | None = None) -> None:
+        HcrError.__init__(self, f"{cause.message} while the robot was moving: {outcome}", hint=hint)
+        self.port = getattr(cause, "port", "")
+        self.cause, self.outcome, self.delivered = cause, outcome, delivered
+
+
 def _num(x: float) -> str:
     return f"{x:g}" if isinstance(x, float) else str(x)
 

@@ -8,15 +8,15 @@ costs one repeat interval, not the whole press).
 
 Stop goes out on every way out (q, Ctrl-D, Ctrl-C, SIGTERM/SIGHUP as
 ``Terminated``, a lost link, a bug), sent explicitly here even when already
-stopped, and once more by ``Robot.close()``.
+stopped, and once more by ``Robot.close()``; after a lost link, ``rescue``
+delivers it when the port comes back.
 """
 
 from __future__ import annotations
 
-import contextlib
 import math
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -24,6 +24,7 @@ from . import commands as C
 from .keys import KeyReader
 from .livestate import DriveStatus, LiveState
 from .poller import Poller
+from .rescue import stopping
 from .watch import Redrawer, default_console, live_screen, raise_from
 
 if TYPE_CHECKING:
@@ -156,22 +157,6 @@ def run_teleop(
                 _teleop_loop(drive, Sender(robot), state, poller, console or default_console())
         finally:
             poller.stop()
-
-
-@contextlib.contextmanager
-def stopping(robot: Robot) -> Iterator[None]:
-    """Send stop however the block ends, even if already stopped.
-
-    After an error the stop is best effort (the link may be what failed, and
-    the error is the news); after a normal end a failed stop is the error.
-    """
-    try:
-        yield
-    except BaseException:
-        with contextlib.suppress(Exception):
-            robot.stop()
-        raise
-    robot.stop()
 
 
 def _teleop_loop(drive: Drive, sender: Sender, state: LiveState, poller: Poller, console: Console) -> None:

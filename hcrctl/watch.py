@@ -13,7 +13,6 @@ it found it.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import math
 import sys
 import time
@@ -21,17 +20,16 @@ from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any
 
 from . import commands as C
-from .errors import HcrError, PortError
 from .keys import KeyReader
 from .livestate import LiveState
 from .poller import Poller
+from .rescue import OwedStop, Reconnect
 
 if TYPE_CHECKING:
     from rich.console import Console, RenderableType
     from rich.live import Live
 
     from .cli.settings import Settings
-    from .client import Robot
 
 #: The most frames drawn per second, and the longest gap between two frames.
 FPS = 20
@@ -59,19 +57,23 @@ def run_watch(
     names = list(dict.fromkeys(sensors)) or list(C.SENSORS)
     console = None if settings.as_json else console or default_console()
     state = LiveState(names, target_rate=rate)
+    owed = OwedStop()
     with settings.robot() as robot, quick_handoff():
         poller = Poller(robot, state, names, rate, reconnect=Reconnect(settings, robot), pipeline=pipeline)
         poller.start()
         try:
-            _watch_loop(state, poller, console, duration)
+            _watch_loop(state, poller, console, duration, owed)
         finally:
             poller.stop()
+        owed.finish(poller.robot, robot)
     if console is not None and not console.is_terminal:
         console.print(_dashboard(state)(time.monotonic()))
     return state.summary()
 
 
-def _watch_loop(state: LiveState, poller: Poller, console: Console | None, duration: float | None) -> None:
+def _watch_loop(
+    state: LiveState, poller: Poller, console: Console | None, duration: float | None, owed: OwedStop
+) -> None:
     deadline = time.monotonic() + duration if duration else math.inf
     fps = frame_rate(state.target_rate)
     with KeyReader() as keys, live_screen(console) as live:
@@ -82,7 +84,9 @@ def _watch_loop(state: LiveState, poller: Poller, console: Console | None, durat
             if key in QUIT_KEYS or (key == "eof" and keys.is_terminal):
                 return
             if key:
-                on_watch_key(key, state, poller)
+                on_watch_key(key, state, poller, owed)
+            if note := owed.deliver(poller.robot):
+                state.note(note)
             redraw()
 
 
@@ -91,26 +95,15 @@ def frame_rate(poll_rate: float | None) -> float:
     return MIN_FPS if poll_rate is None else min(FPS, max(MIN_FPS, poll_rate))
 
 
-def on_watch_key(key: str, state: LiveState, poller: Poller) -> None:
-    """space: stop the motors; p: pause polling; r: reset the counters."""
+def on_watch_key(key: str, state: LiveState, poller: Poller, owed: OwedStop) -> None:
+    """space: stop the motors (as soon as the link is back, if it is down); p: pause polling; r: reset."""
     if key == " ":
-        state.note(send_stop(poller.robot))
+        state.note(owed.ask(poller.robot))
     elif key in ("p", "P"):
         state.note("polling paused (p resumes)" if poller.toggle_pause() else "polling resumed")
     elif key in ("r", "R"):
         state.reset_counters()
         state.note("counters reset")
-
-
-def send_stop(robot: Robot | None) -> str:
-    """Send stop and say how it went, for the footer."""
-    if robot is None:
-        return "stop not sent: not connected"
-    try:
-        robot.stop()
-    except HcrError as exc:
-        return f"stop failed: {exc.one_line()}"
-    return f"stop sent at {time.strftime('%H:%M:%S')}"
 
 
 def _dashboard(state: LiveState, fit: bool = False) -> Callable[[float], RenderableType]:
@@ -122,31 +115,6 @@ def _dashboard(state: LiveState, fit: bool = False) -> Callable[[float], Rendera
 
 
 # -- shared with teleop ---------------------------------------------------------
-
-
-class Reconnect:
-    """How the poller gets a robot back after its port disappeared.
-
-    From the command line: reopen the same port (no second auto-detection).
-    Inside the shell, whose own watchdog reconnects the session, opening a
-    second robot would fight it for the port; so wait for the session's robot
-    to be connected again and borrow it (``owned`` false: never closed here).
-    """
-
-    def __init__(self, settings: Settings, robot: Robot) -> None:
-        self.owned = settings.session is not robot
-        self.port = robot.port
-        self._settings = (
-            dataclasses.replace(settings, port=robot.port, session=None) if self.owned else settings
-        )
-
-    def __call__(self) -> Robot:
-        if self.owned:
-            return self._settings.connect()
-        session = self._settings.session
-        if not getattr(session, "connected", False):
-            raise PortError("not connected", self.port, hint="the shell is reconnecting")
-        return session
 
 
 def raise_from(poller: Poller) -> None:

@@ -134,9 +134,10 @@ def test_missing_port_without_a_usb_port_lists_ports_and_the_simulator(env):
     assert "no --port given" in line and "--port sim://" in line and "ports present:" in line
 
 
-def test_lost_link_during_drive_is_one_line_and_exit_1(env):
+def test_lost_link_during_drive_warns_then_exits_1_with_the_outcome(env):
+    """The port never comes back here (tests/test_link_loss.py has the ones that do)."""
     with wire() as tap:
-        proc = start(["--port", tap.path, "drive", "power", "10", "10"], env)
+        proc = start(["--port", tap.path, "--stop-wait", "0.2", "drive", "power", "10", "10"], env)
         try:
             assert tap.wait_for(bytes.fromhex("55 AA 01 02 01")), "the drive never started"
             os.close(tap.master)  # the far end goes away: reads fail with EIO
@@ -146,6 +147,10 @@ def test_lost_link_during_drive_is_one_line_and_exit_1(env):
             if proc.poll() is None:
                 proc.kill()
         assert proc.returncode == 1, err
-        driving, error = err.splitlines()
+        driving, warning, error = err.splitlines()
         assert driving.startswith("hcrctl: driving: power 10 10")
+        assert (
+            warning.startswith("hcrctl: warning: lost the link") and "stop could NOT be delivered" in warning
+        )
         assert error.startswith("hcrctl: error: lost the link") and tap.path in error and "hint:" in error
+        assert "stop NOT delivered: the robot may still be moving" in error

@@ -334,29 +334,16 @@ def _holds(robot: Robot, frame: bytes) -> bool:
 
 
 def _hold_motion(robot: Robot, address: int, hold_for: float | None) -> None:
-    """Hold like ``drive``, then stop the address the frame moved, which need not be --address."""
+    """Hold like ``drive``, then stop the address the frame moved (which need not be --address) and ours."""
+    from ..rescue import stop_frame, stopping
     from .drive import hold
     from .writes import say
 
     until = f"for {hold_for:g} s" if hold_for is not None else "until Ctrl-C"
     say(f"holding the motion {until} — Ctrl-C to stop")
-    try:
+    with stopping(robot, lambda: dict.fromkeys([stop_frame(robot, address), stop_frame(robot)])):
         held = hold(robot, hold_for)
-    except BaseException:
-        with contextlib.suppress(Exception):
-            _stop_at(robot, address)
-        raise
-    _stop_at(robot, address)
     say(f"stopped after {held:.3g} s")
-
-
-def _stop_at(robot: Robot, address: int) -> None:
-    """Stop at ``address``; close() still stops the robot's own address if it differs."""
-    from .writes import signals_deferred
-
-    with signals_deferred():
-        robot.write(C.encode_request(C.STOP, address, robot.rule))
-    robot.moved = address != robot.address
 
 
 def _explicit_retries(ctx: click.Context) -> int | None:

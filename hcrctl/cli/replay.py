@@ -142,18 +142,20 @@ def _run(
     robot: Robot, records: list[LogRecord], printer: TrafficPrinter, pending: Pending, timing: Timing
 ) -> None:
     """Every pass, then stop; the listener sees our tx and the robot's rx in wire order."""
+    from ..rescue import stopping
+
     inbox: queue.SimpleQueue[Traffic] = queue.SimpleQueue()
     listener = inbox.put
     robot.add_traffic_hook(listener)
     try:
-        done = 0
-        while timing.loops == 0 or done < timing.loops:
-            _one_pass(robot, records, inbox, printer, pending, timing)
-            done += 1
-        _wait(robot, inbox, printer, pending, time.monotonic() + timing.timeout, until_answered=True)
-        pending.give_up()
+        with stopping(robot, lambda: _stop_frames(robot, pending)):
+            done = 0
+            while timing.loops == 0 or done < timing.loops:
+                _one_pass(robot, records, inbox, printer, pending, timing)
+                done += 1
+            _wait(robot, inbox, printer, pending, time.monotonic() + timing.timeout, until_answered=True)
+            pending.give_up()
     finally:
-        _stop_everything(robot, pending)
         _drain(robot, inbox, printer, pending)
         robot.remove_traffic_hook(listener)
 
@@ -213,12 +215,7 @@ def _show(robot: Robot, traffic: Traffic, printer: TrafficPrinter, pending: Pend
     printer.show(traffic.time, traffic.direction, traffic.data, traffic_rows(traffic, robot.rule))
 
 
-def _stop_everything(robot: Robot, pending: Pending) -> None:
+def _stop_frames(robot: Robot, pending: Pending) -> list[bytes]:
     """Stop at every address that was sent motion, under its rule, then at ours."""
-    from .writes import signals_deferred
-
     targets: dict[int, Any] = {**pending.stops, robot.address: robot.rule}
-    with signals_deferred(), contextlib.suppress(Exception):
-        for address, rule in targets.items():
-            robot.write(encode(address, C.STOP.CODE, C.STOP.content(), rule))
-        robot.moved = False
+    return [encode(address, C.STOP.CODE, C.STOP.content(), rule) for address, rule in targets.items()]

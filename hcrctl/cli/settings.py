@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from ..frames import ChecksumRule
+from ..rescue import DEFAULT_WAIT_S
 from .params import ByteNumber, FloatRange, IntRange
 
 if TYPE_CHECKING:
@@ -92,6 +93,14 @@ def global_options() -> list[click.Option]:
             show_default=True,
             help="Where the checksum sum starts: header (the document's rule) or address.",
         ),
+        _option(
+            "--stop-wait",
+            type=FloatRange(0, 3600),
+            default=DEFAULT_WAIT_S,
+            show_default=True,
+            metavar="SECONDS",
+            help="If the link drops while the robot moves, keep re-opening the port this long to send stop.",
+        ),
         _option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout."),
         _option("--log", type=click.Path(dir_okay=False), help="Append every frame to FILE."),
         _option("--debug", is_flag=True, help="Show tracebacks."),
@@ -124,6 +133,7 @@ class Settings:
     address: int = 0x01
     timeout: float = 0.5
     retries: int = 2
+    stop_wait: float = DEFAULT_WAIT_S
     checksum: ChecksumRule = ChecksumRule.HEADER
     as_json: bool = False
     log: str | None = None
@@ -141,13 +151,22 @@ class Settings:
     def robot(self) -> Iterator[Robot]:
         """The shell's open robot, or a fresh one closed (with stop) on exit."""
         if self.session is not None:
+            self._lifeline(self.session)
             yield self.session
             return
         robot = self.connect()
+        self._lifeline(robot)
         try:
             yield robot
         finally:
             robot.close()
+
+    def _lifeline(self, robot: Robot) -> None:
+        """How a command's stop reaches this robot again if its link drops (see ``rescue``)."""
+        if getattr(robot, "connected", False):
+            from ..rescue import Reconnect
+
+            robot.reopen, robot.stop_wait = Reconnect(self, robot), self.stop_wait
 
     def connect(self) -> Robot:
         """A new robot on the resolved port, with the traffic log and hooks attached."""

@@ -2,30 +2,27 @@
 
 A write command reports the exact frame it sent (``--json`` gives command,
 address, fields and hex), so a user debugging firmware can compare it with a
-logic analyser. Anything that moved the motors ends inside ``stopping()``,
-which sends stop however the block ends, with Ctrl-C, SIGTERM and SIGHUP held
-back for the few microseconds the stop frame needs.
+logic analyser. Anything that moved the motors ends inside ``stopping()``
+(from ``rescue``, re-exported here), which sends stop however the block ends,
+with Ctrl-C, SIGTERM and SIGHUP held back for the few microseconds the stop
+frame needs, and which still delivers it when the link dropped meanwhile.
 """
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
-import signal
-import threading
-from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import click
 
 from .. import commands as C
+from ..rescue import signals_deferred as signals_deferred  # the commands' one way in
+from ..rescue import stop_frame, write_stops
+from ..rescue import stopping as stopping
 
 if TYPE_CHECKING:
     from ..client import Robot
     from .settings import Settings
-
-#: Signals that would cut a stop frame short; held while it is written.
-_DEFERRED = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
 
 
 def hex_bytes(data: bytes) -> str:
@@ -88,37 +85,6 @@ def say(message: str) -> None:
 
 def send_stop(robot: Robot) -> bytes:
     """Stop the motors; the robot is then at rest, so close() need not repeat it."""
-    with signals_deferred():
-        robot.stop()
-        robot.moved = False
-    return frame_of(robot, C.STOP)
-
-
-@contextlib.contextmanager
-def stopping(robot: Robot) -> Iterator[None]:
-    """Send stop when the block ends, however it ends.
-
-    When the block raised, a failing stop must not hide the first error (the
-    link is probably gone); on a normal exit a failing stop is the error.
-    """
-    try:
-        yield
-    except BaseException:
-        with contextlib.suppress(Exception):
-            send_stop(robot)
-        raise
-    send_stop(robot)
-
-
-@contextlib.contextmanager
-def signals_deferred() -> Iterator[None]:
-    """Block Ctrl-C, SIGTERM and SIGHUP for the block; they are delivered after it."""
-    main = threading.current_thread() is threading.main_thread()
-    if not main or not hasattr(signal, "pthread_sigmask"):
-        yield
-        return
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, _DEFERRED)
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+    frame = stop_frame(robot)
+    write_stops(robot, [frame])
+    return frame

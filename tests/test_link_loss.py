@@ -1,0 +1,332 @@
+"""A link lost while the robot moves: warn at once, wait for the same port, deliver stop, say so.
+
+Each test runs the installed ``hcrctl`` against a robot on a pty (``PtyRobot``,
+the simulator's model behind a pty this test owns) reached through a path that
+disappears and comes back: a symlink re-pointed to a new pty pair, as udev
+re-points /dev/serial/by-id when an adapter is re-plugged, or the /dev/pts node
+itself, recreated. The stop frame is checked on the returning device's wire,
+independently of hcrctl's own reporting.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import select
+import signal
+import subprocess
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
+from pathlib import Path
+
+import pytest
+from helpers_cli import TIMEOUT, clean_env, hcrctl_exe, run
+from helpers_live import terminal
+from helpers_shell import STOP_FRAME, PtyRobot
+
+WARNING = "while the robot was moving: stop could NOT be delivered"
+DELIVERED = "while the robot was moving: stop delivered after"
+NOT_DELIVERED = "stop NOT delivered: the robot may still be moving"
+
+
+@pytest.fixture
+def env(tmp_path):
+    return clean_env(tmp_path)
+
+
+class Hcrctl:
+    """hcrctl in the background, its stderr read as it comes (for the warning that must come first)."""
+
+    def __init__(self, args: list[str], env: dict[str, str]) -> None:
+        self.proc = subprocess.Popen(
+            [hcrctl_exe(), *args],
+            env=env,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # the suite may ignore SIGINT
+        )
+        self.err = ""
+
+    def wait_err(self, text: str, timeout: float = TIMEOUT) -> str:
+        """Read stderr until ``text`` has appeared (hcrctl still running or not)."""
+        import time
+
+        fd, deadline = self.proc.stderr.fileno(), time.monotonic() + timeout
+        while text not in self.err:
+            ready, _, _ = select.select([fd], [], [], max(0.0, deadline - time.monotonic()))
+            assert ready, f"no {text!r} on stderr within {timeout} s; got {self.err!r}"
+            chunk = os.read(fd, 4096)
+            assert chunk, f"stderr closed before {text!r}; got {self.err!r}"
+            self.err += chunk.decode()
+        return self.err
+
+    def finish(self, timeout: float = TIMEOUT) -> tuple[int, str, str]:
+        """Exit status, stdout and the whole stderr."""
+        try:
+            out, rest = self.proc.communicate(timeout=timeout)
+        finally:
+            self.kill()
+        self.err += rest.decode()
+        return self.proc.returncode, out.decode(), self.err
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.communicate()
+
+
+def moving(frames: list[bytes]) -> bool:
+    """A motion frame (0x01..0x04) that is not stop has arrived."""
+    return any(0x01 <= f[4] <= 0x04 and f != STOP_FRAME for f in frames)
+
+
+@contextmanager
+def robots(path: Path) -> Iterator[list[PtyRobot]]:
+    """Every PtyRobot the test plugs in at ``path``, all closed at the end."""
+    plugged: list[PtyRobot] = []
+    try:
+        yield plugged
+    finally:
+        for robot in plugged:
+            robot.close()
+
+
+def pull_and_replug(hcr: Hcrctl, plugged: list[PtyRobot], link: Path) -> PtyRobot:
+    """Unplug the robot mid-motion; once hcrctl has said so, plug a new device in at the same path."""
+    plugged[0].wait_for(moving, timeout=TIMEOUT)
+    plugged[0].close()  # the adapter goes away; udev removes the by-id link
+    hcr.wait_err(WARNING)  # said at once, before the device is back
+    assert NOT_DELIVERED not in hcr.err and "delivered after" not in hcr.err
+    again = PtyRobot(link)  # re-plugged: the link now points at a new pty pair
+    plugged.append(again)
+    return again
+
+
+def assert_stop_delivered(hcr: Hcrctl, again: PtyRobot) -> str:
+    again.wait_for(lambda frames: STOP_FRAME in frames, timeout=TIMEOUT)
+    status, _, err = hcr.finish()
+    assert status == 1, err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("hcrctl: error: lost the link") and DELIVERED in last, err
+    assert not moving(again.received())  # the new device got stop, and nothing that moves
+    return err
+
+
+def _replay_log(tmp_path: Path, env: dict[str, str]) -> Path:
+    """A --log of a drive: power 10 10, then stop 1 s later (replayed 100x slower below)."""
+    log = tmp_path / "session.jsonl"
+    made = run(["--port", "sim://", "--log", str(log), "drive", "power", "10", "10", "--for", "1"], env)
+    assert made.returncode == 0, made.stderr
+    return log
+
+
+MOTIONS = {
+    "drive held": ["drive", "power", "40", "40"],
+    "drive --for": ["drive", "velocity", "40", "40", "--for", "600"],
+    "turn": ["turn", "250", "--rate", "5"],
+    "hex send": ["hex", "send", "55", "AA", "01", "02", "01", "A8", "A8"],
+    "replay": ["replay", "LOG", "--speed", "0.01"],
+}
+
+
+@pytest.mark.parametrize("what", list(MOTIONS))
+def test_stop_is_delivered_when_the_by_id_link_comes_back(what, env, tmp_path):
+    link = tmp_path / "usb-HCR_robot-if00-port0"
+    args = [str(_replay_log(tmp_path, env)) if a == "LOG" else a for a in MOTIONS[what]]
+    with robots(link) as plugged:
+        plugged.append(PtyRobot(link))
+        hcr = Hcrctl(["--port", str(link), *args], env)
+        try:
+            again = pull_and_replug(hcr, plugged, link)
+            assert_stop_delivered(hcr, again)
+        finally:
+            hcr.kill()
+
+
+def test_stop_is_delivered_when_the_device_node_is_recreated(env, tmp_path):
+    """/dev/pts/N goes away with its device and comes back as the same path (the kernel reuses the number)."""
+    with robots(tmp_path) as plugged:
+        plugged.append(PtyRobot())
+        node = plugged[0].path
+        hcr = Hcrctl(["--port", node, "drive", "power", "40", "40"], env)
+        try:
+            plugged[0].wait_for(moving, timeout=TIMEOUT)
+            plugged[0].close()
+            hcr.wait_err(WARNING)
+            _wait_released(hcr.proc.pid, node)
+            again = _robot_at(node, plugged)
+            assert_stop_delivered(hcr, again)
+        finally:
+            hcr.kill()
+
+
+def _wait_released(pid: int, node: str, timeout: float = TIMEOUT) -> None:
+    """hcrctl has closed the dead device, so its number is free for the next pty."""
+    import time
+
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        held = []
+        with suppress(OSError):
+            held = [os.readlink(f"/proc/{pid}/fd/{fd}") for fd in os.listdir(f"/proc/{pid}/fd")]
+        if not any(node in target for target in held):
+            return
+        time.sleep(0.02)
+    raise AssertionError(f"hcrctl still holds {node}")
+
+
+def _robot_at(node: str, plugged: list[PtyRobot], tries: int = 64) -> PtyRobot:
+    """A new pty pair whose slave is ``node`` again: Linux hands out the lowest free number."""
+    spare: list[PtyRobot] = []
+    try:
+        for _ in range(tries):
+            robot = PtyRobot()
+            if robot.path == node:
+                plugged.append(robot)
+                return robot
+            spare.append(robot)
+            if int(robot.path.rsplit("/", 1)[1]) > int(node.rsplit("/", 1)[1]):
+                break
+    finally:
+        for robot in spare:
+            robot.close()
+    pytest.skip(f"another process took {node} before it could be recreated")
+
+
+def test_teleop_gets_stop_delivered_when_the_device_returns(tmp_path):
+    link = tmp_path / "robot"
+    with robots(link) as plugged:
+        plugged.append(PtyRobot(link))
+        with terminal(["--port", str(link), "teleop", "--timeout", "10"], timeout=TIMEOUT) as term:
+            term.wait_for("sending", timeout=TIMEOUT)
+            term.send("w")
+            plugged[0].wait_for(moving, timeout=TIMEOUT)
+            plugged[0].close()
+            term.wait_for(lambda _: WARNING in " ".join(term.output().split()), timeout=TIMEOUT)
+            again = PtyRobot(link)
+            plugged.append(again)
+            again.wait_for(lambda frames: STOP_FRAME in frames, timeout=TIMEOUT)
+            assert term.finish(timeout=TIMEOUT) == 1
+            out = " ".join(term.output().split())
+            assert WARNING in out and DELIVERED in out
+
+
+def test_watch_stop_key_with_the_link_down_is_delivered_when_it_returns(tmp_path):
+    link = tmp_path / "robot"
+    with robots(link) as plugged:
+        plugged.append(PtyRobot(link))
+        with terminal(["--port", str(link), "watch", "compass"], timeout=TIMEOUT) as term:
+            term.wait_for(r"status +ok", timeout=TIMEOUT)
+            plugged[0].close()
+            term.wait_for("disconnected", timeout=TIMEOUT)
+            term.send(" ")
+            term.wait_for("stop NOT delivered: the link is down", timeout=TIMEOUT)
+            again = PtyRobot(link)
+            plugged.append(again)
+            again.wait_for(lambda frames: STOP_FRAME in frames, timeout=TIMEOUT)
+            term.wait_for("stop delivered after", timeout=TIMEOUT)
+            term.send("q")
+            assert term.finish(timeout=TIMEOUT) == 0
+
+
+def test_a_port_that_never_returns_gives_up_after_stop_wait_from_the_config_file(env, tmp_path):
+    (tmp_path / "hcrctl").mkdir()
+    (tmp_path / "hcrctl" / "config.toml").write_text("stop-wait = 0.5\n")
+    link = tmp_path / "robot"
+    with robots(link) as plugged:
+        plugged.append(PtyRobot(link))
+        hcr = Hcrctl(["--port", str(link), "--json", "drive", "power", "40", "40"], env)
+        try:
+            plugged[0].wait_for(moving, timeout=TIMEOUT)
+            plugged[0].close()
+            status, out, err = hcr.finish()
+        finally:
+            hcr.kill()
+    assert status == 1 and out == ""
+    _, warning, error = err.strip().splitlines()
+    assert WARNING in warning and "for up to 0.5 s" in warning
+    assert error.startswith("hcrctl: error: lost the link") and str(link) in error
+    assert NOT_DELIVERED in error and "did not come back within 0.5 s" in error
+
+
+@pytest.mark.parametrize(
+    ("how", "status", "named"), [(signal.SIGINT, 130, "Ctrl-C"), (signal.SIGTERM, 143, "SIGTERM")]
+)
+def test_ctrl_c_or_sigterm_during_the_wait_gives_up_at_once(how, status, named, env, tmp_path):
+    link = tmp_path / "robot"
+    with robots(link) as plugged:
+        plugged.append(PtyRobot(link))
+        hcr = Hcrctl(["--port", str(link), "--stop-wait", "600", "drive", "power", "40", "40"], env)
+        try:
+            plugged[0].wait_for(moving, timeout=TIMEOUT)
+            plugged[0].close()
+            hcr.wait_err(WARNING)
+            hcr.proc.send_signal(how)
+            code, _, err = hcr.finish()
+        finally:
+            hcr.kill()
+    assert code == status, err
+    last = err.strip().splitlines()[-1]
+    assert NOT_DELIVERED in last and f"gave up on {named}" in last
+
+
+def test_socket_url_reconnects_and_gets_stop(env, tmp_path):
+    """socket://: the server goes away and comes back on the same port; the --log shows the stop sent."""
+    from helpers_live import sim_server
+
+    log = tmp_path / "traffic.jsonl"
+    with sim_server("--tcp", "127.0.0.1:0") as (first, url):
+        hcr = Hcrctl(["--port", url, "--log", str(log), "drive", "power", "40", "40"], env)
+        try:
+            hcr.wait_err("driving:")
+            first.terminate()
+            first.wait(timeout=TIMEOUT)
+            hcr.wait_err(WARNING)
+            with sim_server("--tcp", url.removeprefix("socket://")):
+                status, _, err = hcr.finish()
+        finally:
+            hcr.kill()
+    assert status == 1 and DELIVERED in err.strip().splitlines()[-1], err
+    sent = [json.loads(line) for line in log.read_text().splitlines()]
+    tx = [rec["hex"] for rec in sent if rec["direction"] == "tx"]
+    assert tx[-1] == STOP_FRAME.hex(" ").upper() and len(tx) >= 2
+
+
+def test_a_held_drive_in_the_shell_reports_the_stop_its_session_delivered(tmp_path):
+    """In the shell the session reconnects by itself; the held drive borrows it to send stop."""
+    from helpers_shell import shell
+
+    link = tmp_path / "robot"
+    with robots(link) as plugged:
+        plugged.append(PtyRobot(link))
+        with shell(["--port", str(link), "shell"], tmp_path, timeout=TIMEOUT) as term:
+            term.wait_prompt()
+            term.send("drive power 40 40 --for 600\r")
+            plugged[0].wait_for(moving, timeout=TIMEOUT)
+            plugged[0].close()
+            term.wait_for(lambda screen: WARNING in "".join(screen.split("\n")), timeout=TIMEOUT)
+            again = PtyRobot(link)
+            plugged.append(again)
+            again.wait_for(lambda frames: STOP_FRAME in frames, timeout=TIMEOUT)
+            term.wait_for(lambda screen: DELIVERED in "".join(screen.split("\n")), timeout=TIMEOUT)
+            assert not moving(again.received())
+
+
+def test_watch_quit_with_a_stop_still_owed_waits_for_the_port_like_any_command(tmp_path):
+    link = tmp_path / "robot"
+    with robots(link) as plugged:
+        plugged.append(PtyRobot(link))
+        with terminal(["--port", str(link), "watch", "compass"], timeout=TIMEOUT) as term:
+            term.wait_for(r"status +ok", timeout=TIMEOUT)
+            plugged[0].close()
+            term.wait_for("disconnected", timeout=TIMEOUT)
+            term.send(" ")
+            term.wait_for("stop NOT delivered: the link is down", timeout=TIMEOUT)
+            term.send("q")
+            term.wait_for(lambda _: WARNING in " ".join(term.output().split()), timeout=TIMEOUT)
+            again = PtyRobot(link)
+            plugged.append(again)
+            again.wait_for(lambda frames: STOP_FRAME in frames, timeout=TIMEOUT)
+            assert term.finish(timeout=TIMEOUT) == 1
+            assert DELIVERED in " ".join(term.output().split())
