@@ -22,8 +22,8 @@ from typing import Any, Protocol
 
 from _common import best_of, best_of_each, check, record
 
-from hcrctl import commands as C
-from hcrctl.frames import HEADER, ChecksumRule, Frame, FrameDecoder, encode
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.frames import HEADER, ChecksumRule, Frame, FrameDecoder, encode
 
 
 class Decoder(Protocol):

@@ -25,10 +25,10 @@ from pathlib import Path
 from _common import best_of, check, record
 from bench_decoder import mixed_stream
 
-from hcrctl.client import Traffic
-from hcrctl.frames import ChecksumRule, decode_all
-from hcrctl.hexview import event_dict, plain_line
-from hcrctl.trafficlog import TrafficLog
+from hcrctl.hex.view import event_dict, plain_line
+from hcrctl.link.client import Traffic
+from hcrctl.link.trafficlog import TrafficLog
+from hcrctl.protocol.frames import ChecksumRule, decode_all
 
 LINE_BYTES_S = 115200 / 10  # 8N1: ten bits a byte
 HEADROOM = 5.0

@@ -21,7 +21,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
 
-from hcrctl.frames import Frame, decode_all
+from hcrctl.protocol.frames import Frame, decode_all
 
 TIMEOUT = 30
 

@@ -25,8 +25,8 @@ from pathlib import Path
 import pexpect
 import pyte
 
-from hcrctl import commands as C
-from hcrctl.frames import Frame, FrameDecoder, encode
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.frames import Frame, FrameDecoder, encode
 
 COLS, ROWS = 120, 40
 

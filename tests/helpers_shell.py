@@ -24,8 +24,8 @@ from typing import Any
 import pexpect
 import pyte
 
-from hcrctl import commands as C
-from hcrctl.frames import Frame, FrameDecoder
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.frames import Frame, FrameDecoder
 
 ROWS, COLS = 30, 100
 STOP_FRAME = bytes.fromhex("55 AA 01 02 01 80 80 03 0D 0A")
@@ -183,12 +183,12 @@ class PtyRobot:
     """The simulator's model behind a pty this test owns, recording every frame it receives.
 
     The shell opens the slave side as its port; a thread answers on the
-    master side with ``hcrctl.simulator`` and keeps each request, so a test
+    master side with ``hcrctl.sim.simulator`` and keeps each request, so a test
     can assert on the wire: stop after drive, in order.
     """
 
     def __init__(self, link_path: Path | None = None) -> None:
-        from hcrctl.simulator import SimOptions, Simulator
+        from hcrctl.sim.simulator import SimOptions, Simulator
 
         self.sim = Simulator(SimOptions(broadcast_hz=0.0, map_hz=0.0))
         self.master, self.slave = os.openpty()

@@ -8,11 +8,11 @@ import pytest
 import serial
 from helpers_cli import clean_env, one_line, run
 
-from hcrctl import commands as C
 from hcrctl.cli import main
 from hcrctl.cli.drive import drive
 from hcrctl.cli.settings import Settings
-from hcrctl.frames import ChecksumRule
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.frames import ChecksumRule
 
 
 def exit_code(argv: list[str]) -> int:

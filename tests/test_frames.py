@@ -15,8 +15,8 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from hcrctl import frames
-from hcrctl.frames import (
+from hcrctl.protocol import frames
+from hcrctl.protocol.frames import (
     HEADER,
     MAX_CONTENT,
     MAX_FRAME,
@@ -514,7 +514,7 @@ def test_module_constants_agree() -> None:
 
 
 def test_wanted_counts_the_bytes_a_frame_in_progress_still_lacks() -> None:
-    from hcrctl.frames import FrameDecoder, encode
+    from hcrctl.protocol.frames import FrameDecoder, encode
 
     frame = encode(1, 0x14, b"\x0d\x0a")
     decoder = FrameDecoder()

@@ -16,7 +16,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hcrctl.frames import (
+from hcrctl.protocol.frames import (
     MAX_KEPT,
     ChecksumRule,
     Event,

@@ -11,8 +11,8 @@ import json
 import pytest
 from rich.console import Console
 
-from hcrctl.frames import ChecksumRule, decode_all, encode
-from hcrctl.hexview import Tally, decode_table, event_dict, fields_text, is_good, plain_line, verdict_text
+from hcrctl.hex.view import Tally, decode_table, event_dict, fields_text, is_good, plain_line, verdict_text
+from hcrctl.protocol.frames import ChecksumRule, decode_all, encode
 
 H = bytes.fromhex
 

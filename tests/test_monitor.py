@@ -12,9 +12,9 @@ from pathlib import Path
 import pytest
 from helpers_hex import device_pty, hcrctl_exe, run, sim_pty
 
-from hcrctl.frames import encode
-from hcrctl.hexview import Tally
-from hcrctl.trafficlog import read_log
+from hcrctl.hex.view import Tally
+from hcrctl.link.trafficlog import read_log
+from hcrctl.protocol.frames import encode
 
 LINE = re.compile(r"^(\d\d:\d\d:\d\d\.\d{6})  (rx|tx)  (@[0-9A-F]{2})  (\S+)")
 

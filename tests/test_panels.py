@@ -9,12 +9,12 @@ from hypothesis import given
 from hypothesis import strategies as st
 from rich.console import Console
 
-from hcrctl import commands as C
-from hcrctl import panels
-from hcrctl.frames import decode_all, encode
-from hcrctl.keys import KeyDecoder
-from hcrctl.livestate import DriveStatus, LiveState, Reading
-from hcrctl.render import cardinal
+from hcrctl.live import panels
+from hcrctl.live.keys import KeyDecoder
+from hcrctl.live.state import DriveStatus, LiveState, Reading
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.frames import decode_all, encode
+from hcrctl.render.readings import cardinal
 
 
 class Clock:
@@ -432,7 +432,7 @@ def test_rtt_ends_at_the_last_reply_not_at_a_timeout() -> None:
     from types import SimpleNamespace
 
     from hcrctl.errors import DeviceTimeout
-    from hcrctl.poller import _reply_time
+    from hcrctl.live.poller import _reply_time
 
     lost = DeviceTimeout("sonar", 1, "sim://", 0.5, 1)
     results = {"compass": C.Compass(1.0), "sonar": lost, "env": C.Environment(40, 20)}

@@ -21,12 +21,12 @@ import pytest
 import serial
 from click.testing import CliRunner
 
-from hcrctl import commands as C
 from hcrctl.cli.sim import parse_tcp, sim
-from hcrctl.frames import Frame, FrameDecoder
-from hcrctl.simlink import Link, open_link
-from hcrctl.simoptions import SimOptions
-from hcrctl.transport_sim import HANDLER_PACKAGE, register
+from hcrctl.link.transport_sim import HANDLER_PACKAGE, register
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.frames import Frame, FrameDecoder
+from hcrctl.sim.options import SimOptions
+from hcrctl.sim.uart import Link, open_link
 from hcrctl.urlhandler import protocol_sim
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -12,11 +12,11 @@ import time
 import pytest
 from helpers_live import FakeRobot, Terminal, is_stop, speed_of, terminal, usage_error
 
-from hcrctl import commands as C
 from hcrctl.cli.settings import Settings
-from hcrctl.client import Robot
-from hcrctl.livestate import LiveState
-from hcrctl.teleop import Drive, Sender, run_teleop, step
+from hcrctl.link.client import Robot
+from hcrctl.live.state import LiveState
+from hcrctl.live.teleop import Drive, Sender, run_teleop, step
+from hcrctl.protocol import commands as C
 
 UP, DOWN, LEFT, RIGHT = "\x1b[A", "\x1b[B", "\x1b[D", "\x1b[C"
 

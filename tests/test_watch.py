@@ -14,10 +14,10 @@ import pytest
 from helpers_live import FakeRobot, hcrctl_exe, is_stop, sim_server, terminal, usage_error
 
 from hcrctl.cli.settings import Settings
-from hcrctl.client import Robot
 from hcrctl.errors import PortError
-from hcrctl.render import cardinal
-from hcrctl.watch import FPS, MIN_FPS, Reconnect, Redrawer, frame_rate, run_watch
+from hcrctl.link.client import Robot
+from hcrctl.live.watch import FPS, MIN_FPS, Reconnect, Redrawer, frame_rate, run_watch
+from hcrctl.render.readings import cardinal
 
 HEADING = re.compile(r"(\d{1,3}\.\d)° ([NESW]{1,3}) ")
 ALT_SCREEN_OFF = b"\x1b[?1049l"

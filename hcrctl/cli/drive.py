@@ -14,13 +14,13 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from .. import commands as C
+from ..protocol import commands as C
 from .params import hold_option, request_value, table_command
 from .settings import Settings
 from .writes import describe, emit, hex_bytes, say, send_request, send_stop, sent_record, stopping
 
 if TYPE_CHECKING:
-    from ..client import Robot
+    from ..link.client import Robot
 
 #: The table rows under ``drive``; turn, a bounded motion, has its own command.
 DRIVE_COMMANDS = ("power", "speed", "velocity")

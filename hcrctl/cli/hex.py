@@ -18,16 +18,16 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from .. import commands as C
 from ..errors import ProtocolError
-from ..frames import ChecksumRule, Frame, decode_all
-from ..hexparse import STYLES, format_hex, parse_hex, parse_hex_args
+from ..hex.parse import STYLES, format_hex, parse_hex, parse_hex_args
+from ..protocol import commands as C
+from ..protocol.frames import ChecksumRule, Frame, decode_all
 from .drive import DRIVE_COMMANDS
 from .params import NamedArgument, hold_option, request_value, table_command
 from .settings import Settings, stdout_is_terminal
 
 if TYPE_CHECKING:
-    from ..client import Robot
+    from ..link.client import Robot
 
 STDIN_HINT = "for a binary capture use --file"
 
@@ -87,7 +87,7 @@ def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None) -
     """
     settings: Settings = ctx.obj
     data = _decode_input(hex_text, capture)
-    from ..hexview import Tally, event_dict
+    from ..hex.view import Tally, event_dict
 
     rows = [event_dict(event, settings.checksum) for event in decode_all(data, settings.checksum)]
     tally = Tally()
@@ -153,7 +153,7 @@ def _stdin_hex() -> bytes:
 
 
 def _print_rows(settings: Settings, rows: list[dict[str, Any]]) -> None:
-    from .. import hexview
+    from ..hex import view as hexview
 
     if settings.as_json:
         click.echo(json.dumps(rows, ensure_ascii=False))
@@ -245,7 +245,7 @@ def _print_frame(settings: Settings, frame: bytes, style: str) -> None:
 
 def _traffic_row(frame: bytes, rule: ChecksumRule, direction: str) -> dict[str, Any]:
     """``{"hex": ...}`` plus the decode shape of the first event in ``frame``."""
-    from ..hexview import event_dict, hexs
+    from ..hex.view import event_dict, hexs
 
     events = decode_all(frame, rule)
     row = event_dict(events[0], rule, direction) if events else {}
@@ -272,7 +272,7 @@ def send(ctx: click.Context, hex_text: tuple[str, ...], force: bool, hold_for: f
     frame is held like 'hcrctl drive': until --for SECONDS or Ctrl-C, then
     stop is sent.
     """
-    from ..hexframes import complete_frame
+    from ..hex.frames import complete_frame
 
     settings: Settings = ctx.obj
     frame, note = complete_frame(parse_hex_args(hex_text), settings.checksum, force)
@@ -288,7 +288,7 @@ def send(ctx: click.Context, hex_text: tuple[str, ...], force: bool, hold_for: f
 
 def _send_frame(robot: Robot, frame: bytes) -> dict[str, Any] | None:
     """Write ``frame``; when it is a valid request with a reply, wait for and return it."""
-    from ..hexview import hexs
+    from ..hex.view import hexs
 
     request = _valid_frame(frame, robot.rule)
     cmd = C.BY_CODE.get(request.command) if request else None
@@ -310,7 +310,7 @@ def _valid_frame(frame: bytes, rule: ChecksumRule) -> Frame | None:
 
 
 def _report(settings: Settings, result: dict[str, Any]) -> None:
-    from ..hexview import summary_text
+    from ..hex.view import summary_text
 
     if settings.as_json:
         click.echo(json.dumps(result, ensure_ascii=False))
@@ -335,7 +335,7 @@ def _holds(robot: Robot, frame: bytes) -> bool:
 
 def _hold_motion(robot: Robot, address: int, hold_for: float | None) -> None:
     """Hold like ``drive``, then stop the address the frame moved (which need not be --address) and ours."""
-    from ..rescue import stop_frame, stopping
+    from ..link.rescue import stop_frame, stopping
     from .drive import hold
     from .writes import say
 

@@ -19,14 +19,14 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from .. import commands as C
-from ..frames import ChecksumRule, Event, decode_all
+from ..protocol import commands as C
+from ..protocol.frames import ChecksumRule, Event, decode_all
 from .hex import json_option
 from .params import FloatRange
 from .settings import ByteNumber, Settings, stdout_is_terminal
 
 if TYPE_CHECKING:
-    from ..client import Traffic
+    from ..link.client import Traffic
 
 #: How long the main thread waits for traffic before checking the clock again.
 POLL_S = 0.05
@@ -107,7 +107,7 @@ class TrafficPrinter:
     def __init__(
         self, settings: Settings, stamps: str, keep: FrameFilter, start: float | None = None
     ) -> None:
-        from ..hexview import Tally
+        from ..hex.view import Tally
 
         self.as_json = settings.as_json
         self.color = stdout_is_terminal() and not settings.as_json
@@ -127,8 +127,8 @@ class TrafficPrinter:
         sys.stdout.flush()
 
     def _line(self, t: float, direction: str, data: bytes, row: dict[str, Any]) -> None:
-        from ..hexview import hexs, is_good, is_text, plain_line
-        from ..trafficlog import iso_time
+        from ..hex.view import hexs, is_good, is_text, plain_line
+        from ..link.trafficlog import iso_time
 
         if self.as_json:
             click.echo(json.dumps({"time": iso_time(t), "direction": direction, "hex": hexs(data), **row}))
@@ -147,7 +147,7 @@ class TrafficPrinter:
 
 def rows_of(events: list[Event], rule: ChecksumRule, direction: str) -> list[dict[str, Any]]:
     """Decode-shape rows; rx lets the content say request or reply (a shared line has both)."""
-    from ..hexview import event_dict
+    from ..hex.view import event_dict
 
     return [event_dict(e, rule, "tx" if direction == "tx" else None) for e in events]
 
@@ -207,7 +207,7 @@ def monitor(
 
 def _render_log(printer: TrafficPrinter, path: str, rule: ChecksumRule, duration: float | None) -> None:
     """Each record re-decoded under the active rule, at its recorded offset."""
-    from ..trafficlog import read_log
+    from ..link.trafficlog import read_log
 
     first = None
     for rec in read_log(path):

@@ -31,8 +31,8 @@ from typing import Any
 
 import click
 
-from .. import commands as C
 from ..numtext import NumberError, finite, parse_float, parse_int
+from ..protocol import commands as C
 
 #: The spelling of a flag's "off" switch, where "--no-<name>" reads badly.
 OFF_SWITCHES = {"ccw": "cw"}

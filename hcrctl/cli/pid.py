@@ -10,8 +10,8 @@ from typing import Any
 
 import click
 
-from .. import commands as C
 from ..errors import DeviceRefused
+from ..protocol import commands as C
 from .params import request_value, table_command
 from .settings import Settings
 from .writes import describe, emit, send_request

@@ -18,13 +18,13 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from .. import commands as C
 from ..errors import DeviceTimeout, ProtocolError
+from ..protocol import commands as C
 from .params import FloatRange, IntRange
 from .settings import Settings
 
 if TYPE_CHECKING:
-    from ..client import Robot
+    from ..link.client import Robot
 
 #: Reply sizes tried when working out which read is cheapest.
 _SIZES = range(1, 17)

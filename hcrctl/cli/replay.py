@@ -19,17 +19,17 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from .. import commands as C
 from ..errors import HcrError, LogFormatError
-from ..frames import ChecksumRule, Frame, decode_all, encode
+from ..protocol import commands as C
+from ..protocol.frames import ChecksumRule, Frame, decode_all, encode
 from .hex import json_option
 from .monitor import FrameFilter, TrafficPrinter, traffic_rows
 from .params import FloatRange, IntRange
 from .settings import Settings
 
 if TYPE_CHECKING:
-    from ..client import Robot, Traffic
-    from ..trafficlog import LogRecord
+    from ..link.client import Robot, Traffic
+    from ..link.trafficlog import LogRecord
 
 POLL_S = 0.02
 
@@ -120,7 +120,7 @@ def replay(settings: Settings, logfile: str, speed: float, ignore_timestamps: bo
 
 
 def _tx_records(path: str) -> list[LogRecord]:
-    from ..trafficlog import read_log
+    from ..link.trafficlog import read_log
 
     records = [rec for rec in read_log(path) if rec.direction == "tx"]
     if not records:
@@ -142,7 +142,7 @@ def _run(
     robot: Robot, records: list[LogRecord], printer: TrafficPrinter, pending: Pending, timing: Timing
 ) -> None:
     """Every pass, then stop; the listener sees our tx and the robot's rx in wire order."""
-    from ..rescue import stopping
+    from ..link.rescue import stopping
 
     inbox: queue.SimpleQueue[Traffic] = queue.SimpleQueue()
     listener = inbox.put

@@ -19,14 +19,14 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from ..frames import ChecksumRule
-from ..rescue import DEFAULT_WAIT_S
+from ..link.rescue import DEFAULT_WAIT_S
+from ..protocol.frames import ChecksumRule
 from .params import ByteNumber, FloatRange, IntRange
 
 if TYPE_CHECKING:
     from click.shell_completion import CompletionItem
 
-    from ..client import Robot
+    from ..link.client import Robot
 
 ENV_PREFIX = "HCRCTL_"
 SIM_URL = "sim://"
@@ -164,13 +164,13 @@ class Settings:
     def _lifeline(self, robot: Robot) -> None:
         """How a command's stop reaches this robot again if its link drops (see ``rescue``)."""
         if getattr(robot, "connected", False):
-            from ..rescue import Reconnect
+            from ..link.rescue import Reconnect
 
             robot.reopen, robot.stop_wait = Reconnect(self, robot), self.stop_wait
 
     def connect(self) -> Robot:
         """A new robot on the resolved port, with the traffic log and hooks attached."""
-        from ..client import Robot
+        from ..link.client import Robot
 
         robot = Robot(
             self.resolve_port(),
@@ -181,7 +181,7 @@ class Settings:
             rule=self.checksum,
         )
         if self.log:
-            from ..trafficlog import attach
+            from ..link.trafficlog import attach
 
             attach(robot, self.log)
         for hook in self.robot_hooks:
@@ -197,7 +197,7 @@ class Settings:
         if self.port:
             return self.port
         from ..errors import PortError
-        from ..transport import ports_hint
+        from ..link.transport import ports_hint
 
         usb = _usb_ports()
         if len(usb) == 1:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .. import commands as C
+from ..protocol import commands as C
 from .params import FloatRange, IntRange
 from .settings import Settings
 
@@ -34,6 +34,6 @@ def teleop(settings: Settings, speed: int, turn: int, timeout: float) -> None:
     the robot going). A bumper hit stops forward motion. Stop is sent
     whenever teleop ends, however it ends.
     """
-    from ..teleop import run_teleop
+    from ..live.teleop import run_teleop
 
     run_teleop(settings, speed, turn, timeout)

@@ -20,9 +20,9 @@ from typing import Any
 
 import click
 
-from .. import commands as C
 from ..errors import HcrError
-from ..render import heading_text
+from ..protocol import commands as C
+from ..render.readings import heading_text
 from .params import request_value, table_command
 from .settings import Settings
 from .writes import emit, say, send_request, stopping

@@ -6,7 +6,7 @@ import json
 
 import click
 
-from .. import commands as C
+from ..protocol import commands as C
 from .params import FloatRange
 from .settings import Settings
 
@@ -50,7 +50,7 @@ def watch(
     With --json nothing is drawn and a summary (sweeps per second, counters,
     latest values) is printed at the end.
     """
-    from ..watch import run_watch
+    from ..live.watch import run_watch
 
     summary = run_watch(settings, sensors, rate, duration, pipeline=pipeline)
     if settings.as_json:

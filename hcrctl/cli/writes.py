@@ -15,13 +15,13 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from .. import commands as C
-from ..rescue import signals_deferred as signals_deferred  # the commands' one way in
-from ..rescue import stop_frame, write_stops
-from ..rescue import stopping as stopping
+from ..link.rescue import signals_deferred as signals_deferred  # the commands' one way in
+from ..link.rescue import stop_frame, write_stops
+from ..link.rescue import stopping as stopping
+from ..protocol import commands as C
 
 if TYPE_CHECKING:
-    from ..client import Robot
+    from ..link.client import Robot
     from .settings import Settings
 
 

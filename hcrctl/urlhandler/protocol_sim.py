@@ -20,9 +20,9 @@ import urllib.parse
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
 
-from ..simlink import Link, open_link
-from ..simoptions import SimOptions
-from ..simulator import Simulator
+from ..sim.options import SimOptions
+from ..sim.simulator import Simulator
+from ..sim.uart import Link, open_link
 
 #: The shortest wait, so a due time that has just passed cannot spin the reader.
 _MIN_WAIT_S = 1e-4
