@@ -67,7 +67,7 @@ class SessionRobot:
 
 def test_drive_in_the_shell_returns_at_once_and_leaves_stop_to_the_session(capsys):
     robot = SessionRobot()
-    settings = Settings(session=robot)
+    settings = Settings(shared_robot=robot)
     drive.main(["power", "60", "-60"], obj=settings, standalone_mode=False)
     assert robot.sent == [C.MotorPower(60, -60)]
     assert not robot.stopped

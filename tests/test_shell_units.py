@@ -433,11 +433,11 @@ def test_set_changes_the_live_robot(session, capsys):
 
 def test_disconnected_commands_fail_in_one_line_without_opening_a_port(session, capsys):
     assert run_line(session, "disconnect") == 0
-    assert isinstance(session.settings.session, Unplugged)
+    assert isinstance(session.settings.shared_robot, Unplugged)
     assert run_line(session, "read compass") == 1
     assert "not connected on sim://" in capsys.readouterr().err
     with pytest.raises(PortError):
-        session.settings.session.read("compass")
+        session.settings.shared_robot.read("compass")
     assert run_line(session, "connect") == 0
     assert run_line(session, "read compass") == 0
 

@@ -282,7 +282,7 @@ def send(ctx: click.Context, hex_text: tuple[str, ...], force: bool, hold_for: f
         result = {"sent": _traffic_row(frame, robot.rule, "tx"), "reply": None}
         result["reply"] = _send_frame(robot, frame)
         _report(settings, result)
-        if _holds(robot, frame) and settings.session is None:
+        if _holds(robot, frame) and settings.shared_robot is None:
             _hold_motion(robot, frame[2], hold_for)
 
 

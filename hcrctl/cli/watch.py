@@ -52,6 +52,6 @@ def watch(
     """
     from ..live.watch import run_watch
 
-    summary = run_watch(settings, sensors, rate, duration, pipeline=pipeline)
+    summary = run_watch(settings, sensors, rate, duration, pipeline=pipeline, as_json=settings.as_json)
     if settings.as_json:
         click.echo(json.dumps(summary))

@@ -22,21 +22,19 @@ delivered outcome, and the exit status of that signal (130, 143, 129).
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import os
 import signal
 import sys
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from ..errors import HcrError, LinkLostWhileMoving, PortError
 from ..protocol import commands as C
 from .signals import Terminated
 
 if TYPE_CHECKING:
-    from ..cli.settings import Settings
     from .client import Robot
 
 #: How long a rescue keeps trying the port by default (``--stop-wait``).
@@ -174,7 +172,7 @@ def _send_on(reopen: Callable[[], Robot], frames: list[bytes]) -> float:
 
 
 def _same_port(robot: Robot) -> Callable[[], Robot]:
-    """For a Robot opened without Settings: the same port with the same parameters and hooks."""
+    """For a Robot opened without a Connection: the same port with the same parameters and hooks."""
     from .client import Robot as RobotClass
 
     baud = getattr(robot.serial, "baudrate", 115200)
@@ -257,29 +255,3 @@ def _send_stop(robot: Robot | None) -> bool:
     except HcrError:
         return False
     return True
-
-
-class Reconnect:
-    """How to get a robot on the same port back after the port disappeared.
-
-    From the command line: reopen the same port (no second auto-detection),
-    with the same settings, log and hooks. Inside the shell, whose own
-    watchdog reconnects the session, opening a second robot would fight it
-    for the port; so wait for the session's robot to be connected again and
-    borrow it (``owned`` false: never closed here).
-    """
-
-    def __init__(self, settings: Settings, robot: Robot) -> None:
-        self.owned = settings.session is not robot
-        self.port = robot.port
-        self._settings = (
-            dataclasses.replace(settings, port=robot.port, session=None) if self.owned else settings
-        )
-
-    def __call__(self) -> Robot:
-        if self.owned:
-            return self._settings.connect()
-        session: Any = self._settings.session
-        if not getattr(session, "connected", False):
-            raise PortError("not connected", self.port, hint="the shell is reconnecting")
-        return session

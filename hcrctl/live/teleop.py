@@ -30,8 +30,8 @@ from .watch import Redrawer, default_console, live_screen, raise_from
 if TYPE_CHECKING:
     from rich.console import Console, RenderableType
 
-    from ..cli.settings import Settings
     from ..link.client import Robot
+    from ..link.context import Connection
 
 #: Bumpers and wheels are read this often while driving.
 POLL_HZ = 20.0
@@ -139,7 +139,7 @@ class Sender:
 
 
 def run_teleop(
-    settings: Settings,
+    settings: Connection,
     speed: int = 50,
     turn: int = 30,
     timeout: float = 0.5,

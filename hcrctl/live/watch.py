@@ -19,7 +19,8 @@ import time
 from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any
 
-from ..link.rescue import OwedStop, Reconnect
+from ..link.context import Reconnect
+from ..link.rescue import OwedStop
 from ..protocol import commands as C
 from .keys import KeyReader
 from .poller import Poller
@@ -29,7 +30,7 @@ if TYPE_CHECKING:
     from rich.console import Console, RenderableType
     from rich.live import Live
 
-    from ..cli.settings import Settings
+    from ..link.context import Connection
 
 #: The most frames drawn per second, and the longest gap between two frames.
 FPS = 20
@@ -42,20 +43,21 @@ QUIT_KEYS = frozenset({"q", "Q", "ctrl-d", "ctrl-c"})
 
 
 def run_watch(
-    settings: Settings,
+    settings: Connection,
     sensors: list[str] | tuple[str, ...] = (),
     rate: float | None = 10.0,
     duration: float | None = None,
     *,
     console: Console | None = None,
     pipeline: bool = True,
+    as_json: bool = False,
 ) -> dict[str, Any]:
     """Show the dashboard until ``q`` or ``duration``; returns the run's summary.
 
-    With ``settings.as_json`` nothing is drawn (and rich is never imported).
+    With ``as_json`` nothing is drawn (and rich is never imported).
     """
     names = list(dict.fromkeys(sensors)) or list(C.SENSORS)
-    console = None if settings.as_json else console or default_console()
+    console = None if as_json else console or default_console()
     state = LiveState(names, target_rate=rate)
     owed = OwedStop()
     with settings.robot() as robot, quick_handoff():

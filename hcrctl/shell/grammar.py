@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from .session import Session
 
 #: Where builtins find their session: ``ctx.meta`` is shared by a whole context chain.
-SESSION_KEY = "hcrctl.shell.prompt.session"
+SESSION_KEY = "hcrctl.shell.session"
 #: CLI commands that make no sense inside the shell.
 HIDDEN = frozenset({"shell"})
 #: Builtin forms that share their name with a CLI command: ``hex`` alone, ``monitor on|changes|off``.

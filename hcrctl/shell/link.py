@@ -1,7 +1,7 @@
 """The shell's one connection: opened, lost, re-opened on its own, closed with stop.
 
 Subcommands reach the robot through ``Settings.robot()``, which yields
-``settings.session``. The link keeps that pointing at the live robot, or, while
+``settings.shared_robot``. The link keeps that pointing at the live robot, or, while
 disconnected, at ``Unplugged``, so a command says "not connected" in one line
 instead of quietly opening a port of its own.
 
@@ -71,7 +71,7 @@ class Totals:
 
 
 class Link:
-    """Owns ``settings.session`` for the shell's lifetime."""
+    """Owns ``settings.shared_robot`` for the shell's lifetime."""
 
     def __init__(
         self,
@@ -93,7 +93,7 @@ class Link:
         self._quit = threading.Event()
         self._watchdog: threading.Thread | None = None
         settings.robot_hooks.append(self._adopt)
-        settings.session = Unplugged(settings.port, self.not_connected_hint)
+        settings.shared_robot = Unplugged(settings.port, self.not_connected_hint)
 
     # -- state ---------------------------------------------------------------
 
@@ -152,7 +152,7 @@ class Link:
             self._past = self._past.plus(old)
             old.close()  # sends stop if it moved and the line still works
         self.robot, self.no_reply, self._timeouts_seen = robot, False, 0
-        self.settings.session = (
+        self.settings.shared_robot = (
             robot if robot is not None else Unplugged(self.settings.port, self.not_connected_hint)
         )
         if robot is not None and old is not None and _came_back(old, robot):
