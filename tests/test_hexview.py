@@ -11,8 +11,9 @@ import json
 import pytest
 from rich.console import Console
 
-from hcrctl.hex.view import Tally, decode_table, event_dict, fields_text, is_good, plain_line, verdict_text
+from hcrctl.hex.view import Tally, decode_table, fields_text, plain_line, verdict_text
 from hcrctl.protocol.frames import ChecksumRule, decode_all, encode
+from hcrctl.protocol.records import event_dict, is_good
 
 H = bytes.fromhex
 

@@ -41,7 +41,7 @@ def tx_frames(path: Path) -> list[bytes]:
 
 
 def write_log(path: Path, frames: list[tuple[float, bytes]]) -> Path:
-    from hcrctl.hex.view import hexs
+    from hcrctl.protocol.records import hexs
 
     with path.open("w") as handle:
         for t, data in frames:

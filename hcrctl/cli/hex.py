@@ -87,7 +87,8 @@ def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None) -
     """
     settings: Settings = ctx.obj
     data = _decode_input(hex_text, capture)
-    from ..hex.view import Tally, event_dict
+    from ..hex.view import Tally
+    from ..protocol.records import event_dict
 
     rows = [event_dict(event, settings.checksum) for event in decode_all(data, settings.checksum)]
     tally = Tally()
@@ -245,7 +246,7 @@ def _print_frame(settings: Settings, frame: bytes, style: str) -> None:
 
 def _traffic_row(frame: bytes, rule: ChecksumRule, direction: str) -> dict[str, Any]:
     """``{"hex": ...}`` plus the decode shape of the first event in ``frame``."""
-    from ..hex.view import event_dict, hexs
+    from ..protocol.records import event_dict, hexs
 
     events = decode_all(frame, rule)
     row = event_dict(events[0], rule, direction) if events else {}
@@ -288,7 +289,7 @@ def send(ctx: click.Context, hex_text: tuple[str, ...], force: bool, hold_for: f
 
 def _send_frame(robot: Robot, frame: bytes) -> dict[str, Any] | None:
     """Write ``frame``; when it is a valid request with a reply, wait for and return it."""
-    from ..hex.view import hexs
+    from ..protocol.records import hexs
 
     request = _valid_frame(frame, robot.rule)
     cmd = C.BY_CODE.get(request.command) if request else None

@@ -127,8 +127,9 @@ class TrafficPrinter:
         sys.stdout.flush()
 
     def _line(self, t: float, direction: str, data: bytes, row: dict[str, Any]) -> None:
-        from ..hex.view import hexs, is_good, is_text, plain_line
+        from ..hex.view import plain_line
         from ..link.trafficlog import iso_time
+        from ..protocol.records import hexs, is_good, is_text
 
         if self.as_json:
             click.echo(json.dumps({"time": iso_time(t), "direction": direction, "hex": hexs(data), **row}))
@@ -147,7 +148,7 @@ class TrafficPrinter:
 
 def rows_of(events: list[Event], rule: ChecksumRule, direction: str) -> list[dict[str, Any]]:
     """Decode-shape rows; rx lets the content say request or reply (a shared line has both)."""
-    from ..hex.view import event_dict
+    from ..protocol.records import event_dict
 
     return [event_dict(e, rule, "tx" if direction == "tx" else None) for e in events]
 

@@ -19,8 +19,8 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
+from ..link.client import DEFAULT_WAIT_S
 from ..link.context import Connection
-from ..link.rescue import DEFAULT_WAIT_S
 from ..protocol.frames import ChecksumRule
 from .params import ByteNumber, FloatRange, IntRange
 
@@ -35,7 +35,7 @@ def complete_port(ctx: click.Context, param: click.Parameter, incomplete: str) -
     """The serial ports present (and their by-id links), plus sim://."""
     from click.shell_completion import CompletionItem
 
-    from .ports import list_ports
+    from ..link.ports import list_ports
 
     names = [SIM_URL]
     for port in list_ports():

@@ -44,7 +44,6 @@ from ..protocol.frames import (
     TextLine,
     Truncated,
 )
-from .rescue import DEFAULT_WAIT_S
 
 #: How long the reader blocks in one read; bounds how fast close() returns.
 READ_SLICE = 0.05
@@ -56,6 +55,9 @@ MAX_READ = 16
 ECHO_MEMORY = 16
 #: Stands for "some frame" among the keys of frames that passed only the other checksum rule.
 ON_THE_LINE = (-1, -1)
+
+#: How long a rescue keeps trying the port by default (``--stop-wait``).
+DEFAULT_WAIT_S = 30.0
 
 
 @dataclass(frozen=True)

@@ -37,8 +37,6 @@ from .signals import Terminated
 if TYPE_CHECKING:
     from .client import Robot
 
-#: How long a rescue keeps trying the port by default (``--stop-wait``).
-DEFAULT_WAIT_S = 30.0
 #: Between two attempts to re-open the port: short, since every moment counts
 #: once the device is back, and a missing path is checked without opening it.
 RETRY_S = 0.02

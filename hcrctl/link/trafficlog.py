@@ -30,8 +30,8 @@ from datetime import datetime
 from typing import TYPE_CHECKING, Any
 
 from ..errors import LogFormatError, LogIncomplete
-from ..hex.view import event_dict, hexs
 from ..protocol.frames import ChecksumRule, decode_all
+from ..protocol.records import event_dict, hexs
 
 if TYPE_CHECKING:
     from .client import Robot, Traffic
