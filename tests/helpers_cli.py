@@ -21,7 +21,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
 
-from hcrctl.protocol.frames import Frame, decode_all
+from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.frames import Frame
 
 TIMEOUT = 30
 

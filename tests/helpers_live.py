@@ -26,7 +26,8 @@ import pexpect
 import pyte
 
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.frames import Frame, FrameDecoder, encode
+from hcrctl.protocol.decoder import FrameDecoder
+from hcrctl.protocol.frames import Frame, encode
 
 COLS, ROWS = 120, 40
 

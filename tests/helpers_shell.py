@@ -25,7 +25,8 @@ import pexpect
 import pyte
 
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.frames import Frame, FrameDecoder
+from hcrctl.protocol.decoder import FrameDecoder
+from hcrctl.protocol.frames import Frame
 
 ROWS, COLS = 30, 100
 STOP_FRAME = bytes.fromhex("55 AA 01 02 01 80 80 03 0D 0A")

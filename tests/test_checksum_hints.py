@@ -18,7 +18,8 @@ from helpers_hex import run, sim_pty
 from helpers_live import FakeRobot, terminal
 
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.frames import BadChecksum, ChecksumRule, Event, Frame, FrameDecoder, encode
+from hcrctl.protocol.decoder import FrameDecoder
+from hcrctl.protocol.frames import BadChecksum, ChecksumRule, Event, Frame, encode
 
 FIX = "use --checksum-from address"
 

@@ -21,7 +21,8 @@ from hypothesis import strategies as st
 
 from hcrctl.errors import ProtocolError, RangeError
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.frames import ChecksumRule, Frame, FrameDecoder, encode
+from hcrctl.protocol.decoder import FrameDecoder
+from hcrctl.protocol.frames import ChecksumRule, Frame, encode
 
 PROPERTY = settings(max_examples=200, deadline=None)
 REPO = Path(__file__).resolve().parent.parent

@@ -12,7 +12,8 @@ import pytest
 from rich.console import Console
 
 from hcrctl.hex.view import Tally, decode_table, fields_text, plain_line, verdict_text
-from hcrctl.protocol.frames import ChecksumRule, decode_all, encode
+from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.frames import ChecksumRule, encode
 from hcrctl.protocol.records import event_dict, is_good
 
 H = bytes.fromhex

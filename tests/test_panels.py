@@ -13,7 +13,8 @@ from hcrctl.live import panels
 from hcrctl.live.keys import KeyDecoder
 from hcrctl.live.state import DriveStatus, LiveState, Reading
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.frames import decode_all, encode
+from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.frames import encode
 from hcrctl.render.readings import cardinal
 
 

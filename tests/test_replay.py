@@ -157,7 +157,8 @@ def test_an_answered_request_is_no_longer_owed() -> None:
     """Once every reply is in, nothing is owed: --ignore-timestamps sends on, no timeout wait."""
     from hcrctl.cli.replay import Pending
     from hcrctl.link.client import Traffic
-    from hcrctl.protocol.frames import ChecksumRule, decode_all
+    from hcrctl.protocol.decoder import decode_all
+    from hcrctl.protocol.frames import ChecksumRule
 
     pending = Pending()
     pending.sent(encode(1, 0x14, b"\xff"), ChecksumRule.HEADER)

@@ -18,7 +18,8 @@ from prompt_toolkit.output import DummyOutput
 from hcrctl.cli.settings import Settings
 from hcrctl.errors import PortError
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.frames import Frame, decode_all, encode
+from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.frames import Frame, encode
 from hcrctl.shell.broadcasts import NEW_MARK, Broadcasts, describe
 from hcrctl.shell.dispatch import COMMANDS, run_line, usage_line
 from hcrctl.shell.grammar import root_context, split, split_partial
@@ -26,17 +27,8 @@ from hcrctl.shell.history import history_file, state_dir
 from hcrctl.shell.link import Unplugged
 from hcrctl.shell.script import LINE_LIMIT, ScriptInputError, read_lines, script_lines
 from hcrctl.shell.session import Session
-from hcrctl.shell.toolbar import (
-    ELLIPSIS,
-    argument_hint,
-    broadcast_lines,
-    cells,
-    fit,
-    plural,
-    prompt_fragments,
-    status_lines,
-    toolbar_fragments,
-)
+from hcrctl.shell.status import broadcast_lines, plural, status_lines
+from hcrctl.shell.toolbar import ELLIPSIS, argument_hint, cells, fit, prompt_fragments, toolbar_fragments
 from hcrctl.shell.tree import candidates, locate
 
 

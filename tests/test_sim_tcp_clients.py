@@ -19,7 +19,8 @@ from helpers_cli import clean_env, run
 from helpers_live import sim_server
 
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.frames import Frame, FrameDecoder
+from hcrctl.protocol.decoder import FrameDecoder
+from hcrctl.protocol.frames import Frame
 from hcrctl.sim.hub import Hub
 from hcrctl.sim.options import SimOptions
 

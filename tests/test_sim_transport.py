@@ -24,7 +24,8 @@ from click.testing import CliRunner
 from hcrctl.cli.sim import parse_tcp, sim
 from hcrctl.link.transport_sim import HANDLER_PACKAGE, register
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.frames import Frame, FrameDecoder
+from hcrctl.protocol.decoder import FrameDecoder
+from hcrctl.protocol.frames import Frame
 from hcrctl.sim.options import SimOptions
 from hcrctl.sim.uart import Link, open_link
 from hcrctl.urlhandler import protocol_sim

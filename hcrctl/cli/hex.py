@@ -21,7 +21,8 @@ import click
 from ..errors import ProtocolError
 from ..hex.parse import STYLES, format_hex, parse_hex, parse_hex_args
 from ..protocol import commands as C
-from ..protocol.frames import ChecksumRule, Frame, decode_all
+from ..protocol.decoder import decode_all
+from ..protocol.frames import ChecksumRule, Frame
 from .drive import DRIVE_COMMANDS
 from .params import NamedArgument, hold_option, request_value, table_command
 from .settings import Settings, stdout_is_terminal

@@ -20,7 +20,8 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from ..protocol import commands as C
-from ..protocol.frames import ChecksumRule, Event, decode_all
+from ..protocol.decoder import decode_all
+from ..protocol.frames import ChecksumRule, Event
 from .hex import json_option
 from .params import FloatRange
 from .settings import ByteNumber, Settings, stdout_is_terminal

@@ -21,7 +21,8 @@ import click
 
 from ..errors import HcrError, LogFormatError
 from ..protocol import commands as C
-from ..protocol.frames import ChecksumRule, Frame, decode_all, encode
+from ..protocol.decoder import decode_all
+from ..protocol.frames import ChecksumRule, Frame, encode
 from .hex import json_option
 from .monitor import FrameFilter, TrafficPrinter, traffic_rows
 from .params import FloatRange, IntRange

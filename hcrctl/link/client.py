@@ -33,17 +33,8 @@ from ..errors import (
     ProtocolError,
 )
 from ..protocol import commands as C
-from ..protocol.frames import (
-    BadChecksum,
-    ChecksumRule,
-    Event,
-    Frame,
-    FrameDecoder,
-    Junk,
-    Malformed,
-    TextLine,
-    Truncated,
-)
+from ..protocol.decoder import FrameDecoder
+from ..protocol.frames import BadChecksum, ChecksumRule, Event, Frame, Junk, Malformed, TextLine, Truncated
 
 #: How long the reader blocks in one read; bounds how fast close() returns.
 READ_SLICE = 0.05

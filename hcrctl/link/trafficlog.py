@@ -30,7 +30,8 @@ from datetime import datetime
 from typing import TYPE_CHECKING, Any
 
 from ..errors import LogFormatError, LogIncomplete
-from ..protocol.frames import ChecksumRule, decode_all
+from ..protocol.decoder import decode_all
+from ..protocol.frames import ChecksumRule
 from ..protocol.records import event_dict, hexs
 
 if TYPE_CHECKING:

@@ -18,6 +18,7 @@ from ..cli.params import FloatRange, SignedArgsCommand
 from ..cli.settings import complete_port, global_options
 from .broadcasts import MODES
 from .grammar import HIDDEN, OVERLAYS, SESSION_KEY, ShellCommands
+from .status import shown, status_lines
 
 if TYPE_CHECKING:
     from .session import Session
@@ -127,17 +128,6 @@ def _setter(word: str, param: click.Option) -> click.Command:
     return SignedArgsCommand(word, callback=apply, params=[argument], help=text, short_help=text)
 
 
-def shown(name: str, value: Any) -> str:
-    """A setting as the user types it."""
-    if isinstance(value, bool):
-        return "on" if value else "off"
-    if name == "address":
-        return f"0x{value:02X}"
-    if isinstance(value, float):
-        return f"{value:g}"
-    return str(getattr(value, "value", value))
-
-
 def _show_settings() -> None:
     settings = session().settings
     click.echo(f"port {settings.port or '-'}")
@@ -191,7 +181,6 @@ def disconnect() -> None:
 @click.command("status")
 def status() -> None:
     """The link, its counters and the broadcasts seen."""
-    from .toolbar import status_lines
 
     for line in status_lines(session()):
         click.echo(line)

@@ -47,9 +47,11 @@ def run_line(session: Session, line: str) -> int:
 def _run_line(session: Session, line: str) -> int:
     try:
         if session.hex_mode:
-            from .hexmode import run_hex_line
+            from .hexmode import hex_line_words
 
-            run_hex_line(session, line)
+            words = hex_line_words(session, line)
+            if words:
+                invoke(session, words)
         else:
             invoke(session, split(line))
         return 0

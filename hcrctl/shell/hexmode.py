@@ -36,23 +36,24 @@ def leave(session: Session) -> None:
     session.hex_mode = False
 
 
-def run_hex_line(session: Session, line: str) -> None:
-    """One line of raw hex mode: a frame, ``exit``, ``help`` or nothing."""
-    from .dispatch import invoke
+def hex_line_words(session: Session, line: str) -> list[str] | None:
+    """One line of raw hex mode: the ``hex send`` words to run, or None (``exit``, ``help``, nothing).
 
+    The dispatcher runs the words, so this module never imports it.
+    """
     text = line.split("#", 1)[0].strip()
     if not text:
-        return
+        return None
     if text in LEAVE:
         leave(session)
-        return
+        return None
     if text == "help":
         click.echo(HELP)
-        return
+        return None
     force = text.startswith(FORCE)
     if force:
         text = text[len(FORCE) :].strip()
-    invoke(session, ["hex", "send", *([FORCE] if force else []), "--", text])
+    return ["hex", "send", *([FORCE] if force else []), "--", text]
 
 
 def _hex_send(group: click.Group, root: click.Context) -> click.Command | None:

@@ -21,7 +21,8 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-from ..protocol.frames import Frame, FrameDecoder
+from ..protocol.decoder import FrameDecoder
+from ..protocol.frames import Frame
 from .options import SimOptions
 from .simulator import Simulator
 from .uart import Link

@@ -46,7 +46,8 @@ from ..protocol.commands import (
     Velocity,
     WheelSpeed,
 )
-from ..protocol.frames import Frame, FrameDecoder, encode
+from ..protocol.decoder import FrameDecoder
+from ..protocol.frames import Frame, encode
 from .body import MAX_SPEED_CM_S, Body, Pose
 from .options import SimOptions
 
