@@ -23,7 +23,8 @@ from typing import Any, Protocol
 from _common import best_of, best_of_each, check, record
 
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.frames import HEADER, ChecksumRule, Frame, FrameDecoder, encode
+from hcrctl.protocol.decoder import FrameDecoder
+from hcrctl.protocol.frames import HEADER, ChecksumRule, Frame, encode
 
 
 class Decoder(Protocol):

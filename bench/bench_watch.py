@@ -44,7 +44,8 @@ from _simpty import hcrctl_exe, sim_pty
 
 from hcrctl.link.client import Robot
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.frames import Frame, FrameDecoder, encode
+from hcrctl.protocol.decoder import FrameDecoder
+from hcrctl.protocol.frames import Frame, encode
 
 BAUD = 115200
 BITS_PER_BYTE = 10

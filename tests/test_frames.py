@@ -326,7 +326,7 @@ def test_a_long_busy_stream_decodes_alike_in_any_read_size(
     Long enough for the fast path's rounds of splitting (shrunk here, so that every boundary case
     occurs) to hand over to the careful path and back many times.
     """
-    monkeypatch.setattr(frames, "MAX_SPLIT", max_split)
+    monkeypatch.setattr(decoder, "MAX_SPLIT", max_split)
     rng = random.Random(5)
     wire, expected = bytearray(), []
     for i in range(600):
