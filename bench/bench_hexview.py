@@ -26,7 +26,7 @@ from _common import best_of, check, record
 from bench_decoder import mixed_stream
 
 from hcrctl.hex.view import plain_line
-from hcrctl.link.client import Traffic
+from hcrctl.link.traffic import Traffic
 from hcrctl.link.trafficlog import TrafficLog
 from hcrctl.protocol.decoder import decode_all
 from hcrctl.protocol.frames import ChecksumRule

@@ -18,7 +18,8 @@ from helpers_cli import sim_pty as run_sim_pty
 from helpers_hex import device_pty
 
 from hcrctl.errors import DeviceRefused, DeviceTimeout, PortError
-from hcrctl.link.client import Robot, Traffic
+from hcrctl.link.client import Robot
+from hcrctl.link.traffic import Traffic
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.frames import Frame, encode
 

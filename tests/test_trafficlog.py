@@ -14,7 +14,8 @@ import pytest
 from helpers_hex import hcrctl_exe, run, sim_pty
 
 from hcrctl.errors import LogFormatError
-from hcrctl.link.client import Robot, Traffic
+from hcrctl.link.client import Robot
+from hcrctl.link.traffic import Traffic
 from hcrctl.link.trafficlog import TrafficLog, attach, read_log
 from hcrctl.protocol.decoder import decode_all
 from hcrctl.protocol.frames import Frame, encode

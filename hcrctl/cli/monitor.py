@@ -27,7 +27,7 @@ from .params import FloatRange
 from .settings import ByteNumber, Settings, stdout_is_terminal
 
 if TYPE_CHECKING:
-    from ..link.client import Traffic
+    from ..link.traffic import Traffic
 
 #: How long the main thread waits for traffic before checking the clock again.
 POLL_S = 0.05

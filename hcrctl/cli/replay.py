@@ -29,7 +29,8 @@ from .params import FloatRange, IntRange
 from .settings import Settings
 
 if TYPE_CHECKING:
-    from ..link.client import Robot, Traffic
+    from ..link.client import Robot
+    from ..link.traffic import Traffic
     from ..link.trafficlog import LogRecord
 
 POLL_S = 0.02

@@ -20,7 +20,6 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
 from typing import Any
 
 from ..errors import (
@@ -34,7 +33,8 @@ from ..errors import (
 )
 from ..protocol import commands as C
 from ..protocol.decoder import FrameDecoder
-from ..protocol.frames import BadChecksum, ChecksumRule, Event, Frame, Junk, Malformed, TextLine, Truncated
+from ..protocol.frames import BadChecksum, ChecksumRule, Event, Frame
+from .traffic import FrameHook, LinkStats, Traffic, TrafficHook, Watchers, decode_sent
 
 #: How long the reader blocks in one read; bounds how fast close() returns.
 READ_SLICE = 0.05
@@ -49,56 +49,6 @@ ON_THE_LINE = (-1, -1)
 
 #: How long a rescue keeps trying the port by default (``--stop-wait``).
 DEFAULT_WAIT_S = 30.0
-
-
-@dataclass(frozen=True)
-class Traffic:
-    """One frame or diagnostic on the link, as the traffic hook sees it."""
-
-    time: float  # wall clock, time.time()
-    direction: str  # "tx" or "rx"
-    data: bytes
-    event: Event | None = None
-
-
-@dataclass
-class LinkStats:
-    """Counters a monitor, the shell's toolbar and ``ping`` report."""
-
-    tx_frames: int = 0
-    rx_frames: int = 0
-    checksum_errors: int = 0
-    malformed: int = 0
-    junk_bytes: int = 0
-    timeouts: int = 0
-    retries: int = 0
-    unsolicited: int = 0
-    echoes: int = 0
-    #: Checksum errors that pass the other rule: the fix is --checksum-from, not the wiring.
-    other_rule: int = 0
-    #: Lines the firmware printed between frames (not junk).
-    text_lines: int = 0
-    last_rx: float | None = None
-
-    def count(self, event: Event) -> None:
-        if isinstance(event, Frame):
-            self.rx_frames += 1
-            self.last_rx = time.monotonic()
-        elif isinstance(event, BadChecksum):
-            self.checksum_errors += 1
-            self.other_rule += event.matches_other_rule
-        elif isinstance(event, TextLine):
-            self.text_lines += 1
-        elif isinstance(event, Malformed):
-            self.malformed += 1
-        elif isinstance(event, Junk):
-            self.junk_bytes += event.size
-        elif isinstance(event, Truncated):
-            self.junk_bytes += len(event.data)
-
-
-TrafficHook = Callable[[Traffic], None]
-FrameHook = Callable[[Frame], None]
 
 
 class Robot:
@@ -120,10 +70,8 @@ class Robot:
         self.timeout = timeout
         self.retries = retries
         self.on_unsolicited = on_unsolicited
-        #: Everyone watching the link (--log, a monitor, the shell's toolbar); a
-        #: tuple replaced whole, so the reader thread iterates a stable snapshot.
-        self._traffic_hooks: tuple[TrafficHook, ...] = (on_traffic,) if on_traffic else ()
-        self._hooks_lock = threading.Lock()
+        #: Everyone watching the link (--log, a monitor, the shell's toolbar).
+        self.watchers = Watchers(on_traffic)
         self.stats = LinkStats()
         self.unsolicited: queue.Queue[Frame] = queue.Queue(UNSOLICITED_BACKLOG)
         self.moved = False
@@ -292,8 +240,8 @@ class Robot:
                 self.moved = True
             self._recent_tx.append(frame)
             # Told before the bytes leave, so the hook never sees the reply first.
-            if self._traffic_hooks:
-                self._tell(Traffic(time.time(), "tx", frame, _decode_one(frame, self._rule)))
+            if self.watchers.hooks:
+                self.watchers.tell(Traffic(time.time(), "tx", frame, decode_sent(frame, self._rule)))
             try:
                 self.serial.write(frame)
             except Exception as exc:
@@ -387,9 +335,9 @@ class Robot:
                 self._route(event)
             elif isinstance(event, BadChecksum) and event.matches_other_rule:
                 self._other_rule_keys.update(((event.address, event.command), ON_THE_LINE))
-            if self._traffic_hooks:
+            if self.watchers.hooks:
                 data = event.to_bytes() if isinstance(event, Frame) else event.data
-                self._tell(Traffic(now, "rx", data, event))
+                self.watchers.tell(Traffic(now, "rx", data, event))
 
     def _route(self, frame: Frame) -> None:
         if self._is_echo(frame):
@@ -423,26 +371,15 @@ class Robot:
 
     def add_traffic_hook(self, hook: TrafficHook) -> None:
         """Also call ``hook`` with every frame sent and every event received."""
-        with self._hooks_lock:
-            self._traffic_hooks = (*self._traffic_hooks, hook)
+        self.watchers.add(hook)
 
     @property
     def traffic_hooks(self) -> tuple[TrafficHook, ...]:
         """Everyone watching the link, so a re-opened robot can be watched the same way."""
-        return self._traffic_hooks
+        return self.watchers.hooks
 
     def remove_traffic_hook(self, hook: TrafficHook) -> None:
-        with self._hooks_lock:
-            self._traffic_hooks = tuple(h for h in self._traffic_hooks if h != hook)
-
-    def _tell(self, traffic: Traffic) -> None:
-        """Every hook; one that raises is dropped with a warning rather than kill the reader."""
-        for hook in self._traffic_hooks:
-            try:
-                hook(traffic)
-            except Exception as exc:
-                self.remove_traffic_hook(hook)
-                sys.stderr.write(f"hcrctl: warning: traffic hook {hook!r} failed and was removed ({exc})\n")
+        self.watchers.remove(hook)
 
     def _lost(self, exc: Exception) -> PortError:
         """Record a dead link; pyserial's own wording is long, so keep its gist."""
@@ -454,13 +391,6 @@ class Robot:
     def _check_link(self) -> None:
         if self.error is not None:
             raise self.error
-
-
-def _decode_one(frame: bytes, rule: ChecksumRule) -> Event | None:
-    """What we sent, as the decoder reads it, for the traffic hook and the log."""
-    decoder = FrameDecoder(rule)
-    events = decoder.feed(frame) + decoder.flush()
-    return events[0] if events else None
 
 
 def _value(result: C.Reply | HcrError) -> C.Reply:

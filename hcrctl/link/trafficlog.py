@@ -35,7 +35,8 @@ from ..protocol.frames import ChecksumRule
 from ..protocol.records import event_dict, hexs
 
 if TYPE_CHECKING:
-    from .client import Robot, Traffic
+    from .client import Robot
+    from .traffic import Traffic
 
 LOG_HINT = "give a file written by hcrctl --log"
 

@@ -24,7 +24,8 @@ from ..protocol.frames import ChecksumRule, Frame
 
 if TYPE_CHECKING:
     from ..cli.settings import Settings
-    from ..link.client import Robot, Traffic
+    from ..link.client import Robot
+    from ..link.traffic import Traffic
 
 #: How often the background check looks for a device that went away.
 RECONNECT_EVERY = 0.5

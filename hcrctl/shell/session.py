@@ -20,7 +20,8 @@ from .link import Link
 
 if TYPE_CHECKING:
     from ..cli.settings import Settings
-    from ..link.client import Robot, Traffic
+    from ..link.client import Robot
+    from ..link.traffic import Traffic
 
 Printer = Callable[[str], None]
 
