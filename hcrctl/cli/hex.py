@@ -10,7 +10,6 @@ bytes on the wire, completing or checking the checksum first.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import json
 import sys
 from collections.abc import Iterator
@@ -20,12 +19,12 @@ import click
 
 from ..errors import ProtocolError
 from ..hex.parse import STYLES, format_hex, parse_hex, parse_hex_args
+from ..ops.motion import DRIVE_COMMANDS
 from ..protocol import commands as C
 from ..protocol.decoder import decode_all
 from ..protocol.frames import ChecksumRule, Frame
-from .drive import DRIVE_COMMANDS
 from .params import NamedArgument, hold_option, request_value, table_command
-from .settings import Settings, stdout_is_terminal
+from .settings import Settings, json_option, stdout_is_terminal
 
 if TYPE_CHECKING:
     from ..link.client import Robot
@@ -42,27 +41,6 @@ def hex_group() -> None:
     hcrctl hex encode drive power 60 60
     hcrctl --port sim:// hex send 55 AA 01 01 14 FF
     """
-
-
-def json_option(func: Any) -> Any:
-    """``--json`` after the subcommand as well (``hex decode --json``), the same as the global one.
-
-    It sets JSON on a copy of the settings for this one command, so inside
-    the shell it does not stick to the session.
-    """
-
-    def use_json(ctx: click.Context, param: click.Parameter, value: bool) -> None:
-        if value and ctx.obj is not None and not ctx.obj.as_json:
-            ctx.obj = dataclasses.replace(ctx.obj, as_json=True)
-
-    return click.option(
-        "--json",
-        "json_here",
-        is_flag=True,
-        expose_value=False,
-        callback=use_json,
-        help="Print JSON (as the global --json).",
-    )(func)
 
 
 # -- decode -------------------------------------------------------------------------
@@ -338,8 +316,8 @@ def _holds(robot: Robot, frame: bytes) -> bool:
 def _hold_motion(robot: Robot, address: int, hold_for: float | None) -> None:
     """Hold like ``drive``, then stop the address the frame moved (which need not be --address) and ours."""
     from ..link.rescue import stop_frame, stopping
-    from .drive import hold
-    from .writes import say
+    from ..ops.motion import hold
+    from .output import say
 
     until = f"for {hold_for:g} s" if hold_for is not None else "until Ctrl-C"
     say(f"holding the motion {until} — Ctrl-C to stop")

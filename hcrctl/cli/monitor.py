@@ -22,9 +22,8 @@ import click
 from ..protocol import commands as C
 from ..protocol.decoder import decode_all
 from ..protocol.frames import ChecksumRule, Event
-from .hex import json_option
 from .params import FloatRange
-from .settings import ByteNumber, Settings, stdout_is_terminal
+from .settings import ByteNumber, Settings, json_option, stdout_is_terminal
 
 if TYPE_CHECKING:
     from ..link.traffic import Traffic

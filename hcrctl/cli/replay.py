@@ -23,10 +23,9 @@ from ..errors import HcrError, LogFormatError
 from ..protocol import commands as C
 from ..protocol.decoder import decode_all
 from ..protocol.frames import ChecksumRule, Frame, encode
-from .hex import json_option
 from .monitor import FrameFilter, TrafficPrinter, traffic_rows
 from .params import FloatRange, IntRange
-from .settings import Settings
+from .settings import Settings, json_option
 
 if TYPE_CHECKING:
     from ..link.client import Robot

@@ -12,6 +12,7 @@ spellings can never drift apart.
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -121,6 +122,27 @@ def GLOBAL_OPTIONS(func: Callable) -> Callable:
     params.extend(reversed(global_options()))
     func.__click_params__ = params  # type: ignore[attr-defined]
     return func
+
+
+def json_option(func: Any) -> Any:
+    """``--json`` after the subcommand as well (``hex decode --json``), the same as the global one.
+
+    It sets JSON on a copy of the settings for this one command, so inside
+    the shell it does not stick to the session.
+    """
+
+    def use_json(ctx: click.Context, param: click.Parameter, value: bool) -> None:
+        if value and ctx.obj is not None and not ctx.obj.as_json:
+            ctx.obj = dataclasses.replace(ctx.obj, as_json=True)
+
+    return click.option(
+        "--json",
+        "json_here",
+        is_flag=True,
+        expose_value=False,
+        callback=use_json,
+        help="Print JSON (as the global --json).",
+    )(func)
 
 
 @dataclass

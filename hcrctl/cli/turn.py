@@ -21,11 +21,13 @@ from typing import Any
 import click
 
 from ..errors import HcrError
+from ..link.rescue import stopping
+from ..ops.writes import send_request
 from ..protocol import commands as C
 from ..render.readings import heading_text
+from .output import emit, say
 from .params import request_value, table_command
 from .settings import Settings
-from .writes import emit, say, send_request, stopping
 
 POLL_S = 0.05
 #: Within this of ANGLE the turn counts as done (compass noise, overshoot).

@@ -1,9 +1,9 @@
-"""What every write command shares: send, say what went on the wire, always stop.
+"""What every write command shares: send, and describe what went on the wire.
 
 A write command reports the exact frame it sent (``--json`` gives command,
 address, fields and hex), so a user debugging firmware can compare it with a
 logic analyser. Anything that moved the motors ends inside ``stopping()``
-(from ``rescue``, re-exported here), which sends stop however the block ends,
+(``link.rescue``), which sends stop however the block ends,
 with Ctrl-C, SIGTERM and SIGHUP held back for the few microseconds the stop
 frame needs, and which still delivers it when the link dropped meanwhile.
 """
@@ -13,16 +13,11 @@ from __future__ import annotations
 import dataclasses
 from typing import TYPE_CHECKING, Any
 
-import click
-
-from ..link.rescue import signals_deferred as signals_deferred  # the commands' one way in
 from ..link.rescue import stop_frame, write_stops
-from ..link.rescue import stopping as stopping
 from ..protocol import commands as C
 
 if TYPE_CHECKING:
     from ..link.client import Robot
-    from .settings import Settings
 
 
 def hex_bytes(data: bytes) -> str:
@@ -67,20 +62,6 @@ def send_request(robot: Robot, value: C.Request) -> tuple[dict[str, Any], C.Repl
     """Send ``value``; its record and the device's reply, if the command has one."""
     record = sent_record(robot, value)
     return record, robot.send(value)
-
-
-def emit(settings: Settings, record: dict[str, Any], text: str) -> None:
-    """The one JSON document with --json, else a line for people."""
-    if settings.as_json:
-        import json
-
-        text = json.dumps(record)
-    click.echo(text)
-
-
-def say(message: str) -> None:
-    """Progress and notes go to stderr, so stdout stays clean for --json and pipes."""
-    click.echo(f"hcrctl: {message}", err=True)
 
 
 def send_stop(robot: Robot) -> bytes:
