@@ -20,10 +20,10 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from ..errors import HcrError, LogFormatError
+from ..hex.traffic import FrameFilter, TrafficPrinter, traffic_rows
 from ..protocol import commands as C
 from ..protocol.decoder import decode_all
 from ..protocol.frames import ChecksumRule, Frame, encode
-from .monitor import FrameFilter, TrafficPrinter, traffic_rows
 from .params import FloatRange, IntRange
 from .settings import Settings, json_option
 
@@ -107,7 +107,7 @@ def replay(settings: Settings, logfile: str, speed: float, ignore_timestamps: bo
     the end, and on Ctrl-C or SIGTERM.
     """
     records = _tx_records(logfile)
-    printer = TrafficPrinter(settings, "delta", FrameFilter(), start=time.time())
+    printer = TrafficPrinter(settings.as_json, "delta", FrameFilter(), start=time.time())
     pending = Pending()
     with settings.robot() as robot:
         _run(robot, records, printer, pending, Timing(speed, ignore_timestamps, loops, settings.timeout))
