@@ -24,7 +24,7 @@ import serial
 from _common import record
 from _simpty import hcrctl_exe, sim_pty
 
-from hcrctl.cli.ping import cheapest_read
+from hcrctl.ops.ping import cheapest_read
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.frames import OVERHEAD
 

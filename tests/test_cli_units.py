@@ -9,8 +9,8 @@ import click
 import pytest
 
 from hcrctl.cli.params import FieldRange, command_help, field_param, request_value
-from hcrctl.cli.ping import PingStats, cheapest_read, probe_once
-from hcrctl.cli.turn import STALL_S, TurnProgress, heading_delta, turn_timeout
+from hcrctl.ops.ping import PingStats, cheapest_read, probe_once
+from hcrctl.ops.turn import STALL_S, TurnProgress, heading_delta, turn_timeout
 from hcrctl.ops.writes import describe, hex_bytes, sent_record
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.frames import ChecksumRule
