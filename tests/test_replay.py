@@ -155,8 +155,8 @@ def test_a_log_without_tx_frames_is_a_usage_error(tmp_path: Path) -> None:
 
 def test_an_answered_request_is_no_longer_owed() -> None:
     """Once every reply is in, nothing is owed: --ignore-timestamps sends on, no timeout wait."""
-    from hcrctl.cli.replay import Pending
     from hcrctl.link.traffic import Traffic
+    from hcrctl.ops.replay import Pending
     from hcrctl.protocol.decoder import decode_all
     from hcrctl.protocol.frames import ChecksumRule
 
