@@ -128,6 +128,31 @@ def test_no_module_is_over_400_lines(name: str) -> None:
     assert lines <= MAX_LINES, f"{name}: {lines} lines"
 
 
+#: The CLI modules every subcommand may use: option declarations, settings, output; and the shell's door.
+CLI_SHARED = {
+    "hcrctl.cli",
+    "hcrctl.cli.params",
+    "hcrctl.cli.settings",
+    "hcrctl.cli.output",
+    "hcrctl.cli.embed",
+}
+
+
+@pytest.mark.parametrize(
+    "name", sorted(m for m in MODULES if m.startswith("hcrctl.cli.") and m not in CLI_SHARED)
+)
+def test_no_subcommand_module_imports_another(name: str) -> None:
+    others = sorted(m for m in own(name) if m.startswith("hcrctl.cli") and m not in CLI_SHARED)
+    assert not others, f"{name} imports other subcommand modules: {others} (move shared logic below cli/)"
+
+
+@pytest.mark.parametrize("name", sorted(m for m in MODULES if m.startswith(("hcrctl.shell", "hcrctl.live"))))
+def test_the_shell_enters_the_cli_only_through_its_door_and_live_not_at_all(name: str) -> None:
+    used = sorted(m for m in own(name) if m == "hcrctl.cli" or m.startswith("hcrctl.cli."))
+    allowed = ["hcrctl.cli.embed"] if name.startswith("hcrctl.shell") else []
+    assert set(used) <= set(allowed), f"{name} imports {used}; allowed: {allowed}"
+
+
 def test_the_checks_see_imports_inside_functions() -> None:
     """A lazy import counts: the CLI group imports its settings, and a subcommand imports live lazily."""
     assert "hcrctl.live.watch" in own("hcrctl.cli.watch")  # imported inside the command function

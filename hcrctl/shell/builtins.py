@@ -13,9 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from ..cli import cli
-from ..cli.params import FloatRange, SignedArgsCommand
-from ..cli.settings import complete_port, global_options
+from ..cli.embed import FloatRange, SignedArgsCommand, cli, complete_port, global_options
 from .broadcasts import MODES
 from .grammar import HIDDEN, OVERLAYS, SESSION_KEY, ShellCommands
 from .status import shown, status_lines

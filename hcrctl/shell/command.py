@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from ..cli.settings import Settings
+from ..cli.embed import Settings
 
 if TYPE_CHECKING:
     from .session import Session

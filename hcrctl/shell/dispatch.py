@@ -20,7 +20,7 @@ from typing import Any
 
 import click
 
-from ..cli.settings import global_options
+from ..cli.embed import global_options
 from ..errors import HcrError, printable
 from .builtins import SETTABLE, builtins
 from .grammar import ShellCommands, root_context, split

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from ..cli import CONTEXT, SUBCOMMANDS, cli
+from ..cli.embed import CONTEXT, SUBCOMMANDS, cli
 
 if TYPE_CHECKING:
     from .session import Session

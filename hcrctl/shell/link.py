@@ -1,6 +1,6 @@
 """The shell's one connection: opened, lost, re-opened on its own, closed with stop.
 
-Subcommands reach the robot through ``Settings.robot()``, which yields
+Subcommands reach the robot through ``Connection.robot()``, which yields
 ``settings.shared_robot``. The link keeps that pointing at the live robot, or, while
 disconnected, at ``Unplugged``, so a command says "not connected" in one line
 instead of quietly opening a port of its own.
@@ -23,8 +23,8 @@ from ..protocol import commands as C
 from ..protocol.frames import ChecksumRule, Frame
 
 if TYPE_CHECKING:
-    from ..cli.settings import Settings
     from ..link.client import Robot
+    from ..link.context import Connection
     from ..link.traffic import Traffic
 
 #: How often the background check looks for a device that went away.
@@ -76,7 +76,7 @@ class Link:
 
     def __init__(
         self,
-        settings: Settings,
+        settings: Connection,
         on_frame: Callable[[Frame], None],
         on_event: Callable[[str], None] | None = None,
     ) -> None:
@@ -245,7 +245,7 @@ class Link:
         self._timeouts_seen = robot.stats.timeouts
 
     def _adopt(self, robot: Robot) -> None:
-        """A ``Settings.robot_hooks`` entry: wire every robot the session opens."""
+        """A ``Connection.robot_hooks`` entry: wire every robot the session opens."""
         robot.add_traffic_hook(lambda item: self._saw(robot, item))
         robot.on_unsolicited = self.on_frame
 

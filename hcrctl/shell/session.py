@@ -19,7 +19,7 @@ from .broadcasts import Broadcasts
 from .link import Link
 
 if TYPE_CHECKING:
-    from ..cli.settings import Settings
+    from ..cli.embed import Settings
     from ..link.client import Robot
     from ..link.traffic import Traffic
 
