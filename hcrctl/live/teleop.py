@@ -198,7 +198,7 @@ def bumper_hit(state: LiveState) -> bool:
 
 
 def _screen(drive: Drive, sender: Sender, state: LiveState) -> Callable[[float], RenderableType]:
-    from .panels import teleop_screen
+    from .screens import teleop_screen
 
     def render(now: float) -> RenderableType:
         status = DriveStatus(

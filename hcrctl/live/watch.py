@@ -110,7 +110,7 @@ def on_watch_key(key: str, state: LiveState, poller: Poller, owed: OwedStop) -> 
 
 def _dashboard(state: LiveState, fit: bool = False) -> Callable[[float], RenderableType]:
     """The frame for a moment; ``fit``: to the height of a full-screen terminal."""
-    from .panels import dashboard
+    from .screens import dashboard
 
     cache: dict = {}
     return lambda now: dashboard(state.view(), now, cache=cache, fit=fit)
