@@ -27,7 +27,7 @@ from hcrctl.protocol import commands as C
 from hcrctl.protocol.decoder import FrameDecoder
 from hcrctl.protocol.frames import Frame
 from hcrctl.sim.options import SimOptions
-from hcrctl.sim.uart import Link, open_link
+from hcrctl.sim.uart import SimLine, open_link
 from hcrctl.urlhandler import protocol_sim
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -48,7 +48,7 @@ class FakeClock:
 # -- pacing, with a fake clock ---------------------------------------------------
 
 
-def paced(baud: int = 9600) -> tuple[Link, FakeClock, float]:
+def paced(baud: int = 9600) -> tuple[SimLine, FakeClock, float]:
     clock = FakeClock()
     link = open_link(SimOptions.from_query(f"{QUIET}&pace=1&baud={baud}"), clock)
     return link, clock, 10 / baud

@@ -66,11 +66,11 @@ def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None) -
     """
     settings: Settings = ctx.obj
     data = _decode_input(hex_text, capture)
-    from ..hex.view import Tally
+    from ..hex.view import FrameTally
     from ..protocol.records import event_dict
 
     rows = [event_dict(event, settings.checksum) for event in decode_all(data, settings.checksum)]
-    tally = Tally()
+    tally = FrameTally()
     for row in rows:
         tally.add(row)
     _print_rows(settings, rows)

@@ -75,13 +75,13 @@ class TrafficPrinter:
     """Rows to stdout (text or JSON lines), filtered, and a tally of everything received."""
 
     def __init__(self, as_json: bool, stamps: str, keep: FrameFilter, start: float | None = None) -> None:
-        from .view import Tally
+        from .view import FrameTally
 
         self.as_json = as_json
         self.color = sys.stdout.isatty() and not as_json
         self.stamp = Stamper(stamps, start)
         self.keep = keep
-        self.tally = Tally()
+        self.tally = FrameTally()
         self.sent = 0
 
     def show(self, t: float, direction: str, data: bytes, rows: list[dict[str, Any]]) -> None:

@@ -171,7 +171,7 @@ def decode_table(rows: list[dict[str, Any]]) -> Table:
 
 
 @dataclass
-class Tally:
+class FrameTally:
     """What a decode or a monitor saw: the counters printed at the end.
 
     ``frames`` counts frames whose checksum passed, as ``LinkStats`` does, so

@@ -71,7 +71,7 @@ class Totals:
         )
 
 
-class Link:
+class SessionLink:
     """Owns ``settings.shared_robot`` for the shell's lifetime."""
 
     def __init__(

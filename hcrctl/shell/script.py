@@ -99,7 +99,7 @@ def script_lines(lines: Iterable[tuple[int, str]]) -> Iterator[tuple[int, str]]:
 
 
 @dataclass
-class Tally:
+class ScriptTally:
     """Commands run, commands failed, and the first failure's exit code."""
 
     ran: int = 0
@@ -153,7 +153,7 @@ def run_script(
     the caller closes the session (stop, if anything moved) and Click exits
     quietly, as it does for the one-shot commands.
     """
-    tally = Tally()
+    tally = ScriptTally()
     error = session.connect_at_start()
     if error is not None:
         click.echo(f"error: {error.one_line()}", err=True)

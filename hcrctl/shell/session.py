@@ -16,7 +16,7 @@ import click
 from ..errors import HcrError, printable
 from ..protocol.frames import Frame, TextLine
 from .broadcasts import Broadcasts
-from .link import Link
+from .link import SessionLink
 
 if TYPE_CHECKING:
     from ..cli.embed import Settings
@@ -33,7 +33,7 @@ class Session:
         self.settings = settings
         self.interactive = interactive
         self.broadcasts = Broadcasts()
-        self.link = Link(settings, on_frame=self._unsolicited, on_event=self.say)
+        self.link = SessionLink(settings, on_frame=self._unsolicited, on_event=self.say)
         #: What unsolicited frames print (see shell_broadcasts.MODES); scripts stay quiet unless asked.
         self.monitor = "changes" if interactive else "off"
         self.hex_mode = False

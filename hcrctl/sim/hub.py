@@ -13,7 +13,7 @@ client also has its own frame decoder, and only whole frames reach the
 robot, so two clients writing at once never garble each other's requests.
 
 Standard library only and no I/O, like ``simlink``: the server calls
-``Link.write``/``Link.read`` on each client's line.
+``SimLine.write``/``SimLine.read`` on each client's line.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from ..protocol.decoder import FrameDecoder
 from ..protocol.frames import Frame
 from .options import SimOptions
 from .simulator import Simulator
-from .uart import Link
+from .uart import SimLine
 
 
 class Hub:
@@ -39,14 +39,14 @@ class Hub:
     def __len__(self) -> int:
         return len(self._taps)
 
-    def attach(self) -> Link:
+    def attach(self) -> SimLine:
         """A new client's line; it starts clean, with nothing from before it came."""
         self.distribute()  # what was due before goes to the clients already here
         tap = Tap(self)
         self._taps.append(tap)
-        return Link(tap, self.options.byte_time)
+        return SimLine(tap, self.options.byte_time)
 
-    def detach(self, link: Link) -> None:
+    def detach(self, link: SimLine) -> None:
         """The client has gone; its delayed replies still due are dropped."""
         if link.sim in self._taps:
             self._taps.remove(link.sim)  # type: ignore[arg-type]
@@ -60,7 +60,7 @@ class Hub:
 
 
 class Tap:
-    """One client's connection to the shared robot: what ``Link`` expects of a device."""
+    """One client's connection to the shared robot: what ``SimLine`` expects of a device."""
 
     def __init__(self, hub: Hub) -> None:
         self.hub = hub

@@ -23,7 +23,7 @@ from types import FrameType
 
 from .hub import Hub
 from .options import SimOptions
-from .uart import Link, open_link
+from .uart import SimLine, open_link
 
 #: Ctrl-C, kill, and a closed terminal all end the server the same clean way.
 _STOP_SIGNALS = tuple(
@@ -77,14 +77,18 @@ def _wait(fd: int, stopper: Stopper, timeout: float | None = None) -> bool:
     return fd in readable
 
 
-def _timeout(link: Link) -> float | None:
+def _timeout(link: SimLine) -> float | None:
     """Seconds until the link's next event (a paced byte, a broadcast); None is never."""
     due = link.next_due()
     return None if due is None else max(0.0, due - link.clock())
 
 
 def _serve(
-    link: Link, fd: int, recv: Callable[[], bytes | None], send: Callable[[bytes], object], stopper: Stopper
+    link: SimLine,
+    fd: int,
+    recv: Callable[[], bytes | None],
+    send: Callable[[bytes], object],
+    stopper: Stopper,
 ) -> None:
     """Shuttle bytes between ``fd`` and the link until stopped or the peer hangs up."""
     while not stopper.stopped:
@@ -148,7 +152,7 @@ def serve_tcp(
     with socket.create_server((host, port)) as server, contextlib.ExitStack() as conns:
         server.setblocking(False)
         hub = Hub(options)
-        clients: dict[socket.socket, tuple[Link, str]] = {}
+        clients: dict[socket.socket, tuple[SimLine, str]] = {}
         on_ready(socket_url(host, server.getsockname()[1]))
         while not stopper.stopped:
             timeouts = [t for link, _ in clients.values() if (t := _timeout(link)) is not None]
@@ -167,7 +171,7 @@ def serve_tcp(
 def _accept(
     server: socket.socket,
     hub: Hub,
-    clients: dict[socket.socket, tuple[Link, str]],
+    clients: dict[socket.socket, tuple[SimLine, str]],
     conns: contextlib.ExitStack,
     say: Callable[[str], None],
 ) -> None:
@@ -188,7 +192,10 @@ def _accept(
 
 
 def _take_input(
-    conn: socket.socket, hub: Hub, clients: dict[socket.socket, tuple[Link, str]], say: Callable[[str], None]
+    conn: socket.socket,
+    hub: Hub,
+    clients: dict[socket.socket, tuple[SimLine, str]],
+    say: Callable[[str], None],
 ) -> None:
     link, who = clients[conn]
     data = _recv(conn)

@@ -85,7 +85,7 @@ class Device(Protocol):
     def next_due(self) -> float | None: ...
 
 
-class Link:
+class SimLine:
     """A simulator plus the two directions of its line."""
 
     def __init__(self, sim: Device, byte_time: float = 0.0) -> None:
@@ -133,7 +133,7 @@ class Link:
                 self.to_host.send(self.sim.feed(data[i : i + 1]), start + (i + 1) * bt)
 
 
-def open_link(options: SimOptions | None = None, clock: Callable[[], float] = time.monotonic) -> Link:
+def open_link(options: SimOptions | None = None, clock: Callable[[], float] = time.monotonic) -> SimLine:
     """A simulator built from ``options``, paced at ``options.baud`` when ``options.pace``."""
     options = options or SimOptions()
-    return Link(Simulator(options, clock), options.byte_time)
+    return SimLine(Simulator(options, clock), options.byte_time)
