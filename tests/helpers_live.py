@@ -63,6 +63,8 @@ class Terminal:
         self.stream = pyte.ByteStream(self.screen)
         self.raw = bytearray()
         self._lock = threading.Lock()
+        self._reading = threading.Event()
+        self._reading.set()
         if shell_suffix is None:
             program, argv = hcrctl_exe(), args
         else:  # run a shell command after hcrctl in the same terminal (stty -a, echo $?)
@@ -76,6 +78,7 @@ class Terminal:
 
     def _read(self) -> None:
         while True:
+            self._reading.wait()
             try:
                 data = self.child.read_nonblocking(65536, timeout=0.1)
             except pexpect.TIMEOUT:
@@ -85,6 +88,27 @@ class Terminal:
             with self._lock:
                 self.raw += data
                 self.stream.feed(data)
+
+    @contextlib.contextmanager
+    def stalled(self) -> Iterator[None]:
+        """Stop reading the terminal within the block, as a stalled ssh link or tmux copy mode does.
+
+        What the program writes piles up in the pty until its writes block.
+        """
+        self._reading.clear()
+        try:
+            yield
+        finally:
+            self._reading.set()
+
+    def unread(self) -> int:
+        """Bytes the program wrote that nobody has read yet (the pty's read buffer holds 4095 at most)."""
+        import fcntl
+        import struct
+        import termios
+
+        raw = fcntl.ioctl(self.child.child_fd, termios.FIONREAD, b"\0\0\0\0")
+        return struct.unpack("i", raw)[0]
 
     def pump(self, seconds: float = 0.1) -> None:
         """Let ``seconds`` pass while the output is read and rendered."""
