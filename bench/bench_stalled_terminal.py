@@ -91,8 +91,8 @@ def teleop_one_key(hold: float, deadman: float) -> tuple[float, float]:
         term.wait_for("sending", timeout=30)
         moving = _motion(50)
         with term.stalled():
+            term.send("w")  # pexpect waits 50 ms before it writes: the key is pressed when send returns
             pressed = time.monotonic()
-            term.send("w")
             _stall_until_stopped(robot, moving, pressed, hold)
         moved = _arrival(robot, moving, pressed)
         stopped = _arrival(robot, is_stop, moved)
@@ -106,8 +106,8 @@ def teleop_key_when_full(hold: float, deadman: float) -> tuple[float, float]:
         term.wait_for("sending", timeout=30)
         with term.stalled():
             _fill(term, lambda: term.send("w"))
-            pressed = time.monotonic()
             term.send("s")
+            pressed = time.monotonic()
             _stall_until_stopped(robot, _motion(-50), pressed, hold)
         moved = _arrival(robot, _motion(-50), pressed)
         stopped = _arrival(robot, is_stop, moved)
@@ -122,8 +122,8 @@ def watch_stop_key(hold: float) -> float:
         changing = _Changing(robot)
         with changing, term.stalled():
             _fill(term, lambda: None)
-            pressed = time.monotonic()
             term.send(" ")
+            pressed = time.monotonic()
             _stall_until_stopped(robot, is_stop, pressed, hold)
         stopped = _arrival(robot, is_stop, pressed)
         _quit(term)
