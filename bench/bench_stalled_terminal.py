@@ -30,19 +30,14 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-sys.path.insert(0, str(HERE.parent / "tests"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))  # the tests' Terminal and FakeRobot
 
 from _common import record
 from helpers_live import FakeRobot, Terminal, is_stop, speed_of
 
 from hcrctl import commands as C
 from hcrctl.frames import Frame
-
-#: The n_tty read buffer of a pty holds 4095 bytes; past it, writes pile up and then block.
-FULL = 4095
-KEY_REPEAT = 0.05
 
 
 def main() -> int:
@@ -87,12 +82,15 @@ def _check(label: str, seconds: float, limit: float) -> bool:
 
 def teleop_one_key(hold: float, deadman: float) -> tuple[float, float]:
     """Stall, press w once: (key to motion, motion to stop)."""
-    with FakeRobot() as robot, _terminal(["--port", robot.path, "teleop", "--timeout", f"{deadman:g}"]) as term:
+    with (
+        FakeRobot() as robot,
+        _terminal(["--port", robot.path, "teleop", "--timeout", f"{deadman:g}"]) as term,
+    ):
         term.wait_for("sending", timeout=30)
         moving = _motion(50)
         with term.stalled():
-            term.send("w")  # pexpect waits 50 ms before it writes: the key is pressed when send returns
             pressed = time.monotonic()
+            term.send("w")
             _stall_until_stopped(robot, moving, pressed, hold)
         moved = _arrival(robot, moving, pressed)
         stopped = _arrival(robot, is_stop, moved)
@@ -102,12 +100,15 @@ def teleop_one_key(hold: float, deadman: float) -> tuple[float, float]:
 
 def teleop_key_when_full(hold: float, deadman: float) -> tuple[float, float]:
     """Stall, hold w until the pty is full, then press s: (key to motion, motion to stop)."""
-    with FakeRobot() as robot, _terminal(["--port", robot.path, "teleop", "--timeout", f"{deadman:g}"]) as term:
+    with (
+        FakeRobot() as robot,
+        _terminal(["--port", robot.path, "teleop", "--timeout", f"{deadman:g}"]) as term,
+    ):
         term.wait_for("sending", timeout=30)
         with term.stalled():
-            _fill(term, lambda: term.send("w"))
-            term.send("s")
+            term.fill(lambda: term.send("w"))
             pressed = time.monotonic()
+            term.send("s")
             _stall_until_stopped(robot, _motion(-50), pressed, hold)
         moved = _arrival(robot, _motion(-50), pressed)
         stopped = _arrival(robot, is_stop, moved)
@@ -121,9 +122,9 @@ def watch_stop_key(hold: float) -> float:
         term.wait_for("compass", timeout=30)
         changing = _Changing(robot)
         with changing, term.stalled():
-            _fill(term, lambda: None)
-            term.send(" ")
+            term.fill(lambda: None)
             pressed = time.monotonic()
+            term.send(" ")
             _stall_until_stopped(robot, is_stop, pressed, hold)
         stopped = _arrival(robot, is_stop, pressed)
         _quit(term)
@@ -132,6 +133,7 @@ def watch_stop_key(hold: float) -> float:
 
 def _terminal(args: list[str]) -> Terminal:
     term = Terminal(args, timeout=30)
+    term.child.delaybeforesend = None  # pexpect sleeps 50 ms before each send by default
     return _Closing(term)
 
 
@@ -148,23 +150,13 @@ class _Closing:
         self.term.close()
 
 
-def _fill(term: Terminal, tick: Callable[[], None], extra: float = 1.0) -> None:
-    """Keep the screen changing until the pty's read buffer is full, then ``extra`` s more."""
-    end = time.monotonic() + 30
-    while term.unread() < FULL and time.monotonic() < end:
-        tick()
-        time.sleep(KEY_REPEAT)
-    until = time.monotonic() + extra
-    while time.monotonic() < until:
-        tick()
-        time.sleep(KEY_REPEAT)
-
-
 def _motion(percent: int) -> Callable[[Frame], bool]:
     return lambda f: speed_of(f) == (percent, percent)
 
 
-def _stall_until_stopped(robot: FakeRobot, motion: Callable[[Frame], bool], after: float, hold: float) -> None:
+def _stall_until_stopped(
+    robot: FakeRobot, motion: Callable[[Frame], bool], after: float, hold: float
+) -> None:
     """Keep the terminal stalled until ``motion`` and then a stop arrived, or ``hold`` s passed."""
     end = after + hold
     while time.monotonic() < end:

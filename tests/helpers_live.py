@@ -29,6 +29,8 @@ from hcrctl import commands as C
 from hcrctl.frames import Frame, FrameDecoder, encode
 
 COLS, ROWS = 120, 40
+#: What a pty's reading side holds before more output waits in the kernel (and then blocks).
+PTY_READ_BUFFER = 4095
 
 
 def hcrctl_exe() -> str:
@@ -57,6 +59,7 @@ class Terminal:
         shell_suffix: str | None = None,
         timeout: float = 10,
         size: tuple[int, int] = (COLS, ROWS),
+        env: dict[str, str] | None = None,
     ) -> None:
         cols, rows = size
         self.screen = pyte.Screen(cols, rows)
@@ -71,7 +74,11 @@ class Terminal:
             program = "/bin/sh"
             argv = ["-c", " ".join([_quote(hcrctl_exe()), *map(_quote, args)]) + "; " + shell_suffix]
         self.child = pexpect.spawn(
-            program, argv, dimensions=(rows, cols), env=terminal_env(cols, rows), timeout=timeout
+            program,
+            argv,
+            dimensions=(rows, cols),
+            env={**terminal_env(cols, rows), **(env or {})},
+            timeout=timeout,
         )
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
@@ -109,6 +116,19 @@ class Terminal:
 
         raw = fcntl.ioctl(self.child.child_fd, termios.FIONREAD, b"\0\0\0\0")
         return struct.unpack("i", raw)[0]
+
+    def fill(self, tick: Callable[[], None], then: float = 1.0, timeout: float = 30.0) -> None:
+        """Inside ``stalled()``: call ``tick`` (a key, a new value) every 50 ms until the pty's read
+        buffer is full, then for ``then`` s more, so the program's writes pile up and block."""
+        end = time.monotonic() + timeout
+        while self.unread() < PTY_READ_BUFFER and time.monotonic() < end:
+            tick()
+            time.sleep(0.05)
+        assert self.unread() >= PTY_READ_BUFFER, f"the program wrote only {self.unread()} bytes"
+        until = time.monotonic() + then
+        while time.monotonic() < until:
+            tick()
+            time.sleep(0.05)
 
     def pump(self, seconds: float = 0.1) -> None:
         """Let ``seconds`` pass while the output is read and rendered."""
