@@ -490,7 +490,9 @@ def _tallest(columns: list[list[Block]]) -> int:
 
 
 def left_out(columns: list[list[Block]], room: int, size: str) -> str:
-    """``not shown: map, link · cut short: IR (60x20; 80x24 shows every panel)``, or ""."""
+    """``not shown: map, link; cut: IR (60x20 is too small, 80x24 shows all)``, or "".
+
+    The names come first: a narrow screen crops the hint, not the news."""
     hidden, cut = [], []
     for col in columns:
         top = 0
@@ -503,8 +505,8 @@ def left_out(columns: list[list[Block]], room: int, size: str) -> str:
     if not hidden and not cut:
         return ""
     said = [f"not shown: {', '.join(hidden)}"] if hidden else []
-    said += [f"cut short: {', '.join(cut)}"] if cut else []
-    return f" {' · '.join(said)} ({size}; {ALL_PANELS_FIT} shows every panel)"
+    said += [f"cut: {', '.join(cut)}"] if cut else []
+    return f" {'; '.join(said)} ({size} is too small, {ALL_PANELS_FIT} shows all)"
 
 
 def _pour(blocks: list[Block], n: int) -> list[list[Block]]:
