@@ -234,3 +234,23 @@ def test_watch_on_a_small_terminal_says_which_panels_it_left_out() -> None:
         assert screen.splitlines()[-1].startswith(" q quit")
         term.send("q")
         assert term.finish(timeout=30) == 0
+
+
+def test_a_frame_that_fails_halfway_still_restores_the_terminal() -> None:
+    """The failure issue 17 saw: an unwritable frame stuck in rich's buffer made Live.stop() fail too."""
+    from rich.console import Console
+
+    from hcrctl.painter import RESTORE, live_screen
+
+    master, slave = os.openpty()
+    with open(slave, "w", encoding="ascii", errors="strict", closefd=True) as stream:
+        console = Console(  # no ASCII net under it, as before the fix
+            file=stream, force_terminal=True, width=40, height=10, _environ={"TERM": "xterm"}
+        )
+        with pytest.raises(UnicodeEncodeError), live_screen(console) as live:
+            live.update("heading 123.4° ESE", refresh=True)
+        written = b""
+        while select.select([master], [], [], 0)[0]:
+            written += os.read(master, 65536)
+    os.close(master)
+    assert ALT_SCREEN_ON in written and written.endswith(RESTORE)
