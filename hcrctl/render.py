@@ -90,12 +90,16 @@ class _Encodable:
 
     def __init__(self, stream: IO[Any], encoding: str) -> None:
         self._stream, self.encoding = stream, encoding
+        #: only the glyphs this encoding lacks (ISO-8859-1 keeps its ° and ·)
+        self._table = {
+            code: ascii for code, ascii in ASCII_GLYPHS.items() if not can_encode(chr(code), encoding)
+        }
 
     def write(self, text: str) -> int:
         try:
             text.encode(self.encoding)
         except UnicodeEncodeError:
-            text = text.translate(ASCII_GLYPHS).encode(self.encoding, "replace").decode(self.encoding)
+            text = text.translate(self._table).encode(self.encoding, "replace").decode(self.encoding)
         return self._stream.write(text)
 
     def __getattr__(self, name: str) -> Any:  # isatty, fileno, flush... as the stream has them

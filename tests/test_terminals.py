@@ -254,3 +254,23 @@ def test_a_frame_that_fails_halfway_still_restores_the_terminal() -> None:
             written += os.read(master, 65536)
     os.close(master)
     assert ALT_SCREEN_ON in written and written.endswith(RESTORE)
+
+
+@pytest.mark.parametrize(
+    ("encoding", "heading", "keys"),
+    [
+        ("utf-8", "123.4° ESE", "↑↓←→/wasd drive · q quit"),
+        ("iso-8859-1", "123.4° ESE", "^v<>/wasd drive · q quit"),  # Latin-1 has ° and ·, not arrows
+        ("ascii", "123.4 deg ESE", "^v<>/wasd drive . q quit"),
+    ],
+)
+def test_glyphs_degrade_to_what_the_console_encoding_carries(encoding: str, heading: str, keys: str) -> None:
+    import io
+
+    from hcrctl import render
+
+    raw = io.BytesIO()
+    stream = io.TextIOWrapper(raw, encoding=encoding, errors="strict", write_through=True)
+    assert f"123.4{render.degrees(stream)} ESE" == heading
+    render.encodable(stream).write("↑↓←→/wasd drive · q quit")
+    assert raw.getvalue().decode(encoding) == keys

@@ -34,7 +34,8 @@ def teleop(settings: Settings, speed: int, turn: int, timeout: float) -> None:
 
     Motion lasts only while keys keep arriving (hold a key: its repeat keeps
     the robot going). A bumper hit stops forward motion. Stop is sent
-    whenever teleop ends, however it ends.
+    whenever teleop ends, however it ends. It needs a terminal that can
+    redraw its screen (not a pipe or file, not TERM=dumb): it never drives blind.
     """
     refuse_without_a_screen()
     from ..teleop import run_teleop
