@@ -8,8 +8,8 @@ costs one repeat interval, not the whole press).
 
 Stop goes out on every way out (q, Ctrl-D, Ctrl-C, SIGTERM/SIGHUP as
 ``Terminated``, a lost link, a bug), sent explicitly here even when already
-stopped, and once more by ``Robot.close()``; it goes out before the screen is
-restored, which may wait for a terminal that is not being read.
+stopped, and once more by ``Robot.close()``; it first goes out before the
+screen is restored, which may wait for a terminal that is not being read.
 
 The key loop never draws: a ``Painter`` thread does, so a stalled terminal
 (an ssh link that hangs, tmux in copy mode) delays the picture, never a key,
@@ -162,11 +162,24 @@ def run_teleop(
             None, _screen(drive, sender, state), lambda: (state.version, drive.version, sender.frames)
         )
         try:
-            with KeyReader() as keys, painting(console, redraw) as painter, stopping(robot):
+            with stopping(robot), KeyReader() as keys, painting(console, redraw) as painter:
                 poller.start()
-                _teleop_loop(drive, sender, state, poller, keys, painter, redraw)
+                try:
+                    _teleop_loop(drive, sender, state, poller, keys, painter, redraw)
+                finally:
+                    stop_now(robot)
         finally:
             poller.stop()
+
+
+def stop_now(robot: Robot) -> None:
+    """Stop at once, before the screen is restored (which waits for a terminal that is not read).
+
+    Best effort: ``stopping`` sends it again once the screen is back, and
+    reports a failure there, where its message can be read.
+    """
+    with contextlib.suppress(Exception):
+        robot.stop()
 
 
 def painting(console: Console, redraw: Redrawer) -> Painter:

@@ -65,6 +65,18 @@ def test_a_key_drives_and_the_deadman_stops_when_the_pty_is_already_full() -> No
         assert term.finish(timeout=30) == 0
 
 
+def test_quitting_teleop_sends_stop_before_the_stalled_terminal_is_restored() -> None:
+    with FakeRobot() as robot, terminal(["--port", robot.path, "teleop", "--timeout", "5"]) as term:
+        term.wait_for(r"sending +stop", timeout=30)
+        with term.stalled():
+            term.fill(lambda: term.send("w"))
+            pressed = time.monotonic()
+            term.send("q")
+            robot.wait_frame(is_stop, after=pressed, timeout=GENEROUS)  # the restore still waits on the pty
+        assert term.finish(timeout=30) == 0
+    assert RESTORED.search(bytes(term.raw))
+
+
 def test_the_watch_stop_key_is_sent_while_nobody_reads_the_terminal() -> None:
     with FakeRobot() as robot, terminal(["--port", robot.path, "watch", "--rate", "20"]) as term:
         term.wait_for("123.4° ESE", timeout=30)
