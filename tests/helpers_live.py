@@ -30,6 +30,8 @@ from hcrctl.protocol.decoder import FrameDecoder
 from hcrctl.protocol.frames import Frame, encode
 
 COLS, ROWS = 120, 40
+#: What a pty's reading side holds before more output waits in the kernel (and then blocks).
+PTY_READ_BUFFER = 4095
 
 
 def hcrctl_exe() -> str:
@@ -58,25 +60,33 @@ class Terminal:
         shell_suffix: str | None = None,
         timeout: float = 10,
         size: tuple[int, int] = (COLS, ROWS),
+        env: dict[str, str] | None = None,
     ) -> None:
         cols, rows = size
         self.screen = pyte.Screen(cols, rows)
         self.stream = pyte.ByteStream(self.screen)
         self.raw = bytearray()
         self._lock = threading.Lock()
+        self._reading = threading.Event()
+        self._reading.set()
         if shell_suffix is None:
             program, argv = hcrctl_exe(), args
         else:  # run a shell command after hcrctl in the same terminal (stty -a, echo $?)
             program = "/bin/sh"
             argv = ["-c", " ".join([_quote(hcrctl_exe()), *map(_quote, args)]) + "; " + shell_suffix]
         self.child = pexpect.spawn(
-            program, argv, dimensions=(rows, cols), env=terminal_env(cols, rows), timeout=timeout
+            program,
+            argv,
+            dimensions=(rows, cols),
+            env={**terminal_env(cols, rows), **(env or {})},
+            timeout=timeout,
         )
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
 
     def _read(self) -> None:
         while True:
+            self._reading.wait()
             try:
                 data = self.child.read_nonblocking(65536, timeout=0.1)
             except pexpect.TIMEOUT:
@@ -86,6 +96,40 @@ class Terminal:
             with self._lock:
                 self.raw += data
                 self.stream.feed(data)
+
+    @contextlib.contextmanager
+    def stalled(self) -> Iterator[None]:
+        """Stop reading the terminal within the block, as a stalled ssh link or tmux copy mode does.
+
+        What the program writes piles up in the pty until its writes block.
+        """
+        self._reading.clear()
+        try:
+            yield
+        finally:
+            self._reading.set()
+
+    def unread(self) -> int:
+        """Bytes the program wrote that nobody has read yet (the pty's read buffer holds 4095 at most)."""
+        import fcntl
+        import struct
+        import termios
+
+        raw = fcntl.ioctl(self.child.child_fd, termios.FIONREAD, b"\0\0\0\0")
+        return struct.unpack("i", raw)[0]
+
+    def fill(self, tick: Callable[[], None], then: float = 1.0, timeout: float = 30.0) -> None:
+        """Inside ``stalled()``: call ``tick`` (a key, a new value) every 50 ms until the pty's read
+        buffer is full, then for ``then`` s more, so the program's writes pile up and block."""
+        end = time.monotonic() + timeout
+        while self.unread() < PTY_READ_BUFFER and time.monotonic() < end:
+            tick()
+            time.sleep(0.05)
+        assert self.unread() >= PTY_READ_BUFFER, f"the program wrote only {self.unread()} bytes"
+        until = time.monotonic() + then
+        while time.monotonic() < until:
+            tick()
+            time.sleep(0.05)
 
     def pump(self, seconds: float = 0.1) -> None:
         """Let ``seconds`` pass while the output is read and rendered."""

@@ -74,6 +74,13 @@ def layer_of(name: str) -> int:
     return best[0]
 
 
+@pytest.mark.parametrize("name", sorted(MODULES))
+def test_every_import_of_the_package_names_a_module_that_exists(name: str) -> None:
+    """A stale import left inside a function would fail only when that function runs."""
+    missing = sorted(m for m in imports(name) if m.partition(".")[0] == "hcrctl" and m not in MODULES)
+    assert not missing, f"{name} imports modules that do not exist: {missing}"
+
+
 def test_every_module_has_a_layer() -> None:
     for name in MODULES:
         layer_of(name)

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import sys
+
 import click
 
 from ..protocol import commands as C
@@ -32,8 +35,27 @@ def teleop(settings: Settings, speed: int, turn: int, timeout: float) -> None:
 
     Motion lasts only while keys keep arriving (hold a key: its repeat keeps
     the robot going). A bumper hit stops forward motion. Stop is sent
-    whenever teleop ends, however it ends.
+    whenever teleop ends, however it ends. It needs a terminal that can
+    redraw its screen (not a pipe or file, not TERM=dumb): it never drives blind.
     """
+    refuse_without_a_screen()
     from ..live.teleop import run_teleop
 
     run_teleop(settings, speed, turn, timeout)
+
+
+def refuse_without_a_screen() -> None:
+    """Driving needs keys from a terminal and a screen to show what is sent: never drive blind.
+
+    A usage error (exit 2, nothing sent): without a terminal teleop could read
+    no keys, and on one that cannot redraw (TERM=dumb) it would show nothing.
+    """
+    if not (sys.stdin.isatty() and sys.stdout.isatty()):
+        which = "stdin" if not sys.stdin.isatty() else "stdout"
+        raise click.UsageError(
+            f"teleop needs a terminal ({which} is not one); in scripts use 'drive' (it stops by itself)"
+        )
+    if os.environ.get("TERM", "").lower() in ("dumb", "unknown"):
+        raise click.UsageError(
+            f"teleop needs a terminal that can redraw its screen (TERM={os.environ['TERM']} cannot)"
+        )

@@ -47,11 +47,12 @@ def watch(
     """Live dashboard of SENSORS (bump, ir, sonar, compass, wheels, env); none means all.
 
     Keys: q quits, space sends stop, p pauses polling, r resets the counters.
-    With --json nothing is drawn and a summary (sweeps per second, counters,
-    latest values) is printed at the end.
+    Where the screen cannot be redrawn (output to a file or pipe, TERM=dumb)
+    it prints one plain line a second instead. With --json nothing is drawn
+    and a summary (sweeps per second, counters, latest values) is printed at
+    the end, however it ends (q, --duration, Ctrl-C, SIGTERM).
     """
     from ..live.watch import run_watch
 
-    summary = run_watch(settings, sensors, rate, duration, pipeline=pipeline, as_json=settings.as_json)
-    if settings.as_json:
-        click.echo(json.dumps(summary))
+    report = (lambda summary: click.echo(json.dumps(summary))) if settings.as_json else None
+    run_watch(settings, sensors, rate, duration, pipeline=pipeline, report=report, as_json=settings.as_json)

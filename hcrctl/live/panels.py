@@ -1,4 +1,4 @@
-"""Pure functions from a ``live.state.View`` to rich renderables: one panel per sensor, and the link.
+"""Pure functions from a ``livestate.View`` to rich renderables: the live panels.
 
 No I/O and no clocks: every function takes ``now`` (monotonic seconds) so
 ages are computed against the frame being drawn, and tests render panels on a
@@ -18,13 +18,13 @@ from rich.styled import Styled
 from rich.text import Text
 
 from ..protocol import commands as C
-from ..render.readings import cardinal
+from ..render.readings import cardinal, degrees, unit_text
 from .state import Counters, Reading, View
 
 SPARKS = "▁▂▃▄▅▆▇█"
 ARROWS = "↑↗→↘↓↙←↖"
-#: Table units as a person reads them.
-UNIT_TEXT = {"deg": "°"}
+#: Table units as a person reads them (° where the console can show it).
+UNIT_TEXT = {"deg": degrees}
 BAR_WIDTH = 16
 SPARK_WIDTH = 18
 DIAL_ROWS, DIAL_COLS = 7, 15
@@ -48,7 +48,8 @@ def field_info(sensor: str, index: int = 0) -> C.FieldInfo:
 
 def unit(sensor: str, index: int = 0) -> str:
     raw = field_info(sensor, index).unit
-    return UNIT_TEXT.get(raw, raw)
+    shown = UNIT_TEXT.get(raw)
+    return shown() if shown is not None else unit_text(raw)
 
 
 def age_text(seconds: float | None) -> str:
@@ -105,10 +106,6 @@ def sparkline(values: Sequence[float], hi: float | None = None) -> str:
     top = hi if hi is not None else max(max(values), 1)
     steps = len(SPARKS) - 1
     return "".join(SPARKS[max(0, min(steps, round(steps * v / top)))] if top else SPARKS[0] for v in values)
-
-
-def _whole_seconds(age: float | None) -> str:
-    return "never" if age is None else f"{age:.0f} s"
 
 
 # -- one panel per sensor -------------------------------------------------------
@@ -344,6 +341,10 @@ def _rtt_text(rtt: Sequence[float]) -> str:
 
 
 # -- whole screens ----------------------------------------------------------------
+
+
+def _whole_seconds(age: float | None) -> str:
+    return "never" if age is None else f"{age:.0f} s"
 
 
 # -- teleop --------------------------------------------------------------------------

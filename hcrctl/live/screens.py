@@ -10,12 +10,14 @@ from __future__ import annotations
 
 from collections.abc import Callable, Hashable, Iterator
 
+from rich.cells import cell_len
 from rich.console import Console, ConsoleOptions, Group, RenderableType, RenderResult
 from rich.panel import Panel
 from rich.segment import Segment
 from rich.text import Text
 
 from .panels import (
+    PANEL_TITLES,
     SPARK_WIDTH,
     _whole_seconds,
     age_text,
@@ -41,8 +43,15 @@ WATCH_KEYS = "q quit · space stop · p pause · r reset counters"
 TELEOP_KEYS = "↑↓←→/wasd drive · +/- speed · space/k stop · q quit"
 
 
-#: The drive panel's height at most (borders, four rows and why it stopped, wrapped).
-DRIVE_ROWS = 8
+#: Shorter key lines for narrower screens, longest first: "q quit" is always on the screen.
+SHORTER_KEYS = {
+    WATCH_KEYS: ("q quit · space stop · p pause · r reset", "q quit · space stop · p pause", "q quit · space stop"),
+    TELEOP_KEYS: ("wasd drive · +/- speed · space stop · q quit", "wasd drive · space stop · q quit",
+                  "space stop · q quit"),
+}  # fmt: skip
+
+
+ALL_PANELS_FIT = "80x24"
 
 
 def sensor_panels(view: View, now: float, compact: bool = False) -> dict[str, Keyed]:
@@ -61,7 +70,7 @@ def sensor_panels(view: View, now: float, compact: bool = False) -> dict[str, Ke
         if name in makers:
             reading = view.readings[name]
             key = (name, compact, reading_key(reading, now), history if name == "wheels" else None)
-            out[name] = Keyed(key, lambda m=makers[name], r=reading: m(r))
+            out[name] = Keyed(key, lambda m=makers[name], r=reading: m(r), PANEL_TITLES.get(name, name))
     return out
 
 
@@ -95,22 +104,26 @@ def dashboard_columns(view: View, now: float, compact: bool = False) -> list[lis
     grid_key = ("map", compact, view.grid.value, _whole_seconds(view.grid.age(now)))
     return [
         [panels[n] for n in ("bump", "ir", "sonar", "env") if n in panels]
-        + [Keyed(("stations", stations_key), lambda: positioning_panel(view.stations, now))],
+        + [Keyed(("stations", stations_key), lambda: positioning_panel(view.stations, now), "positioning")],
         [panels[n] for n in ("compass", "wheels") if n in panels] + [link_panel(view, now, compact)],
-        [Keyed(grid_key, lambda: map_panel(view.grid, now, compact))],
+        [Keyed(grid_key, lambda: map_panel(view.grid, now, compact), "map")],
     ]
 
 
 class Keyed:
-    """A renderable made on demand, with a key that changes whenever its look does."""
+    """A renderable made on demand, with a key that changes whenever its look does (``name``: its title)."""
 
-    __slots__ = ("key", "make")
+    __slots__ = ("key", "make", "name")
 
-    def __init__(self, key: Hashable, make: Callable[[], RenderableType]) -> None:
-        self.key, self.make = key, make
+    def __init__(self, key: Hashable, make: Callable[[], RenderableType], name: str = "") -> None:
+        self.key, self.make, self.name = key, make, name
 
     def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
         yield self.make()
+
+
+#: One panel's lines, and the name to give when it has to be left out.
+Block = tuple[str, list[list[Segment]]]
 
 
 class SideBySide:
@@ -120,7 +133,9 @@ class SideBySide:
     frame's time; fixed widths let each column render straight to lines, and
     ``Keyed`` items whose key is in ``cache`` are not rendered again at all.
     When fewer than the preferred columns fit, the panels are poured, in
-    order, into as many columns as fit, balancing their heights.
+    order, into as many columns as fit, balancing their heights. ``fit``
+    crops to the screen's height less ``reserve`` lines, and then says on its
+    last line which panels it had to leave out or cut short.
     """
 
     def __init__(
@@ -141,28 +156,37 @@ class SideBySide:
 
     def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
         fresh: dict = {}
-        rendered, width = self._layout(console, options, self.columns, fresh)
+        columns, width = self._layout(console, options, self.columns, fresh)
+        missing = ""
         if self.fit:  # the screen's height, less the header and footer lines
             room = max(1, options.max_height - self.reserve)
-            if self.compact and max(map(len, rendered), default=0) > room:
-                rendered, width = self._layout(console, options, self.compact, fresh)
-            rendered = [lines[:room] for lines in rendered]
+            if self.compact and _tallest(columns) > room:
+                columns, width = self._layout(console, options, self.compact, fresh)
+            if _tallest(columns) > room:
+                room = max(1, room - 1)  # a line to say what is missing
+                missing = left_out(columns, room, f"{options.max_width}x{options.max_height}")
         if self.cache is not None:  # keep only what this frame used
             self.cache.clear()
             self.cache.update(fresh)
+        rendered = [[line for _, block in col for line in block] for col in columns]
+        if self.fit:
+            rendered = [lines[:room] for lines in rendered]
         yield from _stitch(rendered, width, self.gap)
+        if missing:
+            yield Text(missing, style="yellow", no_wrap=True, overflow="crop", end="")
+            yield Segment.line()
 
     def _layout(
         self, console: Console, options: ConsoleOptions, columns: list[list[RenderableType]], fresh: dict
-    ) -> tuple[list[list[list[Segment]]], int]:
-        """The lines of each screen column, and its width."""
+    ) -> tuple[list[list[Block]], int]:
+        """The panels of each screen column, as lines, and the columns' width."""
         fits = (options.max_width + self.gap) // (self.min_width + self.gap)
         n = max(1, min(len(columns), fits))
         width = (options.max_width - self.gap * (n - 1)) // n
         opts = options.update_width(width)
-        blocks = [[self._lines(console, opts, item, fresh) for item in col] for col in columns]
+        blocks = [[(_name(item), self._lines(console, opts, item, fresh)) for item in col] for col in columns]
         if n == len(columns):
-            return [[line for block in col for line in block] for col in blocks], width
+            return blocks, width
         return _pour([block for col in blocks for block in col], n), width
 
     def _lines(
@@ -178,14 +202,47 @@ class SideBySide:
         return lines
 
 
-def _pour(blocks: list[list[list[Segment]]], n: int) -> list[list[list[Segment]]]:
+def _name(item: RenderableType) -> str:
+    """A panel's title, to say it was left out."""
+    if isinstance(item, Keyed):
+        return item.name
+    title = getattr(item, "title", None)
+    return title.plain if isinstance(title, Text) else str(title or "")
+
+
+def _tallest(columns: list[list[Block]]) -> int:
+    return max((sum(len(lines) for _, lines in col) for col in columns), default=0)
+
+
+def left_out(columns: list[list[Block]], room: int, size: str) -> str:
+    """``not shown: map, link; cut: IR (60x20 is too small, 80x24 shows all)``, or "".
+
+    The names come first: a narrow screen crops the hint, not the news."""
+    hidden, cut = [], []
+    for col in columns:
+        top = 0
+        for name, lines in col:
+            if name and top >= room:
+                hidden.append(name)
+            elif name and top + len(lines) > room:
+                cut.append(name)
+            top += len(lines)
+    if not hidden and not cut:
+        return ""
+    said = [f"not shown: {', '.join(hidden)}"] if hidden else []
+    said += [f"cut: {', '.join(cut)}"] if cut else []
+    return f" {'; '.join(said)} ({size} is too small, {ALL_PANELS_FIT} shows all)"
+
+
+def _pour(blocks: list[Block], n: int) -> list[list[Block]]:
     """Blocks of lines into ``n`` columns, in order, each about 1/n of the total height."""
-    target = sum(map(len, blocks)) / n
-    columns: list[list[list[Segment]]] = [[]]
+    target = sum(len(lines) for _, lines in blocks) / n
+    columns: list[list[Block]] = [[]]
     for block in blocks:
-        if columns[-1] and len(columns) < n and len(columns[-1]) + len(block) / 2 > target:
+        height = sum(len(lines) for _, lines in columns[-1])
+        if columns[-1] and len(columns) < n and height + len(block[1]) / 2 > target:
             columns.append([])
-        columns[-1].extend(block)
+        columns[-1].append(block)
     return columns
 
 
@@ -200,17 +257,52 @@ def _stitch(columns: list[list[list[Segment]]], width: int, gap: int) -> Iterato
 
 
 def header(title: str, view: View) -> Text:
-    text = Text(f" {title} ", style="bold reverse")
+    """One line, cropped on a narrow screen."""
+    text = Text(f" {title} ", style="bold reverse", no_wrap=True, overflow="crop")
     text.append(f"  {view.port}  ", style="bold")
     text.append(view.status, style="green" if view.status == "ok" else "bold red")
     return text
 
 
-def footer(keys: str, note: str = "") -> Text:
-    text = Text(f" {keys} ", style="reverse")
-    if note:
-        text.append(f"  {note}", style="bold yellow")
-    return text
+def footer(keys: str, note: str = "") -> KeyLine:
+    return KeyLine(keys, note)
+
+
+class KeyLine:
+    """The keys on one line: the longest wording that fits the width, then the note, cropped.
+
+    "q quit" is the last to go, so however narrow the screen the way out is on it.
+    """
+
+    def __init__(self, keys: str, note: str = "") -> None:
+        self.keys, self.note = keys, note
+
+    def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
+        wordings = (self.keys, *SHORTER_KEYS.get(self.keys, ()), "q quit")
+        keys = next((k for k in wordings if cell_len(k) + 2 <= options.max_width), wordings[-1])
+        text = Text(f" {keys} ", style="reverse", no_wrap=True, overflow="crop")
+        if self.note:
+            text.append(f"  {self.note}", style="bold yellow")
+        yield text
+
+
+class Fitted:
+    """A header line, the body cropped to the height left, and the footer on the last line."""
+
+    def __init__(self, top: RenderableType, body: RenderableType, bottom: RenderableType) -> None:
+        self.top, self.body, self.bottom = top, body, bottom
+
+    def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
+        room = max(1, options.max_height - 2)
+        yield self.top
+        yield from _lines_of(console.render_lines(self.body, options.update_height(room), pad=True))
+        yield self.bottom
+
+
+def _lines_of(lines: list[list[Segment]]) -> Iterator[Segment]:
+    for line in lines:
+        yield from line
+        yield Segment.line()
 
 
 def drive_text(drive: DriveStatus, now: float) -> Text:
@@ -231,16 +323,18 @@ def drive_text(drive: DriveStatus, now: float) -> Text:
     return labelled(rows)
 
 
-def teleop_screen(drive: DriveStatus, view: View, now: float, fit: bool = False) -> Group:
+def teleop_screen(drive: DriveStatus, view: View, now: float, fit: bool = False) -> RenderableType:
     """The ``teleop`` screen: what is sent, wheel speeds read back, bumpers, link.
 
     The readings and the link sit side by side when the width allows, so an
-    80x24 terminal holds it all.
+    80x24 terminal holds it all; ``fit`` crops the panels of a smaller one,
+    never the key line.
     """
     body = Panel(
         drive_text(drive, now), title="drive (0x02 motor speed)", title_align="left", border_style="cyan"
     )
     panels = sensor_panels(view, now)
     readings = [panels[n] for n in ("wheels", "bump") if n in panels]
-    below = SideBySide([readings, [link_panel(view, now)]], fit=fit, reserve=2 + DRIVE_ROWS)
-    return Group(header("hcrctl teleop", view), body, below, footer(TELEOP_KEYS, view.note))
+    below = SideBySide([readings, [link_panel(view, now)]])
+    parts = header("hcrctl teleop", view), Group(body, below), footer(TELEOP_KEYS, view.note)
+    return Fitted(*parts) if fit else Group(*parts)

@@ -8,12 +8,18 @@ costs one repeat interval, not the whole press).
 
 Stop goes out on every way out (q, Ctrl-D, Ctrl-C, SIGTERM/SIGHUP as
 ``Terminated``, a lost link, a bug), sent explicitly here even when already
-stopped, and once more by ``Robot.close()``; after a lost link, ``rescue``
-delivers it when the port comes back.
+stopped, and once more by ``Robot.close()``; it first goes out before the
+screen is restored, which may wait for a terminal that is not being read;
+after a lost link, ``rescue`` delivers it when the port comes back.
+
+The key loop never draws: a ``Painter`` thread does, so a stalled terminal
+(an ssh link that hangs, tmux in copy mode) delays the picture, never a key,
+the deadman or a stop.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from collections.abc import Callable
@@ -23,9 +29,10 @@ from typing import TYPE_CHECKING
 from ..link.rescue import stopping
 from ..protocol import commands as C
 from .keys import KeyReader
+from .painter import Painter, Redrawer, can_redraw, full_screen
 from .poller import Poller
 from .state import DriveStatus, LiveState
-from .watch import Redrawer, default_console, live_screen, raise_from
+from .watch import default_console, raise_from
 
 if TYPE_CHECKING:
     from rich.console import Console, RenderableType
@@ -148,31 +155,60 @@ def run_teleop(
 ) -> None:
     """Drive until ``q``; stop is sent on every way out of here."""
     drive = Drive(speed, turn, timeout)
+    console = console or default_console()
     with settings.robot() as robot:
         state = LiveState(["bump", "wheels"], target_rate=POLL_HZ)
         poller = Poller(robot, state, state.sensors, POLL_HZ)
+        sender = Sender(robot)
+        redraw = Redrawer(
+            None, _screen(drive, sender, state), lambda: (state.version, drive.version, sender.frames)
+        )
         try:
-            with stopping(robot):
+            with stopping(robot), KeyReader() as keys, painting(console, redraw) as painter:
                 poller.start()
-                _teleop_loop(drive, Sender(robot), state, poller, console or default_console())
+                try:
+                    _teleop_loop(drive, sender, state, poller, keys, painter, redraw)
+                finally:
+                    stop_now(robot)
         finally:
             poller.stop()
 
 
-def _teleop_loop(drive: Drive, sender: Sender, state: LiveState, poller: Poller, console: Console) -> None:
-    with KeyReader() as keys, live_screen(console) as live:
-        redraw = Redrawer(
-            live, _screen(drive, sender, state), lambda: (state.version, drive.version, sender.frames)
-        )
-        redraw(force=True)
-        while True:
-            raise_from(poller)
-            key = keys.read(STEP)
-            if key in QUIT_KEYS:
-                return
-            step(drive, sender, state, key, time.monotonic())
-            redraw.tick = 0.1 if drive.motion != "stop" else 1.0
-            redraw()
+def stop_now(robot: Robot) -> None:
+    """Stop at once, before the screen is restored (which waits for a terminal that is not read).
+
+    Best effort: ``stopping`` sends it again once the screen is back, and
+    reports a failure there, where its message can be read.
+    """
+    with contextlib.suppress(Exception):
+        robot.stop()
+
+
+def painting(console: Console, redraw: Redrawer) -> Painter:
+    """The teleop screen, drawn on its own thread; nothing where it cannot be redrawn."""
+    if can_redraw(console):
+        return Painter(full_screen(console, redraw), redraw.interval)
+    return Painter(contextlib.nullcontext(lambda: None), 1.0)  # the CLI refuses; a library caller chose this
+
+
+def _teleop_loop(
+    drive: Drive,
+    sender: Sender,
+    state: LiveState,
+    poller: Poller,
+    keys: KeyReader,
+    painter: Painter,
+    redraw: Redrawer,
+) -> None:
+    """Keys, deadman, bumpers and the wire, on the loop's own clock; drawing is the painter's."""
+    while True:
+        raise_from(poller)
+        painter.check()
+        key = keys.read(STEP)
+        if key in QUIT_KEYS:
+            return
+        step(drive, sender, state, key, time.monotonic())
+        redraw.tick = 0.1 if drive.motion != "stop" else 1.0
 
 
 def step(drive: Drive, sender: Sender, state: LiveState, key: str | None, now: float) -> None:

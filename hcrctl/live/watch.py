@@ -1,13 +1,18 @@
-"""``watch``: the full-screen sensor dashboard, and the drawing loop teleop shares.
+"""``watch``: the full-screen sensor dashboard, and the pieces teleop shares.
 
-Two loops that never wait for each other: the ``Poller`` thread talks to the
-robot at ``--rate``, and this module's loop reads keys and redraws. It redraws
-only when the state's version moved (at most ``FPS`` times a second, and
-no faster than the poll rate unless that is below ``MIN_FPS``) and
-otherwise once a ``TICK`` so ages and rates stay true, which keeps a 10 Hz
-watch cheap. ``run_watch`` is what both ``hcrctl watch`` and the shell call:
-it returns when ``q`` is pressed (or ``duration`` ends) with the terminal as
-it found it.
+Three threads that never wait for each other: the ``Poller`` talks to the
+robot at ``--rate``, a ``Painter`` draws, and this module's loop reads keys
+and acts on them (space sends stop). The painter redraws only when the
+state's version moved (at most ``FPS`` times a second, and no faster than
+the poll rate unless that is below ``MIN_FPS``) and otherwise once a
+``TICK`` so ages and rates stay true; when the terminal stops reading, only
+the painter waits. ``run_watch`` is what both ``hcrctl watch`` and the shell
+call: it returns when ``q`` is pressed (or ``duration`` ends) with the
+terminal as it found it.
+
+Where the cursor cannot move (output to a file or pipe, ``TERM=dumb``) the
+dashboard becomes one plain line a second, and the last full dashboard is
+printed at the end.
 """
 
 from __future__ import annotations
@@ -23,20 +28,23 @@ from ..link.context import Reconnect
 from ..link.rescue import OwedStop
 from ..protocol import commands as C
 from .keys import KeyReader
+from .painter import FPS, TICK, Painter, Redrawer, can_redraw, full_screen, live_screen, plain_lines
 from .poller import Poller
 from .state import LiveState
 
 if TYPE_CHECKING:
     from rich.console import Console, RenderableType
-    from rich.live import Live
 
     from ..link.context import Connection
 
-#: The most frames drawn per second, and the longest gap between two frames.
-FPS = 20
+__all__ = ["FPS", "MIN_FPS", "TICK", "Redrawer", "live_screen", "run_watch"]
+
 #: Drawing faster than the values change buys nothing: a 10 Hz poll gets 10 frames a second.
 MIN_FPS = 10
-TICK = 1.0
+#: How often the key loop looks at the deadline and the poller when no key comes.
+STEP = 0.05
+#: One plain line a second where the screen cannot be redrawn.
+LINE_PERIOD = 1.0
 #: The GIL switch interval while polling (Python's default is 5 ms).
 SWITCH_INTERVAL = 0.0005
 QUIT_KEYS = frozenset({"q", "Q", "ctrl-d", "ctrl-c"})
@@ -50,11 +58,14 @@ def run_watch(
     *,
     console: Console | None = None,
     pipeline: bool = True,
+    report: Callable[[dict[str, Any]], None] | None = None,
     as_json: bool = False,
 ) -> dict[str, Any]:
     """Show the dashboard until ``q`` or ``duration``; returns the run's summary.
 
-    With ``as_json`` nothing is drawn (and rich is never imported).
+    ``report`` is given the summary however the watch ends (q, ``duration``,
+    Ctrl-C, SIGTERM, a lost link), so ``--json`` never loses it. With
+    ``as_json`` nothing is drawn (and rich is never imported).
     """
     names = list(dict.fromkeys(sensors)) or list(C.SENSORS)
     console = None if as_json else console or default_console()
@@ -67,8 +78,10 @@ def run_watch(
             _watch_loop(state, poller, console, duration, owed)
         finally:
             poller.stop()
+            if report is not None:
+                report(state.summary())
         owed.finish(poller.robot, robot)
-    if console is not None and not console.is_terminal:
+    if console is not None and not can_redraw(console):
         console.print(_dashboard(state)(time.monotonic()))
     return state.summary()
 
@@ -77,19 +90,36 @@ def _watch_loop(
     state: LiveState, poller: Poller, console: Console | None, duration: float | None, owed: OwedStop
 ) -> None:
     deadline = time.monotonic() + duration if duration else math.inf
-    fps = frame_rate(state.target_rate)
-    with KeyReader() as keys, live_screen(console) as live:
-        redraw = Redrawer(live, _dashboard(state, fit=True) if live else None, lambda: state.version, fps=fps)
+    with KeyReader() as keys, painting(console, state) as painter:
         while (now := time.monotonic()) < deadline:
             raise_from(poller)
-            key = keys.read(min(1 / fps, deadline - now))
+            painter.check()
+            key = keys.read(min(STEP, deadline - now))
             if key in QUIT_KEYS or (key == "eof" and keys.is_terminal):
                 return
             if key:
                 on_watch_key(key, state, poller, owed)
             if note := owed.deliver(poller.robot):
                 state.note(note)
-            redraw()
+
+
+@contextlib.contextmanager
+def painting(console: Console | None, state: LiveState) -> Iterator[Painter]:
+    """The dashboard drawn on its own thread: full screen, plain lines, or nothing (``--json``)."""
+    if console is None:
+        screen: contextlib.AbstractContextManager[Callable[[], None]] = contextlib.nullcontext(lambda: None)
+        interval = TICK
+    elif can_redraw(console):
+        fps = frame_rate(state.target_rate)
+        redraw = Redrawer(None, _dashboard(state, fit=True), lambda: state.version, fps=fps)
+        screen, interval = full_screen(console, redraw), redraw.interval
+    else:
+        from .plainview import plain_line
+
+        screen = plain_lines(console.file, lambda now: plain_line(state.view(), now), LINE_PERIOD)
+        interval = STEP
+    with Painter(screen, interval) as painter:
+        yield painter
 
 
 def frame_rate(poll_rate: float | None) -> float:
@@ -120,7 +150,7 @@ def _dashboard(state: LiveState, fit: bool = False) -> Callable[[float], Rendera
 
 
 def raise_from(poller: Poller) -> None:
-    """Hand a poller thread's failure to the drawing thread, which can report it."""
+    """Hand a poller thread's failure to the key loop, which can report it."""
     if poller.crash is not None:
         raise poller.crash
     if poller.lost is not None:
@@ -128,9 +158,12 @@ def raise_from(poller: Poller) -> None:
 
 
 def default_console() -> Console:
+    """stdout, where glyphs its encoding cannot carry are drawn as ASCII (a C or Latin-1 locale)."""
     from rich.console import Console
 
-    return Console()
+    from ..render.readings import encodable
+
+    return Console(file=encodable(sys.stdout))
 
 
 @contextlib.contextmanager
@@ -148,48 +181,3 @@ def quick_handoff(seconds: float = SWITCH_INTERVAL) -> Iterator[None]:
         yield
     finally:
         sys.setswitchinterval(previous)
-
-
-@contextlib.contextmanager
-def live_screen(console: Console | None) -> Iterator[Live | None]:
-    """A full-screen Live on a terminal (alternate screen, restored on exit); else None."""
-    if console is None or not console.is_terminal:
-        yield None
-        return
-    from rich.live import Live
-
-    live = Live(
-        console=console, auto_refresh=False, screen=True, redirect_stdout=False, redirect_stderr=False
-    )
-    with live:
-        yield live
-
-
-class Redrawer:
-    """Redraw when the version moved (at most ``fps`` a second), or every ``tick`` s regardless."""
-
-    def __init__(
-        self,
-        live: Live | None,
-        render: Callable[[float], RenderableType] | None,
-        version: Callable[[], object],
-        tick: float = TICK,
-        fps: float = FPS,
-        clock: Callable[[], float] = time.monotonic,
-    ) -> None:
-        self.live, self.render, self.version, self.tick = live, render, version, tick
-        self.clock = clock
-        self.interval = 1 / fps
-        self.frames = 0
-        self._drawn: object = None
-        self._last = -math.inf
-
-    def __call__(self, *, force: bool = False) -> None:
-        if self.live is None or self.render is None:
-            return
-        now, version = self.clock(), self.version()
-        since = now - self._last
-        if force or since >= self.tick or (version != self._drawn and since >= self.interval):
-            self.live.update(self.render(now), refresh=True)
-            self._drawn, self._last = version, now
-            self.frames += 1

@@ -8,7 +8,9 @@ imported inside the table builders, so the text helpers (``cardinal``,
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+import functools
+import sys
+from typing import IO, TYPE_CHECKING, Any
 
 from ..errors import DeviceSilent, HcrError
 from ..protocol import commands as C
@@ -27,8 +29,82 @@ def cardinal(heading: float) -> str:
 
 
 def heading_text(heading: float) -> str:
-    """``123.4° ESE``."""
-    return f"{heading:.1f}° {cardinal(heading)}"
+    """``123.4° ESE`` (``123.4 deg ESE`` where the console cannot show °)."""
+    return f"{heading:.1f}{degrees()} {cardinal(heading)}"
+
+
+# -- what the console's encoding can carry ---------------------------------------------------
+
+#: Stand-ins of the same width for the glyphs the panels draw, for consoles that cannot show them.
+ASCII_GLYPHS = str.maketrans(
+    {
+        **dict.fromkeys("▁▂", "_"), **dict.fromkeys("▃▄▅", "-"), **dict.fromkeys("▆▇", "="),
+        "█": "#", "░": ".", "▀": "^", "↑": "^", "↗": "/", "→": ">", "↘": "\\",
+        "↓": "v", "↙": "/", "←": "<", "↖": "\\", "·": ".", "•": "*", "●": "*", "○": "o",
+        "…": ".", "—": "-", "─": "-", "│": "|", "°": "o",
+    }
+)  # fmt: skip
+
+
+def console_encoding(stream: IO[Any] | None = None) -> str:
+    """The encoding of ``stream`` (stdout), as Python opened it from the locale."""
+    return (getattr(stream or sys.stdout, "encoding", None) or "utf-8").lower()
+
+
+@functools.lru_cache(maxsize=256)
+def can_encode(text: str, encoding: str) -> bool:
+    try:
+        text.encode(encoding)
+    except (UnicodeEncodeError, LookupError):
+        return False
+    return True
+
+
+def glyph(fancy: str, plain: str, stream: IO[Any] | None = None) -> str:
+    """``fancy`` where the console's encoding carries it, else ``plain`` (ISO-8859-1 has °, not ↑)."""
+    return fancy if can_encode(fancy, console_encoding(stream)) else plain
+
+
+def degrees(stream: IO[Any] | None = None) -> str:
+    """The degree sign, or `` deg`` on a console that cannot show it."""
+    return glyph("°", " deg", stream)
+
+
+def unit_text(unit: str, stream: IO[Any] | None = None) -> str:
+    """A unit from the command table as the console can show it: ``°C``, or ``degC``."""
+    return unit if can_encode(unit, console_encoding(stream)) else unit.replace("°", "deg")
+
+
+def encodable(stream: IO[Any]) -> IO[Any]:
+    """``stream``, or a wrapper that writes what its encoding cannot carry as ASCII stand-ins.
+
+    The text layer already says ``deg`` for °; this is the net under everything else a
+    full-screen view draws (bars, arrows, rich's own ellipsis), so that a C or ISO-8859-1
+    locale gets a legible screen instead of a UnicodeEncodeError halfway through a frame.
+    """
+    encoding = console_encoding(stream)
+    return stream if encoding.startswith("utf") else _Encodable(stream, encoding)
+
+
+class _Encodable:
+    """A text stream's stand-in: ``write`` transliterates, then replaces what is left with ?."""
+
+    def __init__(self, stream: IO[Any], encoding: str) -> None:
+        self._stream, self.encoding = stream, encoding
+        #: only the glyphs this encoding lacks (ISO-8859-1 keeps its ° and ·)
+        self._table = {
+            code: ascii for code, ascii in ASCII_GLYPHS.items() if not can_encode(chr(code), encoding)
+        }
+
+    def write(self, text: str) -> int:
+        try:
+            text.encode(self.encoding)
+        except UnicodeEncodeError:
+            text = text.translate(self._table).encode(self.encoding, "replace").decode(self.encoding)
+        return self._stream.write(text)
+
+    def __getattr__(self, name: str) -> Any:  # isatty, fileno, flush... as the stream has them
+        return getattr(self._stream, name)
 
 
 def bumper_text(bump: tuple[bool, ...]) -> str:
@@ -43,8 +119,8 @@ def _values(values: tuple[int, ...], unit: str) -> str:
 
 
 def _unit(reply: C.Reply, name: str) -> str:
-    """A reply field's unit, from the command table."""
-    return next((f.unit for f in C.fields_of(type(reply)) if f.name == name), "")
+    """A reply field's unit, from the command table, as the console can show it."""
+    return unit_text(next((f.unit for f in C.fields_of(type(reply)) if f.name == name), ""))
 
 
 #: Marks a sensor that gave no reading, in place of its value.
@@ -92,6 +168,7 @@ def readings_table(readings: dict[str, Result], *, borders: bool = True) -> Tabl
     from rich import box
     from rich.table import Table
 
+    # rich swaps ROUNDED for its ASCII box by itself on a console whose encoding is not UTF
     table = Table(box=box.ROUNDED if borders else None, show_header=borders, pad_edge=borders)
     table.add_column("sensor", style="bold cyan")
     table.add_column("value")
