@@ -20,7 +20,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterable
-from typing import Any
+from typing import Any, Literal, overload
 
 from ..errors import (
     DeviceRefused,
@@ -158,8 +158,26 @@ class Robot:
         reply = self.transact(frame, (self._address(address), cmd.code), cmd.name)
         return cmd.reply.decode(reply.content)
 
+    @overload
+    def read(self, sensor: Literal["bump"], *, address: int | None = None) -> C.Bumpers: ...
+    @overload
+    def read(self, sensor: Literal["ir"], *, address: int | None = None) -> C.Infrared: ...
+    @overload
+    def read(self, sensor: Literal["sonar"], *, address: int | None = None) -> C.Ultrasonic: ...
+    @overload
+    def read(self, sensor: Literal["compass"], *, address: int | None = None) -> C.Compass: ...
+    @overload
+    def read(self, sensor: Literal["wheels"], *, address: int | None = None) -> C.WheelSpeed: ...
+    @overload
+    def read(self, sensor: Literal["env"], *, address: int | None = None) -> C.Environment: ...
+    @overload
+    def read(self, sensor: str | C.Command, *, address: int | None = None) -> C.Reply: ...
     def read(self, sensor: str | C.Command, *, address: int | None = None) -> C.Reply:
-        """Read one sensor by table name (``compass``) or table row."""
+        """Read one sensor by table name (``compass``) or table row.
+
+        Typed by name: ``robot.read("compass").heading`` is a float to a type
+        checker; a name added at run time is typed as the base ``Reply``.
+        """
         result = self.sweep([sensor], address=address, pipeline=False)
         return _value(next(iter(result.values())))
 
@@ -207,6 +225,8 @@ class Robot:
             if silent is not None:
                 return silent
             return self._no_reply(cmd.name, (addr, cmd.code))
+        if cmd.reply is None:  # a read always has one (the table checks); a row passed by hand may not
+            return ProtocolError(f"{cmd.name} has no reply to read")
         try:
             return cmd.reply.decode(frame.content)
         except ImpossibleReply as exc:

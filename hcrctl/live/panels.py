@@ -2,15 +2,22 @@
 
 No I/O and no clocks: every function takes ``now`` (monotonic seconds) so
 ages are computed against the frame being drawn, and tests render panels on a
-fixed-width capture console. Units and bar ranges come from the command
-table's field metadata. A stale value is drawn dimmed with its age in the
-panel's bottom border; it is never blanked.
+fixed-width capture console. Units, bar ranges and titles come from the
+command table. A stale value is drawn dimmed with its age in the panel's
+bottom border; it is never blanked.
+
+Every read has a panel: ``generic_panel`` draws any reply from its declared
+fields (a bar per value over the field's range, with its unit), and
+``PANELS`` holds the specialised ones (a compass rose, lit bumpers, wheel
+sparklines) by command name; ``panel_for`` picks.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass
+from typing import Any
 
 from rich.console import Group, RenderableType
 from rich.panel import Panel
@@ -28,13 +35,6 @@ UNIT_TEXT = {"deg": degrees}
 BAR_WIDTH = 16
 SPARK_WIDTH = 18
 DIAL_ROWS, DIAL_COLS = 7, 15
-PANEL_TITLES = {
-    "bump": "bumpers",
-    "ir": "IR",
-    "sonar": "ultrasonic",
-    "wheels": "wheels",
-    "env": "environment",
-}
 POSITION_TITLE = "positioning (0xA0)"
 
 
@@ -47,9 +47,18 @@ def field_info(sensor: str, index: int = 0) -> C.FieldInfo:
 
 
 def unit(sensor: str, index: int = 0) -> str:
-    raw = field_info(sensor, index).unit
+    return shown_unit(field_info(sensor, index).unit)
+
+
+def shown_unit(raw: str) -> str:
+    """A table unit as the console can show it: ``°`` for deg where it can."""
     shown = UNIT_TEXT.get(raw)
     return shown() if shown is not None else unit_text(raw)
+
+
+def panel_title(name: str) -> str:
+    """A sensor panel's title, from the table (``panel``, else ``title``)."""
+    return C.BY_NAME[name].panel_title if name in C.BY_NAME else name
 
 
 def age_text(seconds: float | None) -> str:
@@ -64,7 +73,7 @@ def age_text(seconds: float | None) -> str:
 
 def sensor_panel(name: str, body: RenderableType, reading: Reading, now: float, title: str = "") -> Panel:
     """A panel titled from the table; stale readings are dimmed with their age."""
-    title = title or PANEL_TITLES.get(name, C.BY_NAME[name].title if name in C.BY_NAME else name)
+    title = title or panel_title(name)
     if not reading.stale:
         return Panel(body, title=title, title_align="left", border_style="cyan")
     if reading.impossible:
@@ -136,7 +145,7 @@ def bars_panel(sensor: str, reading: Reading, now: float, compact: bool = False)
     values = next(iter(value.fields().values()))
     if compact:  # one line of upright bars, the unit in the title
         line = "  ".join(f"{sparkline([v], info.hi)} {v}" for v in values)
-        return sensor_panel(sensor, Text(line), reading, now, f"{PANEL_TITLES[sensor]} ({shown})")
+        return sensor_panel(sensor, Text(line), reading, now, f"{panel_title(sensor)} ({shown})")
     prefix = "IR" if sensor == "ir" else "US"
     lines = [f"{prefix}{i} {bar(v, info.hi)} {v:>3} {shown}".rstrip() for i, v in enumerate(values, start=1)]
     return sensor_panel(sensor, Text("\n".join(lines)), reading, now)
@@ -201,6 +210,65 @@ def env_panel(reading: Reading, now: float, compact: bool = False) -> Panel:
     return sensor_panel("env", Text(f"{temperature}\n{humidity.replace(' ', '    ', 1)}"), reading, now)
 
 
+# -- any read, from its reply's fields, and the registry ---------------------------------
+
+#: The recent values of a sensor (``state.View.history``), for panels that plot them.
+History = tuple[tuple[int, ...], ...]
+
+
+@dataclass(frozen=True)
+class PanelSpec:
+    """How a sensor's panel is drawn: ``make(name, reading, now, compact, history)``.
+
+    ``history`` says the panel plots the sensor's recent values, so the
+    dashboard hands them over and redraws when they change.
+    """
+
+    make: Callable[[str, Reading, float, bool, History], Panel]
+    history: bool = False
+
+
+def generic_panel(name: str, reading: Reading, now: float, compact: bool = False) -> Panel:
+    """Any reply, from its declared fields: a bar over each value's range, the value and its unit."""
+    value = reading.value
+    if value is None:
+        return sensor_panel(name, waiting(reading), reading, now)
+    rows = [row for info in C.fields_of(type(value)) for row in _field_rows(info, getattr(value, info.name))]
+    if compact:
+        return sensor_panel(name, Text(" · ".join(f"{label} {text}" for label, text in rows)), reading, now)
+    width = max(len(label) for label, _ in rows) + 1
+    return sensor_panel(name, labelled(rows, width), reading, now)
+
+
+def _field_rows(info: C.FieldInfo, value: Any) -> Iterator[tuple[str, str]]:
+    items = value if isinstance(value, tuple) else (value,)
+    shown = shown_unit(info.unit)
+    for i, item in enumerate(items, start=1):
+        label = f"{info.name}{i}" if len(items) > 1 else info.name
+        if isinstance(item, bool):
+            yield label, "yes" if item else "no"
+        else:
+            yield label, f"{bar(item - info.lo, info.hi - info.lo)} {item} {shown}".rstrip()
+
+
+GENERIC = PanelSpec(lambda name, r, now, compact, _h: generic_panel(name, r, now, compact))
+
+#: The specialised panels by command name; a read not here gets ``GENERIC``.
+PANELS: dict[str, PanelSpec] = {
+    "bump": PanelSpec(lambda _n, r, now, _c, _h: bumpers_panel(r, now)),
+    "ir": PanelSpec(lambda _n, r, now, compact, _h: bars_panel("ir", r, now, compact)),
+    "sonar": PanelSpec(lambda _n, r, now, compact, _h: bars_panel("sonar", r, now, compact)),
+    "compass": PanelSpec(lambda _n, r, now, compact, _h: compass_panel(r, now, with_dial=not compact)),
+    "wheels": PanelSpec(lambda _n, r, now, _c, history: wheels_panel(r, history, now), history=True),
+    "env": PanelSpec(lambda _n, r, now, compact, _h: env_panel(r, now, compact)),
+}
+
+
+def panel_for(name: str) -> PanelSpec:
+    """The sensor's own panel, or the generic one its reply's fields imply."""
+    return PANELS.get(name, GENERIC)
+
+
 # -- unsolicited frames --------------------------------------------------------
 
 
@@ -214,6 +282,8 @@ def positioning_panel(stations: dict[int, Reading], now: float) -> Panel:
     )
     for address, reading in stations.items():
         pos = reading.value
+        if not isinstance(pos, C.Position):
+            continue
         text.append(f"0x{address:02X}  {pos.d1:>6} {pos.d2:>6} {pos.ts:>6}  ")
         text.append(f"{age_text(reading.age(now))}\n", style="dim")
     text.rstrip()
@@ -275,6 +345,7 @@ def status_text(view: View, now: float) -> Text:
 def link_panel(view: View, now: float, compact: bool = False) -> Panel:
     """Status, poll rate, RTT and the error counters; compact keeps what the issue asks for."""
     c = view.counters
+    rows: list[tuple[str, str | Text]]
     if compact:  # the port is in the header already
         rows = [
             ("status", status_text(view, now)),
