@@ -20,7 +20,7 @@ from helpers_live import terminal
 from helpers_shell import shell
 from rich.console import Console
 
-from hcrctl.live import panels, screens
+from hcrctl.live import screens, sensorpanels
 from hcrctl.live.state import LiveState
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.decoder import decode_all
@@ -187,7 +187,7 @@ def test_every_read_has_a_simulator_behaviour_a_renderer_and_a_panel(cmd: C.Comm
     state = LiveState([cmd.name], clock=lambda: 1.0)
     state.record(cmd.name, reply, None)
     view = state.view()
-    panel = panels.panel_for(cmd.name).make(cmd.name, view.readings[cmd.name], 1.0, False, ())
+    panel = sensorpanels.panel_for(cmd.name).make(cmd.name, view.readings[cmd.name], 1.0, False, ())
     assert panel.title == cmd.panel_title and "waiting" not in text_of(panel)
     on_dashboard = [item for column in screens.dashboard_columns(view, 1.0) for item in column]
     assert any(isinstance(item, screens.Keyed) and item.name == cmd.panel_title for item in on_dashboard)
@@ -205,13 +205,13 @@ def test_the_registries_name_only_commands_of_the_table() -> None:
     read_names = {c.name for c in reads()}
     assert set(behaviours.READS) <= read_names
     assert set(render.ROWS) <= read_names
-    assert set(panels.PANELS) <= read_names
+    assert set(sensorpanels.PANELS) <= read_names
     assert set(behaviours.WRITES) <= {c.name for c in C.COMMANDS if c.kind == "write"}
 
 
 def test_the_specialised_ones_are_registered_for_the_tables_own_reads() -> None:
     """The generic ones are for new reads; the six the robot has keep their own look and model."""
-    assert set(behaviours.READS) == set(render.ROWS) == set(panels.PANELS) == set(C.SENSORS[:6])
+    assert set(behaviours.READS) == set(render.ROWS) == set(sensorpanels.PANELS) == set(C.SENSORS[:6])
 
 
 def test_a_new_read_gets_generic_answers_rows_and_a_panel_from_its_fields() -> None:
@@ -220,11 +220,11 @@ def test_a_new_read_gets_generic_answers_rows_and_a_panel_from_its_fields() -> N
     reply = behaviours.read_behaviour(cmd)(Simulator(clock=lambda: 0.0))
     assert reply == C.Environment(50, 0)  # the middle of 0..100 % and of -128..127 °C
     assert render.generic_rows(reply) == [("humidity", "50 %"), ("temperature", "0 °C")]
-    panel = panels.generic_panel("env", LiveState(["env"]).view().readings["env"], 0.0)
+    panel = sensorpanels.generic_panel("env", LiveState(["env"]).view().readings["env"], 0.0)
     assert "waiting" in text_of(panel)
     state = LiveState(["env"], clock=lambda: 0.0)
     state.record("env", reply, None)
-    drawn = text_of(panels.generic_panel("env", state.view().readings["env"], 0.0))
+    drawn = text_of(sensorpanels.generic_panel("env", state.view().readings["env"], 0.0))
     assert "humidity    ████████░░░░░░░░ 50 %" in drawn and "temperature ████████░░░░░░░░ 0 °C" in drawn
 
 

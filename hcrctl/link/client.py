@@ -20,7 +20,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterable
-from typing import Any, Literal, overload
+from typing import Any
 
 from ..errors import (
     DeviceRefused,
@@ -34,6 +34,7 @@ from ..errors import (
 from ..protocol import commands as C
 from ..protocol.decoder import FrameDecoder
 from ..protocol.frames import BadChecksum, ChecksumRule, Event, Frame
+from .reads import TypedReads
 from .traffic import FrameHook, LinkStats, Traffic, TrafficHook, Watchers, decode_sent
 
 #: How long the reader blocks in one read; bounds how fast close() returns.
@@ -51,8 +52,11 @@ ON_THE_LINE = (-1, -1)
 DEFAULT_WAIT_S = 30.0
 
 
-class Robot:
-    """A connection to one HCR controller (and whatever else shares its line)."""
+class Robot(TypedReads):
+    """A connection to one HCR controller (and whatever else shares its line).
+
+    ``read``/``read_many`` (typed by sensor name) come from ``TypedReads``; ``sweep`` is here.
+    """
 
     def __init__(
         self,
@@ -157,33 +161,6 @@ class Robot:
             return None
         reply = self.transact(frame, (self._address(address), cmd.code), cmd.name)
         return cmd.reply.decode(reply.content)
-
-    @overload
-    def read(self, sensor: Literal["bump"], *, address: int | None = None) -> C.Bumpers: ...
-    @overload
-    def read(self, sensor: Literal["ir"], *, address: int | None = None) -> C.Infrared: ...
-    @overload
-    def read(self, sensor: Literal["sonar"], *, address: int | None = None) -> C.Ultrasonic: ...
-    @overload
-    def read(self, sensor: Literal["compass"], *, address: int | None = None) -> C.Compass: ...
-    @overload
-    def read(self, sensor: Literal["wheels"], *, address: int | None = None) -> C.WheelSpeed: ...
-    @overload
-    def read(self, sensor: Literal["env"], *, address: int | None = None) -> C.Environment: ...
-    @overload
-    def read(self, sensor: str | C.Command, *, address: int | None = None) -> C.Reply: ...
-    def read(self, sensor: str | C.Command, *, address: int | None = None) -> C.Reply:
-        """Read one sensor by table name (``compass``) or table row.
-
-        Typed by name: ``robot.read("compass").heading`` is a float to a type
-        checker; a name added at run time is typed as the base ``Reply``.
-        """
-        result = self.sweep([sensor], address=address, pipeline=False)
-        return _value(next(iter(result.values())))
-
-    def read_many(self, sensors: Iterable[str | C.Command], *, pipeline: bool = False) -> dict[str, C.Reply]:
-        """Read several sensors; raises the first failure."""
-        return {name: _value(result) for name, result in self.sweep(sensors, pipeline=pipeline).items()}
 
     def sweep(
         self, sensors: Iterable[str | C.Command], *, address: int | None = None, pipeline: bool = False
@@ -411,9 +388,3 @@ class Robot:
     def _check_link(self) -> None:
         if self.error is not None:
             raise self.error
-
-
-def _value(result: C.Reply | HcrError) -> C.Reply:
-    if isinstance(result, HcrError):
-        raise result
-    return result

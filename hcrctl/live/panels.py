@@ -6,18 +6,14 @@ fixed-width capture console. Units, bar ranges and titles come from the
 command table. A stale value is drawn dimmed with its age in the panel's
 bottom border; it is never blanked.
 
-Every read has a panel: ``generic_panel`` draws any reply from its declared
-fields (a bar per value over the field's range, with its unit), and
-``PANELS`` holds the specialised ones (a compass rose, lit bumpers, wheel
-sparklines) by command name; ``panel_for`` picks.
+These are the specialised sensor panels; ``sensorpanels`` says which sensor
+gets which, and draws any other read from its reply's fields.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Iterator, Sequence
-from dataclasses import dataclass
-from typing import Any
+from collections.abc import Iterable, Sequence
 
 from rich.console import Group, RenderableType
 from rich.panel import Panel
@@ -208,65 +204,6 @@ def env_panel(reading: Reading, now: float, compact: bool = False) -> Panel:
     if compact:
         return sensor_panel("env", Text(f"{temperature} · {humidity}"), reading, now)
     return sensor_panel("env", Text(f"{temperature}\n{humidity.replace(' ', '    ', 1)}"), reading, now)
-
-
-# -- any read, from its reply's fields, and the registry ---------------------------------
-
-#: The recent values of a sensor (``state.View.history``), for panels that plot them.
-History = tuple[tuple[int, ...], ...]
-
-
-@dataclass(frozen=True)
-class PanelSpec:
-    """How a sensor's panel is drawn: ``make(name, reading, now, compact, history)``.
-
-    ``history`` says the panel plots the sensor's recent values, so the
-    dashboard hands them over and redraws when they change.
-    """
-
-    make: Callable[[str, Reading, float, bool, History], Panel]
-    history: bool = False
-
-
-def generic_panel(name: str, reading: Reading, now: float, compact: bool = False) -> Panel:
-    """Any reply, from its declared fields: a bar over each value's range, the value and its unit."""
-    value = reading.value
-    if value is None:
-        return sensor_panel(name, waiting(reading), reading, now)
-    rows = [row for info in C.fields_of(type(value)) for row in _field_rows(info, getattr(value, info.name))]
-    if compact:
-        return sensor_panel(name, Text(" · ".join(f"{label} {text}" for label, text in rows)), reading, now)
-    width = max(len(label) for label, _ in rows) + 1
-    return sensor_panel(name, labelled(rows, width), reading, now)
-
-
-def _field_rows(info: C.FieldInfo, value: Any) -> Iterator[tuple[str, str]]:
-    items = value if isinstance(value, tuple) else (value,)
-    shown = shown_unit(info.unit)
-    for i, item in enumerate(items, start=1):
-        label = f"{info.name}{i}" if len(items) > 1 else info.name
-        if isinstance(item, bool):
-            yield label, "yes" if item else "no"
-        else:
-            yield label, f"{bar(item - info.lo, info.hi - info.lo)} {item} {shown}".rstrip()
-
-
-GENERIC = PanelSpec(lambda name, r, now, compact, _h: generic_panel(name, r, now, compact))
-
-#: The specialised panels by command name; a read not here gets ``GENERIC``.
-PANELS: dict[str, PanelSpec] = {
-    "bump": PanelSpec(lambda _n, r, now, _c, _h: bumpers_panel(r, now)),
-    "ir": PanelSpec(lambda _n, r, now, compact, _h: bars_panel("ir", r, now, compact)),
-    "sonar": PanelSpec(lambda _n, r, now, compact, _h: bars_panel("sonar", r, now, compact)),
-    "compass": PanelSpec(lambda _n, r, now, compact, _h: compass_panel(r, now, with_dial=not compact)),
-    "wheels": PanelSpec(lambda _n, r, now, _c, history: wheels_panel(r, history, now), history=True),
-    "env": PanelSpec(lambda _n, r, now, compact, _h: env_panel(r, now, compact)),
-}
-
-
-def panel_for(name: str) -> PanelSpec:
-    """The sensor's own panel, or the generic one its reply's fields imply."""
-    return PANELS.get(name, GENERIC)
 
 
 # -- unsolicited frames --------------------------------------------------------

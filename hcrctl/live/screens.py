@@ -19,16 +19,15 @@ from rich.text import Text
 from ..protocol import commands as C
 from .panels import (
     SPARK_WIDTH,
-    PanelSpec,
     _whole_seconds,
     age_text,
     labelled,
     link_panel,
     map_panel,
-    panel_for,
     panel_title,
     positioning_panel,
 )
+from .sensorpanels import PanelSpec, panel_for
 from .state import DriveStatus, Reading, View
 
 #: The narrowest a dashboard column gets before there are fewer columns.
