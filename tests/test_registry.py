@@ -115,13 +115,15 @@ def test_watch_json_reports_the_new_read(plugin_env: dict[str, str]) -> None:
 
 
 def test_watch_draws_a_panel_for_the_new_read_in_its_dashboard_column(plugin_env: dict[str, str]) -> None:
-    with terminal(["--port", "sim://", "watch"], env=plugin_env, timeout=30) as term:
+    env = {k: v for k, v in plugin_env.items() if k not in ("COLUMNS", "LINES")}  # the pty's own 120x40
+    with terminal(["--port", "sim://", "watch"], env=env, timeout=30) as term:
         screen = term.wait_for(lambda s: "12.8 V" in s and "charge" in s and "°" in s, timeout=30)
         term.send("q")
         assert term.finish(timeout=30) == 0
     lines = screen.splitlines()
     (title,) = [i for i, line in enumerate(lines) if "─ battery " in line]
-    assert lines[title].startswith("╭─ battery ")  # the first column: the table's default
+    column_width = (len(lines[title]) - 2) // 3  # three columns, a space between them
+    assert lines[title].index("╭─ battery ") == 2 * (column_width + 1)  # the table's default: the third
     assert any("voltage" in line and "12.8 V" in line for line in lines[title:])
 
 
@@ -226,6 +228,8 @@ def test_a_new_read_gets_generic_answers_rows_and_a_panel_from_its_fields() -> N
     state.record("env", reply, None)
     drawn = text_of(sensorpanels.generic_panel("env", state.view().readings["env"], 0.0))
     assert "humidity    ████████░░░░░░░░ 50 %" in drawn and "temperature ████████░░░░░░░░ 0 °C" in drawn
+    compact = text_of(sensorpanels.generic_panel("env", state.view().readings["env"], 0.0, compact=True))
+    assert "humidity 50 % · temperature 0 °C" in compact
 
 
 def test_register_command_refuses_a_code_or_name_the_table_has() -> None:

@@ -17,6 +17,7 @@ from rich.panel import Panel
 from rich.text import Text
 
 from ..protocol import commands as C
+from ..render.readings import field_text
 from .panels import (
     bar,
     bars_panel,
@@ -48,13 +49,18 @@ class PanelSpec:
 
 
 def generic_panel(name: str, reading: Reading, now: float, compact: bool = False) -> Panel:
-    """Any reply, from its declared fields: a bar over each value's range, the value and its unit."""
+    """Any reply, from its declared fields: a bar over each value's range, the value and its unit.
+
+    Compact, the values share one line without their bars (``voltage 12.8 V · charge 50 %``).
+    """
     value = reading.value
     if value is None:
         return sensor_panel(name, waiting(reading), reading, now)
-    rows = [row for info in C.fields_of(type(value)) for row in _field_rows(info, getattr(value, info.name))]
+    infos = C.fields_of(type(value))
     if compact:
-        return sensor_panel(name, Text(" · ".join(f"{label} {text}" for label, text in rows)), reading, now)
+        line = " · ".join(f"{info.name} {field_text(info, getattr(value, info.name))}" for info in infos)
+        return sensor_panel(name, Text(line), reading, now)
+    rows = [row for info in infos for row in _field_rows(info, getattr(value, info.name))]
     width = max(len(label) for label, _ in rows) + 1
     return sensor_panel(name, labelled(rows, width), reading, now)
 

@@ -78,8 +78,9 @@ class Command:
     """One row of the table. ``kind`` is write, read or broadcast.
 
     ``panel`` is the live panel's short title (the ``title`` if empty) and
-    ``column`` the dashboard column a read's panel stands in (0: the sensors
-    beside the positioning panel, 1: above the link panel), in table order.
+    ``column`` the dashboard column a read's panel stands in, in table order:
+    0 above the positioning panel, 1 above the link panel, 2 (the default,
+    where the screen has the most room) above the map.
     """
 
     code: int
@@ -90,7 +91,7 @@ class Command:
     reply: type[Reply] | None
     help: str
     panel: str = ""
-    column: int = 0
+    column: int = 2
 
     @property
     def panel_title(self) -> str:
@@ -122,7 +123,7 @@ def _cmd(
     reply: Any,
     help: str,
     panel: str = "",
-    column: int = 0,
+    column: int = 2,
 ) -> Command:
     return Command(code, name, title, kind, request, reply, help, panel, column)
 
@@ -148,7 +149,7 @@ COMMANDS: tuple[Command, ...] = (
         "Set both motors' speed in cm/s; negative reverses.",
     ),
     _cmd(0x04, "turn", "turn by angle", "write", Turn, None, "Turn in place by an angle, then stop."),
-    _cmd(0x11, "bump", "bumpers", "read", ReadRequest, Bumpers, "Read the three bumpers.", "bumpers"),
+    _cmd(0x11, "bump", "bumpers", "read", ReadRequest, Bumpers, "Read the three bumpers.", "bumpers", 0),
     _cmd(
         0x12,
         "ir",
@@ -158,6 +159,7 @@ COMMANDS: tuple[Command, ...] = (
         Infrared,
         "Read the IR distance sensors (raw).",
         "IR",
+        0,
     ),
     _cmd(
         0x13,
@@ -168,6 +170,7 @@ COMMANDS: tuple[Command, ...] = (
         Ultrasonic,
         "Read the ultrasonic sensors, in cm.",
         "ultrasonic",
+        0,
     ),
     _cmd(0x14, "compass", "compass", "read", ReadRequest, Compass, "Read the compass heading.", column=1),
     _cmd(
@@ -190,6 +193,7 @@ COMMANDS: tuple[Command, ...] = (
         Environment,
         "Read temperature and humidity.",
         "environment",
+        0,
     ),
     _cmd(0x21, "pid", "set PID", "write", Pid, PidAck, "Set the speed controller's PID gains."),
     _cmd(0x41, "servo", "servos", "write", Servo, None, "Move servos 1 and 2."),
