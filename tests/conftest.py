@@ -7,8 +7,10 @@ temporary directory and its environment; servers bind port 0.
 
 from __future__ import annotations
 
+import re
 import signal
-from collections.abc import Iterator
+import warnings
+from collections.abc import Generator, Iterator
 from pathlib import Path
 
 import pytest
@@ -28,6 +30,36 @@ def pytest_configure(config: pytest.Config) -> None:
     """
     if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+#: Python 3.12+ on fork/forkpty in a threaded process ("may lead to deadlocks in the child").
+FORK_WITH_THREADS = re.compile(r"is multi-threaded, use of \w+\(\) may lead to deadlocks")
+
+
+def _no_fork_with_threads() -> Generator[None, object, object]:
+    """Fail the test if it forked while threads ran (the pty helper uses posix_spawn so as never to).
+
+    A ``filterwarnings = error`` entry cannot do it: CPython swallows that
+    warning when it is turned into an error. Other warnings are passed on.
+    """
+    caught: list[warnings.WarningMessage] = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = yield
+    finally:
+        forks = [w for w in caught if FORK_WITH_THREADS.search(str(w.message))]
+        for w in caught:
+            if w not in forks:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    if forks:
+        pytest.fail(f"forked while threads ran ({forks[0].filename}:{forks[0].lineno}): {forks[0].message}")
+    return result
+
+
+pytest_runtest_setup = pytest.hookimpl(wrapper=True)(_no_fork_with_threads)
+pytest_runtest_call = pytest.hookimpl(wrapper=True)(_no_fork_with_threads)
+pytest_runtest_teardown = pytest.hookimpl(wrapper=True)(_no_fork_with_threads)
 
 
 @pytest.fixture(scope="session")

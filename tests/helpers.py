@@ -81,6 +81,17 @@ def wait_until(check: Callable[[], Any], timeout: float = TIMEOUT, what: str = "
         time.sleep(0.02)
 
 
+def sleeping(pid: int) -> bool:
+    """Process ``pid``'s main thread sleeps in ``time.sleep`` (Linux: its wait channel is a nanosleep).
+
+    For "the program has reached the loop that waits": e.g. a signal sent now
+    lands in ``drive``'s hold, not in the few lines before it.
+    """
+    with contextlib.suppress(OSError):
+        return "nanosleep" in Path(f"/proc/{pid}/wchan").read_text()
+    return False
+
+
 @contextlib.contextmanager
 def sim_process(
     args: list[str], env: dict[str, str] | None = None
@@ -300,6 +311,14 @@ class Terminal:
                 raise AssertionError(f"timed out waiting for {what!r}; screen:\n{screen}")
             time.sleep(0.02)
 
+    def cooked(self) -> bool:
+        """The terminal is in cooked mode: Ctrl-C is a signal (the program is not reading keys raw)."""
+        return bool(termios.tcgetattr(self._fd)[3] & termios.ISIG)
+
+    def sleeping(self) -> bool:
+        """The program's main thread sleeps in ``time.sleep`` (see ``sleeping``)."""
+        return sleeping(self.child.pid)
+
     def cursor_line(self) -> str:
         """The screen line holding the cursor."""
         with self._lock:
@@ -437,8 +456,10 @@ class DevicePty:
         if self._thread is None:
             return self.read(quiet, limit=TIMEOUT)
         since = time.monotonic()
-        with self._changed:
-            while (idle := time.monotonic() - max(since, self._last)) < quiet:
+        with self._changed:  # gives up after TIMEOUT: the caller's check then shows what kept coming
+            while (
+                idle := time.monotonic() - max(since, self._last)
+            ) < quiet and time.monotonic() < since + TIMEOUT:
                 self._changed.wait(quiet - idle)
             return bytes(self.bytes_in)
 

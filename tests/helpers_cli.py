@@ -17,7 +17,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from helpers import TIMEOUT, DevicePty, clean_env, hcrctl_exe, sim_process
+from helpers import TIMEOUT, DevicePty, clean_env, hcrctl_exe, sim_process, sleeping, wait_until
 
 from hcrctl.frames import Frame, decode_all
 
@@ -32,8 +32,11 @@ __all__ = [
     "readline",
     "run",
     "sim_pty",
+    "sleeping",
     "spy_tx",
     "start",
+    "stderr_until",
+    "wait_until",
     "wire",
 ]
 
@@ -87,6 +90,19 @@ def readline(proc: subprocess.Popen[str], timeout: float = TIMEOUT) -> str:
         assert byte, f"hcrctl closed stdout (got {bytes(line)!r})"
         line += byte
     return line.decode().rstrip("\n")
+
+
+def stderr_until(proc: subprocess.Popen[str], text: str, timeout: float = TIMEOUT) -> str:
+    """What a running hcrctl wrote on stderr up to ``text`` (byte by byte: the rest stays for ``finish``)."""
+    fd, got = proc.stderr.fileno(), b""
+    deadline = time.monotonic() + timeout
+    while text.encode() not in got:
+        ready, _, _ = select.select([fd], [], [], max(0.0, deadline - time.monotonic()))
+        assert ready, f"hcrctl never said {text!r} in {timeout} s (stderr: {got!r})"
+        byte = os.read(fd, 1)
+        assert byte, f"hcrctl closed stderr before saying {text!r} (stderr: {got!r})"
+        got += byte
+    return got.decode()
 
 
 class Wire(DevicePty):

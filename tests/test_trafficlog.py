@@ -118,7 +118,7 @@ def test_traffic_hooks_share_one_robot_and_each_sees_both_directions(tmp_path: P
         robot.add_traffic_hook(second.append)
         log = attach(robot, str(tmp_path / "log.jsonl"))
         robot.read("compass")
-        deadline = time.monotonic() + 2
+        deadline = time.monotonic() + 30
         while len(second) < 2 and time.monotonic() < deadline:
             time.sleep(0.01)
         robot.remove_traffic_hook(second.append)

@@ -100,9 +100,9 @@ def test_keys_pause_reset_and_send_stop() -> None:
         term.wait_for(r"sweeps +[1-9]")
         term.send("p")
         term.wait_for(r"status +paused")
-        time.sleep(0.3)  # a read already on its way may finish
+        robot.settle(0.5)  # a read already on its way may finish
         paused = len(robot.frames())
-        time.sleep(0.5)
+        robot.settle(0.5)
         assert len(robot.frames()) == paused  # polling really stopped
         term.send("p")
         term.wait_for(r"status +ok")
