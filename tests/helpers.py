@@ -183,6 +183,7 @@ class PtySpawn(pexpect.spawn):
 COLS, ROWS = 120, 40
 ENTER_ALT, LEAVE_ALT = b"\x1b[?1049h", b"\x1b[?1049l"
 CPR_REQUEST = b"\x1b[6n"
+HIDE_CURSOR, SHOW_CURSOR = b"\x1b[?25l", b"\x1b[?25h"
 _SPLIT = re.compile(b"(" + b"|".join(map(re.escape, (ENTER_ALT, LEAVE_ALT, CPR_REQUEST))) + b")")
 
 
@@ -328,9 +329,17 @@ class Terminal:
 
     prompt_line = cursor_line
 
+    def drawn(self) -> bool:
+        """No redraw is half-way through: prompt-toolkit hides the cursor while it draws, shows it after."""
+        with self._lock:
+            return self.raw.rfind(HIDE_CURSOR) <= self.raw.rfind(SHOW_CURSOR)
+
     def _at_prompt(self) -> bool:
-        line = self.cursor_line()
-        return (line.startswith("hcr ") and line.endswith(">")) or line == "hex>"
+        """The cursor sits on an idle prompt line, and the prompt and its toolbar are drawn in full."""
+        with self._lock:
+            line = self.cursor_line()
+            idle = (line.startswith("hcr ") and line.endswith(">")) or line == "hex>"
+            return idle and self.drawn()
 
     def wait_prompt(self, timeout: float | None = None) -> str:
         """Until the cursor sits on an idle prompt line ('hcr ... > ' or 'hex> ')."""

@@ -34,6 +34,12 @@ def command_running(term, line: str) -> None:
         term.wait_for(lambda s: term.cooked() and "seq=" in s)
 
 
+def toolbar_count(screen: str, station: str) -> int | None:
+    """How many broadcasts of ``station`` the toolbar counted (None while it is being redrawn)."""
+    found = re.search(station + r"×(\d+)", screen)
+    return int(found.group(1)) if found else None
+
+
 def printed_frames(screen: str, station: str) -> list[str]:
     """Lines printed above the prompt for one station (not the toolbar's 'last ...')."""
     return [line for line in screen.splitlines() if line.startswith(f"{station} position  did ")]
@@ -165,22 +171,34 @@ def test_broadcasts_appear_above_the_prompt_collapsed_and_monitor_off_silences_t
         term.wait_prompt()
         started = time.monotonic()
         term.send("read comp")  # a half-typed line must survive the lines printed above it
-        screen = term.wait_for(lambda s: len(printed_frames(s, "0x50")) >= 3)  # two seconds' worth
+        # two seconds' worth, with the prompt and toolbar redrawn below them (not caught mid-redraw)
+        screen = term.wait_for(
+            lambda s: (
+                len(printed_frames(s, "0x50")) >= 3
+                and toolbar_count(s, "0x50") is not None
+                and term.prompt_line() == "hcr sim://?broadcast_hz=20 ok> read comp"
+            )
+        )
         elapsed = time.monotonic() - started
-        assert term.prompt_line() == "hcr sim://?broadcast_hz=20 ok> read comp"
         printed = printed_frames(screen, "0x50")
         assert len(printed) <= elapsed + 2  # at most one per second (plus the first)
         assert all(re.search(r"\(\+\d+ more\)$", line) for line in printed[1:]), printed
-        seen = int(re.search(r"0x50×(\d+)", screen).group(1))
+        seen = toolbar_count(screen, "0x50")
         assert seen > 2 * len(printed)  # the toolbar counts what was collapsed
         term.send("\x15")
-        screen = term.run("monitor off")
+        term.run("monitor off")
+        screen = term.wait_for(
+            lambda s: toolbar_count(s, "0x50") is not None and "monitor off" in s.splitlines()[-1]
+        )
         before = len(printed_frames(screen, "0x50"))
-        count_before = int(re.search(r"0x50×(\d+)", screen).group(1))
+        count_before = toolbar_count(screen, "0x50")
         # two seconds of broadcasts (20 Hz) arrive while the monitor is off
-        screen = term.wait_for(lambda s: int(re.search(r"0x50×(\d+)", s).group(1)) > count_before + 40)
+        screen = term.wait_for(
+            lambda s: (
+                (toolbar_count(s, "0x50") or 0) > count_before + 40 and "monitor off" in s.splitlines()[-1]
+            )
+        )
         assert len(printed_frames(screen, "0x50")) == before
-        assert "monitor off" in screen.splitlines()[-1]
         term.run("monitor on")
         term.wait_for(lambda s: printed_frames(s.rpartition("> monitor on")[2], "0x50"))
 
