@@ -10,6 +10,7 @@ and answers reads with values the test chooses, or stops answering on cue.
 from __future__ import annotations
 
 import contextlib
+import os
 import subprocess
 from collections.abc import Callable, Iterator
 
@@ -56,8 +57,17 @@ class FakeRobot(DevicePty):
         self.mute = False
 
     def __enter__(self) -> FakeRobot:
-        self.serve(self._answer)
+        self.serve(self._answer_all)
         return self
+
+    # The names subclasses use (a robot with another checksum rule, one that prints text first).
+    @property
+    def _master(self) -> int:
+        return self.master
+
+    @property
+    def _slave(self) -> int:
+        return self.slave
 
     @property
     def received(self) -> list[tuple[float, Frame]]:
@@ -81,14 +91,16 @@ class FakeRobot(DevicePty):
             )
         return found
 
-    def _answer(self, data: bytes, frames: list[Frame]) -> bytes:
-        return b"".join(self._reply(frame) for frame in frames)
+    def _answer_all(self, data: bytes, frames: list[Frame]) -> None:
+        for frame in frames:
+            self._answer(frame)
 
-    def _reply(self, frame: Frame) -> bytes:
+    def _answer(self, frame: Frame) -> None:
+        """Write the reply to ``frame`` (subclasses override this)."""
         cmd = C.BY_CODE.get(frame.command)
         if self.mute or cmd is None or cmd.kind != "read" or cmd.name not in self.values:
-            return b""
-        return encode(frame.address, frame.command, self.values[cmd.name].content())
+            return
+        os.write(self._master, encode(frame.address, frame.command, self.values[cmd.name].content()))
 
 
 def usage_error(*args: str) -> str:
