@@ -81,14 +81,20 @@ def wait_until(check: Callable[[], Any], timeout: float = TIMEOUT, what: str = "
         time.sleep(0.02)
 
 
+#: Where ``time.sleep`` waits (Linux wait channels): clock_nanosleep from Python 3.11, select() before.
+SLEEP_CHANNELS = ("nanosleep", "poll_schedule_timeout")
+
+
 def sleeping(pid: int) -> bool:
-    """Process ``pid``'s main thread sleeps in ``time.sleep`` (Linux: its wait channel is a nanosleep).
+    """Process ``pid``'s main thread sleeps in ``time.sleep`` (or a timed select, on Python 3.10).
 
     For "the program has reached the loop that waits": e.g. a signal sent now
-    lands in ``drive``'s hold, not in the few lines before it.
+    lands in ``drive``'s hold, not in the few lines before it. (The shell's
+    idle prompt waits in epoll, a different channel.)
     """
     with contextlib.suppress(OSError):
-        return "nanosleep" in Path(f"/proc/{pid}/wchan").read_text()
+        channel = Path(f"/proc/{pid}/wchan").read_text()
+        return any(name in channel for name in SLEEP_CHANNELS)
     return False
 
 
