@@ -275,10 +275,6 @@ def test_one_at_a_time_sweep_alternates(traffic: list[Traffic]) -> None:
 
 def test_sweep_returns_failures_as_values() -> None:
     with Robot("sim://?silent=1", timeout=0.05, retries=1) as r:
-        # a device that broadcasts but never answers (one that sends nothing at all is told apart)
-        deadline = time.monotonic() + 30
-        while r.stats.unsolicited == 0 and time.monotonic() < deadline:
-            time.sleep(0.01)
         results = r.sweep(["compass", "bump"])
         assert set(results) == {"compass", "bump"}
         assert all(isinstance(v, DeviceTimeout) for v in results.values())
