@@ -282,7 +282,7 @@ def test_a_frame_that_fails_halfway_still_restores_the_terminal() -> None:
 def test_glyphs_degrade_to_what_the_console_encoding_carries(encoding: str, heading: str, keys: str) -> None:
     import io
 
-    from hcrctl.render.readings import readings as render
+    from hcrctl.render import readings as render
 
     raw = io.BytesIO()
     stream = io.TextIOWrapper(raw, encoding=encoding, errors="strict", write_through=True)
