@@ -22,8 +22,9 @@ from typing import Any, Protocol
 
 from _common import best_of, best_of_each, check, record
 
-from hcrctl import commands as C
-from hcrctl.frames import HEADER, ChecksumRule, Frame, FrameDecoder, encode
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.decoder import FrameDecoder
+from hcrctl.protocol.frames import HEADER, ChecksumRule, Frame, encode
 
 
 class Decoder(Protocol):

@@ -25,10 +25,12 @@ from pathlib import Path
 from _common import best_of, check, record
 from bench_decoder import mixed_stream
 
-from hcrctl.client import Traffic
-from hcrctl.frames import ChecksumRule, decode_all
-from hcrctl.hexview import event_dict, plain_line
-from hcrctl.trafficlog import TrafficLog
+from hcrctl.hex.view import plain_line
+from hcrctl.link.traffic import Traffic
+from hcrctl.link.trafficlog import TrafficLog
+from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.frames import ChecksumRule
+from hcrctl.protocol.records import event_dict
 
 LINE_BYTES_S = 115200 / 10  # 8N1: ten bits a byte
 HEADROOM = 5.0

@@ -35,7 +35,7 @@ from pathlib import Path
 from _common import record
 from _simpty import hcrctl_exe
 
-from hcrctl.rescue import RETRY_S
+from hcrctl.link.rescue import RETRY_S
 
 STOP = bytes.fromhex("55 AA 01 02 01 80 80 03 0D 0A")
 MOTION = bytes.fromhex("55 AA 01 02 01")

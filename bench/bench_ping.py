@@ -24,9 +24,9 @@ import serial
 from _common import record
 from _simpty import hcrctl_exe, sim_pty
 
-from hcrctl import commands as C
-from hcrctl.cli.ping import cheapest_read
-from hcrctl.frames import OVERHEAD
+from hcrctl.ops.ping import cheapest_read
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.frames import OVERHEAD
 
 TARGET = 1.05
 BAUD = 115200

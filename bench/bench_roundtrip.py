@@ -22,8 +22,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _simpty import sim_pty
 
-from hcrctl import commands as C
-from hcrctl.client import Robot
+from hcrctl.link.client import Robot
+from hcrctl.protocol import commands as C
 
 TARGET = 1.05
 REQUEST = C.encode_request(C.BY_NAME["compass"])

@@ -30,8 +30,8 @@ from _common import check, record
 from _simpty import hcrctl_exe, sim_pty
 
 from hcrctl.cli.settings import Settings
-from hcrctl.shell_dispatch import run_line
-from hcrctl.shell_session import Session
+from hcrctl.shell.dispatch import run_line
+from hcrctl.shell.session import Session
 
 MAX_OVER_DIRECT = 3.0
 MIN_SPEEDUP = 5.0

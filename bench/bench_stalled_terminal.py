@@ -36,8 +36,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))  # the
 from _common import record
 from helpers_live import FakeRobot, Terminal, is_stop, speed_of
 
-from hcrctl import commands as C
-from hcrctl.frames import Frame
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.frames import Frame
 
 
 def main() -> int:

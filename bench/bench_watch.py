@@ -42,9 +42,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import check, record
 from _simpty import hcrctl_exe, sim_pty
 
-from hcrctl import commands as C
-from hcrctl.client import Robot
-from hcrctl.frames import Frame, FrameDecoder, encode
+from hcrctl.link.client import Robot
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.decoder import FrameDecoder
+from hcrctl.protocol.frames import Frame, encode
 
 BAUD = 115200
 BITS_PER_BYTE = 10

@@ -1,6 +1,6 @@
 """``python -m hcrctl`` runs the same entry point as the ``hcrctl`` script."""
 
-from hcrctl.cli import main
+from .cli import main
 
 if __name__ == "__main__":
     main()

@@ -44,7 +44,8 @@ import pexpect
 import ptyprocess
 import pyte
 
-from hcrctl.frames import Frame, FrameDecoder
+from hcrctl.protocol.decoder import FrameDecoder
+from hcrctl.protocol.frames import Frame
 
 #: Seconds any wait may take before it fails the test (generous: loaded machines).
 TIMEOUT = 30.0

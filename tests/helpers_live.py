@@ -16,8 +16,8 @@ from collections.abc import Callable, Iterator
 
 from helpers import COLS, ROWS, TIMEOUT, DevicePty, Terminal, hcrctl_exe, sim_process, terminal, terminal_env
 
-from hcrctl import commands as C
-from hcrctl.frames import Frame, encode
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.frames import Frame, encode
 
 __all__ = [
     "COLS",

@@ -16,8 +16,8 @@ from typing import Any
 
 from helpers import ENTER_ALT, LEAVE_ALT, TIMEOUT, DevicePty, Terminal, hcrctl_exe
 
-from hcrctl import commands as C
-from hcrctl.frames import Frame
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.frames import Frame
 
 __all__ = [
     "ALT_SCREEN",
@@ -84,12 +84,12 @@ class PtyRobot(DevicePty):
     """The simulator's model behind a pty this test owns, recording every frame it receives.
 
     The shell opens ``port`` (the pty, or the symlink ``link_path`` to it);
-    a thread answers with ``hcrctl.simulator`` and keeps each request, so a
+    a thread answers with ``hcrctl.sim.simulator`` and keeps each request, so a
     test can assert on the wire: stop after drive, in order.
     """
 
     def __init__(self, link_path: Path | None = None) -> None:
-        from hcrctl.simulator import SimOptions, Simulator
+        from hcrctl.sim.simulator import SimOptions, Simulator
 
         super().__init__(link_path)
         self.sim = Simulator(SimOptions(broadcast_hz=0.0, map_hz=0.0))

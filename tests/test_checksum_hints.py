@@ -17,8 +17,9 @@ from helpers_cli import one_line
 from helpers_hex import run, sim_pty
 from helpers_live import FakeRobot, terminal
 
-from hcrctl import commands as C
-from hcrctl.frames import BadChecksum, ChecksumRule, Event, Frame, FrameDecoder, encode
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.decoder import FrameDecoder
+from hcrctl.protocol.frames import BadChecksum, ChecksumRule, Event, Frame, encode
 
 FIX = "use --checksum-from address"
 

@@ -8,11 +8,11 @@ import pytest
 import serial
 from helpers_cli import clean_env, one_line, run
 
-from hcrctl import commands as C
 from hcrctl.cli import main
 from hcrctl.cli.drive import drive
 from hcrctl.cli.settings import Settings
-from hcrctl.frames import ChecksumRule
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.frames import ChecksumRule
 
 
 def exit_code(argv: list[str]) -> int:
@@ -67,7 +67,7 @@ class SessionRobot:
 
 def test_drive_in_the_shell_returns_at_once_and_leaves_stop_to_the_session(capsys):
     robot = SessionRobot()
-    settings = Settings(session=robot)
+    settings = Settings(shared_robot=robot)
     drive.main(["power", "60", "-60"], obj=settings, standalone_mode=False)
     assert robot.sent == [C.MotorPower(60, -60)]
     assert not robot.stopped

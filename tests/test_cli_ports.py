@@ -8,7 +8,7 @@ from types import SimpleNamespace
 from helpers_cli import clean_env, run
 from serial.tools import list_ports as pyserial_ports
 
-from hcrctl.cli import ports as P
+from hcrctl.link import ports as P
 
 
 def test_json_lists_what_pyserial_finds(tmp_path):

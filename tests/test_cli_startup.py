@@ -27,8 +27,8 @@ sys.stderr.write("\\nMODULES " + json.dumps({"code": code, "modules": sorted(sys
 
 NEVER_IN_ONE_SHOT = (
     "prompt_toolkit",
-    "hcrctl.simulator",
-    "hcrctl.cli.shell",
+    "hcrctl.sim.simulator",
+    "hcrctl.shell.command",
     "tomllib",
     "tomli",
     "importlib.metadata",
@@ -57,7 +57,7 @@ def device(tmp_path_factory):
 def test_one_shot_reads_do_not_import_what_they_do_not_use(tmp_path, device, args):
     code, modules = modules_after(["--port", device, *args], clean_env(tmp_path))
     assert code == 0
-    assert loaded(modules, "hcrctl.client")  # the harness really ran a command
+    assert loaded(modules, "hcrctl.link.client")  # the harness really ran a command
     for name in NEVER_IN_ONE_SHOT:
         assert not loaded(modules, name), name
 

@@ -8,12 +8,12 @@ import time
 import click
 import pytest
 
-from hcrctl import commands as C
 from hcrctl.cli.params import FieldRange, command_help, field_param, request_value
-from hcrctl.cli.ping import PingStats, cheapest_read, probe_once
-from hcrctl.cli.turn import STALL_S, TurnProgress, heading_delta, turn_timeout
-from hcrctl.cli.writes import describe, hex_bytes, sent_record
-from hcrctl.frames import ChecksumRule
+from hcrctl.ops.ping import PingStats, cheapest_read, probe_once
+from hcrctl.ops.turn import STALL_S, TurnProgress, heading_delta, turn_timeout
+from hcrctl.ops.writes import describe, hex_bytes, sent_record
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.frames import ChecksumRule
 
 
 def test_parameters_come_from_the_table():

@@ -17,10 +17,11 @@ from helpers_cli import clean_env, hcrctl_exe
 from helpers_cli import sim_pty as run_sim_pty
 from helpers_hex import device_pty
 
-from hcrctl import commands as C
-from hcrctl.client import Robot, Traffic
 from hcrctl.errors import DeviceRefused, DeviceTimeout, PortError
-from hcrctl.frames import Frame, encode
+from hcrctl.link.client import Robot
+from hcrctl.link.traffic import Traffic
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.frames import Frame, encode
 
 STOP_FRAME = bytes.fromhex("55 AA 01 02 01 80 80 03 0D 0A")
 

@@ -19,9 +19,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hcrctl import commands as C
 from hcrctl.errors import ProtocolError, RangeError
-from hcrctl.frames import ChecksumRule, Frame, FrameDecoder, encode
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.decoder import FrameDecoder
+from hcrctl.protocol.frames import ChecksumRule, Frame, encode
 
 PROPERTY = settings(max_examples=200, deadline=None)
 REPO = Path(__file__).resolve().parent.parent
@@ -343,9 +344,11 @@ def _top_level_modules_after_importing(module: str) -> set[str]:
     return set(done.stdout.split())
 
 
-@pytest.mark.parametrize("module", ["hcrctl.frames", "hcrctl.commands", "hcrctl.simulator"])
+@pytest.mark.parametrize(
+    "module", ["hcrctl.protocol.frames", "hcrctl.protocol.commands", "hcrctl.sim.simulator"]
+)
 def test_the_core_imports_only_the_standard_library(module: str) -> None:
-    if module == "hcrctl.simulator" and importlib.util.find_spec(module) is None:
+    if module == "hcrctl.sim.simulator" and importlib.util.find_spec(module) is None:
         pytest.skip("no simulator yet")
     loaded = _top_level_modules_after_importing(module)
     assert "hcrctl" in loaded  # the probe did import something

@@ -73,7 +73,8 @@ def test_port_paths(tmp_path):
 
 
 def test_port_completion_falls_back_to_files(monkeypatch):
-    from hcrctl.cli import ports, settings
+    from hcrctl.cli import settings
+    from hcrctl.link import ports
 
     fake = [ports.PortInfo("/dev/ttyUSB0", "FT232R", "USB", "/dev/serial/by-id/usb-FTDI-if00")]
     monkeypatch.setattr(ports, "list_ports", lambda: fake)

@@ -15,8 +15,9 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from hcrctl import frames
-from hcrctl.frames import (
+from hcrctl.protocol import decoder, frames
+from hcrctl.protocol.decoder import FrameDecoder, decode_all
+from hcrctl.protocol.frames import (
     HEADER,
     MAX_CONTENT,
     MAX_FRAME,
@@ -27,12 +28,10 @@ from hcrctl.frames import (
     ChecksumRule,
     Event,
     Frame,
-    FrameDecoder,
     Junk,
     Malformed,
     Truncated,
     checksum,
-    decode_all,
     encode,
 )
 
@@ -318,7 +317,7 @@ def test_every_input_byte_is_accounted_for_exactly_once(
     assert position == len(wire)
 
 
-@pytest.mark.parametrize("max_split", [1, 3, frames.MAX_SPLIT])
+@pytest.mark.parametrize("max_split", [1, 3, decoder.MAX_SPLIT])
 def test_a_long_busy_stream_decodes_alike_in_any_read_size(
     max_split: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -327,7 +326,7 @@ def test_a_long_busy_stream_decodes_alike_in_any_read_size(
     Long enough for the fast path's rounds of splitting (shrunk here, so that every boundary case
     occurs) to hand over to the careful path and back many times.
     """
-    monkeypatch.setattr(frames, "MAX_SPLIT", max_split)
+    monkeypatch.setattr(decoder, "MAX_SPLIT", max_split)
     rng = random.Random(5)
     wire, expected = bytearray(), []
     for i in range(600):
@@ -514,7 +513,8 @@ def test_module_constants_agree() -> None:
 
 
 def test_wanted_counts_the_bytes_a_frame_in_progress_still_lacks() -> None:
-    from hcrctl.frames import FrameDecoder, encode
+    from hcrctl.protocol.decoder import FrameDecoder
+    from hcrctl.protocol.frames import encode
 
     frame = encode(1, 0x14, b"\x0d\x0a")
     decoder = FrameDecoder()

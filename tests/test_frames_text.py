@@ -16,17 +16,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hcrctl.frames import (
-    MAX_KEPT,
-    ChecksumRule,
-    Event,
-    Frame,
-    FrameDecoder,
-    Junk,
-    TextLine,
-    decode_all,
-    encode,
-)
+from hcrctl.protocol.decoder import FrameDecoder, decode_all
+from hcrctl.protocol.frames import MAX_KEPT, ChecksumRule, Event, Frame, Junk, TextLine, encode
 
 COMPASS = encode(0x01, 0x14, b"\x01\x02")
 PROPERTY = settings(max_examples=200, deadline=None)

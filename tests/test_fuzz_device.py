@@ -20,8 +20,8 @@ from helpers_live import DEFAULT_VALUES
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from hcrctl import commands as C
-from hcrctl.frames import encode
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.frames import encode
 
 #: Each example starts a process or two; a few dozen per command keep the suite quick.
 FUZZ = settings(max_examples=20, deadline=None, suppress_health_check=list(HealthCheck))

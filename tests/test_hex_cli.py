@@ -17,7 +17,7 @@ import pytest
 from helpers_hex import device_pty, hcrctl_exe, read_for, read_until, run, sim_pty
 from test_hexview import DOCUMENT_FRAMES, expected_verdict, printed, verdict_of
 
-from hcrctl.frames import encode
+from hcrctl.protocol.frames import encode
 
 H = bytes.fromhex
 STOP = H("55 AA 01 02 01 80 80 03 0D 0A")

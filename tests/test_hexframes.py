@@ -7,8 +7,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from hcrctl.errors import FrameRefused
-from hcrctl.frames import ChecksumRule, encode
-from hcrctl.hexframes import complete_frame
+from hcrctl.hex.frames import complete_frame
+from hcrctl.protocol.frames import ChecksumRule, encode
 
 H = bytes.fromhex
 POWER = H("55 AA 01 02 01 CC CC")  # protocol.md: +60 %, text-rule checksum 9B

@@ -7,7 +7,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from hcrctl.errors import HcrError, HexSyntaxError
-from hcrctl.hexparse import STYLES, format_hex, parse_hex, parse_hex_args
+from hcrctl.hex.parse import STYLES, format_hex, parse_hex, parse_hex_args
 
 FRAME = bytes.fromhex("55 AA 01 02 14 0D 0A 2D 0D 0A")
 

@@ -11,8 +11,10 @@ import json
 import pytest
 from rich.console import Console
 
-from hcrctl.frames import ChecksumRule, decode_all, encode
-from hcrctl.hexview import Tally, decode_table, event_dict, fields_text, is_good, plain_line, verdict_text
+from hcrctl.hex.view import FrameTally, decode_table, fields_text, plain_line, verdict_text
+from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.frames import ChecksumRule, encode
+from hcrctl.protocol.records import event_dict, is_good
 
 H = bytes.fromhex
 
@@ -172,7 +174,7 @@ def test_malformed_length_row_is_read_as_the_terminator_says() -> None:
 
 
 def test_tally_counts_like_linkstats() -> None:
-    tally = Tally()
+    tally = FrameTally()
     stream = b"\x00\x00" + encode(1, 0x11, b"\x01") + printed("55 AA 01 02 01 CC CC", 0x9D)
     for row in rows(stream):
         tally.add(row)

@@ -20,7 +20,7 @@ from helpers_cli import one_line
 from helpers_hex import run
 
 from hcrctl.cli import cli
-from hcrctl.frames import encode
+from hcrctl.protocol.frames import encode
 
 IAC, DONT, DO, WONT, WILL, SB, SE = 255, 254, 253, 252, 251, 250, 240
 COM_PORT_OPTION = 44

@@ -22,10 +22,10 @@ from helpers_live import DEFAULT_VALUES, FakeRobot, hcrctl_exe, terminal
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from hcrctl import commands as C
-from hcrctl.client import Robot
 from hcrctl.errors import DeviceSilent, DeviceTimeout, ImpossibleReply, ProtocolError
-from hcrctl.frames import encode
+from hcrctl.link.client import Robot
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.frames import encode
 
 #: Reply values the table forbids; ``content()`` puts them on the wire as a device would.
 COMPASS_FFFF = C.Compass(6553.5)  # 0xFFFF

@@ -21,8 +21,8 @@ from helpers_cli import clean_env, readline, run
 from helpers_hex import device_pty
 from helpers_live import FakeRobot, hcrctl_exe, is_stop
 
-from hcrctl import commands as C
-from hcrctl.frames import encode
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.frames import encode
 
 NO_SPACE = "No space left on device"
 needs_dev_full = pytest.mark.skipif(

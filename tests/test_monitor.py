@@ -12,9 +12,9 @@ from pathlib import Path
 import pytest
 from helpers_hex import device_pty, hcrctl_exe, run, sim_pty
 
-from hcrctl.frames import encode
-from hcrctl.hexview import Tally
-from hcrctl.trafficlog import read_log
+from hcrctl.hex.view import FrameTally
+from hcrctl.link.trafficlog import read_log
+from hcrctl.protocol.frames import encode
 
 LINE = re.compile(r"^(\d\d:\d\d:\d\d\.\d{6})  (rx|tx)  (@[0-9A-F]{2})  (\S+)")
 
@@ -140,7 +140,7 @@ def test_from_renders_a_recorded_log_in_both_directions(tmp_path: Path) -> None:
     assert rows[1]["fields"] == next(
         r.fields["fields"] for r in read_log(str(log)) if r.fields["name"] == "env" and r.direction == "rx"
     )
-    tally = Tally()
+    tally = FrameTally()
     for rec in read_log(str(log)):
         if rec.direction == "rx":
             tally.add(rec.fields)

@@ -22,9 +22,9 @@ from helpers_hex import NO_CONFIG, device_pty, hcrctl_exe, run
 from helpers_live import FakeRobot
 from helpers_shell import PtyRobot, shell
 
-from hcrctl import commands as C
-from hcrctl.frames import Frame, encode
-from hcrctl.trafficlog import read_log
+from hcrctl.link.trafficlog import read_log
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.frames import Frame, encode
 
 STAMPED = r"\d\d:\d\d:\d\d\.\d{6}"
 COMPASS_REPLY = encode(0x01, 0x14, C.Compass(123.4).content())

@@ -30,15 +30,15 @@ import click
 import pytest
 from helpers_cli import clean_env, run, wire
 
-from hcrctl import commands as C
 from hcrctl.cli import cli
 from hcrctl.cli import params as P
 from hcrctl.cli.settings import ENV_PREFIX, config_keys
 from hcrctl.cli.sim import parse_tcp
 from hcrctl.config import option_defaults
 from hcrctl.errors import ConfigError
-from hcrctl.shell_builtins import builtins
-from hcrctl.simoptions import SimOptions
+from hcrctl.protocol import commands as C
+from hcrctl.shell.builtins import builtins
+from hcrctl.sim.options import SimOptions
 
 #: Every form of number the rules refuse, whatever the parameter.
 HOSTILE = ["nan", "NaN", "inf", "-inf", "0b1", "٥٠", "1_0", "9" * 25, "1" + "0" * 60, "1e999", ""]

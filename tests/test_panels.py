@@ -9,12 +9,13 @@ from hypothesis import given
 from hypothesis import strategies as st
 from rich.console import Console
 
-from hcrctl import commands as C
-from hcrctl import panels
-from hcrctl.frames import decode_all, encode
-from hcrctl.keys import KeyDecoder
-from hcrctl.livestate import DriveStatus, LiveState, Reading
-from hcrctl.render import cardinal
+from hcrctl.live import panels, screens
+from hcrctl.live.keys import KeyDecoder
+from hcrctl.live.state import DriveStatus, LiveState, Reading
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.frames import encode
+from hcrctl.render.readings import cardinal
 
 
 class Clock:
@@ -58,7 +59,7 @@ def broadcast(state: LiveState, address: int, code: int, content: bytes) -> None
 def test_dashboard_shows_every_value_with_units_from_the_table() -> None:
     clock = Clock()
     state = full_state(clock)
-    text = text_of(panels.dashboard(state.view(), clock.now))
+    text = text_of(screens.dashboard(state.view(), clock.now))
     assert "212.5° SSW" in text and cardinal(212.5) == "SSW"
     assert "US1" in text and " 25 cm" in text and "255 cm" in text
     assert "IR5" in text and "255 raw" in text
@@ -190,9 +191,9 @@ def test_link_panel_rate_rtt_and_counters() -> None:
 def test_narrow_screen_pours_panels_into_fewer_columns() -> None:
     clock = Clock()
     view = full_state(clock).view()
-    wide = text_of(panels.dashboard(view, clock.now), width=120)
-    narrow = text_of(panels.dashboard(view, clock.now), width=80)
-    single = text_of(panels.dashboard(view, clock.now), width=40)
+    wide = text_of(screens.dashboard(view, clock.now), width=120)
+    narrow = text_of(screens.dashboard(view, clock.now), width=80)
+    single = text_of(screens.dashboard(view, clock.now), width=40)
     assert max(map(len, narrow.splitlines())) <= 80 and max(map(len, single.splitlines())) <= 40
     for text in (wide, narrow, single):
         assert "212.5° SSW" in text and "humidity" in text and "status   ok" in text
@@ -214,7 +215,7 @@ def test_a_small_terminal_gets_every_panel_compact_and_keeps_the_keys() -> None:
     for address in (0x50, 0x51):
         broadcast(state, address, 0xA0, C.Position(1, 120, 240, 200).content())
     broadcast(state, 0x01, 0xB0, bytes([0x80, 0x01] * 8))
-    lines = screen_of(panels.dashboard(state.view(), clock.now, fit=True), 80, 24)
+    lines = screen_of(screens.dashboard(state.view(), clock.now, fit=True), 80, 24)
     text = "\n".join(lines)
     assert len(lines) == 24 and any(line.startswith(" q quit") for line in lines)
     for title in ("bumpers", "IR (raw)", "ultrasonic (cm)", "compass", "wheels", "environment"):
@@ -223,13 +224,13 @@ def test_a_small_terminal_gets_every_panel_compact_and_keeps_the_keys() -> None:
     assert (
         "0x51" in text and "▀▀············▄▄  80 01" in text and "timeouts 0" in text and "junk 0 B" in text
     )
-    full = screen_of(panels.dashboard(state.view(), clock.now, fit=True), 120, 40)
+    full = screen_of(screens.dashboard(state.view(), clock.now, fit=True), 120, 40)
     assert any("IR5 " in line for line in full) and any(" N " in line for line in full)  # room: full panels
 
 
 def test_a_tiny_terminal_crops_the_panels_not_the_keys() -> None:
     clock = Clock()
-    lines = screen_of(panels.dashboard(full_state(clock).view(), clock.now, fit=True), 80, 12)
+    lines = screen_of(screens.dashboard(full_state(clock).view(), clock.now, fit=True), 80, 12)
     assert lines[0].startswith(" hcrctl watch") and lines[-1].startswith(" q quit")
 
 
@@ -238,14 +239,14 @@ def test_the_render_cache_draws_the_same_picture() -> None:
     state = full_state(clock)
     broadcast(state, 0x50, 0xA0, bytes((1, 100, 80, 200)))
     cache: dict = {}
-    first = text_of(panels.dashboard(state.view(), clock.now, cache=cache))
-    assert cache and first == text_of(panels.dashboard(state.view(), clock.now))
-    assert text_of(panels.dashboard(state.view(), clock.now, cache=cache)) == first  # from the cache
+    first = text_of(screens.dashboard(state.view(), clock.now, cache=cache))
+    assert cache and first == text_of(screens.dashboard(state.view(), clock.now))
+    assert text_of(screens.dashboard(state.view(), clock.now, cache=cache)) == first  # from the cache
     clock.now += 2
     state.fail("compass", "no reply")
     state.record("sonar", C.Ultrasonic((99, 128, 255)), 0.001)
-    again = text_of(panels.dashboard(state.view(), clock.now, cache=cache))
-    assert again == text_of(panels.dashboard(state.view(), clock.now))
+    again = text_of(screens.dashboard(state.view(), clock.now, cache=cache))
+    assert again == text_of(screens.dashboard(state.view(), clock.now))
     assert "stale · 2.0 s old" in again and " 99 cm" in again
     assert len(cache) <= 10  # only what the last frame used is kept
 
@@ -253,7 +254,7 @@ def test_the_render_cache_draws_the_same_picture() -> None:
 def test_only_the_chosen_sensors_get_panels() -> None:
     clock = Clock()
     state = LiveState(["compass"], clock=clock)
-    text = text_of(panels.dashboard(state.view(), clock.now))
+    text = text_of(screens.dashboard(state.view(), clock.now))
     assert "compass" in text and "ultrasonic" not in text and "IR" not in text and "link" in text
 
 
@@ -263,14 +264,14 @@ def test_teleop_screen_shows_what_is_sent_and_read_back() -> None:
     state.record("bump", C.Bumpers((True, False, False)), 0.001)
     state.record("wheels", C.WheelSpeed((20, 22)), 0.001)
     drive = DriveStatus("forward", 40, 40, 40, 30, 0.5, clock.now - 0.2, clock.now - 0.1, 7, "")
-    text = text_of(panels.teleop_screen(drive, state.view(), clock.now))
+    text = text_of(screens.teleop_screen(drive, state.view(), clock.now))
     assert "forward  left  +40 %  right  +40 %" in text
     assert "7 frames, last 0.1 s ago" in text and "(0.3 s left)" in text
     assert "left   20 cm/s" in text and "● left HIT" in text
     stopped = DriveStatus(
         "stop", 0, 0, 40, 30, 0.5, clock.now - 2, clock.now - 1, 8, "deadman: no key for 0.5 s"
     )
-    assert "deadman: no key for 0.5 s" in text_of(panels.teleop_screen(stopped, state.view(), clock.now))
+    assert "deadman: no key for 0.5 s" in text_of(screens.teleop_screen(stopped, state.view(), clock.now))
 
 
 def test_ages_read_well() -> None:
@@ -350,7 +351,7 @@ def test_a_disconnect_marks_every_value_stale_and_keeps_it() -> None:
     state.set_status("disconnected", "attempt 3: connection refused")
     view = state.view()
     assert all(r.stale and r.value is not None for r in view.readings.values())
-    text = text_of(panels.dashboard(view, clock.now), width=120)
+    text = text_of(screens.dashboard(view, clock.now), width=120)
     assert "disconnected, retrying" in text and "for 2.0 s · attempt 3" in text  # the clock runs on
     assert "212.5° SSW" in text and "stale · 2.0 s old · disconnected" in text
     assert view.counters.timeouts == 0
@@ -432,7 +433,7 @@ def test_rtt_ends_at_the_last_reply_not_at_a_timeout() -> None:
     from types import SimpleNamespace
 
     from hcrctl.errors import DeviceTimeout
-    from hcrctl.poller import _reply_time
+    from hcrctl.live.poller import _reply_time
 
     lost = DeviceTimeout("sonar", 1, "sim://", 0.5, 1)
     results = {"compass": C.Compass(1.0), "sonar": lost, "env": C.Environment(40, 20)}

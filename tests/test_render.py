@@ -7,9 +7,10 @@ import io
 import pytest
 from rich.console import Console
 
-from hcrctl import commands as C
-from hcrctl import render
-from hcrctl.cli.ports import PortInfo, ports_table
+from hcrctl.link.ports import PortInfo
+from hcrctl.protocol import commands as C
+from hcrctl.render import readings as render
+from hcrctl.render.ports import ports_table
 
 READINGS = {
     "bump": C.Bumpers((False, True, True)),

@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 from helpers_hex import device_pty, hcrctl_exe, read_for, read_until, run, sim_pty
 
-from hcrctl.frames import encode
-from hcrctl.trafficlog import iso_time, read_log
+from hcrctl.link.trafficlog import iso_time, read_log
+from hcrctl.protocol.frames import encode
 
 H = bytes.fromhex
 STOP = H("55 AA 01 02 01 80 80 03 0D 0A")
@@ -41,7 +41,7 @@ def tx_frames(path: Path) -> list[bytes]:
 
 
 def write_log(path: Path, frames: list[tuple[float, bytes]]) -> Path:
-    from hcrctl.hexview import hexs
+    from hcrctl.protocol.records import hexs
 
     with path.open("w") as handle:
         for t, data in frames:
@@ -155,9 +155,10 @@ def test_a_log_without_tx_frames_is_a_usage_error(tmp_path: Path) -> None:
 
 def test_an_answered_request_is_no_longer_owed() -> None:
     """Once every reply is in, nothing is owed: --ignore-timestamps sends on, no timeout wait."""
-    from hcrctl.cli.replay import Pending
-    from hcrctl.client import Traffic
-    from hcrctl.frames import ChecksumRule, decode_all
+    from hcrctl.link.traffic import Traffic
+    from hcrctl.ops.replay import Pending
+    from hcrctl.protocol.decoder import decode_all
+    from hcrctl.protocol.frames import ChecksumRule
 
     pending = Pending()
     pending.sent(encode(1, 0x14, b"\xff"), ChecksumRule.HEADER)

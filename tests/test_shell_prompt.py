@@ -15,7 +15,7 @@ import helpers_shell
 import pytest
 from helpers_shell import shell
 
-from hcrctl.shell import DIM
+from hcrctl.shell.prompt import DIM
 
 #: 50 Hz stations (the simulator's maximum) and the robot's 1 Hz map.
 BUSY_SIM = "sim://?broadcast_hz=50&map_hz=1"

@@ -10,7 +10,7 @@ import time
 import pytest
 from helpers_shell import STOP_FRAME, PtyRobot, shell, stop_after_motion
 
-from hcrctl.shell_link import RECONNECT_EVERY
+from hcrctl.shell.link import RECONNECT_EVERY
 
 SIM = "sim://"
 

@@ -15,29 +15,21 @@ from prompt_toolkit import PromptSession
 from prompt_toolkit.input import create_pipe_input
 from prompt_toolkit.output import DummyOutput
 
-from hcrctl import commands as C
 from hcrctl.cli.settings import Settings
 from hcrctl.errors import PortError
-from hcrctl.frames import Frame, decode_all, encode
-from hcrctl.shell_broadcasts import NEW_MARK, Broadcasts, describe
-from hcrctl.shell_dispatch import COMMANDS, run_line, usage_line
-from hcrctl.shell_grammar import root_context, split, split_partial
-from hcrctl.shell_history import history_file, state_dir
-from hcrctl.shell_link import Unplugged
-from hcrctl.shell_script import LINE_LIMIT, ScriptInputError, read_lines, script_lines
-from hcrctl.shell_session import Session
-from hcrctl.shell_toolbar import (
-    ELLIPSIS,
-    argument_hint,
-    broadcast_lines,
-    cells,
-    fit,
-    plural,
-    prompt_fragments,
-    status_lines,
-    toolbar_fragments,
-)
-from hcrctl.shell_tree import candidates, locate
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.frames import Frame, encode
+from hcrctl.shell.broadcasts import NEW_MARK, Broadcasts, describe
+from hcrctl.shell.dispatch import COMMANDS, run_line, usage_line
+from hcrctl.shell.grammar import root_context, split, split_partial
+from hcrctl.shell.history import history_file, state_dir
+from hcrctl.shell.link import Unplugged
+from hcrctl.shell.script import LINE_LIMIT, ScriptInputError, read_lines, script_lines
+from hcrctl.shell.session import Session
+from hcrctl.shell.status import broadcast_lines, plural, status_lines
+from hcrctl.shell.toolbar import ELLIPSIS, argument_hint, cells, fit, prompt_fragments, toolbar_fragments
+from hcrctl.shell.tree import candidates, locate
 
 
 def frame(address: int, code: int, content: bytes) -> Frame:
@@ -223,7 +215,7 @@ def test_hint_uses_click_ranges_outside_the_table(session):
 
 
 def test_completion_through_a_real_prompt(session):
-    from hcrctl.shell_completion import ShellCompleter
+    from hcrctl.shell.completion import ShellCompleter
 
     with create_pipe_input() as pipe:
         prompt = PromptSession(completer=ShellCompleter(session), input=pipe, output=DummyOutput())
@@ -243,7 +235,7 @@ def test_completion_through_a_real_prompt(session):
 
 
 def test_the_stop_key_sends_stop_and_leaves_the_line_alone(session):
-    from hcrctl.shell import _stop_keys
+    from hcrctl.shell.prompt import _stop_keys
 
     robot = session.link.robot
     with create_pipe_input() as pipe:
@@ -270,7 +262,7 @@ def test_no_completion_in_hex_mode(session):
     from prompt_toolkit.completion import CompleteEvent
     from prompt_toolkit.document import Document
 
-    from hcrctl.shell_completion import ShellCompleter
+    from hcrctl.shell.completion import ShellCompleter
 
     completer = ShellCompleter(session)
     assert list(completer.get_completions(Document("rea"), CompleteEvent()))
@@ -433,11 +425,11 @@ def test_set_changes_the_live_robot(session, capsys):
 
 def test_disconnected_commands_fail_in_one_line_without_opening_a_port(session, capsys):
     assert run_line(session, "disconnect") == 0
-    assert isinstance(session.settings.session, Unplugged)
+    assert isinstance(session.settings.shared_robot, Unplugged)
     assert run_line(session, "read compass") == 1
     assert "not connected on sim://" in capsys.readouterr().err
     with pytest.raises(PortError):
-        session.settings.session.read("compass")
+        session.settings.shared_robot.read("compass")
     assert run_line(session, "connect") == 0
     assert run_line(session, "read compass") == 0
 
@@ -481,7 +473,7 @@ def test_an_exception_out_of_the_prompt_loop_still_sends_stop(tmp_path, monkeypa
     from helpers_shell import STOP_FRAME, PtyRobot, stop_after_motion
     from prompt_toolkit.application import create_app_session
 
-    import hcrctl.shell as front
+    import hcrctl.shell.prompt as front
 
     monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path))
     robot = PtyRobot()
@@ -585,9 +577,9 @@ def test_relative_xdg_state_home_is_ignored(monkeypatch, tmp_path):
 @pytest.mark.parametrize(
     "module, absent",
     [
-        ("hcrctl.cli.shell", "prompt_toolkit"),
-        ("hcrctl.shell_script", "prompt_toolkit"),
-        ("hcrctl.cli.read", "hcrctl.shell_session"),
+        ("hcrctl.shell.command", "prompt_toolkit"),
+        ("hcrctl.shell.script", "prompt_toolkit"),
+        ("hcrctl.cli.read", "hcrctl.shell.session"),
     ],
 )
 def test_imports_stay_lazy(module, absent):

@@ -18,10 +18,11 @@ from contextlib import contextmanager
 from helpers_cli import clean_env, run
 from helpers_live import sim_server
 
-from hcrctl import commands as C
-from hcrctl.frames import Frame, FrameDecoder
-from hcrctl.simhub import Hub
-from hcrctl.simoptions import SimOptions
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.decoder import FrameDecoder
+from hcrctl.protocol.frames import Frame
+from hcrctl.sim.hub import Hub
+from hcrctl.sim.options import SimOptions
 
 TIMEOUT = 30.0
 COMPASS = C.encode_request(C.BY_NAME["compass"])

@@ -21,12 +21,13 @@ import pytest
 import serial
 from click.testing import CliRunner
 
-from hcrctl import commands as C
 from hcrctl.cli.sim import parse_tcp, sim
-from hcrctl.frames import Frame, FrameDecoder
-from hcrctl.simlink import Link, open_link
-from hcrctl.simoptions import SimOptions
-from hcrctl.transport_sim import HANDLER_PACKAGE, register
+from hcrctl.link.transport_sim import HANDLER_PACKAGE, register
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.decoder import FrameDecoder
+from hcrctl.protocol.frames import Frame
+from hcrctl.sim.options import SimOptions
+from hcrctl.sim.uart import SimLine, open_link
 from hcrctl.urlhandler import protocol_sim
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -47,7 +48,7 @@ class FakeClock:
 # -- pacing, with a fake clock ---------------------------------------------------
 
 
-def paced(baud: int = 9600) -> tuple[Link, FakeClock, float]:
+def paced(baud: int = 9600) -> tuple[SimLine, FakeClock, float]:
     clock = FakeClock()
     link = open_link(SimOptions.from_query(f"{QUIET}&pace=1&baud={baud}"), clock)
     return link, clock, 10 / baud

@@ -10,17 +10,13 @@ from pathlib import Path
 
 import pytest
 
-from hcrctl import commands as C
-from hcrctl.frames import BadChecksum, ChecksumRule, Frame, Junk, decode_all, encode
-from hcrctl.robot_model import (
-    MAX_SPEED_CM_S,
-    ROBOT_RADIUS_CM,
-    START_POSE,
-    WHEEL_TIME_CONSTANT_S,
-)
-from hcrctl.simoptions import SimOptions
-from hcrctl.simulator import MAX_BACKLOG, STATIONS, Simulator, ir_raw
-from hcrctl.world import ROOM_WIDTH_CM
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.frames import BadChecksum, ChecksumRule, Frame, Junk, encode
+from hcrctl.sim.body import MAX_SPEED_CM_S, ROBOT_RADIUS_CM, START_POSE, WHEEL_TIME_CONSTANT_S
+from hcrctl.sim.options import SimOptions
+from hcrctl.sim.simulator import MAX_BACKLOG, STATIONS, Simulator, ir_raw
+from hcrctl.sim.world import ROOM_WIDTH_CM
 
 ROOT = Path(__file__).resolve().parents[1]
 QUIET = "broadcast_hz=0&map_hz=0"
@@ -524,7 +520,7 @@ def test_direct_construction_is_checked_too() -> None:
 
 def test_the_model_imports_only_the_standard_library() -> None:
     code = (
-        "import sys, hcrctl.simulator, hcrctl.simlink, hcrctl.world;"
+        "import sys, hcrctl.sim.simulator, hcrctl.sim.uart, hcrctl.sim.world;"
         "bad = {'serial', 'click', 'rich', 'prompt_toolkit'} & set(sys.modules);"
         "print(sorted(bad))"
     )

@@ -12,11 +12,11 @@ import time
 import pytest
 from helpers_live import FakeRobot, Terminal, is_stop, speed_of, terminal, usage_error
 
-from hcrctl import commands as C
-from hcrctl.cli.settings import Settings
-from hcrctl.client import Robot
-from hcrctl.livestate import LiveState
-from hcrctl.teleop import Drive, Sender, run_teleop, step
+from hcrctl.link.client import Robot
+from hcrctl.link.context import Connection
+from hcrctl.live.state import LiveState
+from hcrctl.live.teleop import Drive, Sender, run_teleop, step
+from hcrctl.protocol import commands as C
 
 UP, DOWN, LEFT, RIGHT = "\x1b[A", "\x1b[B", "\x1b[D", "\x1b[C"
 
@@ -242,7 +242,7 @@ def test_run_teleop_in_the_shell_stops_and_leaves_the_session_open(monkeypatch: 
     monkeypatch.setattr("sys.stdin", os.fdopen(read_end))
     with FakeRobot() as fake:
         robot = Robot(fake.path, timeout=0.3)
-        settings = Settings(port=fake.path, session=robot)
+        settings = Connection(port=fake.path, shared_robot=robot)
         try:
             runner = threading.Thread(target=run_teleop, args=(settings, 40, 20, 5.0))
             runner.start()

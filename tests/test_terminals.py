@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 from helpers_live import FakeRobot, hcrctl_exe, is_stop, speed_of, terminal, terminal_env, usage_error
 
-from hcrctl import commands as C
+from hcrctl.protocol import commands as C
 
 #: The last thing a full-screen view writes: cursor shown, alternate screen left.
 RESTORED = re.compile(rb"\x1b\[\?1049h(?!.*\x1b\[\?1049h).*\x1b\[\?25h.*\x1b\[\?1049l", re.S)
@@ -255,7 +255,7 @@ def test_a_frame_that_fails_halfway_still_restores_the_terminal() -> None:
     """The failure issue 17 saw: an unwritable frame stuck in rich's buffer made Live.stop() fail too."""
     from rich.console import Console
 
-    from hcrctl.painter import RESTORE, live_screen
+    from hcrctl.live.painter import RESTORE, live_screen
 
     master, slave = os.openpty()
     with open(slave, "w", encoding="ascii", errors="strict", closefd=True) as stream:
@@ -282,7 +282,7 @@ def test_a_frame_that_fails_halfway_still_restores_the_terminal() -> None:
 def test_glyphs_degrade_to_what_the_console_encoding_carries(encoding: str, heading: str, keys: str) -> None:
     import io
 
-    from hcrctl import render
+    from hcrctl.render import readings as render
 
     raw = io.BytesIO()
     stream = io.TextIOWrapper(raw, encoding=encoding, errors="strict", write_through=True)

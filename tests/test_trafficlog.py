@@ -13,10 +13,12 @@ from pathlib import Path
 import pytest
 from helpers_hex import hcrctl_exe, run, sim_pty
 
-from hcrctl.client import Robot, Traffic
 from hcrctl.errors import LogFormatError
-from hcrctl.frames import Frame, decode_all, encode
-from hcrctl.trafficlog import TrafficLog, attach, read_log
+from hcrctl.link.client import Robot
+from hcrctl.link.traffic import Traffic
+from hcrctl.link.trafficlog import TrafficLog, attach, read_log
+from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.frames import Frame, encode
 
 ISO_MICRO = re.compile(r"^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{6}[+-]\d\d:\d\d$")
 COMPASS = encode(1, 0x14, bytes.fromhex("0D 0A"))

@@ -12,11 +12,11 @@ import time
 import pytest
 from helpers_live import FakeRobot, hcrctl_exe, is_stop, sim_server, terminal, usage_error
 
-from hcrctl.cli.settings import Settings
-from hcrctl.client import Robot
 from hcrctl.errors import PortError
-from hcrctl.render import cardinal
-from hcrctl.watch import FPS, MIN_FPS, Reconnect, Redrawer, frame_rate, run_watch
+from hcrctl.link.client import Robot
+from hcrctl.link.context import Connection
+from hcrctl.live.watch import FPS, MIN_FPS, Reconnect, Redrawer, frame_rate, run_watch
+from hcrctl.render.readings import cardinal
 
 HEADING = re.compile(r"(\d{1,3}\.\d)° ([NESW]{1,3}) ")
 ALT_SCREEN_OFF = b"\x1b[?1049l"
@@ -190,9 +190,9 @@ def test_a_missing_port_is_one_line_exit_1() -> None:
 # -- inside the shell: the session robot is reused, never closed ---------------------
 
 
-def _session_settings(port: str) -> tuple[Settings, Robot]:
+def _session_settings(port: str) -> tuple[Connection, Robot]:
     robot = Robot(port, timeout=0.3, retries=3)
-    return Settings(port=port, timeout=0.3, retries=3, as_json=True, session=robot), robot
+    return Connection(port=port, timeout=0.3, retries=3, shared_robot=robot), robot
 
 
 def test_run_watch_borrows_the_shell_session_robot(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -200,7 +200,7 @@ def test_run_watch_borrows_the_shell_session_robot(monkeypatch: pytest.MonkeyPat
     with FakeRobot() as fake:
         settings, robot = _session_settings(fake.path)
         try:
-            summary = run_watch(settings, ["compass", "sonar"], 20.0, 0.5)
+            summary = run_watch(settings, ["compass", "sonar"], 20.0, 0.5, as_json=True)
             assert summary["sweeps"] >= 3 and summary["latest"]["compass"] == {"heading": 123.4}
             assert robot.connected and robot.retries == 3  # still the shell's, as it was
             assert robot.read("compass").heading == 123.4
@@ -213,14 +213,14 @@ def test_reconnect_in_the_shell_waits_for_the_session_robot() -> None:
         port, connected, retries = "/dev/ttyUSB0", False, 2
 
     lost = Lost()
-    settings = Settings(port="/dev/ttyUSB0", session=lost)
+    settings = Connection(port="/dev/ttyUSB0", shared_robot=lost)
     again = Reconnect(settings, lost)
     assert not again.owned
     with pytest.raises(PortError, match="not connected"):
         again()
-    settings.session = back = type("Back", (), {"connected": True})()
+    settings.shared_robot = back = type("Back", (), {"connected": True})()
     assert again() is back
-    assert Reconnect(Settings(port="sim://"), lost).owned  # from the command line: opens its own
+    assert Reconnect(Connection(port="sim://"), lost).owned  # from the command line: opens its own
 
 
 def test_frame_rate_follows_the_poll_rate_within_bounds() -> None:

@@ -16,9 +16,9 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from .. import __version__
-from .. import commands as C
 from ..errors import HcrError, printable
-from ..signals import Terminated, stop_signals_raise
+from ..link.signals import Terminated, stop_signals_raise
+from ..protocol import commands as C
 from .settings import GLOBAL_OPTIONS, Settings, config_keys
 
 if TYPE_CHECKING:
@@ -44,7 +44,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "hex": ("hcrctl.cli.hex:hex_group", "Decode, encode and send raw frames (the hex debugger)."),
     "monitor": ("hcrctl.cli.monitor:monitor", "Watch every frame on the line, decoded, with counters."),
     "replay": ("hcrctl.cli.replay:replay", "Re-send the requests of a --log file with their timing."),
-    "shell": ("hcrctl.cli.shell:shell", "The interactive session: every command, one connection."),
+    "shell": ("hcrctl.shell.command:shell", "The interactive session: every command, one connection."),
 }
 
 CONTEXT = {"help_option_names": ["-h", "--help"], "auto_envvar_prefix": "HCRCTL", "max_content_width": 100}
@@ -145,7 +145,7 @@ def main(argv: list[str] | None = None) -> None:
 
 def with_log_status(code: int) -> int:
     """1 instead of success when a --log lost a write: said at once on stderr, the status says it too."""
-    trafficlog = sys.modules.get("hcrctl.trafficlog")  # never imported: no log was written
+    trafficlog = sys.modules.get("hcrctl.link.trafficlog")  # never imported: no log was written
     if code == 0 and trafficlog is not None and trafficlog.incomplete():
         return 1
     return code

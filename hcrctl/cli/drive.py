@@ -9,23 +9,20 @@ timed move, which is held and stopped there too.
 
 from __future__ import annotations
 
-import time
 from typing import TYPE_CHECKING, Any
 
 import click
 
-from .. import commands as C
+from ..link.rescue import stopping
+from ..ops.motion import DRIVE_COMMANDS, hold
+from ..ops.writes import describe, hex_bytes, send_request, send_stop, sent_record
+from ..protocol import commands as C
+from .output import emit, say
 from .params import hold_option, request_value, table_command
 from .settings import Settings
-from .writes import describe, emit, hex_bytes, say, send_request, send_stop, sent_record, stopping
 
 if TYPE_CHECKING:
-    from ..client import Robot
-
-#: The table rows under ``drive``; turn, a bounded motion, has its own command.
-DRIVE_COMMANDS = ("power", "speed", "velocity")
-#: How often a held drive checks that the link is still up.
-HOLD_POLL_S = 0.1
+    pass
 
 
 @click.group()
@@ -54,7 +51,7 @@ for _name in DRIVE_COMMANDS:
 def run_drive(settings: Settings, value: C.Request, hold_for: float | None) -> None:
     """Send the motion; one-shot or with --for, hold it and stop; in the shell without --for, return."""
     with settings.robot() as robot:
-        if settings.session is not None and hold_for is None:
+        if settings.shared_robot is not None and hold_for is None:
             record, _ = send_request(robot, value)
             emit(settings, record, f"sent {describe(value)}: {record['hex']}")
             return
@@ -67,27 +64,6 @@ def run_drive(settings: Settings, value: C.Request, hold_for: float | None) -> N
     say(f"stopped after {record['held_s']:g} s")
     if settings.as_json:
         emit(settings, record, "")
-
-
-def hold(robot: Robot, seconds: float | None) -> float:
-    """Wait while the motion runs; the seconds it was held.
-
-    Ctrl-C is the normal end of an open-ended drive (exit 0); with --for it
-    interrupts (exit 130). SIGTERM/SIGHUP raise through, and the caller's
-    ``stopping()`` still sends stop. A lost link ends the hold with its error.
-    """
-    start = time.monotonic()
-    deadline = None if seconds is None else start + seconds
-    try:
-        while deadline is None or time.monotonic() < deadline:
-            if robot.error is not None:
-                raise robot.error
-            left = HOLD_POLL_S if deadline is None else deadline - time.monotonic()
-            time.sleep(max(0.0, min(HOLD_POLL_S, left)))
-    except KeyboardInterrupt:
-        if deadline is not None:
-            raise
-    return time.monotonic() - start
 
 
 @click.command()

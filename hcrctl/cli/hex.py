@@ -9,25 +9,22 @@ bytes on the wire, completing or checking the checksum first.
 
 from __future__ import annotations
 
-import contextlib
-import dataclasses
 import json
 import sys
-from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import click
 
-from .. import commands as C
-from ..errors import ProtocolError
-from ..frames import ChecksumRule, Frame, decode_all
-from ..hexparse import STYLES, format_hex, parse_hex, parse_hex_args
-from .drive import DRIVE_COMMANDS
+from ..hex.parse import STYLES, format_hex, parse_hex, parse_hex_args
+from ..ops.hexsend import holds_motion, retries_set, send_frame, traffic_row
+from ..ops.motion import DRIVE_COMMANDS
+from ..protocol import commands as C
+from ..protocol.decoder import decode_all
 from .params import NamedArgument, hold_option, request_value, table_command
-from .settings import Settings, stdout_is_terminal
+from .settings import Settings, json_option, stdout_is_terminal
 
 if TYPE_CHECKING:
-    from ..client import Robot
+    from ..link.client import Robot
 
 STDIN_HINT = "for a binary capture use --file"
 
@@ -41,27 +38,6 @@ def hex_group() -> None:
     hcrctl hex encode drive power 60 60
     hcrctl --port sim:// hex send 55 AA 01 01 14 FF
     """
-
-
-def json_option(func: Any) -> Any:
-    """``--json`` after the subcommand as well (``hex decode --json``), the same as the global one.
-
-    It sets JSON on a copy of the settings for this one command, so inside
-    the shell it does not stick to the session.
-    """
-
-    def use_json(ctx: click.Context, param: click.Parameter, value: bool) -> None:
-        if value and ctx.obj is not None and not ctx.obj.as_json:
-            ctx.obj = dataclasses.replace(ctx.obj, as_json=True)
-
-    return click.option(
-        "--json",
-        "json_here",
-        is_flag=True,
-        expose_value=False,
-        callback=use_json,
-        help="Print JSON (as the global --json).",
-    )(func)
 
 
 # -- decode -------------------------------------------------------------------------
@@ -87,10 +63,11 @@ def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None) -
     """
     settings: Settings = ctx.obj
     data = _decode_input(hex_text, capture)
-    from ..hexview import Tally, event_dict
+    from ..hex.view import FrameTally
+    from ..protocol.records import event_dict
 
     rows = [event_dict(event, settings.checksum) for event in decode_all(data, settings.checksum)]
-    tally = Tally()
+    tally = FrameTally()
     for row in rows:
         tally.add(row)
     _print_rows(settings, rows)
@@ -153,7 +130,7 @@ def _stdin_hex() -> bytes:
 
 
 def _print_rows(settings: Settings, rows: list[dict[str, Any]]) -> None:
-    from .. import hexview
+    from ..hex import view as hexview
 
     if settings.as_json:
         click.echo(json.dumps(rows, ensure_ascii=False))
@@ -238,18 +215,9 @@ def encode_read(settings: Settings, sensors: tuple[str, ...], style: str) -> Non
 
 def _print_frame(settings: Settings, frame: bytes, style: str) -> None:
     if settings.as_json:
-        click.echo(json.dumps(_traffic_row(frame, settings.checksum, "tx"), ensure_ascii=False))
+        click.echo(json.dumps(traffic_row(frame, settings.checksum, "tx"), ensure_ascii=False))
     else:
         click.echo(format_hex(frame, style))
-
-
-def _traffic_row(frame: bytes, rule: ChecksumRule, direction: str) -> dict[str, Any]:
-    """``{"hex": ...}`` plus the decode shape of the first event in ``frame``."""
-    from ..hexview import event_dict, hexs
-
-    events = decode_all(frame, rule)
-    row = event_dict(events[0], rule, direction) if events else {}
-    return {"hex": hexs(frame), **row}
 
 
 # -- send ---------------------------------------------------------------------------
@@ -272,45 +240,22 @@ def send(ctx: click.Context, hex_text: tuple[str, ...], force: bool, hold_for: f
     frame is held like 'hcrctl drive': until --for SECONDS or Ctrl-C, then
     stop is sent.
     """
-    from ..hexframes import complete_frame
+    from ..hex.frames import complete_frame
 
     settings: Settings = ctx.obj
     frame, note = complete_frame(parse_hex_args(hex_text), settings.checksum, force)
     if note:
         click.echo(f"hcrctl: {note}", err=True)
-    with settings.robot() as robot, _retries(robot, _explicit_retries(ctx)):
-        result = {"sent": _traffic_row(frame, robot.rule, "tx"), "reply": None}
-        result["reply"] = _send_frame(robot, frame)
+    with settings.robot() as robot, retries_set(robot, _explicit_retries(ctx)):
+        result = {"sent": traffic_row(frame, robot.rule, "tx"), "reply": None}
+        result["reply"] = send_frame(robot, frame)
         _report(settings, result)
-        if _holds(robot, frame) and settings.session is None:
+        if holds_motion(robot, frame) and settings.shared_robot is None:
             _hold_motion(robot, frame[2], hold_for)
 
 
-def _send_frame(robot: Robot, frame: bytes) -> dict[str, Any] | None:
-    """Write ``frame``; when it is a valid request with a reply, wait for and return it."""
-    from ..hexview import hexs
-
-    request = _valid_frame(frame, robot.rule)
-    cmd = C.BY_CODE.get(request.command) if request else None
-    if request is None or cmd is None or cmd.reply is None or not C.is_request(cmd.code, request.content):
-        robot.write(frame)
-        if request is None:
-            click.echo(
-                f"hcrctl: not waiting for a reply: this is no valid frame under the {robot.rule.value} rule",
-                err=True,
-            )
-        return None
-    reply = robot.transact(frame, (request.address, request.command), f"{cmd.name} (hex send)")
-    return _traffic_row(reply.to_bytes(), robot.rule, "rx") | {"hex": hexs(reply.to_bytes())}
-
-
-def _valid_frame(frame: bytes, rule: ChecksumRule) -> Frame | None:
-    events = decode_all(frame, rule)
-    return events[0] if len(events) == 1 and isinstance(events[0], Frame) else None
-
-
 def _report(settings: Settings, result: dict[str, Any]) -> None:
-    from ..hexview import summary_text
+    from ..hex.view import summary_text
 
     if settings.as_json:
         click.echo(json.dumps(result, ensure_ascii=False))
@@ -320,24 +265,11 @@ def _report(settings: Settings, result: dict[str, Any]) -> None:
         click.echo(f"reply  {result['reply']['hex']}   {summary_text(result['reply'])}")
 
 
-def _holds(robot: Robot, frame: bytes) -> bool:
-    """A valid motion frame that is not itself a stop (a drive of all zeros) keeps the robot moving."""
-    request = _valid_frame(frame, robot.rule)
-    cmd = C.BY_CODE.get(request.command) if request else None
-    if request is None or cmd is None or not cmd.motion:
-        return False
-    try:
-        fields = C.decode_fields(request.command, request.content, "tx")
-    except ProtocolError:
-        return True
-    return cmd.name not in DRIVE_COMMANDS or any(fields.values())
-
-
 def _hold_motion(robot: Robot, address: int, hold_for: float | None) -> None:
     """Hold like ``drive``, then stop the address the frame moved (which need not be --address) and ours."""
-    from ..rescue import stop_frame, stopping
-    from .drive import hold
-    from .writes import say
+    from ..link.rescue import stop_frame, stopping
+    from ..ops.motion import hold
+    from .output import say
 
     until = f"for {hold_for:g} s" if hold_for is not None else "until Ctrl-C"
     say(f"holding the motion {until} — Ctrl-C to stop")
@@ -353,14 +285,3 @@ def _explicit_retries(ctx: click.Context) -> int | None:
     root = ctx.find_root()
     source = root.get_parameter_source("retries")
     return ctx.obj.retries if source not in (None, ParameterSource.DEFAULT) else None
-
-
-@contextlib.contextmanager
-def _retries(robot: Robot, retries: int | None) -> Iterator[None]:
-    """Set ``robot.retries`` for one block; the shell's robot gets its own back."""
-    saved = robot.retries
-    robot.retries = 0 if retries is None else retries
-    try:
-        yield
-    finally:
-        robot.retries = saved

@@ -3,30 +3,27 @@
 It opens the port through ``Robot`` and adds a traffic hook, so it decodes
 and counts exactly as every other command does, and sends nothing. With
 ``--from LOG`` it renders a recorded ``--log`` file instead of a port.
-``TrafficPrinter`` (filters, timestamps, text or JSON lines, counters) is
-shared with ``replay``.
+``hex.traffic.TrafficPrinter`` (filters, timestamps, text or JSON lines,
+counters) is shared with ``replay``.
 """
 
 from __future__ import annotations
 
-import json
 import queue
-import sys
 import time
-from collections.abc import Iterable
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import click
 
-from .. import commands as C
-from ..frames import ChecksumRule, Event, decode_all
-from .hex import json_option
+from ..hex.traffic import FrameFilter, TrafficPrinter, rows_of, traffic_rows
+from ..protocol import commands as C
+from ..protocol.decoder import decode_all
+from ..protocol.frames import ChecksumRule
 from .params import FloatRange
-from .settings import ByteNumber, Settings, stdout_is_terminal
+from .settings import ByteNumber, Settings, json_option
 
 if TYPE_CHECKING:
-    from ..client import Traffic
+    from ..link.traffic import Traffic
 
 #: How long the main thread waits for traffic before checking the clock again.
 POLL_S = 0.05
@@ -51,110 +48,6 @@ class FilterArg(click.ParamType):
             return "command", C.BY_NAME[text].code
         names = ", ".join(C.BY_NAME)
         self.fail(f"{text!r} is not a command name ({names}), a 0xCODE or an @ADDR", param, ctx)
-
-
-@dataclass(frozen=True)
-class FrameFilter:
-    """Commands are OR-ed, addresses are OR-ed, and the two groups AND-ed.
-
-    Problems (junk, malformed, truncated) have no command, so a filter hides
-    them from the lines; they are still counted.
-    """
-
-    commands: frozenset[int] = frozenset()
-    addresses: frozenset[int] = frozenset()
-
-    @classmethod
-    def of(cls, items: Iterable[tuple[str, int]]) -> FrameFilter:
-        items = list(items)
-        return cls(
-            frozenset(n for kind, n in items if kind == "command"),
-            frozenset(n for kind, n in items if kind == "address"),
-        )
-
-    def __call__(self, row: dict[str, Any]) -> bool:
-        if not (self.commands or self.addresses):
-            return True
-        if "command" not in row or row.get("problem") == "junk":
-            return False
-        return (not self.commands or row["command"] in self.commands) and (
-            not self.addresses or row["address"] in self.addresses
-        )
-
-
-class Stamper:
-    """iso: local time of day with microseconds; delta: seconds since the previous line; none."""
-
-    def __init__(self, style: str, start: float | None = None) -> None:
-        self.style = style
-        self.last = start
-
-    def __call__(self, t: float) -> str:
-        if self.style == "none":
-            return ""
-        if self.style == "iso":
-            from datetime import datetime
-
-            return datetime.fromtimestamp(t).time().isoformat(timespec="microseconds") + "  "
-        delta = 0.0 if self.last is None else t - self.last
-        self.last = t
-        return f"+{delta:.6f}  "
-
-
-class TrafficPrinter:
-    """Rows to stdout (text or JSON lines), filtered, and a tally of everything received."""
-
-    def __init__(
-        self, settings: Settings, stamps: str, keep: FrameFilter, start: float | None = None
-    ) -> None:
-        from ..hexview import Tally
-
-        self.as_json = settings.as_json
-        self.color = stdout_is_terminal() and not settings.as_json
-        self.stamp = Stamper(stamps, start)
-        self.keep = keep
-        self.tally = Tally()
-        self.sent = 0
-
-    def show(self, t: float, direction: str, data: bytes, rows: list[dict[str, Any]]) -> None:
-        for row in rows:
-            if direction == "rx":
-                self.tally.add(row)
-            else:
-                self.sent += 1
-            if self.keep(row):
-                self._line(t, direction, data, row)
-        sys.stdout.flush()
-
-    def _line(self, t: float, direction: str, data: bytes, row: dict[str, Any]) -> None:
-        from ..hexview import hexs, is_good, is_text, plain_line
-        from ..trafficlog import iso_time
-
-        if self.as_json:
-            click.echo(json.dumps({"time": iso_time(t), "direction": direction, "hex": hexs(data), **row}))
-            return
-        text = f"{self.stamp(t)}{direction}  {plain_line(row, offset=False)}"
-        colour = "cyan" if is_text(row) else None if is_good(row) else "red"
-        click.echo(click.style(text, fg=colour) if self.color and colour else text)
-
-    def counters(self, seconds: float | None = None) -> str:
-        """The closing tally; when checksums failed the rule but pass the other one, the fix too."""
-        span = f" in {seconds:.1f} s" if seconds is not None else ""
-        sent = f", {self.sent} sent" if self.sent else ""
-        hint = self.tally.hint()
-        return f"{self.tally.text()}{sent}{span}" + (f" (hint: {hint})" if hint else "")
-
-
-def rows_of(events: list[Event], rule: ChecksumRule, direction: str) -> list[dict[str, Any]]:
-    """Decode-shape rows; rx lets the content say request or reply (a shared line has both)."""
-    from ..hexview import event_dict
-
-    return [event_dict(e, rule, "tx" if direction == "tx" else None) for e in events]
-
-
-def traffic_rows(traffic: Traffic, rule: ChecksumRule) -> list[dict[str, Any]]:
-    events = [traffic.event] if traffic.event is not None else decode_all(traffic.data, rule)
-    return rows_of(events, rule, traffic.direction)
 
 
 @click.command()
@@ -198,7 +91,7 @@ def monitor(
     hcrctl --port sim:// monitor --duration 2 --filter position
     hcrctl monitor --from session.jsonl --timestamps delta
     """
-    printer = TrafficPrinter(settings, timestamps, FrameFilter.of(filters))
+    printer = TrafficPrinter(settings.as_json, timestamps, FrameFilter.of(filters))
     if source is not None:
         _render_log(printer, source, settings.checksum, duration)
     else:
@@ -207,7 +100,7 @@ def monitor(
 
 def _render_log(printer: TrafficPrinter, path: str, rule: ChecksumRule, duration: float | None) -> None:
     """Each record re-decoded under the active rule, at its recorded offset."""
-    from ..trafficlog import read_log
+    from ..link.trafficlog import read_log
 
     first = None
     for rec in read_log(path):

@@ -7,59 +7,13 @@ best named by its ``/dev/serial/by-id`` link, which survives replugging when
 
 from __future__ import annotations
 
-import os
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 
 import click
 
+from ..link.ports import list_ports
+from ..render.ports import ports_table
 from .settings import Settings, stdout_is_terminal
-
-BY_ID_DIR = "/dev/serial/by-id"
-
-
-@dataclass(frozen=True)
-class PortInfo:
-    """One serial port, as ``ports`` shows it (and its JSON keys)."""
-
-    device: str
-    description: str
-    hwid: str
-    by_id: str | None
-
-
-def list_ports(by_id_dir: str = BY_ID_DIR) -> list[PortInfo]:
-    """pyserial's comports(), sorted by device, with their by-id links."""
-    from serial.tools import list_ports as pyserial_ports
-
-    links = by_id_links(by_id_dir)
-    found = sorted(pyserial_ports.comports(), key=lambda p: p.device)
-    return [PortInfo(p.device, p.description, p.hwid, links.get(os.path.realpath(p.device))) for p in found]
-
-
-def by_id_links(by_id_dir: str = BY_ID_DIR) -> dict[str, str]:
-    """Resolved device path -> its /dev/serial/by-id link."""
-    try:
-        names = sorted(os.listdir(by_id_dir))
-    except OSError:
-        return {}
-    links = {}
-    for name in names:
-        link = os.path.join(by_id_dir, name)
-        links.setdefault(os.path.realpath(link), link)
-    return links
-
-
-def ports_table(ports: list[PortInfo], *, borders: bool = True) -> object:
-    """A rich table of ports; borderless for pipes."""
-    from rich import box
-    from rich.table import Table
-
-    table = Table(box=box.ROUNDED if borders else None, show_header=True, pad_edge=borders)
-    for column in ("device", "description", "hardware id", "by-id link"):
-        table.add_column(column, style="bold cyan" if column == "device" else None)
-    for port in ports:
-        table.add_row(port.device, port.description, port.hwid, port.by_id or "-")
-    return table
 
 
 @click.command()

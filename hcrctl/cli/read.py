@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import click
 
-from .. import commands as C
 from ..errors import HcrError, SensorsFailed
+from ..protocol import commands as C
 from .params import NamedArgument
 from .settings import Settings, stdout_is_terminal
 
@@ -43,7 +43,7 @@ def read(settings: Settings, sensors: tuple[str, ...]) -> None:
 
 def _print(settings: Settings, results: dict[str, C.Reply | HcrError]) -> None:
     """JSON always (one document); text only if some sensor answered, else stderr says it all."""
-    from .. import render
+    from ..render import readings as render
 
     if settings.as_json:
         import json

@@ -6,10 +6,11 @@ from typing import Any
 
 import click
 
-from .. import commands as C
+from ..ops.writes import describe, send_request
+from ..protocol import commands as C
+from .output import emit
 from .params import request_value, table_command
 from .settings import Settings
-from .writes import describe, emit, send_request
 
 
 @table_command("servo")

@@ -1,8 +1,9 @@
 """Global options and the session settings every subcommand receives.
 
-The shell changes these at runtime (``set timeout 0.2``) and keeps one robot
-connected across commands, so subcommands never open ports themselves: they
-ask ``Settings.robot()`` for one.
+``Settings`` is the connection context (``link.context.Connection``: the
+shell changes it at runtime, ``set timeout 0.2``, and shares one robot across
+commands) plus the output options; subcommands never open ports themselves:
+they ask ``settings.robot()`` for one.
 
 Each global option also comes from ``HCRCTL_<NAME>`` and from the config file
 (key ``<name>``), both derived here from the option's long name so the three
@@ -11,22 +12,21 @@ spellings can never drift apart.
 
 from __future__ import annotations
 
-import contextlib
+import dataclasses
 import sys
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import click
 
-from ..frames import ChecksumRule
-from ..rescue import DEFAULT_WAIT_S
+from ..link.client import DEFAULT_WAIT_S
+from ..link.context import Connection
+from ..protocol.frames import ChecksumRule
 from .params import ByteNumber, FloatRange, IntRange
 
 if TYPE_CHECKING:
     from click.shell_completion import CompletionItem
-
-    from ..client import Robot
 
 ENV_PREFIX = "HCRCTL_"
 SIM_URL = "sim://"
@@ -36,7 +36,7 @@ def complete_port(ctx: click.Context, param: click.Parameter, incomplete: str) -
     """The serial ports present (and their by-id links), plus sim://."""
     from click.shell_completion import CompletionItem
 
-    from .ports import list_ports
+    from ..link.ports import list_ports
 
     names = [SIM_URL]
     for port in list_ports():
@@ -124,97 +124,39 @@ def GLOBAL_OPTIONS(func: Callable) -> Callable:
     return func
 
 
-@dataclass
-class Settings:
-    """What the global options say, plus the shell's shared connection."""
+def json_option(func: Any) -> Any:
+    """``--json`` after the subcommand as well (``hex decode --json``), the same as the global one.
 
-    port: str | None = None
-    baud: int = 115200
-    address: int = 0x01
-    timeout: float = 0.5
-    retries: int = 2
-    stop_wait: float = DEFAULT_WAIT_S
-    checksum: ChecksumRule = ChecksumRule.HEADER
+    It sets JSON on a copy of the settings for this one command, so inside
+    the shell it does not stick to the session.
+    """
+
+    def use_json(ctx: click.Context, param: click.Parameter, value: bool) -> None:
+        if value and ctx.obj is not None and not ctx.obj.as_json:
+            ctx.obj = dataclasses.replace(ctx.obj, as_json=True)
+
+    return click.option(
+        "--json",
+        "json_here",
+        is_flag=True,
+        expose_value=False,
+        callback=use_json,
+        help="Print JSON (as the global --json).",
+    )(func)
+
+
+@dataclass
+class Settings(Connection):
+    """What the global options say: the connection, plus how to print (``--json``, ``--debug``)."""
+
     as_json: bool = False
-    log: str | None = None
     debug: bool = False
-    session: Robot | None = None
-    robot_hooks: list[Callable[[Robot], None]] = field(default_factory=list)
 
     @classmethod
     def from_options(cls, options: dict[str, Any]) -> Settings:
         options = dict(options)
         options["checksum"] = ChecksumRule(options["checksum"])
         return cls(**options)
-
-    @contextlib.contextmanager
-    def robot(self) -> Iterator[Robot]:
-        """The shell's open robot, or a fresh one closed (with stop) on exit."""
-        if self.session is not None:
-            self._lifeline(self.session)
-            yield self.session
-            return
-        robot = self.connect()
-        self._lifeline(robot)
-        try:
-            yield robot
-        finally:
-            robot.close()
-
-    def _lifeline(self, robot: Robot) -> None:
-        """How a command's stop reaches this robot again if its link drops (see ``rescue``)."""
-        if getattr(robot, "connected", False):
-            from ..rescue import Reconnect
-
-            robot.reopen, robot.stop_wait = Reconnect(self, robot), self.stop_wait
-
-    def connect(self) -> Robot:
-        """A new robot on the resolved port, with the traffic log and hooks attached."""
-        from ..client import Robot
-
-        robot = Robot(
-            self.resolve_port(),
-            baud=self.baud,
-            address=self.address,
-            timeout=self.timeout,
-            retries=self.retries,
-            rule=self.checksum,
-        )
-        if self.log:
-            from ..trafficlog import attach
-
-            attach(robot, self.log)
-        for hook in self.robot_hooks:
-            hook(robot)
-        return robot
-
-    def resolve_port(self) -> str:
-        """--port, or the one USB serial port present (said on stderr).
-
-        Without either it is a PortError (exit 1), not a usage error: the same
-        command works once the robot is plugged in.
-        """
-        if self.port:
-            return self.port
-        from ..errors import PortError
-        from ..transport import ports_hint
-
-        usb = _usb_ports()
-        if len(usb) == 1:
-            click.echo(f"hcrctl: using {usb[0]}, the only USB serial port", err=True)
-            return usb[0]
-        what = (
-            "no --port given and no USB serial port found"
-            if not usb
-            else "no --port given and several USB serial ports"
-        )
-        raise PortError(what, "", hint=f"give --port PORT; {ports_hint()}")
-
-
-def _usb_ports() -> list[str]:
-    from serial.tools import list_ports
-
-    return sorted(p.device for p in list_ports.comports() if p.vid is not None)
 
 
 def stdout_is_terminal() -> bool:

@@ -15,11 +15,11 @@ import click
 
 from ..errors import HcrError, printable
 from ..numtext import NumberError, parse_int
-from ..simoptions import MAX_BAUD, MAX_SEED, MIN_BAUD, SimOptions
+from ..sim.options import MAX_BAUD, MAX_SEED, MIN_BAUD, SimOptions
 from .params import IntRange
 
 if TYPE_CHECKING:
-    from ..simserve import Stopper
+    from ..sim.serve import Stopper
 
 DEFAULT_HOST = "127.0.0.1"
 
@@ -53,7 +53,7 @@ def sim(use_pty: bool, tcp: str | None, pace: bool, baud: int | None, query: str
         raise click.UsageError("give exactly one of --pty and --tcp")
     options = _options(query, pace, baud, seed)
     address = parse_tcp(tcp) if tcp is not None else None
-    from .. import simserve
+    from ..sim import serve as simserve
 
     try:
         with simserve.Stopper() as stopper:
@@ -78,7 +78,7 @@ def serve_error(exc: OSError, tcp: str | None) -> HcrError:
 
 
 def _serve(options: SimOptions, address: tuple[str, int] | None, stopper: Stopper) -> None:
-    from .. import simserve
+    from ..sim import serve as simserve
 
     if address is None:
         simserve.serve_pty(options, stopper, _announce)

@@ -7,7 +7,7 @@ import sys
 
 import click
 
-from .. import commands as C
+from ..protocol import commands as C
 from .params import FloatRange, IntRange
 from .settings import Settings
 
@@ -39,7 +39,7 @@ def teleop(settings: Settings, speed: int, turn: int, timeout: float) -> None:
     redraw its screen (not a pipe or file, not TERM=dumb): it never drives blind.
     """
     refuse_without_a_screen()
-    from ..teleop import run_teleop
+    from ..live.teleop import run_teleop
 
     run_teleop(settings, speed, turn, timeout)
 

@@ -6,7 +6,7 @@ import json
 
 import click
 
-from .. import commands as C
+from ..protocol import commands as C
 from .params import FloatRange
 from .settings import Settings
 
@@ -52,7 +52,7 @@ def watch(
     and a summary (sweeps per second, counters, latest values) is printed at
     the end, however it ends (q, --duration, Ctrl-C, SIGTERM).
     """
-    from ..watch import run_watch
+    from ..live.watch import run_watch
 
     report = (lambda summary: click.echo(json.dumps(summary))) if settings.as_json else None
-    run_watch(settings, sensors, rate, duration, pipeline=pipeline, report=report)
+    run_watch(settings, sensors, rate, duration, pipeline=pipeline, report=report, as_json=settings.as_json)

@@ -20,9 +20,9 @@ import urllib.parse
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
 
-from ..simlink import Link, open_link
-from ..simoptions import SimOptions
-from ..simulator import Simulator
+from ..sim.options import SimOptions
+from ..sim.simulator import Simulator
+from ..sim.uart import SimLine, open_link
 
 #: The shortest wait, so a due time that has just passed cannot spin the reader.
 _MIN_WAIT_S = 1e-4
@@ -33,7 +33,7 @@ class Serial(SerialBase):
 
     def __init__(self, *args, **kwargs) -> None:
         self._cond = threading.Condition()
-        self._link: Link | None = None
+        self._link: SimLine | None = None
         self._rx = bytearray()
         self._cancelled = False
         self.options = SimOptions()
@@ -83,7 +83,7 @@ class Serial(SerialBase):
         if self._link is not None:
             self._rx += self._link.read()
 
-    def _link_or_raise(self) -> Link:
+    def _link_or_raise(self) -> SimLine:
         if not self.is_open or self._link is None:
             raise PortNotOpenError()
         return self._link

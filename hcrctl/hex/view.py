@@ -1,0 +1,234 @@
+"""Decoder events as the hex debugger shows them: text lines, a table, a tally.
+
+Every rendering starts from the one dict shape of ``protocol.records``
+(``event_dict``), so a row on screen, a line in a log and an object in a
+script always agree. Pure functions: no I/O; rich is imported only by the
+function that builds a table.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from ..errors import other_rule_hint, printable
+from ..protocol import commands as C
+from ..protocol.frames import (
+    ChecksumRule,
+)
+from ..protocol.records import (
+    is_good,
+    is_text,
+)
+
+if TYPE_CHECKING:
+    from rich.table import Table
+
+#: Bytes of junk or content shown in a text row before eliding the rest.
+SHOW_BYTES = 16
+
+
+# -- text ---------------------------------------------------------------------
+
+
+def units(code: int, request: bool) -> dict[str, str]:
+    """Field units from the command table, for the request or the reply side."""
+    cmd = C.BY_CODE.get(code)
+    if cmd is None:
+        return {}
+    infos = cmd.request_fields if request else cmd.reply_fields
+    return {info.name: info.unit for info in infos}
+
+
+def fields_text(row: dict[str, Any]) -> str:
+    """``left=60 %  right=60 %``: the decoded fields with their units."""
+    fields = row.get("fields")
+    if "error" in row:
+        return f"? {row['error']}"
+    if fields is None:
+        return "unknown command"
+    if not fields:
+        return "read request" if row.get("kind") == "request" else ""
+    unit_of = units(row["command"], row.get("kind") == "request")
+    return "  ".join(_field(name, value, unit_of.get(name, "")) for name, value in fields.items())
+
+
+def _field(name: str, value: Any, unit: str) -> str:
+    return f"{name}={_value(value)}{' ' + unit if unit else ''}"
+
+
+def _value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_value(v) for v in value) + "]"
+    return str(value)
+
+
+def verdict_text(row: dict[str, Any]) -> str:
+    """``9B ok``, or the byte received with what each rule expects."""
+    if "checksum" not in row:
+        return ""
+    rule, other_rule = ChecksumRule(row["rule"]), ChecksumRule(row["rule"]).other
+    got = f"{row['checksum']:02X}"
+    if row["checksum_ok"]:
+        return f"{got} ok"
+    if row["other_ok"]:
+        return f"{got} bad: {rule.value} rule {row['expected']:02X}, {other_rule.value} rule {row['other']:02X} matches"
+    return f"{got} bad: {rule.value} rule {row['expected']:02X}, {other_rule.value} rule {row['other']:02X}"
+
+
+def _short(data: str) -> str:
+    cut = SHOW_BYTES * 3 - 1
+    return data if len(data) <= cut else data[:cut] + " …"
+
+
+@dataclass(frozen=True)
+class Columns:
+    """One row as text cells; the plain and the table renderings share it."""
+
+    offset: str
+    address: str
+    command: str
+    content: str
+    detail: str
+    checksum: str
+    good: bool
+
+
+def columns(row: dict[str, Any]) -> Columns:
+    if is_text(row):  # the whole line, as a terminal shows it: it is what the firmware author reads
+        return Columns(str(row["offset"]), "", "text", printable(row["text"]), "", "", True)
+    address = f"@{row['address']:02X}" if "address" in row else ""
+    good = is_good(row)
+    problem = row.get("problem")
+    if problem is None:
+        name = row["name"] or f"0x{row['command']:02X}"
+        return Columns(
+            str(row["offset"]),
+            address,
+            name,
+            _short(row["payload"]),
+            fields_text(row),
+            verdict_text(row),
+            good,
+        )
+    return Columns(
+        str(row["offset"]), address, problem, _short(row["data"]), problem_text(row), verdict_text(row), good
+    )
+
+
+def problem_text(row: dict[str, Any]) -> str:
+    problem = row["problem"]
+    if problem == "junk":
+        return f"{row['size']} byte{'s' if row['size'] != 1 else ''} skipped, no frame"
+    if problem == "truncated":
+        return f"input ends inside a frame, {row['needed']} byte{'s' if row['needed'] != 1 else ''} short"
+    detail = row["reason"]
+    if "name" in row:
+        detail += f"; read as {row['name'] or hex(row['command'])}: {fields_text(row)}"
+    return detail
+
+
+def plain_line(row: dict[str, Any], offset: bool = True) -> str:
+    """One row for pipes and logs: fixed columns first, free text last."""
+    c = columns(row)
+    checksum_part = f"  checksum {c.checksum}" if c.checksum else ""
+    detail = f"  {c.detail}" if c.detail else ""
+    head = f"{c.offset:>6}  " if offset else ""
+    return f"{head}{c.address:<3}  {c.command:<9}  {c.content}{detail}{checksum_part}"
+
+
+def summary_text(row: dict[str, Any]) -> str:
+    """``@01 compass: heading=333.8 deg; checksum 2D ok``, for one frame beside its hex."""
+    c = columns(row)
+    text = f"{c.address} {c.command}".strip() + (f": {c.detail}" if c.detail else "")
+    return text + (f"; checksum {c.checksum}" if c.checksum else "")
+
+
+def decode_table(rows: list[dict[str, Any]]) -> Table:
+    """The terminal rendering of ``hex decode``: bad rows in red."""
+    from rich import box
+    from rich.table import Table
+    from rich.text import Text
+
+    table = Table(box=box.SIMPLE_HEAD)
+    for title, justify in (("offset", "right"), ("addr", "left"), ("command", "left")):
+        table.add_column(title, justify=justify, no_wrap=True)
+    table.add_column("content", overflow="fold")
+    table.add_column("fields", overflow="fold")
+    table.add_column("checksum", overflow="fold")
+    for row in rows:
+        c = columns(row)
+        style = "cyan" if is_text(row) else None if c.good else "red"
+        # Text, not str: a bumper list "[yes, no, no]" is not rich markup.
+        cells = (c.offset, c.address, c.command, c.content, c.detail, c.checksum)
+        table.add_row(*(Text(cell) for cell in cells), style=style)
+    return table
+
+
+# -- counting -----------------------------------------------------------------
+
+
+@dataclass
+class FrameTally:
+    """What a decode or a monitor saw: the counters printed at the end.
+
+    ``frames`` counts frames whose checksum passed, as ``LinkStats`` does, so
+    a monitor and the shell's toolbar report the same numbers.
+    """
+
+    frames: int = 0
+    bad_frames: int = 0
+    checksum_errors: int = 0
+    malformed: int = 0
+    junk_bytes: int = 0
+    truncated: int = 0
+    text_lines: int = 0
+    #: Frames that failed the configured checksum rule but pass the other one, and that rule.
+    other_rule: int = 0
+    other_rule_name: str = ""
+
+    def add(self, row: dict[str, Any]) -> None:
+        problem = row.get("problem")
+        if is_text(row):
+            self.text_lines += 1
+        elif problem is None:
+            self.frames += row["checksum_ok"]
+            self.checksum_errors += not row["checksum_ok"]
+            self.bad_frames += not is_good(row)
+            if not row["checksum_ok"] and row["other_ok"]:
+                self.other_rule += 1
+                self.other_rule_name = ChecksumRule(row["rule"]).other.value
+        elif problem == "junk":
+            self.junk_bytes += row["size"]
+        elif problem == "malformed":
+            self.malformed += 1
+        else:
+            self.truncated += 1
+
+    @property
+    def all_good(self) -> bool:
+        return not (self.bad_frames or self.malformed or self.junk_bytes or self.truncated)
+
+    def text(self) -> str:
+        parts = [
+            f"{self.frames} frame{'s' if self.frames != 1 else ''}",
+            f"{self.checksum_errors} checksum error{'s' if self.checksum_errors != 1 else ''}",
+            f"{self.junk_bytes} junk byte{'s' if self.junk_bytes != 1 else ''}",
+        ]
+        if self.malformed:
+            parts.append(f"{self.malformed} malformed")
+        if self.truncated:
+            parts.append("truncated tail")
+        if self.text_lines:
+            parts.append(f"{self.text_lines} text line{'s' if self.text_lines != 1 else ''}")
+        return ", ".join(parts)
+
+    def hint(self) -> str | None:
+        """The fix, when frames failed the configured checksum rule but pass the other one."""
+        if not self.other_rule:
+            return None
+        errors = self.checksum_errors
+        what = f"{self.other_rule} of {errors} checksum error{'s' if errors != 1 else ''}"
+        return other_rule_hint(self.other_rule_name, what, one=self.other_rule == 1)

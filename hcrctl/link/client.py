@@ -1,0 +1,399 @@
+"""``Robot``: blocking request/reply over any serial-like object.
+
+A reader thread owns the port's input and runs the shared ``FrameDecoder``.
+A frame that answers the pending request (same address and command) goes to
+the waiting caller; everything else (0xA0 positioning, 0xB0 maps, strays) goes
+to the ``unsolicited`` queue and callback, so a broadcast arriving between a
+request and its reply disturbs nothing.
+
+If the robot was ever told to move, closing it sends stop first: a library
+user who forgets, or whose program crashes inside ``with Robot(...)``, must
+not leave the motors running.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import queue
+import sys
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterable
+from typing import Any
+
+from ..errors import (
+    DeviceRefused,
+    DeviceSilent,
+    DeviceTimeout,
+    HcrError,
+    ImpossibleReply,
+    PortError,
+    ProtocolError,
+)
+from ..protocol import commands as C
+from ..protocol.decoder import FrameDecoder
+from ..protocol.frames import BadChecksum, ChecksumRule, Event, Frame
+from .traffic import FrameHook, LinkStats, Traffic, TrafficHook, Watchers, decode_sent
+
+#: How long the reader blocks in one read; bounds how fast close() returns.
+READ_SLICE = 0.05
+UNSOLICITED_BACKLOG = 1000
+#: Cap on one blocking read: a false header announcing a long frame must not
+#: keep a real reply waiting in the OS buffer for a whole read slice.
+MAX_READ = 16
+#: How many recent requests an echo is compared with (a pipelined sweep's worth).
+ECHO_MEMORY = 16
+#: Stands for "some frame" among the keys of frames that passed only the other checksum rule.
+ON_THE_LINE = (-1, -1)
+
+#: How long a rescue keeps trying the port by default (``--stop-wait``).
+DEFAULT_WAIT_S = 30.0
+
+
+class Robot:
+    """A connection to one HCR controller (and whatever else shares its line)."""
+
+    def __init__(
+        self,
+        port: Any,
+        *,
+        baud: int = 115200,
+        address: int = C.MAIN_CONTROLLER,
+        timeout: float = 0.5,
+        retries: int = 2,
+        rule: ChecksumRule | str = ChecksumRule.HEADER,
+        on_unsolicited: FrameHook | None = None,
+        on_traffic: TrafficHook | None = None,
+    ) -> None:
+        self.address = address
+        self.timeout = timeout
+        self.retries = retries
+        self.on_unsolicited = on_unsolicited
+        #: Everyone watching the link (--log, a monitor, the shell's toolbar).
+        self.watchers = Watchers(on_traffic)
+        self.stats = LinkStats()
+        self.unsolicited: queue.Queue[Frame] = queue.Queue(UNSOLICITED_BACKLOG)
+        self.moved = False
+        #: Bytes of any kind received since the port opened: zero after a timeout
+        #: means a silent line (no power, wrong port), not a lost reply.
+        self.rx_bytes = 0
+        #: When the reader decoded the latest awaited reply (monotonic): a round
+        #: trip measured to here is the link's, not the waiting thread's wake-up.
+        self.last_reply_at: float | None = None
+        self.error: PortError | None = None
+        #: How to reach this device again after the link dropped, and for how
+        #: long to try, so stop can still be delivered (``rescue``); None means
+        #: the same port with the same parameters.
+        self.reopen: Callable[[], Robot] | None = None
+        self.stop_wait = DEFAULT_WAIT_S
+        self._rule = ChecksumRule(rule)
+        self._decoder = FrameDecoder(self._rule)
+        self._io = threading.Lock()  # one transaction at a time
+        self._tx = threading.Lock()  # one write at a time (stop may cut in)
+        self._waiting: set[tuple[int, int]] = set()
+        #: (address, command) of frames that failed the rule but pass the other one, this exchange;
+        #: ON_THE_LINE stands for any of them.
+        self._other_rule_keys: set[tuple[int, int]] = set()
+        self._recent_tx: deque[bytes] = deque(maxlen=ECHO_MEMORY)
+        self._replies: queue.SimpleQueue[Frame] = queue.SimpleQueue()
+        self._closing = threading.Event()
+        self.serial, self.port = self._open(port, baud)
+        self._reader = threading.Thread(target=self._read_loop, name="hcrctl-reader", daemon=True)
+        self._reader.start()
+
+    # -- lifecycle -----------------------------------------------------------
+
+    @staticmethod
+    def _open(port: Any, baud: int) -> tuple[Any, str]:
+        from .transport import describe, open_port
+
+        if isinstance(port, str):
+            return open_port(port, baud, timeout=READ_SLICE), port
+        return port, describe(port)
+
+    def __enter__(self) -> Robot:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Stop the motors if this session moved them, then release the port."""
+        if self._closing.is_set():
+            return
+        with contextlib.suppress(Exception):
+            if self.moved:
+                self.stop()
+        self._closing.set()
+        with contextlib.suppress(Exception):
+            self.serial.cancel_read()
+        self._reader.join(timeout=1.0)
+        with contextlib.suppress(Exception):
+            self.serial.close()
+
+    @property
+    def connected(self) -> bool:
+        return self.error is None and not self._closing.is_set()
+
+    @property
+    def rule(self) -> ChecksumRule:
+        return self._rule
+
+    @rule.setter
+    def rule(self, rule: ChecksumRule | str) -> None:
+        self._rule = ChecksumRule(rule)
+        self._decoder.rule = self._rule
+        self._other_rule_keys.clear()
+
+    # -- sending -------------------------------------------------------------
+
+    def send(self, value: C.Request, *, address: int | None = None) -> C.Reply | None:
+        """Send a request; wait for its reply if the command has one."""
+        cmd = C.command_for(value)
+        frame = C.encode_request(value, self._address(address), self._rule)
+        if cmd.reply is None:
+            self.write(frame)
+            return None
+        reply = self.transact(frame, (self._address(address), cmd.code), cmd.name)
+        return cmd.reply.decode(reply.content)
+
+    def read(self, sensor: str | C.Command, *, address: int | None = None) -> C.Reply:
+        """Read one sensor by table name (``compass``) or table row."""
+        result = self.sweep([sensor], address=address, pipeline=False)
+        return _value(next(iter(result.values())))
+
+    def read_many(self, sensors: Iterable[str | C.Command], *, pipeline: bool = False) -> dict[str, C.Reply]:
+        """Read several sensors; raises the first failure."""
+        return {name: _value(result) for name, result in self.sweep(sensors, pipeline=pipeline).items()}
+
+    def sweep(
+        self, sensors: Iterable[str | C.Command], *, address: int | None = None, pipeline: bool = False
+    ) -> dict[str, C.Reply | HcrError]:
+        """Read each sensor once; a failure comes back as its value, not raised.
+
+        Pipelined, every request goes out at once and replies are matched by
+        (address, command) as they come: the line is full duplex, so replies
+        stream back while later requests are still arriving. That is what lets
+        a live panel approach the speed of the wire. The default is one request
+        at a time: the document says nothing of how much a device buffers, so
+        only a caller that measures the link (watch) should opt in.
+        """
+        addr = self._address(address)
+        cmds = [self._sensor(s) for s in dict.fromkeys(sensors)]
+        batch = {(addr, cmd.code): (C.encode_request(cmd, addr, self._rule), cmd.name) for cmd in cmds}
+        silent: DeviceSilent | None = None
+        if pipeline:
+            frames = self._exchange(batch)
+        else:
+            frames = {}
+            for key, item in batch.items():
+                frames.update(self._exchange({key: item}))
+                if key not in frames and self.rx_bytes == 0 and len(cmds) > 1:
+                    silent = self._silent(cmds, addr)
+                    break
+        return {cmd.name: self._result(cmd, addr, frames.get((addr, cmd.code)), silent) for cmd in cmds}
+
+    def _silent(self, cmds: list[C.Command], addr: int) -> DeviceSilent:
+        """Nothing at all has come back: asking the other sensors would only wait longer."""
+        first, *rest = cmds
+        attempts = 1 + max(self.retries, 0)
+        return DeviceSilent(first.name, addr, self.port, self.timeout, attempts, [c.name for c in rest])
+
+    def _result(
+        self, cmd: C.Command, addr: int, frame: Frame | None, silent: DeviceSilent | None = None
+    ) -> C.Reply | HcrError:
+        if frame is None:
+            if silent is not None:
+                return silent
+            return self._no_reply(cmd.name, (addr, cmd.code))
+        try:
+            return cmd.reply.decode(frame.content)
+        except ImpossibleReply as exc:
+            return exc.at(f"from 0x{addr:02X} on {self.port}")
+        except ProtocolError as exc:
+            return ProtocolError(f"{exc.message} from 0x{addr:02X} on {self.port}")
+
+    @staticmethod
+    def _sensor(sensor: str | C.Command) -> C.Command:
+        cmd = C.BY_NAME[sensor] if isinstance(sensor, str) else sensor
+        if cmd.kind != "read":
+            raise ValueError(f"{cmd.name} is not a sensor")
+        return cmd
+
+    def stop(self) -> None:
+        """Motor power 0x80 0x80. Sent even when already stopped: cheap, and safe."""
+        self.write(C.encode_request(C.STOP, self.address, self._rule))
+
+    def set_pid(self, p: int, i: int, d: int) -> None:
+        """Set the gains; raises DeviceRefused when the device answers 0x00."""
+        ack = self.send(C.Pid(p, i, d))
+        if not ack.ok:
+            raise DeviceRefused(f"the device at 0x{self.address:02X} on {self.port} refused PID {p} {i} {d}")
+
+    def write(self, frame: bytes) -> None:
+        """Put bytes on the wire as given, telling the traffic hook."""
+        frame = bytes(frame)
+        with self._tx:
+            self._check_link()
+            if len(frame) > 4 and C.is_motion(frame[4]):
+                self.moved = True
+            self._recent_tx.append(frame)
+            # Told before the bytes leave, so the hook never sees the reply first.
+            if self.watchers.hooks:
+                self.watchers.tell(Traffic(time.time(), "tx", frame, decode_sent(frame, self._rule)))
+            try:
+                self.serial.write(frame)
+            except Exception as exc:
+                raise self._lost(exc) from exc
+            self.stats.tx_frames += 1
+
+    def transact(self, frame: bytes, expect: tuple[int, int], what: str = "request") -> Frame:
+        """Write ``frame`` and return the frame answering it, retrying on timeout."""
+        reply = self._exchange({expect: (frame, what)}).get(expect)
+        if reply is None:
+            raise self._no_reply(what, expect)
+        return reply
+
+    def _no_reply(self, what: str, key: tuple[int, int]) -> DeviceTimeout:
+        """The timeout error; when the reply came but failed the rule and passes the other, it says so."""
+        attempts = 1 + max(self.retries, 0)
+        seen = self._other_rule_keys
+        if key not in seen and ON_THE_LINE not in seen:
+            return DeviceTimeout(what, key[0], self.port, self.timeout, attempts)
+        return DeviceTimeout(
+            what,
+            key[0],
+            self.port,
+            self.timeout,
+            attempts,
+            other_rule=self._rule.other.value,
+            seen="replies" if key in seen else "frames on the line",
+        )
+
+    def _exchange(self, batch: dict[tuple[int, int], tuple[bytes, str]]) -> dict[tuple[int, int], Frame]:
+        """Send every frame of ``batch``; collect replies by key, retrying the missing."""
+        got: dict[tuple[int, int], Frame] = {}
+        with self._io:
+            self._other_rule_keys.difference_update((*batch, ON_THE_LINE))  # only this exchange counts
+            for attempt in range(1 + max(self.retries, 0)):
+                missing = {key: frame for key, (frame, _) in batch.items() if key not in got}
+                if not missing:
+                    break
+                if attempt:
+                    self.stats.retries += len(missing)
+                got.update(self._attempt(missing))
+            self.stats.timeouts += len(batch) - len(got)
+        return got
+
+    def _attempt(self, frames: dict[tuple[int, int], bytes]) -> dict[tuple[int, int], Frame]:
+        """One try: replies until all are in or none came for ``timeout``."""
+        while not self._replies.empty():  # a late reply to an earlier attempt
+            self._replies.get_nowait()
+        got: dict[tuple[int, int], Frame] = {}
+        self._waiting = set(frames)
+        try:
+            for frame in frames.values():
+                self.write(frame)
+            while len(got) < len(frames):
+                reply = self._replies.get(timeout=self.timeout)
+                got[(reply.address, reply.command)] = reply
+        except queue.Empty:
+            self._check_link()
+        finally:
+            self._waiting = set()
+        return got
+
+    def _address(self, address: int | None) -> int:
+        return self.address if address is None else address
+
+    # -- receiving -----------------------------------------------------------
+
+    def _read_loop(self) -> None:
+        ser = self.serial
+        while not self._closing.is_set():
+            try:
+                data = ser.read(max(ser.in_waiting, min(self._decoder.wanted, MAX_READ)))
+            except Exception as exc:
+                if not self._closing.is_set():
+                    self._lost(exc)
+                return
+            if data:
+                self.rx_bytes += len(data)
+                self._dispatch(self._decoder.feed(data))
+            elif self._decoder.holding:  # a quiet gap: show what the device printed without a frame after it
+                self._dispatch(self._decoder.idle())
+        # Closing: skipped bytes and text held back, to the hooks still listening. Not flush():
+        # a frame still in progress may be whole in the OS buffer, so it is no truncated frame.
+        self._dispatch(self._decoder.idle())
+
+    def _dispatch(self, events: list[Event]) -> None:
+        now = time.time()
+        for event in events:
+            self.stats.count(event)
+            if isinstance(event, Frame):
+                self._route(event)
+            elif isinstance(event, BadChecksum) and event.matches_other_rule:
+                self._other_rule_keys.update(((event.address, event.command), ON_THE_LINE))
+            if self.watchers.hooks:
+                data = event.to_bytes() if isinstance(event, Frame) else event.data
+                self.watchers.tell(Traffic(now, "rx", data, event))
+
+    def _route(self, frame: Frame) -> None:
+        if self._is_echo(frame):
+            self.stats.echoes += 1
+            return
+        key = (frame.address, frame.command)
+        if key in self._waiting:
+            self._waiting.discard(key)
+            self.last_reply_at = time.monotonic()
+            self._replies.put(frame)
+            return
+        self.stats.unsolicited += 1
+        with contextlib.suppress(queue.Full):
+            self.unsolicited.put_nowait(frame)
+        callback = self.on_unsolicited
+        if callback is not None:
+            try:
+                callback(frame)
+            except Exception as exc:  # like a traffic hook: never kill the reader
+                self.on_unsolicited = None
+                sys.stderr.write(
+                    f"hcrctl: warning: on_unsolicited {callback!r} failed and was removed ({exc})\n"
+                )
+
+    def _is_echo(self, frame: Frame) -> bool:
+        """A half-duplex adapter (or loop://) hands our own requests back.
+
+        No reply is ever byte-for-byte a request, so such copies are dropped.
+        """
+        return bool(self._recent_tx) and frame.to_bytes() in self._recent_tx
+
+    def add_traffic_hook(self, hook: TrafficHook) -> None:
+        """Also call ``hook`` with every frame sent and every event received."""
+        self.watchers.add(hook)
+
+    @property
+    def traffic_hooks(self) -> tuple[TrafficHook, ...]:
+        """Everyone watching the link, so a re-opened robot can be watched the same way."""
+        return self.watchers.hooks
+
+    def remove_traffic_hook(self, hook: TrafficHook) -> None:
+        self.watchers.remove(hook)
+
+    def _lost(self, exc: Exception) -> PortError:
+        """Record a dead link; pyserial's own wording is long, so keep its gist."""
+        text = str(exc)
+        reason = "the device went away" if "returned no data" in text or "Input/output" in text else text
+        self.error = PortError(f"lost the link ({reason})", self.port, hint="is the device still connected?")
+        return self.error
+
+    def _check_link(self) -> None:
+        if self.error is not None:
+            raise self.error
+
+
+def _value(result: C.Reply | HcrError) -> C.Reply:
+    if isinstance(result, HcrError):
+        raise result
+    return result

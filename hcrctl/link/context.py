@@ -1,0 +1,134 @@
+"""The connection context: which port and how to talk on it, and how to get a robot there.
+
+Every command that talks to the robot asks ``Connection.robot()`` for one
+instead of opening a port itself. The CLI fills a Connection from its global
+options; the shell keeps one open robot across its commands by setting
+``shared_robot``, which ``robot()`` then lends instead of opening a port. No
+Click here: the live panels and the shell use this without the CLI.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import sys
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from ..errors import PortError
+from ..protocol.frames import ChecksumRule
+from .client import DEFAULT_WAIT_S
+
+if TYPE_CHECKING:
+    from .client import Robot
+
+
+@dataclass
+class Connection:
+    """The port and link parameters, plus the robot a shell session shares."""
+
+    port: str | None = None
+    baud: int = 115200
+    address: int = 0x01
+    timeout: float = 0.5
+    retries: int = 2
+    stop_wait: float = DEFAULT_WAIT_S
+    checksum: ChecksumRule = ChecksumRule.HEADER
+    log: str | None = None
+    #: The shell's open robot: lent to every command of the session, never closed by one.
+    shared_robot: Robot | None = None
+    #: Called with every robot ``connect()`` opens (the shell wires its broadcasts and state).
+    robot_hooks: list[Callable[[Robot], None]] = field(default_factory=list)
+
+    @contextlib.contextmanager
+    def robot(self) -> Iterator[Robot]:
+        """The shared robot, or a fresh one closed (with stop) on exit."""
+        if self.shared_robot is not None:
+            self._lifeline(self.shared_robot)
+            yield self.shared_robot
+            return
+        robot = self.connect()
+        self._lifeline(robot)
+        try:
+            yield robot
+        finally:
+            robot.close()
+
+    def _lifeline(self, robot: Robot) -> None:
+        """How a command's stop reaches this robot again if its link drops (see ``rescue``)."""
+        if getattr(robot, "connected", False):
+            robot.reopen, robot.stop_wait = Reconnect(self, robot), self.stop_wait
+
+    def connect(self) -> Robot:
+        """A new robot on the resolved port, with the traffic log and hooks attached."""
+        from .client import Robot
+
+        robot = Robot(
+            self.resolve_port(),
+            baud=self.baud,
+            address=self.address,
+            timeout=self.timeout,
+            retries=self.retries,
+            rule=self.checksum,
+        )
+        if self.log:
+            from .trafficlog import attach
+
+            attach(robot, self.log)
+        for hook in self.robot_hooks:
+            hook(robot)
+        return robot
+
+    def resolve_port(self) -> str:
+        """The given port, or the one USB serial port present (said on stderr).
+
+        Without either it is a PortError (exit 1), not a usage error: the same
+        command works once the robot is plugged in.
+        """
+        if self.port:
+            return self.port
+        from .transport import ports_hint
+
+        usb = _usb_ports()
+        if len(usb) == 1:
+            print(f"hcrctl: using {usb[0]}, the only USB serial port", file=sys.stderr, flush=True)
+            return usb[0]
+        what = (
+            "no --port given and no USB serial port found"
+            if not usb
+            else "no --port given and several USB serial ports"
+        )
+        raise PortError(what, "", hint=f"give --port PORT; {ports_hint()}")
+
+
+def _usb_ports() -> list[str]:
+    from serial.tools import list_ports
+
+    return sorted(p.device for p in list_ports.comports() if p.vid is not None)
+
+
+class Reconnect:
+    """How to get a robot on the same port back after the port disappeared.
+
+    From the command line: reopen the same port (no second auto-detection),
+    with the same settings, log and hooks. Inside the shell, whose own
+    watchdog reconnects the session, opening a second robot would fight it
+    for the port; so wait for the session's robot to be connected again and
+    borrow it (``owned`` false: never closed here).
+    """
+
+    def __init__(self, settings: Connection, robot: Robot) -> None:
+        self.owned = settings.shared_robot is not robot
+        self.port = robot.port
+        self._settings = (
+            dataclasses.replace(settings, port=robot.port, shared_robot=None) if self.owned else settings
+        )
+
+    def __call__(self) -> Robot:
+        if self.owned:
+            return self._settings.connect()
+        session: Any = self._settings.shared_robot
+        if not getattr(session, "connected", False):
+            raise PortError("not connected", self.port, hint="the shell is reconnecting")
+        return session

@@ -1,0 +1,255 @@
+"""Stop the robot however a motion ends, even when the link dropped while it moved.
+
+Every command that sends motion (drive, turn, teleop, replay, hex send) runs
+it inside ``stopping()``, which sends stop when the block ends. When that stop
+cannot go out because the link is gone (a USB adapter unplugged, a socket
+closed), the robot keeps running at its last speed: the controller has no
+watchdog. So ``rescue()`` takes over, the one place that knows how:
+
+1. it says at once, on stderr, that the robot was moving and stop could NOT
+   be delivered, before any waiting;
+2. it keeps re-opening the same port (``Robot.reopen``: the same path, which a
+   /dev/serial/by-id link or a recreated node may now resolve to a new device;
+   socket:// and rfc2217:// simply reconnect) for ``Robot.stop_wait`` seconds;
+3. it sends stop the moment the port opens;
+4. it hands back the one error to exit with, carrying the outcome: "stop
+   delivered after 2.4 s" or "stop NOT delivered: the robot may still be moving".
+
+Ctrl-C (or SIGTERM/SIGHUP) during the wait gives up at once with the NOT
+delivered outcome, and the exit status of that signal (130, 143, 129).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterable, Iterator
+from typing import TYPE_CHECKING
+
+from ..errors import HcrError, LinkLostWhileMoving, PortError
+from ..protocol import commands as C
+from .signals import Terminated
+
+if TYPE_CHECKING:
+    from .client import Robot
+
+#: Between two attempts to re-open the port: short, since every moment counts
+#: once the device is back, and a missing path is checked without opening it.
+RETRY_S = 0.02
+
+#: Signals that would cut a stop frame short; held while it is written.
+_DEFERRED = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
+
+StopFrames = Callable[[], Iterable[bytes]]
+
+
+def stop_frame(robot: Robot, address: int | None = None) -> bytes:
+    """Motor power 0x80 0x80 to ``address`` (default the robot's), under its checksum rule."""
+    return C.encode_request(C.STOP, robot.address if address is None else address, robot.rule)
+
+
+@contextlib.contextmanager
+def stopping(robot: Robot, frames: StopFrames | None = None) -> Iterator[None]:
+    """Send stop when the block ends, however it ends; rescue it if the link is gone.
+
+    ``frames`` gives the stop frames to send (default: stop to the robot's
+    address); it is called at the end, so a replay can stop every address it
+    moved. When the block raised and stop went out (or nothing had moved),
+    the block's error is the news; when stop could not be delivered because
+    the link dropped, the rescue's outcome is.
+    """
+    frames = frames or (lambda: [stop_frame(robot)])
+    try:
+        yield
+    except BaseException as exc:
+        lost = _stop(robot, frames, quiet=True)
+        if lost is not None:
+            raise lost from exc
+        raise
+    lost = _stop(robot, frames, quiet=False)
+    if lost is not None:
+        raise lost
+
+
+def _stop(robot: Robot, frames: StopFrames, *, quiet: bool) -> HcrError | None:
+    """Send the stop frames; the rescue's outcome if the link was lost while moving."""
+    moved = robot.moved
+    try:
+        write_stops(robot, frames())
+    except Exception:
+        if moved and robot.error is not None:
+            return rescue(robot, frames)
+        if quiet:
+            return None
+        raise
+    return None
+
+
+def write_stops(robot: Robot, frames: Iterable[bytes]) -> None:
+    """Write each stop frame with signals held; the robot is then at rest."""
+    with signals_deferred():
+        for frame in frames:
+            robot.write(frame)
+        robot.moved = False
+
+
+def rescue(robot: Robot, frames: StopFrames) -> LinkLostWhileMoving:
+    """Warn, wait for the port to come back, send stop; the error carrying the outcome."""
+    cause = robot.error or PortError("lost the link", robot.port)
+    reopen = robot.reopen or _same_port(robot)
+    wait = robot.stop_wait
+    started = time.monotonic()
+    try:  # a signal from here on is giving up, even one that lands before the warning is out
+        warn(
+            f"lost the link on {robot.port} while the robot was moving: stop could NOT be delivered; "
+            f"re-opening {robot.port} for up to {wait:g} s to send it (Ctrl-C gives up)"
+        )
+        if getattr(reopen, "owned", True):
+            robot.close()  # release the dead port (nothing can be sent on it) before re-opening
+        took = _wait_and_stop(robot.port, reopen, list(frames()), started + wait)
+    except KeyboardInterrupt:
+        return _not_delivered(cause, "gave up on Ctrl-C", 130)
+    except Terminated as exc:
+        return _not_delivered(cause, f"gave up on {signal.Signals(exc.signum).name}", exc.exit_code)
+    if took is None:
+        return _not_delivered(cause, f"{robot.port} did not come back within {wait:g} s", 1)
+    robot.moved = False
+    return LinkLostWhileMoving(
+        cause,
+        f"stop delivered after {took - started:.1f} s",
+        delivered=True,
+        hint="the robot is stopped; check the cable and the adapter",
+    )
+
+
+def _not_delivered(cause: HcrError, why: str, exit_code: int) -> LinkLostWhileMoving:
+    error = LinkLostWhileMoving(
+        cause,
+        "stop NOT delivered: the robot may still be moving",
+        delivered=False,
+        hint=f"{why}; stop it by hand (power switch), then check the cable",
+    )
+    error.exit_code = exit_code
+    return error
+
+
+def _wait_and_stop(
+    port: str, reopen: Callable[[], Robot], frames: list[bytes], deadline: float
+) -> float | None:
+    """Re-open until ``deadline``; send ``frames`` on the first success; when (monotonic), or None."""
+    while True:
+        if _may_be_back(port):
+            with contextlib.suppress(HcrError):
+                return _send_on(reopen, frames)
+        if time.monotonic() >= deadline:
+            return None
+        time.sleep(RETRY_S)
+
+
+def _may_be_back(port: str) -> bool:
+    """A device path is worth opening only once it exists (the missing case stays cheap)."""
+    return "://" in port or os.path.exists(port)
+
+
+def _send_on(reopen: Callable[[], Robot], frames: list[bytes]) -> float:
+    """Open, write the stops, drain them to the line; when they were written."""
+    robot = reopen()
+    try:
+        write_stops(robot, frames)
+        at = time.monotonic()
+        with contextlib.suppress(Exception):
+            robot.serial.flush()
+        return at
+    finally:
+        if getattr(reopen, "owned", True):
+            robot.close()
+
+
+def _same_port(robot: Robot) -> Callable[[], Robot]:
+    """For a Robot opened without a Connection: the same port with the same parameters and hooks."""
+    from .client import Robot as RobotClass
+
+    baud = getattr(robot.serial, "baudrate", 115200)
+
+    def reopen() -> Robot:
+        again = RobotClass(
+            robot.port,
+            baud=baud,
+            address=robot.address,
+            timeout=robot.timeout,
+            retries=robot.retries,
+            rule=robot.rule,
+        )
+        for hook in robot.traffic_hooks:
+            again.add_traffic_hook(hook)
+        return again
+
+    return reopen
+
+
+def warn(message: str) -> None:
+    """A line on stderr now, whatever else is buffered."""
+    sys.stderr.write(f"hcrctl: warning: {message}\n")
+    sys.stderr.flush()
+
+
+@contextlib.contextmanager
+def signals_deferred() -> Iterator[None]:
+    """Block Ctrl-C, SIGTERM and SIGHUP for the block; they are delivered after it."""
+    main = threading.current_thread() is threading.main_thread()
+    if not main or not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, _DEFERRED)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+class OwedStop:
+    """watch's stop key, pressed while the link was down: delivered the moment it is back.
+
+    The dashboard keeps running (its poller re-opens the port by itself), so
+    the stop is retried as its loop turns; if watch ends with the stop still
+    owed, ``finish`` hands over to ``rescue``, as any other command would.
+    """
+
+    def __init__(self) -> None:
+        self.since: float | None = None
+
+    def ask(self, robot: Robot | None) -> str:
+        """The key was pressed: send stop now, or owe it; what to show in the footer."""
+        if _send_stop(robot):
+            self.since = None
+            return f"stop sent at {time.strftime('%H:%M:%S')}"
+        if self.since is None:
+            self.since = time.monotonic()
+        return "stop NOT delivered: the link is down; it is sent the moment the port is back"
+
+    def deliver(self, robot: Robot | None) -> str | None:
+        """Send an owed stop once ``robot`` is connected; a note when it went out."""
+        if self.since is None or not _send_stop(robot):
+            return None
+        took, self.since = time.monotonic() - self.since, None
+        return f"stop delivered after {took:.1f} s, at {time.strftime('%H:%M:%S')}"
+
+    def finish(self, current: Robot | None, first: Robot) -> None:
+        """At the end: deliver what is owed, or raise ``rescue``'s outcome."""
+        if self.since is not None and self.deliver(current) is None:
+            raise rescue(first, lambda: [stop_frame(first)])
+
+
+def _send_stop(robot: Robot | None) -> bool:
+    """Stop on a connected robot; whether it went out."""
+    if robot is None or not robot.connected:
+        return False
+    try:
+        write_stops(robot, [stop_frame(robot)])
+    except HcrError:
+        return False
+    return True

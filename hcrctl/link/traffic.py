@@ -1,0 +1,103 @@
+"""What the link carried, for whoever watches it: traffic records, counters, hooks.
+
+A ``Robot`` reports every frame it sends and every decoder event it receives
+as a ``Traffic`` record to its watchers (``--log``, a monitor, the shell's
+toolbar) and counts them in ``LinkStats``. ``Watchers`` keeps that list safe
+for the reader thread: a watcher that raises is dropped with a warning, never
+allowed to kill the reader.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from ..protocol.decoder import FrameDecoder
+from ..protocol.frames import BadChecksum, ChecksumRule, Event, Frame, Junk, Malformed, TextLine, Truncated
+
+
+@dataclass(frozen=True)
+class Traffic:
+    """One frame or diagnostic on the link, as the traffic hook sees it."""
+
+    time: float  # wall clock, time.time()
+    direction: str  # "tx" or "rx"
+    data: bytes
+    event: Event | None = None
+
+
+@dataclass
+class LinkStats:
+    """Counters a monitor, the shell's toolbar and ``ping`` report."""
+
+    tx_frames: int = 0
+    rx_frames: int = 0
+    checksum_errors: int = 0
+    malformed: int = 0
+    junk_bytes: int = 0
+    timeouts: int = 0
+    retries: int = 0
+    unsolicited: int = 0
+    echoes: int = 0
+    #: Checksum errors that pass the other rule: the fix is --checksum-from, not the wiring.
+    other_rule: int = 0
+    #: Lines the firmware printed between frames (not junk).
+    text_lines: int = 0
+    last_rx: float | None = None
+
+    def count(self, event: Event) -> None:
+        if isinstance(event, Frame):
+            self.rx_frames += 1
+            self.last_rx = time.monotonic()
+        elif isinstance(event, BadChecksum):
+            self.checksum_errors += 1
+            self.other_rule += event.matches_other_rule
+        elif isinstance(event, TextLine):
+            self.text_lines += 1
+        elif isinstance(event, Malformed):
+            self.malformed += 1
+        elif isinstance(event, Junk):
+            self.junk_bytes += event.size
+        elif isinstance(event, Truncated):
+            self.junk_bytes += len(event.data)
+
+
+TrafficHook = Callable[[Traffic], None]
+
+
+FrameHook = Callable[[Frame], None]
+
+
+def decode_sent(frame: bytes, rule: ChecksumRule) -> Event | None:
+    """What we sent, as the decoder reads it, for the traffic hook and the log."""
+    decoder = FrameDecoder(rule)
+    events = decoder.feed(frame) + decoder.flush()
+    return events[0] if events else None
+
+
+class Watchers:
+    """The traffic hooks of one robot: a tuple replaced whole, so the reader iterates a stable snapshot."""
+
+    def __init__(self, first: TrafficHook | None = None) -> None:
+        self.hooks: tuple[TrafficHook, ...] = (first,) if first else ()
+        self._lock = threading.Lock()
+
+    def add(self, hook: TrafficHook) -> None:
+        with self._lock:
+            self.hooks = (*self.hooks, hook)
+
+    def remove(self, hook: TrafficHook) -> None:
+        with self._lock:
+            self.hooks = tuple(h for h in self.hooks if h != hook)
+
+    def tell(self, traffic: Traffic) -> None:
+        """Every hook; one that raises is dropped with a warning rather than kill the reader."""
+        for hook in self.hooks:
+            try:
+                hook(traffic)
+            except Exception as exc:
+                self.remove(hook)
+                sys.stderr.write(f"hcrctl: warning: traffic hook {hook!r} failed and was removed ({exc})\n")

@@ -1,0 +1,234 @@
+"""The polling thread behind ``watch`` and ``teleop``.
+
+It sweeps the chosen sensors through ``Robot.sweep`` at a fixed rate (or as
+fast as the link answers), records each reply or failure in a ``LiveState``,
+and moves unsolicited frames (0xA0, 0xB0) into it while it waits. It never
+draws and never reads keys, so a slow terminal cannot slow the polling and a
+silent device cannot freeze the screen.
+
+Within a watch a retry is pointless (the next sweep is one), so the poller
+sets the robot's retries to 0 while it polls and restores them afterwards: a
+silent device then costs one timeout per sensor, not three.
+
+When the port disappears, a poller given ``reconnect`` keeps calling it once a
+second and carries on with the robot it returns (closing it at the end unless
+``reconnect.owned`` is false, as for the shell's session robot); without it,
+the poller stops and leaves the error in ``lost`` for its owner to raise.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import queue
+import threading
+import time
+from collections.abc import Callable
+
+from ..errors import DeviceTimeout, HcrError, ImpossibleReply, PortError
+from ..link.client import Robot
+from ..protocol import commands as C
+from .state import LiveState
+
+#: Seconds between attempts to reopen a port that disappeared.
+RETRY_EVERY = 1.0
+#: Longest single wait, so stop() and pause are noticed promptly.
+SLICE = 0.05
+
+
+class Poller(threading.Thread):
+    """Sweeps ``sensors`` at ``rate`` Hz (None: as fast as replies come)."""
+
+    def __init__(
+        self,
+        robot: Robot,
+        state: LiveState,
+        sensors: list[str] | tuple[str, ...],
+        rate: float | None,
+        *,
+        reconnect: Callable[[], Robot] | None = None,
+        retry_every: float = RETRY_EVERY,
+        pipeline: bool = True,
+    ) -> None:
+        super().__init__(name="hcrctl-poller", daemon=True)
+        self.robot: Robot | None = robot
+        self.state = state
+        self.sensors = tuple(sensors)
+        self.period = 1.0 / rate if rate else 0.0
+        self.reconnect = reconnect
+        self.retry_every = retry_every
+        self.pipeline = pipeline
+        self.lost: PortError | None = None
+        self.crash: BaseException | None = None
+        self.paused = threading.Event()
+        self._stopping = threading.Event()
+        self._first = robot
+        self._retries: list[tuple[Robot, int]] = []
+        self._seen = _error_counts(robot)
+        self._quiet(robot)
+        state.connected(robot.port)
+
+    # -- control, from the drawing thread -------------------------------------
+
+    def stop(self, wait: float | None = None) -> None:
+        """Ask the thread to end; wait up to ``wait`` s (a read may be in flight)."""
+        self._stopping.set()
+        if self.is_alive():
+            self.join(wait if wait is not None else self._join_time())
+        for robot, retries in self._retries:
+            robot.retries = retries
+
+    def toggle_pause(self) -> bool:
+        if self.paused.is_set():
+            self.paused.clear()
+            self.state.set_status("connecting")
+        else:
+            self.paused.set()
+            self.state.set_status("paused")
+        return self.paused.is_set()
+
+    @property
+    def stopping(self) -> bool:
+        return self._stopping.is_set()
+
+    # -- the thread -------------------------------------------------------------
+
+    def run(self) -> None:
+        try:
+            self._loop()
+        except BaseException as exc:  # handed to the drawing thread, which raises it
+            self.crash = exc
+        finally:
+            self._close_own()
+
+    def _loop(self) -> None:
+        next_at = time.monotonic()
+        while not self._stopping.is_set():
+            robot = self.robot
+            if robot is None:
+                if not self._reopen():
+                    return
+                next_at = time.monotonic()
+                continue
+            try:
+                if self.paused.is_set():
+                    self._drain(robot, time.monotonic() + SLICE)
+                    continue
+                self.sweep(robot)
+                next_at = max(next_at + self.period, time.monotonic()) if self.period else time.monotonic()
+                self._drain(robot, next_at)
+            except PortError as exc:
+                self._on_lost(robot, exc)
+
+    def sweep(self, robot: Robot) -> None:
+        """Read every sensor once, pipelined unless the firmware needs one at a time."""
+        if self._stopping.is_set() or self.paused.is_set():
+            return
+        started = self.state.clock()
+        t0 = time.monotonic()
+        results = robot.sweep(self.sensors, pipeline=self.pipeline)
+        rtt = _reply_time(robot, t0, results)
+        for name, result in results.items():
+            self._record(name, result, rtt)
+        self._count_errors(robot)
+        self.state.sweep_done(started)
+
+    def _record(self, name: str, result: C.Reply | HcrError, rtt: float | None) -> None:
+        """One sensor's outcome; ``rtt`` is the sweep's time per reading."""
+        if isinstance(result, DeviceTimeout):
+            self.state.fail(name, "no reply")
+        elif isinstance(result, PortError):
+            raise result
+        elif isinstance(result, ImpossibleReply):
+            self.state.fail(name, result.short, timeout=False, impossible=True)
+        elif isinstance(result, HcrError):
+            self.state.fail(name, result.message, timeout=False)
+        else:
+            self.state.record(name, result, rtt)
+
+    def _drain(self, robot: Robot, until: float) -> None:
+        """Move unsolicited frames into the state until ``until`` (monotonic)."""
+        state, unsolicited = self.state, robot.unsolicited
+        while True:
+            with contextlib.suppress(queue.Empty):
+                while True:
+                    state.broadcast(unsolicited.get_nowait())
+            remaining = until - time.monotonic()
+            if remaining <= 0 or self._stopping.is_set():
+                break
+            with contextlib.suppress(queue.Empty):
+                state.broadcast(unsolicited.get(timeout=min(remaining, SLICE)))
+        if robot.error is not None:
+            raise robot.error
+        self._count_errors(robot)
+
+    def _count_errors(self, robot: Robot) -> None:
+        now = _error_counts(robot)
+        if now != self._seen:
+            checksum, malformed, junk, other = (max(0, a - b) for a, b in zip(now, self._seen, strict=True))
+            self._seen = now
+            self.state.link_errors(checksum, malformed, junk, other, robot.rule.other.value)
+
+    # -- losing and finding the port -------------------------------------------
+
+    def _on_lost(self, robot: Robot, exc: PortError) -> None:
+        self.robot = None
+        if self._owns(robot):
+            robot.close()
+        if self.reconnect is None:
+            self.lost = exc
+            self.state.disconnected(exc.one_line())
+            self._stopping.set()
+            return
+        self.state.disconnected(exc.one_line())
+
+    def _reopen(self) -> bool:
+        """Try the port once a second until it opens or we are stopped."""
+        attempt = 0
+        while not self._stopping.wait(self.retry_every if attempt else 0):
+            attempt += 1
+            try:
+                robot = self.reconnect()
+            except HcrError as exc:
+                self.state.set_status("disconnected", f"attempt {attempt}: {exc.one_line()}")
+                continue
+            self._quiet(robot)
+            self.robot, self._seen = robot, _error_counts(robot)
+            self.state.connected(robot.port, again=True)
+            return True
+        return False
+
+    def _close_own(self) -> None:
+        robot = self.robot
+        if robot is not None and self._owns(robot):
+            robot.close()
+
+    def _owns(self, robot: Robot) -> bool:
+        """Robots this poller opened itself; not the one it was given, nor a shell's."""
+        return robot is not self._first and getattr(self.reconnect, "owned", True)
+
+    def _quiet(self, robot: Robot) -> None:
+        """No retries while polling (remembered, and restored by stop())."""
+        self._retries.append((robot, robot.retries))
+        robot.retries = 0
+
+    def _join_time(self) -> float:
+        robot = self.robot or self._first
+        return robot.timeout * (1 + robot.retries) + 1.0
+
+
+def _reply_time(robot: Robot, t0: float, results: dict[str, C.Reply | HcrError]) -> float | None:
+    """Seconds per answered reading, up to the last reply the reader decoded.
+
+    Timing the whole sweep would count the wait for a reply that never came
+    (a dropped frame) as round-trip time.
+    """
+    answered = sum(not isinstance(r, (DeviceTimeout, PortError)) for r in results.values())
+    end = robot.last_reply_at
+    if not answered or end is None or end < t0:
+        return None
+    return (end - t0) / answered
+
+
+def _error_counts(robot: Robot) -> tuple[int, int, int, int]:
+    stats = robot.stats
+    return stats.checksum_errors, stats.malformed, stats.junk_bytes, stats.other_rule

@@ -1,0 +1,183 @@
+"""``watch``: the full-screen sensor dashboard, and the pieces teleop shares.
+
+Three threads that never wait for each other: the ``Poller`` talks to the
+robot at ``--rate``, a ``Painter`` draws, and this module's loop reads keys
+and acts on them (space sends stop). The painter redraws only when the
+state's version moved (at most ``FPS`` times a second, and no faster than
+the poll rate unless that is below ``MIN_FPS``) and otherwise once a
+``TICK`` so ages and rates stay true; when the terminal stops reading, only
+the painter waits. ``run_watch`` is what both ``hcrctl watch`` and the shell
+call: it returns when ``q`` is pressed (or ``duration`` ends) with the
+terminal as it found it.
+
+Where the cursor cannot move (output to a file or pipe, ``TERM=dumb``) the
+dashboard becomes one plain line a second, and the last full dashboard is
+printed at the end.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import sys
+import time
+from collections.abc import Callable, Iterator
+from typing import TYPE_CHECKING, Any
+
+from ..link.context import Reconnect
+from ..link.rescue import OwedStop
+from ..protocol import commands as C
+from .keys import KeyReader
+from .painter import FPS, TICK, Painter, Redrawer, can_redraw, full_screen, live_screen, plain_lines
+from .poller import Poller
+from .state import LiveState
+
+if TYPE_CHECKING:
+    from rich.console import Console, RenderableType
+
+    from ..link.context import Connection
+
+__all__ = ["FPS", "MIN_FPS", "TICK", "Redrawer", "live_screen", "run_watch"]
+
+#: Drawing faster than the values change buys nothing: a 10 Hz poll gets 10 frames a second.
+MIN_FPS = 10
+#: How often the key loop looks at the deadline and the poller when no key comes.
+STEP = 0.05
+#: One plain line a second where the screen cannot be redrawn.
+LINE_PERIOD = 1.0
+#: The GIL switch interval while polling (Python's default is 5 ms).
+SWITCH_INTERVAL = 0.0005
+QUIT_KEYS = frozenset({"q", "Q", "ctrl-d", "ctrl-c"})
+
+
+def run_watch(
+    settings: Connection,
+    sensors: list[str] | tuple[str, ...] = (),
+    rate: float | None = 10.0,
+    duration: float | None = None,
+    *,
+    console: Console | None = None,
+    pipeline: bool = True,
+    report: Callable[[dict[str, Any]], None] | None = None,
+    as_json: bool = False,
+) -> dict[str, Any]:
+    """Show the dashboard until ``q`` or ``duration``; returns the run's summary.
+
+    ``report`` is given the summary however the watch ends (q, ``duration``,
+    Ctrl-C, SIGTERM, a lost link), so ``--json`` never loses it. With
+    ``as_json`` nothing is drawn (and rich is never imported).
+    """
+    names = list(dict.fromkeys(sensors)) or list(C.SENSORS)
+    console = None if as_json else console or default_console()
+    state = LiveState(names, target_rate=rate)
+    owed = OwedStop()
+    with settings.robot() as robot, quick_handoff():
+        poller = Poller(robot, state, names, rate, reconnect=Reconnect(settings, robot), pipeline=pipeline)
+        try:  # started inside: a signal the moment its first request is out still reports
+            poller.start()
+            _watch_loop(state, poller, console, duration, owed)
+        finally:
+            poller.stop()
+            if report is not None:
+                report(state.summary())
+        owed.finish(poller.robot, robot)
+    if console is not None and not can_redraw(console):
+        console.print(_dashboard(state)(time.monotonic()))
+    return state.summary()
+
+
+def _watch_loop(
+    state: LiveState, poller: Poller, console: Console | None, duration: float | None, owed: OwedStop
+) -> None:
+    deadline = time.monotonic() + duration if duration else math.inf
+    with KeyReader() as keys, painting(console, state) as painter:
+        while (now := time.monotonic()) < deadline:
+            raise_from(poller)
+            painter.check()
+            key = keys.read(min(STEP, deadline - now))
+            if key in QUIT_KEYS or (key == "eof" and keys.is_terminal):
+                return
+            if key:
+                on_watch_key(key, state, poller, owed)
+            if note := owed.deliver(poller.robot):
+                state.note(note)
+
+
+@contextlib.contextmanager
+def painting(console: Console | None, state: LiveState) -> Iterator[Painter]:
+    """The dashboard drawn on its own thread: full screen, plain lines, or nothing (``--json``)."""
+    if console is None:
+        screen: contextlib.AbstractContextManager[Callable[[], None]] = contextlib.nullcontext(lambda: None)
+        interval = TICK
+    elif can_redraw(console):
+        fps = frame_rate(state.target_rate)
+        redraw = Redrawer(None, _dashboard(state, fit=True), lambda: state.version, fps=fps)
+        screen, interval = full_screen(console, redraw), redraw.interval
+    else:
+        from .plainview import plain_line
+
+        screen = plain_lines(console.file, lambda now: plain_line(state.view(), now), LINE_PERIOD)
+        interval = STEP
+    with Painter(screen, interval) as painter:
+        yield painter
+
+
+def frame_rate(poll_rate: float | None) -> float:
+    """Frames per second: the poll rate, kept within MIN_FPS..FPS (``max`` polls get FPS)."""
+    return MIN_FPS if poll_rate is None else min(FPS, max(MIN_FPS, poll_rate))
+
+
+def on_watch_key(key: str, state: LiveState, poller: Poller, owed: OwedStop) -> None:
+    """space: stop the motors (as soon as the link is back, if it is down); p: pause polling; r: reset."""
+    if key == " ":
+        state.note(owed.ask(poller.robot))
+    elif key in ("p", "P"):
+        state.note("polling paused (p resumes)" if poller.toggle_pause() else "polling resumed")
+    elif key in ("r", "R"):
+        state.reset_counters()
+        state.note("counters reset")
+
+
+def _dashboard(state: LiveState, fit: bool = False) -> Callable[[float], RenderableType]:
+    """The frame for a moment; ``fit``: to the height of a full-screen terminal."""
+    from .screens import dashboard
+
+    cache: dict = {}
+    return lambda now: dashboard(state.view(), now, cache=cache, fit=fit)
+
+
+# -- shared with teleop ---------------------------------------------------------
+
+
+def raise_from(poller: Poller) -> None:
+    """Hand a poller thread's failure to the key loop, which can report it."""
+    if poller.crash is not None:
+        raise poller.crash
+    if poller.lost is not None:
+        raise poller.lost
+
+
+def default_console() -> Console:
+    """stdout, where glyphs its encoding cannot carry are drawn as ASCII (a C or Latin-1 locale)."""
+    from rich.console import Console
+
+    from ..render.readings import encodable
+
+    return Console(file=encodable(sys.stdout))
+
+
+@contextlib.contextmanager
+def quick_handoff(seconds: float = SWITCH_INTERVAL) -> Iterator[None]:
+    """Let a thread woken by a reply take the GIL from the drawing thread sooner.
+
+    Drawing a frame holds the GIL for milliseconds; with the default 5 ms
+    switch interval a reply that lands meanwhile waits up to that long, which
+    costs a fast poll loop a third of its sweeps. Restored on the way out,
+    since the shell shares the interpreter.
+    """
+    previous = sys.getswitchinterval()
+    sys.setswitchinterval(seconds)
+    try:
+        yield
+    finally:
+        sys.setswitchinterval(previous)

@@ -1,0 +1,79 @@
+"""``hex send`` without Click: a raw frame out, its reply back, and whether it keeps the robot moving.
+
+The frame goes out as given; only a valid request with a reply waits for
+one (under the robot's checksum rule). Both are described in the decode
+shape of ``protocol.records``, with their hex.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+from collections.abc import Iterator
+from typing import TYPE_CHECKING, Any
+
+from ..errors import ProtocolError
+from ..protocol import commands as C
+from ..protocol.decoder import decode_all
+from ..protocol.frames import ChecksumRule, Frame
+from .motion import DRIVE_COMMANDS
+
+if TYPE_CHECKING:
+    from ..link.client import Robot
+
+
+def traffic_row(frame: bytes, rule: ChecksumRule, direction: str) -> dict[str, Any]:
+    """``{"hex": ...}`` plus the decode shape of the first event in ``frame``."""
+    from ..protocol.records import event_dict, hexs
+
+    events = decode_all(frame, rule)
+    row = event_dict(events[0], rule, direction) if events else {}
+    return {"hex": hexs(frame), **row}
+
+
+def send_frame(robot: Robot, frame: bytes) -> dict[str, Any] | None:
+    """Write ``frame``; when it is a valid request with a reply, wait for and return it."""
+    from ..protocol.records import hexs
+
+    request = valid_frame(frame, robot.rule)
+    cmd = C.BY_CODE.get(request.command) if request else None
+    if request is None or cmd is None or cmd.reply is None or not C.is_request(cmd.code, request.content):
+        robot.write(frame)
+        if request is None:
+            print(
+                f"hcrctl: not waiting for a reply: this is no valid frame under the {robot.rule.value} rule",
+                file=sys.stderr,
+                flush=True,
+            )
+        return None
+    reply = robot.transact(frame, (request.address, request.command), f"{cmd.name} (hex send)")
+    return traffic_row(reply.to_bytes(), robot.rule, "rx") | {"hex": hexs(reply.to_bytes())}
+
+
+def valid_frame(frame: bytes, rule: ChecksumRule) -> Frame | None:
+    events = decode_all(frame, rule)
+    return events[0] if len(events) == 1 and isinstance(events[0], Frame) else None
+
+
+def holds_motion(robot: Robot, frame: bytes) -> bool:
+    """A valid motion frame that is not itself a stop (a drive of all zeros) keeps the robot moving."""
+    request = valid_frame(frame, robot.rule)
+    cmd = C.BY_CODE.get(request.command) if request else None
+    if request is None or cmd is None or not cmd.motion:
+        return False
+    try:
+        fields = C.decode_fields(request.command, request.content, "tx")
+    except ProtocolError:
+        return True
+    return cmd.name not in DRIVE_COMMANDS or any(fields.values())
+
+
+@contextlib.contextmanager
+def retries_set(robot: Robot, retries: int | None) -> Iterator[None]:
+    """Set ``robot.retries`` for one block; the shell's robot gets its own back."""
+    saved = robot.retries
+    robot.retries = 0 if retries is None else retries
+    try:
+        yield
+    finally:
+        robot.retries = saved

@@ -1,0 +1,43 @@
+"""Holding a motion in the foreground until it is time to stop.
+
+A one-shot drive (or ``hex send`` of a motion frame) must never leave the
+robot running after hcrctl is gone: ``hold`` waits while the motion runs, and
+the caller's ``link.rescue.stopping()`` sends stop however the wait ends.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from ..link.client import Robot
+
+
+#: The table rows under ``drive``; turn, a bounded motion, has its own command.
+DRIVE_COMMANDS = ("power", "speed", "velocity")
+
+
+#: How often a held drive checks that the link is still up.
+HOLD_POLL_S = 0.1
+
+
+def hold(robot: Robot, seconds: float | None) -> float:
+    """Wait while the motion runs; the seconds it was held.
+
+    Ctrl-C is the normal end of an open-ended drive (exit 0); with --for it
+    interrupts (exit 130). SIGTERM/SIGHUP raise through, and the caller's
+    ``stopping()`` still sends stop. A lost link ends the hold with its error.
+    """
+    start = time.monotonic()
+    deadline = None if seconds is None else start + seconds
+    try:
+        while deadline is None or time.monotonic() < deadline:
+            if robot.error is not None:
+                raise robot.error
+            left = HOLD_POLL_S if deadline is None else deadline - time.monotonic()
+            time.sleep(max(0.0, min(HOLD_POLL_S, left)))
+    except KeyboardInterrupt:
+        if deadline is not None:
+            raise
+    return time.monotonic() - start

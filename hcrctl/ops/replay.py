@@ -1,0 +1,171 @@
+"""Replaying a ``--log`` file: the tx frames out at their recorded offsets, the replies shown.
+
+``Pending`` tracks the replies still owed and where stop must go (every
+address that was sent motion, under the checksum rule those frames used);
+``run_replay`` does the passes inside ``stopping()``, so stop is sent however
+the replay ends.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import queue
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from ..errors import LogFormatError
+from ..hex.traffic import TrafficPrinter, traffic_rows
+from ..protocol import commands as C
+from ..protocol.decoder import decode_all
+from ..protocol.frames import ChecksumRule, Frame, encode
+
+if TYPE_CHECKING:
+    from ..link.client import Robot
+    from ..link.traffic import Traffic
+    from ..link.trafficlog import LogRecord
+
+
+POLL_S = 0.02
+
+
+@dataclass
+class Pending:
+    """Replies still owed, by (address, command); and where stop must go at the end."""
+
+    owed: Counter = field(default_factory=Counter)
+    missed: int = 0
+    stops: dict[int, ChecksumRule] = field(default_factory=dict)
+
+    def sent(self, data: bytes, rule: ChecksumRule) -> None:
+        frame, used = _frame_under_either_rule(data, rule)
+        if frame is None:
+            return
+        cmd = C.BY_CODE.get(frame.command)
+        if cmd is not None and cmd.motion:
+            self.stops[frame.address] = used
+        if cmd is not None and cmd.reply is not None and C.is_request(cmd.code, frame.content):
+            self.owed[(frame.address, frame.command)] += 1
+
+    def received(self, traffic: Traffic) -> None:
+        event = traffic.event
+        if not isinstance(event, Frame) or C.is_request(event.command, event.content):
+            return  # an echo of our own request on a half-duplex line is no answer
+        # Counter's "-=" drops keys that reach zero, so an answered request leaves ``owed`` empty.
+        self.owed -= Counter([(event.address, event.command)])
+
+    def give_up(self) -> None:
+        self.missed += sum(self.owed.values())
+        self.owed.clear()
+
+
+def _frame_under_either_rule(data: bytes, rule: ChecksumRule) -> tuple[Frame | None, ChecksumRule]:
+    """The logged frame and the rule its checksum follows (the log may come from other firmware)."""
+    for candidate in (rule, rule.other):
+        events = decode_all(data, candidate)
+        if len(events) == 1 and isinstance(events[0], Frame):
+            return events[0], candidate
+    return None, rule
+
+
+def tx_records(path: str) -> list[LogRecord]:
+    from ..link.trafficlog import read_log
+
+    records = [rec for rec in read_log(path) if rec.direction == "tx"]
+    if not records:
+        raise LogFormatError(
+            f"{path} holds no tx frames to replay", hint="record one with hcrctl --log FILE ..."
+        )
+    return records
+
+
+@dataclass(frozen=True)
+class Timing:
+    speed: float
+    ignore_timestamps: bool
+    loops: int
+    timeout: float
+
+
+def run_replay(
+    robot: Robot, records: list[LogRecord], printer: TrafficPrinter, pending: Pending, timing: Timing
+) -> None:
+    """Every pass, then stop; the listener sees our tx and the robot's rx in wire order."""
+    from ..link.rescue import stopping
+
+    inbox: queue.SimpleQueue[Traffic] = queue.SimpleQueue()
+    listener = inbox.put
+    robot.add_traffic_hook(listener)
+    try:
+        with stopping(robot, lambda: _stop_frames(robot, pending)):
+            done = 0
+            while timing.loops == 0 or done < timing.loops:
+                _one_pass(robot, records, inbox, printer, pending, timing)
+                done += 1
+            _wait(robot, inbox, printer, pending, time.monotonic() + timing.timeout, until_answered=True)
+            pending.give_up()
+    finally:
+        _drain(robot, inbox, printer, pending)
+        robot.remove_traffic_hook(listener)
+
+
+def _one_pass(
+    robot: Robot,
+    records: list[LogRecord],
+    inbox: queue.SimpleQueue,
+    printer: TrafficPrinter,
+    pending: Pending,
+    timing: Timing,
+) -> None:
+    start, first = time.monotonic(), records[0].time
+    for rec in records:
+        if timing.ignore_timestamps:
+            _wait(robot, inbox, printer, pending, time.monotonic() + timing.timeout, until_answered=True)
+        else:
+            _wait(robot, inbox, printer, pending, start + (rec.time - first) / timing.speed)
+        if pending.owed and timing.ignore_timestamps:
+            pending.give_up()
+        robot.write(rec.data)
+        pending.sent(rec.data, robot.rule)
+
+
+def _wait(
+    robot: Robot,
+    inbox: queue.SimpleQueue,
+    printer: TrafficPrinter,
+    pending: Pending,
+    deadline: float,
+    until_answered: bool = False,
+) -> None:
+    """Print traffic until ``deadline`` (or, if asked, until nothing is owed)."""
+    while True:
+        _drain(robot, inbox, printer, pending)
+        left = deadline - time.monotonic()
+        if left <= 0 or (until_answered and not pending.owed):
+            return
+        if robot.error is not None:
+            raise robot.error
+        with contextlib.suppress(queue.Empty):
+            _show(robot, inbox.get(timeout=min(POLL_S, left)), printer, pending)
+
+
+def _drain(robot: Robot, inbox: queue.SimpleQueue, printer: TrafficPrinter, pending: Pending) -> None:
+    while True:
+        try:
+            traffic = inbox.get_nowait()
+        except queue.Empty:
+            return
+        _show(robot, traffic, printer, pending)
+
+
+def _show(robot: Robot, traffic: Traffic, printer: TrafficPrinter, pending: Pending) -> None:
+    if traffic.direction == "rx":
+        pending.received(traffic)
+    printer.show(traffic.time, traffic.direction, traffic.data, traffic_rows(traffic, robot.rule))
+
+
+def _stop_frames(robot: Robot, pending: Pending) -> list[bytes]:
+    """Stop at every address that was sent motion, under its rule, then at ours."""
+    targets: dict[int, Any] = {**pending.stops, robot.address: robot.rule}
+    return [encode(address, C.STOP.CODE, C.STOP.content(), rule) for address, rule in targets.items()]

@@ -1,0 +1,218 @@
+"""THE table of HCR commands: codes, names, fields with units and ranges, codecs.
+
+Everything that knows about a command reads it from here: the encoders and
+reply decoders, the Click parameter ranges and help, the shell's completion,
+the hex decoder's field annotations and the simulator's dispatch. Adding a
+command is one dataclass pair and one ``Command`` entry.
+
+Request values validate their ranges on construction, so an out-of-range value
+can never reach the wire. Reply values are built from whatever a device sends
+(``from_content``), and ``Reply.decode`` then holds them to the same declared
+ranges: a compass of 0xFFFF parses, but it raises ``ImpossibleReply`` rather
+than become a reading. A debugger catches that and flags the frame.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+from ..errors import ProtocolError
+from .fields import NAMES, FieldInfo, fields_of
+
+# The messages and the field helpers live in ``messages`` and ``fields``; the table
+# re-exports those its readers use, so ``C.Compass`` or ``C.name_of`` reads as the table's.
+from .fields import byte_to_percent as byte_to_percent
+from .fields import name_of as name_of
+from .fields import percent_to_byte as percent_to_byte
+from .frames import ChecksumRule, encode
+from .messages import BUMPER_NAMES as BUMPER_NAMES
+from .messages import MAP_ROWS as MAP_ROWS
+from .messages import MAX_SENSORS as MAX_SENSORS
+from .messages import (
+    READ_REQUEST,
+    Bumpers,
+    Compass,
+    Environment,
+    GridMap,
+    Infrared,
+    MotorPower,
+    MotorSpeed,
+    Pid,
+    PidAck,
+    Position,
+    ReadRequest,
+    Reply,
+    Request,
+    Servo,
+    Turn,
+    Ultrasonic,
+    Velocity,
+    WheelSpeed,
+)
+
+MAIN_CONTROLLER = 0x01
+FIRST_STATION = 0x50
+
+
+# -- the table --------------------------------------------------------------
+
+
+def is_motion(code: int) -> bool:
+    """The document's motor-control range, 0x01-0x10: what stop must undo."""
+    return 0x01 <= code <= 0x10
+
+
+@dataclass(frozen=True)
+class Command:
+    """One row of the table. ``kind`` is write, read or broadcast."""
+
+    code: int
+    name: str
+    title: str
+    kind: str
+    request: type[Request] | None
+    reply: type[Reply] | None
+    help: str
+
+    @property
+    def motion(self) -> bool:
+        return is_motion(self.code)
+
+    @property
+    def request_fields(self) -> tuple[FieldInfo, ...]:
+        return fields_of(self.request) if self.request and self.request is not ReadRequest else ()
+
+    @property
+    def reply_fields(self) -> tuple[FieldInfo, ...]:
+        return fields_of(self.reply) if self.reply else ()
+
+    @property
+    def label(self) -> str:
+        return f"0x{self.code:02X} {self.name}"
+
+
+def _cmd(code: int, name: str, title: str, kind: str, request: Any, reply: Any, help: str) -> Command:
+    return Command(code, name, title, kind, request, reply, help)
+
+
+COMMANDS: tuple[Command, ...] = (
+    _cmd(0x01, "power", "motor power", "write", MotorPower, None, "Set both motors' power, in percent."),
+    _cmd(
+        0x02,
+        "speed",
+        "motor speed, percent",
+        "write",
+        MotorSpeed,
+        None,
+        "Set both motors' speed, in percent of maximum.",
+    ),
+    _cmd(
+        0x03,
+        "velocity",
+        "motor speed, absolute",
+        "write",
+        Velocity,
+        None,
+        "Set both motors' speed in cm/s; negative reverses.",
+    ),
+    _cmd(0x04, "turn", "turn by angle", "write", Turn, None, "Turn in place by an angle, then stop."),
+    _cmd(0x11, "bump", "bumpers", "read", ReadRequest, Bumpers, "Read the three bumpers."),
+    _cmd(
+        0x12, "ir", "infrared distance", "read", ReadRequest, Infrared, "Read the IR distance sensors (raw)."
+    ),
+    _cmd(
+        0x13,
+        "sonar",
+        "ultrasonic distance",
+        "read",
+        ReadRequest,
+        Ultrasonic,
+        "Read the ultrasonic sensors, in cm.",
+    ),
+    _cmd(0x14, "compass", "compass", "read", ReadRequest, Compass, "Read the compass heading."),
+    _cmd(0x15, "wheels", "wheel speed", "read", ReadRequest, WheelSpeed, "Read both wheel speeds, in cm/s."),
+    _cmd(
+        0x16,
+        "env",
+        "temperature and humidity",
+        "read",
+        ReadRequest,
+        Environment,
+        "Read temperature and humidity.",
+    ),
+    _cmd(0x21, "pid", "set PID", "write", Pid, PidAck, "Set the speed controller's PID gains."),
+    _cmd(0x41, "servo", "servos", "write", Servo, None, "Move servos 1 and 2."),
+    _cmd(
+        0xA0,
+        "position",
+        "ultrasonic positioning",
+        "broadcast",
+        None,
+        Position,
+        "Broadcast by stations 0x50+.",
+    ),
+    _cmd(0xB0, "map", "local grid map", "broadcast", None, GridMap, "Sent by the robot unasked."),
+)
+
+BY_CODE: dict[int, Command] = {c.code: c for c in COMMANDS}
+NAMES.update((c.code, c.name) for c in COMMANDS)
+BY_NAME: dict[str, Command] = {c.name: c for c in COMMANDS}
+SENSORS: tuple[str, ...] = tuple(c.name for c in COMMANDS if c.kind == "read")
+_BY_REQUEST: dict[type, Command] = {
+    c.request: c for c in COMMANDS if c.request and c.request is not ReadRequest
+}
+
+#: What ``stop`` sends: motor power 0x80 0x80.
+STOP = MotorPower(0, 0)
+
+
+def command_for(value: Request) -> Command:
+    """The table row a request value belongs to."""
+    return _BY_REQUEST[type(value)]
+
+
+def is_request(code: int, content: bytes, direction: str | None = None) -> bool:
+    """Whether a frame is host-to-robot. Direction wins when known.
+
+    Without it: a read carrying just 0xFF (or nothing) is a request, because a
+    bumper reply only ever sets bits 0-2; PID requests carry three bytes and
+    replies one; motion and servo commands have no reply at all.
+    """
+    if direction is not None:
+        return direction == "tx"
+    cmd = BY_CODE.get(code)
+    if cmd is None or cmd.kind == "broadcast":
+        return False
+    if cmd.kind == "read":
+        return content in (READ_REQUEST, b"")
+    return not (cmd.reply is not None and len(content) == 1)
+
+
+def decode_fields(code: int, content: bytes, direction: str | None = None) -> dict[str, Any]:
+    """The named fields of any frame, for display.
+
+    Raises ProtocolError if they don't parse, and ImpossibleReply (a
+    ProtocolError) if a reply's value is outside its field's range.
+    """
+    cmd = BY_CODE.get(code)
+    if cmd is None:
+        raise ProtocolError(f"unknown command 0x{code:02X}")
+    if is_request(code, content, direction):
+        if cmd.request is None:
+            raise ProtocolError(f"{cmd.name} is never sent by the host")
+        value = cmd.request.from_content(content)
+        return dataclasses.asdict(value)
+    if cmd.reply is None:
+        raise ProtocolError(f"{cmd.name} has no reply")
+    return cmd.reply.decode(content).fields()
+
+
+def encode_request(
+    request: Request | Command, address: int = MAIN_CONTROLLER, rule: ChecksumRule = ChecksumRule.HEADER
+) -> bytes:
+    """The frame for a request value, or for a read command (content 0xFF)."""
+    if isinstance(request, Command):
+        return encode(address, request.code, READ_REQUEST, rule)
+    return encode(address, command_for(request).code, request.content(), rule)

@@ -1,0 +1,364 @@
+"""The sans-IO frame decoder: fed bytes, it hands back frames and diagnostics.
+
+It never reads a port, never sleeps and never raises: junk is skipped and
+reported, a bad checksum carries the value expected under each rule, a length
+that disagrees with where the terminator is and a truncated tail are named.
+Frames are delimited by the length field, never by the terminator, because
+binary content can hold ``0D 0A`` (a compass heading of 333.8 degrees does).
+Everything above it (the client, the monitor, ``hex decode``, the simulator)
+reuses it. Standard library only.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from .frames import (
+    HEADER,
+    MAX_KEPT,
+    OVERHEAD,
+    TERMINATOR,
+    BadChecksum,
+    ChecksumRule,
+    Event,
+    Frame,
+    Malformed,
+    TextLine,
+    Truncated,
+    _new_frame,
+    checksum,
+)
+from .textlines import split_skipped
+
+
+class _Pending:
+    """A diagnostic whose skipped region is still growing (until the next header)."""
+
+    __slots__ = ("extra", "kept", "kind", "offset", "size")
+
+    def __init__(self, kind: str, offset: int, extra: tuple = ()) -> None:
+        self.kind, self.offset, self.extra = kind, offset, extra
+        self.kept = bytearray()
+        self.size = 0
+
+    def add(self, buf: bytearray, start: int, stop: int) -> None:
+        room = MAX_KEPT - len(self.kept)
+        if room > 0:
+            self.kept += buf[start : min(stop, start + room)]
+        self.size += stop - start
+
+
+class FrameDecoder:
+    """Incremental decoder: ``feed(chunk)`` returns the events that chunk completes.
+
+    Memory is bounded: the buffer never holds more than one incomplete frame
+    (at most ``MAX_FRAME`` bytes) between calls, and skipped bytes are kept only
+    up to ``MAX_KEPT`` per diagnostic.
+    """
+
+    def __init__(self, rule: ChecksumRule = ChecksumRule.HEADER) -> None:
+        self.rule = ChecksumRule(rule)
+        self._buf = bytearray()
+        self._base = 0  # stream offset of _buf[0]
+        self._pending: _Pending | None = None
+
+    @property
+    def buffered(self) -> int:
+        """Bytes held back, waiting to complete a frame."""
+        return len(self._buf)
+
+    @property
+    def wanted(self) -> int:
+        """Bytes still missing from the frame in progress (at least 1).
+
+        A reader can ask its port for exactly this many, instead of waking
+        once per byte while a frame trickles in at line speed.
+        """
+        buf = self._buf
+        if len(buf) >= 4 and buf[:2] == HEADER:
+            return max(1, buf[3] + OVERHEAD - len(buf))
+        return max(1, OVERHEAD - len(buf))
+
+    def feed(self, data: bytes | bytearray | memoryview) -> list[Event]:
+        """Decode what ``data`` completes. Never raises on any input."""
+        out: list[Event] = []
+        if data:
+            self._buf += data
+            self._scan(out)
+        return out
+
+    def flush(self) -> list[Event]:
+        """End of input: report whatever is still held back, and reset."""
+        out: list[Event] = []
+        buf = self._buf
+        if buf[:2] != HEADER:
+            self._skip(out, 0, len(buf))
+            buf = bytearray()
+        self._close_pending(out)
+        if buf:
+            size = buf[3] + OVERHEAD if len(buf) >= 4 else OVERHEAD
+            out.append(Truncated(self._base, bytes(buf), size - len(buf)))
+        self._base += len(self._buf)
+        self._buf = bytearray()
+        return out
+
+    def idle(self) -> list[Event]:
+        """The line went quiet: report the skipped bytes held back, keeping any frame in progress.
+
+        Skipped bytes are held until the next header says where they end, so
+        a firmware's debug line with no frame after it would never be shown. A
+        live reader calls this after a short quiet gap; at the end of input,
+        ``flush`` does the same and more.
+        """
+        out: list[Event] = []
+        self._close_pending(out)
+        return out
+
+    @property
+    def holding(self) -> bool:
+        """Whether skipped bytes wait for ``idle`` (or the next frame) to be reported."""
+        return self._pending is not None
+
+    # -- the scanner ------------------------------------------------------
+
+    def _scan(self, out: list[Event]) -> None:
+        """One pass over the buffer, one header at a time.
+
+        Runs of valid frames go to ``_valid_run`` (the hot path); whatever it
+        cannot take is examined here and explained. It scans an immutable
+        snapshot, so that slices come out as ``bytes`` in a single copy.
+        """
+        raw = self._buf
+        buf = bytes(raw)
+        n = len(buf)
+        pos = 0
+        bias = 0 if self.rule is ChecksumRule.HEADER else 1
+        find = buf.find
+        h = find(HEADER)
+        while True:
+            if h != pos:
+                if h < 0:
+                    keep = max(pos, n - 1 if buf[n - 1 :] == b"\x55" else n)
+                    self._skip(out, pos, keep)
+                    if buf.find(b"\n", pos, keep) >= 0:
+                        self._lines_so_far(out)
+                    pos = keep
+                    break
+                self._skip(out, pos, h)
+            if n - h < OVERHEAD:
+                pos = h
+                break
+            if self._pending is None:
+                pos, h = _valid_run(buf, h, bias, self._base, out.append)
+                if h != pos or n - h < OVERHEAD:
+                    continue
+            end = h + buf[h + 3] + OVERHEAD
+            if end > n:
+                resync = self._complete_frame_after(h, n)
+                if resync < 0:
+                    pos = h
+                    break
+                self._skip(out, h, resync, abandon=True)
+                pos = h = resync
+                continue
+            ck = end - 3
+            if buf[end - 2] == 0x0D and buf[end - 1] == 0x0A:
+                if (sum(buf[h:ck]) + bias) & 0xFF == buf[ck]:
+                    pos, h = self._take(out, buf, h, end)
+                    continue
+                self._open_bad_checksum(out, h, ck)
+            else:
+                self._open(out, "malformed", h, (buf[h + 3],))
+            self._pending.add(raw, h, h + 1)
+            pos = h + 1
+            h = find(HEADER, pos)
+        self._compact(pos)
+
+    def _take(self, out: list[Event], buf: bytes, h: int, end: int) -> tuple[int, int]:
+        """Emit the valid frame ``buf[h:end]``; return where to go on, and the next header.
+
+        A header inside its content may start a valid frame that ends first. A
+        byte-at-a-time reader would meet that one whole first and yield to it,
+        so this does too: then the frames found do not depend on chunking.
+        """
+        nxt = buf.find(HEADER, h + 2)
+        if 0 <= nxt < end:
+            inner = self._complete_frame_after(h, end - 1) if nxt < end - OVERHEAD else -1
+            if inner >= 0:
+                self._skip(out, h, inner, abandon=True)
+                return inner, inner
+            nxt = buf.find(HEADER, end)
+        self._close_pending(out)
+        ck = end - 3
+        out.append(_new_frame(Frame, (buf[h + 2], buf[h + 4], buf[h + 5 : ck], buf[ck], self._base + h)))
+        return end, nxt
+
+    def _skip(self, out: list[Event], start: int, stop: int, abandon: bool = False) -> None:
+        """Attribute buf[start:stop] to the open diagnostic, or to new junk."""
+        if stop <= start:
+            return
+        if self._pending is None or abandon:
+            self._open(out, "junk", start)
+        self._pending.add(self._buf, start, stop)
+
+    def _lines_so_far(self, out: list[Event]) -> None:
+        """Report printed lines as their line end arrives, as a terminal shows them, not at the next frame."""
+        p = self._pending
+        if p is None or p.kind != "junk" or p.size != len(p.kept):
+            return
+        data = bytes(p.kept)
+        cut = data.rfind(b"\n") + 1
+        events = split_skipped(p.offset, data[:cut], cut, tail=False)
+        while events and not isinstance(events[-1], TextLine):
+            events.pop()  # binary after the last line: it waits for what follows it
+        last = events[-1] if events else None
+        if not isinstance(last, TextLine):
+            return
+        out += events
+        cut = last.offset + last.size - p.offset
+        if cut == len(data):
+            self._pending = None
+            return
+        p.offset += cut
+        p.kept = bytearray(data[cut:])
+        p.size -= cut
+
+    def _open(self, out: list[Event], kind: str, at: int, extra: tuple = ()) -> None:
+        self._close_pending(out)
+        self._pending = _Pending(kind, self._base + at, extra)
+
+    def _open_bad_checksum(self, out: list[Event], h: int, ck: int) -> None:
+        buf = self._buf
+        body = bytes(buf[h:ck])
+        extra = (
+            buf[h + 2],
+            buf[h + 4],
+            body[5:],
+            buf[ck],
+            checksum(body, self.rule),
+            checksum(body, self.rule.other),
+        )
+        self._open(out, "checksum", h, extra)
+
+    def _close_pending(self, out: list[Event]) -> None:
+        p = self._pending
+        if p is None:
+            return
+        self._pending = None
+        data = bytes(p.kept)
+        if p.kind == "junk":
+            out += split_skipped(p.offset, data, p.size)
+            return
+        if p.kind == "checksum":
+            address, command, content, received, expected, other = p.extra
+            used = min(len(content) + OVERHEAD, p.size)
+            out.append(
+                BadChecksum(
+                    p.offset, address, command, content, received, expected, other, self.rule, data[:used]
+                )
+            )
+        else:
+            event = self._malformed(p, data)
+            used = event.size
+            out.append(event)
+        if p.size > used:
+            out += split_skipped(p.offset + used, data[used:], p.size - used)
+
+    def _malformed(self, p: _Pending, data: bytes) -> Malformed:
+        (declared,) = p.extra
+        term = data.find(TERMINATOR, 6)
+        if term < 0:
+            return Malformed(p.offset, declared, data, p.size)
+        body = data[: term - 1]
+        return Malformed(
+            p.offset,
+            declared,
+            data[: term + 2],
+            term + 2,
+            suggested_length=term - 6,
+            received=data[term - 1],
+            expected=checksum(body, self.rule),
+            other=checksum(body, self.rule.other),
+        )
+
+    def _complete_frame_after(self, h: int, limit: int) -> int:
+        """Index of the later header whose valid frame ends first, by ``limit``; or -1.
+
+        An incomplete candidate may be a false header in line noise announcing
+        a long frame; rather than stall a reply behind it, yield to a frame
+        that is already whole and checks out. Picking the frame that *ends*
+        first (the earliest on a tie) is what a byte-at-a-time reader sees, and
+        applying the same choice to a complete frame holding another one keeps
+        the frames found independent of how the input was chunked.
+        """
+        buf = self._buf
+        best, best_end = -1, limit + 1
+        at = buf.find(HEADER, h + 1)
+        while at >= 0 and at + OVERHEAD < best_end:
+            end = at + buf[at + 3] + OVERHEAD
+            whole = end < best_end and buf[end - 2 : end] == TERMINATOR
+            if whole and checksum(buf[at : end - 3], self.rule) == buf[end - 3]:
+                best, best_end = at, end
+            at = buf.find(HEADER, at + 1)
+        return best
+
+    def _compact(self, pos: int) -> None:
+        if pos:
+            del self._buf[:pos]
+            self._base += pos
+
+
+#: A fast run splits at no more than this many headers at once. It starts small and doubles its
+#: reach, so a run that stops early (a noisy link) has split little for nothing.
+MAX_SPLIT = 256
+
+
+def _valid_run(buf: bytes, h: int, bias: int, base: int, append: Callable[[Event], None]) -> tuple[int, int]:
+    """Decode frames standing back to back from the header at ``h``: the common case, nothing to report.
+
+    The hot path. Splitting at every header (in C) leaves one part per frame,
+    and a part holds one frame and nothing else exactly when its size agrees
+    with its length byte: no header inside it (so no nested frame can end
+    first) and no junk after it. Returns ``(pos, h)``: where decoding stopped,
+    and the header at or after it (-1 for none). The first frame the run
+    cannot take is left to the caller, which explains it.
+    """
+    start = 0xFF + bias  # 0x55 + 0xAA: the header's share of the sum under the text rule
+    pos, count = h, 4
+    while True:
+        parts = buf[pos + 2 :].split(HEADER, count)
+        more = len(parts) > count
+        if more:
+            parts.pop()  # the rest, which may hold more headers: split it in the next round
+        pos, taken = _take_frames(parts, pos, start, base, append)
+        if not taken:
+            return pos, pos
+        if not more:
+            return pos, -1  # the last part ran to the end of the buffer
+        count = min(2 * count, MAX_SPLIT)
+
+
+def _take_frames(
+    parts: list[bytes], pos: int, start: int, base: int, append: Callable[[Event], None]
+) -> tuple[int, bool]:
+    """Append the frame each part holds, in order; stop at the first part that is not one valid frame."""
+    new, frame = _new_frame, Frame
+    try:
+        for part in parts:
+            address, length, command = part[0], part[1], part[2]
+            if len(part) != length + 6 or part[-2] != 0x0D or part[-1] != 0x0A:
+                return pos, False
+            content, received = part[3:-3], part[-3]
+            if (start + address + length + command + sum(content)) & 0xFF != received:
+                return pos, False
+            append(new(frame, (address, command, content, received, base + pos)))
+            pos += length + OVERHEAD
+    except IndexError:  # a part too short to hold a length: a header right after a header, or the tail
+        return pos, False
+    return pos, True
+
+
+def decode_all(data: bytes, rule: ChecksumRule = ChecksumRule.HEADER) -> list[Event]:
+    """Decode a whole capture: every frame and every diagnostic, in order."""
+    decoder = FrameDecoder(rule)
+    return decoder.feed(data) + decoder.flush()

@@ -1,0 +1,214 @@
+"""How a message declares its fields, and how a reply is held to them.
+
+A field is declared once, with ``spec(...)``: its unit, its range, its wire
+width. ``Request`` validates on construction, so an out-of-range value never
+reaches the wire; ``Reply`` parses whatever a device sends and ``check_reply``
+then holds it to the declared ranges (``ImpossibleReply`` instead of a
+reading). The messages themselves are in ``messages``, the table in
+``commands``. Standard library only.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+from ..errors import ImpossibleReply, ProtocolError, RangeError
+
+READ_REQUEST = b"\xff"
+
+
+STOP_BYTE = 0x80
+
+#: Command code -> name, filled by the table (``commands``) as it is built, so a
+#: reply names itself in an error without this module importing the table.
+NAMES: dict[int, str] = {}
+
+
+def name_of(code: int) -> str:
+    """The command's name, or its code in hex when the table has none."""
+    return NAMES.get(code, f"0x{code:02X}")
+
+
+def spec(
+    lo: float,
+    hi: float,
+    unit: str,
+    help: str,
+    default: Any = dataclasses.MISSING,
+    *,
+    count: tuple[int, int] | None = None,
+    bits: int | None = None,
+) -> Any:
+    """A dataclass field that carries its range, unit and help text.
+
+    Reply fields may also declare ``count`` (how many readings a one-byte-per-
+    sensor list may hold) and ``bits`` (the only bits a flag byte may set),
+    the two things a range of values cannot say.
+    """
+    meta = {"lo": lo, "hi": hi, "unit": unit, "help": help, "count": count, "bits": bits}
+    return field(default=default, metadata=meta)
+
+
+@dataclass(frozen=True)
+class FieldInfo:
+    """One field of a request or reply, as the CLI, shell and decoder see it."""
+
+    name: str
+    lo: float
+    hi: float
+    unit: str
+    help: str
+    default: Any = None
+    is_flag: bool = False
+    count: tuple[int, int] | None = None
+    bits: int | None = None
+
+    @property
+    def range_text(self) -> str:
+        if self.is_flag:
+            return "flag"
+        unit = f" {self.unit}" if self.unit else ""
+        return f"{self.lo}..{self.hi}{unit}"
+
+
+def fields_of(cls: type) -> tuple[FieldInfo, ...]:
+    """The annotated fields of a request or reply dataclass, in order."""
+    out = []
+    for f in dataclasses.fields(cls):
+        m = f.metadata
+        default = None if f.default is dataclasses.MISSING else f.default
+        is_flag = isinstance(default, bool)
+        out.append(
+            FieldInfo(
+                f.name,
+                m.get("lo", 0),
+                m.get("hi", 0),
+                m.get("unit", ""),
+                m.get("help", ""),
+                default,
+                is_flag,
+                m.get("count"),
+                m.get("bits"),
+            )
+        )
+    return tuple(out)
+
+
+class Request:
+    """Base of request values: ranges are checked when the value is built."""
+
+    CODE: ClassVar[int]
+
+    def __post_init__(self) -> None:
+        for info in fields_of(type(self)):
+            value = getattr(self, info.name)
+            if info.is_flag:  # a truthy "no" must not turn the robot counter-clockwise
+                ok = isinstance(value, int) and value in (0, 1)
+            else:
+                ok = not isinstance(value, bool) and isinstance(value, int) and info.lo <= value <= info.hi
+            if not ok:
+                raise RangeError(info.name, value, info.lo, info.hi, info.unit)
+
+    def content(self) -> bytes:
+        raise NotImplementedError
+
+    @classmethod
+    def from_content(cls, content: bytes) -> Request:
+        raise NotImplementedError
+
+
+class Reply:
+    """Base of reply values; ``fields()`` is the JSON shape shared by every output."""
+
+    CODE: ClassVar[int]
+
+    @classmethod
+    def decode(cls, content: bytes) -> Reply:
+        """The one way device bytes become a reading: parse, then hold to the table's ranges.
+
+        Raises ``ProtocolError`` when the bytes do not parse and its subclass
+        ``ImpossibleReply`` when they parse to a value the field cannot have.
+        """
+        value = cls.from_content(content)
+        check_reply(value, content)
+        return value
+
+    @classmethod
+    def from_content(cls, content: bytes) -> Reply:
+        """The value as sent, unchecked: ``decode`` is what callers use."""
+        raise NotImplementedError
+
+    def content(self) -> bytes:
+        raise NotImplementedError
+
+    def fields(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+def check_reply(value: Reply, content: bytes) -> None:
+    """Raise ``ImpossibleReply`` for the first field outside its declared range.
+
+    A reply of one field owns the whole content and is named by its command
+    (``compass``); a reply of several fields carries one byte per field, in
+    order, and each is named by its field (``humidity``).
+    """
+    infos = fields_of(type(value))
+    for index, info in enumerate(infos):
+        what = name_of(value.CODE) if len(infos) == 1 else info.name
+        raw = content if len(infos) == 1 else content[index : index + 1]
+        _check_field(what, info, getattr(value, info.name), raw)
+
+
+def _check_field(what: str, info: FieldInfo, value: Any, raw: bytes) -> None:
+    if info.bits is not None:
+        extra = int.from_bytes(raw, "big") & ~info.bits
+        if extra:
+            raise ImpossibleReply(what, raw, _bits_text(extra, "set"), _bits_text(info.bits), value)
+        return
+    items = value if isinstance(value, tuple) else (value,)
+    if info.count is not None and not info.count[0] <= len(items) <= info.count[1]:
+        lo, hi = info.count
+        shown = f"{len(items)} reading{'s' if len(items) != 1 else ''}"
+        raise ImpossibleReply(f"{what} length", bytes((len(raw),)), shown, f"{lo}-{hi} readings", value)
+    for i, item in enumerate(items):
+        if isinstance(item, bool) or info.lo <= item <= info.hi:
+            continue
+        item_raw = raw[i : i + 1] if isinstance(value, tuple) else raw
+        shown, expected = with_unit(item, info.unit), f"{info.lo}-{with_unit(info.hi, info.unit)}"
+        raise ImpossibleReply(what, item_raw, shown, expected, item)
+
+
+def with_unit(value: float, unit: str) -> str:
+    """``6553.5°``, ``255 %``: a value as a person reads it, degrees written as a sign."""
+    if unit == "deg":
+        return f"{value}°"
+    return f"{value} {unit}" if unit else str(value)
+
+
+def _bits_text(mask: int, verb: str = "") -> str:
+    """``bits 3-7 set``, ``bits 0-2``, ``bit 1``: the bits of a mask, as ranges."""
+    bits = [b for b in range(mask.bit_length()) if mask >> b & 1]
+    runs: list[list[int]] = []
+    for b in bits:
+        if runs and runs[-1][-1] == b - 1:
+            runs[-1].append(b)
+        else:
+            runs.append([b])
+    text = ", ".join(str(r[0]) if len(r) == 1 else f"{r[0]}-{r[-1]}" for r in runs)
+    return f"bit{'s' if len(bits) != 1 else ''} {text}" + (f" {verb}" if verb else "")
+
+
+def _need(content: bytes, size: int, what: str) -> None:
+    if len(content) != size:
+        raise ProtocolError(f"{what} carries {size} byte{'s' if size != 1 else ''}, got {len(content)}")
+
+
+def percent_to_byte(p: int) -> int:
+    """0x80 is stop; forward uses 127 steps, reverse 128 (protocol.md)."""
+    return 0x80 + round(p * 127 / 100) if p >= 0 else 0x80 - round(-p * 128 / 100)
+
+
+def byte_to_percent(b: int) -> int:
+    return round((b - 0x80) * 100 / 127) if b >= 0x80 else -round((0x80 - b) * 100 / 128)

@@ -1,0 +1,299 @@
+"""The HCR messages: one frozen dataclass per request and per reply.
+
+Each declares its fields with ``fields.spec`` and its wire form
+(``to_content``/``from_content``); the table in ``commands`` pairs them with
+codes and names. Standard library only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+from ..errors import ProtocolError
+from .fields import READ_REQUEST, Reply, Request, _need, byte_to_percent, percent_to_byte, spec
+
+#: Direction bits of the percent requests (0x01, 0x02): set when that motor runs backwards.
+DIR_MOTOR1 = 0x01
+DIR_MOTOR2 = 0x10
+
+
+@dataclass(frozen=True)
+class _PercentPair(Request):
+    left: int = spec(-100, 100, "%", "motor 1, -100 (full reverse) to 100 (full forward)")
+    right: int = spec(-100, 100, "%", "motor 2, -100 (full reverse) to 100 (full forward)")
+
+    def content(self) -> bytes:
+        return bytes((percent_to_byte(self.left), percent_to_byte(self.right)))
+
+    @classmethod
+    def from_content(cls, content: bytes) -> Request:
+        _need(content, 2, cls.__name__)
+        return cls(byte_to_percent(content[0]), byte_to_percent(content[1]))
+
+
+@dataclass(frozen=True)
+class MotorPower(_PercentPair):
+    CODE: ClassVar[int] = 0x01
+
+
+@dataclass(frozen=True)
+class MotorSpeed(_PercentPair):
+    CODE: ClassVar[int] = 0x02
+
+
+@dataclass(frozen=True)
+class Velocity(Request):
+    """Signed speeds; the signs become the DIR bits, in DIR AS1 AS2 order."""
+
+    CODE: ClassVar[int] = 0x03
+    left: int = spec(-255, 255, "cm/s", "motor 1, negative reverses it")
+    right: int = spec(-255, 255, "cm/s", "motor 2, negative reverses it")
+
+    def content(self) -> bytes:
+        direction = (DIR_MOTOR1 if self.left < 0 else 0) | (DIR_MOTOR2 if self.right < 0 else 0)
+        return bytes((direction, abs(self.left), abs(self.right)))
+
+    @classmethod
+    def from_content(cls, content: bytes) -> Request:
+        _need(content, 3, "velocity")
+        direction, a1, a2 = content
+        if direction & ~(DIR_MOTOR1 | DIR_MOTOR2):
+            raise ProtocolError(
+                f"velocity DIR 0x{direction:02X} sets bits other than 0x01 and 0x10 "
+                "(the content is DIR AS1 AS2; the document's examples print DIR last)"
+            )
+        return cls(-a1 if direction & DIR_MOTOR1 else a1, -a2 if direction & DIR_MOTOR2 else a2)
+
+
+@dataclass(frozen=True)
+class Turn(Request):
+    """Turn in place by ANGLE degrees; RV is the rotation speed (0xFF default)."""
+
+    CODE: ClassVar[int] = 0x04
+    angle: int = spec(0, 255, "deg", "angle to turn, in degrees")
+    ccw: bool = spec(0, 1, "", "turn counter-clockwise (default clockwise)", default=False)
+    rate: int = spec(0, 255, "", "rotation speed RV, 255 is fastest", default=0xFF)
+
+    def content(self) -> bytes:
+        return bytes((1 if self.ccw else 0, self.angle, self.rate))
+
+    @classmethod
+    def from_content(cls, content: bytes) -> Request:
+        _need(content, 3, "turn")
+        return cls(content[1], bool(content[0] & 1), content[2])
+
+
+@dataclass(frozen=True)
+class Servo(Request):
+    CODE: ClassVar[int] = 0x41
+    p1: int = spec(0, 255, "", "servo 1 position")
+    p2: int = spec(0, 255, "", "servo 2 position")
+
+    def content(self) -> bytes:
+        return bytes((self.p1, self.p2))
+
+    @classmethod
+    def from_content(cls, content: bytes) -> Request:
+        _need(content, 2, "servo")
+        return cls(content[0], content[1])
+
+
+@dataclass(frozen=True)
+class Pid(Request):
+    CODE: ClassVar[int] = 0x21
+    p: int = spec(0, 255, "", "proportional gain")
+    i: int = spec(0, 255, "", "integral gain")
+    d: int = spec(0, 255, "", "derivative gain")
+
+    def content(self) -> bytes:
+        return bytes((self.p, self.i, self.d))
+
+    @classmethod
+    def from_content(cls, content: bytes) -> Request:
+        _need(content, 3, "pid")
+        return cls(*content)
+
+
+@dataclass(frozen=True)
+class ReadRequest(Request):
+    """Every sensor read carries one 0xFF byte; an empty content is accepted too."""
+
+    CODE: ClassVar[int] = 0
+
+    def content(self) -> bytes:
+        return READ_REQUEST
+
+    @classmethod
+    def from_content(cls, content: bytes) -> Request:
+        if content not in (READ_REQUEST, b""):
+            raise ProtocolError(f"a read request carries 0xFF, got {content.hex(' ').upper()}")
+        return cls()
+
+
+#: Bumpers 1-3 (bits 0-2) by where they sit on the robot, for display.
+BUMPER_NAMES = ("left", "front", "right")
+
+
+@dataclass(frozen=True)
+class Bumpers(Reply):
+    CODE: ClassVar[int] = 0x11
+    bump: tuple[bool, bool, bool] = spec(0, 1, "", "bumpers 1-3, true when hit", bits=0x07)
+
+    @classmethod
+    def from_content(cls, content: bytes) -> Reply:
+        _need(content, 1, "bumpers reply")
+        return cls(tuple(bool(content[0] >> i & 1) for i in range(3)))
+
+    def content(self) -> bytes:
+        return bytes((sum(1 << i for i, hit in enumerate(self.bump) if hit),))
+
+    def fields(self) -> dict[str, Any]:
+        return {"bump": list(self.bump)}
+
+
+#: The most sensors of one kind a list reply may carry. The document's defaults
+#: are 5 IR and 3 ultrasonic, the published firmware has 7 IR; 8 is a byte's
+#: worth, and a 16-byte "IR reply" is a grid map under the wrong command.
+MAX_SENSORS = 8
+
+
+@dataclass(frozen=True)
+class _ByteList(Reply):
+    """One byte per sensor; the length field says how many sensors there are."""
+
+    KEY: ClassVar[str]
+
+    @classmethod
+    def from_content(cls, content: bytes) -> Reply:
+        if not content:
+            raise ProtocolError(f"{cls.KEY} reply carries no readings")
+        return cls(tuple(content))
+
+    def content(self) -> bytes:
+        return bytes(getattr(self, self.KEY))
+
+    def fields(self) -> dict[str, Any]:
+        return {self.KEY: list(getattr(self, self.KEY))}
+
+
+@dataclass(frozen=True)
+class Infrared(_ByteList):
+    CODE: ClassVar[int] = 0x12
+    KEY: ClassVar[str] = "ir"
+    ir: tuple[int, ...] = spec(
+        0, 255, "raw", "IR readings, raw bytes (units unspecified)", count=(1, MAX_SENSORS)
+    )
+
+
+@dataclass(frozen=True)
+class Ultrasonic(_ByteList):
+    CODE: ClassVar[int] = 0x13
+    KEY: ClassVar[str] = "sonar"
+    sonar: tuple[int, ...] = spec(0, 255, "cm", "ultrasonic distances", count=(1, MAX_SENSORS))
+
+
+@dataclass(frozen=True)
+class Compass(Reply):
+    """Big-endian tenths of a degree; 3600 and above are out of the documented range."""
+
+    CODE: ClassVar[int] = 0x14
+    heading: float = spec(0, 359.9, "deg", "compass heading")
+
+    @classmethod
+    def from_content(cls, content: bytes) -> Reply:
+        _need(content, 2, "compass reply")
+        return cls(int.from_bytes(content, "big") / 10)
+
+    def content(self) -> bytes:
+        return round(self.heading * 10).to_bytes(2, "big")
+
+
+@dataclass(frozen=True)
+class WheelSpeed(Reply):
+    CODE: ClassVar[int] = 0x15
+    wheels: tuple[int, int] = spec(0, 255, "cm/s", "wheel speeds from the encoders")
+
+    @classmethod
+    def from_content(cls, content: bytes) -> Reply:
+        _need(content, 2, "wheel speed reply")
+        return cls((content[0], content[1]))
+
+    def content(self) -> bytes:
+        return bytes(self.wheels)
+
+    def fields(self) -> dict[str, Any]:
+        return {"wheels": list(self.wheels)}
+
+
+@dataclass(frozen=True)
+class Environment(Reply):
+    """Humidity %, then temperature in degrees C, read as signed (a cold garage)."""
+
+    CODE: ClassVar[int] = 0x16
+    humidity: int = spec(0, 100, "%", "relative humidity")
+    temperature: int = spec(-128, 127, "°C", "temperature")
+
+    @classmethod
+    def from_content(cls, content: bytes) -> Reply:
+        _need(content, 2, "temperature/humidity reply")
+        return cls(content[0], int.from_bytes(content[1:], "big", signed=True))
+
+    def content(self) -> bytes:
+        return bytes((self.humidity, self.temperature & 0xFF))
+
+
+@dataclass(frozen=True)
+class PidAck(Reply):
+    CODE: ClassVar[int] = 0x21
+    ok: bool = spec(0, 1, "", "0x01 set, 0x00 failed", bits=0x01)
+
+    @classmethod
+    def from_content(cls, content: bytes) -> Reply:
+        _need(content, 1, "PID reply")
+        return cls(content[0] == 0x01)
+
+    def content(self) -> bytes:
+        return b"\x01" if self.ok else b"\x00"
+
+
+@dataclass(frozen=True)
+class Position(Reply):
+    CODE: ClassVar[int] = 0xA0
+    did: int = spec(0, 255, "", "data id")
+    d1: int = spec(0, 255, "cm", "distance 1")
+    d2: int = spec(0, 255, "cm", "distance 2")
+    ts: int = spec(0, 255, "ms", "time since the previous data id")
+
+    @classmethod
+    def from_content(cls, content: bytes) -> Reply:
+        _need(content, 4, "positioning broadcast")
+        return cls(*content)
+
+    def content(self) -> bytes:
+        return bytes((self.did, self.d1, self.d2, self.ts))
+
+
+MAP_ROWS = 16
+
+
+@dataclass(frozen=True)
+class GridMap(Reply):
+    """16 bytes, layout unspecified: shown raw and as a bit grid, MSB first."""
+
+    CODE: ClassVar[int] = 0xB0
+    rows: tuple[int, ...] = spec(0, 255, "", "one byte per row, most significant bit first")
+
+    @classmethod
+    def from_content(cls, content: bytes) -> Reply:
+        _need(content, MAP_ROWS, "grid map")
+        return cls(tuple(content))
+
+    def content(self) -> bytes:
+        return bytes(self.rows)
+
+    def grid(self) -> list[str]:
+        return [format(row, "08b").replace("0", ".").replace("1", "#") for row in self.rows]
+
+    def fields(self) -> dict[str, Any]:
+        return {"map": bytes(self.rows).hex()}

@@ -1,0 +1,137 @@
+"""Decoder events as one JSON-ready dict shape, shared by every reader of the line.
+
+``hex decode --json``, ``monitor --json``, the ``--log`` file and every text
+rendering start from the same dict (``event_dict``), so a row on screen, a
+line in a log and an object in a script always agree. It lives with the
+protocol, below the link, because the traffic log writes it. Standard library only.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ..errors import ImpossibleReply, ProtocolError
+from . import commands as C
+from .frames import (
+    HEADER,
+    BadChecksum,
+    ChecksumRule,
+    Event,
+    Frame,
+    Junk,
+    Malformed,
+    TextLine,
+    Truncated,
+    checksum,
+)
+
+# -- the dict shape ------------------------------------------------------------
+
+
+def event_dict(event: Event, rule: ChecksumRule | str, direction: str | None = None) -> dict[str, Any]:
+    """The JSON shape of one decoder event; problems carry a ``problem`` key."""
+    rule = ChecksumRule(rule)
+    if isinstance(event, Frame):
+        body = event.to_bytes()[:-3]
+        return {"offset": event.offset, **frame_dict(body, event.checksum, rule, direction)}
+    if isinstance(event, BadChecksum):
+        body = HEADER + bytes((event.address, len(event.content), event.command)) + event.content
+        return {"offset": event.offset, **frame_dict(body, event.received, rule, direction)}
+    if isinstance(event, Malformed):
+        return _malformed_dict(event, rule, direction)
+    if isinstance(event, Junk):
+        return {"offset": event.offset, "problem": "junk", "size": event.size, "data": hexs(event.data)}
+    if isinstance(event, TextLine):
+        return text_dict(event)
+    return _truncated_dict(event)
+
+
+def text_dict(event: TextLine) -> dict[str, Any]:
+    """A line the firmware printed: ``kind`` text, the line (end removed) and its exact bytes."""
+    return {
+        "offset": event.offset,
+        "kind": "text",
+        "text": event.text,
+        "size": event.size,
+        "data": hexs(event.data),
+    }
+
+
+def is_text(row: dict[str, Any]) -> bool:
+    return row.get("kind") == "text"
+
+
+def frame_dict(
+    body: bytes, received: int, rule: ChecksumRule, direction: str | None = None
+) -> dict[str, Any]:
+    """A frame's fields and checksum verdict under both rules; ``body`` runs header to content end."""
+    address, command, content = body[2], body[4], body[5:]
+    expected, other = checksum(body, rule), checksum(body, rule.other)
+    cmd = C.BY_CODE.get(command)
+    out: dict[str, Any] = {
+        "address": address,
+        "command": command,
+        "name": cmd.name if cmd else None,
+        "kind": _kind(cmd, command, content, direction),
+        "payload": hexs(content),
+        "checksum": received,
+        "checksum_ok": received == expected,
+        "expected": expected,
+        "rule": rule.value,
+        "other": other,
+        "other_ok": received == other,
+        "fields": None,
+    }
+    if cmd is not None:
+        try:
+            out["fields"] = C.decode_fields(command, content, direction)
+        except ProtocolError as exc:
+            out["error"] = exc.message  # an impossible value is flagged, never shown as a field
+            if isinstance(exc, ImpossibleReply):
+                out["out_of_range"] = exc.detail()
+    return out
+
+
+def _kind(cmd: C.Command | None, code: int, content: bytes, direction: str | None) -> str | None:
+    if cmd is None:
+        return None
+    if C.is_request(code, content, direction):
+        return "request"
+    return "broadcast" if cmd.kind == "broadcast" else "reply"
+
+
+def _malformed_dict(event: Malformed, rule: ChecksumRule, direction: str | None) -> dict[str, Any]:
+    """A wrong length field; when a terminator stands further on, the frame read as if it were right."""
+    out: dict[str, Any] = {
+        "offset": event.offset,
+        "problem": "malformed",
+        "reason": event.reason,
+        "declared_length": event.declared_length,
+        "size": event.size,
+        "data": hexs(event.data),
+    }
+    if event.suggested_length is not None:
+        body = event.data[: 5 + event.suggested_length]
+        out.update(frame_dict(body, event.data[len(body)], rule, direction))
+        out["suggested_length"] = event.suggested_length
+    return out
+
+
+def _truncated_dict(event: Truncated) -> dict[str, Any]:
+    return {
+        "offset": event.offset,
+        "problem": "truncated",
+        "size": len(event.data),
+        "needed": event.needed,
+        "data": hexs(event.data),
+    }
+
+
+def hexs(data: bytes) -> str:
+    """Bytes as the tool prints them everywhere: ``55 AA 01``."""
+    return data.hex(" ").upper()
+
+
+def is_good(row: dict[str, Any]) -> bool:
+    """A frame with a passing checksum whose content parses (unknown commands pass)."""
+    return "problem" not in row and row.get("checksum_ok", False) and "error" not in row

@@ -1,0 +1,342 @@
+"""The simulated HCR robot: a pure model that is fed bytes and answers bytes.
+
+Standard library only and no I/O: ``feed(bytes)`` returns the replies that are
+due at once, ``poll()`` returns broadcasts and delayed replies whose time has
+come, and ``next_due()`` says when ``poll`` will next have something, so a
+server can sleep exactly that long. Time comes from an injectable clock, and
+the physics is advanced to it on every call: tests drive it with a fake clock
+and run instantly; ``sim://`` and ``hcrctl sim`` use ``time.monotonic``.
+
+Requests are decoded by ``FrameDecoder`` and dispatched through the command
+table; replies are built from the reply dataclasses and ``frames.encode``, so
+the simulator knows no byte layout of its own.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import math
+import random
+import time
+from collections.abc import Callable, Iterator
+from typing import ClassVar
+
+from ..errors import HcrError
+from ..protocol.commands import (
+    BY_CODE,
+    MAP_ROWS,
+    Bumpers,
+    Command,
+    Compass,
+    Environment,
+    GridMap,
+    Infrared,
+    MotorPower,
+    MotorSpeed,
+    Pid,
+    PidAck,
+    Position,
+    ReadRequest,
+    Reply,
+    Request,
+    Servo,
+    Turn,
+    Ultrasonic,
+    Velocity,
+    WheelSpeed,
+)
+from ..protocol.decoder import FrameDecoder
+from ..protocol.frames import Frame, encode
+from .body import MAX_SPEED_CM_S, Body, Pose
+from .options import SimOptions
+
+__all__ = ["Pose", "SimOptions", "Simulator", "ir_raw"]
+
+IR_ANGLES = (-90.0, -45.0, 0.0, 45.0, 90.0)
+SONAR_ANGLES = (-30.0, 0.0, 30.0)
+IR_RANGE_CM = 80.0
+IR_NEAR_CM = 4.0
+#: Positioning stations: address, then the two transducers whose distances
+#: to the robot are D1 and D2 (on the west and the south wall).
+STATIONS: tuple[tuple[int, tuple[tuple[float, float], tuple[float, float]]], ...] = (
+    (0x50, ((0.0, 80.0), (0.0, 120.0))),
+    (0x51, ((130.0, 0.0), (170.0, 0.0))),
+)
+BASE_HUMIDITY = 45.0
+BASE_TEMPERATURE_C = 24.0
+#: A late poll() catches up at most this many broadcasts per sender; older ones
+#: are lost (their DIDs are skipped), as they would be with nobody listening.
+MAX_BACKLOG = 16
+SERVO_HOME = 0x80
+_JUNK = bytes(b for b in range(256) if b != 0x55)
+
+
+def ir_raw(distance_cm: float) -> int:
+    """Raw IR byte for a distance from the sensor: higher is closer.
+
+    Modelled on a Sharp GP2D12-style sensor whose output falls as 1/distance:
+    255 at ``IR_NEAR_CM`` (4 cm) or closer, ``255 * 4 / d`` beyond (13 at
+    80 cm), and 0 when nothing is within ``IR_RANGE_CM`` (80 cm).
+    """
+    if distance_cm > IR_RANGE_CM:
+        return 0
+    return round(255 * IR_NEAR_CM / max(distance_cm, IR_NEAR_CM))
+
+
+#: Slot times are sums of floats: a slot this close to "now" counts as due.
+_TIME_EPS = 1e-9
+
+
+class _Periodic:
+    """Slot k of a periodic sender is due at ``first + k * period`` (no drift)."""
+
+    def __init__(self, hz: float, first_delay: float, start: float) -> None:
+        self.period = 1.0 / hz
+        self.first = start + first_delay
+        self.count = 0
+
+    @property
+    def next_time(self) -> float:
+        return self.first + self.count * self.period
+
+    def due(self, now: float) -> Iterator[tuple[int, float]]:
+        """(slot number, slot time) of every slot due by ``now``, oldest first."""
+        if now + _TIME_EPS < self.next_time:
+            return
+        last = math.floor((now + _TIME_EPS - self.first) / self.period)
+        self.count = max(self.count, last + 1 - MAX_BACKLOG)
+        while self.count <= last:
+            yield self.count, self.next_time
+            self.count += 1
+
+
+class Simulator:
+    """One robot in one room, with its positioning stations and its faults.
+
+    State (``pose``, ``wheels``, ``servos``, ``pid``, ``body``) is as of the
+    last call; ``advance()`` brings it to the clock's now.
+    """
+
+    def __init__(
+        self,
+        options: SimOptions | None = None,
+        clock: Callable[[], float] = time.monotonic,
+        body: Body | None = None,
+    ) -> None:
+        self.options = options or SimOptions()
+        self.clock = clock
+        self.body = body or Body()
+        self.servos: tuple[int, int] = (SERVO_HOME, SERVO_HOME)
+        self.pid: tuple[int, int, int] | None = None
+        self._decoder = FrameDecoder(self.options.checksum)
+        self._faults = random.Random(f"faults:{self.options.seed}")
+        self._env = random.Random(f"env:{self.options.seed}")
+        self._now = clock()
+        #: Delayed replies: (due time, sequence, frame, the owner that asked).
+        self._outbox: list[tuple[float, int, bytes, object]] = []
+        self._seq = itertools.count()
+        self._senders = list(self._make_senders())
+
+    @property
+    def pose(self) -> Pose:
+        return self.body.pose
+
+    @property
+    def wheels(self) -> tuple[float, float]:
+        """Actual wheel speeds in cm/s, signed (the 0x15 reply carries magnitudes)."""
+        return self.body.wheels[0], self.body.wheels[1]
+
+    # -- the public, clocked interface ------------------------------------
+
+    def advance(self) -> float:
+        """Bring the physics up to the clock; returns the clock's time."""
+        now = self.clock()
+        if now > self._now:
+            self.body.advance(now - self._now)
+            self._now = now
+        return self._now
+
+    def feed(self, data: bytes, owner: object = None) -> bytes:
+        """Take received bytes; return the replies due now (delayed ones come from poll).
+
+        ``owner`` tags the delayed replies, so a server with several clients
+        can hand each reply to the client that asked (see ``poll_owned``).
+        """
+        out = bytearray()
+        for event in self._decoder.feed(data):
+            if isinstance(event, Frame):
+                out += self.take(event, owner)
+        return bytes(out)
+
+    def take(self, frame: Frame, owner: object = None) -> bytes:
+        """One whole frame already decoded (by a server that decodes per client); its reply due now."""
+        if frame.address != self.options.address:
+            return b""
+        return self._answer(frame, self.advance(), owner)
+
+    def poll(self) -> bytes:
+        """Broadcasts, map frames and delayed replies whose time has come, in time order."""
+        return b"".join(frame for _, frame in self.poll_owned())
+
+    def poll_owned(self) -> list[tuple[object, bytes]]:
+        """``poll()`` frame by frame, each with its addressee: None for a broadcast (everyone),
+        else the ``owner`` given to ``feed`` with the request a delayed reply answers."""
+        now = self.advance()
+        due: list[tuple[float, int, bytes, object]] = [
+            (t, next(self._seq), frame, None) for t, frame in self._broadcasts(now)
+        ]
+        while self._outbox and self._outbox[0][0] <= now:
+            due.append(heapq.heappop(self._outbox))
+        return [(owner, frame) for _, _, frame, owner in sorted(due, key=lambda d: d[:2])]
+
+    def next_due(self) -> float | None:
+        """Clock time at which poll() will next return something; None if never."""
+        self.advance()
+        times = [s.next_time for s, _ in self._senders]
+        if self._outbox:
+            times.append(self._outbox[0][0])
+        return min(times, default=None)
+
+    # -- requests and replies ---------------------------------------------
+
+    def _answer(self, frame: Frame, now: float, owner: object = None) -> bytes:
+        cmd = BY_CODE.get(frame.command)
+        if cmd is None or cmd.request is None:
+            return b""
+        try:
+            request = cmd.request.from_content(frame.content)
+        except HcrError:
+            return b""  # a real device ignores what it cannot parse
+        reply = self._dispatch(cmd, request)
+        if reply is None:
+            return b""
+        frame_out = encode(self.options.address, cmd.code, reply.content(), self.options.checksum)
+        return self._send(frame_out, now, owner)
+
+    def _dispatch(self, cmd: Command, request: Request) -> Reply | None:
+        if isinstance(request, ReadRequest):
+            reader = self._READS.get(cmd.reply) if cmd.reply else None
+            return reader(self) if reader else None
+        handler = self._WRITES.get(type(request))
+        return handler(self, request) if handler else None
+
+    def _send(self, frame: bytes, now: float, owner: object = None) -> bytes:
+        """Apply the reply faults; a delayed reply goes to the outbox."""
+        opts = self.options
+        if opts.silent or self._chance(opts.drop):
+            return b""
+        frame = self._garble(frame)
+        if opts.delay_ms:
+            heapq.heappush(self._outbox, (now + opts.delay_ms / 1000, next(self._seq), frame, owner))
+            return b""
+        return frame
+
+    def _garble(self, frame: bytes) -> bytes:
+        data = bytearray(frame)
+        if self._chance(self.options.corrupt):
+            data[self._faults.randrange(len(data))] ^= 0xFF
+        if self._chance(self.options.noise):
+            junk = bytes(self._faults.choice(_JUNK) for _ in range(self._faults.randint(1, 8)))
+            data[:0] = junk
+        return bytes(data)
+
+    def _chance(self, p: float) -> bool:
+        """Draw only for an active fault, so enabling one fault leaves the others' pattern alone."""
+        return p > 0 and self._faults.random() < p
+
+    # -- write handlers ---------------------------------------------------
+
+    def _on_percent(self, req: MotorPower | MotorSpeed) -> None:
+        """Power and percent speed alike: the model has no load, so power is speed."""
+        self.body.drive(req.left / 100 * MAX_SPEED_CM_S, req.right / 100 * MAX_SPEED_CM_S)
+
+    def _on_velocity(self, req: Velocity) -> None:
+        self.body.drive(req.left, req.right)
+
+    def _on_turn(self, req: Turn) -> None:
+        self.body.turn(req.angle, req.ccw, req.rate)
+
+    def _on_servo(self, req: Servo) -> None:
+        self.servos = (req.p1, req.p2)
+
+    def _on_pid(self, req: Pid) -> PidAck:
+        if self.options.pid == "refuse":
+            return PidAck(False)
+        self.pid = (req.p, req.i, req.d)
+        return PidAck(True)
+
+    _WRITES: ClassVar[dict[type, Callable]] = {
+        MotorPower: _on_percent,
+        MotorSpeed: _on_percent,
+        Velocity: _on_velocity,
+        Turn: _on_turn,
+        Servo: _on_servo,
+        Pid: _on_pid,
+    }
+
+    # -- sensor reads -----------------------------------------------------
+
+    def _read_bumpers(self) -> Bumpers:
+        return Bumpers(self.body.bumpers())
+
+    def _read_ir(self) -> Infrared:
+        return Infrared(tuple(ir_raw(self.body.range_at(a)) for a in IR_ANGLES))
+
+    def _read_sonar(self) -> Ultrasonic:
+        return Ultrasonic(tuple(min(255, round(self.body.range_at(a))) for a in SONAR_ANGLES))
+
+    def _read_compass(self) -> Compass:
+        return Compass(round(self.body.heading * 10) % 3600 / 10)
+
+    def _read_wheels(self) -> WheelSpeed:
+        left, right = (min(255, round(abs(v))) for v in self.body.wheels)
+        return WheelSpeed((left, right))
+
+    def _read_env(self) -> Environment:
+        humidity = round(BASE_HUMIDITY + self._env.gauss(0, 0.8))
+        return Environment(max(0, min(100, humidity)), round(BASE_TEMPERATURE_C + self._env.gauss(0, 0.4)))
+
+    _READS: ClassVar[dict[type, Callable]] = {
+        Bumpers: _read_bumpers,
+        Infrared: _read_ir,
+        Ultrasonic: _read_sonar,
+        Compass: _read_compass,
+        WheelSpeed: _read_wheels,
+        Environment: _read_env,
+    }
+
+    # -- unsolicited frames -----------------------------------------------
+
+    def _make_senders(self) -> Iterator[tuple[_Periodic, Callable[[int, float], bytes]]]:
+        """Stations staggered half a period apart, so their frames never share a slot."""
+        opts = self.options
+        if opts.broadcast_hz > 0:
+            for i, (address, transducers) in enumerate(STATIONS):
+                period = 1.0 / opts.broadcast_hz
+                sender = _Periodic(opts.broadcast_hz, period * (1 + i / len(STATIONS)), self._now)
+                yield sender, self._station(address, transducers, period)
+        if opts.map_hz > 0 and not opts.silent:
+            yield _Periodic(opts.map_hz, 1.0 / opts.map_hz, self._now), self._map_frame
+
+    def _station(
+        self, address: int, transducers: tuple[tuple[float, float], ...], period: float
+    ) -> Callable[[int, float], bytes]:
+        ts = min(255, round(period * 1000))
+
+        def frame(slot: int, _t: float) -> bytes:
+            d1, d2 = (min(255, round(math.hypot(self.body.x - x, self.body.y - y))) for x, y in transducers)
+            return encode(
+                address, Position.CODE, Position(slot & 0xFF, d1, d2, ts).content(), self.options.checksum
+            )
+
+        return frame
+
+    def _map_frame(self, _slot: int, _t: float) -> bytes:
+        grid = GridMap(self.body.grid(MAP_ROWS))
+        return encode(self.options.address, GridMap.CODE, grid.content(), self.options.checksum)
+
+    def _broadcasts(self, now: float) -> Iterator[tuple[float, bytes]]:
+        for sender, make in self._senders:
+            for slot, t in sender.due(now):
+                yield t, make(slot, t)

@@ -1,0 +1,166 @@
+"""The package layout keeps its promises: layers, no cycles, stdlib-only bottom, small modules.
+
+Every module's imports are read with ``ast``, including the ones inside
+functions and under ``if TYPE_CHECKING:``, so a cycle cannot hide in a lazy
+import. A module may import its own layer or a lower one, never a higher one.
+"""
+
+from __future__ import annotations
+
+import ast
+import sys
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parent.parent / "hcrctl"
+
+#: Lowest first. A module may import modules of its own layer or of an earlier one.
+LAYERS: list[tuple[str, ...]] = [
+    ("hcrctl", "hcrctl.__init__", "hcrctl.errors", "hcrctl.numtext", "hcrctl.config"),
+    ("hcrctl.protocol",),
+    ("hcrctl.sim",),
+    ("hcrctl.link", "hcrctl.urlhandler"),
+    ("hcrctl.hex", "hcrctl.render", "hcrctl.ops"),
+    ("hcrctl.live",),
+    ("hcrctl.cli",),
+    ("hcrctl.shell", "hcrctl.__main__"),
+]
+STDLIB_ONLY = ("hcrctl.protocol", "hcrctl.sim")
+MAX_TOP_LEVEL = 8
+MAX_LINES = 400
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+MODULES = {module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
+
+
+def imports(name: str) -> set[str]:
+    """Every module ``name`` imports (absolute names), wherever the import statement stands."""
+    path = MODULES[name]
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parts = package.split(".")
+                base = ".".join(parts[: len(parts) - node.level + 1] + ([node.module] if node.module else []))
+            found.add(base)
+            found.update(f"{base}.{alias.name}" for alias in node.names if f"{base}.{alias.name}" in MODULES)
+    return found
+
+
+def own(name: str) -> set[str]:
+    """The hcrctl modules ``name`` imports (a package import counts as its ``__init__``)."""
+    return {m for m in imports(name) if m in MODULES and m != name}
+
+
+def layer_of(name: str) -> int:
+    best = -1, 0
+    for index, prefixes in enumerate(LAYERS):
+        for prefix in prefixes:
+            if (name == prefix or name.startswith(prefix + ".")) and len(prefix) > best[1]:
+                best = index, len(prefix)
+    assert best[0] >= 0, f"{name} is in no layer: add it to LAYERS"
+    return best[0]
+
+
+@pytest.mark.parametrize("name", sorted(MODULES))
+def test_every_import_of_the_package_names_a_module_that_exists(name: str) -> None:
+    """A stale import left inside a function would fail only when that function runs."""
+    missing = sorted(m for m in imports(name) if m.partition(".")[0] == "hcrctl" and m not in MODULES)
+    assert not missing, f"{name} imports modules that do not exist: {missing}"
+
+
+def test_every_module_has_a_layer() -> None:
+    for name in MODULES:
+        layer_of(name)
+
+
+@pytest.mark.parametrize("name", sorted(MODULES))
+def test_no_module_imports_a_higher_layer(name: str) -> None:
+    higher = sorted(m for m in own(name) if layer_of(m) > layer_of(name))
+    assert not higher, f"{name} (layer {layer_of(name)}) imports higher layers: {higher}"
+
+
+def test_the_module_graph_has_no_cycle() -> None:
+    graph = {name: own(name) for name in MODULES}
+    # a package's __init__ is imported with any of its modules; an empty __init__ adds no edge
+    done: set[str] = set()
+    path: list[str] = []
+
+    def visit(node: str) -> None:
+        if node in path:
+            cycle = [*path[path.index(node) :], node]
+            raise AssertionError("import cycle: " + " -> ".join(cycle))
+        if node in done:
+            return
+        path.append(node)
+        for target in sorted(graph[node]):
+            visit(target)
+        path.pop()
+        done.add(node)
+
+    for name in sorted(graph):
+        visit(name)
+
+
+@pytest.mark.parametrize("name", sorted(m for m in MODULES if m.startswith(STDLIB_ONLY)))
+def test_protocol_and_sim_import_only_the_standard_library(name: str) -> None:
+    outside = sorted(
+        m
+        for m in imports(name)
+        if not m.startswith("hcrctl") and m.split(".")[0] not in sys.stdlib_module_names and m != "__future__"
+    )
+    assert not outside, f"{name} imports outside the standard library: {outside}"
+
+
+def test_at_most_eight_modules_directly_in_the_package() -> None:
+    top = sorted(p.name for p in PACKAGE.glob("*.py"))
+    assert len(top) <= MAX_TOP_LEVEL, top
+
+
+@pytest.mark.parametrize("name", sorted(MODULES))
+def test_no_module_is_over_400_lines(name: str) -> None:
+    lines = len(MODULES[name].read_text().splitlines())
+    assert lines <= MAX_LINES, f"{name}: {lines} lines"
+
+
+#: The CLI modules every subcommand may use: option declarations, settings, output; and the shell's door.
+CLI_SHARED = {
+    "hcrctl.cli",
+    "hcrctl.cli.params",
+    "hcrctl.cli.settings",
+    "hcrctl.cli.output",
+    "hcrctl.cli.embed",
+}
+
+
+@pytest.mark.parametrize(
+    "name", sorted(m for m in MODULES if m.startswith("hcrctl.cli.") and m not in CLI_SHARED)
+)
+def test_no_subcommand_module_imports_another(name: str) -> None:
+    others = sorted(m for m in own(name) if m.startswith("hcrctl.cli") and m not in CLI_SHARED)
+    assert not others, f"{name} imports other subcommand modules: {others} (move shared logic below cli/)"
+
+
+@pytest.mark.parametrize("name", sorted(m for m in MODULES if m.startswith(("hcrctl.shell", "hcrctl.live"))))
+def test_the_shell_enters_the_cli_only_through_its_door_and_live_not_at_all(name: str) -> None:
+    used = sorted(m for m in own(name) if m == "hcrctl.cli" or m.startswith("hcrctl.cli."))
+    allowed = ["hcrctl.cli.embed"] if name.startswith("hcrctl.shell") else []
+    assert set(used) <= set(allowed), f"{name} imports {used}; allowed: {allowed}"
+
+
+def test_the_checks_see_imports_inside_functions() -> None:
+    """A lazy import counts: the CLI group imports its settings, and a subcommand imports live lazily."""
+    assert "hcrctl.live.watch" in own("hcrctl.cli.watch")  # imported inside the command function
+    assert layer_of("hcrctl.shell.prompt") > layer_of("hcrctl.cli") > layer_of("hcrctl.live.watch")
