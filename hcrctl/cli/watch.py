@@ -24,7 +24,17 @@ class Rate(FloatRange):
         super().__init__(0, MAX_RATE, min_open=True, unit="Hz", words={"max": None})
 
 
-@click.command()
+WATCH_HELP = """Live dashboard of SENSORS ({sensors}); none means all.
+
+Keys: q quits, space sends stop, p pauses polling, r resets the counters.
+Where the screen cannot be redrawn (output to a file or pipe, TERM=dumb)
+it prints one plain line a second instead. With --json nothing is drawn
+and a summary (sweeps per second, counters, latest values) is printed at
+the end, however it ends (q, --duration, Ctrl-C, SIGTERM).
+"""
+
+
+@click.command(help=WATCH_HELP.format(sensors=", ".join(C.SENSORS)))
 @click.argument("sensors", nargs=-1, type=click.Choice(C.SENSORS), metavar="[SENSOR]...")
 @click.option("--rate", type=Rate(), default="10", show_default=True, help="Sweeps per second, or max.")
 @click.option(
@@ -44,14 +54,7 @@ class Rate(FloatRange):
 def watch(
     settings: Settings, sensors: tuple[str, ...], rate: float | None, duration: float | None, pipeline: bool
 ) -> None:
-    """Live dashboard of SENSORS (bump, ir, sonar, compass, wheels, env); none means all.
-
-    Keys: q quits, space sends stop, p pauses polling, r resets the counters.
-    Where the screen cannot be redrawn (output to a file or pipe, TERM=dumb)
-    it prints one plain line a second instead. With --json nothing is drawn
-    and a summary (sweeps per second, counters, latest values) is printed at
-    the end, however it ends (q, --duration, Ctrl-C, SIGTERM).
-    """
+    """The sensor names in the help are the table's (``WATCH_HELP``), so a new read is listed."""
     from ..live.watch import run_watch
 
     report = (lambda summary: click.echo(json.dumps(summary))) if settings.as_json else None

@@ -2,9 +2,12 @@
 
 No I/O and no clocks: every function takes ``now`` (monotonic seconds) so
 ages are computed against the frame being drawn, and tests render panels on a
-fixed-width capture console. Units and bar ranges come from the command
-table's field metadata. A stale value is drawn dimmed with its age in the
-panel's bottom border; it is never blanked.
+fixed-width capture console. Units, bar ranges and titles come from the
+command table. A stale value is drawn dimmed with its age in the panel's
+bottom border; it is never blanked.
+
+These are the specialised sensor panels; ``sensorpanels`` says which sensor
+gets which, and draws any other read from its reply's fields.
 """
 
 from __future__ import annotations
@@ -28,13 +31,6 @@ UNIT_TEXT = {"deg": degrees}
 BAR_WIDTH = 16
 SPARK_WIDTH = 18
 DIAL_ROWS, DIAL_COLS = 7, 15
-PANEL_TITLES = {
-    "bump": "bumpers",
-    "ir": "IR",
-    "sonar": "ultrasonic",
-    "wheels": "wheels",
-    "env": "environment",
-}
 POSITION_TITLE = "positioning (0xA0)"
 
 
@@ -47,9 +43,18 @@ def field_info(sensor: str, index: int = 0) -> C.FieldInfo:
 
 
 def unit(sensor: str, index: int = 0) -> str:
-    raw = field_info(sensor, index).unit
+    return shown_unit(field_info(sensor, index).unit)
+
+
+def shown_unit(raw: str) -> str:
+    """A table unit as the console can show it: ``°`` for deg where it can."""
     shown = UNIT_TEXT.get(raw)
     return shown() if shown is not None else unit_text(raw)
+
+
+def panel_title(name: str) -> str:
+    """A sensor panel's title, from the table (``panel``, else ``title``)."""
+    return C.BY_NAME[name].panel_title if name in C.BY_NAME else name
 
 
 def age_text(seconds: float | None) -> str:
@@ -64,7 +69,7 @@ def age_text(seconds: float | None) -> str:
 
 def sensor_panel(name: str, body: RenderableType, reading: Reading, now: float, title: str = "") -> Panel:
     """A panel titled from the table; stale readings are dimmed with their age."""
-    title = title or PANEL_TITLES.get(name, C.BY_NAME[name].title if name in C.BY_NAME else name)
+    title = title or panel_title(name)
     if not reading.stale:
         return Panel(body, title=title, title_align="left", border_style="cyan")
     if reading.impossible:
@@ -136,7 +141,7 @@ def bars_panel(sensor: str, reading: Reading, now: float, compact: bool = False)
     values = next(iter(value.fields().values()))
     if compact:  # one line of upright bars, the unit in the title
         line = "  ".join(f"{sparkline([v], info.hi)} {v}" for v in values)
-        return sensor_panel(sensor, Text(line), reading, now, f"{PANEL_TITLES[sensor]} ({shown})")
+        return sensor_panel(sensor, Text(line), reading, now, f"{panel_title(sensor)} ({shown})")
     prefix = "IR" if sensor == "ir" else "US"
     lines = [f"{prefix}{i} {bar(v, info.hi)} {v:>3} {shown}".rstrip() for i, v in enumerate(values, start=1)]
     return sensor_panel(sensor, Text("\n".join(lines)), reading, now)
@@ -214,6 +219,8 @@ def positioning_panel(stations: dict[int, Reading], now: float) -> Panel:
     )
     for address, reading in stations.items():
         pos = reading.value
+        if not isinstance(pos, C.Position):
+            continue
         text.append(f"0x{address:02X}  {pos.d1:>6} {pos.d2:>6} {pos.ts:>6}  ")
         text.append(f"{age_text(reading.age(now))}\n", style="dim")
     text.rstrip()
@@ -275,6 +282,7 @@ def status_text(view: View, now: float) -> Text:
 def link_panel(view: View, now: float, compact: bool = False) -> Panel:
     """Status, poll rate, RTT and the error counters; compact keeps what the issue asks for."""
     c = view.counters
+    rows: list[tuple[str, str | Text]]
     if compact:  # the port is in the header already
         rows = [
             ("status", status_text(view, now)),

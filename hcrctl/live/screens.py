@@ -16,21 +16,18 @@ from rich.panel import Panel
 from rich.segment import Segment
 from rich.text import Text
 
+from ..protocol import commands as C
 from .panels import (
-    PANEL_TITLES,
     SPARK_WIDTH,
     _whole_seconds,
     age_text,
-    bars_panel,
-    bumpers_panel,
-    compass_panel,
-    env_panel,
     labelled,
     link_panel,
     map_panel,
+    panel_title,
     positioning_panel,
-    wheels_panel,
 )
+from .sensorpanels import PanelSpec, panel_for
 from .state import DriveStatus, Reading, View
 
 #: The narrowest a dashboard column gets before there are fewer columns.
@@ -56,22 +53,25 @@ ALL_PANELS_FIT = "80x24"
 
 def sensor_panels(view: View, now: float, compact: bool = False) -> dict[str, Keyed]:
     """The panel of each watched sensor, by table name, keyed by what it shows."""
-    history = tuple(view.history.get("wheels", ())[-SPARK_WIDTH:])
-    makers = {
-        "bump": lambda r: bumpers_panel(r, now),
-        "ir": lambda r: bars_panel("ir", r, now, compact),
-        "sonar": lambda r: bars_panel("sonar", r, now, compact),
-        "compass": lambda r: compass_panel(r, now, with_dial=not compact),
-        "wheels": lambda r: wheels_panel(r, history, now),
-        "env": lambda r: env_panel(r, now, compact),
-    }
     out = {}
     for name in view.sensors:
-        if name in makers:
-            reading = view.readings[name]
-            key = (name, compact, reading_key(reading, now), history if name == "wheels" else None)
-            out[name] = Keyed(key, lambda m=makers[name], r=reading: m(r), PANEL_TITLES.get(name, name))
+        spec = panel_for(name)
+        reading = view.readings[name]
+        history = tuple(view.history.get(name, ())[-SPARK_WIDTH:]) if spec.history else ()
+        key = (name, compact, reading_key(reading, now), history if spec.history else None)
+        out[name] = Keyed(key, _maker(spec, name, reading, now, compact, history), panel_title(name))
     return out
+
+
+def _maker(
+    spec: PanelSpec,
+    name: str,
+    reading: Reading,
+    now: float,
+    compact: bool,
+    history: tuple[tuple[int, ...], ...],
+) -> Callable[[], RenderableType]:
+    return lambda: spec.make(name, reading, now, compact, history)
 
 
 def reading_key(reading: Reading, now: float) -> tuple[object, ...]:
@@ -97,17 +97,29 @@ def dashboard(
     return Group(header("hcrctl watch", view), body, footer(keys, view.note))
 
 
+#: The dashboard's columns, left to right; a read's ``column`` in the table picks one.
+COLUMNS = 3
+
+
 def dashboard_columns(view: View, now: float, compact: bool = False) -> list[list[RenderableType]]:
-    """Sensors, then heading, wheels and link, then the map: the columns of a wide screen."""
+    """Sensors, then heading, wheels and link, then the map: the columns of a wide screen.
+
+    Which sensor stands in which column, and in which order, is the table's
+    (each read's ``column``, in table order), so a new read has its place.
+    """
     panels = sensor_panels(view, now, compact)
     stations_key = tuple((a, r.value, age_text(r.age(now))) for a, r in view.stations.items())
     grid_key = ("map", compact, view.grid.value, _whole_seconds(view.grid.age(now)))
-    return [
-        [panels[n] for n in ("bump", "ir", "sonar", "env") if n in panels]
-        + [Keyed(("stations", stations_key), lambda: positioning_panel(view.stations, now), "positioning")],
-        [panels[n] for n in ("compass", "wheels") if n in panels] + [link_panel(view, now, compact)],
-        [Keyed(grid_key, lambda: map_panel(view.grid, now, compact), "map")],
-    ]
+    columns: list[list[RenderableType]] = [[] for _ in range(COLUMNS)]
+    for name in C.SENSORS:
+        if name in panels:
+            columns[min(C.BY_NAME[name].column, COLUMNS - 1)].append(panels[name])
+    columns[0].append(
+        Keyed(("stations", stations_key), lambda: positioning_panel(view.stations, now), "positioning")
+    )
+    columns[1].append(link_panel(view, now, compact))
+    columns[2].append(Keyed(grid_key, lambda: map_panel(view.grid, now, compact), "map"))
+    return columns
 
 
 class Keyed:
@@ -334,7 +346,7 @@ def teleop_screen(drive: DriveStatus, view: View, now: float, fit: bool = False)
         drive_text(drive, now), title="drive (0x02 motor speed)", title_align="left", border_style="cyan"
     )
     panels = sensor_panels(view, now)
-    readings = [panels[n] for n in ("wheels", "bump") if n in panels]
+    readings: list[RenderableType] = [panels[n] for n in ("wheels", "bump") if n in panels]
     below = SideBySide([readings, [link_panel(view, now)]])
     parts = header("hcrctl teleop", view), Group(body, below), footer(TELEOP_KEYS, view.note)
     return Fitted(*parts) if fit else Group(*parts)

@@ -2,8 +2,16 @@
 
 Everything that knows about a command reads it from here: the encoders and
 reply decoders, the Click parameter ranges and help, the shell's completion,
-the hex decoder's field annotations and the simulator's dispatch. Adding a
-command is one dataclass pair and one ``Command`` entry.
+the hex decoder's field annotations, the simulator's dispatch, a reading's
+rows, its live panel and its place on the dashboard. Adding a command is one
+dataclass pair and one ``Command`` entry; the layers above derive a generic
+simulator behaviour, rows and panel from the reply's fields, and keep
+specialised ones (a compass rose) only as optional overrides by name.
+
+A command can also be added from outside the package, at run time:
+``register_command(Command(...))``, from a module named in the environment
+variable ``HCRCTL_PLUGINS`` (comma-separated), which this module imports as
+it finishes loading, before anything else reads the table.
 
 Request values validate their ranges on construction, so an out-of-range value
 can never reach the wire. Reply values are built from whatever a device sends
@@ -15,8 +23,9 @@ than become a reading. A debugger catches that and flags the frame.
 from __future__ import annotations
 
 import dataclasses
+import os
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal, overload
 
 from ..errors import ProtocolError
 from .fields import NAMES, FieldInfo, fields_of
@@ -66,7 +75,13 @@ def is_motion(code: int) -> bool:
 
 @dataclass(frozen=True)
 class Command:
-    """One row of the table. ``kind`` is write, read or broadcast."""
+    """One row of the table. ``kind`` is write, read or broadcast.
+
+    ``panel`` is the live panel's short title (the ``title`` if empty) and
+    ``column`` the dashboard column a read's panel stands in, in table order:
+    0 above the positioning panel, 1 above the link panel, 2 (the default,
+    where the screen has the most room) above the map.
+    """
 
     code: int
     name: str
@@ -75,6 +90,12 @@ class Command:
     request: type[Request] | None
     reply: type[Reply] | None
     help: str
+    panel: str = ""
+    column: int = 2
+
+    @property
+    def panel_title(self) -> str:
+        return self.panel or self.title
 
     @property
     def motion(self) -> bool:
@@ -93,8 +114,18 @@ class Command:
         return f"0x{self.code:02X} {self.name}"
 
 
-def _cmd(code: int, name: str, title: str, kind: str, request: Any, reply: Any, help: str) -> Command:
-    return Command(code, name, title, kind, request, reply, help)
+def _cmd(
+    code: int,
+    name: str,
+    title: str,
+    kind: str,
+    request: Any,
+    reply: Any,
+    help: str,
+    panel: str = "",
+    column: int = 2,
+) -> Command:
+    return Command(code, name, title, kind, request, reply, help, panel, column)
 
 
 COMMANDS: tuple[Command, ...] = (
@@ -118,9 +149,17 @@ COMMANDS: tuple[Command, ...] = (
         "Set both motors' speed in cm/s; negative reverses.",
     ),
     _cmd(0x04, "turn", "turn by angle", "write", Turn, None, "Turn in place by an angle, then stop."),
-    _cmd(0x11, "bump", "bumpers", "read", ReadRequest, Bumpers, "Read the three bumpers."),
+    _cmd(0x11, "bump", "bumpers", "read", ReadRequest, Bumpers, "Read the three bumpers.", "bumpers", 0),
     _cmd(
-        0x12, "ir", "infrared distance", "read", ReadRequest, Infrared, "Read the IR distance sensors (raw)."
+        0x12,
+        "ir",
+        "infrared distance",
+        "read",
+        ReadRequest,
+        Infrared,
+        "Read the IR distance sensors (raw).",
+        "IR",
+        0,
     ),
     _cmd(
         0x13,
@@ -130,9 +169,21 @@ COMMANDS: tuple[Command, ...] = (
         ReadRequest,
         Ultrasonic,
         "Read the ultrasonic sensors, in cm.",
+        "ultrasonic",
+        0,
     ),
-    _cmd(0x14, "compass", "compass", "read", ReadRequest, Compass, "Read the compass heading."),
-    _cmd(0x15, "wheels", "wheel speed", "read", ReadRequest, WheelSpeed, "Read both wheel speeds, in cm/s."),
+    _cmd(0x14, "compass", "compass", "read", ReadRequest, Compass, "Read the compass heading.", column=1),
+    _cmd(
+        0x15,
+        "wheels",
+        "wheel speed",
+        "read",
+        ReadRequest,
+        WheelSpeed,
+        "Read both wheel speeds, in cm/s.",
+        "wheels",
+        1,
+    ),
     _cmd(
         0x16,
         "env",
@@ -141,6 +192,8 @@ COMMANDS: tuple[Command, ...] = (
         ReadRequest,
         Environment,
         "Read temperature and humidity.",
+        "environment",
+        0,
     ),
     _cmd(0x21, "pid", "set PID", "write", Pid, PidAck, "Set the speed controller's PID gains."),
     _cmd(0x41, "servo", "servos", "write", Servo, None, "Move servos 1 and 2."),
@@ -163,6 +216,77 @@ SENSORS: tuple[str, ...] = tuple(c.name for c in COMMANDS if c.kind == "read")
 _BY_REQUEST: dict[type, Command] = {
     c.request: c for c in COMMANDS if c.request and c.request is not ReadRequest
 }
+
+#: Names the plugin modules to import once the table is built (comma-separated).
+PLUGINS_ENV = "HCRCTL_PLUGINS"
+KINDS = ("write", "read", "broadcast")
+
+
+def register_command(cmd: Command) -> Command:
+    """Add a row to the table at run time; everything that reads the table sees it.
+
+    For a read, that is all it takes: the simulator answers it with a plausible
+    in-range reply built from the reply's fields, ``read``/``read --json``/``watch``
+    show it with rows and a panel derived from those fields, the CLI and the
+    shell accept and complete its name, and ``hex decode`` names its fields.
+    Call it before the CLI is built (from a ``HCRCTL_PLUGINS`` module), so the
+    Click choices include it. A code or name already in the table is refused.
+    """
+    global COMMANDS, SENSORS
+    if cmd.kind not in KINDS:
+        raise ValueError(f"{cmd.name}: kind must be one of {', '.join(KINDS)}, not {cmd.kind!r}")
+    if cmd.code in BY_CODE or cmd.name in BY_NAME:
+        raise ValueError(f"0x{cmd.code:02X} {cmd.name}: the table already has that code or name")
+    if cmd.kind == "read" and (cmd.request is not ReadRequest or cmd.reply is None):
+        raise ValueError(f"{cmd.name}: a read takes ReadRequest and needs a reply class")
+    COMMANDS = (*COMMANDS, cmd)
+    BY_CODE[cmd.code] = cmd
+    BY_NAME[cmd.name] = cmd
+    NAMES[cmd.code] = cmd.name
+    if cmd.request is not None and cmd.request is not ReadRequest:
+        _BY_REQUEST[cmd.request] = cmd
+    if cmd.kind == "read":
+        SENSORS = (*SENSORS, cmd.name)
+    return cmd
+
+
+# -- typed lookups by name -----------------------------------------------------
+
+#: The table's own read names, for callers that want the reply's type from a name.
+ReadName = Literal["bump", "ir", "sonar", "compass", "wheels", "env"]
+
+
+@overload
+def reply_of(name: Literal["bump"]) -> type[Bumpers]: ...
+@overload
+def reply_of(name: Literal["ir"]) -> type[Infrared]: ...
+@overload
+def reply_of(name: Literal["sonar"]) -> type[Ultrasonic]: ...
+@overload
+def reply_of(name: Literal["compass"]) -> type[Compass]: ...
+@overload
+def reply_of(name: Literal["wheels"]) -> type[WheelSpeed]: ...
+@overload
+def reply_of(name: Literal["env"]) -> type[Environment]: ...
+@overload
+def reply_of(name: Literal["pid"]) -> type[PidAck]: ...
+@overload
+def reply_of(name: Literal["position"]) -> type[Position]: ...
+@overload
+def reply_of(name: Literal["map"]) -> type[GridMap]: ...
+@overload
+def reply_of(name: str) -> type[Reply]: ...
+def reply_of(name: str) -> type[Reply]:
+    """A command's reply class by name: ``reply_of("compass")`` is typed ``type[Compass]``.
+
+    A name registered at run time is typed as the base ``Reply``. Raises
+    KeyError for an unknown name or a command without a reply.
+    """
+    reply = BY_NAME[name].reply
+    if reply is None:
+        raise KeyError(f"{name} has no reply")
+    return reply
+
 
 #: What ``stop`` sends: motor power 0x80 0x80.
 STOP = MotorPower(0, 0)
@@ -202,7 +326,7 @@ def decode_fields(code: int, content: bytes, direction: str | None = None) -> di
     if is_request(code, content, direction):
         if cmd.request is None:
             raise ProtocolError(f"{cmd.name} is never sent by the host")
-        value = cmd.request.from_content(content)
+        value: Any = cmd.request.from_content(content)
         return dataclasses.asdict(value)
     if cmd.reply is None:
         raise ProtocolError(f"{cmd.name} has no reply")
@@ -216,3 +340,31 @@ def encode_request(
     if isinstance(request, Command):
         return encode(address, request.code, READ_REQUEST, rule)
     return encode(address, command_for(request).code, request.content(), rule)
+
+
+def load_plugins(names: str | None = None) -> list[str]:
+    """Import the modules named in ``HCRCTL_PLUGINS`` (or ``names``): each may register commands.
+
+    Runs as this module finishes loading, so a plugin's commands are in the
+    table before the CLI builds its choices from it. A plugin that fails to
+    load costs a one-line warning, not the command the user asked for.
+    Returns the names of the modules that loaded.
+    """
+    wanted = os.environ.get(PLUGINS_ENV, "") if names is None else names
+    loaded = []
+    for module in (m.strip() for m in wanted.split(",")):
+        if not module:
+            continue
+        import importlib
+        import sys
+
+        try:
+            importlib.import_module(module)
+        except Exception as exc:  # a broken plugin must not take the tool down with a traceback
+            sys.stderr.write(f"hcrctl: warning: plugin {module} not loaded ({exc}); check {PLUGINS_ENV}\n")
+        else:
+            loaded.append(module)
+    return loaded
+
+
+load_plugins()

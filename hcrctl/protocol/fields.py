@@ -64,6 +64,22 @@ class FieldInfo:
     is_flag: bool = False
     count: tuple[int, int] | None = None
     bits: int | None = None
+    #: The field's annotation as written (``float``, ``tuple[int, int]``, ``tuple[int, ...]``).
+    type: str = ""
+
+    @property
+    def items(self) -> int | None:
+        """How many values the field holds: 1 for a scalar, n for ``tuple[T, T]``, None for ``tuple[T, ...]``."""
+        text = self.type.replace(" ", "")
+        if not text.startswith("tuple["):
+            return 1
+        if text.endswith(",...]"):
+            return None
+        return text.count(",") + 1
+
+    @property
+    def is_float(self) -> bool:
+        return self.type.replace("tuple[", "").startswith("float")
 
     @property
     def range_text(self) -> str:
@@ -91,9 +107,17 @@ def fields_of(cls: type) -> tuple[FieldInfo, ...]:
                 is_flag,
                 m.get("count"),
                 m.get("bits"),
+                _type_text(f.type),
             )
         )
     return tuple(out)
+
+
+def _type_text(annotation: object) -> str:
+    """An annotation as text, whether the module postponed annotations (a string) or not (a type)."""
+    if isinstance(annotation, str):
+        return annotation
+    return annotation.__name__ if isinstance(annotation, type) else str(annotation)
 
 
 class Request:
@@ -144,7 +168,8 @@ class Reply:
         raise NotImplementedError
 
     def fields(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        value: Any = self  # every reply is a dataclass; the base only promises it
+        return dataclasses.asdict(value)
 
 
 def check_reply(value: Reply, content: bytes) -> None:

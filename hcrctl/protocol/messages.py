@@ -143,7 +143,7 @@ class Bumpers(Reply):
     @classmethod
     def from_content(cls, content: bytes) -> Reply:
         _need(content, 1, "bumpers reply")
-        return cls(tuple(bool(content[0] >> i & 1) for i in range(3)))
+        return cls((bool(content[0] & 1), bool(content[0] & 2), bool(content[0] & 4)))
 
     def content(self) -> bytes:
         return bytes((sum(1 << i for i, hit in enumerate(self.bump) if hit),))
@@ -168,7 +168,7 @@ class _ByteList(Reply):
     def from_content(cls, content: bytes) -> Reply:
         if not content:
             raise ProtocolError(f"{cls.KEY} reply carries no readings")
-        return cls(tuple(content))
+        return cls(**{cls.KEY: tuple(content)})
 
     def content(self) -> bytes:
         return bytes(getattr(self, self.KEY))

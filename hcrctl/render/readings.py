@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import sys
+from collections.abc import Callable
 from typing import IO, TYPE_CHECKING, Any
 
 from ..errors import DeviceSilent, HcrError
@@ -97,7 +98,10 @@ def encodable(stream: IO[Any]) -> IO[Any]:
     locale gets a legible screen instead of a UnicodeEncodeError halfway through a frame.
     """
     encoding = console_encoding(stream)
-    return stream if encoding.startswith("utf") else _Encodable(stream, encoding)
+    if encoding.startswith("utf"):
+        return stream
+    wrapper: Any = _Encodable(stream, encoding)  # a stand-in: write() here, the rest the stream's
+    return wrapper
 
 
 class _Encodable:
@@ -151,30 +155,89 @@ def failure_text(name: str, error: HcrError) -> str:
     return error.message
 
 
-def reading_rows(name: str, reply: Result) -> list[tuple[str, str]]:
+Rows = list[tuple[str, str]]
+#: A specialised renderer: one reply of its command -> (label, value) rows.
+RowMaker = Callable[[Any], Rows]
+
+#: Renderers by command name, for the readings a generic row would say less well
+#: (bumpers by where they sit, a heading with its cardinal point). Optional: a read
+#: without one gets ``generic_rows``, derived from its reply's fields.
+ROWS: dict[str, RowMaker] = {}
+
+
+def renders(name: str) -> Callable[[RowMaker], RowMaker]:
+    """Register the function as the rows of command ``name``'s replies."""
+
+    def register(func: RowMaker) -> RowMaker:
+        ROWS[name] = func
+        return func
+
+    return register
+
+
+def reading_rows(name: str, reply: Result) -> Rows:
     """(label, value with units) rows for one sensor reply; a failure is one marked row."""
     if isinstance(reply, HcrError):
         return [
             (C.BY_NAME[name].title if name in C.BY_NAME else name, f"{FAILED} {failure_text(name, reply)}")
         ]
-    if isinstance(reply, C.Bumpers):
-        return [("bumpers", bumper_text(reply.bump))]
-    if isinstance(reply, C.Infrared):
-        return [("infrared", _values(reply.ir, f"({_unit(reply, 'ir')})"))]
-    if isinstance(reply, C.Ultrasonic):
-        return [("ultrasonic", _values(reply.sonar, _unit(reply, "sonar")))]
-    if isinstance(reply, C.Compass):
-        return [("compass", heading_text(reply.heading))]
-    if isinstance(reply, C.WheelSpeed):
-        left, right = reply.wheels
-        unit = _unit(reply, "wheels")
-        return [("wheels", f"left {left} {unit}  right {right} {unit}")]
-    if isinstance(reply, C.Environment):
-        return [
-            ("temperature", f"{reply.temperature} {_unit(reply, 'temperature')}"),
-            ("humidity", f"{reply.humidity} {_unit(reply, 'humidity')}"),
-        ]
-    return [(name, str(reply.fields()))]
+    maker = ROWS.get(C.name_of(reply.CODE))
+    return maker(reply) if maker is not None else generic_rows(reply)
+
+
+def generic_rows(reply: C.Reply) -> Rows:
+    """Rows from the reply's declared fields: one field is one row named by its command,
+    several are a row each, named by the field, every value with its unit from the table."""
+    infos = C.fields_of(type(reply))
+    values = reply.fields()
+    if len(infos) == 1:
+        return [(C.name_of(reply.CODE), field_text(infos[0], values.get(infos[0].name)))]
+    return [(info.name, field_text(info, values.get(info.name))) for info in infos]
+
+
+def field_text(info: C.FieldInfo, value: Any) -> str:
+    """``12.8 V``, ``120  80 cm``, ``yes``: a field's value as a reading row shows it."""
+    items = list(value) if isinstance(value, (list, tuple)) else [value]
+    if items and isinstance(items[0], bool):
+        return "  ".join("yes" if v else "no" for v in items)
+    shown = "  ".join(str(v) for v in items)
+    unit = unit_text(info.unit)
+    return f"{shown} {unit}" if unit else shown
+
+
+@renders("bump")
+def _bumper_rows(reply: C.Bumpers) -> Rows:
+    return [("bumpers", bumper_text(reply.bump))]
+
+
+@renders("ir")
+def _ir_rows(reply: C.Infrared) -> Rows:
+    return [("infrared", _values(reply.ir, f"({_unit(reply, 'ir')})"))]
+
+
+@renders("sonar")
+def _sonar_rows(reply: C.Ultrasonic) -> Rows:
+    return [("ultrasonic", _values(reply.sonar, _unit(reply, "sonar")))]
+
+
+@renders("compass")
+def _compass_rows(reply: C.Compass) -> Rows:
+    return [("compass", heading_text(reply.heading))]
+
+
+@renders("wheels")
+def _wheel_rows(reply: C.WheelSpeed) -> Rows:
+    left, right = reply.wheels
+    unit = _unit(reply, "wheels")
+    return [("wheels", f"left {left} {unit}  right {right} {unit}")]
+
+
+@renders("env")
+def _env_rows(reply: C.Environment) -> Rows:
+    return [
+        ("temperature", f"{reply.temperature} {_unit(reply, 'temperature')}"),
+        ("humidity", f"{reply.humidity} {_unit(reply, 'humidity')}"),
+    ]
 
 
 def readings_table(readings: dict[str, Result], *, borders: bool = True) -> Table:
@@ -203,7 +266,8 @@ def readings_text(readings: dict[str, Result]) -> str:
 def readings_json(readings: dict[str, Result]) -> dict[str, Any]:
     """The ``read --json`` object: the replies' fields, merged, and ``errors`` if any failed.
 
-    Keys: bump, ir, sonar, heading, wheels, humidity, temperature; a sensor
+    Keys: the replies' fields (bump, ir, sonar, heading, wheels, humidity,
+    temperature, and those of any read added to the table); a sensor
     with no reading has no key of its own but one in ``errors`` (name: why),
     so a script never takes a missing value for a reading.
     """

@@ -8,8 +8,10 @@ the physics is advanced to it on every call: tests drive it with a fake clock
 and run instantly; ``sim://`` and ``hcrctl sim`` use ``time.monotonic``.
 
 Requests are decoded by ``FrameDecoder`` and dispatched through the command
-table; replies are built from the reply dataclasses and ``frames.encode``, so
-the simulator knows no byte layout of its own.
+table to each command's behaviour (``behaviours``, keyed by name, with a
+generic answer for a read that has none); replies are built from the reply
+dataclasses and ``frames.encode``, so the simulator knows no byte layout of
+its own.
 """
 
 from __future__ import annotations
@@ -20,68 +22,28 @@ import math
 import random
 import time
 from collections.abc import Callable, Iterator
-from typing import ClassVar
 
 from ..errors import HcrError
-from ..protocol.commands import (
-    BY_CODE,
-    MAP_ROWS,
-    Bumpers,
-    Command,
-    Compass,
-    Environment,
-    GridMap,
-    Infrared,
-    MotorPower,
-    MotorSpeed,
-    Pid,
-    PidAck,
-    Position,
-    ReadRequest,
-    Reply,
-    Request,
-    Servo,
-    Turn,
-    Ultrasonic,
-    Velocity,
-    WheelSpeed,
-)
+from ..protocol.commands import BY_CODE, MAP_ROWS, Command, GridMap, Position, ReadRequest, Reply, Request
 from ..protocol.decoder import FrameDecoder
 from ..protocol.frames import Frame, encode
-from .body import MAX_SPEED_CM_S, Body, Pose
+from .behaviours import ir_raw, read_behaviour, write_behaviour
+from .body import Body, Pose
 from .options import SimOptions
 
 __all__ = ["Pose", "SimOptions", "Simulator", "ir_raw"]
 
-IR_ANGLES = (-90.0, -45.0, 0.0, 45.0, 90.0)
-SONAR_ANGLES = (-30.0, 0.0, 30.0)
-IR_RANGE_CM = 80.0
-IR_NEAR_CM = 4.0
 #: Positioning stations: address, then the two transducers whose distances
 #: to the robot are D1 and D2 (on the west and the south wall).
 STATIONS: tuple[tuple[int, tuple[tuple[float, float], tuple[float, float]]], ...] = (
     (0x50, ((0.0, 80.0), (0.0, 120.0))),
     (0x51, ((130.0, 0.0), (170.0, 0.0))),
 )
-BASE_HUMIDITY = 45.0
-BASE_TEMPERATURE_C = 24.0
 #: A late poll() catches up at most this many broadcasts per sender; older ones
 #: are lost (their DIDs are skipped), as they would be with nobody listening.
 MAX_BACKLOG = 16
 SERVO_HOME = 0x80
 _JUNK = bytes(b for b in range(256) if b != 0x55)
-
-
-def ir_raw(distance_cm: float) -> int:
-    """Raw IR byte for a distance from the sensor: higher is closer.
-
-    Modelled on a Sharp GP2D12-style sensor whose output falls as 1/distance:
-    255 at ``IR_NEAR_CM`` (4 cm) or closer, ``255 * 4 / d`` beyond (13 at
-    80 cm), and 0 when nothing is within ``IR_RANGE_CM`` (80 cm).
-    """
-    if distance_cm > IR_RANGE_CM:
-        return 0
-    return round(255 * IR_NEAR_CM / max(distance_cm, IR_NEAR_CM))
 
 
 #: Slot times are sums of floats: a slot this close to "now" counts as due.
@@ -131,7 +93,8 @@ class Simulator:
         self.pid: tuple[int, int, int] | None = None
         self._decoder = FrameDecoder(self.options.checksum)
         self._faults = random.Random(f"faults:{self.options.seed}")
-        self._env = random.Random(f"env:{self.options.seed}")
+        #: The environment sensor's noise, seeded so that a run can be repeated.
+        self.env_noise = random.Random(f"env:{self.options.seed}")
         self._now = clock()
         #: Delayed replies: (due time, sequence, frame, the owner that asked).
         self._outbox: list[tuple[float, int, bytes, object]] = []
@@ -215,11 +178,10 @@ class Simulator:
         return self._send(frame_out, now, owner)
 
     def _dispatch(self, cmd: Command, request: Request) -> Reply | None:
+        """The command's behaviour (``behaviours``, by name), or the generic one the table implies."""
         if isinstance(request, ReadRequest):
-            reader = self._READS.get(cmd.reply) if cmd.reply else None
-            return reader(self) if reader else None
-        handler = self._WRITES.get(type(request))
-        return handler(self, request) if handler else None
+            return read_behaviour(cmd)(self) if cmd.reply else None
+        return write_behaviour(cmd)(self, request)
 
     def _send(self, frame: bytes, now: float, owner: object = None) -> bytes:
         """Apply the reply faults; a delayed reply goes to the outbox."""
@@ -244,67 +206,6 @@ class Simulator:
     def _chance(self, p: float) -> bool:
         """Draw only for an active fault, so enabling one fault leaves the others' pattern alone."""
         return p > 0 and self._faults.random() < p
-
-    # -- write handlers ---------------------------------------------------
-
-    def _on_percent(self, req: MotorPower | MotorSpeed) -> None:
-        """Power and percent speed alike: the model has no load, so power is speed."""
-        self.body.drive(req.left / 100 * MAX_SPEED_CM_S, req.right / 100 * MAX_SPEED_CM_S)
-
-    def _on_velocity(self, req: Velocity) -> None:
-        self.body.drive(req.left, req.right)
-
-    def _on_turn(self, req: Turn) -> None:
-        self.body.turn(req.angle, req.ccw, req.rate)
-
-    def _on_servo(self, req: Servo) -> None:
-        self.servos = (req.p1, req.p2)
-
-    def _on_pid(self, req: Pid) -> PidAck:
-        if self.options.pid == "refuse":
-            return PidAck(False)
-        self.pid = (req.p, req.i, req.d)
-        return PidAck(True)
-
-    _WRITES: ClassVar[dict[type, Callable]] = {
-        MotorPower: _on_percent,
-        MotorSpeed: _on_percent,
-        Velocity: _on_velocity,
-        Turn: _on_turn,
-        Servo: _on_servo,
-        Pid: _on_pid,
-    }
-
-    # -- sensor reads -----------------------------------------------------
-
-    def _read_bumpers(self) -> Bumpers:
-        return Bumpers(self.body.bumpers())
-
-    def _read_ir(self) -> Infrared:
-        return Infrared(tuple(ir_raw(self.body.range_at(a)) for a in IR_ANGLES))
-
-    def _read_sonar(self) -> Ultrasonic:
-        return Ultrasonic(tuple(min(255, round(self.body.range_at(a))) for a in SONAR_ANGLES))
-
-    def _read_compass(self) -> Compass:
-        return Compass(round(self.body.heading * 10) % 3600 / 10)
-
-    def _read_wheels(self) -> WheelSpeed:
-        left, right = (min(255, round(abs(v))) for v in self.body.wheels)
-        return WheelSpeed((left, right))
-
-    def _read_env(self) -> Environment:
-        humidity = round(BASE_HUMIDITY + self._env.gauss(0, 0.8))
-        return Environment(max(0, min(100, humidity)), round(BASE_TEMPERATURE_C + self._env.gauss(0, 0.4)))
-
-    _READS: ClassVar[dict[type, Callable]] = {
-        Bumpers: _read_bumpers,
-        Infrared: _read_ir,
-        Ultrasonic: _read_sonar,
-        Compass: _read_compass,
-        WheelSpeed: _read_wheels,
-        Environment: _read_env,
-    }
 
     # -- unsolicited frames -----------------------------------------------
 
