@@ -48,11 +48,15 @@ def complete_port(ctx: click.Context, param: click.Parameter, incomplete: str) -
 class GlobalOption(click.Option):
     """Names its env var in an error only when the bad value came from there."""
 
-    def get_error_hint(self, ctx: click.Context) -> str:
+    def get_error_hint(self, ctx: click.Context | None) -> str:
         hint = click.Parameter.get_error_hint(self, ctx)
         from click.core import ParameterSource
 
-        if self.name and ctx.get_parameter_source(self.name) is ParameterSource.ENVIRONMENT:
+        if (
+            self.name
+            and ctx is not None
+            and ctx.get_parameter_source(self.name) is ParameterSource.ENVIRONMENT
+        ):
             hint += f" (from {self.envvar})"
         return hint
 

@@ -207,6 +207,8 @@ class Robot:
             if silent is not None:
                 return silent
             return self._no_reply(cmd.name, (addr, cmd.code))
+        if cmd.reply is None:  # _sensor lets reads only through, and every read has a reply
+            raise ValueError(f"{cmd.name} is not a sensor")
         try:
             return cmd.reply.decode(frame.content)
         except ImpossibleReply as exc:
@@ -228,7 +230,7 @@ class Robot:
     def set_pid(self, p: int, i: int, d: int) -> None:
         """Set the gains; raises DeviceRefused when the device answers 0x00."""
         ack = self.send(C.Pid(p, i, d))
-        if not ack.ok:
+        if not isinstance(ack, C.PidAck) or not ack.ok:
             raise DeviceRefused(f"the device at 0x{self.address:02X} on {self.port} refused PID {p} {i} {d}")
 
     def write(self, frame: bytes) -> None:
