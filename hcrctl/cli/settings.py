@@ -16,7 +16,7 @@ import dataclasses
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
@@ -120,10 +120,14 @@ def config_keys(command: click.Command) -> dict[str, click.Option]:
     return keys
 
 
-def GLOBAL_OPTIONS(func: Callable) -> Callable:
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+
+def GLOBAL_OPTIONS(func: _F) -> _F:
     """Attach the global options to a Click command function."""
     params = getattr(func, "__click_params__", [])
     params.extend(reversed(global_options()))
+    # Click's own protocol: a command function carries its pending parameters in this attribute.
     func.__click_params__ = params  # type: ignore[attr-defined]
     return func
 
