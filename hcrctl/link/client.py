@@ -207,8 +207,7 @@ class Robot:
             if silent is not None:
                 return silent
             return self._no_reply(cmd.name, (addr, cmd.code))
-        if cmd.reply is None:  # _sensor lets reads only through, and every read has a reply
-            raise ValueError(f"{cmd.name} is not a sensor")
+        assert cmd.reply is not None, cmd.name  # _sensor lets reads only through; every read has a reply
         try:
             return cmd.reply.decode(frame.content)
         except ImpossibleReply as exc:
