@@ -11,37 +11,35 @@ from __future__ import annotations
 
 import os
 import select
-import shutil
-import signal
 import subprocess
-import sys
 import time
-import tty
 from collections.abc import Iterator
-from contextlib import contextmanager, suppress
+from contextlib import contextmanager
 from pathlib import Path
+
+from helpers import TIMEOUT, DevicePty, clean_env, hcrctl_exe, sim_process, sleeping, wait_until
 
 from hcrctl.protocol.decoder import decode_all
 from hcrctl.protocol.frames import Frame
 
-TIMEOUT = 30
-
-
-def hcrctl_exe() -> str:
-    """The installed console script: next to this interpreter, else on PATH."""
-    beside = Path(sys.executable).parent / "hcrctl"
-    found = str(beside) if beside.exists() else shutil.which("hcrctl")
-    assert found, "hcrctl is not installed (pip install -e .)"
-    return found
-
-
-def clean_env(home: Path, **extra: str) -> dict[str, str]:
-    """The environment without HCRCTL_* and with a config dir of our own."""
-    env = {k: v for k, v in os.environ.items() if not k.startswith("HCRCTL_") and k != "_HCRCTL_COMPLETE"}
-    env["XDG_CONFIG_HOME"] = str(home)
-    env["COLUMNS"] = "100"
-    env.update(extra)
-    return env
+__all__ = [
+    "TIMEOUT",
+    "Wire",
+    "clean_env",
+    "finish",
+    "frames_in",
+    "hcrctl_exe",
+    "one_line",
+    "readline",
+    "run",
+    "sim_pty",
+    "sleeping",
+    "spy_tx",
+    "start",
+    "stderr_until",
+    "wait_until",
+    "wire",
+]
 
 
 def run(args: list[str], env: dict[str, str], timeout: float = TIMEOUT) -> subprocess.CompletedProcess[str]:
@@ -95,42 +93,25 @@ def readline(proc: subprocess.Popen[str], timeout: float = TIMEOUT) -> str:
     return line.decode().rstrip("\n")
 
 
-class Wire:
-    """A pty pair: hcrctl writes to ``path``; ``read()`` returns what arrived."""
+def stderr_until(proc: subprocess.Popen[str], text: str, timeout: float = TIMEOUT) -> str:
+    """What a running hcrctl wrote on stderr up to ``text`` (byte by byte: the rest stays for ``finish``)."""
+    fd, got = proc.stderr.fileno(), b""
+    deadline = time.monotonic() + timeout
+    while text.encode() not in got:
+        ready, _, _ = select.select([fd], [], [], max(0.0, deadline - time.monotonic()))
+        assert ready, f"hcrctl never said {text!r} in {timeout} s (stderr: {got!r})"
+        byte = os.read(fd, 1)
+        assert byte, f"hcrctl closed stderr before saying {text!r} (stderr: {got!r})"
+        got += byte
+    return got.decode()
 
-    def __init__(self) -> None:
-        self.master, self.slave = os.openpty()
-        tty.setraw(self.slave)
-        tty.setraw(self.master)
-        self.path = os.ttyname(self.slave)
-        self.received = bytearray()
 
-    def read(self, quiet: float = 0.2, limit: float = 5.0) -> bytes:
-        """Everything that arrives until the line has been quiet for ``quiet`` s."""
-        deadline = time.monotonic() + limit
-        while time.monotonic() < deadline:
-            ready, _, _ = select.select([self.master], [], [], quiet)
-            if not ready:
-                break
-            self.received += os.read(self.master, 4096)
-        return bytes(self.received)
+class Wire(DevicePty):
+    """A pty pair: hcrctl writes to ``path``; ``read()`` returns what arrived (see ``DevicePty``)."""
 
-    def wait_for(self, data: bytes, limit: float = 10.0) -> bytes:
-        """Read until ``data`` has arrived (or ``limit`` passes)."""
-        deadline = time.monotonic() + limit
-        while data not in self.received and time.monotonic() < deadline:
-            ready, _, _ = select.select([self.master], [], [], 0.05)
-            if ready:
-                self.received += os.read(self.master, 4096)
-        return bytes(self.received)
-
-    def write(self, data: bytes) -> None:
-        os.write(self.master, data)
-
-    def close(self) -> None:
-        for fd in (self.master, self.slave):
-            with suppress(OSError):
-                os.close(fd)
+    @property
+    def received(self) -> bytearray:
+        return self.bytes_in
 
 
 @contextmanager
@@ -145,27 +126,9 @@ def wire() -> Iterator[Wire]:
 @contextmanager
 def sim_pty(env: dict[str, str], *options: str) -> Iterator[str]:
     """``hcrctl sim --pty``: yields the device path printed on its first line."""
-    proc = subprocess.Popen(
-        [hcrctl_exe(), "sim", "--pty", *options],
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.DEVNULL,
-        stdin=subprocess.DEVNULL,
-        text=True,
-    )
-    try:
-        ready, _, _ = select.select([proc.stdout], [], [], TIMEOUT)
-        assert ready, "hcrctl sim --pty printed no device path"
-        path = proc.stdout.readline().strip()
+    with sim_process(["sim", "--pty", *options], env) as (_, path):
         assert path.startswith("/dev/"), path
         yield path
-    finally:
-        proc.send_signal(signal.SIGTERM)
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
 
 
 def frames_in(data: bytes) -> list[Frame]:

@@ -10,11 +10,10 @@ import contextlib
 import os
 import subprocess
 import time
-import tty
 from collections.abc import Iterator
 from pathlib import Path
 
-from helpers_cli import clean_env, hcrctl_exe
+from helpers import DevicePty, clean_env, hcrctl_exe
 from helpers_cli import sim_pty as cli_sim_pty
 
 __all__ = ["device_pty", "hcrctl_exe", "read_for", "read_until", "run", "sim_pty"]
@@ -46,14 +45,9 @@ def sim_pty(*extra: str) -> contextlib.AbstractContextManager[str]:
 
 @contextlib.contextmanager
 def device_pty() -> Iterator[tuple[int, str]]:
-    """A raw pty whose master end the test reads and writes, playing the robot."""
-    master, slave = os.openpty()
-    tty.setraw(slave)
-    try:
-        yield master, os.ttyname(slave)
-    finally:
-        os.close(slave)
-        os.close(master)
+    """A raw pty whose master end the test reads and writes, playing the robot (see ``DevicePty``)."""
+    with DevicePty() as device:
+        yield device.master, device.path
 
 
 def read_for(fd: int, seconds: float) -> list[tuple[float, bytes]]:

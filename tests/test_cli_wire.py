@@ -92,10 +92,14 @@ def _drive_then_signal(env, signum: int) -> tuple[int, str, str]:
         proc = start(["--port", tap.path, "drive", "power", "60", "60"], env)
         try:
             assert hx(tap.wait_for(bytes.fromhex(POWER_60))) == POWER_60, "the drive never started"
-            time.sleep(0.2)
+            from helpers_cli import sleeping, stderr_until, wait_until
+
+            holding = stderr_until(proc, "Ctrl-C to stop")  # said just before the motion is held
+            wait_until(lambda: sleeping(proc.pid), what="drive to hold the motion")
             assert proc.poll() is None, "drive returned instead of holding the motion"
             proc.send_signal(signum)
             _, err = finish(proc)
+            err = holding + err
         finally:
             if proc.poll() is None:
                 proc.kill()

@@ -56,7 +56,7 @@ def test_reads_every_sensor_from_the_simulator(robot: Robot) -> None:
 def test_traffic_hook_sees_both_directions_with_timestamps(robot: Robot, traffic: list[Traffic]) -> None:
     before = time.time()
     robot.read("compass")
-    deadline = time.monotonic() + 1
+    deadline = time.monotonic() + 30  # the hook runs on the reader thread: a loaded machine may lag
     while not any(t.direction == "rx" and t.data[4] == 0x14 for t in traffic) and time.monotonic() < deadline:
         time.sleep(0.01)
     tx = [t for t in traffic if t.direction == "tx"]
@@ -90,7 +90,7 @@ def test_stop_sent_when_the_block_raises(traffic: list[Traffic]) -> None:
 
 
 def test_broadcasts_go_to_the_queue_without_disturbing_requests(robot: Robot) -> None:
-    deadline = time.monotonic() + 2
+    deadline = time.monotonic() + 30
     headings = []
     while robot.unsolicited.qsize() < 3 and time.monotonic() < deadline:
         headings.append(robot.read("compass").heading)
@@ -103,7 +103,7 @@ def test_broadcasts_go_to_the_queue_without_disturbing_requests(robot: Robot) ->
 def test_unsolicited_callback(traffic: list[Traffic]) -> None:
     seen: list[Frame] = []
     with Robot("sim://?broadcast_hz=20", on_unsolicited=seen.append):
-        deadline = time.monotonic() + 2
+        deadline = time.monotonic() + 30
         while not seen and time.monotonic() < deadline:
             time.sleep(0.02)
     assert seen and seen[0].address >= C.FIRST_STATION and seen[0].command == 0xA0

@@ -351,25 +351,14 @@ def test_a_stop_frame_is_not_held() -> None:
 
 def test_on_a_terminal_decode_draws_a_table_with_bad_rows_marked() -> None:
     """Through a real pty (pexpect), rendered by pyte as a terminal would show it."""
-    import pexpect
-    import pyte
+    from helpers import terminal
 
     frames = printed("55 AA 01 02 01 CC CC", 0x9D).hex(" ") + " 00 " + encode(1, 0x14, H("0D 0A")).hex(" ")
-    child = pexpect.spawn(
-        hcrctl_exe(),
-        ["hex", "decode", frames],
-        dimensions=(24, 140),
-        env={"TERM": "xterm", "PATH": "/usr/bin:/bin"},
-    )
-    try:
-        child.expect(pexpect.EOF, timeout=20)
-    finally:
-        child.close(force=True)
-    screen = pyte.Screen(140, 24)
-    stream = pyte.ByteStream(screen)
-    stream.feed(child.before.replace(b"\n", b"\r\n"))
+    env = {"TERM": "xterm", "PATH": "/usr/bin:/bin"}
+    with terminal(["hex", "decode", frames], size=(140, 24), env=env) as term:
+        assert term.finish() == 1
+        screen = term.screen
     text = "\n".join(screen.display)
-    assert child.exitstatus == 1
     header = next(line for line in screen.display if "offset" in line)
     assert all(word in header for word in ("addr", "command", "content", "fields", "checksum"))
     assert "9D bad: header rule 9B, address rule 9C" in text

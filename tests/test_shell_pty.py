@@ -26,6 +26,14 @@ def lines_with(screen: str, text: str) -> list[str]:
     return [line for line in screen.splitlines() if text in line]
 
 
+def command_running(term, line: str) -> None:
+    """Until ``line``'s command runs with the terminal cooked, so a Ctrl-C now reaches it as SIGINT."""
+    if line.startswith("sleep"):
+        term.wait_for(lambda s: term.cooked() and term.sleeping())
+    else:  # ping: its first reply is printed
+        term.wait_for(lambda s: term.cooked() and "seq=" in s)
+
+
 # -- commands, the prompt, errors -------------------------------------------------
 
 
@@ -64,8 +72,7 @@ def test_ctrl_c_cancels_the_running_command_not_the_session(tmp_path, line, canc
     with shell(["--port", SIM, "shell"], tmp_path) as term:
         term.wait_prompt()
         term.send(line + "\r")
-        term.wait_for(lambda s: line in s and not term._at_prompt())
-        time.sleep(0.5)
+        command_running(term, line)
         term.send("\x03")
         term.wait_for(cancelled)
         term.wait_prompt()
@@ -214,8 +221,7 @@ def test_stop_is_sent_when_the_session_ends(tmp_path, robot, ending):
         _drive_then(term, robot)
         if ending == "sigterm-mid-command":
             term.send("sleep 60\r")
-            term.wait_for(lambda s: "sleep 60" in s and not term._at_prompt())
-            time.sleep(0.3)
+            command_running(term, "sleep 60")
             term.child.kill(signal.SIGTERM)
         elif ending == "ctrl-d":
             term.send("\x04")
@@ -240,7 +246,14 @@ def test_the_stop_key_works_mid_line_and_keeps_the_line(tmp_path, robot):
         term.wait_for(lambda s: term.prompt_line().endswith("read comp"))
         term.send("\x00")  # Ctrl-Space
         robot.wait_for(lambda frames: STOP_FRAME in frames)
-        screen = term.wait_for("stop sent to 0x01")
+        # the note is printed above the prompt, then the prompt and toolbar are redrawn: wait for all three
+        screen = term.wait_for(
+            lambda s: (
+                "stop sent to 0x01" in s
+                and term.prompt_line().endswith("ok> read comp")
+                and lines_with(s, "^Space/F12: stop")
+            )
+        )
         assert term.prompt_line().endswith("ok> read comp")
         assert lines_with(screen, "^Space/F12: stop")
         term.send("ass\r")
@@ -254,8 +267,7 @@ def test_ctrl_c_during_a_command_stops_a_robot_that_moved(tmp_path, robot, line)
     with shell(["--port", robot.port, "shell"], tmp_path) as term:
         _drive_then(term, robot)
         term.send(line + "\r")
-        term.wait_for(lambda s: line in s and not term._at_prompt())
-        time.sleep(0.5)
+        command_running(term, line)
         term.send("\x03")
         robot.wait_for(lambda frames: STOP_FRAME in frames)
         term.wait_for("interrupted; stop sent")

@@ -42,7 +42,7 @@ def position(station: int, did: int) -> Frame:
     return frame(station, 0xA0, bytes((did, 120, 98, 200)))
 
 
-def wait_until(predicate, timeout: float = 10.0) -> None:
+def wait_until(predicate, timeout: float = 30.0) -> None:
     deadline = time.monotonic() + timeout
     while not predicate() and time.monotonic() < deadline:
         time.sleep(0.01)

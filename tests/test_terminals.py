@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 import pytest
-from helpers_live import FakeRobot, hcrctl_exe, is_stop, speed_of, terminal, usage_error
+from helpers_live import FakeRobot, hcrctl_exe, is_stop, speed_of, terminal, terminal_env, usage_error
 
 from hcrctl.protocol import commands as C
 
@@ -96,7 +96,10 @@ def test_the_watch_stop_key_is_sent_while_nobody_reads_the_terminal() -> None:
 
 
 def test_watch_on_a_dumb_terminal_prints_plain_lines() -> None:
-    with FakeRobot() as robot, terminal(["--port", robot.path, "watch"], env={"TERM": "dumb"}) as term:
+    with (
+        FakeRobot() as robot,
+        terminal(["--port", robot.path, "watch"], env={**terminal_env(), "TERM": "dumb"}) as term,
+    ):
         line = r"\d\d:\d\d:\d\d ok [^\n]*\| compass 123\.4° ESE \|"  # long lines: read them as written
         term.wait_for(lambda _: len(re.findall(line, term.output())) >= 2, timeout=30)
         term.send("q")
@@ -107,7 +110,7 @@ def test_watch_on_a_dumb_terminal_prints_plain_lines() -> None:
 
 def test_teleop_refuses_a_dumb_terminal_and_sends_nothing() -> None:
     with FakeRobot() as robot:
-        with terminal(["--port", robot.path, "teleop"], env={"TERM": "dumb"}) as term:
+        with terminal(["--port", robot.path, "teleop"], env={**terminal_env(), "TERM": "dumb"}) as term:
             assert term.finish(timeout=30) == 2
         assert robot.frames() == []
     lines = term.output().strip().splitlines()
@@ -117,7 +120,7 @@ def test_teleop_refuses_a_dumb_terminal_and_sends_nothing() -> None:
 @pytest.mark.parametrize("command", ["watch", "teleop"])
 def test_an_ascii_locale_draws_in_ascii_and_restores_the_terminal(command: str) -> None:
     args = ["--port", "sim://", command]
-    with terminal(args, env=ASCII_LOCALE) as term:
+    with terminal(args, env={**terminal_env(), **ASCII_LOCALE}) as term:
         if command == "watch":  # the degree sign said in ASCII, and rich's ASCII borders
             term.wait_for(
                 lambda t: re.search(r"\d+\.\d deg [NESW]{1,3}\b", t) and "+- compass" in t, timeout=30
@@ -134,7 +137,7 @@ def test_an_ascii_locale_draws_in_ascii_and_restores_the_terminal(command: str) 
 
 
 def test_the_shell_reads_the_compass_and_watches_in_an_ascii_locale() -> None:
-    with terminal(["--port", "sim://", "shell"], env=ASCII_LOCALE) as term:
+    with terminal(["--port", "sim://", "shell"], env={**terminal_env(), **ASCII_LOCALE}) as term:
         term.wait_for(r"hcr sim://", timeout=30)
         term.send("read compass\r")
         term.wait_for(r"compass \| +\d+\.\d deg [NESW]{1,3}", timeout=30)

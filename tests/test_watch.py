@@ -5,7 +5,6 @@ from __future__ import annotations
 import io
 import json
 import re
-import socket
 import subprocess
 import sys
 import time
@@ -100,9 +99,9 @@ def test_keys_pause_reset_and_send_stop() -> None:
         term.wait_for(r"sweeps +[1-9]")
         term.send("p")
         term.wait_for(r"status +paused")
-        time.sleep(0.3)  # a read already on its way may finish
+        robot.settle(0.5)  # a read already on its way may finish
         paused = len(robot.frames())
-        time.sleep(0.5)
+        robot.settle(0.5)
         assert len(robot.frames()) == paused  # polling really stopped
         term.send("p")
         term.wait_for(r"status +ok")
@@ -117,11 +116,11 @@ def test_keys_pause_reset_and_send_stop() -> None:
 
 
 def test_a_port_that_disappears_is_retried_and_recovers() -> None:
-    port = _free_port()
-    with sim_server("--tcp", f"127.0.0.1:{port}") as (proc, url), terminal(["--port", url, "watch"]) as term:
+    with sim_server("--tcp", "127.0.0.1:0") as (proc, url), terminal(["--port", url, "watch"]) as term:
+        port = url.rpartition(":")[2]  # the port the system chose: no other test can hold it
         term.wait_for(r"status +ok")
         proc.terminate()
-        proc.wait(timeout=5)
+        proc.wait(timeout=30)
         term.wait_for("disconnected, retrying")
         with sim_server("--tcp", f"127.0.0.1:{port}"):
             screen = term.wait_for(lambda t: re.search(r"status +ok", t) and "reconnects 1" in t, timeout=15)
@@ -186,12 +185,6 @@ def test_a_missing_port_is_one_line_exit_1() -> None:
     )
     assert out.returncode == 1
     assert len(out.stderr.strip().splitlines()) == 1 and "/dev/does-not-exist" in out.stderr
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 # -- inside the shell: the session robot is reused, never closed ---------------------

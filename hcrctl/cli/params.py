@@ -18,7 +18,7 @@ So every numeric parameter must use ``IntRange``, ``FloatRange``,
 walks the Click tree and holds every one to these rules).
 
 ``drive power LEFT RIGHT`` gets its ranges, units, defaults and help from
-``MotorPower``'s fields in ``commands.py``; nothing here knows a range. A value
+``MotorPower``'s fields in ``protocol/messages.py``; nothing here knows a range. A value
 that is out of range is therefore refused by Click (exit 2, naming the
 parameter and the range) before a port is even opened.
 """

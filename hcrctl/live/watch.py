@@ -73,8 +73,8 @@ def run_watch(
     owed = OwedStop()
     with settings.robot() as robot, quick_handoff():
         poller = Poller(robot, state, names, rate, reconnect=Reconnect(settings, robot), pipeline=pipeline)
-        poller.start()
-        try:
+        try:  # started inside: a signal the moment its first request is out still reports
+            poller.start()
             _watch_loop(state, poller, console, duration, owed)
         finally:
             poller.stop()

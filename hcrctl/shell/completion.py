@@ -1,7 +1,7 @@
 """Tab completion for the shell, from the Click tree and the command table.
 
 Commands, subcommands, options, sensor names and choices come from the same
-Click commands the line will run (see ``shell_tree``); each comes with a short
+Click commands the line will run (see ``shell.tree``); each comes with a short
 description. A parameter that takes a path completes from the file system.
 """
 

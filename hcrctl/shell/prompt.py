@@ -14,19 +14,22 @@ first, which sends stop if the robot moved, before touching the terminal.
 from __future__ import annotations
 
 import contextlib
+import signal
 import sys
+import threading
 from collections.abc import Iterator
 from typing import Any
 
 import click
 from prompt_toolkit import PromptSession
-from prompt_toolkit.application import get_app
+from prompt_toolkit.application import get_app, get_app_or_none
 from prompt_toolkit.history import FileHistory, History, InMemoryHistory
 from prompt_toolkit.key_binding import KeyBindings
 from prompt_toolkit.patch_stdout import StdoutProxy
 from prompt_toolkit.styles import Style
 
 from ..errors import HcrError
+from ..link.signals import STOP_SIGNALS, Terminated
 from .builtins import STOP_KEY_LABEL
 from .completion import ShellCompleter
 from .dispatch import run_line
@@ -140,7 +143,7 @@ def _stop_keys(session: Session) -> KeyBindings:
 
 def _read(session: Session, prompts: _Prompts) -> str | None:
     """One line from the prompt; "" after Ctrl-C, None at Ctrl-D (hex mode: back to hcr)."""
-    with _printing_above(session):
+    with _printing_above(session), _stop_signals_end_the_prompt():
         try:
             return prompts.current().prompt(lambda: prompt_fragments(session))
         except KeyboardInterrupt:
@@ -150,6 +153,34 @@ def _read(session: Session, prompts: _Prompts) -> str | None:
                 session.hex_mode = False
                 return ""
             return None
+
+
+@contextlib.contextmanager
+def _stop_signals_end_the_prompt() -> Iterator[None]:
+    """While the prompt waits, SIGTERM/SIGHUP make ``prompt()`` raise ``Terminated``.
+
+    Raised straight from the signal handler, ``Terminated`` can land inside one
+    of the event loop's callbacks (a redraw, a line printed above the prompt),
+    where asyncio reports and swallows it: the session would carry on, and a
+    robot told to move with it. Exiting the application with the exception
+    cannot be swallowed.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def end_the_prompt(signum: int, frame: object) -> None:
+        app = get_app_or_none()
+        if app is None or not app.is_running or app.future is None or app.future.done():
+            raise Terminated(signum)
+        app.exit(exception=Terminated(signum))
+
+    previous = {sig: signal.signal(sig, end_the_prompt) for sig in STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 @contextlib.contextmanager

@@ -34,7 +34,7 @@ class Session:
         self.interactive = interactive
         self.broadcasts = Broadcasts()
         self.link = SessionLink(settings, on_frame=self._unsolicited, on_event=self.say)
-        #: What unsolicited frames print (see shell_broadcasts.MODES); scripts stay quiet unless asked.
+        #: What unsolicited frames print (see broadcasts.MODES); scripts stay quiet unless asked.
         self.monitor = "changes" if interactive else "off"
         self.hex_mode = False
         self.done = False

@@ -12,7 +12,7 @@ tool's counters (lost replies, strays) would count the others' traffic. Each
 client also has its own frame decoder, and only whole frames reach the
 robot, so two clients writing at once never garble each other's requests.
 
-Standard library only and no I/O, like ``simlink``: the server calls
+Standard library only and no I/O, like ``sim.uart``: the server calls
 ``SimLine.write``/``SimLine.read`` on each client's line.
 """
 

@@ -4,7 +4,7 @@ A real program (minicom, another tool, ``hcrctl --port /dev/pts/N``) then
 talks to the simulated robot through a real file descriptor. Both servers are
 one single-threaded select() loop that sleeps until input arrives, the stop
 pipe is written, or a link's ``next_due()`` (a paced byte, a broadcast). The
-TCP server takes several clients at once, all on the same robot (``simhub``).
+TCP server takes several clients at once, all on the same robot (``sim.hub``).
 
 Output is written non-blocking and dropped when nobody reads, as a UART's
 bytes are lost with no listener; the server never stalls on a slow client.
@@ -155,7 +155,7 @@ def serve_tcp(
 
     The robot outlives its clients (unplugging a cable does not reset it);
     each client starts with a clean line, hears the replies to its own
-    requests and every broadcast (see ``simhub``). ``say`` gets a line when a
+    requests and every broadcast (see ``sim.hub``). ``say`` gets a line when a
     client comes or goes. Port 0 picks a free port.
     """
     with socket.create_server((host, port)) as server, contextlib.ExitStack() as conns:

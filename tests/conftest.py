@@ -1,0 +1,98 @@
+"""Fixtures and settings every test file shares (the helpers themselves live in ``helpers.py``).
+
+The suite runs in parallel (pytest-xdist, see ``addopts`` in pyproject.toml):
+nothing here may be shared between workers. Each fixture owns its pty, its
+temporary directory and its environment; servers bind port 0.
+"""
+
+from __future__ import annotations
+
+import re
+import signal
+import warnings
+from collections.abc import Generator, Iterator
+from pathlib import Path
+
+import pytest
+from helpers import DevicePty, clean_env, hcrctl_exe
+from helpers_cli import sim_pty
+from helpers_shell import PtyRobot
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Children must get the default SIGINT even when the suite was started with it ignored.
+
+    A shell starts background jobs (``pytest &``) with SIGINT ignored, and an
+    ignored signal stays ignored across exec: every hcrctl the tests start
+    would then shrug off the Ctrl-C a test sends. A handled signal is reset to
+    the default on exec, so handling it here gives every child SIG_DFL. (The
+    pty helper also sets it explicitly, with ``posix_spawn``'s ``setsigdef``.)
+    """
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+#: Python 3.12+ on fork/forkpty in a threaded process ("may lead to deadlocks in the child").
+FORK_WITH_THREADS = re.compile(r"is multi-threaded, use of \w+\(\) may lead to deadlocks")
+
+
+def _no_fork_with_threads() -> Generator[None, object, object]:
+    """Fail the test if it forked while threads ran (the pty helper uses posix_spawn so as never to).
+
+    A ``filterwarnings = error`` entry cannot do it: CPython swallows that
+    warning when it is turned into an error. Other warnings are passed on.
+    """
+    caught: list[warnings.WarningMessage] = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = yield
+    finally:
+        forks = [w for w in caught if FORK_WITH_THREADS.search(str(w.message))]
+        for w in caught:
+            if w not in forks:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    if forks:
+        pytest.fail(f"forked while threads ran ({forks[0].filename}:{forks[0].lineno}): {forks[0].message}")
+    return result
+
+
+pytest_runtest_setup = pytest.hookimpl(wrapper=True)(_no_fork_with_threads)
+pytest_runtest_call = pytest.hookimpl(wrapper=True)(_no_fork_with_threads)
+pytest_runtest_teardown = pytest.hookimpl(wrapper=True)(_no_fork_with_threads)
+
+
+@pytest.fixture(scope="session")
+def hcrctl() -> str:
+    """The installed executable under test."""
+    return hcrctl_exe()
+
+
+@pytest.fixture
+def env(tmp_path: Path) -> dict[str, str]:
+    """An environment with no HCRCTL_* variables and a config directory of this test's own."""
+    return clean_env(tmp_path)
+
+
+@pytest.fixture(scope="module")
+def device(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """A quiet simulator (no broadcasts) on a pty, shared by the tests of one module: its path."""
+    with sim_pty(clean_env(tmp_path_factory.mktemp("sim")), "--options", "broadcast_hz=0&map_hz=0") as path:
+        yield path
+
+
+@pytest.fixture
+def device_pty_pair() -> Iterator[DevicePty]:
+    """A pty pair the test plays the robot on (read/write its master)."""
+    with DevicePty() as dev:
+        yield dev
+
+
+@pytest.fixture
+def pty_robot() -> Iterator[PtyRobot]:
+    """The simulator's model behind a pty the test owns, recording every frame."""
+    robot = PtyRobot()
+    try:
+        yield robot
+    finally:
+        robot.close()
