@@ -96,7 +96,7 @@ def test_after_disconnect_the_shell_promises_no_reconnect(tmp_path):
         (error,) = [line for line in said.splitlines() if "error: not connected" in line]
         assert "reconnects when the device returns" not in error
         assert "(hint: connect reconnects to it, connect PORT opens another)" in error
-        assert "disconnected (connect reconnects)" in screen
+        screen = term.wait_for(lambda s: "disconnected (connect reconnects)" in s)  # the toolbar, redrawn
         assert "retrying" not in screen
         term.run("connect")
         assert term.prompt_line().endswith("ok>")

@@ -289,3 +289,27 @@ def test_glyphs_degrade_to_what_the_console_encoding_carries(encoding: str, head
     assert f"123.4{render.degrees(stream)} ESE" == heading
     render.encodable(stream).write("↑↓←→/wasd drive · q quit")
     assert raw.getvalue().decode(encoding) == keys
+
+
+def test_one_shot_lines_and_errors_are_ascii_in_an_ascii_locale() -> None:
+    """Click writes UTF-8 bytes whatever the locale; the text itself must fit the console (° as deg)."""
+    env = {**os.environ, **ASCII_LOCALE}
+    done = subprocess.run(
+        [hcrctl_exe(), "--port", "sim://", "turn", "10"],
+        env=env,
+        capture_output=True,
+        timeout=60,
+        check=False,
+    )
+    failed = subprocess.run(
+        [hcrctl_exe(), "--port", "sim://?silent=1", "--timeout", "0.1", "--retries", "0", "turn", "10"],
+        env=env,
+        capture_output=True,
+        timeout=60,
+        check=False,
+    )
+    assert done.returncode == 0 and failed.returncode == 1, (done.stderr, failed.stderr)
+    for data in (done.stdout, done.stderr, failed.stderr):
+        data.decode("ascii")  # no byte above 0x7F
+    assert b"turned 10.0 deg clockwise: 90.0 deg E" in done.stdout
+    assert b"turning: 10 deg clockwise" in done.stderr

@@ -200,7 +200,9 @@ def say_error(line: str) -> None:
     Messages quote what the user typed (a port, a file name, a value); an
     escape sequence there must reach the terminal as text, not as a command.
     """
-    click.echo(printable(line), err=True)
+    from ..render.readings import console_text
+
+    click.echo(console_text(printable(line), sys.stderr), err=True)
 
 
 def _usage_error(exc: click.UsageError, args: list[str] | None = None) -> int:

@@ -65,6 +65,20 @@ def glyph(fancy: str, plain: str, stream: IO[Any] | None = None) -> str:
     return fancy if can_encode(fancy, console_encoding(stream)) else plain
 
 
+def console_text(text: str, stream: IO[Any] | None = None) -> str:
+    """``text`` as the console's encoding carries it: ° as ``deg``, other glyphs as ASCII stand-ins.
+
+    Click writes UTF-8 bytes even to a C or ISO-8859-1 terminal, which shows
+    them as mojibake; one-line results, notes and errors go through here.
+    """
+    encoding = console_encoding(stream)
+    if can_encode(text, encoding):
+        return text
+    if not can_encode("°", encoding):
+        text = text.replace("°C", "degC").replace("°", " deg")
+    return "".join(ch if can_encode(ch, encoding) else ASCII_GLYPHS.get(ord(ch), "?") for ch in text)
+
+
 def degrees(stream: IO[Any] | None = None) -> str:
     """The degree sign, or `` deg`` on a console that cannot show it."""
     return glyph("°", " deg", stream)
