@@ -47,7 +47,11 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "shell": ("hcrctl.shell.command:shell", "The interactive session: every command, one connection."),
 }
 
-CONTEXT = {"help_option_names": ["-h", "--help"], "auto_envvar_prefix": "HCRCTL", "max_content_width": 100}
+CONTEXT: dict[str, Any] = {
+    "help_option_names": ["-h", "--help"],
+    "auto_envvar_prefix": "HCRCTL",
+    "max_content_width": 100,
+}
 
 
 class LazyGroup(click.Group):

@@ -182,7 +182,7 @@ def request_value(cmd: C.Command, values: dict[str, Any]) -> C.Request:
 class NamedArgument(click.Argument):
     """An argument named 'SENSOR' in errors, not by its usage form '[SENSOR]...'."""
 
-    def get_error_hint(self, ctx: click.Context) -> str:
+    def get_error_hint(self, ctx: click.Context | None) -> str:
         return f"'{(self.metavar or self.name or '').strip('[].').upper()}'"
 
 
@@ -197,7 +197,8 @@ class SignedArgsCommand(click.Command):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         settings = dict(kwargs.pop("context_settings", None) or {})
         settings["ignore_unknown_options"] = True
-        super().__init__(*args, context_settings=settings, **kwargs)
+        kwargs["context_settings"] = settings
+        super().__init__(*args, **kwargs)
 
     def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
         if not ctx.resilient_parsing:

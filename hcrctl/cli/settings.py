@@ -16,7 +16,7 @@ import dataclasses
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
@@ -48,11 +48,15 @@ def complete_port(ctx: click.Context, param: click.Parameter, incomplete: str) -
 class GlobalOption(click.Option):
     """Names its env var in an error only when the bad value came from there."""
 
-    def get_error_hint(self, ctx: click.Context) -> str:
+    def get_error_hint(self, ctx: click.Context | None) -> str:
         hint = click.Parameter.get_error_hint(self, ctx)
         from click.core import ParameterSource
 
-        if self.name and ctx.get_parameter_source(self.name) is ParameterSource.ENVIRONMENT:
+        if (
+            self.name
+            and ctx is not None
+            and ctx.get_parameter_source(self.name) is ParameterSource.ENVIRONMENT
+        ):
             hint += f" (from {self.envvar})"
         return hint
 
@@ -116,10 +120,14 @@ def config_keys(command: click.Command) -> dict[str, click.Option]:
     return keys
 
 
-def GLOBAL_OPTIONS(func: Callable) -> Callable:
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+
+def GLOBAL_OPTIONS(func: _F) -> _F:
     """Attach the global options to a Click command function."""
     params = getattr(func, "__click_params__", [])
     params.extend(reversed(global_options()))
+    # Click's own protocol: a command function carries its pending parameters in this attribute.
     func.__click_params__ = params  # type: ignore[attr-defined]
     return func
 

@@ -92,12 +92,12 @@ def _options(query: str, pace: bool, baud: int | None, seed: int | None) -> SimO
         options = SimOptions.from_query(query)
     except ValueError as exc:
         raise click.BadParameter(str(exc), param_hint="'--options'") from None
-    changes: dict[str, object] = {"pace": options.pace or pace}
-    if baud is not None:
-        changes["baud"] = baud
-    if seed is not None:
-        changes["seed"] = seed
-    return dataclasses.replace(options, **changes)
+    return dataclasses.replace(
+        options,
+        pace=options.pace or pace,
+        baud=options.baud if baud is None else baud,
+        seed=options.seed if seed is None else seed,
+    )
 
 
 def parse_tcp(text: str) -> tuple[str, int]:

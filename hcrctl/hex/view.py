@@ -22,6 +22,7 @@ from ..protocol.records import (
 )
 
 if TYPE_CHECKING:
+    from rich.console import JustifyMethod
     from rich.table import Table
 
 #: Bytes of junk or content shown in a text row before eliding the rest.
@@ -153,7 +154,12 @@ def decode_table(rows: list[dict[str, Any]]) -> Table:
     from rich.text import Text
 
     table = Table(box=box.SIMPLE_HEAD)
-    for title, justify in (("offset", "right"), ("addr", "left"), ("command", "left")):
+    aligned: tuple[tuple[str, JustifyMethod], ...] = (
+        ("offset", "right"),
+        ("addr", "left"),
+        ("command", "left"),
+    )
+    for title, justify in aligned:
         table.add_column(title, justify=justify, no_wrap=True)
     table.add_column("content", overflow="fold")
     table.add_column("fields", overflow="fold")

@@ -225,7 +225,7 @@ class Robot(TypedReads):
     def set_pid(self, p: int, i: int, d: int) -> None:
         """Set the gains; raises DeviceRefused when the device answers 0x00."""
         ack = self.send(C.Pid(p, i, d))
-        if not ack.ok:
+        if not isinstance(ack, C.PidAck) or not ack.ok:
             raise DeviceRefused(f"the device at 0x{self.address:02X} on {self.port} refused PID {p} {i} {d}")
 
     def write(self, frame: bytes) -> None:

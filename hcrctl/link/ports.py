@@ -38,7 +38,7 @@ def by_id_links(by_id_dir: str = BY_ID_DIR) -> dict[str, str]:
         names = sorted(os.listdir(by_id_dir))
     except OSError:
         return {}
-    links = {}
+    links: dict[str, str] = {}
     for name in names:
         link = os.path.join(by_id_dir, name)
         links.setdefault(os.path.realpath(link), link)

@@ -91,9 +91,10 @@ def _url_problem(exc: BaseException) -> str | None:
     innermost ValueError of the chain says what was wrong.
     """
     chain: list[BaseException] = []
-    while exc is not None and len(chain) < 8:
-        chain.append(exc)
-        exc = exc.__context__
+    link: BaseException | None = exc
+    while link is not None and len(chain) < 8:
+        chain.append(link)
+        link = link.__context__
     reasons = [str(e) for e in chain if isinstance(e, ValueError)]
     if reasons:
         return reasons[-1]

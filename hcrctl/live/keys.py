@@ -115,7 +115,7 @@ class KeyReader:
         return self.fd is not None and os.isatty(self.fd)
 
     def __enter__(self) -> KeyReader:
-        if self.is_terminal:
+        if self.fd is not None and os.isatty(self.fd):
             self._saved = _cbreak(self.fd)
         return self
 
@@ -124,7 +124,7 @@ class KeyReader:
 
     def restore(self) -> None:
         """Put the terminal back as it was; safe to call twice."""
-        if self._saved is not None:
+        if self._saved is not None and self.fd is not None:
             import termios
 
             termios.tcsetattr(self.fd, termios.TCSADRAIN, self._saved)
@@ -134,20 +134,21 @@ class KeyReader:
         """The next key, or None after ``timeout`` s; "eof" once when the input ends."""
         if self._keys:
             return self._keys.pop(0)
-        if self.eof:
+        fd = self.fd
+        if self.eof or fd is None:  # no descriptor means the input ended at birth (eof is set)
             if not self._told_eof:
                 self._told_eof = True
                 return "eof"
             time.sleep(timeout)
             return None
-        if not _readable(self.fd, timeout):
+        if not _readable(fd, timeout):
             return None
-        data = os.read(self.fd, 1024)
+        data = os.read(fd, 1024)
         if not data:
             self.eof = self._told_eof = True
             return "eof"
         self._keys = self.decoder.feed(data)
-        if self.decoder.pending and not _readable(self.fd, ESC_WAIT):
+        if self.decoder.pending and not _readable(fd, ESC_WAIT):
             self._keys += self.decoder.flush()
         return self._keys.pop(0) if self._keys else None
 

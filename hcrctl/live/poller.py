@@ -183,11 +183,14 @@ class Poller(threading.Thread):
 
     def _reopen(self) -> bool:
         """Try the port once a second until it opens or we are stopped."""
+        reconnect = self.reconnect
+        if reconnect is None:  # only a poller that may reconnect is ever left without a robot
+            return False
         attempt = 0
         while not self._stopping.wait(self.retry_every if attempt else 0):
             attempt += 1
             try:
-                robot = self.reconnect()
+                robot = reconnect()
             except HcrError as exc:
                 self.state.set_status("disconnected", f"attempt {attempt}: {exc.one_line()}")
                 continue

@@ -191,7 +191,9 @@ class LiveState:
         with self._lock:
             self._counters.unsolicited += 1
             try:
-                value = cmd.reply.decode(frame.content) if cmd and cmd.kind == "broadcast" else None
+                value = (
+                    cmd.reply.decode(frame.content) if cmd and cmd.reply and cmd.kind == "broadcast" else None
+                )
             except ProtocolError:
                 self._counters.bad_replies += 1
                 value = None

@@ -41,6 +41,8 @@ def _reply_cost(cmd: C.Command) -> tuple[bool, int, int]:
 
 
 def _parses(cmd: C.Command, size: int) -> bool:
+    if cmd.reply is None:
+        return False
     try:
         cmd.reply.from_content(bytes(size))
     except (ProtocolError, ValueError):
@@ -73,6 +75,10 @@ class PingStats:
         """min/avg/max/mdev in ms; mdev is ping's sqrt(mean(x²) - mean(x)²)."""
         if not self.rtts:
             return dict.fromkeys(("min", "avg", "max", "mdev"))
+        return {**self._rtt_stats()}
+
+    def _rtt_stats(self) -> dict[str, float]:
+        """The statistics of a non-empty ``rtts``: numbers only, so they format as numbers."""
         ms = [r * 1000 for r in self.rtts]
         avg = sum(ms) / len(ms)
         mdev = math.sqrt(max(0.0, sum(x * x for x in ms) / len(ms) - avg * avg))
@@ -100,7 +106,7 @@ class PingStats:
             f"{self.checksum_errors} checksum errors, {self.junk_bytes} junk bytes",
         ]
         if self.rtts:
-            rtt = self.rtt_ms()
+            rtt = self._rtt_stats()
             lines.append("rtt min/avg/max/mdev = {min:.3f}/{avg:.3f}/{max:.3f}/{mdev:.3f} ms".format(**rtt))
         return lines
 

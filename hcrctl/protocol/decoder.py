@@ -166,10 +166,10 @@ class FrameDecoder:
                 if (sum(buf[h:ck]) + bias) & 0xFF == buf[ck]:
                     pos, h = self._take(out, buf, h, end)
                     continue
-                self._open_bad_checksum(out, h, ck)
+                pending = self._open_bad_checksum(out, h, ck)
             else:
-                self._open(out, "malformed", h, (buf[h + 3],))
-            self._pending.add(raw, h, h + 1)
+                pending = self._open(out, "malformed", h, (buf[h + 3],))
+            pending.add(raw, h, h + 1)
             pos = h + 1
             h = find(HEADER, pos)
         self._compact(pos)
@@ -197,9 +197,10 @@ class FrameDecoder:
         """Attribute buf[start:stop] to the open diagnostic, or to new junk."""
         if stop <= start:
             return
-        if self._pending is None or abandon:
-            self._open(out, "junk", start)
-        self._pending.add(self._buf, start, stop)
+        pending = self._pending
+        if pending is None or abandon:
+            pending = self._open(out, "junk", start)
+        pending.add(self._buf, start, stop)
 
     def _lines_so_far(self, out: list[Event]) -> None:
         """Report printed lines as their line end arrives, as a terminal shows them, not at the next frame."""
@@ -223,11 +224,13 @@ class FrameDecoder:
         p.kept = bytearray(data[cut:])
         p.size -= cut
 
-    def _open(self, out: list[Event], kind: str, at: int, extra: tuple = ()) -> None:
+    def _open(self, out: list[Event], kind: str, at: int, extra: tuple = ()) -> _Pending:
+        """Close the open diagnostic and start a new one; returned, so callers add to it without a None check."""
         self._close_pending(out)
         self._pending = _Pending(kind, self._base + at, extra)
+        return self._pending
 
-    def _open_bad_checksum(self, out: list[Event], h: int, ck: int) -> None:
+    def _open_bad_checksum(self, out: list[Event], h: int, ck: int) -> _Pending:
         buf = self._buf
         body = bytes(buf[h:ck])
         extra = (
@@ -238,7 +241,7 @@ class FrameDecoder:
             checksum(body, self.rule),
             checksum(body, self.rule.other),
         )
-        self._open(out, "checksum", h, extra)
+        return self._open(out, "checksum", h, extra)
 
     def _close_pending(self, out: list[Event]) -> None:
         p = self._pending

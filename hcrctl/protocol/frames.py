@@ -34,7 +34,7 @@ class ChecksumRule(str, Enum):
         return ChecksumRule.ADDRESS if self is ChecksumRule.HEADER else ChecksumRule.HEADER
 
 
-def checksum(body: bytes, rule: ChecksumRule = ChecksumRule.HEADER) -> int:
+def checksum(body: bytes | bytearray, rule: ChecksumRule = ChecksumRule.HEADER) -> int:
     """Checksum of ``body`` (the frame from its header to the end of its content).
 
     0x55 + 0xAA is 0xFF, so the address rule is always the text rule plus one.

@@ -101,9 +101,9 @@ def invoke(session: Session, words: list[str]) -> None:
         elif words[0] == "shell":
             raise click.UsageError("already in the shell")
         else:
-            name, found, args = COMMANDS.resolve_command(root, words)
-            assert found is not None and name is not None
-            command = found
+            resolved, found, args = COMMANDS.resolve_command(root, words)
+            assert found is not None and resolved is not None
+            name, command = resolved, found
         ctx = command.make_context(name, args, parent=root)
         with ctx:
             command.invoke(ctx)
@@ -136,8 +136,12 @@ def as_set_commands(hint: str) -> str:
     the shell does not take would be a false hint.
     """
     for word, pattern in _set_patterns():
-        hint = pattern.sub(lambda m, word=word: f"set {word} {m.group(1)}", hint)
+        hint = pattern.sub(functools.partial(_as_set, word), hint)
     return hint
+
+
+def _as_set(word: str, match: re.Match[str]) -> str:
+    return f"set {word} {match.group(1)}"
 
 
 @functools.cache

@@ -27,6 +27,12 @@ if TYPE_CHECKING:
     from ..link.context import Connection
     from ..link.traffic import Traffic
 
+    # Unplugged takes the place of a Robot: ``__getattr__`` answers every attribute it does not define,
+    # so the checker sees it as one. At run time it stays a plain object (no client import at start-up).
+    _RobotStandIn = Robot
+else:
+    _RobotStandIn = object
+
 #: How often the background check looks for a device that went away.
 RECONNECT_EVERY = 0.5
 NOT_CONNECTED_HINT = "connect PORT, or wait: the shell reconnects when the device returns"
@@ -34,7 +40,7 @@ NOT_CONNECTED_HINT = "connect PORT, or wait: the shell reconnects when the devic
 MANUAL_HINT = "connect reconnects to it, connect PORT opens another"
 
 
-class Unplugged:
+class Unplugged(_RobotStandIn):
     """Stands in for the robot while disconnected: any use fails in one line."""
 
     moved = False

@@ -84,16 +84,16 @@ class _Prompts:
         common: dict[str, Any] = {"bottom_toolbar": toolbar, "refresh_interval": REFRESH}
         common |= {"key_bindings": keys, "style": style}
         histories = _histories("history", "hex_history")
-        self.commands = PromptSession(
+        self.commands: PromptSession[str] = PromptSession(
             history=histories[0],
             completer=ShellCompleter(session),
             complete_while_typing=True,
             **common,
         )
-        self.hex = PromptSession(history=histories[1], **common)
+        self.hex: PromptSession[str] = PromptSession(history=histories[1], **common)
         self.session = session
 
-    def current(self) -> PromptSession:
+    def current(self) -> PromptSession[str]:
         return self.hex if self.session.hex_mode else self.commands
 
 
@@ -192,7 +192,7 @@ def _printing_above(session: Session) -> Iterator[None]:
     """
     saved = sys.stdout, sys.stderr
     with StdoutProxy(raw=True, sleep_between_writes=FLUSH_PAUSE) as proxy:
-        sys.stdout = sys.stderr = proxy  # type: ignore[assignment]
+        sys.stdout = sys.stderr = proxy
         session.attach(lambda text: proxy.write(DIM.format(text)))
         try:
             yield

@@ -23,7 +23,7 @@ if TYPE_CHECKING:
     from ..link.client import Robot
     from ..link.traffic import Traffic
 
-Printer = Callable[[str], None]
+Printer = Callable[[str], object]  # what it returns (a write's count) is ignored
 
 
 class Session:

@@ -8,11 +8,15 @@ calls them. Style names are plain strings; the front end maps them to colours.
 from __future__ import annotations
 
 import unicodedata
+from typing import TYPE_CHECKING
 
 from .grammar import root_context, split_partial
 from .session import Session
 from .status import Fragments, broadcast_lines, link_fragments, state_class
 from .tree import hint, locate
+
+if TYPE_CHECKING:
+    from prompt_toolkit.formatted_text import StyleAndTextTuples
 
 #: Stations the toolbar shows a line for; ``status`` lists them all.
 TOOLBAR_STATIONS = 3
@@ -31,8 +35,11 @@ STYLE = {
 }
 
 
-def prompt_fragments(session: Session) -> Fragments:
-    """``hcr PORT STATE> ``, with the state coloured; ``hex> `` in raw hex mode."""
+def prompt_fragments(session: Session) -> StyleAndTextTuples:
+    """``hcr PORT STATE> ``, with the state coloured; ``hex> `` in raw hex mode.
+
+    Typed as prompt-toolkit's fragments (not ``Fragments``): it goes to the prompt as it is.
+    """
     if session.hex_mode:
         return [("class:prompt", "hex> ")]
     link = session.link

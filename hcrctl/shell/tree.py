@@ -42,7 +42,8 @@ class Candidate:
 def locate(group: ShellCommands, root: click.Context, words: list[str], prefix: str) -> Spot:
     """Walk ``words`` down the command tree and say what ``prefix`` is."""
     command: click.Command = group
-    ctx, path, rest = root, [], list(words)
+    ctx, rest = root, list(words)
+    path: list[str] = []
     while isinstance(command, click.Group) and rest:
         sub = _subcommand(command, ctx, rest[0])
         if sub is None:
@@ -201,7 +202,12 @@ def hint(group: ShellCommands, spot: Spot) -> str:
     """The argument being typed, its range and its meaning, for the toolbar."""
     where = " ".join(spot.path)
     if not spot.path:
-        known = spot.prefix in spot.ctx.command.list_commands(spot.ctx) if spot.command else False
+        here = spot.ctx.command  # the shell's group: no words typed yet
+        known = (
+            isinstance(here, click.Group) and spot.prefix in here.list_commands(spot.ctx)
+            if spot.command
+            else False
+        )
         return f"{spot.prefix}: {group.help_for(spot.ctx, spot.prefix)}" if known else ""
     if spot.command is None:
         return f"{where}: no such command (help lists them)"

@@ -89,7 +89,7 @@ class Body:
         while dt > 1e-12 and not self._at_rest():
             h = min(dt, PHYSICS_STEP_S)
             if self._turn is not None:
-                self._turn_step(h)
+                self._turn_step(self._turn, h)
             else:
                 self._lag(h)
                 self._move(h)
@@ -102,9 +102,8 @@ class Body:
         k = 1.0 - math.exp(-h / WHEEL_TIME_CONSTANT_S)
         self.wheels = [_settle(v + (t - v) * k, t) for v, t in zip(self.wheels, self.targets, strict=True)]
 
-    def _turn_step(self, h: float) -> None:
+    def _turn_step(self, turn: _Turn, h: float) -> None:
         """A turn is closed-loop on the heading: exact rate, exact stop."""
-        turn = self._turn
         step = min(turn.rate * h, turn.remaining)
         self.heading = (self.heading + turn.sign * step) % 360
         turn.remaining -= step

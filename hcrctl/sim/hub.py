@@ -39,17 +39,17 @@ class Hub:
     def __len__(self) -> int:
         return len(self._taps)
 
-    def attach(self) -> SimLine:
+    def attach(self) -> SimLine[Tap]:
         """A new client's line; it starts clean, with nothing from before it came."""
         self.distribute()  # what was due before goes to the clients already here
         tap = Tap(self)
         self._taps.append(tap)
         return SimLine(tap, self.options.byte_time)
 
-    def detach(self, link: SimLine) -> None:
+    def detach(self, link: SimLine[Tap]) -> None:
         """The client has gone; its delayed replies still due are dropped."""
         if link.sim in self._taps:
-            self._taps.remove(link.sim)  # type: ignore[arg-type]
+            self._taps.remove(link.sim)
 
     def distribute(self) -> None:
         """Hand out what the robot sends now: broadcasts to all, a reply to whoever asked."""

@@ -20,10 +20,17 @@ import socket
 import tty
 from collections.abc import Callable
 from types import FrameType
+from typing import TYPE_CHECKING
 
-from .hub import Hub
+from .hub import Hub, Tap
 from .options import SimOptions
 from .uart import SimLine, open_link
+
+if TYPE_CHECKING:
+    from typing import Any
+
+    #: What ``signal.signal`` accepts as a handler (it returns that, or None).
+    _Handler = Callable[[int, FrameType | None], Any] | int | signal.Handlers
 
 #: Ctrl-C, kill, and a closed terminal all end the server the same clean way.
 _STOP_SIGNALS = tuple(
@@ -41,7 +48,7 @@ class Stopper:
     def __init__(self, handle_signals: bool = True) -> None:
         self.stopped = False
         self._handle_signals = handle_signals
-        self._previous: dict[int, object] = {}
+        self._previous: dict[int, _Handler | None] = {}
         self._r, self._w = os.pipe()
         os.set_blocking(self._r, False)
         os.set_blocking(self._w, False)
@@ -54,7 +61,8 @@ class Stopper:
 
     def __exit__(self, *exc: object) -> None:
         for sig, handler in self._previous.items():
-            signal.signal(sig, handler)  # type: ignore[arg-type]
+            if handler is not None:  # None: a handler set outside Python, which Python cannot put back
+                signal.signal(sig, handler)
         os.close(self._r)
         os.close(self._w)
 
@@ -73,7 +81,8 @@ class Stopper:
 
 def _wait(fd: int, stopper: Stopper, timeout: float | None = None) -> bool:
     """Sleep until ``fd`` is readable (True), or the stop pipe or the timeout (False)."""
-    readable, _, _ = select.select([fd, stopper], [], [], timeout)
+    waitables: list[int | Stopper] = [fd, stopper]
+    readable, _, _ = select.select(waitables, [], [], timeout)
     return fd in readable
 
 
@@ -152,11 +161,12 @@ def serve_tcp(
     with socket.create_server((host, port)) as server, contextlib.ExitStack() as conns:
         server.setblocking(False)
         hub = Hub(options)
-        clients: dict[socket.socket, tuple[SimLine, str]] = {}
+        clients: dict[socket.socket, tuple[SimLine[Tap], str]] = {}
         on_ready(socket_url(host, server.getsockname()[1]))
         while not stopper.stopped:
             timeouts = [t for link, _ in clients.values() if (t := _timeout(link)) is not None]
-            readable, _, _ = select.select([server, stopper, *clients], [], [], min(timeouts, default=None))
+            waitables: list[socket.socket | Stopper] = [server, stopper, *clients]
+            readable, _, _ = select.select(waitables, [], [], min(timeouts, default=None))
             if server in readable:
                 _accept(server, hub, clients, conns, say)
             for conn in [c for c in readable if c in clients]:
@@ -171,7 +181,7 @@ def serve_tcp(
 def _accept(
     server: socket.socket,
     hub: Hub,
-    clients: dict[socket.socket, tuple[SimLine, str]],
+    clients: dict[socket.socket, tuple[SimLine[Tap], str]],
     conns: contextlib.ExitStack,
     say: Callable[[str], None],
 ) -> None:
@@ -194,7 +204,7 @@ def _accept(
 def _take_input(
     conn: socket.socket,
     hub: Hub,
-    clients: dict[socket.socket, tuple[SimLine, str]],
+    clients: dict[socket.socket, tuple[SimLine[Tap], str]],
     say: Callable[[str], None],
 ) -> None:
     link, who = clients[conn]

@@ -16,7 +16,7 @@ from __future__ import annotations
 import time
 from collections import deque
 from collections.abc import Callable
-from typing import Protocol
+from typing import Generic, Protocol, TypeVar
 
 from .options import SimOptions
 from .simulator import Simulator
@@ -85,10 +85,14 @@ class Device(Protocol):
     def next_due(self) -> float | None: ...
 
 
-class SimLine:
+#: The device a line ends at: generic so ``open_link``'s callers see a ``Simulator``, the hub a tap.
+D = TypeVar("D", bound=Device)
+
+
+class SimLine(Generic[D]):
     """A simulator plus the two directions of its line."""
 
-    def __init__(self, sim: Device, byte_time: float = 0.0) -> None:
+    def __init__(self, sim: D, byte_time: float = 0.0) -> None:
         self.sim = sim
         self.clock = sim.clock
         self.to_device = Wire(byte_time)
@@ -133,7 +137,9 @@ class SimLine:
                 self.to_host.send(self.sim.feed(data[i : i + 1]), start + (i + 1) * bt)
 
 
-def open_link(options: SimOptions | None = None, clock: Callable[[], float] = time.monotonic) -> SimLine:
+def open_link(
+    options: SimOptions | None = None, clock: Callable[[], float] = time.monotonic
+) -> SimLine[Simulator]:
     """A simulator built from ``options``, paced at ``options.baud`` when ``options.pace``."""
     options = options or SimOptions()
     return SimLine(Simulator(options, clock), options.byte_time)

@@ -17,12 +17,17 @@ from __future__ import annotations
 import threading
 import time
 import urllib.parse
+from typing import TYPE_CHECKING, Any
 
-from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
+# types-pyserial leaves out serialutil.to_bytes, which pyserial 3.5 has and its own handlers use.
+from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes  # type: ignore[attr-defined]
 
 from ..sim.options import SimOptions
 from ..sim.simulator import Simulator
 from ..sim.uart import SimLine, open_link
+
+if TYPE_CHECKING:
+    from _typeshed import ReadableBuffer
 
 #: The shortest wait, so a due time that has just passed cannot spin the reader.
 _MIN_WAIT_S = 1e-4
@@ -31,9 +36,9 @@ _MIN_WAIT_S = 1e-4
 class Serial(SerialBase):
     """A serial port whose other end is the simulated robot."""
 
-    def __init__(self, *args, **kwargs) -> None:
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
         self._cond = threading.Condition()
-        self._link: SimLine | None = None
+        self._link: SimLine[Simulator] | None = None
         self._rx = bytearray()
         self._cancelled = False
         self.options = SimOptions()
@@ -49,9 +54,10 @@ class Serial(SerialBase):
     def open(self) -> None:
         if self.is_open:
             raise SerialException("Port is already open.")
-        if self._port is None:
+        port = self.port
+        if port is None:
             raise SerialException("Port must be configured before it can be used.")
-        self.options = self.from_url(self.port)
+        self.options = self.from_url(port)
         with self._cond:
             self._link = open_link(self.options, time.monotonic)
             self._rx.clear()
@@ -83,7 +89,7 @@ class Serial(SerialBase):
         if self._link is not None:
             self._rx += self._link.read()
 
-    def _link_or_raise(self) -> SimLine:
+    def _link_or_raise(self) -> SimLine[Simulator]:
         if not self.is_open or self._link is None:
             raise PortNotOpenError()
         return self._link
@@ -106,7 +112,8 @@ class Serial(SerialBase):
     def read(self, size: int = 1) -> bytes:
         """Up to ``size`` bytes; blocks per ``timeout`` (None: until all arrive, 0: never)."""
         self._link_or_raise()
-        deadline = None if self._timeout is None else time.monotonic() + self._timeout
+        timeout = self.timeout
+        deadline = None if timeout is None else time.monotonic() + timeout
         with self._cond:
             self._cancelled = False
             while True:
@@ -130,13 +137,13 @@ class Serial(SerialBase):
             waits.append(deadline - now)
         return min(waits, default=None)
 
-    def write(self, data: bytes) -> int:
+    def write(self, data: ReadableBuffer) -> int:
         link = self._link_or_raise()
-        data = to_bytes(data)
+        raw: bytes = to_bytes(data)
         with self._cond:
-            link.write(data)
+            link.write(raw)
             self._cond.notify_all()
-        return len(data)
+        return len(raw)
 
     def flush(self) -> None:
         """Wait until the paced line has delivered every written byte, like tcdrain().
