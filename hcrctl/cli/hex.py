@@ -19,7 +19,8 @@ from ..hex.parse import STYLES, format_hex, parse_hex, parse_hex_args
 from ..ops.hexsend import holds_motion, retries_set, send_frame, traffic_row
 from ..ops.motion import DRIVE_COMMANDS
 from ..protocol import commands as C
-from ..protocol.decoder import decode_all
+from ..protocol.dialect import decode_all
+from ..protocol.profiles import profile
 from .params import NamedArgument, hold_option, request_value, table_command
 from .settings import Settings, json_option, stdout_is_terminal
 
@@ -66,7 +67,8 @@ def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None) -
     from ..hex.view import FrameTally
     from ..protocol.records import event_dict
 
-    rows = [event_dict(event, settings.checksum) for event in decode_all(data, settings.checksum)]
+    prof = profile(settings.protocol)
+    rows = [event_dict(e, settings.checksum, None, prof) for e in decode_all(data, settings.checksum, prof)]
     tally = FrameTally()
     for row in rows:
         tally.add(row)

@@ -17,8 +17,9 @@ import click
 
 from ..hex.traffic import FrameFilter, TrafficPrinter, rows_of, traffic_rows
 from ..protocol import commands as C
-from ..protocol.decoder import decode_all
+from ..protocol.dialect import decode_all
 from ..protocol.frames import ChecksumRule
+from ..protocol.profiles import Profile, profile
 from .params import FloatRange
 from .settings import ByteNumber, Settings, json_option
 
@@ -93,12 +94,14 @@ def monitor(
     """
     printer = TrafficPrinter(settings.as_json, timestamps, FrameFilter.of(filters))
     if source is not None:
-        _render_log(printer, source, settings.checksum, duration)
+        _render_log(printer, source, settings.checksum, duration, profile(settings.protocol))
     else:
         _listen(settings, printer, duration)
 
 
-def _render_log(printer: TrafficPrinter, path: str, rule: ChecksumRule, duration: float | None) -> None:
+def _render_log(
+    printer: TrafficPrinter, path: str, rule: ChecksumRule, duration: float | None, prof: Profile
+) -> None:
     """Each record re-decoded under the active rule, at its recorded offset."""
     from ..link.trafficlog import read_log
 
@@ -107,7 +110,7 @@ def _render_log(printer: TrafficPrinter, path: str, rule: ChecksumRule, duration
         first = rec.time if first is None else first
         if duration is not None and rec.time - first > duration:
             break
-        rows = rows_of(decode_all(rec.data, rule), rule, rec.direction)
+        rows = rows_of(decode_all(rec.data, rule, prof), rule, rec.direction, prof)
         for row in rows:
             row["offset"] += rec.fields.get("offset", 0)
         printer.show(rec.time, rec.direction, rec.data, rows)
@@ -134,17 +137,17 @@ def _listen(settings: Settings, printer: TrafficPrinter, duration: float | None)
     finally:
         if robot is not None:
             robot.remove_traffic_hook(listener)
-            _print_rest(inbox, printer, robot.rule)
+            _print_rest(inbox, printer, robot.rule, robot.profile)
             click.echo(f"hcrctl: monitor: {printer.counters(time.monotonic() - start)}", err=True)
 
 
-def _print_rest(inbox: queue.SimpleQueue, printer: TrafficPrinter, rule: ChecksumRule) -> None:
+def _print_rest(inbox: queue.SimpleQueue, printer: TrafficPrinter, rule: ChecksumRule, prof: Profile) -> None:
     while True:
         try:
             traffic = inbox.get_nowait()
         except queue.Empty:
             return
-        printer.show(traffic.time, traffic.direction, traffic.data, traffic_rows(traffic, rule))
+        printer.show(traffic.time, traffic.direction, traffic.data, traffic_rows(traffic, rule, prof))
 
 
 def _drain_until(
@@ -160,7 +163,8 @@ def _drain_until(
                 traffic = inbox.get(timeout=wait)
             except queue.Empty:
                 continue
-            printer.show(traffic.time, traffic.direction, traffic.data, traffic_rows(traffic, robot.rule))
+            rows = traffic_rows(traffic, robot.rule, robot.profile)
+            printer.show(traffic.time, traffic.direction, traffic.data, rows)
     except KeyboardInterrupt:
         if deadline is not None:
             raise
