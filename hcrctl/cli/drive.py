@@ -60,7 +60,7 @@ def run_drive(settings: Settings, value: C.Request, hold_for: float | None) -> N
             until = "" if hold_for is None else f" for {hold_for:g} s"
             say(f"driving: {describe(value)}{until} — Ctrl-C to stop")
             record["held_s"] = round(hold(robot, hold_for), 3)
-        record["stop_hex"] = hex_bytes(C.encode_request(C.STOP, robot.address, robot.rule))
+        record["stop_hex"] = hex_bytes(robot.frame_for(C.STOP))
     say(f"stopped after {record['held_s']:g} s")
     if settings.as_json:
         emit(settings, record, "")

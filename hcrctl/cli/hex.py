@@ -78,6 +78,11 @@ def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None) -
     ctx.exit(0 if tally.all_good else 1)
 
 
+def _encoded(settings: Settings, request: C.Request | C.Command) -> bytes:
+    """The frame for ``request`` in the chosen protocol (v0.11 ends it in a lone 0A)."""
+    return profile(settings.protocol).retarget(C.encode_request(request, settings.address, settings.checksum))
+
+
 def _decode_input(hex_text: tuple[str, ...], capture: str | None) -> bytes:
     if capture is not None and hex_text:
         raise click.UsageError("give HEX arguments or --file CAPTURE, not both")
@@ -180,7 +185,7 @@ def _encode_command(name: str, label: str | None = None) -> click.Command:
     @click.pass_obj
     def command(settings: Settings, style: str, **fields: Any) -> None:
         value = request_value(C.BY_NAME[name], fields)
-        _print_frame(settings, C.encode_request(value, settings.address, settings.checksum), style)
+        _print_frame(settings, _encoded(settings, value), style)
 
     command.help = f"{command.help}\n\nPrints the frame; sends nothing."
     return command
@@ -202,7 +207,7 @@ for _cmd in C.COMMANDS:
 @click.pass_obj
 def encode_stop(settings: Settings, style: str) -> None:
     """The stop frame: motor power 0x80 0x80."""
-    _print_frame(settings, C.encode_request(C.STOP, settings.address, settings.checksum), style)
+    _print_frame(settings, _encoded(settings, C.STOP), style)
 
 
 @encode.command("read")
@@ -212,7 +217,7 @@ def encode_stop(settings: Settings, style: str) -> None:
 def encode_read(settings: Settings, sensors: tuple[str, ...], style: str) -> None:
     """Read requests (content 0xFF, length 1), one line per SENSOR; none means all."""
     for name in dict.fromkeys(sensors) or C.SENSORS:
-        _print_frame(settings, C.encode_request(C.BY_NAME[name], settings.address, settings.checksum), style)
+        _print_frame(settings, _encoded(settings, C.BY_NAME[name]), style)
 
 
 def _print_frame(settings: Settings, frame: bytes, style: str) -> None:

@@ -159,8 +159,7 @@ class Robot(TypedReads, Dialect):
 
     def send(self, value: C.Request, *, address: int | None = None) -> C.Reply | None:
         """Send a request; wait for its reply if the command has one."""
-        cmd = C.command_for(value)
-        self.check_supported(cmd)
+        cmd = self.check_supported(C.command_for(value))
         frame = self.frame_for(value, address)
         if cmd.reply is None:
             self.write(frame)
@@ -181,9 +180,7 @@ class Robot(TypedReads, Dialect):
         only a caller that measures the link (watch) should opt in.
         """
         addr = self._address(address)
-        cmds = [self._sensor(s) for s in dict.fromkeys(sensors)]
-        for cmd in cmds:
-            self.check_supported(cmd)
+        cmds = [self.check_supported(self._sensor(s)) for s in dict.fromkeys(sensors)]
         batch = {(addr, cmd.code): (self.frame_for(cmd, addr), cmd.name) for cmd in cmds}
         silent: DeviceSilent | None = None
         if pipeline:
@@ -246,7 +243,9 @@ class Robot(TypedReads, Dialect):
             self._recent_tx.append(frame)
             # Told before the bytes leave, so the hook never sees the reply first.
             if self.watchers.hooks:
-                self.watchers.tell(Traffic(time.time(), "tx", frame, decode_sent(frame, self._rule)))
+                self.watchers.tell(
+                    Traffic(time.time(), "tx", frame, decode_sent(frame, self._rule, self.profile))
+                )
             try:
                 self.serial.write(frame)
             except Exception as exc:
@@ -343,7 +342,7 @@ class Robot(TypedReads, Dialect):
             elif isinstance(event, Malformed | Truncated):
                 self.lone_lf_seen = self.lone_lf_seen or self.speaks_v011(event.data)
             if self.watchers.hooks:
-                data = event.to_bytes() if isinstance(event, Frame) else event.data
+                data = self.wire_bytes(event) if isinstance(event, Frame) else event.data
                 self.watchers.tell(Traffic(now, "rx", data, event))
 
     def _route(self, frame: Frame) -> None:
@@ -374,7 +373,7 @@ class Robot(TypedReads, Dialect):
 
         No reply is ever byte-for-byte a request, so such copies are dropped.
         """
-        return bool(self._recent_tx) and frame.to_bytes() in self._recent_tx
+        return bool(self._recent_tx) and self.wire_bytes(frame) in self._recent_tx
 
     def add_traffic_hook(self, hook: TrafficHook) -> None:
         """Also call ``hook`` with every frame sent and every event received."""

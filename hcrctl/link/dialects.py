@@ -41,10 +41,15 @@ class Dialect:
             error.hint = fix
         return error
 
-    def check_supported(self, cmd: C.Command) -> None:
-        """Refuse, before anything is sent, a command the device's firmware does not have."""
+    def wire_bytes(self, frame: Frame) -> bytes:
+        """A decoded frame exactly as it stood on the wire, with this profile's terminator."""
+        return self.profile.retarget(frame.to_bytes())
+
+    def check_supported(self, cmd: C.Command) -> C.Command:
+        """``cmd``; refused, before anything is sent, if the device's firmware does not have it."""
         if not self.profile.has(cmd.code):
             raise refusal(cmd, self.profile)
+        return cmd
 
     def reading(self, frame: Frame) -> C.Reply | None:
         """A streamed frame as the reply it carries (a board that sends readings unasked); None if not one."""

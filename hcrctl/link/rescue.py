@@ -48,8 +48,8 @@ StopFrames = Callable[[], Iterable[bytes]]
 
 
 def stop_frame(robot: Robot, address: int | None = None) -> bytes:
-    """Motor power 0x80 0x80 to ``address`` (default the robot's), under its checksum rule."""
-    return C.encode_request(C.STOP, robot.address if address is None else address, robot.rule)
+    """Motor power 0x80 0x80 to ``address`` (default the robot's), under its checksum rule and protocol."""
+    return robot.frame_for(C.STOP, address)
 
 
 @contextlib.contextmanager

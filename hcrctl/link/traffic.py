@@ -15,8 +15,9 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from ..protocol.decoder import FrameDecoder
+from ..protocol.dialect import make_decoder
 from ..protocol.frames import BadChecksum, ChecksumRule, Event, Frame, Junk, Malformed, TextLine, Truncated
+from ..protocol.profiles import DEFAULT, Profile
 
 
 @dataclass(frozen=True)
@@ -71,9 +72,9 @@ TrafficHook = Callable[[Traffic], None]
 FrameHook = Callable[[Frame], None]
 
 
-def decode_sent(frame: bytes, rule: ChecksumRule) -> Event | None:
+def decode_sent(frame: bytes, rule: ChecksumRule, profile: Profile = DEFAULT) -> Event | None:
     """What we sent, as the decoder reads it, for the traffic hook and the log."""
-    decoder = FrameDecoder(rule)
+    decoder = make_decoder(profile, rule)
     events = decoder.feed(frame) + decoder.flush()
     return events[0] if events else None
 

@@ -27,7 +27,7 @@ def hex_bytes(data: bytes) -> str:
 
 def frame_of(robot: Robot, value: C.Request) -> bytes:
     """The exact bytes ``robot.send(value)`` puts on the wire."""
-    return C.encode_request(value, robot.address, robot.rule)
+    return robot.frame_for(value)
 
 
 def sent_record(robot: Robot, value: C.Request) -> dict[str, Any]:
