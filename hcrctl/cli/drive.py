@@ -51,6 +51,7 @@ for _name in DRIVE_COMMANDS:
 def run_drive(settings: Settings, value: C.Request, hold_for: float | None) -> None:
     """Send the motion; one-shot or with --for, hold it and stop; in the shell without --for, return."""
     with settings.robot() as robot:
+        robot.check_supported(C.command_for(value))  # a usage error before anything, stop included, is sent
         if settings.shared_robot is not None and hold_for is None:
             record, _ = send_request(robot, value)
             emit(settings, record, f"sent {describe(value)}: {record['hex']}")
