@@ -215,3 +215,30 @@ def test_bumpers_are_active_low_with_bit_2_left(wire: int, pressed: int) -> None
     assert V011.to_document(0x11, bytes((wire,))) == bytes((pressed,))
     assert V011.from_document(0x11, bytes((pressed,))) == bytes((wire,))
     assert V015.to_document(0x11, bytes((wire,))) == bytes((wire,))
+
+
+def test_hex_send_completes_a_v011_frame_and_reads_the_reply(board: str, env: dict[str, str]) -> None:
+    proc = run(["--port", board, *V11, "--json", "hex", "send", "55 AA 01 01 11 FF"], env)
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads(proc.stdout)
+    assert result["sent"]["hex"] == "55 AA 01 01 11 FF 11 0A" and result["sent"]["matched"] == "header"
+    assert result["reply"]["hex"] == "55 AA 01 01 11 07 13 0A"
+    assert result["reply"]["matched"] == "address+length+command" and result["reply"]["fields"]["bump"] == [
+        False,
+        False,
+        False,
+    ]
+    assert "end 0A" in proc.stderr
+
+
+def test_watch_json_counts_the_raw_bytes_as_no_junk(board: str, env: dict[str, str], tmp_path: Path) -> None:
+    log = tmp_path / "watch.jsonl"
+    proc = run(["--port", board, *V11, "--json", "--log", str(log), "watch", "--duration", "3"], env)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads(proc.stdout)
+    assert (
+        summary["latest"]["bump"] == {"bump": [False, False, False]}
+        and len(summary["latest"]["ir"]["ir"]) == 7
+    )
+    assert summary["junk_bytes"] == 0 and summary["checksum_errors"] == 0 and summary["timeouts"] == 0
+    assert tx_frames(log) == []

@@ -222,7 +222,8 @@ def encode_read(settings: Settings, sensors: tuple[str, ...], style: str) -> Non
 
 def _print_frame(settings: Settings, frame: bytes, style: str) -> None:
     if settings.as_json:
-        click.echo(json.dumps(traffic_row(frame, settings.checksum, "tx"), ensure_ascii=False))
+        row = traffic_row(frame, settings.checksum, "tx", profile(settings.protocol))
+        click.echo(json.dumps(row, ensure_ascii=False))
     else:
         click.echo(format_hex(frame, style))
 
@@ -250,11 +251,13 @@ def send(ctx: click.Context, hex_text: tuple[str, ...], force: bool, hold_for: f
     from ..hex.frames import complete_frame
 
     settings: Settings = ctx.obj
-    frame, note = complete_frame(parse_hex_args(hex_text), settings.checksum, force)
+    frame, note = complete_frame(
+        parse_hex_args(hex_text), settings.checksum, force, profile(settings.protocol)
+    )
     if note:
         click.echo(f"hcrctl: {note}", err=True)
     with settings.robot() as robot, retries_set(robot, _explicit_retries(ctx)):
-        result = {"sent": traffic_row(frame, robot.rule, "tx"), "reply": None}
+        result = {"sent": traffic_row(frame, robot.rule, "tx", robot.profile), "reply": None}
         result["reply"] = send_frame(robot, frame)
         _report(settings, result)
         if holds_motion(robot, frame) and settings.shared_robot is None:

@@ -334,7 +334,7 @@ class Robot(TypedReads, Dialect):
     def _dispatch(self, events: list[Event]) -> None:
         now = time.time()
         for event in events:
-            self.stats.count(event)
+            self.stats.count(event, self.profile)
             if isinstance(event, Frame):
                 self._route(event)
             elif isinstance(event, BadChecksum) and event.matches_other_rule:

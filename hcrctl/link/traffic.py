@@ -47,9 +47,11 @@ class LinkStats:
     other_rule: int = 0
     #: Lines the firmware printed between frames (not junk).
     text_lines: int = 0
+    #: Raw bumper bytes a streaming (v0.11) board sends between its frames (not junk either).
+    raw_bytes: int = 0
     last_rx: float | None = None
 
-    def count(self, event: Event) -> None:
+    def count(self, event: Event, profile: Profile = DEFAULT) -> None:
         if isinstance(event, Frame):
             self.rx_frames += 1
             self.last_rx = time.monotonic()
@@ -60,6 +62,8 @@ class LinkStats:
             self.text_lines += 1
         elif isinstance(event, Malformed):
             self.malformed += 1
+        elif isinstance(event, Junk) and profile.raw_byte(event.data):
+            self.raw_bytes += 1
         elif isinstance(event, Junk):
             self.junk_bytes += event.size
         elif isinstance(event, Truncated):

@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 
 from .frames import TERMINATOR, ChecksumRule, checksum
 
+#: A read request's content (``messages.READ_REQUEST``; that module is not imported here to stay small).
+READ_REQUEST = b"\xff"
 #: A checksum rule: the byte it expects of ``body`` (header to content end), or None if it cannot apply.
 RuleFn = Callable[[bytes], int | None]
 
@@ -89,19 +91,27 @@ class Profile:
         """Frame bytes besides the content: header, address, length, command, checksum, terminator."""
         return 6 + len(self.terminator)
 
+    def raw_byte(self, data: bytes) -> bool:
+        """Whether skipped ``data`` is the lone raw bumper byte a streaming firmware sends (0x00-0x07)."""
+        return self.streams and len(data) == 1 and data[0] <= 0x07
+
     def has(self, code: int) -> bool:
         return self.commands is None or code in self.commands
 
-    def rules_for(self, command: int, rule: ChecksumRule) -> list[str]:
-        """The rules a frame of ``command`` may pass, the firmware's own first."""
+    def rules_for(self, command: int, rule: ChecksumRule, content: bytes = b"") -> list[str]:
+        """The rules a frame of ``command`` may pass, the firmware's own first.
+
+        The firmware's quirky rules are for what it sends; a read request (content
+        FF, never a reply of its) is the host's, sent with the document's rule.
+        """
         own = self.device_rules.get(command)
-        if own is not None:
+        if own is not None and content != READ_REQUEST:
             return [own]
         return [rule.value] if self is V015 else [rule.value, rule.other.value]
 
     def verdict(self, body: bytes, received: int, rule: ChecksumRule) -> Verdict:
         """Judge a frame's checksum by the rules this firmware really uses, naming the one that matched."""
-        names = self.rules_for(body[4], rule)
+        names = self.rules_for(body[4], rule, bytes(body[5:]))
         for name in names:
             if RULES[name](bytes(body)) == received:
                 return Verdict(True, name, received, names[0])

@@ -42,7 +42,7 @@ def event_dict(
         return _lone_lf(_malformed_dict(event, rule, direction), event.data, rule, direction, profile)
     if isinstance(event, Junk):
         out = {"offset": event.offset, "problem": "junk", "size": event.size, "data": hexs(event.data)}
-        if profile.streams and event.size == 1 and event.data[0] <= 0x07:
+        if profile.raw_byte(event.data):
             out["note"] = "the raw bumper byte " + profile.name + " firmware streams before each IR frame"
         return out
     if isinstance(event, TextLine):
