@@ -7,6 +7,8 @@ does not have is refused before a byte is sent.
 
 from __future__ import annotations
 
+from typing import Any
+
 from ..errors import DeviceTimeout, HcrError, NotInProtocol
 from ..protocol import commands as C
 from ..protocol.frames import ChecksumRule, Frame
@@ -27,7 +29,7 @@ class Dialect:
 
     def frame_for(self, request: C.Request | C.Command, address: int | None = None) -> bytes:
         """The exact bytes sending ``request`` puts on the wire, in this robot's protocol."""
-        return self.profile.retarget(C.encode_request(request, self._address(address), self._rule))
+        return frame_of(self, request, address)
 
     def speaks_v011(self, data: bytes) -> bool:
         """Whether ``data``, unreadable as v0.15, is a frame ending in a lone 0A, as v0.11 firmware sends."""
@@ -64,6 +66,23 @@ class Dialect:
 
 def _offered(prof: Profile) -> list[str]:
     return [c.name for c in C.COMMANDS if prof.has(c.code)]
+
+
+def frame_of(robot: Any, request: C.Request | C.Command, address: int | None = None) -> bytes:
+    """The frame ``robot`` sends for ``request``: its address and checksum rule, its profile's terminator.
+
+    Anything with ``address`` and ``rule`` will do (a robot-like stand-in has no profile: v0.15).
+    """
+    prof: Profile = getattr(robot, "profile", DEFAULT)
+    return prof.retarget(C.encode_request(request, robot.address if address is None else address, robot.rule))
+
+
+def check_command(protocol: str, cmd: C.Command) -> C.Command:
+    """``cmd``, or the usage error if the firmware of ``protocol`` lacks it: for callers that have no robot yet."""
+    prof = profile(protocol)
+    if not prof.has(cmd.code):
+        raise refusal(cmd, prof)
+    return cmd
 
 
 def refusal(cmd: C.Command, prof: Profile) -> NotInProtocol:

@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING
 
 from ..errors import HcrError, LinkLostWhileMoving, PortError
 from ..protocol import commands as C
+from .dialects import frame_of
 from .signals import Terminated
 
 if TYPE_CHECKING:
@@ -49,7 +50,7 @@ StopFrames = Callable[[], Iterable[bytes]]
 
 def stop_frame(robot: Robot, address: int | None = None) -> bytes:
     """Motor power 0x80 0x80 to ``address`` (default the robot's), under its checksum rule and protocol."""
-    return robot.frame_for(C.STOP, address)
+    return frame_of(robot, C.STOP, address)
 
 
 @contextlib.contextmanager
