@@ -19,6 +19,7 @@ import pytest
 from helpers import DevicePty, clean_env, wait_until
 from helpers_cli import finish, run, sim_pty, start
 from helpers_live import terminal
+from helpers_shell import shell
 
 from hcrctl.protocol.profiles import V011, V015
 from hcrctl.sim.options import SimOptions
@@ -242,3 +243,18 @@ def test_watch_json_counts_the_raw_bytes_as_no_junk(board: str, env: dict[str, s
     )
     assert summary["junk_bytes"] == 0 and summary["checksum_errors"] == 0 and summary["timeouts"] == 0
     assert tx_frames(log) == []
+
+
+def test_the_shell_speaks_v011_to_the_board(board: str, tmp_path: Path) -> None:
+    with shell(["--port", board, *V11, "shell"], tmp_path) as term:
+        term.wait_prompt()
+        screen = term.run("read bump ir")
+        assert re.search(r"bumpers\s+│\s+clear", screen) and re.search(
+            r"infrared\s+│\s+(\d+\s+){6}\d+ \(raw\)", screen
+        ), screen
+        screen = term.run("drive power 60 60")
+        assert "55 AA 01 02 01 CC CC 9B 0A" in screen
+        screen = term.run("read compass")
+        assert "--protocol v0.11: the firmware has no compass" in screen
+        term.send("exit\r")
+        term.finish()
