@@ -47,7 +47,7 @@ DEFAULT_HOST = "127.0.0.1"
     "--protocol",
     type=click.Choice(list(PROFILES)),
     help="Protocol profile to speak: v0.11 is the published v0.33 firmware (banner, streaming, its "
-    "checksums; paced at 9600 baud). Overrides protocol= in --options.  [default: v0.15]",
+    "checksums; --pace paces it at 9600 baud). Overrides protocol= in --options.  [default: v0.15]",
 )
 @click.option(
     "--seed",
