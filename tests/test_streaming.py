@@ -126,3 +126,31 @@ def test_hex_text_on_stdin_larger_than_a_read_streams_and_errors_name_the_line(
     )
     assert bad.returncode == 2
     assert f"not hex: 'ZZ' at stdin line {lines + 1}, column 7" in bad.stderr.decode()
+
+
+def write_log(path: Path, records: int) -> None:
+    """A --log file of ``records`` tx lines, in the shape read_log reads."""
+    hexs = encode(0x01, 0x14, b"\xff").hex(" ").upper()
+    with open(path, "w") as out:
+        for n in range(records):
+            out.write(
+                f'{{"time": "2026-01-01T00:00:{n % 60:02d}.{n:06d}", "direction": "tx", "hex": "{hexs}"}}\n'
+            )
+
+
+def test_replay_reads_its_log_afresh_each_pass_holding_none_of_it(tmp_path: Path) -> None:
+    from hcrctl.ops.replay import tx_records
+
+    peaks = []
+    for records in (2_000, 20_000):
+        path = tmp_path / f"{records}.jsonl"
+        write_log(path, records)
+        tracemalloc.start()
+        try:
+            log = tx_records(str(path))
+            passes = [sum(1 for _ in log) for _ in range(2)]
+            peaks.append(tracemalloc.get_traced_memory()[1])
+        finally:
+            tracemalloc.stop()
+        assert passes == [records, records]
+    assert peaks[1] < peaks[0] + 256 * 1024, peaks
