@@ -52,9 +52,10 @@ def hex_group() -> None:
     type=click.Path(exists=True, dir_okay=False),
     help="Decode a binary capture file (raw bytes, not hex text).",
 )
+@click.option("--summary", is_flag=True, help="Counts only: frames per command and address, checksums, junk.")
 @json_option
 @click.pass_context
-def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None) -> None:
+def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None, summary: bool) -> None:
     """Decode HEX (any common form), stdin ('-') or a capture; one row per frame or problem.
 
     Exit 0 if every frame is good, 1 if any frame or byte is bad, 2 if the
@@ -64,6 +65,8 @@ def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None) -
     """
     settings: Settings = ctx.obj
     chunks = _decode_input(hex_text, capture)
+    if summary:
+        _summarise(ctx, settings, chunks)
     from ..hex.decoding import decode_rows
     from ..hex.view import FrameTally
 
@@ -73,6 +76,21 @@ def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None) -
     hint = tally.hint()
     click.echo(f"hcrctl: {size} bytes: {tally.text()}{f' (hint: {hint})' if hint else ''}", err=True)
     ctx.exit(0 if tally.all_good else 1)
+
+
+def _summarise(ctx: click.Context, settings: Settings, chunks: Iterator[bytes]) -> None:
+    """``--summary``: the counts, as text or one JSON object; exit as decode would."""
+    from ..hex.summary import Summary
+    from ..protocol.decoder import FrameDecoder
+
+    counts = Summary(settings.checksum)
+    decoder = FrameDecoder(settings.checksum)
+    for chunk in chunks:
+        counts.bytes += len(chunk)
+        counts.add(decoder.feed(chunk))
+    counts.add(decoder.flush())
+    click.echo(json.dumps(counts.as_dict(), ensure_ascii=False) if settings.as_json else counts.text())
+    ctx.exit(0 if counts.all_good else 1)
 
 
 def _decode_input(hex_text: tuple[str, ...], capture: str | None) -> Iterator[bytes]:

@@ -94,6 +94,9 @@ class TrafficPrinter:
                 self._line(t, direction, data, row)
         sys.stdout.flush()
 
+    def show_traffic(self, traffic: Traffic, rule: ChecksumRule) -> None:
+        self.show(traffic.time, traffic.direction, traffic.data, traffic_rows(traffic, rule))
+
     def _line(self, t: float, direction: str, data: bytes, row: dict[str, Any]) -> None:
         from ..link.trafficlog import iso_time
         from ..protocol.records import hexs, is_good, is_text
