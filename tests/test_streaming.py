@@ -154,3 +154,22 @@ def test_replay_reads_its_log_afresh_each_pass_holding_none_of_it(tmp_path: Path
             tracemalloc.stop()
         assert passes == [records, records]
     assert peaks[1] < peaks[0] + 256 * 1024, peaks
+
+
+def test_sinks_write_what_the_uncached_renderings_give() -> None:
+    """Rows made once per distinct frame, and lines rendered once, still say each row's own offset."""
+    import json
+
+    from hcrctl.hex.decoding import decode_rows
+    from hcrctl.hex.view import plain_line
+
+    wire = (encode(0x01, 0x14, b"\x0d\x0a") + encode(0x01, 0x11, b"\xff") + b"\x00\x01") * 3
+    rows: list[dict] = []
+    plain: list[str] = []
+    js: list[str] = []
+    plain_sink, json_sink = PlainSink(plain.append), JsonArraySink(js.append)
+    decode_rows([wire], ChecksumRule.HEADER, rows.append, plain_sink.add, json_sink.add)
+    json_sink.close()
+    assert len({row["offset"] for row in rows}) == len(rows) == 9
+    assert "".join(plain) == "".join(plain_line(row) + "\n" for row in rows)
+    assert "".join(js) == json.dumps(rows, ensure_ascii=False) + "\n"

@@ -16,6 +16,17 @@ from typing import Any, Protocol
 TABLE_ROWS = 1000
 
 
+#: Distinct frames whose rendering a sink remembers; past this it starts afresh (bounded).
+CACHE_FRAMES = 4096
+
+
+def frame_key(row: dict[str, Any]) -> tuple | None:
+    """What a frame row's rendering depends on besides its offset; None for other rows."""
+    if "problem" in row or "payload" not in row:
+        return None
+    return (row["address"], row["command"], row["payload"], row["checksum"], row["rule"], row["kind"])
+
+
 class RowSink(Protocol):
     def add(self, row: dict[str, Any]) -> None: ...
 
@@ -29,10 +40,20 @@ class JsonArraySink:
         self._write = write or sys.stdout.write
         self._sep = "["
         self._dumps = json.JSONEncoder(ensure_ascii=False).encode
+        self._cache: dict[tuple, str] = {}
 
     def add(self, row: dict[str, Any]) -> None:
+        key = frame_key(row)
+        if key is None or next(iter(row)) != "offset":
+            text = self._dumps(row)
+        else:
+            rest = self._cache.get(key)
+            if rest is None:
+                rest = self._dumps({k: v for k, v in row.items() if k != "offset"})[1:]
+                _remember(self._cache, key, rest)
+            text = f'{{"offset": {row["offset"]}, {rest}' if rest != "}" else f'{{"offset": {row["offset"]}}}'
         self._write(self._sep)
-        self._write(self._dumps(row))
+        self._write(text)
         self._sep = ", "
 
     def close(self) -> None:
@@ -48,9 +69,18 @@ class PlainSink:
 
         self._line = plain_line
         self._write = write or sys.stdout.write
+        self._cache: dict[tuple, str] = {}
 
     def add(self, row: dict[str, Any]) -> None:
-        self._write(self._line(row) + "\n")
+        key = frame_key(row)
+        if key is None:
+            self._write(self._line(row) + "\n")
+            return
+        tail = self._cache.get(key)
+        if tail is None:
+            tail = self._line(row, offset=False)
+            _remember(self._cache, key, tail)
+        self._write(f"{row['offset']:>6}  {tail}\n")
 
     def close(self) -> None:
         sys.stdout.flush()
@@ -81,3 +111,9 @@ class TableSink:
         self._console.print(decode_table(self._rows))
         self._rows = []
         self._printed = True
+
+
+def _remember(cache: dict[tuple, str], key: tuple, text: str) -> None:
+    if len(cache) >= CACHE_FRAMES:
+        cache.clear()
+    cache[key] = text
