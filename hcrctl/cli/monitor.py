@@ -10,6 +10,7 @@ counters) is shared with ``replay``.
 from __future__ import annotations
 
 import queue
+import sys
 import time
 from typing import TYPE_CHECKING, Any
 
@@ -135,6 +136,7 @@ def _render_log(printer: TrafficPrinter, path: str, rule: ChecksumRule, duration
     """Each record re-decoded under the active rule, at its recorded offset."""
     from ..link.trafficlog import read_log
 
+    printer.live = False
     first = None
     for rec in read_log(path):
         first = rec.time if first is None else first
@@ -144,6 +146,7 @@ def _render_log(printer: TrafficPrinter, path: str, rule: ChecksumRule, duration
         for row in rows:
             row["offset"] += rec.fields.get("offset", 0)
         printer.show(rec.time, rec.direction, rec.data, rows)
+    sys.stdout.flush()
     click.echo(f"hcrctl: monitor: {printer.counters()}", err=True)
 
 
