@@ -19,7 +19,7 @@ def main(path: str, count: bool) -> int:
     tally: Counter[tuple[int, int]] = Counter()
     junk = 0
     at = data.find(b"\x55\xaa")
-    while 0 <= at and at + 8 <= len(data):
+    while at >= 0 and at + 8 <= len(data):
         length = data[at + 3]
         end = at + length + 8
         body = data[at : end - 3]
