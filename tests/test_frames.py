@@ -15,7 +15,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from hcrctl.protocol import decoder, frames
+from hcrctl.protocol import frames, runs
 from hcrctl.protocol.decoder import FrameDecoder, decode_all
 from hcrctl.protocol.frames import (
     HEADER,
@@ -317,7 +317,7 @@ def test_every_input_byte_is_accounted_for_exactly_once(
     assert position == len(wire)
 
 
-@pytest.mark.parametrize("max_split", [1, 3, decoder.MAX_SPLIT])
+@pytest.mark.parametrize("max_split", [1, 3, runs.MAX_SPLIT])
 def test_a_long_busy_stream_decodes_alike_in_any_read_size(
     max_split: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -326,7 +326,7 @@ def test_a_long_busy_stream_decodes_alike_in_any_read_size(
     Long enough for the fast path's rounds of splitting (shrunk here, so that every boundary case
     occurs) to hand over to the careful path and back many times.
     """
-    monkeypatch.setattr(decoder, "MAX_SPLIT", max_split)
+    monkeypatch.setattr(runs, "MAX_SPLIT", max_split)
     rng = random.Random(5)
     wire, expected = bytearray(), []
     for i in range(600):

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import json
 import sys
-from typing import TYPE_CHECKING, Any
+from collections.abc import Iterator
+from typing import TYPE_CHECKING, Any, BinaryIO
 
 import click
 
@@ -19,12 +20,12 @@ from ..hex.parse import STYLES, format_hex, parse_hex, parse_hex_args
 from ..ops.hexsend import holds_motion, retries_set, send_frame, traffic_row
 from ..ops.motion import DRIVE_COMMANDS
 from ..protocol import commands as C
-from ..protocol.dialect import decode_all
 from ..protocol.profiles import profile
 from .params import NamedArgument, hold_option, request_value, table_command
 from .settings import Settings, json_option, stdout_is_terminal
 
 if TYPE_CHECKING:
+    from ..hex.sinks import RowSink
     from ..link.client import Robot
 
 STDIN_HINT = "for a binary capture use --file"
@@ -52,9 +53,10 @@ def hex_group() -> None:
     type=click.Path(exists=True, dir_okay=False),
     help="Decode a binary capture file (raw bytes, not hex text).",
 )
+@click.option("--summary", is_flag=True, help="Counts only: frames per command and address, checksums, junk.")
 @json_option
 @click.pass_context
-def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None) -> None:
+def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None, summary: bool) -> None:
     """Decode HEX (any common form), stdin ('-') or a capture; one row per frame or problem.
 
     Exit 0 if every frame is good, 1 if any frame or byte is bad, 2 if the
@@ -63,18 +65,17 @@ def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None) -
     frames (a boot banner, debug output) are rows of kind text, not junk.
     """
     settings: Settings = ctx.obj
-    data = _decode_input(hex_text, capture)
+    chunks = _decode_input(hex_text, capture)
+    if summary:
+        _summarise(ctx, settings, chunks)
+    from ..hex.decoding import decode_rows
     from ..hex.view import FrameTally
-    from ..protocol.records import event_dict
 
-    prof = profile(settings.protocol)
-    rows = [event_dict(e, settings.checksum, None, prof) for e in decode_all(data, settings.checksum, prof)]
-    tally = FrameTally()
-    for row in rows:
-        tally.add(row)
-    _print_rows(settings, rows)
+    tally, sink = FrameTally(), _row_sink(settings)
+    size = decode_rows(chunks, settings.checksum, tally.add, sink.add, profile=profile(settings.protocol))
+    sink.close()
     hint = tally.hint()
-    click.echo(f"hcrctl: {len(data)} bytes: {tally.text()}{f' (hint: {hint})' if hint else ''}", err=True)
+    click.echo(f"hcrctl: {size} bytes: {tally.text()}{f' (hint: {hint})' if hint else ''}", err=True)
     ctx.exit(0 if tally.all_good else 1)
 
 
@@ -83,7 +84,23 @@ def _encoded(settings: Settings, request: C.Request | C.Command) -> bytes:
     return profile(settings.protocol).retarget(C.encode_request(request, settings.address, settings.checksum))
 
 
-def _decode_input(hex_text: tuple[str, ...], capture: str | None) -> bytes:
+def _summarise(ctx: click.Context, settings: Settings, chunks: Iterator[bytes]) -> None:
+    """``--summary``: the counts, as text or one JSON object; exit as decode would."""
+    from ..hex.summary import Summary
+    from ..protocol.dialect import make_decoder
+
+    counts = Summary(settings.checksum)
+    decoder = make_decoder(profile(settings.protocol), settings.checksum)
+    for chunk in chunks:
+        counts.bytes += len(chunk)
+        counts.add(decoder.feed(chunk))
+    counts.add(decoder.flush())
+    click.echo(json.dumps(counts.as_dict(), ensure_ascii=False) if settings.as_json else counts.text())
+    ctx.exit(0 if counts.all_good else 1)
+
+
+def _decode_input(hex_text: tuple[str, ...], capture: str | None) -> Iterator[bytes]:
+    """The input as byte chunks; a small input is read (and any typo in it found) before returning."""
     if capture is not None and hex_text:
         raise click.UsageError("give HEX arguments or --file CAPTURE, not both")
     if capture is not None:
@@ -92,25 +109,40 @@ def _decode_input(hex_text: tuple[str, ...], capture: str | None) -> bytes:
         return _stdin_hex()
     if not hex_text:
         raise click.UsageError("give HEX bytes, '-' to read them from stdin, or --file CAPTURE")
-    return parse_hex_args(hex_text)
+    return iter((parse_hex_args(hex_text),))
 
 
-def _capture(path: str) -> bytes:
-    """A binary capture; an ASCII-only file cannot hold a frame (0xAA), so it is read as hex text."""
-    with open(path, "rb") as handle:
-        data = handle.read()
+def _capture(path: str) -> Iterator[bytes]:
+    """A binary capture; an ASCII-only file cannot hold a frame (0xAA), so it is read as hex text.
+
+    A file larger than ``WHOLE`` is judged by its first ``WHOLE`` bytes and streamed.
+    """
+    from ..hex.stream import WHOLE, binary_chunks, hex_line_chunks
+
+    handle = open(path, "rb")  # noqa: SIM115 - the generators returned close it
+    data = handle.read(WHOLE)
+    whole = len(data) < WHOLE
     if not data.isascii() or not data.strip():
-        return data
+        return _closing(handle, binary_chunks(data, handle))
     if data.lstrip().startswith(b"{"):
+        handle.close()
         raise click.UsageError(
             f"{path} looks like a --log file; render it with: hcrctl monitor --from {path}"
         )
     text = data.decode("ascii")
     if not _mostly_hex(text):  # a capture of a device that only printed lines (a boot banner)
         click.echo(f"hcrctl: {path} holds printed text, not hex: decoding its bytes", err=True)
-        return data
+        return _closing(handle, binary_chunks(data, handle))
     click.echo(f"hcrctl: {path} is text, not a binary capture: reading it as hex", err=True)
-    return parse_hex(text, path)
+    if whole:
+        handle.close()
+        return iter((parse_hex(text, path),))
+    return _closing(handle, hex_line_chunks(data, handle, path))
+
+
+def _closing(handle: BinaryIO, chunks: Iterator[bytes]) -> Iterator[bytes]:
+    with handle:
+        yield from chunks
 
 
 #: One word of hex as people write it: 55, 0x55, 55AA01, \x55\xAA, with brackets and separators around.
@@ -125,29 +157,30 @@ def _mostly_hex(text: str) -> bool:
     return 2 * sum(bool(re.fullmatch(HEX_WORD, w)) for w in words) >= len(words)
 
 
-def _stdin_hex() -> bytes:
+def _stdin_hex() -> Iterator[bytes]:
+    """Hex text on stdin: whole when small (a typo stops it before any row), else line by line."""
     from ..errors import HexSyntaxError
+    from ..hex.stream import WHOLE, hex_line_chunks
 
-    raw = sys.stdin.buffer.read()
+    stream = sys.stdin.buffer
+    raw = stream.read(WHOLE)
+    if len(raw) >= WHOLE:
+        return hex_line_chunks(raw, stream, "stdin", STDIN_HINT)
     try:
-        return parse_hex(raw.decode("utf-8", errors="replace"), "stdin")
+        return iter((parse_hex(raw.decode("utf-8", errors="replace"), "stdin"),))
     except HexSyntaxError as exc:
         exc.hint = f"{exc.hint}; {STDIN_HINT}"
         raise
 
 
-def _print_rows(settings: Settings, rows: list[dict[str, Any]]) -> None:
-    from ..hex import view as hexview
+def _row_sink(settings: Settings) -> RowSink:
+    from ..hex import sinks
 
     if settings.as_json:
-        click.echo(json.dumps(rows, ensure_ascii=False))
-    elif stdout_is_terminal():
-        from rich.console import Console
-
-        Console().print(hexview.decode_table(rows))
-    else:
-        for row in rows:
-            click.echo(hexview.plain_line(row))
+        return sinks.JsonArraySink()
+    if stdout_is_terminal():
+        return sinks.TableSink()
+    return sinks.PlainSink()
 
 
 # -- encode -------------------------------------------------------------------------

@@ -10,12 +10,13 @@ counters) is shared with ``replay``.
 from __future__ import annotations
 
 import queue
+import sys
 import time
 from typing import TYPE_CHECKING, Any
 
 import click
 
-from ..hex.traffic import FrameFilter, TrafficPrinter, rows_of, traffic_rows
+from ..hex.traffic import FrameFilter, TrafficPrinter, rows_of
 from ..protocol import commands as C
 from ..protocol.dialect import decode_all
 from ..protocol.frames import ChecksumRule
@@ -24,6 +25,7 @@ from .params import FloatRange
 from .settings import ByteNumber, Settings, json_option
 
 if TYPE_CHECKING:
+    from ..hex.summary import SummaryPrinter
     from ..link.traffic import Traffic
 
 #: How long the main thread waits for traffic before checking the clock again.
@@ -75,10 +77,20 @@ class FilterArg(click.ParamType):
     metavar="LOGFILE",
     help="Render a recorded --log file instead of listening to a port.",
 )
+@click.option(
+    "--summary",
+    is_flag=True,
+    help="Counts only, at the end: frames per command and address, checksums, junk.",
+)
 @json_option
 @click.pass_obj
 def monitor(
-    settings: Settings, duration: float | None, filters: tuple, timestamps: str, source: str | None
+    settings: Settings,
+    duration: float | None,
+    filters: tuple,
+    timestamps: str,
+    source: str | None,
+    summary: bool,
 ) -> None:
     """Decode every frame on the line, one line each, without sending anything.
 
@@ -92,11 +104,35 @@ def monitor(
     hcrctl --port sim:// monitor --duration 2 --filter position
     hcrctl monitor --from session.jsonl --timestamps delta
     """
+    if summary:
+        _summarise(settings, source, duration)
+        return
     printer = TrafficPrinter(settings.as_json, timestamps, FrameFilter.of(filters))
     if source is not None:
         _render_log(printer, source, settings.checksum, duration, profile(settings.protocol))
     else:
         _listen(settings, printer, duration)
+
+
+def _summarise(settings: Settings, source: str | None, duration: float | None) -> None:
+    """``--summary``: count a log (or the port) without printing rows; the counts go to stdout."""
+    from ..hex.summary import SummaryPrinter
+
+    counts = SummaryPrinter(settings.as_json, settings.checksum)
+    if source is not None:
+        from ..link.trafficlog import read_log
+
+        first = None
+        for rec in read_log(source):
+            first = rec.time if first is None else first
+            if duration is not None and rec.time - first > duration:
+                break
+            counts.show_events(
+                rec.time, rec.data, decode_all(rec.data, settings.checksum, profile(settings.protocol))
+            )
+    else:
+        _listen(settings, counts, duration)
+    click.echo(counts.report())
 
 
 def _render_log(
@@ -105,6 +141,7 @@ def _render_log(
     """Each record re-decoded under the active rule, at its recorded offset."""
     from ..link.trafficlog import read_log
 
+    printer.live = False
     first = None
     for rec in read_log(path):
         first = rec.time if first is None else first
@@ -114,10 +151,11 @@ def _render_log(
         for row in rows:
             row["offset"] += rec.fields.get("offset", 0)
         printer.show(rec.time, rec.direction, rec.data, rows)
+    sys.stdout.flush()
     click.echo(f"hcrctl: monitor: {printer.counters()}", err=True)
 
 
-def _listen(settings: Settings, printer: TrafficPrinter, duration: float | None) -> None:
+def _listen(settings: Settings, printer: TrafficPrinter | SummaryPrinter, duration: float | None) -> None:
     """Print traffic as it comes; the listener stays on while the port closes.
 
     Closing makes the reader report what it still held (a line printed just
@@ -141,17 +179,19 @@ def _listen(settings: Settings, printer: TrafficPrinter, duration: float | None)
             click.echo(f"hcrctl: monitor: {printer.counters(time.monotonic() - start)}", err=True)
 
 
-def _print_rest(inbox: queue.SimpleQueue, printer: TrafficPrinter, rule: ChecksumRule, prof: Profile) -> None:
+def _print_rest(
+    inbox: queue.SimpleQueue, printer: TrafficPrinter | SummaryPrinter, rule: ChecksumRule, prof: Profile
+) -> None:
     while True:
         try:
             traffic = inbox.get_nowait()
         except queue.Empty:
             return
-        printer.show(traffic.time, traffic.direction, traffic.data, traffic_rows(traffic, rule, prof))
+        printer.show_traffic(traffic, rule, prof)
 
 
 def _drain_until(
-    robot: Any, inbox: queue.SimpleQueue, printer: TrafficPrinter, deadline: float | None
+    robot: Any, inbox: queue.SimpleQueue, printer: TrafficPrinter | SummaryPrinter, deadline: float | None
 ) -> None:
     """Print traffic until the deadline; Ctrl-C is the normal end of an open-ended monitor."""
     try:
@@ -163,8 +203,7 @@ def _drain_until(
                 traffic = inbox.get(timeout=wait)
             except queue.Empty:
                 continue
-            rows = traffic_rows(traffic, robot.rule, robot.profile)
-            printer.show(traffic.time, traffic.direction, traffic.data, rows)
+            printer.show_traffic(traffic, robot.rule, robot.profile)
     except KeyboardInterrupt:
         if deadline is not None:
             raise

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 import sys
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -84,6 +84,14 @@ class TrafficPrinter:
         self.keep = keep
         self.tally = FrameTally()
         self.sent = 0
+        #: A live line is flushed row by row, for whoever watches; a log rendered from a file
+        #: (``monitor --from``) need not pay a write per row.
+        self.live = True
+        self._plain: Callable[..., str] | None = None
+        self._iso: Callable[[float], str]
+        self._hexs: Callable[[bytes], str]
+        self._is_good: Callable[[dict[str, Any]], bool]
+        self._is_text: Callable[[dict[str, Any]], bool]
 
     def show(self, t: float, direction: str, data: bytes, rows: list[dict[str, Any]]) -> None:
         for row in rows:
@@ -93,22 +101,34 @@ class TrafficPrinter:
                 self.sent += 1
             if self.keep(row):
                 self._line(t, direction, data, row)
-        sys.stdout.flush()
+        if self.live:
+            sys.stdout.flush()
+
+    def show_traffic(self, traffic: Traffic, rule: ChecksumRule, profile: Profile = DEFAULT) -> None:
+        self.show(traffic.time, traffic.direction, traffic.data, traffic_rows(traffic, rule, profile))
 
     def _line(self, t: float, direction: str, data: bytes, row: dict[str, Any]) -> None:
-        from ..link.trafficlog import iso_time
-        from ..protocol.records import hexs, is_good, is_text
-        from .view import plain_line
+        if self._plain is None:  # imported on first use, once (not per row): start-up stays lean
+            from ..link.trafficlog import iso_time
+            from ..protocol.records import hexs, is_good, is_text
+            from .view import plain_line
 
-        if self.as_json:
-            print(
-                json.dumps({"time": iso_time(t), "direction": direction, "hex": hexs(data), **row}),
-                flush=True,
+            self._iso, self._hexs, self._is_good, self._is_text, self._plain = (
+                iso_time,
+                hexs,
+                is_good,
+                is_text,
+                plain_line,
             )
-            return
-        text = f"{self.stamp(t)}{direction}  {plain_line(row, offset=False)}"
-        colour = "cyan" if is_text(row) else None if is_good(row) else "red"
-        print(f"{ANSI[colour]}{text}{RESET}" if self.color and colour else text, flush=True)
+        if self.as_json:
+            line = json.dumps({"time": self._iso(t), "direction": direction, "hex": self._hexs(data), **row})
+        else:
+            text = f"{self.stamp(t)}{direction}  {self._plain(row, offset=False)}"
+            colour = "cyan" if self._is_text(row) else None if self._is_good(row) else "red"
+            line = f"{ANSI[colour]}{text}{RESET}" if self.color and colour else text
+        sys.stdout.write(line + "\n")
+        if self.live:
+            sys.stdout.flush()
 
     def counters(self, seconds: float | None = None) -> str:
         """The closing tally; when checksums failed the rule but pass the other one, the fix too."""

@@ -12,6 +12,7 @@ import contextlib
 import queue
 import time
 from collections import Counter
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -69,15 +70,30 @@ def _frame_under_either_rule(data: bytes, rule: ChecksumRule) -> tuple[Frame | N
     return None, rule
 
 
-def tx_records(path: str) -> list[LogRecord]:
-    from ..link.trafficlog import read_log
+class TxRecords:
+    """The tx records of a log, read from the file afresh on every pass: the log is never held.
 
-    records = [rec for rec in read_log(path) if rec.direction == "tx"]
-    if not records:
-        raise LogFormatError(
-            f"{path} holds no tx frames to replay", hint="record one with hcrctl --log FILE ..."
-        )
-    return records
+    Checked once through when made, so a bad line or a log with nothing to
+    send is reported before the port opens, as when the records were kept.
+    """
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+        if next(iter(self), None) is None:
+            raise LogFormatError(
+                f"{path} holds no tx frames to replay", hint="record one with hcrctl --log FILE ..."
+            )
+        for _ in self:
+            pass
+
+    def __iter__(self) -> Iterator[LogRecord]:
+        from ..link.trafficlog import read_log
+
+        return (rec for rec in read_log(self.path) if rec.direction == "tx")
+
+
+def tx_records(path: str) -> TxRecords:
+    return TxRecords(path)
 
 
 @dataclass(frozen=True)
@@ -89,7 +105,7 @@ class Timing:
 
 
 def run_replay(
-    robot: Robot, records: list[LogRecord], printer: TrafficPrinter, pending: Pending, timing: Timing
+    robot: Robot, records: Iterable[LogRecord], printer: TrafficPrinter, pending: Pending, timing: Timing
 ) -> None:
     """Every pass, then stop; the listener sees our tx and the robot's rx in wire order."""
     from ..link.rescue import stopping
@@ -112,14 +128,15 @@ def run_replay(
 
 def _one_pass(
     robot: Robot,
-    records: list[LogRecord],
+    records: Iterable[LogRecord],
     inbox: queue.SimpleQueue,
     printer: TrafficPrinter,
     pending: Pending,
     timing: Timing,
 ) -> None:
-    start, first = time.monotonic(), records[0].time
+    start, first = time.monotonic(), None
     for rec in records:
+        first = rec.time if first is None else first
         if timing.ignore_timestamps:
             _wait(robot, inbox, printer, pending, time.monotonic() + timing.timeout, until_answered=True)
         else:

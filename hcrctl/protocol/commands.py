@@ -22,13 +22,12 @@ than become a reading. A debugger catches that and flags the frame.
 
 from __future__ import annotations
 
-import dataclasses
 import os
 from dataclasses import dataclass
 from typing import Any, Literal, overload
 
 from ..errors import ProtocolError
-from .fields import NAMES, FieldInfo, fields_of
+from .fields import NAMES, FieldInfo, field_values, fields_of
 
 # The messages and the field helpers live in ``messages`` and ``fields``; the table
 # re-exports those its readers use, so ``C.Compass`` or ``C.name_of`` reads as the table's.
@@ -327,7 +326,7 @@ def decode_fields(code: int, content: bytes, direction: str | None = None) -> di
         if cmd.request is None:
             raise ProtocolError(f"{cmd.name} is never sent by the host")
         value: Any = cmd.request.from_content(content)
-        return dataclasses.asdict(value)
+        return field_values(value)
     if cmd.reply is None:
         raise ProtocolError(f"{cmd.name} has no reply")
     return cmd.reply.decode(content).fields()

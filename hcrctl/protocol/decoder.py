@@ -11,8 +11,6 @@ reuses it. Standard library only.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 from .frames import (
     HEADER,
     MAX_KEPT,
@@ -28,20 +26,22 @@ from .frames import (
     _new_frame,
     checksum,
 )
+from .runs import SMALL, small_run, valid_run
 from .textlines import split_skipped
 
 
 class _Pending:
     """A diagnostic whose skipped region is still growing (until the next header)."""
 
-    __slots__ = ("extra", "kept", "kind", "offset", "size")
+    __slots__ = ("extra", "kept", "kind", "mark", "offset", "size")
 
     def __init__(self, kind: str, offset: int, extra: tuple = ()) -> None:
         self.kind, self.offset, self.extra = kind, offset, extra
         self.kept = bytearray()
         self.size = 0
+        self.mark = 0  # where in ``kept`` the last header of a merged malformed run stands
 
-    def add(self, buf: bytearray, start: int, stop: int) -> None:
+    def add(self, buf: bytes, start: int, stop: int) -> None:
         room = MAX_KEPT - len(self.kept)
         if room > 0:
             self.kept += buf[start : min(stop, start + room)]
@@ -58,9 +58,20 @@ class FrameDecoder:
 
     def __init__(self, rule: ChecksumRule = ChecksumRule.HEADER) -> None:
         self.rule = ChecksumRule(rule)
-        self._buf = bytearray()
+        self._buf = b""  # bytes, not bytearray: scanned and sliced as is, with no snapshot copy
         self._base = 0  # stream offset of _buf[0]
         self._pending: _Pending | None = None
+
+    @property
+    def rule(self) -> ChecksumRule:
+        """The checksum rule frames are checked under; settable while decoding (the shell's ``rule``)."""
+        return self._rule
+
+    @rule.setter
+    def rule(self, rule: ChecksumRule) -> None:
+        self._rule = ChecksumRule(rule)
+        #: What the rule adds to the sum from the header: the one place the fast paths learn the rule.
+        self._bias = 0 if self._rule is ChecksumRule.HEADER else 1
 
     @property
     def buffered(self) -> int:
@@ -84,8 +95,18 @@ class FrameDecoder:
         out: list[Event] = []
         if data:
             self._buf += data
-            self._scan(out)
+            if self._pending is None and len(self._buf) <= SMALL:
+                self._small(out)
+            else:
+                self._scan(out)
         return out
+
+    def _small(self, out: list[Event]) -> None:
+        """The live path: a few bytes, usually whole frames then part of one; anything else goes to ``_scan``."""
+        pos, clean = small_run(self._buf, self._bias, self._base, out.append)
+        self._compact(pos)
+        if not clean:
+            self._scan(out)
 
     def flush(self) -> list[Event]:
         """End of input: report whatever is still held back, and reset."""
@@ -93,13 +114,13 @@ class FrameDecoder:
         buf = self._buf
         if buf[:2] != HEADER:
             self._skip(out, 0, len(buf))
-            buf = bytearray()
+            buf = b""
         self._close_pending(out)
         if buf:
             size = buf[3] + OVERHEAD if len(buf) >= 4 else OVERHEAD
             out.append(Truncated(self._base, bytes(buf), size - len(buf)))
         self._base += len(self._buf)
-        self._buf = bytearray()
+        self._buf = b""
         return out
 
     def idle(self) -> list[Event]:
@@ -128,11 +149,10 @@ class FrameDecoder:
         cannot take is examined here and explained. It scans an immutable
         snapshot, so that slices come out as ``bytes`` in a single copy.
         """
-        raw = self._buf
-        buf = bytes(raw)
+        buf = raw = self._buf
         n = len(buf)
         pos = 0
-        bias = 0 if self.rule is ChecksumRule.HEADER else 1
+        bias = self._bias
         find = buf.find
         h = find(HEADER)
         while True:
@@ -149,7 +169,7 @@ class FrameDecoder:
                 pos = h
                 break
             if self._pending is None:
-                pos, h = _valid_run(buf, h, bias, self._base, out.append)
+                pos, h = valid_run(buf, h, bias, self._base, out.append)
                 if h != pos or n - h < OVERHEAD:
                     continue
             end = h + buf[h + 3] + OVERHEAD
@@ -168,7 +188,7 @@ class FrameDecoder:
                     continue
                 pending = self._open_bad_checksum(out, h, ck)
             else:
-                pending = self._open(out, "malformed", h, (buf[h + 3],))
+                pending = self._open_malformed(out, h, buf[h + 3])
             pending.add(raw, h, h + 1)
             pos = h + 1
             h = find(HEADER, pos)
@@ -230,6 +250,21 @@ class FrameDecoder:
         self._pending = _Pending(kind, self._base + at, extra)
         return self._pending
 
+    def _open_malformed(self, out: list[Event], h: int, declared: int) -> _Pending:
+        """A header whose terminator is not where its length says: one more of a run, or a new run.
+
+        Noise full of false headers (``55 AA 55 AA ...`` at worst) would give
+        one diagnostic per header; a header right after one that showed no
+        terminator at all joins its run instead, so a run is one event.
+        """
+        p = self._pending
+        if p is not None and p.kind == "malformed":
+            kept = p.kept
+            if kept.find(TERMINATOR, p.mark + 6) < 0:
+                p.mark = len(kept)  # past MAX_KEPT nothing more is kept, and the run just grows
+                return p
+        return self._open(out, "malformed", h, (declared,))
+
     def _open_bad_checksum(self, out: list[Event], h: int, ck: int) -> _Pending:
         buf = self._buf
         body = bytes(buf[h:ck])
@@ -261,20 +296,38 @@ class FrameDecoder:
                 )
             )
         else:
-            event = self._malformed(p, data)
-            used = event.size
-            out.append(event)
+            used = self._close_malformed(out, p, data)
         if p.size > used:
             out += split_skipped(p.offset + used, data[used:], p.size - used)
 
-    def _malformed(self, p: _Pending, data: bytes) -> Malformed:
+    def _close_malformed(self, out: list[Event], p: _Pending, data: bytes) -> int:
+        """Report a malformed run; return how many of its bytes the reports cover (the rest is junk).
+
+        The last header of a merged run may yet show a terminator further on:
+        it is then reported on its own, with the length it suggests.
+        """
         (declared,) = p.extra
+        mark = p.mark
+        if mark:
+            if mark >= len(data) - 6 or data.find(TERMINATOR, mark + 6) < 0:
+                out.append(Malformed(p.offset, declared, data, p.size))
+                return p.size
+            out.append(Malformed(p.offset, declared, data[:mark], mark))
+            event = self._malformed(p.offset + mark, data[mark + 3], data[mark:], p.size - mark)
+            out.append(event)
+            return mark + event.size
+        event = self._malformed(p.offset, declared, data, p.size)
+        out.append(event)
+        return event.size
+
+    def _malformed(self, offset: int, declared: int, data: bytes, size: int) -> Malformed:
+        """One malformed frame (or run of them), re-read with the length its terminator suggests."""
         term = data.find(TERMINATOR, 6)
         if term < 0:
-            return Malformed(p.offset, declared, data, p.size)
+            return Malformed(offset, declared, data, size)
         body = data[: term - 1]
         return Malformed(
-            p.offset,
+            offset,
             declared,
             data[: term + 2],
             term + 2,
@@ -307,58 +360,8 @@ class FrameDecoder:
 
     def _compact(self, pos: int) -> None:
         if pos:
-            del self._buf[:pos]
+            self._buf = self._buf[pos:]
             self._base += pos
-
-
-#: A fast run splits at no more than this many headers at once. It starts small and doubles its
-#: reach, so a run that stops early (a noisy link) has split little for nothing.
-MAX_SPLIT = 256
-
-
-def _valid_run(buf: bytes, h: int, bias: int, base: int, append: Callable[[Event], None]) -> tuple[int, int]:
-    """Decode frames standing back to back from the header at ``h``: the common case, nothing to report.
-
-    The hot path. Splitting at every header (in C) leaves one part per frame,
-    and a part holds one frame and nothing else exactly when its size agrees
-    with its length byte: no header inside it (so no nested frame can end
-    first) and no junk after it. Returns ``(pos, h)``: where decoding stopped,
-    and the header at or after it (-1 for none). The first frame the run
-    cannot take is left to the caller, which explains it.
-    """
-    start = 0xFF + bias  # 0x55 + 0xAA: the header's share of the sum under the text rule
-    pos, count = h, 4
-    while True:
-        parts = buf[pos + 2 :].split(HEADER, count)
-        more = len(parts) > count
-        if more:
-            parts.pop()  # the rest, which may hold more headers: split it in the next round
-        pos, taken = _take_frames(parts, pos, start, base, append)
-        if not taken:
-            return pos, pos
-        if not more:
-            return pos, -1  # the last part ran to the end of the buffer
-        count = min(2 * count, MAX_SPLIT)
-
-
-def _take_frames(
-    parts: list[bytes], pos: int, start: int, base: int, append: Callable[[Event], None]
-) -> tuple[int, bool]:
-    """Append the frame each part holds, in order; stop at the first part that is not one valid frame."""
-    new, frame = _new_frame, Frame
-    try:
-        for part in parts:
-            address, length, command = part[0], part[1], part[2]
-            if len(part) != length + 6 or part[-2] != 0x0D or part[-1] != 0x0A:
-                return pos, False
-            content, received = part[3:-3], part[-3]
-            if (start + address + length + command + sum(content)) & 0xFF != received:
-                return pos, False
-            append(new(frame, (address, command, content, received, base + pos)))
-            pos += length + OVERHEAD
-    except IndexError:  # a part too short to hold a length: a header right after a header, or the tail
-        return pos, False
-    return pos, True
 
 
 def decode_all(data: bytes, rule: ChecksumRule = ChecksumRule.HEADER) -> list[Event]:

@@ -1,0 +1,180 @@
+"""Issue 15: whole-file work as ratios against plain Python references, at two input sizes.
+
+Run from the repository root: ``python bench/bench_streaming.py [--root CHECKOUT]``. ``--root``
+times another checkout's hcrctl (``python -m hcrctl`` with PYTHONPATH=CHECKOUT), for a before/after
+table. Every hcrctl run and its reference run on the same files in turns (best of ``--repeat``);
+peak memory is the child's ru_maxrss from wait4. Writes ``bench/results/streaming.json``.
+
+- ``hex decode --file`` to a file vs ``ref_framer.py`` (bytes.find, one line per frame): 1 and 4 MiB;
+- ``hex decode --summary --file`` vs ``ref_framer.py --count``;
+- 1 and 2 MiB of ``55 AA``: time and peak memory;
+- ``monitor --from`` a log of 25,000 and 100,000 records vs a json.loads loop printing one line each;
+- replay's log: tracemalloc peak while reading 2,000 and 20,000 tx records twice (two passes).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+import tracemalloc
+from pathlib import Path
+
+from _common import ROOT, record
+from bench_decoder import mixed_stream
+
+from hcrctl.protocol.frames import HEADER, encode
+
+HERE = Path(__file__).resolve().parent
+REF_LOG = """
+import json, sys
+for line in open(sys.argv[1], encoding="utf-8"):
+    rec = json.loads(line)
+    sys.stdout.write(f"{rec['time']}  {rec['direction']}  {rec['hex']}\\n")
+"""
+
+
+#: Runs argv[2:] from a fresh, small interpreter and writes its peak RSS (KiB) to argv[1]: Linux
+#: counts a child's memory from before exec in ru_maxrss, so forking from this (large) process
+#: directly would report this process's size.
+TRAMPOLINE = """
+import os, sys
+pid = os.fork()
+if pid == 0:
+    os.execv(sys.argv[2], sys.argv[2:])
+_, status, usage = os.wait4(pid, 0)
+open(sys.argv[1], "w").write(str(usage.ru_maxrss))
+"""
+
+
+def timed(args: list[str], env: dict[str, str], out: str = os.devnull) -> tuple[float, int]:
+    """Wall seconds and peak RSS (KiB) of one child run, its stdout to ``out``."""
+    report = Path(tempfile.gettempdir()) / f"bench15-rss-{os.getpid()}"
+    with open(out, "wb") as sink:
+        start = time.perf_counter()
+        subprocess.run(
+            [sys.executable, "-c", TRAMPOLINE, str(report), *args],
+            stdout=sink,
+            stderr=subprocess.DEVNULL,
+            env=env,
+        )
+        return time.perf_counter() - start, int(report.read_text())
+
+
+def best(runs: dict[str, list[str]], env: dict[str, str], repeat: int) -> dict[str, tuple[float, int]]:
+    """Best time and the peak RSS of each command, taken in turns."""
+    out: dict[str, tuple[float, int]] = {name: (1e9, 0) for name in runs}
+    for _ in range(repeat):
+        for name, args in runs.items():
+            seconds, rss = timed(args, env, out=str(Path(tempfile.gettempdir()) / f"bench15-{name}.out"))
+            out[name] = (min(out[name][0], seconds), max(out[name][1], rss))
+    return out
+
+
+def write_log(path: Path, records: int) -> None:
+    frames = [encode(1, 0x14, b"\x0d\x0a"), encode(1, 0x14, b"\xff"), encode(0x50, 0xA0, b"\x01\x02\x03\x04")]
+    with open(path, "w") as out:
+        for n in range(records):
+            frame = frames[n % 3]
+            direction = "tx" if n % 3 == 1 else "rx"
+            out.write(
+                f'{{"time": "2026-01-01T00:{n // 60000 % 60:02d}:{n // 1000 % 60:02d}.{n % 1000:03d}000", '
+                f'"direction": "{direction}", "hex": "{frame.hex(" ").upper()}"}}\n'
+            )
+
+
+def replay_peak(path: Path, hcrctl_root: Path) -> int:
+    sys.path.insert(0, str(hcrctl_root))
+    for name in [m for m in sys.modules if m.startswith("hcrctl")]:
+        del sys.modules[name]
+    from hcrctl.ops.replay import tx_records
+
+    tracemalloc.start()
+    log = tx_records(str(path))
+    for _ in range(2):
+        for _rec in log:
+            pass
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    sys.path.remove(str(hcrctl_root))
+    return peak
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--root", type=Path, default=ROOT, help="the checkout whose hcrctl is timed")
+    parser.add_argument("--repeat", type=int, default=2)
+    parser.add_argument("--name", default="streaming")
+    args = parser.parse_args(argv)
+    env = dict(os.environ, PYTHONPATH=str(args.root), COLUMNS="120")
+    hcrctl = [sys.executable, "-m", "hcrctl"]
+    py = [sys.executable]
+    metrics: dict[str, object] = {"root": str(args.root)}
+    work = Path(tempfile.mkdtemp(prefix="bench15-"))
+    for mib, frames in ((1, 90_000), (4, 360_000)):
+        cap = work / f"cap{mib}.bin"
+        cap.write_bytes(mixed_stream(frames))
+        got = best(
+            {
+                "view": [*hcrctl, "hex", "decode", "--file", str(cap)],
+                "ref": [*py, str(HERE / "ref_framer.py"), str(cap)],
+            },
+            env,
+            args.repeat,
+        )
+        metrics[f"view_{mib}MiB"] = _pair(got, "view", "ref")
+        if args.root == ROOT:
+            got = best(
+                {
+                    "summary": [*hcrctl, "hex", "decode", "--summary", "--file", str(cap)],
+                    "count": [*py, str(HERE / "ref_framer.py"), str(cap), "--count"],
+                },
+                env,
+                args.repeat,
+            )
+            metrics[f"summary_{mib}MiB"] = _pair(got, "summary", "count")
+    for mib in (1, 2):
+        junk = work / f"55aa{mib}.bin"
+        junk.write_bytes(HEADER * (mib << 19))
+        got = best({"55aa": [*hcrctl, "hex", "decode", "--file", str(junk)]}, env, 1)
+        metrics[f"55aa_{mib}MiB"] = {
+            "s": round(got["55aa"][0], 2),
+            "rss_mib": round(got["55aa"][1] / 1024, 1),
+        }
+    for records in (25_000, 100_000):
+        log = work / f"log{records}.jsonl"
+        write_log(log, records)
+        got = best(
+            {
+                "monitor": [*hcrctl, "monitor", "--from", str(log)],
+                "ref": [*py, "-c", REF_LOG, str(log)],
+            },
+            env,
+            args.repeat,
+        )
+        metrics[f"monitor_{records}"] = _pair(got, "monitor", "ref")
+    for records in (2_000, 20_000):
+        log = work / f"tx{records}.jsonl"
+        write_log(log, records)
+        metrics[f"replay_log_peak_{records}"] = replay_peak(log, args.root)
+    for key, value in metrics.items():
+        print(f"  {key}: {value}")
+    record(args.name, metrics)
+    return 0
+
+
+def _pair(got: dict[str, tuple[float, int]], ours: str, ref: str) -> dict[str, float]:
+    return {
+        "s": round(got[ours][0], 2),
+        "ref_s": round(got[ref][0], 2),
+        "ratio": round(got[ours][0] / got[ref][0], 2),
+        "rss_mib": round(got[ours][1] / 1024, 1),
+        "ref_rss_mib": round(got[ref][1] / 1024, 1),
+    }
+
+
+if __name__ == "__main__":
+    sys.exit(main())

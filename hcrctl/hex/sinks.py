@@ -1,0 +1,119 @@
+"""Where ``hex decode`` writes its rows, one at a time as they are decoded: nothing is kept.
+
+A JSON array written element by element (the same text ``json.dumps`` of the
+whole list gives), plain lines in a pipe, and on a terminal a rich table per
+``TABLE_ROWS`` rows (one table for any input that fits in it, as before).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections.abc import Callable
+from typing import Any, Protocol
+
+#: Rows per table on a terminal: a table must measure its rows before printing any.
+TABLE_ROWS = 1000
+
+
+#: Distinct frames whose rendering a sink remembers; past this it starts afresh (bounded).
+CACHE_FRAMES = 4096
+
+
+def frame_key(row: dict[str, Any]) -> tuple | None:
+    """What a frame row's rendering depends on besides its offset; None for other rows."""
+    if "problem" in row or "payload" not in row:
+        return None
+    return (row["address"], row["command"], row["payload"], row["checksum"], row["rule"], row["kind"])
+
+
+class RowSink(Protocol):
+    def add(self, row: dict[str, Any]) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class JsonArraySink:
+    """``[row, row, ...]``, streamed: byte for byte what ``json.dumps(rows)`` prints."""
+
+    def __init__(self, write: Callable[[str], object] | None = None) -> None:
+        self._write = write or sys.stdout.write
+        self._sep = "["
+        self._dumps = json.JSONEncoder(ensure_ascii=False).encode
+        self._cache: dict[tuple, str] = {}
+
+    def add(self, row: dict[str, Any]) -> None:
+        key = frame_key(row)
+        if key is None or next(iter(row)) != "offset":
+            text = self._dumps(row)
+        else:
+            rest = self._cache.get(key)
+            if rest is None:
+                rest = self._dumps({k: v for k, v in row.items() if k != "offset"})[1:]
+                _remember(self._cache, key, rest)
+            text = f'{{"offset": {row["offset"]}, {rest}' if rest != "}" else f'{{"offset": {row["offset"]}}}'
+        self._write(self._sep)
+        self._write(text)
+        self._sep = ", "
+
+    def close(self) -> None:
+        self._write("[]\n" if self._sep == "[" else "]\n")
+        sys.stdout.flush()
+
+
+class PlainSink:
+    """One text line per row, for pipes and files."""
+
+    def __init__(self, write: Callable[[str], object] | None = None) -> None:
+        from .view import plain_line
+
+        self._line = plain_line
+        self._write = write or sys.stdout.write
+        self._cache: dict[tuple, str] = {}
+
+    def add(self, row: dict[str, Any]) -> None:
+        key = frame_key(row)
+        if key is None:
+            self._write(self._line(row) + "\n")
+            return
+        tail = self._cache.get(key)
+        if tail is None:
+            tail = self._line(row, offset=False)
+            _remember(self._cache, key, tail)
+        self._write(f"{row['offset']:>6}  {tail}\n")
+
+    def close(self) -> None:
+        sys.stdout.flush()
+
+
+class TableSink:
+    """Rich tables on a terminal, ``TABLE_ROWS`` rows at a time."""
+
+    def __init__(self) -> None:
+        from rich.console import Console
+
+        self._console = Console()
+        self._rows: list[dict[str, Any]] = []
+        self._printed = False
+
+    def add(self, row: dict[str, Any]) -> None:
+        self._rows.append(row)
+        if len(self._rows) >= TABLE_ROWS:
+            self._print()
+
+    def close(self) -> None:
+        if self._rows or not self._printed:  # no rows at all: the empty table, as before
+            self._print()
+
+    def _print(self) -> None:
+        from .view import decode_table
+
+        self._console.print(decode_table(self._rows))
+        self._rows = []
+        self._printed = True
+
+
+def _remember(cache: dict[tuple, str], key: tuple, text: str) -> None:
+    if len(cache) >= CACHE_FRAMES:
+        cache.clear()
+    cache[key] = text
