@@ -251,3 +251,17 @@ class BadPortUrl(PortError):
     def __init__(self, url: str, problem: str, hint: str | None = None) -> None:
         HcrError.__init__(self, f"Invalid value for '--port': {url}: {problem}", hint=hint)
         self.port = url
+
+
+class NotInProtocol(HcrError):
+    """A command the firmware of the chosen protocol profile does not have: a usage error, nothing sent."""
+
+    exit_code = 2
+
+    def __init__(self, command: str, protocol: str, offered: list[str], instead: str | None = None) -> None:
+        does = f" (that code {instead} there)" if instead else ""
+        super().__init__(
+            f"--protocol {protocol}: the firmware has no {command}{does}; it has: {', '.join(offered)}",
+            hint="drop --protocol (v0.15 is the default) for a board running the protocol document's firmware",
+        )
+        self.command, self.protocol = command, protocol

@@ -149,6 +149,7 @@ SAMPLES = {
     "--retries": "1",
     "--checksum-from": "address",
     "--log": "LOGFILE",
+    "--protocol": "v0.15",
     "--stop-wait": "5",
 }
 FRAME = encode(0x01, 0x14, b"\x04\xd2").hex(" ").split()

@@ -90,6 +90,12 @@ def cli(ctx: click.Context, **options: Any) -> None:
 
     Try it without a robot: hcrctl --port sim:// read
     """
+    from click.core import ParameterSource
+
+    from ..protocol.profiles import profile
+
+    if ctx.get_parameter_source("baud") is ParameterSource.DEFAULT:  # a profile brings its own line rate
+        options["baud"] = profile(options["protocol"]).baud
     ctx.obj = Settings.from_options(options)
 
 

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
+from ..link.dialects import check_command, frame_of
 from ..link.rescue import stopping
 from ..ops.motion import DRIVE_COMMANDS, hold
 from ..ops.writes import describe, hex_bytes, send_request, send_stop, sent_record
@@ -50,6 +51,9 @@ for _name in DRIVE_COMMANDS:
 
 def run_drive(settings: Settings, value: C.Request, hold_for: float | None) -> None:
     """Send the motion; one-shot or with --for, hold it and stop; in the shell without --for, return."""
+    check_command(
+        settings.protocol, C.command_for(value)
+    )  # before the port opens: nothing, not even stop, sent
     with settings.robot() as robot:
         if settings.shared_robot is not None and hold_for is None:
             record, _ = send_request(robot, value)
@@ -60,7 +64,7 @@ def run_drive(settings: Settings, value: C.Request, hold_for: float | None) -> N
             until = "" if hold_for is None else f" for {hold_for:g} s"
             say(f"driving: {describe(value)}{until} — Ctrl-C to stop")
             record["held_s"] = round(hold(robot, hold_for), 3)
-        record["stop_hex"] = hex_bytes(C.encode_request(C.STOP, robot.address, robot.rule))
+        record["stop_hex"] = hex_bytes(frame_of(robot, C.STOP))
     say(f"stopped after {record['held_s']:g} s")
     if settings.as_json:
         emit(settings, record, "")

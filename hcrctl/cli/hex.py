@@ -20,6 +20,7 @@ from ..hex.parse import STYLES, format_hex, parse_hex, parse_hex_args
 from ..ops.hexsend import holds_motion, retries_set, send_frame, traffic_row
 from ..ops.motion import DRIVE_COMMANDS
 from ..protocol import commands as C
+from ..protocol.profiles import profile
 from .params import NamedArgument, hold_option, request_value, table_command
 from .settings import Settings, json_option, stdout_is_terminal
 
@@ -71,20 +72,25 @@ def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None, s
     from ..hex.view import FrameTally
 
     tally, sink = FrameTally(), _row_sink(settings)
-    size = decode_rows(chunks, settings.checksum, tally.add, sink.add)
+    size = decode_rows(chunks, settings.checksum, tally.add, sink.add, profile=profile(settings.protocol))
     sink.close()
     hint = tally.hint()
     click.echo(f"hcrctl: {size} bytes: {tally.text()}{f' (hint: {hint})' if hint else ''}", err=True)
     ctx.exit(0 if tally.all_good else 1)
 
 
+def _encoded(settings: Settings, request: C.Request | C.Command) -> bytes:
+    """The frame for ``request`` in the chosen protocol (v0.11 ends it in a lone 0A)."""
+    return profile(settings.protocol).retarget(C.encode_request(request, settings.address, settings.checksum))
+
+
 def _summarise(ctx: click.Context, settings: Settings, chunks: Iterator[bytes]) -> None:
     """``--summary``: the counts, as text or one JSON object; exit as decode would."""
     from ..hex.summary import Summary
-    from ..protocol.decoder import FrameDecoder
+    from ..protocol.dialect import make_decoder
 
     counts = Summary(settings.checksum)
-    decoder = FrameDecoder(settings.checksum)
+    decoder = make_decoder(profile(settings.protocol), settings.checksum)
     for chunk in chunks:
         counts.bytes += len(chunk)
         counts.add(decoder.feed(chunk))
@@ -212,7 +218,7 @@ def _encode_command(name: str, label: str | None = None) -> click.Command:
     @click.pass_obj
     def command(settings: Settings, style: str, **fields: Any) -> None:
         value = request_value(C.BY_NAME[name], fields)
-        _print_frame(settings, C.encode_request(value, settings.address, settings.checksum), style)
+        _print_frame(settings, _encoded(settings, value), style)
 
     command.help = f"{command.help}\n\nPrints the frame; sends nothing."
     return command
@@ -234,7 +240,7 @@ for _cmd in C.COMMANDS:
 @click.pass_obj
 def encode_stop(settings: Settings, style: str) -> None:
     """The stop frame: motor power 0x80 0x80."""
-    _print_frame(settings, C.encode_request(C.STOP, settings.address, settings.checksum), style)
+    _print_frame(settings, _encoded(settings, C.STOP), style)
 
 
 @encode.command("read")
@@ -244,12 +250,13 @@ def encode_stop(settings: Settings, style: str) -> None:
 def encode_read(settings: Settings, sensors: tuple[str, ...], style: str) -> None:
     """Read requests (content 0xFF, length 1), one line per SENSOR; none means all."""
     for name in dict.fromkeys(sensors) or C.SENSORS:
-        _print_frame(settings, C.encode_request(C.BY_NAME[name], settings.address, settings.checksum), style)
+        _print_frame(settings, _encoded(settings, C.BY_NAME[name]), style)
 
 
 def _print_frame(settings: Settings, frame: bytes, style: str) -> None:
     if settings.as_json:
-        click.echo(json.dumps(traffic_row(frame, settings.checksum, "tx"), ensure_ascii=False))
+        row = traffic_row(frame, settings.checksum, "tx", profile(settings.protocol))
+        click.echo(json.dumps(row, ensure_ascii=False))
     else:
         click.echo(format_hex(frame, style))
 
@@ -277,11 +284,13 @@ def send(ctx: click.Context, hex_text: tuple[str, ...], force: bool, hold_for: f
     from ..hex.frames import complete_frame
 
     settings: Settings = ctx.obj
-    frame, note = complete_frame(parse_hex_args(hex_text), settings.checksum, force)
+    frame, note = complete_frame(
+        parse_hex_args(hex_text), settings.checksum, force, profile(settings.protocol)
+    )
     if note:
         click.echo(f"hcrctl: {note}", err=True)
     with settings.robot() as robot, retries_set(robot, _explicit_retries(ctx)):
-        result = {"sent": traffic_row(frame, robot.rule, "tx"), "reply": None}
+        result = {"sent": traffic_row(frame, robot.rule, "tx", robot.profile), "reply": None}
         result["reply"] = send_frame(robot, frame)
         _report(settings, result)
         if holds_motion(robot, frame) and settings.shared_robot is None:

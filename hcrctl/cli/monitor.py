@@ -18,8 +18,9 @@ import click
 
 from ..hex.traffic import FrameFilter, TrafficPrinter, rows_of
 from ..protocol import commands as C
-from ..protocol.decoder import decode_all
+from ..protocol.dialect import decode_all
 from ..protocol.frames import ChecksumRule
+from ..protocol.profiles import Profile, profile
 from .params import FloatRange
 from .settings import ByteNumber, Settings, json_option
 
@@ -108,7 +109,7 @@ def monitor(
         return
     printer = TrafficPrinter(settings.as_json, timestamps, FrameFilter.of(filters))
     if source is not None:
-        _render_log(printer, source, settings.checksum, duration)
+        _render_log(printer, source, settings.checksum, duration, profile(settings.protocol))
     else:
         _listen(settings, printer, duration)
 
@@ -126,13 +127,17 @@ def _summarise(settings: Settings, source: str | None, duration: float | None) -
             first = rec.time if first is None else first
             if duration is not None and rec.time - first > duration:
                 break
-            counts.show_events(rec.time, rec.data, decode_all(rec.data, settings.checksum))
+            counts.show_events(
+                rec.time, rec.data, decode_all(rec.data, settings.checksum, profile(settings.protocol))
+            )
     else:
         _listen(settings, counts, duration)
     click.echo(counts.report())
 
 
-def _render_log(printer: TrafficPrinter, path: str, rule: ChecksumRule, duration: float | None) -> None:
+def _render_log(
+    printer: TrafficPrinter, path: str, rule: ChecksumRule, duration: float | None, prof: Profile
+) -> None:
     """Each record re-decoded under the active rule, at its recorded offset."""
     from ..link.trafficlog import read_log
 
@@ -142,7 +147,7 @@ def _render_log(printer: TrafficPrinter, path: str, rule: ChecksumRule, duration
         first = rec.time if first is None else first
         if duration is not None and rec.time - first > duration:
             break
-        rows = rows_of(decode_all(rec.data, rule), rule, rec.direction)
+        rows = rows_of(decode_all(rec.data, rule, prof), rule, rec.direction, prof)
         for row in rows:
             row["offset"] += rec.fields.get("offset", 0)
         printer.show(rec.time, rec.direction, rec.data, rows)
@@ -170,19 +175,19 @@ def _listen(settings: Settings, printer: TrafficPrinter | SummaryPrinter, durati
     finally:
         if robot is not None:
             robot.remove_traffic_hook(listener)
-            _print_rest(inbox, printer, robot.rule)
+            _print_rest(inbox, printer, robot.rule, robot.profile)
             click.echo(f"hcrctl: monitor: {printer.counters(time.monotonic() - start)}", err=True)
 
 
 def _print_rest(
-    inbox: queue.SimpleQueue, printer: TrafficPrinter | SummaryPrinter, rule: ChecksumRule
+    inbox: queue.SimpleQueue, printer: TrafficPrinter | SummaryPrinter, rule: ChecksumRule, prof: Profile
 ) -> None:
     while True:
         try:
             traffic = inbox.get_nowait()
         except queue.Empty:
             return
-        printer.show_traffic(traffic, rule)
+        printer.show_traffic(traffic, rule, prof)
 
 
 def _drain_until(
@@ -198,7 +203,7 @@ def _drain_until(
                 traffic = inbox.get(timeout=wait)
             except queue.Empty:
                 continue
-            printer.show_traffic(traffic, robot.rule)
+            printer.show_traffic(traffic, robot.rule, robot.profile)
     except KeyboardInterrupt:
         if deadline is not None:
             raise

@@ -23,6 +23,7 @@ import click
 from ..link.client import DEFAULT_WAIT_S
 from ..link.context import Connection
 from ..protocol.frames import ChecksumRule
+from ..protocol.profiles import DEFAULT, PROFILES
 from .params import ByteNumber, FloatRange, IntRange
 
 if TYPE_CHECKING:
@@ -96,6 +97,14 @@ def global_options() -> list[click.Option]:
             default="header",
             show_default=True,
             help="Where the checksum sum starts: header (the document's rule) or address.",
+        ),
+        _option(
+            "--protocol",
+            type=click.Choice(list(PROFILES)),
+            default=DEFAULT.name,
+            show_default=True,
+            help="Protocol profile: v0.15 (the document) or v0.11 (the published v0.33 firmware of real "
+            "boards; implies --baud 9600).",
         ),
         _option(
             "--stop-wait",

@@ -15,6 +15,7 @@ import click
 
 from ..errors import HcrError, printable
 from ..numtext import NumberError, parse_int
+from ..protocol.profiles import PROFILES
 from ..sim.options import MAX_BAUD, MAX_SEED, MIN_BAUD, SimOptions
 from .params import IntRange
 
@@ -40,18 +41,36 @@ DEFAULT_HOST = "127.0.0.1"
     default="",
     metavar="QUERY",
     help="Simulator options, as in sim://?QUERY: drop, corrupt, noise, delay_ms, checksum, address, "
-    "silent, pid, broadcast_hz, map_hz, seed, pace, baud (e.g. 'drop=0.1&delay_ms=20').",
+    "silent, pid, broadcast_hz, map_hz, seed, pace, baud, protocol (e.g. 'drop=0.1&delay_ms=20').",
+)
+@click.option(
+    "--protocol",
+    type=click.Choice(list(PROFILES)),
+    help="Protocol profile to speak: v0.11 is the published v0.33 firmware (banner, streaming, its "
+    "checksums; --pace paces it at 9600 baud). Overrides protocol= in --options.  [default: v0.15]",
 )
 @click.option(
     "--seed",
     type=IntRange(0, MAX_SEED),
     help="Seed for sensor noise and faults (overrides seed= in --options).",
 )
-def sim(use_pty: bool, tcp: str | None, pace: bool, baud: int | None, query: str, seed: int | None) -> None:
+def sim(
+    use_pty: bool,
+    tcp: str | None,
+    pace: bool,
+    baud: int | None,
+    query: str,
+    protocol: str | None,
+    seed: int | None,
+) -> None:
     """Serve the simulated robot on a pty or a TCP port until Ctrl-C or SIGTERM."""
     if use_pty == (tcp is not None):
         raise click.UsageError("give exactly one of --pty and --tcp")
     options = _options(query, pace, baud, seed)
+    if protocol is not None:
+        options = dataclasses.replace(options, protocol=protocol)
+    if baud is None and "baud=" not in query:
+        options = dataclasses.replace(options, baud=options.profile.baud)
     address = parse_tcp(tcp) if tcp is not None else None
     from ..sim import serve as simserve
 

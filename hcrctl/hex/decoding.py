@@ -10,8 +10,9 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 from typing import Any
 
-from ..protocol.decoder import FrameDecoder
+from ..protocol.dialect import make_decoder
 from ..protocol.frames import ChecksumRule, Event, Frame
+from ..protocol.profiles import DEFAULT, Profile
 from ..protocol.records import event_dict
 
 Row = dict[str, Any]
@@ -29,17 +30,18 @@ class RowMaker:
     the cache share their nested values: consumers read them, never change them.
     """
 
-    def __init__(self, rule: ChecksumRule) -> None:
+    def __init__(self, rule: ChecksumRule, profile: Profile = DEFAULT) -> None:
         self.rule = rule
+        self.profile = profile
         self._frames: dict[tuple, Row] = {}
 
     def __call__(self, event: Event) -> Row:
         if type(event) is not Frame:
-            return event_dict(event, self.rule)
+            return event_dict(event, self.rule, None, self.profile)
         key = event[:4]  # address, command, content, checksum: all but the offset
         template = self._frames.get(key)
         if template is None:
-            row = event_dict(event, self.rule)
+            row = event_dict(event, self.rule, None, self.profile)
             if len(self._frames) >= CACHE_FRAMES:
                 self._frames.clear()
             self._frames[key] = {k: v for k, v in row.items() if k != "offset"}
@@ -49,10 +51,15 @@ class RowMaker:
         return row
 
 
-def decode_rows(chunks: Iterable[bytes], rule: ChecksumRule, *consumers: Callable[[Row], None]) -> int:
-    """Decode ``chunks`` in order, handing each row to every consumer; return the bytes read."""
-    decoder = FrameDecoder(rule)
-    make = RowMaker(rule)
+def decode_rows(
+    chunks: Iterable[bytes],
+    rule: ChecksumRule,
+    *consumers: Callable[[Row], None],
+    profile: Profile = DEFAULT,
+) -> int:
+    """Decode ``chunks`` in order (under ``profile``), handing each row to every consumer; return the bytes read."""
+    decoder = make_decoder(profile, rule)
+    make = RowMaker(rule, profile)
     size = 0
     for chunk in chunks:
         size += len(chunk)

@@ -12,21 +12,28 @@ from __future__ import annotations
 
 from ..errors import FrameRefused
 from ..protocol.frames import HEADER, TERMINATOR, ChecksumRule, checksum
+from ..protocol.profiles import DEFAULT, Profile
 
 #: header (2) + address + length + command
 HEAD = 5
 FORCE_HINT = "--force sends the bytes exactly as typed"
 
 
-def complete_frame(data: bytes, rule: ChecksumRule | str, force: bool = False) -> tuple[bytes, str | None]:
+def complete_frame(
+    data: bytes, rule: ChecksumRule | str, force: bool = False, profile: Profile = DEFAULT
+) -> tuple[bytes, str | None]:
     """The frame to send and a note for the user (None when sent as typed without comment).
 
     Raises FrameRefused (exit 1) for a wrong checksum, terminator or length
     unless ``force``, in which case the bytes go out as typed and the note
-    says what is wrong with them.
+    says what is wrong with them. Under another ``profile`` (v0.11) the frame
+    ends in that profile's terminator instead; the checksum is still the
+    document's (that firmware ignores it, so hcrctl sends the document's).
     """
     rule = ChecksumRule(rule)
     try:
+        if profile.terminator != TERMINATOR:
+            return _in_profile(bytes(data), rule, profile)
         return _complete(bytes(data), rule)
     except FrameRefused as exc:
         if not force:
@@ -57,6 +64,18 @@ def _complete(data: bytes, rule: ChecksumRule) -> tuple[bytes, str | None]:
             hint=FORCE_HINT,
         )
     return data, None
+
+
+def _in_profile(data: bytes, rule: ChecksumRule, profile: Profile) -> tuple[bytes, str | None]:
+    """``_complete`` for a profile whose frames end otherwise: typed with that end, or completed to it."""
+    whole = len(data) >= HEAD and len(data) == HEAD + data[3] + 1 + len(profile.terminator)
+    if whole and data.endswith(profile.terminator):
+        data = data[: -len(profile.terminator)] + TERMINATOR
+    frame, note = _complete(data, rule)
+    end = profile.terminator.hex(" ").upper()
+    return profile.retarget(frame), note and note.replace("0D 0A", end).replace(
+        "appended 0A to complete the end", "appended"
+    )
 
 
 def _check_head(data: bytes) -> None:

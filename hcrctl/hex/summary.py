@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..protocol import commands as C
 from ..protocol.frames import BadChecksum, ChecksumRule, Event, Frame, Junk, Malformed, TextLine, Truncated
+from ..protocol.profiles import DEFAULT, Profile
 
 if TYPE_CHECKING:
     from ..link.traffic import Traffic
@@ -143,10 +144,10 @@ class SummaryPrinter:
         self.summary.bytes += len(data)
         self.summary.add(events, t)
 
-    def show_traffic(self, traffic: Traffic, rule: ChecksumRule) -> None:
-        from ..protocol.decoder import decode_all
+    def show_traffic(self, traffic: Traffic, rule: ChecksumRule, profile: Profile = DEFAULT) -> None:
+        from ..protocol.dialect import decode_all
 
-        events = [traffic.event] if traffic.event is not None else decode_all(traffic.data, rule)
+        events = [traffic.event] if traffic.event is not None else decode_all(traffic.data, rule, profile)
         self.show_events(traffic.time, traffic.data, events)
 
     def counters(self, seconds: float | None = None) -> str:

@@ -12,8 +12,9 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from ..protocol.decoder import decode_all
+from ..protocol.dialect import decode_all
 from ..protocol.frames import ChecksumRule, Event
+from ..protocol.profiles import DEFAULT, Profile
 
 if TYPE_CHECKING:
     from ..link.traffic import Traffic
@@ -103,8 +104,8 @@ class TrafficPrinter:
         if self.live:
             sys.stdout.flush()
 
-    def show_traffic(self, traffic: Traffic, rule: ChecksumRule) -> None:
-        self.show(traffic.time, traffic.direction, traffic.data, traffic_rows(traffic, rule))
+    def show_traffic(self, traffic: Traffic, rule: ChecksumRule, profile: Profile = DEFAULT) -> None:
+        self.show(traffic.time, traffic.direction, traffic.data, traffic_rows(traffic, rule, profile))
 
     def _line(self, t: float, direction: str, data: bytes, row: dict[str, Any]) -> None:
         if self._plain is None:  # imported on first use, once (not per row): start-up stays lean
@@ -137,13 +138,15 @@ class TrafficPrinter:
         return f"{self.tally.text()}{sent}{span}" + (f" (hint: {hint})" if hint else "")
 
 
-def rows_of(events: list[Event], rule: ChecksumRule, direction: str) -> list[dict[str, Any]]:
+def rows_of(
+    events: list[Event], rule: ChecksumRule, direction: str, profile: Profile = DEFAULT
+) -> list[dict[str, Any]]:
     """Decode-shape rows; rx lets the content say request or reply (a shared line has both)."""
     from ..protocol.records import event_dict
 
-    return [event_dict(e, rule, "tx" if direction == "tx" else None) for e in events]
+    return [event_dict(e, rule, "tx" if direction == "tx" else None, profile) for e in events]
 
 
-def traffic_rows(traffic: Traffic, rule: ChecksumRule) -> list[dict[str, Any]]:
-    events = [traffic.event] if traffic.event is not None else decode_all(traffic.data, rule)
-    return rows_of(events, rule, traffic.direction)
+def traffic_rows(traffic: Traffic, rule: ChecksumRule, profile: Profile = DEFAULT) -> list[dict[str, Any]]:
+    events = [traffic.event] if traffic.event is not None else decode_all(traffic.data, rule, profile)
+    return rows_of(events, rule, traffic.direction, profile)

@@ -16,6 +16,7 @@ from ..protocol import commands as C
 from ..protocol.frames import (
     ChecksumRule,
 )
+from ..protocol.profiles import LONE_LF_HINT
 from ..protocol.records import (
     is_good,
     is_text,
@@ -70,6 +71,12 @@ def verdict_text(row: dict[str, Any]) -> str:
     """``9B ok``, or the byte received with what each rule expects."""
     if "checksum" not in row:
         return ""
+    if "matched" in row:  # judged under a dialect's own rules: say which one
+        got = f"{row['checksum']:02X}"
+        if row["checksum_ok"]:
+            return f"{got} ok ({row['matched']} rule)"
+        expected = "n/a" if row["expected"] is None else f"{row['expected']:02X}"
+        return f"{got} bad: {row['protocol']} {row['rule']} rule {expected}"
     rule, other_rule = ChecksumRule(row["rule"]), ChecksumRule(row["rule"]).other
     got = f"{row['checksum']:02X}"
     if row["checksum_ok"]:
@@ -122,12 +129,20 @@ def columns(row: dict[str, Any]) -> Columns:
 def problem_text(row: dict[str, Any]) -> str:
     problem = row["problem"]
     if problem == "junk":
-        return f"{row['size']} byte{'s' if row['size'] != 1 else ''} skipped, no frame"
+        note = f" ({row['note']})" if "note" in row else ""
+        return f"{row['size']} byte{'s' if row['size'] != 1 else ''} skipped, no frame{note}"
     if problem == "truncated":
-        return f"input ends inside a frame, {row['needed']} byte{'s' if row['needed'] != 1 else ''} short"
-    detail = row["reason"]
-    if "name" in row:
-        detail += f"; read as {row['name'] or hex(row['command'])}: {fields_text(row)}"
+        detail = f"input ends inside a frame, {row['needed']} byte{'s' if row['needed'] != 1 else ''} short"
+    else:
+        detail = row["reason"]
+        if "name" in row:
+            detail += f"; read as {row['name'] or hex(row['command'])}: {fields_text(row)}"
+    if "as_v0.11" in row:
+        frame = row["as_v0.11"]
+        detail += f"; as v0.11 {frame['name'] or hex(frame['command'])}: {fields_text(frame)}, "
+        detail += f"checksum {verdict_text(frame)}"
+    if "hint" in row:
+        detail += f"; {row['hint']}"
     return detail
 
 
@@ -194,6 +209,9 @@ class FrameTally:
     #: Frames that failed the configured checksum rule but pass the other one, and that rule.
     other_rule: int = 0
     other_rule_name: str = ""
+    #: Frames ending in a lone 0A while speaking v0.15 (a v0.11 board), and raw bytes a dialect streams.
+    lone_lf: int = 0
+    raw_bytes: int = 0
 
     def add(self, row: dict[str, Any]) -> None:
         problem = row.get("problem")
@@ -206,12 +224,15 @@ class FrameTally:
             if not row["checksum_ok"] and row["other_ok"]:
                 self.other_rule += 1
                 self.other_rule_name = ChecksumRule(row["rule"]).other.value
+        elif problem == "junk" and "note" in row:
+            self.raw_bytes += row["size"]
         elif problem == "junk":
             self.junk_bytes += row["size"]
         elif problem == "malformed":
             self.malformed += 1
         else:
             self.truncated += 1
+        self.lone_lf += "as_v0.11" in row
 
     @property
     def all_good(self) -> bool:
@@ -227,12 +248,16 @@ class FrameTally:
             parts.append(f"{self.malformed} malformed")
         if self.truncated:
             parts.append("truncated tail")
+        if self.raw_bytes:
+            parts.append(f"{self.raw_bytes} raw bumper byte{'s' if self.raw_bytes != 1 else ''}")
         if self.text_lines:
             parts.append(f"{self.text_lines} text line{'s' if self.text_lines != 1 else ''}")
         return ", ".join(parts)
 
     def hint(self) -> str | None:
         """The fix, when frames failed the configured checksum rule but pass the other one."""
+        if self.lone_lf:
+            return LONE_LF_HINT
         if not self.other_rule:
             return None
         errors = self.checksum_errors

@@ -32,8 +32,10 @@ from ..errors import (
     ProtocolError,
 )
 from ..protocol import commands as C
-from ..protocol.decoder import FrameDecoder
-from ..protocol.frames import BadChecksum, ChecksumRule, Event, Frame
+from ..protocol.dialect import make_decoder
+from ..protocol.frames import BadChecksum, ChecksumRule, Event, Frame, Malformed, Truncated
+from ..protocol.profiles import DEFAULT, Profile, profile
+from .dialects import Dialect
 from .reads import TypedReads
 from .traffic import FrameHook, LinkStats, Traffic, TrafficHook, Watchers, decode_sent
 
@@ -52,7 +54,7 @@ ON_THE_LINE = (-1, -1)
 DEFAULT_WAIT_S = 30.0
 
 
-class Robot(TypedReads):
+class Robot(TypedReads, Dialect):
     """A connection to one HCR controller (and whatever else shares its line).
 
     ``read``/``read_many`` (typed by sensor name) come from ``TypedReads``; ``sweep`` is here.
@@ -67,6 +69,7 @@ class Robot(TypedReads):
         timeout: float = 0.5,
         retries: int = 2,
         rule: ChecksumRule | str = ChecksumRule.HEADER,
+        protocol: Profile | str = DEFAULT,
         on_unsolicited: FrameHook | None = None,
         on_traffic: TrafficHook | None = None,
     ) -> None:
@@ -92,7 +95,9 @@ class Robot(TypedReads):
         self.reopen: Callable[[], Robot] | None = None
         self.stop_wait = DEFAULT_WAIT_S
         self._rule = ChecksumRule(rule)
-        self._decoder = FrameDecoder(self._rule)
+        self.profile = profile(protocol)  # the dialect the device speaks (see ``Dialect``)
+        self._decoder = make_decoder(self.profile, self._rule)
+        self.lone_lf_seen = False
         self._io = threading.Lock()  # one transaction at a time
         self._tx = threading.Lock()  # one write at a time (stop may cut in)
         self._waiting: set[tuple[int, int]] = set()
@@ -154,13 +159,13 @@ class Robot(TypedReads):
 
     def send(self, value: C.Request, *, address: int | None = None) -> C.Reply | None:
         """Send a request; wait for its reply if the command has one."""
-        cmd = C.command_for(value)
-        frame = C.encode_request(value, self._address(address), self._rule)
+        cmd = self.check_supported(C.command_for(value))
+        frame = self.frame_for(value, address)
         if cmd.reply is None:
             self.write(frame)
             return None
         reply = self.transact(frame, (self._address(address), cmd.code), cmd.name)
-        return cmd.reply.decode(reply.content)
+        return cmd.reply.decode(self.profile.to_document(cmd.code, reply.content))
 
     def sweep(
         self, sensors: Iterable[str | C.Command], *, address: int | None = None, pipeline: bool = False
@@ -175,8 +180,8 @@ class Robot(TypedReads):
         only a caller that measures the link (watch) should opt in.
         """
         addr = self._address(address)
-        cmds = [self._sensor(s) for s in dict.fromkeys(sensors)]
-        batch = {(addr, cmd.code): (C.encode_request(cmd, addr, self._rule), cmd.name) for cmd in cmds}
+        cmds = [self.check_supported(self._sensor(s)) for s in dict.fromkeys(sensors)]
+        batch = {(addr, cmd.code): (self.frame_for(cmd, addr), cmd.name) for cmd in cmds}
         silent: DeviceSilent | None = None
         if pipeline:
             frames = self._exchange(batch)
@@ -205,7 +210,7 @@ class Robot(TypedReads):
         if cmd.reply is None:  # a read always has one (the table checks); a row passed by hand may not
             return ProtocolError(f"{cmd.name} has no reply to read")
         try:
-            return cmd.reply.decode(frame.content)
+            return cmd.reply.decode(self.profile.to_document(cmd.code, frame.content))
         except ImpossibleReply as exc:
             return exc.at(f"from 0x{addr:02X} on {self.port}")
         except ProtocolError as exc:
@@ -220,7 +225,7 @@ class Robot(TypedReads):
 
     def stop(self) -> None:
         """Motor power 0x80 0x80. Sent even when already stopped: cheap, and safe."""
-        self.write(C.encode_request(C.STOP, self.address, self._rule))
+        self.write(self.frame_for(C.STOP))
 
     def set_pid(self, p: int, i: int, d: int) -> None:
         """Set the gains; raises DeviceRefused when the device answers 0x00."""
@@ -238,7 +243,9 @@ class Robot(TypedReads):
             self._recent_tx.append(frame)
             # Told before the bytes leave, so the hook never sees the reply first.
             if self.watchers.hooks:
-                self.watchers.tell(Traffic(time.time(), "tx", frame, decode_sent(frame, self._rule)))
+                self.watchers.tell(
+                    Traffic(time.time(), "tx", frame, decode_sent(frame, self._rule, self.profile))
+                )
             try:
                 self.serial.write(frame)
             except Exception as exc:
@@ -257,7 +264,7 @@ class Robot(TypedReads):
         attempts = 1 + max(self.retries, 0)
         seen = self._other_rule_keys
         if key not in seen and ON_THE_LINE not in seen:
-            return DeviceTimeout(what, key[0], self.port, self.timeout, attempts)
+            return self.explain(DeviceTimeout(what, key[0], self.port, self.timeout, attempts))
         return DeviceTimeout(
             what,
             key[0],
@@ -327,13 +334,15 @@ class Robot(TypedReads):
     def _dispatch(self, events: list[Event]) -> None:
         now = time.time()
         for event in events:
-            self.stats.count(event)
+            self.stats.count(event, self.profile)
             if isinstance(event, Frame):
                 self._route(event)
             elif isinstance(event, BadChecksum) and event.matches_other_rule:
                 self._other_rule_keys.update(((event.address, event.command), ON_THE_LINE))
+            elif isinstance(event, Malformed | Truncated):
+                self.lone_lf_seen = self.lone_lf_seen or self.speaks_v011(event.data)
             if self.watchers.hooks:
-                data = event.to_bytes() if isinstance(event, Frame) else event.data
+                data = self.wire_bytes(event) if isinstance(event, Frame) else event.data
                 self.watchers.tell(Traffic(now, "rx", data, event))
 
     def _route(self, frame: Frame) -> None:
@@ -364,7 +373,7 @@ class Robot(TypedReads):
 
         No reply is ever byte-for-byte a request, so such copies are dropped.
         """
-        return bool(self._recent_tx) and frame.to_bytes() in self._recent_tx
+        return bool(self._recent_tx) and self.wire_bytes(frame) in self._recent_tx
 
     def add_traffic_hook(self, hook: TrafficHook) -> None:
         """Also call ``hook`` with every frame sent and every event received."""

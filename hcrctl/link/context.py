@@ -35,6 +35,8 @@ class Connection:
     retries: int = 2
     stop_wait: float = DEFAULT_WAIT_S
     checksum: ChecksumRule = ChecksumRule.HEADER
+    #: The protocol profile's name (``protocol.profiles``): v0.15, or v0.11 for the published firmware.
+    protocol: str = "v0.15"
     log: str | None = None
     #: The shell's open robot: lent to every command of the session, never closed by one.
     shared_robot: Robot | None = None
@@ -71,6 +73,7 @@ class Connection:
             timeout=self.timeout,
             retries=self.retries,
             rule=self.checksum,
+            protocol=self.protocol,
         )
         if self.log:
             from .trafficlog import attach

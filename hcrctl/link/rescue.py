@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING
 
 from ..errors import HcrError, LinkLostWhileMoving, PortError
 from ..protocol import commands as C
+from .dialects import frame_of
 from .signals import Terminated
 
 if TYPE_CHECKING:
@@ -48,8 +49,8 @@ StopFrames = Callable[[], Iterable[bytes]]
 
 
 def stop_frame(robot: Robot, address: int | None = None) -> bytes:
-    """Motor power 0x80 0x80 to ``address`` (default the robot's), under its checksum rule."""
-    return C.encode_request(C.STOP, robot.address if address is None else address, robot.rule)
+    """Motor power 0x80 0x80 to ``address`` (default the robot's), under its checksum rule and protocol."""
+    return frame_of(robot, C.STOP, address)
 
 
 @contextlib.contextmanager

@@ -15,8 +15,9 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from ..protocol.decoder import FrameDecoder
+from ..protocol.dialect import make_decoder
 from ..protocol.frames import BadChecksum, ChecksumRule, Event, Frame, Junk, Malformed, TextLine, Truncated
+from ..protocol.profiles import DEFAULT, Profile
 
 
 @dataclass(frozen=True)
@@ -46,9 +47,11 @@ class LinkStats:
     other_rule: int = 0
     #: Lines the firmware printed between frames (not junk).
     text_lines: int = 0
+    #: Raw bumper bytes a streaming (v0.11) board sends between its frames (not junk either).
+    raw_bytes: int = 0
     last_rx: float | None = None
 
-    def count(self, event: Event) -> None:
+    def count(self, event: Event, profile: Profile = DEFAULT) -> None:
         if isinstance(event, Frame):
             self.rx_frames += 1
             self.last_rx = time.monotonic()
@@ -59,6 +62,8 @@ class LinkStats:
             self.text_lines += 1
         elif isinstance(event, Malformed):
             self.malformed += 1
+        elif isinstance(event, Junk) and profile.raw_byte(event.data):
+            self.raw_bytes += 1
         elif isinstance(event, Junk):
             self.junk_bytes += event.size
         elif isinstance(event, Truncated):
@@ -71,9 +76,9 @@ TrafficHook = Callable[[Traffic], None]
 FrameHook = Callable[[Frame], None]
 
 
-def decode_sent(frame: bytes, rule: ChecksumRule) -> Event | None:
+def decode_sent(frame: bytes, rule: ChecksumRule, profile: Profile = DEFAULT) -> Event | None:
     """What we sent, as the decoder reads it, for the traffic hook and the log."""
-    decoder = FrameDecoder(rule)
+    decoder = make_decoder(profile, rule)
     events = decoder.feed(frame) + decoder.flush()
     return events[0] if events else None
 

@@ -30,8 +30,9 @@ from datetime import datetime
 from typing import TYPE_CHECKING, Any
 
 from ..errors import LogFormatError, LogIncomplete
-from ..protocol.decoder import decode_all
+from ..protocol.dialect import decode_all
 from ..protocol.frames import ChecksumRule
+from ..protocol.profiles import DEFAULT, Profile
 from ..protocol.records import event_dict, hexs
 
 if TYPE_CHECKING:
@@ -56,27 +57,31 @@ def iso_time(t: float) -> str:
     return datetime.fromtimestamp(t).astimezone().isoformat(timespec="microseconds")
 
 
-def record(traffic: Traffic, rule: ChecksumRule) -> dict[str, Any]:
+def record(traffic: Traffic, rule: ChecksumRule, profile: Profile = DEFAULT) -> dict[str, Any]:
     """The log line for one piece of traffic, before JSON encoding."""
     direction = traffic.direction
     event = traffic.event
     if event is None:
-        events = decode_all(traffic.data, rule)
+        events = decode_all(traffic.data, rule, profile)
         event = events[0] if events else None
     head = {"time": iso_time(traffic.time), "direction": direction, "hex": hexs(traffic.data)}
     if event is None:
         return head
     # rx may hold another host's requests on a shared line: let the content say which it is.
-    return {**head, **event_dict(event, rule, "tx" if direction == "tx" else None)}
+    return {**head, **event_dict(event, rule, "tx" if direction == "tx" else None, profile)}
 
 
 class TrafficLog:
     """A traffic listener that appends each frame to a file as one flushed JSON line."""
 
     def __init__(
-        self, path: str, rule: ChecksumRule | Callable[[], ChecksumRule] = ChecksumRule.HEADER
+        self,
+        path: str,
+        rule: ChecksumRule | Callable[[], ChecksumRule] = ChecksumRule.HEADER,
+        profile: Profile = DEFAULT,
     ) -> None:
         self.path = path
+        self.profile = profile
         self._rule = rule
         self._lock = threading.Lock()  # tx comes from the caller's thread, rx from the reader's
         try:
@@ -92,7 +97,7 @@ class TrafficLog:
 
     def __call__(self, traffic: Traffic) -> None:
         """Append one line; never raises, as it runs in the reader thread and before stop goes out."""
-        line = json.dumps(record(traffic, self.rule), ensure_ascii=False) + "\n"
+        line = json.dumps(record(traffic, self.rule, self.profile), ensure_ascii=False) + "\n"
         with self._lock:
             if self._file.closed:
                 return
@@ -129,7 +134,7 @@ def attach(robot: Robot, path: str) -> TrafficLog:
     """
     ref = weakref.ref(robot)
     try:
-        log = TrafficLog(path, rule=lambda: _rule_of(ref))
+        log = TrafficLog(path, rule=lambda: _rule_of(ref), profile=robot.profile)
     except LogFormatError:
         robot.close()
         raise

@@ -27,6 +27,7 @@ from collections.abc import Callable
 from ..errors import DeviceTimeout, HcrError, ImpossibleReply, PortError
 from ..link.client import Robot
 from ..protocol import commands as C
+from ..protocol.frames import Frame
 from .state import LiveState
 
 #: Seconds between attempts to reopen a port that disappeared.
@@ -123,6 +124,8 @@ class Poller(threading.Thread):
         """Read every sensor once, pipelined unless the firmware needs one at a time."""
         if self._stopping.is_set() or self.paused.is_set():
             return
+        if robot.profile.streams:
+            return  # the board sends its readings unasked: listen (``_drain``), never flood it with requests
         started = self.state.clock()
         t0 = time.monotonic()
         results = robot.sweep(self.sensors, pipeline=self.pipeline)
@@ -147,19 +150,30 @@ class Poller(threading.Thread):
 
     def _drain(self, robot: Robot, until: float) -> None:
         """Move unsolicited frames into the state until ``until`` (monotonic)."""
-        state, unsolicited = self.state, robot.unsolicited
+        unsolicited = robot.unsolicited
         while True:
             with contextlib.suppress(queue.Empty):
                 while True:
-                    state.broadcast(unsolicited.get_nowait())
+                    self._unsolicited(robot, unsolicited.get_nowait())
             remaining = until - time.monotonic()
             if remaining <= 0 or self._stopping.is_set():
                 break
             with contextlib.suppress(queue.Empty):
-                state.broadcast(unsolicited.get(timeout=min(remaining, SLICE)))
+                self._unsolicited(robot, unsolicited.get(timeout=min(remaining, SLICE)))
         if robot.error is not None:
             raise robot.error
         self._count_errors(robot)
+
+    def _unsolicited(self, robot: Robot, frame: Frame) -> None:
+        """A broadcast, or, from a board that streams (v0.11), a reading of a watched sensor."""
+        reply = robot.reading(frame) if robot.profile.streams and not self.paused.is_set() else None
+        name = C.BY_CODE[frame.command].name if reply is not None else ""
+        if reply is None or name not in self.sensors:
+            self.state.broadcast(frame)
+            return
+        self._record(name, reply, None)
+        if name == self.sensors[-1]:  # the last of a streamed round: a sweep's worth is in
+            self.state.sweep_done(self.state.clock())
 
     def _count_errors(self, robot: Robot) -> None:
         now = _error_counts(robot)

@@ -25,8 +25,8 @@ from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any
 
 from ..link.context import Reconnect
+from ..link.dialects import supported_sensors
 from ..link.rescue import OwedStop
-from ..protocol import commands as C
 from .keys import KeyReader
 from .painter import FPS, TICK, Painter, Redrawer, can_redraw, full_screen, live_screen, plain_lines
 from .poller import Poller
@@ -67,7 +67,7 @@ def run_watch(
     Ctrl-C, SIGTERM, a lost link), so ``--json`` never loses it. With
     ``as_json`` nothing is drawn (and rich is never imported).
     """
-    names = list(dict.fromkeys(sensors)) or list(C.SENSORS)
+    names = supported_sensors(settings.protocol, list(dict.fromkeys(sensors)))
     console = None if as_json else console or default_console()
     state = LiveState(names, target_rate=rate)
     owed = OwedStop()

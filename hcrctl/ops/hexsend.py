@@ -14,20 +14,23 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import ProtocolError
 from ..protocol import commands as C
-from ..protocol.decoder import decode_all
+from ..protocol.dialect import decode_all
 from ..protocol.frames import ChecksumRule, Frame
+from ..protocol.profiles import DEFAULT, Profile
 from .motion import DRIVE_COMMANDS
 
 if TYPE_CHECKING:
     from ..link.client import Robot
 
 
-def traffic_row(frame: bytes, rule: ChecksumRule, direction: str) -> dict[str, Any]:
+def traffic_row(
+    frame: bytes, rule: ChecksumRule, direction: str, profile: Profile = DEFAULT
+) -> dict[str, Any]:
     """``{"hex": ...}`` plus the decode shape of the first event in ``frame``."""
     from ..protocol.records import event_dict, hexs
 
-    events = decode_all(frame, rule)
-    row = event_dict(events[0], rule, direction) if events else {}
+    events = decode_all(frame, rule, profile)
+    row = event_dict(events[0], rule, direction, profile) if events else {}
     return {"hex": hexs(frame), **row}
 
 
@@ -35,7 +38,7 @@ def send_frame(robot: Robot, frame: bytes) -> dict[str, Any] | None:
     """Write ``frame``; when it is a valid request with a reply, wait for and return it."""
     from ..protocol.records import hexs
 
-    request = valid_frame(frame, robot.rule)
+    request = valid_frame(frame, robot.rule, robot.profile)
     cmd = C.BY_CODE.get(request.command) if request else None
     if request is None or cmd is None or cmd.reply is None or not C.is_request(cmd.code, request.content):
         robot.write(frame)
@@ -47,17 +50,18 @@ def send_frame(robot: Robot, frame: bytes) -> dict[str, Any] | None:
             )
         return None
     reply = robot.transact(frame, (request.address, request.command), f"{cmd.name} (hex send)")
-    return traffic_row(reply.to_bytes(), robot.rule, "rx") | {"hex": hexs(reply.to_bytes())}
+    wire = robot.wire_bytes(reply)
+    return traffic_row(wire, robot.rule, "rx", robot.profile) | {"hex": hexs(wire)}
 
 
-def valid_frame(frame: bytes, rule: ChecksumRule) -> Frame | None:
-    events = decode_all(frame, rule)
+def valid_frame(frame: bytes, rule: ChecksumRule, profile: Profile = DEFAULT) -> Frame | None:
+    events = decode_all(frame, rule, profile)
     return events[0] if len(events) == 1 and isinstance(events[0], Frame) else None
 
 
 def holds_motion(robot: Robot, frame: bytes) -> bool:
     """A valid motion frame that is not itself a stop (a drive of all zeros) keeps the robot moving."""
-    request = valid_frame(frame, robot.rule)
+    request = valid_frame(frame, robot.rule, robot.profile)
     cmd = C.BY_CODE.get(request.command) if request else None
     if request is None or cmd is None or not cmd.motion:
         return False

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from ..errors import DeviceTimeout, ProtocolError
+from ..link.dialects import frame_of
 from ..protocol import commands as C
 
 if TYPE_CHECKING:
@@ -120,7 +121,7 @@ def probe_loop(
     interval: float,
 ) -> None:
     """Probe at a steady interval (a lost probe does not shift the schedule); each outcome to ``say``."""
-    frame = C.encode_request(probe, robot.address, robot.rule)
+    frame = frame_of(robot, probe)
     start = time.monotonic()
     for seq in itertools.count(1) if count is None else range(1, count + 1):
         time.sleep(max(0.0, start + (seq - 1) * interval - time.monotonic()))

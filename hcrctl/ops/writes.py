@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 from typing import TYPE_CHECKING, Any
 
+from ..link.dialects import frame_of as _frame_of
 from ..link.rescue import stop_frame, write_stops
 from ..protocol import commands as C
 
@@ -27,7 +28,7 @@ def hex_bytes(data: bytes) -> str:
 
 def frame_of(robot: Robot, value: C.Request) -> bytes:
     """The exact bytes ``robot.send(value)`` puts on the wire."""
-    return C.encode_request(value, robot.address, robot.rule)
+    return _frame_of(robot, value)
 
 
 def sent_record(robot: Robot, value: C.Request) -> dict[str, Any]:

@@ -24,26 +24,41 @@ from .frames import (
     Truncated,
     checksum,
 )
+from .profiles import DEFAULT, LONE_LF_HINT, V011, Profile, lone_lf_frame
 
 # -- the dict shape ------------------------------------------------------------
 
 
-def event_dict(event: Event, rule: ChecksumRule | str, direction: str | None = None) -> dict[str, Any]:
+def event_dict(
+    event: Event, rule: ChecksumRule | str, direction: str | None = None, profile: Profile = DEFAULT
+) -> dict[str, Any]:
     """The JSON shape of one decoder event; problems carry a ``problem`` key."""
     rule = ChecksumRule(rule)
-    if isinstance(event, Frame):
-        body = event.to_bytes()[:-3]
-        return {"offset": event.offset, **frame_dict(body, event.checksum, rule, direction)}
-    if isinstance(event, BadChecksum):
+    if isinstance(event, Frame | BadChecksum):
+        received = event.checksum if isinstance(event, Frame) else event.received
         body = HEADER + bytes((event.address, len(event.content), event.command)) + event.content
-        return {"offset": event.offset, **frame_dict(body, event.received, rule, direction)}
+        return {"offset": event.offset, **frame_dict(body, received, rule, direction, profile)}
     if isinstance(event, Malformed):
-        return _malformed_dict(event, rule, direction)
+        return _lone_lf(_malformed_dict(event, rule, direction), event.data, rule, direction, profile)
     if isinstance(event, Junk):
-        return {"offset": event.offset, "problem": "junk", "size": event.size, "data": hexs(event.data)}
+        out = {"offset": event.offset, "problem": "junk", "size": event.size, "data": hexs(event.data)}
+        if profile.raw_byte(event.data):
+            out["note"] = "the raw bumper byte " + profile.name + " firmware streams before each IR frame"
+        return out
     if isinstance(event, TextLine):
         return text_dict(event)
-    return _truncated_dict(event)
+    return _lone_lf(_truncated_dict(event), event.data, rule, direction, profile)
+
+
+def _lone_lf(
+    out: dict[str, Any], data: bytes, rule: ChecksumRule, direction: str | None, profile: Profile
+) -> dict[str, Any]:
+    """A v0.11 frame met while speaking v0.15: say so, and what it reads as under v0.11."""
+    if profile is DEFAULT and lone_lf_frame(data):
+        out["hint"] = LONE_LF_HINT
+        body = data[: data[3] + 5]
+        out["as_v0.11"] = frame_dict(body, data[len(body)], rule, direction, V011)
+    return out
 
 
 def text_dict(event: TextLine) -> dict[str, Any]:
@@ -62,9 +77,20 @@ def is_text(row: dict[str, Any]) -> bool:
 
 
 def frame_dict(
-    body: bytes, received: int, rule: ChecksumRule, direction: str | None = None
+    body: bytes,
+    received: int,
+    rule: ChecksumRule,
+    direction: str | None = None,
+    profile: Profile = DEFAULT,
 ) -> dict[str, Any]:
-    """A frame's fields and checksum verdict under both rules; ``body`` runs header to content end."""
+    """A frame's fields and checksum verdict under both rules; ``body`` runs header to content end.
+
+    Under another profile than v0.15 the verdict is by that firmware's rules,
+    and ``matched`` names the rule that matched; the content is read as that
+    firmware lays it out (active-low bumpers).
+    """
+    if profile is not DEFAULT:
+        return _profile_frame_dict(body, received, rule, direction, profile)
     address, command, content = body[2], body[4], body[5:]
     expected, other = checksum(body, rule), checksum(body, rule.other)
     cmd = C.BY_CODE.get(command)
@@ -89,6 +115,29 @@ def frame_dict(
             out["error"] = exc.message  # an impossible value is flagged, never shown as a field
             if isinstance(exc, ImpossibleReply):
                 out["out_of_range"] = exc.detail()
+    return out
+
+
+def _profile_frame_dict(
+    body: bytes, received: int, rule: ChecksumRule, direction: str | None, profile: Profile
+) -> dict[str, Any]:
+    """``frame_dict`` under a dialect: its checksum verdict, and its content re-laid as v0.15 for the fields."""
+    verdict = profile.verdict(body, received, rule)
+    command = body[4]
+    doc = body[:5] + profile.to_document(command, body[5:])
+    out = frame_dict(doc, received, rule, direction)
+    out["payload"] = hexs(body[5:])
+    out.update(
+        checksum_ok=verdict.ok,
+        expected=verdict.expected,
+        rule=verdict.rule,
+        matched=verdict.matched,
+        other=None,
+        other_ok=False,
+        protocol=profile.name,
+    )
+    if command in profile.repurposed:
+        out["note"] = f"{profile.name} firmware: 0x{command:02X} {profile.repurposed[command]}"
     return out
 
 

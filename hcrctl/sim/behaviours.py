@@ -141,7 +141,9 @@ def read_bumpers(sim: Simulator) -> Bumpers:
 
 @reads("ir")
 def read_ir(sim: Simulator) -> Infrared:
-    return Infrared(tuple(ir_raw(sim.body.range_at(a)) for a in IR_ANGLES))
+    count = sim.options.profile.ir_count
+    angles = IR_ANGLES if count is None else tuple(-90.0 + 180.0 * i / (count - 1) for i in range(count))
+    return Infrared(tuple(ir_raw(sim.body.range_at(a)) for a in angles))
 
 
 @reads("sonar")

@@ -21,7 +21,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-from ..protocol.decoder import FrameDecoder
+from ..protocol.dialect import make_decoder
 from ..protocol.frames import Frame
 from .options import SimOptions
 from .simulator import Simulator
@@ -66,7 +66,9 @@ class Tap:
         self.hub = hub
         self.clock = hub.sim.clock
         self.inbox = bytearray()
-        self._decoder = FrameDecoder(hub.options.checksum)
+        self._decoder = make_decoder(
+            hub.options.profile, hub.options.checksum, lenient=hub.options.profile.accepts_any_checksum
+        )
 
     def feed(self, data: bytes) -> bytes:
         """The client's bytes; whole frames go to the robot, its immediate replies come back."""

@@ -16,6 +16,7 @@ from urllib.parse import parse_qsl
 from ..numtext import parse_float, parse_int
 from ..protocol.commands import MAIN_CONTROLLER
 from ..protocol.frames import ChecksumRule
+from ..protocol.profiles import PROFILES, Profile, profile
 
 PID_ANSWERS = ("accept", "refuse")
 MAX_RATE_HZ = 50.0
@@ -57,6 +58,7 @@ _SPECS: dict[str, tuple[Callable[[str], Any], Callable[[Any], bool], str]] = {
     "map_hz": (parse_float, _between(0, MAX_RATE_HZ), f"a rate 0..{MAX_RATE_HZ:g} (Hz, 0 disables)"),
     "seed": (parse_int, _between(0, MAX_SEED), f"an integer 0..{MAX_SEED}"),
     "pace": (_flag, _is_bool, "0 or 1"),
+    "protocol": (str, lambda v: v in PROFILES, " or ".join(PROFILES)),
     "baud": (parse_int, _between(MIN_BAUD, MAX_BAUD), f"an integer {MIN_BAUD}..{MAX_BAUD}"),
 }
 
@@ -85,6 +87,12 @@ class SimOptions:
     seed: int = 0
     pace: bool = False
     baud: int = 115200
+    #: The protocol profile spoken (``protocol.profiles``): v0.11 is the published v0.33 firmware.
+    protocol: str = "v0.15"
+
+    @property
+    def profile(self) -> Profile:
+        return profile(self.protocol)
 
     def __post_init__(self) -> None:
         if isinstance(self.checksum, str) and not isinstance(self.checksum, ChecksumRule):

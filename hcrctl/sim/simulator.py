@@ -25,7 +25,7 @@ from collections.abc import Callable, Iterator
 
 from ..errors import HcrError
 from ..protocol.commands import BY_CODE, MAP_ROWS, Command, GridMap, Position, ReadRequest, Reply, Request
-from ..protocol.decoder import FrameDecoder
+from ..protocol.dialect import make_decoder
 from ..protocol.frames import Frame, encode
 from .behaviours import ir_raw, read_behaviour, write_behaviour
 from .body import Body, Pose
@@ -43,6 +43,8 @@ STATIONS: tuple[tuple[int, tuple[tuple[float, float], tuple[float, float]]], ...
 #: are lost (their DIDs are skipped), as they would be with nobody listening.
 MAX_BACKLOG = 16
 SERVO_HOME = 0x80
+#: How often a board that streams (the v0.33 firmware) sends its bump and IR frames.
+STREAM_HZ = 5.0
 _JUNK = bytes(b for b in range(256) if b != 0x55)
 
 
@@ -91,7 +93,14 @@ class Simulator:
         self.body = body or Body()
         self.servos: tuple[int, int] = (SERVO_HOME, SERVO_HOME)
         self.pid: tuple[int, int, int] | None = None
-        self._decoder = FrameDecoder(self.options.checksum)
+        self.profile = self.options.profile
+        self._decoder = make_decoder(
+            self.profile, self.options.checksum, lenient=self.profile.accepts_any_checksum
+        )
+        #: What the firmware printed at boot, not yet sent.
+        self._banner = self.profile.banner
+        #: The v0.11 firmware's 0x14: a light, switched on.
+        self.light = False
         self._faults = random.Random(f"faults:{self.options.seed}")
         #: The environment sensor's noise, seeded so that a run can be repeated.
         self.env_noise = random.Random(f"env:{self.options.seed}")
@@ -149,6 +158,9 @@ class Simulator:
         due: list[tuple[float, int, bytes, object]] = [
             (t, next(self._seq), frame, None) for t, frame in self._broadcasts(now)
         ]
+        if self._banner:
+            due.insert(0, (now, -1, self._banner, None))
+            self._banner = b""
         while self._outbox and self._outbox[0][0] <= now:
             due.append(heapq.heappop(self._outbox))
         return [(owner, frame) for _, _, frame, owner in sorted(due, key=lambda d: d[:2])]
@@ -156,7 +168,7 @@ class Simulator:
     def next_due(self) -> float | None:
         """Clock time at which poll() will next return something; None if never."""
         self.advance()
-        times = [s.next_time for s, _ in self._senders]
+        times = [s.next_time for s, _ in self._senders] + ([self._now] if self._banner else [])
         if self._outbox:
             times.append(self._outbox[0][0])
         return min(times, default=None)
@@ -165,8 +177,11 @@ class Simulator:
 
     def _answer(self, frame: Frame, now: float, owner: object = None) -> bytes:
         cmd = BY_CODE.get(frame.command)
-        if cmd is None or cmd.request is None:
+        if frame.command in self.profile.repurposed:
+            self.light = True  # the only repurposed code: v0.11's 0x14
             return b""
+        if cmd is None or cmd.request is None or not self.profile.has(cmd.code):
+            return b""  # a firmware without the command ignores it
         try:
             request = cmd.request.from_content(frame.content)
         except HcrError:
@@ -174,7 +189,7 @@ class Simulator:
         reply = self._dispatch(cmd, request)
         if reply is None:
             return b""
-        frame_out = encode(self.options.address, cmd.code, reply.content(), self.options.checksum)
+        frame_out = self._encode(cmd.code, reply.content())
         return self._send(frame_out, now, owner)
 
     def _dispatch(self, cmd: Command, request: Request) -> Reply | None:
@@ -212,6 +227,10 @@ class Simulator:
     def _make_senders(self) -> Iterator[tuple[_Periodic, Callable[[int, float], bytes]]]:
         """Stations staggered half a period apart, so their frames never share a slot."""
         opts = self.options
+        if self.profile.streams:
+            if not opts.silent:
+                yield _Periodic(STREAM_HZ, 1.0 / STREAM_HZ, self._now), self._stream
+            return  # that firmware knows nothing of stations or maps
         if opts.broadcast_hz > 0:
             for i, (address, transducers) in enumerate(STATIONS):
                 period = 1.0 / opts.broadcast_hz
@@ -236,6 +255,19 @@ class Simulator:
     def _map_frame(self, _slot: int, _t: float) -> bytes:
         grid = GridMap(self.body.grid(MAP_ROWS))
         return encode(self.options.address, GridMap.CODE, grid.content(), self.options.checksum)
+
+    def _encode(self, code: int, content: bytes) -> bytes:
+        """A frame as the profile's firmware sends it: its layout, checksum rule and terminator."""
+        prof = self.profile
+        return prof.encode(
+            self.options.address, code, prof.from_document(code, content), self.options.checksum
+        )
+
+    def _stream(self, _slot: int, _t: float) -> bytes:
+        """What the v0.33 firmware sends unasked: the raw bumper byte, then an IR and a bumper frame."""
+        bump = self._encode(0x11, read_behaviour(BY_CODE[0x11])(self).content())
+        ir = self._encode(0x12, read_behaviour(BY_CODE[0x12])(self).content())
+        return bump[5:6] + ir + bump
 
     def _broadcasts(self, now: float) -> Iterator[tuple[float, bytes]]:
         for sender, make in self._senders:
