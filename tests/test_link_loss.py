@@ -20,6 +20,7 @@ from contextlib import contextmanager, suppress
 from pathlib import Path
 
 import pytest
+from helpers import Terminal
 from helpers_cli import TIMEOUT, clean_env, hcrctl_exe, run
 from helpers_live import terminal
 from helpers_shell import STOP_FRAME, PtyRobot
@@ -212,8 +213,9 @@ def test_teleop_gets_stop_delivered_when_the_device_returns(tmp_path):
             assert WARNING in out and DELIVERED in out
 
 
-def test_watch_stop_key_with_the_link_down_is_delivered_when_it_returns(tmp_path):
-    link = tmp_path / "robot"
+@contextmanager
+def watch_owing_a_stop(link: Path) -> Iterator[tuple[Terminal, list[PtyRobot]]]:
+    """``watch`` whose device went away, with space pressed while it was gone: a stop is owed."""
     with robots(link) as plugged:
         plugged.append(PtyRobot(link))
         with terminal(["--port", str(link), "watch", "compass"], timeout=TIMEOUT) as term:
@@ -222,12 +224,18 @@ def test_watch_stop_key_with_the_link_down_is_delivered_when_it_returns(tmp_path
             term.wait_for("disconnected", timeout=TIMEOUT)
             term.send(" ")
             term.wait_for("stop NOT delivered: the link is down", timeout=TIMEOUT)
-            again = PtyRobot(link)
-            plugged.append(again)
-            again.wait_for(lambda frames: STOP_FRAME in frames, timeout=TIMEOUT)
-            term.wait_for("stop delivered after", timeout=TIMEOUT)
-            term.send("q")
-            assert term.finish(timeout=TIMEOUT) == 0
+            yield term, plugged
+
+
+def test_watch_stop_key_with_the_link_down_is_delivered_when_it_returns(tmp_path):
+    link = tmp_path / "robot"
+    with watch_owing_a_stop(link) as (term, plugged):
+        again = PtyRobot(link)
+        plugged.append(again)
+        again.wait_for(lambda frames: STOP_FRAME in frames, timeout=TIMEOUT)
+        term.wait_for("stop delivered after", timeout=TIMEOUT)
+        term.send("q")
+        assert term.finish(timeout=TIMEOUT) == 0
 
 
 def test_a_port_that_never_returns_gives_up_after_stop_wait_from_the_config_file(env, tmp_path):
@@ -315,18 +323,11 @@ def test_a_held_drive_in_the_shell_reports_the_stop_its_session_delivered(tmp_pa
 
 def test_watch_quit_with_a_stop_still_owed_waits_for_the_port_like_any_command(tmp_path):
     link = tmp_path / "robot"
-    with robots(link) as plugged:
-        plugged.append(PtyRobot(link))
-        with terminal(["--port", str(link), "watch", "compass"], timeout=TIMEOUT) as term:
-            term.wait_for(r"status +ok", timeout=TIMEOUT)
-            plugged[0].close()
-            term.wait_for("disconnected", timeout=TIMEOUT)
-            term.send(" ")
-            term.wait_for("stop NOT delivered: the link is down", timeout=TIMEOUT)
-            term.send("q")
-            term.wait_for(lambda _: WARNING in " ".join(term.output().split()), timeout=TIMEOUT)
-            again = PtyRobot(link)
-            plugged.append(again)
-            again.wait_for(lambda frames: STOP_FRAME in frames, timeout=TIMEOUT)
-            assert term.finish(timeout=TIMEOUT) == 1
-            assert DELIVERED in " ".join(term.output().split())
+    with watch_owing_a_stop(link) as (term, plugged):
+        term.send("q")
+        term.wait_for(lambda _: WARNING in " ".join(term.output().split()), timeout=TIMEOUT)
+        again = PtyRobot(link)
+        plugged.append(again)
+        again.wait_for(lambda frames: STOP_FRAME in frames, timeout=TIMEOUT)
+        assert term.finish(timeout=TIMEOUT) == 1
+        assert DELIVERED in " ".join(term.output().split())
