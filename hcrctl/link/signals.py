@@ -10,7 +10,7 @@ from __future__ import annotations
 import contextlib
 import signal
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
 
@@ -38,12 +38,22 @@ def _raise(signum: int, frame: object) -> None:
 @contextlib.contextmanager
 def stop_signals_raise() -> Iterator[None]:
     """Within the block, SIGTERM/SIGHUP raise ``Terminated`` (main thread only)."""
+    with stop_signals_handled(_raise):
+        yield
+
+
+@contextlib.contextmanager
+def stop_signals_handled(handler: Callable[[int, object], None]) -> Iterator[None]:
+    """Within the block, SIGTERM/SIGHUP go to ``handler``; the previous handlers come back after.
+
+    Only the main thread may set handlers, so elsewhere this changes nothing.
+    """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = {sig: signal.signal(sig, _raise) for sig in STOP_SIGNALS}
+    previous = {sig: signal.signal(sig, handler) for sig in STOP_SIGNALS}
     try:
         yield
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        for sig, saved in previous.items():
+            signal.signal(sig, saved)

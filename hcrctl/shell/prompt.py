@@ -14,9 +14,7 @@ first, which sends stop if the robot moved, before touching the terminal.
 from __future__ import annotations
 
 import contextlib
-import signal
 import sys
-import threading
 from collections.abc import Iterator
 from typing import Any
 
@@ -29,7 +27,7 @@ from prompt_toolkit.patch_stdout import StdoutProxy
 from prompt_toolkit.styles import Style
 
 from ..errors import HcrError
-from ..link.signals import STOP_SIGNALS, Terminated
+from ..link.signals import Terminated, stop_signals_handled
 from .builtins import STOP_KEY_LABEL
 from .completion import ShellCompleter
 from .dispatch import run_line
@@ -165,9 +163,6 @@ def _stop_signals_end_the_prompt() -> Iterator[None]:
     robot told to move with it. Exiting the application with the exception
     cannot be swallowed.
     """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
 
     def end_the_prompt(signum: int, frame: object) -> None:
         app = get_app_or_none()
@@ -175,12 +170,8 @@ def _stop_signals_end_the_prompt() -> Iterator[None]:
             raise Terminated(signum)
         app.exit(exception=Terminated(signum))
 
-    previous = {sig: signal.signal(sig, end_the_prompt) for sig in STOP_SIGNALS}
-    try:
+    with stop_signals_handled(end_the_prompt):
         yield
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
 
 
 @contextlib.contextmanager
