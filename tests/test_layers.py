@@ -22,7 +22,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("hcrctl.sim",),
     ("hcrctl.link", "hcrctl.urlhandler"),
     ("hcrctl.hex", "hcrctl.render", "hcrctl.ops"),
-    ("hcrctl.live",),
+    ("hcrctl.live", "hcrctl.feeds"),
     ("hcrctl.cli",),
     ("hcrctl.shell", "hcrctl.__main__"),
 ]

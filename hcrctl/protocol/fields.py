@@ -40,14 +40,17 @@ def spec(
     *,
     count: tuple[int, int] | None = None,
     bits: int | None = None,
+    names: tuple[str, ...] | None = None,
 ) -> Any:
     """A dataclass field that carries its range, unit and help text.
 
     Reply fields may also declare ``count`` (how many readings a one-byte-per-
     sensor list may hold) and ``bits`` (the only bits a flag byte may set),
-    the two things a range of values cannot say.
+    the two things a range of values cannot say, and ``names`` (what each item
+    of a fixed tuple is called: ``wheels.left``, not ``wheels.0``, in a plot,
+    a CSV column or a topic schema).
     """
-    meta = {"lo": lo, "hi": hi, "unit": unit, "help": help, "count": count, "bits": bits}
+    meta = {"lo": lo, "hi": hi, "unit": unit, "help": help, "count": count, "bits": bits, "names": names}
     return field(default=default, metadata=meta)
 
 
@@ -66,6 +69,8 @@ class FieldInfo:
     bits: int | None = None
     #: The field's annotation as written (``float``, ``tuple[int, int]``, ``tuple[int, ...]``).
     type: str = ""
+    #: What each item of a fixed tuple is called (``left``, ``right``); None: numbered from 1.
+    names: tuple[str, ...] | None = None
 
     @property
     def items(self) -> int | None:
@@ -122,6 +127,7 @@ def _read_fields(cls: type) -> tuple[FieldInfo, ...]:
                 m.get("count"),
                 m.get("bits"),
                 _type_text(f.type),
+                m.get("names"),
             )
         )
     return tuple(out)

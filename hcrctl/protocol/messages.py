@@ -138,7 +138,9 @@ BUMPER_NAMES = ("left", "front", "right")
 @dataclass(frozen=True)
 class Bumpers(Reply):
     CODE: ClassVar[int] = 0x11
-    bump: tuple[bool, bool, bool] = spec(0, 1, "", "bumpers 1-3, true when hit", bits=0x07)
+    bump: tuple[bool, bool, bool] = spec(
+        0, 1, "", "bumpers 1-3, true when hit", bits=0x07, names=BUMPER_NAMES
+    )
 
     @classmethod
     def from_content(cls, content: bytes) -> Reply:
@@ -212,7 +214,7 @@ class Compass(Reply):
 @dataclass(frozen=True)
 class WheelSpeed(Reply):
     CODE: ClassVar[int] = 0x15
-    wheels: tuple[int, int] = spec(0, 255, "cm/s", "wheel speeds from the encoders")
+    wheels: tuple[int, int] = spec(0, 255, "cm/s", "wheel speeds from the encoders", names=("left", "right"))
 
     @classmethod
     def from_content(cls, content: bytes) -> Reply:

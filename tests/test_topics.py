@@ -1,0 +1,97 @@
+"""Series names and topic schemas come from the command table, and every message fits its schema."""
+
+from __future__ import annotations
+
+import pytest
+
+from hcrctl.protocol import commands as C
+from hcrctl.protocol import series as S
+from hcrctl.protocol import topics as T
+from hcrctl.protocol.dialect import decode_all
+from hcrctl.protocol.frames import ChecksumRule, encode
+
+
+def _valid(value: object, schema: dict) -> bool:
+    """A small JSON-Schema check: types, ranges, item counts and required keys (what our schemas use)."""
+    kind = schema.get("type")
+    if kind == "object":
+        if not isinstance(value, dict) or any(k not in value for k in schema.get("required", [])):
+            return False
+        props = schema.get("properties", {})
+        return all(k not in props or _valid(v, props[k]) for k, v in value.items())
+    if kind == "array":
+        if not isinstance(value, list):
+            return False
+        if not schema.get("minItems", 0) <= len(value) <= schema.get("maxItems", len(value)):
+            return False
+        return all(_valid(v, schema["items"]) for v in value)
+    if kind == "boolean":
+        return isinstance(value, bool)
+    if kind in ("integer", "number"):
+        if isinstance(value, bool) or not isinstance(value, int if kind == "integer" else (int, float)):
+            return False
+        return schema.get("minimum", value) <= value <= schema.get("maximum", value)
+    if kind == "string":
+        return isinstance(value, str) and value in schema.get("enum", [value])
+    return True
+
+
+def test_every_read_and_broadcast_has_a_topic_and_nothing_else_does() -> None:
+    names = [t.name for t in T.reading_topics()]
+    expected = [f"/hcr/{c.name}" for c in C.COMMANDS if c.kind in ("read", "broadcast")]
+    assert names == expected
+    assert T.FRAMES in [t.name for t in T.all_topics()]
+
+
+def test_series_paths_are_named_items_or_numbered_readings() -> None:
+    paths = S.paths()
+    for path in ("compass.heading", "wheels.left", "wheels.right", "bump.front", "sonar.1", "env.humidity"):
+        assert path in paths
+    assert f"ir.{C.MAX_SENSORS}" in paths and f"ir.{C.MAX_SENSORS + 1}" not in paths
+    assert not any(p.startswith("map.") for p in paths), "the grid map is a picture, not a series"
+
+
+def test_an_unknown_series_suggests_the_closest() -> None:
+    with pytest.raises(KeyError, match=r"did you mean compass\.heading"):
+        S.find("compas.heading")
+
+
+@pytest.mark.parametrize(
+    ("code", "content"),
+    [
+        (0x11, b"\x05"),
+        (0x12, bytes(range(7))),
+        (0x13, b"\x10\x20\x30"),
+        (0x14, b"\x0e\x0f"),
+        (0x15, b"\x03\x04"),
+        (0x16, b"\x32\xfb"),
+        (0xA0, b"\x01\x02\x03\x04"),
+        (0xB0, bytes(range(16))),
+    ],
+)
+def test_a_received_reply_publishes_a_frame_and_a_reading_that_fit_their_schemas(
+    code: int, content: bytes
+) -> None:
+    data = encode(0x01, code, content, ChecksumRule.HEADER)
+    (event,) = decode_all(data, ChecksumRule.HEADER)
+    published = dict(T.messages(12.5, "rx", data, event, ChecksumRule.HEADER))
+    schemas = {t.name: t.schema for t in T.all_topics()}
+    cmd = C.BY_CODE[code]
+    assert set(published) == {T.FRAMES, f"/hcr/{cmd.name}"}
+    for topic, message in published.items():
+        assert _valid(message, schemas[topic]), (topic, message)
+    reading = published[f"/hcr/{cmd.name}"]
+    reply = cmd.reply.decode(content)
+    for s in S.of_command(cmd):
+        value = s.value(reply)
+        if value is not None and s.index is None:
+            assert float(reading[s.key]) == value
+
+
+def test_a_request_a_bad_checksum_and_an_impossible_reply_publish_only_the_frame() -> None:
+    good = encode(0x01, 0x14, b"\xff", ChecksumRule.HEADER)
+    impossible = encode(0x01, 0x14, b"\xff\xff", ChecksumRule.HEADER)
+    bad = good[:-3] + b"\x00\r\n"
+    for data, direction in ((good, "tx"), (impossible, "rx"), (bad, "rx")):
+        (event,) = decode_all(data, ChecksumRule.HEADER)
+        assert [t for t, _ in T.messages(1.0, direction, data, event, ChecksumRule.HEADER)] == [T.FRAMES]
