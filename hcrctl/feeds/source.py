@@ -1,0 +1,144 @@
+"""A polled robot as a stream of topic messages: what ``bridge`` serves and ``record`` writes.
+
+The polling is watch's (``Poller``: the same sweeps, retries, broadcasts and
+reconnection), and the messages come from the link's traffic hook, so every
+frame both ways is published exactly as ``--log`` would write it, and every
+good reply also as a reading on its own topic (``protocol.topics``). The link
+counters are published every ``link_every`` seconds by ``run``'s loop.
+
+``publish`` is called from the link's reader and writer threads and from
+``run``'s; the feed holds a lock around it, so a sink never sees two calls at
+once and needs no locking of its own. A publish that raises ends the feed
+(its error is raised by ``run``): a recording that cannot write must say so,
+not poll on.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from ..link.client import Robot
+from ..link.traffic import LinkStats, Traffic, decode_sent
+from ..live.poller import Poller
+from ..live.state import LiveState
+from ..protocol import topics as T
+
+Publish = Callable[[str, dict[str, Any], float], None]
+#: The link counters published on ``/hcr/link`` (``last_rx`` is a clock reading, not a count).
+COUNTERS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(LinkStats) if f.name != "last_rx")
+#: How often ``run`` looks at its deadline, ``should_stop`` and the poller.
+STEP = 0.05
+
+
+class Feed:
+    """Poll ``sensors`` at ``rate`` Hz (None: as fast as replies come) and publish what crosses the link."""
+
+    counters = COUNTERS
+
+    def __init__(
+        self,
+        robot: Robot,
+        sensors: Sequence[str],
+        rate: float | None,
+        publish: Publish,
+        *,
+        link_every: float = 1.0,
+        reconnect: Callable[[], Robot] | None = None,
+        pipeline: bool = True,
+    ) -> None:
+        self.robot = robot
+        self.publish = publish
+        self.link_every = link_every
+        self.state = LiveState(tuple(sensors), target_rate=rate)
+        self.messages = 0
+        self.error: BaseException | None = None
+        self._lock = threading.Lock()
+        self._reconnect = reconnect
+        wrapped = self._watched(reconnect) if reconnect is not None else None
+        self.poller = Poller(robot, self.state, tuple(sensors), rate, reconnect=wrapped, pipeline=pipeline)
+        robot.add_traffic_hook(self._on_traffic)
+
+    # -- lifetime -------------------------------------------------------------
+
+    def __enter__(self) -> Feed:
+        self.poller.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.poller.stop()
+        for robot in {id(r): r for r in (self.robot, self.poller.robot) if r is not None}.values():
+            robot.remove_traffic_hook(self._on_traffic)
+
+    def run(self, duration: float | None = None, should_stop: Callable[[], bool] = lambda: False) -> None:
+        """Publish the link counters until ``duration`` ends or ``should_stop()``; raise what ended the feed."""
+        deadline = time.monotonic() + duration if duration else float("inf")
+        next_link = time.monotonic()
+        while (now := time.monotonic()) < deadline and not should_stop():
+            self.check()
+            if now >= next_link:
+                self.publish_link()
+                next_link = now + self.link_every
+            time.sleep(min(STEP, max(0.0, deadline - now), max(0.0, next_link - now)) or STEP / 10)
+        self.check()
+
+    def check(self) -> None:
+        """Raise what stopped the poller (a lost port it may not reopen) or a publish that failed."""
+        if self.error is not None:
+            raise self.error
+        if self.poller.crash is not None:
+            raise self.poller.crash
+        if self.poller.lost is not None:
+            raise self.poller.lost
+
+    @property
+    def current(self) -> Robot | None:
+        """The robot being polled now (a new one after a reconnect; None while the port is gone)."""
+        return self.poller.robot
+
+    # -- publishing -------------------------------------------------------------
+
+    def publish_link(self) -> None:
+        robot = self.poller.robot or self.robot
+        now = time.time()
+        message: dict[str, Any] = {"time": now}
+        message.update((name, getattr(robot.stats, name)) for name in self.counters)
+        self._send(T.LINK, message, now)
+
+    def _on_traffic(self, traffic: Traffic) -> None:
+        robot = self.poller.robot or self.robot
+        event = traffic.event
+        if event is None:
+            event = decode_sent(traffic.data, robot.rule, robot.profile)
+        if event is None:
+            return
+        for topic, message in T.messages(
+            traffic.time, traffic.direction, traffic.data, event, robot.rule, robot.profile
+        ):
+            self._send(topic, message, traffic.time)
+
+    def _send(self, topic: str, message: dict[str, Any], at: float) -> None:
+        if self.error is not None:
+            return
+        with self._lock:
+            try:
+                self.publish(topic, message, at)
+            except BaseException as exc:  # handed to run(), on the main thread, which raises it
+                self.error = exc
+                return
+            self.messages += 1
+
+    def _watched(self, reconnect: Callable[[], Robot]) -> Callable[[], Robot]:
+        """The reconnect factory, with this feed's hook on every robot it returns."""
+
+        def reopen() -> Robot:
+            robot = reconnect()
+            if self._on_traffic not in robot.traffic_hooks:
+                robot.add_traffic_hook(self._on_traffic)
+            return robot
+
+        reopen.owned = getattr(reconnect, "owned", True)  # type: ignore[attr-defined]
+        return reopen
