@@ -44,6 +44,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "hex": ("hcrctl.cli.hex:hex_group", "Decode, encode and send raw frames (the hex debugger)."),
     "monitor": ("hcrctl.cli.monitor:monitor", "Watch every frame on the line, decoded, with counters."),
     "replay": ("hcrctl.cli.replay:replay", "Re-send the requests of a --log file with their timing."),
+    "export": ("hcrctl.cli.export:export", "Convert a --log file to MCAP (Foxglove, PlotJuggler) or CSV."),
+    "record": ("hcrctl.cli.record:record", "Poll the sensors and record to MCAP or CSV (no motion sent)."),
     "shell": ("hcrctl.shell.command:shell", "The interactive session: every command, one connection."),
 }
 

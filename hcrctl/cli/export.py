@@ -1,0 +1,64 @@
+"""``hcrctl export LOG OUT.mcap|OUT.csv``: a traffic log as a file other tools open.
+
+The log is streamed (constant memory whatever its size) and decoded under the
+global ``--checksum-from``/``--protocol``, as ``monitor --from`` decodes it.
+The work is ``feeds.export``'s; this module is the command line around it.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import click
+
+from ..feeds.outfile import OutFile, formats_help
+from .params import FloatRange
+from .settings import Settings, json_option
+
+EXPORT_HELP = """Convert a traffic log (written by --log) into OUT, keeping the log's times.
+
+\b
+The suffix of OUT chooses the format:
+{formats}
+
+MCAP holds the topics the bridge serves: /hcr/frames (every frame, both ways,
+with its checksum verdict) and /hcr/<read> for every good reading, JSON with
+JSON Schemas; Foxglove, Lichtblick and PlotJuggler open it. CSV holds one row
+per reading (time, t, direction, address, command, then one column per field,
+empty where a reading has no such field); frames that carry no reading, such
+as requests, and the grid map (not a number) are not rows. A summary goes to stderr (with --json, to stdout).
+
+\b
+hcrctl --port sim:// --log session.jsonl watch --duration 10
+hcrctl export session.jsonl session.mcap
+"""
+
+
+@click.command(help=EXPORT_HELP.format(formats=formats_help()))
+@click.argument("logfile", type=click.Path(exists=True, dir_okay=False))
+@click.argument("out", type=OutFile(), metavar="OUT.mcap|OUT.csv")
+@click.option(
+    "--duration", type=FloatRange(0, 864_000), metavar="S", help="Only the first S seconds of the log."
+)
+@json_option
+@click.pass_obj
+def export(settings: Settings, logfile: str, out: str, duration: float | None) -> None:
+    from ..feeds.export import export_log, export_topics
+    from ..feeds.progress import per_topic, size
+    from ..feeds.sinks import open_sink
+    from ..protocol.profiles import profile
+
+    with open_sink(out, export_topics()) as sink:
+        summary = export_log(logfile, sink, settings.checksum, profile(settings.protocol), duration)
+    report = summary.as_dict(sink)
+    if settings.as_json:
+        click.echo(json.dumps(report))
+        return
+    sys.stdout.flush()
+    topics = per_topic(report["topics"]) or "no readings"
+    click.echo(
+        f"hcrctl: export: {report['records']} records -> {out}: {report['messages']} messages "
+        f"({topics}), {size(report['bytes'])}",
+        err=True,
+    )

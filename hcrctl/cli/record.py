@@ -1,0 +1,89 @@
+"""``hcrctl record OUT.mcap|OUT.csv [SENSOR]...``: poll the robot and record what crosses the link.
+
+The recording itself is ``feeds.record``'s; this is its command line. It
+sends no motion: only the reads ``watch`` sends.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import click
+
+from ..feeds.outfile import OutFile, formats_help
+from ..protocol import commands as C
+from .params import FloatRange
+from .settings import Settings, json_option
+
+#: The fastest --rate (as watch's), and the longest --duration: ten days.
+MAX_RATE = 1000.0
+MAX_DURATION_S = 864_000
+
+RECORD_HELP = """Poll SENSORS ({sensors}; none means all) and record to OUT.
+
+\b
+The suffix of OUT chooses the format:
+{formats}
+
+MCAP holds the bridge's topics: /hcr/<read> for every reading, /hcr/frames for
+every frame both ways, /hcr/link for the link's counters (once a second).
+CSV holds one row per reading, one column per field; frames that carry no
+reading (the requests) and the grid map (not a number) are not rows. A progress line (elapsed, messages,
+bytes, rate) goes to stderr. Ctrl-C, SIGTERM or --duration ends it with the
+file closed and whole; at most the last second is lost if the process is
+killed outright. Nothing but reads is sent.
+
+\b
+hcrctl --port sim:// record run.mcap --duration 10
+hcrctl record sonar.csv sonar compass --rate 20
+"""
+
+
+@click.command(help=RECORD_HELP.format(sensors=", ".join(C.SENSORS), formats=formats_help()))
+@click.argument("out", type=OutFile(), metavar="OUT.mcap|OUT.csv")
+@click.argument("sensors", nargs=-1, type=click.Choice(C.SENSORS), metavar="[SENSOR]...")
+@click.option(
+    "--rate",
+    type=FloatRange(0, MAX_RATE, min_open=True, unit="Hz", words={"max": None}),
+    default="10",
+    show_default=True,
+    metavar="HZ|max",
+    help="Sweeps per second, or max.",
+)
+@click.option(
+    "--duration",
+    type=FloatRange(0, MAX_DURATION_S, min_open=True),
+    metavar="S",
+    help="Stop after S seconds (default: until Ctrl-C).",
+)
+@click.option(
+    "--pipeline/--no-pipeline",
+    default=True,
+    show_default=True,
+    help="Send a sweep's requests at once, as watch does.",
+)
+@json_option
+@click.pass_obj
+def record(
+    settings: Settings,
+    out: str,
+    sensors: tuple[str, ...],
+    rate: float | None,
+    duration: float | None,
+    pipeline: bool,
+) -> None:
+    from ..feeds.progress import per_topic, size
+    from ..feeds.record import reraise, run_record
+
+    summary = run_record(settings, out, sensors, rate, duration, sys.stderr, pipeline=pipeline)
+    if settings.as_json:
+        click.echo(json.dumps(summary))
+    else:
+        topics = per_topic(summary["topics"]) or "nothing"
+        click.echo(
+            f"hcrctl: record: {out}: {summary['messages']} messages ({topics}), "
+            f"{size(summary['bytes'])} in {summary['seconds']:.1f} s",
+            err=True,
+        )
+    reraise(summary["signal"], duration)

@@ -1,0 +1,87 @@
+"""``record``'s progress line: elapsed, messages, bytes, rate; and the summary both commands print.
+
+On a terminal the line is rewritten in place a few times a second; to a file
+or a pipe it is a plain line every ``PLAIN_EVERY`` seconds, so a log of the
+run stays short. It is drawn from the main thread only (``Feed.run`` calls
+its ``should_stop`` often, and ``record`` ticks the line there), never from
+the link's threads, so it cannot slow the polling.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from typing import TextIO
+
+#: Seconds between redraws on a terminal, and between plain lines elsewhere.
+TTY_EVERY = 0.25
+PLAIN_EVERY = 5.0
+
+
+def size(count: int) -> str:
+    """Bytes as people read them: 512 B, 12.3 kB, 4.5 MB."""
+    value = float(count)
+    for unit in ("B", "kB", "MB", "GB"):
+        if value < 1000 or unit == "GB":
+            return f"{count} B" if unit == "B" else f"{value:.1f} {unit}"
+        value /= 1000
+    return f"{value:.1f} TB"  # pragma: no cover - the loop returns at GB
+
+
+def per_topic(counts: Mapping[str, int]) -> str:
+    """``/hcr/frames 120, /hcr/compass 60``: the busiest first."""
+    return ", ".join(f"{t} {n}" for t, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
+
+
+class Progress:
+    """A status line that ``tick()`` refreshes when it is due, and ``clear()`` removes."""
+
+    def __init__(self, stream: TextIO, line: Callable[[float, float], str]) -> None:
+        self.stream = stream
+        self.line = line
+        self.live = _is_terminal(stream)
+        self.every = TTY_EVERY if self.live else PLAIN_EVERY
+        self.start = time.monotonic()
+        self._next = self.start + self.every
+        self._drawn = False
+        self._last = (self.start, 0.0)
+
+    def tick(self, count: float) -> None:
+        """Draw the line if it is due; ``count`` feeds the rate (things per second since the last line)."""
+        now = time.monotonic()
+        if now < self._next:
+            return
+        self._next = now + self.every
+        then, before = self._last
+        rate = (count - before) / (now - then) if now > then else 0.0
+        self._last = (now, count)
+        text = self.line(now - self.start, rate)
+        try:
+            if self.live:
+                self.stream.write("\r" + text + "\x1b[K")
+                self._drawn = True
+            else:
+                self.stream.write(text + "\n")
+            self.stream.flush()
+        except (OSError, ValueError):  # a closed stderr must not stop a recording
+            self.every = float("inf")
+
+    def elapsed(self) -> float:
+        return time.monotonic() - self.start
+
+    def clear(self) -> None:
+        """Take the in-place line away, so the summary that follows starts on a clean line."""
+        if self._drawn:
+            try:
+                self.stream.write("\r\x1b[K")
+                self.stream.flush()
+            except (OSError, ValueError):
+                pass
+            self._drawn = False
+
+
+def _is_terminal(stream: TextIO) -> bool:
+    try:
+        return stream.isatty()
+    except (OSError, ValueError):
+        return False

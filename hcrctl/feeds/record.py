@@ -1,0 +1,130 @@
+"""``record``: poll like ``watch``, write every topic message to a file, close it cleanly however it ends.
+
+The file is opened before the port (a bad path fails before the robot is
+touched), the ``Feed`` publishes straight into the sink, and the sink makes
+what it holds readable every ``FLUSH_EVERY`` seconds. Ctrl-C, SIGTERM and
+SIGHUP only set a flag that ``Feed.run`` looks at, so the signal never lands
+in the middle of a write: the feed stops, the port closes, and then the sink
+writes its footer. Only after that is the signal reported (exit 143 for
+SIGTERM, as everywhere in hcrctl; Ctrl-C is the normal end of an open-ended
+recording, exit 0, and 130 when it cut a ``--duration`` short).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from typing import Any, TextIO
+
+from ..link.context import Connection, Reconnect
+from ..link.dialects import supported_sensors
+from ..link.signals import Terminated, stop_signals_handled
+from ..protocol.topics import all_topics
+from .progress import Progress, size
+from .sinks import Sink, open_sink
+from .source import Feed
+
+#: Seconds of recording a crash (or kill -9) may lose at most.
+FLUSH_EVERY = 1.0
+
+
+@dataclass
+class StopFlag:
+    """Set by Ctrl-C, SIGTERM or SIGHUP while recording; remembers which."""
+
+    signum: int | None = None
+    event: threading.Event = field(default_factory=threading.Event)
+
+    def __call__(self, signum: int, frame: object) -> None:
+        self.signum = signum
+        self.event.set()
+
+    def is_set(self) -> bool:
+        return self.event.is_set()
+
+    @contextlib.contextmanager
+    def catching(self) -> Iterator[None]:
+        """Within the block the stop signals (and SIGINT) set this flag instead of unwinding."""
+        if threading.current_thread() is not threading.main_thread():
+            yield
+            return
+        previous = signal.signal(signal.SIGINT, self)
+        try:
+            with stop_signals_handled(self):
+                yield
+        finally:
+            signal.signal(signal.SIGINT, previous)
+
+
+def reraise(signum: int | None, duration: float | None) -> None:
+    """Report the signal that ended the recording, now that the file is whole and summed up."""
+    if signum == signal.SIGINT:
+        if duration is not None:
+            raise KeyboardInterrupt
+    elif signum is not None:
+        raise Terminated(signum)
+
+
+def progress_line(out: str, sink: Sink) -> Callable[[float, float], str]:
+    def line(elapsed: float, rate: float) -> str:
+        count = sum(sink.counts.values())
+        return (
+            f"recording {out}: {elapsed:.1f} s, {count} messages, {size(sink.bytes_written)}, "
+            f"{rate:.0f} msg/s"
+        )
+
+    return line
+
+
+def run_record(
+    settings: Connection,
+    out: str,
+    sensors: Sequence[str],
+    rate: float | None,
+    duration: float | None,
+    stream: TextIO,
+    *,
+    pipeline: bool = True,
+) -> dict[str, Any]:
+    """Record until ``duration`` ends or a signal comes; the summary (then the signal, re-raised)."""
+    names = supported_sensors(settings.protocol, list(dict.fromkeys(sensors)))
+    stop = StopFlag()
+    with stop.catching():
+        with open_sink(out, all_topics(Feed.counters), flush_every=FLUSH_EVERY) as sink:
+            progress = Progress(stream, progress_line(out, sink))
+            try:
+                _poll(settings, names, rate, duration, sink, progress, stop, pipeline)
+            finally:
+                progress.clear()
+        summary = {
+            "output": out,
+            "seconds": round(progress.elapsed(), 3),
+            "messages": sum(sink.counts.values()),
+            "topics": dict(sorted(sink.counts.items())),
+            "bytes": sink.bytes_written,
+        }
+    return summary | {"signal": stop.signum}
+
+
+def _poll(
+    settings: Connection,
+    names: Sequence[str],
+    rate: float | None,
+    duration: float | None,
+    sink: Sink,
+    progress: Progress,
+    stop: StopFlag,
+    pipeline: bool,
+) -> None:
+    with settings.robot() as robot:
+        feed = Feed(robot, names, rate, sink.write, reconnect=Reconnect(settings, robot), pipeline=pipeline)
+
+        def should_stop() -> bool:  # Feed.run asks every few ms, on this thread: the progress line's tick
+            progress.tick(feed.messages)
+            return stop.is_set()
+
+        with feed:
+            feed.run(duration, should_stop)

@@ -1,0 +1,233 @@
+"""Where ``record`` and ``export`` write topic messages: an MCAP or a CSV file, chosen by suffix.
+
+The interface is deliberately small, so the bridge's ``--mcap`` (or anyone)
+can write the same files: ``open_sink(path, topics)`` gives a ``Sink``;
+``write(topic, message, log_time)`` takes what ``topics.messages()`` and
+``Feed``'s ``publish`` produce; ``close()`` finishes the file (always call it:
+it is what makes an MCAP file whole). A sink is not thread-safe: one writer
+at a time, as ``Feed`` guarantees.
+
+Every message is written as if it were a ``Prepared`` one (the message
+without its ``time``, encoded once per sink and kept on the object), so
+``export``, which meets the same request and reply bytes over and over, can
+hand the same ``Prepared`` back and skip the encoding: that cache is what keeps
+an export within twice the time of merely decoding the log.
+
+Times are written to the microsecond, as the traffic log keeps them, so a
+recording and a log of the same session agree to the last digit. A write
+that fails (a full disk) raises ``SinkWriteError`` at once: exit 1, one line.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from collections import Counter
+from collections.abc import Iterable
+from pathlib import Path
+from typing import IO, Any
+
+from ..errors import HcrError
+from ..protocol.topics import Topic
+
+#: The suffixes ``open_sink`` knows, and what each writes.
+SUFFIXES = {".mcap": "MCAP (Foxglove, Lichtblick, PlotJuggler)", ".csv": "CSV (one row per reading)"}
+MCAP_EXTRA = "pip install 'hcrctl[mcap]'"
+
+
+class SinkWriteError(HcrError):
+    """The recording could not be written (a full disk, a vanished directory): exit 1."""
+
+    def __init__(self, path: str, why: str) -> None:
+        super().__init__(f"cannot write {path} ({why})", hint="free some space or choose another file")
+
+
+class BadSuffix(HcrError):
+    """An output whose suffix names no format: a usage error, nothing opened."""
+
+    exit_code = 2
+
+
+class MissingExtra(HcrError):
+    """The optional package a format needs is not installed."""
+
+
+def sink_kind(path: str) -> str:
+    """The format of ``path`` by its suffix (``.mcap`` or ``.csv``); BadSuffix otherwise."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in SUFFIXES:
+        allowed = " or ".join(SUFFIXES)
+        raise BadSuffix(f"OUT {path!r} must end in {allowed} (the suffix chooses the format)")
+    return suffix
+
+
+def micros(t: float) -> int:
+    """``t`` seconds as nanoseconds, rounded to the microsecond the traffic log keeps."""
+    return round(t * 1_000_000) * 1000
+
+
+class Prepared:
+    """One message without its ``time``, and what each sink made of it (its encoding, cached)."""
+
+    __slots__ = ("encoded", "rest", "topic")
+
+    def __init__(self, topic: str, rest: dict[str, Any]) -> None:
+        self.topic = topic
+        self.rest = rest
+        self.encoded: Any = None
+
+    @classmethod
+    def of(cls, topic: str, message: dict[str, Any]) -> Prepared:
+        return cls(topic, {k: v for k, v in message.items() if k != "time"})
+
+
+class Sink:
+    """A file of topic messages. Subclasses implement ``_encode``, ``_emit`` and ``_finish``."""
+
+    def __init__(self, path: str, topics: Iterable[Topic], flush_every: float | None = None) -> None:
+        self.path = path
+        self.topics = {t.name: t for t in topics}
+        #: Messages written, by topic.
+        self.counts: Counter[str] = Counter()
+        self.flush_every = flush_every
+        self._next_flush = time.monotonic() + flush_every if flush_every else float("inf")
+        self._file: Counting | None = None
+        self.closed = False
+
+    @property
+    def bytes_written(self) -> int:
+        return self._file.count if self._file is not None else 0
+
+    def write(self, topic: str, message: dict[str, Any], log_time: float, stamp: str | None = None) -> None:
+        """Write one message at ``log_time`` (seconds; the message's own ``time``, as every producer makes it).
+
+        ``stamp`` is the ISO 8601 time if the caller has it already (a log's line).
+        """
+        self.write_prepared(Prepared.of(topic, message), log_time, stamp)
+
+    def write_prepared(self, prepared: Prepared, log_time: float, stamp: str | None = None) -> None:
+        """Write ``prepared`` at ``log_time``, encoding it only the first time this sink meets it."""
+        encoded = prepared.encoded
+        if encoded is None:
+            encoded = prepared.encoded = self._encode(prepared)
+        if encoded is not False:
+            self._emit(prepared.topic, encoded, log_time, stamp)
+            self.counts[prepared.topic] += 1
+        if self.flush_every and time.monotonic() >= self._next_flush:
+            self.flush()
+
+    def flush(self) -> None:
+        """Make everything written so far readable from the file (a recording killed now keeps it)."""
+        self._next_flush = time.monotonic() + (self.flush_every or 0)
+
+    def close(self) -> None:
+        """Finish the file; a second call does nothing."""
+        if self.closed:
+            return
+        self.closed = True
+        try:
+            self._finish()
+        finally:
+            if self._file is not None:
+                self._file.close()
+
+    def __enter__(self) -> Sink:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, *rest: object) -> None:
+        """Close; while another error is on its way out, a failing close must not hide it."""
+        if kind is None:
+            self.close()
+            return
+        with contextlib.suppress(SinkWriteError):
+            self.close()
+
+    # -- for subclasses ----------------------------------------------------------
+
+    def _encode(self, prepared: Prepared) -> Any:
+        """What ``_emit`` needs for this message, computed once; False: this sink skips it."""
+        raise NotImplementedError
+
+    def _emit(self, topic: str, encoded: Any, log_time: float, stamp: str | None) -> None:
+        raise NotImplementedError
+
+    def _finish(self) -> None:
+        raise NotImplementedError
+
+    def _open(self) -> Counting:
+        self._file = Counting(self.path, "wb")
+        return self._file
+
+
+class Counting:
+    """A binary file that counts what it writes and turns OSError into SinkWriteError.
+
+    ``tell`` is the count, which is the offset in a file opened fresh: the
+    MCAP writer asks for it to index its chunks, and ``/dev/full`` answers 0.
+    """
+
+    def __init__(self, path: str, mode: str) -> None:
+        self.path = path
+        self.count = 0
+        self.error: SinkWriteError | None = None
+        try:
+            self.file: IO[bytes] = open(path, mode, buffering=1 << 16)  # noqa: SIM115 - closed by close()
+        except OSError as exc:
+            raise SinkWriteError(path, exc.strerror or str(exc)) from None
+
+    def write(self, data: bytes) -> int:
+        if self.error is not None:
+            raise self.error
+        try:
+            self.file.write(data)
+        except OSError as exc:
+            self._fail(exc)
+        self.count += len(data)
+        return len(data)
+
+    def tell(self) -> int:
+        return self.count
+
+    def flush(self) -> None:
+        if self.error is not None:
+            raise self.error
+        try:
+            self.file.flush()
+        except OSError as exc:
+            self._fail(exc)
+
+    def close(self) -> None:
+        if self.file.closed:
+            return
+        try:
+            self.file.close()
+        except OSError as exc:
+            self._fail(exc)
+
+    def _fail(self, exc: OSError) -> None:
+        """Drop what is buffered (it cannot be written); this error, and every later write's."""
+        self.error = SinkWriteError(self.path, exc.strerror or str(exc))
+        with contextlib.suppress(OSError):
+            self.file.close()
+        raise self.error from None
+
+
+def open_sink(path: str, topics: Iterable[Topic], *, flush_every: float | None = None) -> Sink:
+    """The sink for ``path``'s suffix, with every topic announced up front.
+
+    ``flush_every`` (seconds): make the file readable that often, for a live
+    recording that may be killed; an export needs none. The MCAP sink imports
+    the ``mcap`` package here and only here (MissingExtra names the extra).
+    """
+    kind = sink_kind(path)
+    if kind == ".csv":
+        from .csvsink import CsvSink
+
+        return CsvSink(path, topics, flush_every)
+    try:
+        from .mcapsink import McapSink
+    except ImportError as exc:
+        if not (exc.name or "mcap").startswith("mcap"):
+            raise
+        raise MissingExtra(f"writing {path} needs the mcap package", hint=MCAP_EXTRA) from None
+    return McapSink(path, topics, flush_every)
