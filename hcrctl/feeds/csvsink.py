@@ -74,7 +74,7 @@ class CsvSink(Sink):
         found = S.of_command(topic.command) if topic is not None and topic.command is not None else ()
         if topic is None or topic.command is None or not found:
             return False
-        message = prepared.rest
+        message = prepared.message
         cells = dict.fromkeys(S.paths(), "")
         for s in found:
             cells[s.path] = cell(series_value(message, s))

@@ -7,8 +7,8 @@ can write the same files: ``open_sink(path, topics)`` gives a ``Sink``;
 it is what makes an MCAP file whole). A sink is not thread-safe: one writer
 at a time, as ``Feed`` guarantees.
 
-Every message is written as if it were a ``Prepared`` one (the message
-without its ``time``, encoded once per sink and kept on the object), so
+Every message is written as if it were a ``Prepared`` one (the message with
+its encoding by the sink, made once and kept on the object), so
 ``export``, which meets the same request and reply bytes over and over, can
 hand the same ``Prepared`` back and skip the encoding: that cache is what keeps
 an export within twice the time of merely decoding the log.
@@ -23,7 +23,7 @@ from __future__ import annotations
 import contextlib
 import time
 from collections import Counter
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import IO, Any
 
@@ -67,18 +67,18 @@ def micros(t: float) -> int:
 
 
 class Prepared:
-    """One message without its ``time``, and what each sink made of it (its encoding, cached)."""
+    """One message, and what a sink made of it (its encoding, cached); its ``time`` is not used.
 
-    __slots__ = ("encoded", "rest", "topic")
+    The time is the one thing that differs between two messages of the same
+    bytes, so sinks write the time given with each write, and encode the rest once.
+    """
 
-    def __init__(self, topic: str, rest: dict[str, Any]) -> None:
+    __slots__ = ("encoded", "message", "topic")
+
+    def __init__(self, topic: str, message: dict[str, Any]) -> None:
         self.topic = topic
-        self.rest = rest
+        self.message = message
         self.encoded: Any = None
-
-    @classmethod
-    def of(cls, topic: str, message: dict[str, Any]) -> Prepared:
-        return cls(topic, {k: v for k, v in message.items() if k != "time"})
 
 
 class Sink:
@@ -87,12 +87,16 @@ class Sink:
     def __init__(self, path: str, topics: Iterable[Topic], flush_every: float | None = None) -> None:
         self.path = path
         self.topics = {t.name: t for t in topics}
-        #: Messages written, by topic.
-        self.counts: Counter[str] = Counter()
+        self._counts: Counter[str] = Counter()
         self.flush_every = flush_every
         self._next_flush = time.monotonic() + flush_every if flush_every else float("inf")
         self._file: Counting | None = None
         self.closed = False
+
+    @property
+    def counts(self) -> Counter[str]:
+        """Messages written, by topic."""
+        return self._counts
 
     @property
     def bytes_written(self) -> int:
@@ -103,16 +107,21 @@ class Sink:
 
         ``stamp`` is the ISO 8601 time if the caller has it already (a log's line).
         """
-        self.write_prepared(Prepared.of(topic, message), log_time, stamp)
+        self.write_prepared((Prepared(topic, message),), log_time, stamp)
 
-    def write_prepared(self, prepared: Prepared, log_time: float, stamp: str | None = None) -> None:
-        """Write ``prepared`` at ``log_time``, encoding it only the first time this sink meets it."""
-        encoded = prepared.encoded
-        if encoded is None:
-            encoded = prepared.encoded = self._encode(prepared)
-        if encoded is not False:
-            self._emit(prepared.topic, encoded, log_time, stamp)
-            self.counts[prepared.topic] += 1
+    def write_prepared(self, items: Sequence[Prepared], log_time: float, stamp: str | None = None) -> None:
+        """Write ``items`` (one piece of traffic's messages) at ``log_time``, each encoded only once.
+
+        A ``Prepared`` keeps the encoding of the first sink that wrote it: give it to one sink only.
+        """
+        counts, emit = self._counts, self._emit
+        for prepared in items:
+            encoded = prepared.encoded
+            if encoded is None:
+                encoded = prepared.encoded = self._encode(prepared)
+            if encoded is not False:
+                emit(prepared.topic, encoded, log_time, stamp)
+                counts[prepared.topic] += 1
         if self.flush_every and time.monotonic() >= self._next_flush:
             self.flush()
 
