@@ -28,7 +28,7 @@ from pathlib import Path
 from _common import best_of_each, record
 
 from hcrctl.feeds.export import export_log, export_topics
-from hcrctl.feeds.sinks import open_sink
+from hcrctl.feeds.formats import open_sink
 from hcrctl.link.traffic import Traffic
 from hcrctl.link.trafficlog import TrafficLog, read_log
 from hcrctl.protocol import commands as C
@@ -109,6 +109,16 @@ def export(log: Path, out: Path) -> int:
     return sink.bytes_written
 
 
+def measure(log: Path, out: Path, repeat: int) -> dict[str, float]:
+    """Best seconds of the baseline and of both exports, taking turns."""
+    runs = {
+        "baseline": lambda: baseline(log),
+        "mcap": lambda: export(log, out.with_suffix(".mcap")),
+        "csv": lambda: export(log, out.with_suffix(".csv")),
+    }
+    return best_of_each(runs, repeat)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[20_000, 100_000])
@@ -120,12 +130,7 @@ def main() -> int:
         for size in args.sizes:
             log = Path(tmp) / f"log{size}.jsonl"
             lines = write_log(log, size)
-            runs = {
-                "baseline": lambda: baseline(log),
-                "mcap": lambda: export(log, Path(tmp) / "out.mcap"),
-                "csv": lambda: export(log, Path(tmp) / "out.csv"),
-            }
-            best = best_of_each(runs, args.repeat)
+            best = measure(log, Path(tmp) / "out", args.repeat)
             print(f"{lines:,} records ({log.stat().st_size / 1e6:.1f} MB):")
             for kind in ("mcap", "csv"):
                 ratio = best[kind] / best["baseline"]

@@ -46,7 +46,7 @@ hcrctl export session.jsonl session.mcap
 def export(settings: Settings, logfile: str, out: str, duration: float | None) -> None:
     from ..feeds.export import export_log, export_topics
     from ..feeds.progress import per_topic, size
-    from ..feeds.sinks import open_sink
+    from ..feeds.formats import open_sink
     from ..protocol.profiles import profile
 
     with open_sink(out, export_topics()) as sink:

@@ -24,7 +24,7 @@ from typing import Any
 from ..link.trafficlog import iso_time
 from ..protocol import series as S
 from ..protocol.topics import Topic
-from .sinks import Prepared, Sink
+from .sinks import Prepared, Sink, seconds
 
 HEAD = ("time", "t", "direction", "address", "command")
 
@@ -82,7 +82,7 @@ class CsvSink(Sink):
         return ("," + csv_line([*head, *cells.values()])).encode()
 
     def _emit(self, topic: str, encoded: Any, log_time: float, stamp: str | None) -> None:
-        start = (stamp or iso_time(log_time)) + "," + repr(log_time)
+        start = (stamp or iso_time(log_time)) + "," + seconds(log_time)[1]
         self._out.write(start.encode() + encoded)
 
     def flush(self) -> None:

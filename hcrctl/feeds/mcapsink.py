@@ -28,7 +28,7 @@ from mcap.writer import CompressionType, Writer
 from .. import __version__
 from ..protocol.topics import Topic
 from .mcapchunks import attach
-from .sinks import Prepared, Sink, micros
+from .sinks import Prepared, Sink, seconds
 
 #: Uncompressed chunk size: big enough to compress well, small enough to lose little.
 CHUNK_SIZE = 1 << 20
@@ -99,8 +99,8 @@ class McapSink(Sink):
     def write_prepared(self, items: Sequence[Prepared], log_time: float, stamp: str | None = None) -> None:
         """The base class's loop, inlined: an export spends most of its writing time here."""
         if log_time != self._time:  # a frame and its reading share it: work it out once
-            self._time, self._ns = log_time, micros(log_time)
-            self._head = b'{"time":%.6f' % log_time  # to the microsecond, as the log keeps it
+            us, text = seconds(log_time)
+            self._time, self._ns, self._head = log_time, us * 1000, b'{"time":' + text.encode()
         ns, head, add = self._ns, self._head, self._add
         for prepared in items:
             encoded = prepared.encoded

@@ -11,7 +11,7 @@ from typing import Any
 
 import click
 
-from .sinks import SUFFIXES, BadSuffix, sink_kind
+from .formats import SUFFIXES, BadSuffix, sink_kind
 
 
 class OutFile(click.ParamType):

@@ -9,6 +9,7 @@ the link's threads, so it cannot slow the polling.
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable, Mapping
 from typing import TextIO
@@ -57,8 +58,8 @@ class Progress:
         self._last = (now, count)
         text = self.line(now - self.start, rate)
         try:
-            if self.live:
-                self.stream.write("\r" + text + "\x1b[K")
+            if self.live:  # cut to the width: a line that wraps cannot be rewritten in place
+                self.stream.write("\r" + text[: _width(self.stream) - 1] + "\x1b[K")
                 self._drawn = True
             else:
                 self.stream.write(text + "\n")
@@ -78,6 +79,13 @@ class Progress:
             except (OSError, ValueError):
                 pass
             self._drawn = False
+
+
+def _width(stream: TextIO) -> int:
+    try:
+        return os.get_terminal_size(stream.fileno()).columns
+    except (OSError, ValueError):
+        return 80
 
 
 def _is_terminal(stream: TextIO) -> bool:

@@ -23,8 +23,9 @@ from ..link.context import Connection, Reconnect
 from ..link.dialects import supported_sensors
 from ..link.signals import Terminated, stop_signals_handled
 from ..protocol.topics import all_topics
+from .formats import open_sink
 from .progress import Progress, size
-from .sinks import Sink, open_sink
+from .sinks import Sink
 from .source import Feed
 
 #: Seconds of recording a crash (or kill -9) may lose at most.
@@ -71,10 +72,8 @@ def reraise(signum: int | None, duration: float | None) -> None:
 def progress_line(out: str, sink: Sink) -> Callable[[float, float], str]:
     def line(elapsed: float, rate: float) -> str:
         count = sum(sink.counts.values())
-        return (
-            f"recording {out}: {elapsed:.1f} s, {count} messages, {size(sink.bytes_written)}, "
-            f"{rate:.0f} msg/s"
-        )
+        figures = f"{elapsed:.1f} s, {count} messages, {size(sink.bytes_written)}, {rate:.0f} msg/s"
+        return f"recording: {figures} -> {out}"  # the figures first: a narrow terminal cuts the path
 
     return line
 

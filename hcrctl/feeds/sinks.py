@@ -1,7 +1,7 @@
 """Where ``record`` and ``export`` write topic messages: an MCAP or a CSV file, chosen by suffix.
 
 The interface is deliberately small, so the bridge's ``--mcap`` (or anyone)
-can write the same files: ``open_sink(path, topics)`` gives a ``Sink``;
+can write the same files: ``formats.open_sink(path, topics)`` gives a ``Sink``;
 ``write(topic, message, log_time)`` takes what ``topics.messages()`` and
 ``Feed``'s ``publish`` produce; ``close()`` finishes the file (always call it:
 it is what makes an MCAP file whole). A sink is not thread-safe: one writer
@@ -24,15 +24,10 @@ import contextlib
 import time
 from collections import Counter
 from collections.abc import Iterable, Sequence
-from pathlib import Path
 from typing import IO, Any
 
 from ..errors import HcrError
 from ..protocol.topics import Topic
-
-#: The suffixes ``open_sink`` knows, and what each writes.
-SUFFIXES = {".mcap": "MCAP (Foxglove, Lichtblick, PlotJuggler)", ".csv": "CSV (one row per reading)"}
-MCAP_EXTRA = "pip install 'hcrctl[mcap]'"
 
 
 class SinkWriteError(HcrError):
@@ -42,28 +37,15 @@ class SinkWriteError(HcrError):
         super().__init__(f"cannot write {path} ({why})", hint="free some space or choose another file")
 
 
-class BadSuffix(HcrError):
-    """An output whose suffix names no format: a usage error, nothing opened."""
+def seconds(t: float) -> tuple[int, str]:
+    """``t`` to the microsecond the traffic log keeps: as an integer, and as decimal seconds text.
 
-    exit_code = 2
-
-
-class MissingExtra(HcrError):
-    """The optional package a format needs is not installed."""
-
-
-def sink_kind(path: str) -> str:
-    """The format of ``path`` by its suffix (``.mcap`` or ``.csv``); BadSuffix otherwise."""
-    suffix = Path(path).suffix.lower()
-    if suffix not in SUFFIXES:
-        allowed = " or ".join(SUFFIXES)
-        raise BadSuffix(f"OUT {path!r} must end in {allowed} (the suffix chooses the format)")
-    return suffix
-
-
-def micros(t: float) -> int:
-    """``t`` seconds as nanoseconds, rounded to the microsecond the traffic log keeps."""
-    return round(t * 1_000_000) * 1000
+    Both from one rounding, so a message's ``time`` and its MCAP log time
+    (or a CSV row's ``t``) never disagree in the last digit.
+    """
+    us = round(t * 1_000_000)
+    whole, part = divmod(us, 1_000_000)
+    return us, f"{whole}.{part:06d}"
 
 
 class Prepared:
@@ -219,24 +201,3 @@ class Counting:
         with contextlib.suppress(OSError):
             self.file.close()
         raise self.error from None
-
-
-def open_sink(path: str, topics: Iterable[Topic], *, flush_every: float | None = None) -> Sink:
-    """The sink for ``path``'s suffix, with every topic announced up front.
-
-    ``flush_every`` (seconds): make the file readable that often, for a live
-    recording that may be killed; an export needs none. The MCAP sink imports
-    the ``mcap`` package here and only here (MissingExtra names the extra).
-    """
-    kind = sink_kind(path)
-    if kind == ".csv":
-        from .csvsink import CsvSink
-
-        return CsvSink(path, topics, flush_every)
-    try:
-        from .mcapsink import McapSink
-    except ImportError as exc:
-        if not (exc.name or "mcap").startswith("mcap"):
-            raise
-        raise MissingExtra(f"writing {path} needs the mcap package", hint=MCAP_EXTRA) from None
-    return McapSink(path, topics, flush_every)

@@ -1,0 +1,222 @@
+"""``hcrctl export LOG OUT``: a real ``--log`` file, converted by the installed executable, read back.
+
+The log is written by ``hcrctl --port sim:// --log`` running ``watch`` and
+``read``; the MCAP file is read back with the ``mcap`` package's own reader,
+the CSV file with the csv module. What each must hold is worked out from the
+log's lines (their times, directions, verdicts and fields), not from hcrctl's
+export code.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import subprocess
+import sys
+from datetime import datetime, timedelta, timezone
+from pathlib import Path
+from typing import Any
+
+import pytest
+from helpers_cli import clean_env, run
+from mcap.reader import make_reader
+
+from hcrctl.protocol import series as S
+from hcrctl.protocol import topics as T
+
+EPOCH = datetime(1970, 1, 1, tzinfo=timezone.utc)
+READINGS = {t.name.removeprefix("/hcr/"): t.name for t in T.reading_topics()}
+JSON_TYPES: dict[str, Any] = {
+    "number": (int, float),
+    "integer": int,
+    "boolean": bool,
+    "string": str,
+    "array": list,
+    "object": dict,
+}
+
+
+def ns_of(stamp: str) -> int:
+    """An ISO time of the log, as integer nanoseconds since the epoch (exact: no float on the way)."""
+    return (datetime.fromisoformat(stamp) - EPOCH) // timedelta(microseconds=1) * 1000
+
+
+@pytest.fixture(scope="module")
+def log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A traffic log of a short watch and a read on the simulator (which also broadcasts)."""
+    home = tmp_path_factory.mktemp("export")
+    path = home / "session.jsonl"
+    env = clean_env(home)
+    watched = run(["--port", "sim://", "--log", str(path), "--json", "watch", "--duration", "1.5"], env)
+    assert watched.returncode == 0, watched.stderr
+    done = run(["--port", "sim://", "--log", str(path), "read"], env)
+    assert done.returncode == 0, done.stderr
+    return path
+
+
+def lines_of(log: Path) -> list[dict[str, Any]]:
+    return [json.loads(line) for line in log.read_text().splitlines() if line.strip()]
+
+
+def is_reading(line: dict[str, Any]) -> bool:
+    """A good reply or broadcast of a read, as the log line says."""
+    return (
+        line["direction"] == "rx"
+        and line.get("checksum_ok") is True
+        and "error" not in line
+        and line.get("kind") in ("reply", "broadcast")
+        and line.get("name") in READINGS
+    )
+
+
+def check_message(schema: dict[str, Any], message: dict[str, Any]) -> None:
+    """The message has every required key, and each value its declared JSON type and range."""
+    assert schema["type"] == "object"
+    missing = set(schema.get("required", ())) - set(message)
+    assert not missing, f"{schema['title']}: {missing} missing in {message}"
+    for key, value in message.items():
+        spec = schema["properties"].get(key)
+        if spec is None or "type" not in spec:
+            continue
+        kind = JSON_TYPES[spec["type"]]
+        assert isinstance(value, kind) or value is None, f"{key}={value!r} is not {spec['type']}"
+        if spec["type"] in ("number", "integer") and "minimum" in spec:
+            assert spec["minimum"] <= value <= spec["maximum"], f"{key}={value} out of range"
+
+
+def export(log: Path, out: Path, *options: str) -> subprocess.CompletedProcess[str]:
+    done = run([*options, "export", str(log), str(out)], clean_env(out.parent))
+    assert done.returncode == 0, done.stderr
+    return done
+
+
+def test_mcap_holds_every_frame_and_reading_with_the_logs_times(log: Path, tmp_path: Path) -> None:
+    lines = lines_of(log)
+    out = tmp_path / "session.mcap"
+    done = export(log, out)
+    assert f"{len(lines)} records -> {out}" in done.stderr
+    with out.open("rb") as handle:
+        reader = make_reader(handle)
+        summary = reader.get_summary()
+        assert summary is not None
+        messages = [
+            (channel.topic, message) for _, channel, message in reader.iter_messages(log_time_order=False)
+        ]
+    channels = {c.topic: c for c in summary.channels.values()}
+    assert set(channels) == {*READINGS.values(), T.FRAMES}
+    for channel in channels.values():
+        schema = summary.schemas[channel.schema_id]
+        assert (channel.message_encoding, schema.encoding) == ("json", "jsonschema")
+        document = json.loads(schema.data)
+        assert document["type"] == "object" and isinstance(document["properties"], dict), schema.name
+        assert all(isinstance(p, dict) for p in document["properties"].values())
+    frames = [m for topic, m in messages if topic == T.FRAMES]
+    assert [m.log_time for m in frames] == [ns_of(line["time"]) for line in lines]
+    assert all(m.publish_time == m.log_time for m in frames)
+    assert [json.loads(m.data)["hex"] for m in frames] == [line["hex"] for line in lines]
+    wanted = [line for line in lines if is_reading(line)]
+    readings = [(topic, m) for topic, m in messages if topic != T.FRAMES]
+    assert [(READINGS[line["name"]], ns_of(line["time"])) for line in wanted] == [
+        (topic, m.log_time) for topic, m in readings
+    ]
+    assert {topic for topic, _ in readings} >= {"/hcr/compass", "/hcr/sonar", "/hcr/position"}
+    for topic, message in messages:
+        decoded = json.loads(message.data)
+        check_message(json.loads(summary.schemas[channels[topic].schema_id].data), decoded)
+        assert round(decoded["time"] * 1e6) * 1000 == message.log_time
+
+
+def test_mcap_reading_values_are_the_logs_fields(log: Path, tmp_path: Path) -> None:
+    out = tmp_path / "values.mcap"
+    export(log, out)
+    wanted = [line for line in lines_of(log) if is_reading(line) and line["name"] == "compass"]
+    with out.open("rb") as handle:
+        got = [json.loads(m.data) for _, _, m in make_reader(handle).iter_messages(topics=["/hcr/compass"])]
+    assert wanted and [m["heading"] for m in got] == [line["fields"]["heading"] for line in wanted]
+    assert all(m["address"] == line["address"] for m, line in zip(got, wanted, strict=True))
+
+
+def test_csv_has_one_row_per_reading_and_every_series_column(log: Path, tmp_path: Path) -> None:
+    out = tmp_path / "session.csv"
+    export(log, out)
+    text = out.read_text()
+    assert text.endswith("\n")
+    with out.open(newline="") as handle:
+        rows = list(csv.reader(handle))
+    assert rows[0] == ["time", "t", "direction", "address", "command", *S.paths()]
+    assert all(len(row) == len(rows[0]) for row in rows)
+    numeric = {path.split(".")[0] for path in S.paths()}
+    wanted = [line for line in lines_of(log) if is_reading(line) and line["name"] in numeric]
+    body = [dict(zip(rows[0], row, strict=True)) for row in rows[1:]]
+    assert [(r["time"], r["direction"], r["command"]) for r in body] == [
+        (line["time"], "rx", line["name"]) for line in wanted
+    ]
+    for row, line in zip(body, wanted, strict=True):
+        assert round(float(row["t"]) * 1e6) * 1000 == ns_of(line["time"])
+        assert int(row["address"]) == line["address"]
+        filled = {
+            k for k, v in row.items() if v and k not in ("time", "t", "direction", "address", "command")
+        }
+        assert filled and all(k.startswith(line["name"] + ".") for k in filled)
+        if line["name"] == "compass":
+            assert float(row["compass.heading"]) == line["fields"]["heading"]
+
+
+def test_json_summary_counts_records_and_messages(log: Path, tmp_path: Path) -> None:
+    out = tmp_path / "summary.mcap"
+    done = export(log, out, "--json")
+    report = json.loads(done.stdout)
+    lines = lines_of(log)
+    assert report["records"] == len(lines)
+    assert report["topics"][T.FRAMES] == len(lines)
+    assert report["messages"] == len(lines) + sum(is_reading(line) for line in lines)
+    assert report["bytes"] == out.stat().st_size
+
+
+def test_a_suffix_that_names_no_format_is_a_usage_error(log: Path, tmp_path: Path) -> None:
+    done = run(["export", str(log), str(tmp_path / "out.json")], clean_env(tmp_path))
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "OUT" in lines[0] and ".mcap" in lines[0] and ".csv" in lines[0], lines
+    assert not (tmp_path / "out.json").exists()
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="/dev/full is Linux's")
+@pytest.mark.parametrize("suffix", [".mcap", ".csv"])
+def test_a_full_disk_is_said_at_once_on_one_line(log: Path, tmp_path: Path, suffix: str) -> None:
+    out = tmp_path / f"full{suffix}"
+    out.symlink_to("/dev/full")
+    done = run(["export", str(log), str(out)], clean_env(tmp_path))
+    assert done.returncode == 1
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1, lines
+    assert f"cannot write {out}" in lines[0] and "No space left on device" in lines[0]
+
+
+def test_without_the_mcap_package_the_error_names_the_extra(log: Path, tmp_path: Path) -> None:
+    fake = tmp_path / "fake" / "mcap"
+    fake.mkdir(parents=True)
+    (fake / "__init__.py").write_text("raise ImportError('no mcap here')\n")
+    env = clean_env(tmp_path, PYTHONPATH=str(fake.parent))
+    done = run(["export", str(log), str(tmp_path / "out.mcap")], env)
+    assert done.returncode == 1
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "pip install 'hcrctl[mcap]'" in lines[0], lines
+    csv_done = run(["export", str(log), str(tmp_path / "out.csv")], env)
+    assert csv_done.returncode == 0, csv_done.stderr  # CSV needs no extra
+
+
+@pytest.mark.parametrize("args", [["--help"], ["--port", "sim://", "read", "compass"]])
+def test_start_up_and_a_read_do_not_import_mcap(args: list[str], tmp_path: Path) -> None:
+    done = subprocess.run(
+        [sys.executable, "-X", "importtime", "-m", "hcrctl", *args],
+        env=clean_env(tmp_path),
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 0, done.stderr
+    imported = [line.rsplit("|", 1)[-1].strip() for line in done.stderr.splitlines() if "|" in line]
+    assert "hcrctl.cli" in imported  # the listing is there to be read
+    assert not [m for m in imported if m.split(".")[0] in ("mcap", "zstandard", "lz4")]

@@ -1,0 +1,201 @@
+"""``hcrctl record OUT``: the installed executable polling ``hcrctl sim --pty``, stopped as users stop it.
+
+Each recording is ended by a signal (SIGTERM, SIGINT, SIGKILL) or by
+``--duration`` and read back with the ``mcap`` package's reader or the csv
+module: the file must be whole whenever the program ends on its own terms,
+and readable up to its last flushed chunk when it is killed outright.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import signal
+import subprocess
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from helpers import terminal, terminal_env
+from helpers_cli import clean_env, finish, run, sim_pty, start, wait_until
+from mcap.reader import NonSeekingReader, make_reader
+
+from hcrctl.protocol import commands as C
+from hcrctl.protocol import series as S
+from hcrctl.protocol import topics as T
+
+
+@pytest.fixture(scope="module")
+def robot(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """The simulator on a pty, broadcasting as it does by default."""
+    with sim_pty(clean_env(tmp_path_factory.mktemp("sim"))) as path:
+        yield path
+
+
+def flushed(path: Path) -> list[tuple[str, Any]]:
+    """The messages a reader gets from ``path`` as it is now, reading front to back up to any damage."""
+    if not path.exists():
+        return []
+    out: list[tuple[str, Any]] = []
+    try:
+        for _, channel, message in NonSeekingReader(io.BytesIO(path.read_bytes())).iter_messages(
+            log_time_order=False
+        ):
+            out.append((channel.topic, message))
+    except Exception:
+        pass
+    return out
+
+
+def recording(robot: str, out: Path, *args: str) -> subprocess.Popen[str]:
+    return start(["--port", robot, "record", str(out), "--rate", "20", *args], clean_env(out.parent))
+
+
+def whole(out: Path) -> tuple[Any, list[tuple[str, Any]]]:
+    """The summary and the messages of a finished MCAP file (reading its index, as viewers do)."""
+    with out.open("rb") as handle:
+        reader = make_reader(handle)
+        summary = reader.get_summary()
+        assert summary is not None, "no summary: the file was not finished"
+        return summary, [(c.topic, m) for _, c, m in reader.iter_messages()]
+
+
+def test_sigterm_leaves_a_finished_mcap_with_every_topic(robot: str, tmp_path: Path) -> None:
+    out = tmp_path / "run.mcap"
+    proc = recording(robot, out)
+    try:
+        wait_until(lambda: len(flushed(out)) >= 40, what="a flushed chunk")
+        proc.send_signal(signal.SIGTERM)
+    finally:
+        _, err = finish(proc)
+    assert proc.returncode == 128 + signal.SIGTERM, err
+    assert err.strip().splitlines()[-1] == "hcrctl: terminated by SIGTERM"
+    summary, messages = whole(out)
+    assert summary.statistics is not None and summary.statistics.message_count == len(messages)
+    channels = {c.topic for c in summary.channels.values()}
+    assert channels == {t.name for t in T.all_topics()}
+    topics = {topic for topic, _ in messages}
+    assert {"/hcr/compass", "/hcr/sonar", "/hcr/wheels", T.FRAMES, T.LINK} <= topics
+    said = f"hcrctl: record: {out}: {len(messages)} messages"
+    assert said in err, err
+    times = [m.log_time for _, m in messages]
+    assert times == sorted(times)
+    for topic, message in messages:
+        body = json.loads(message.data)
+        assert round(body["time"] * 1e6) * 1000 == message.log_time == message.publish_time, topic
+
+
+def test_sigterm_leaves_a_csv_of_whole_lines(robot: str, tmp_path: Path) -> None:
+    out = tmp_path / "run.csv"
+    proc = recording(robot, out, "compass", "sonar")
+    try:
+        wait_until(lambda: out.exists() and out.read_text().count("\n") >= 10, what="rows in the file")
+        proc.send_signal(signal.SIGTERM)
+    finally:
+        _, err = finish(proc)
+    assert proc.returncode == 128 + signal.SIGTERM, err
+    text = out.read_text()
+    assert text.endswith("\n")
+    rows = list(csv.reader(io.StringIO(text)))
+    assert rows[0] == ["time", "t", "direction", "address", "command", *S.paths()]
+    assert all(len(row) == len(rows[0]) for row in rows)
+    commands = {row[4] for row in rows[1:]}
+    assert {"compass", "sonar"} <= commands <= {"compass", "sonar", "position"}
+    heading = rows[0].index("compass.heading")
+    assert all(0 <= float(row[heading]) < 360 for row in rows[1:] if row[4] == "compass")
+
+
+def test_kill_9_keeps_every_flushed_chunk(robot: str, tmp_path: Path) -> None:
+    out = tmp_path / "killed.mcap"
+    proc = recording(robot, out)
+    try:
+        seen = len(
+            wait_until(lambda: (got := flushed(out)) and len(got) >= 40 and got, what="a flushed chunk")
+        )
+        proc.kill()
+    finally:
+        finish(proc)
+    with out.open("rb") as handle, pytest.raises(Exception):  # noqa: B017 - no footer, no summary
+        make_reader(handle).get_summary()
+    after = flushed(out)
+    assert len(after) >= seen
+    assert {"/hcr/compass", T.FRAMES} <= {topic for topic, _ in after}
+
+
+def test_ctrl_c_ends_an_open_ended_recording_with_status_0(robot: str, tmp_path: Path) -> None:
+    out = tmp_path / "interrupted.mcap"
+    proc = subprocess.Popen(
+        [*_argv(robot, out)],
+        env=clean_env(tmp_path),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # the suite may ignore SIGINT
+    )
+    try:
+        wait_until(lambda: len(flushed(out)) >= 20, what="a flushed chunk")
+        proc.send_signal(signal.SIGINT)
+    finally:
+        _, err = finish(proc)
+    assert proc.returncode == 0, err
+    _, messages = whole(out)
+    assert f"{len(messages)} messages" in err
+
+
+def _argv(robot: str, out: Path) -> list[str]:
+    from helpers import hcrctl_exe
+
+    return [hcrctl_exe(), "--port", robot, "record", str(out), "--rate", "20"]
+
+
+def test_duration_json_summary_and_nothing_but_reads_sent(robot: str, tmp_path: Path) -> None:
+    out, log = tmp_path / "timed.mcap", tmp_path / "wire.jsonl"
+    done = run(
+        [
+            "--port",
+            robot,
+            "--log",
+            str(log),
+            "--json",
+            "record",
+            str(out),
+            "--duration",
+            "1.5",
+            "--rate",
+            "20",
+        ],
+        clean_env(tmp_path),
+    )
+    assert done.returncode == 0, done.stderr
+    report = json.loads(done.stdout)
+    _, messages = whole(out)
+    assert report["messages"] == len(messages) > 0
+    assert report["bytes"] == out.stat().st_size
+    assert report["topics"][T.FRAMES] == sum(topic == T.FRAMES for topic, _ in messages)
+    sent = [json.loads(line) for line in log.read_text().splitlines() if '"direction": "tx"' in line]
+    assert sent and {line["name"] for line in sent} <= set(C.SENSORS)
+    assert all(line["kind"] == "request" for line in sent)
+
+
+def test_a_bad_suffix_is_a_usage_error_before_the_port_is_opened(tmp_path: Path) -> None:
+    done = run(
+        ["--port", str(tmp_path / "no-such-port"), "record", str(tmp_path / "out.txt")], clean_env(tmp_path)
+    )
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "OUT" in lines[0] and ".mcap or .csv" in lines[0], lines
+
+
+def test_the_progress_line_is_redrawn_in_place_on_a_terminal(robot: str, tmp_path: Path) -> None:
+    out = tmp_path / "shown.mcap"
+    env = terminal_env() | {"XDG_CONFIG_HOME": str(tmp_path)}
+    with terminal(["--port", robot, "record", str(out), "--rate", "20"], env=env) as term:
+        first = term.wait_for(r"recording: [\d.]+ s, [1-9]\d* messages, [\d.]+ \w?B, \d+ msg/s -> /")
+        term.wait_for(lambda text: text != first and "recording" in text)
+        assert sum("recording" in line for line in term.text().splitlines()) == 1  # one line, rewritten
+        term.send("\x03")
+        assert term.finish() == 0
+        assert "hcrctl: record:" in term.text()
