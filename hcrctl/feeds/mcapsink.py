@@ -20,7 +20,7 @@ from __future__ import annotations
 import json
 import time
 from collections import Counter
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import IO, Any, cast
 
 from mcap.writer import CompressionType, Writer
@@ -33,8 +33,34 @@ from .sinks import Prepared, Sink, seconds
 #: Uncompressed chunk size: big enough to compress well, small enough to lose little.
 CHUNK_SIZE = 1 << 20
 PROFILE = ""  # no ROS profile: plain JSON messages
-#: One encoder for every message: ``json.dumps`` with separators builds a new one each call.
+#: For the schemas, and for messages where the C encoder is missing.
 COMPACT = json.JSONEncoder(separators=(",", ":"))
+
+
+def _refuse(value: object) -> object:
+    raise TypeError(f"{type(value).__name__} is not JSON")
+
+
+def compact_encoder() -> Callable[[Any], str]:
+    """Compact JSON, as ``COMPACT.encode``, from one C encoder made once.
+
+    ``JSONEncoder.encode`` builds a new C encoder on every call, which is half
+    of what encoding a frame's message costs; an export encodes one per new
+    frame, so this one is made once, with the arguments ``JSONEncoder`` gives it.
+    """
+    make = getattr(json.encoder, "c_make_encoder", None)
+    if make is None:
+        return COMPACT.encode
+    try:  # the arguments JSONEncoder.iterencode passes: markers, default, strings, indent, separators, flags
+        encoder = make(
+            None, _refuse, json.encoder.encode_basestring_ascii, None, ":", ",", False, False, True
+        )
+    except TypeError:  # another signature: the documented way
+        return COMPACT.encode
+    return lambda value: "".join(encoder(value, 0))
+
+
+ENCODE = compact_encoder()
 
 
 def compression() -> CompressionType:
@@ -54,12 +80,12 @@ def json_tail(message: dict[str, Any]) -> bytes:
     Every producer puts ``time`` first (``topics.messages``, the link counters), so the
     encoding of the whole message is cut after it; anything else is encoded without it.
     """
-    text = COMPACT.encode(message)
+    text = ENCODE(message)
     if text.startswith('{"time":') and "time" in message:
         if len(message) == 1:
             return b"}"
         return text[text.index(",", 8) :].encode()
-    rest = COMPACT.encode({k: v for k, v in message.items() if k != "time"})
+    rest = ENCODE({k: v for k, v in message.items() if k != "time"})
     return ("," + rest[1:] if rest != "{}" else "}").encode()
 
 
