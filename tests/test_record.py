@@ -19,7 +19,7 @@ from typing import Any
 
 import pytest
 from helpers import terminal, terminal_env
-from helpers_cli import clean_env, finish, run, sim_pty, start, wait_until
+from helpers_cli import clean_env, finish, run, sim_pty, start, wait_until, wire
 from mcap.reader import NonSeekingReader, make_reader
 
 from hcrctl.protocol import commands as C
@@ -62,16 +62,19 @@ def whole(out: Path) -> tuple[Any, list[tuple[str, Any]]]:
         return summary, [(c.topic, m) for _, c, m in reader.iter_messages()]
 
 
-def test_sigterm_leaves_a_finished_mcap_with_every_topic(robot: str, tmp_path: Path) -> None:
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
+def test_a_stop_signal_leaves_a_finished_mcap_with_every_topic(
+    robot: str, tmp_path: Path, sig: signal.Signals
+) -> None:
     out = tmp_path / "run.mcap"
     proc = recording(robot, out)
     try:
         wait_until(lambda: len(flushed(out)) >= 40, what="a flushed chunk")
-        proc.send_signal(signal.SIGTERM)
+        proc.send_signal(sig)
     finally:
         _, err = finish(proc)
-    assert proc.returncode == 128 + signal.SIGTERM, err
-    assert err.strip().splitlines()[-1] == "hcrctl: terminated by SIGTERM"
+    assert proc.returncode == 128 + sig, err
+    assert err.strip().splitlines()[-1] == f"hcrctl: terminated by {sig.name}"
     summary, messages = whole(out)
     assert summary.statistics is not None and summary.statistics.message_count == len(messages)
     channels = {c.topic for c in summary.channels.values()}
@@ -178,6 +181,18 @@ def test_duration_json_summary_and_nothing_but_reads_sent(robot: str, tmp_path: 
     sent = [json.loads(line) for line in log.read_text().splitlines() if '"direction": "tx"' in line]
     assert sent and {line["name"] for line in sent} <= set(C.SENSORS)
     assert all(line["kind"] == "request" for line in sent)
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="/dev/full is Linux's")
+def test_a_full_disk_is_said_on_one_line_and_nothing_is_sent(tmp_path: Path) -> None:
+    out = tmp_path / "full.mcap"
+    out.symlink_to("/dev/full")
+    with wire() as tap:
+        done = run(["--port", tap.path, "record", str(out)], clean_env(tmp_path))
+        assert tap.read(quiet=0.3) == b""
+    assert done.returncode == 1
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and f"cannot write {out}" in lines[0] and "No space left" in lines[0], lines
 
 
 def test_a_bad_suffix_is_a_usage_error_before_the_port_is_opened(tmp_path: Path) -> None:

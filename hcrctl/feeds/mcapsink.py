@@ -118,8 +118,9 @@ class McapSink(Sink):
         """Messages by topic: the writer's statistics, plus the chunk in progress."""
         if self._chunks is None:
             return self._counts
-        by_channel: Counter[int] = Counter(self._chunks.statistics.channel_message_counts)
-        by_channel.update({c: len(i.records) for c, i in self._chunks.message_indices.items()})
+        # dict() copies in one step: the progress line asks from another thread than the writer's
+        by_channel: Counter[int] = Counter(dict(self._chunks.statistics.channel_message_counts))
+        by_channel.update({c: len(i.records) for c, i in dict(self._chunks.message_indices).items()})
         return Counter({self._topics[c]: n for c, n in by_channel.items() if n})
 
     def write_prepared(self, items: Sequence[Prepared], log_time: float, stamp: str | None = None) -> None:

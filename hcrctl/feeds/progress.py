@@ -47,12 +47,13 @@ class Progress:
         self._drawn = False
         self._last = (self.start, 0.0)
 
-    def tick(self, count: float) -> None:
-        """Draw the line if it is due; ``count`` feeds the rate (things per second since the last line)."""
+    def tick(self, counter: Callable[[], float]) -> None:
+        """Draw the line if it is due; ``counter()`` (asked only then) feeds the rate since the last line."""
         now = time.monotonic()
         if now < self._next:
             return
         self._next = now + self.every
+        count = counter()
         then, before = self._last
         rate = (count - before) / (now - then) if now > then else 0.0
         self._last = (now, count)

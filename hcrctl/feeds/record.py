@@ -122,7 +122,7 @@ def _poll(
         feed = Feed(robot, names, rate, sink.write, reconnect=Reconnect(settings, robot), pipeline=pipeline)
 
         def should_stop() -> bool:  # Feed.run asks every few ms, on this thread: the progress line's tick
-            progress.tick(feed.messages)
+            progress.tick(lambda: sum(sink.counts.values()))
             return stop.is_set()
 
         with feed:

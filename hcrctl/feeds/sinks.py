@@ -77,8 +77,8 @@ class Sink:
 
     @property
     def counts(self) -> Counter[str]:
-        """Messages written, by topic."""
-        return self._counts
+        """Messages written, by topic (a copy: the progress line asks from another thread than the writer's)."""
+        return Counter(dict(self._counts))
 
     @property
     def bytes_written(self) -> int:
