@@ -85,8 +85,11 @@ def check_message(schema: dict[str, Any], message: dict[str, Any]) -> None:
             assert spec["minimum"] <= value <= spec["maximum"], f"{key}={value} out of range"
 
 
-def export(log: Path, out: Path, *options: str) -> subprocess.CompletedProcess[str]:
-    done = run([*options, "export", str(log), str(out)], clean_env(out.parent))
+def export(
+    log: Path, out: Path, *options: str, after: tuple[str, ...] = ()
+) -> subprocess.CompletedProcess[str]:
+    """``hcrctl [OPTIONS] export LOG OUT [AFTER]``, which must succeed."""
+    done = run([*options, "export", str(log), str(out), *after], clean_env(out.parent))
     assert done.returncode == 0, done.stderr
     return done
 
@@ -220,3 +223,25 @@ def test_start_up_and_a_read_do_not_import_mcap(args: list[str], tmp_path: Path)
     imported = [line.rsplit("|", 1)[-1].strip() for line in done.stderr.splitlines() if "|" in line]
     assert "hcrctl.cli" in imported  # the listing is there to be read
     assert not [m for m in imported if m.split(".")[0] in ("mcap", "zstandard", "lz4")]
+
+
+def test_the_checksum_rule_is_the_global_options(log: Path, tmp_path: Path) -> None:
+    """Decoded as ``monitor --from`` decodes: under another rule every frame fails, so nothing is a reading."""
+    out = tmp_path / "other.mcap"
+    report = json.loads(export(log, out, "--json", "--checksum-from", "address").stdout)
+    assert report["topics"] == {T.FRAMES: len(lines_of(log))}
+    with out.open("rb") as handle:
+        frames = [json.loads(m.data) for _, _, m in make_reader(handle).iter_messages()]
+    good = [f for f in frames if "checksum_ok" in f]
+    assert good and not any(f["checksum_ok"] for f in good)
+    assert all(f["other_ok"] for f in good)
+
+
+def test_duration_takes_the_first_seconds_of_the_log(log: Path, tmp_path: Path) -> None:
+    lines = lines_of(log)
+    start = ns_of(lines[0]["time"])
+    within = [line for line in lines if ns_of(line["time"]) - start <= 500_000_000]
+    assert 0 < len(within) < len(lines)
+    report = json.loads(export(log, tmp_path / "half.mcap", "--json", after=("--duration", "0.5")).stdout)
+    assert report["records"] == len(within)
+    assert report["topics"][T.FRAMES] == len(within)
