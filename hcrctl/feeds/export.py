@@ -8,9 +8,11 @@ log line was written from the first event of its bytes, so is the message.
 
 A polling session repeats itself: the same requests, and replies that often
 say the same thing. Decoding and encoding are therefore done once per
-distinct (direction, bytes) and kept, at most ``CACHE_LIMIT`` of them (the
-cache starts over when full), so memory stays bounded whatever the log's
-size and a long log costs little more than reading it.
+distinct (direction, bytes) and kept in two generations of at most
+``CACHE_LIMIT`` each: when the young one is full it becomes the old one and
+the oldest is dropped, and an entry met again in the old one moves back to
+the young. What recurs (every request, a reading that holds still) stays;
+memory stays the same whatever the log's size.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from ..protocol.topics import FRAMES, LINK, Topic, all_topics, messages
 from .sinks import Prepared, Sink
 
 #: Distinct (direction, bytes) kept decoded and encoded.
-CACHE_LIMIT = 20_000
+CACHE_LIMIT = 8192
 #: Records between two calls of ``progress``.
 PROGRESS_EVERY = 10_000
 
@@ -101,7 +103,8 @@ def _export(
     progress: Callable[[ExportSummary], None] | None,
 ) -> ExportSummary:
     summary = ExportSummary()
-    cache: dict[tuple[str, bytes], list[Prepared]] = {}
+    young: dict[tuple[str, bytes], list[Prepared]] = {}
+    old: dict[tuple[str, bytes], list[Prepared]] = {}
     write, records, first, last = sink.write_prepared, 0, None, None
     for rec in read_log(path):
         t = rec.time
@@ -110,11 +113,12 @@ def _export(
         elif duration is not None and t - first > duration:
             break
         key = (rec.direction, rec.data)
-        prepared = cache.get(key)
+        prepared = young.get(key)
         if prepared is None:
-            if len(cache) >= CACHE_LIMIT:
-                cache.clear()
-            prepared = cache[key] = prepare(rec.direction, rec.data, rule, prof)
+            if len(young) >= CACHE_LIMIT:
+                old, young = young, {}
+            prepared = old.pop(key, None) or prepare(rec.direction, rec.data, rule, prof)
+            young[key] = prepared
         write(prepared, t, rec.fields.get("time"))
         records += 1
         last = t
