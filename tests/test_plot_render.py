@@ -9,7 +9,16 @@ from rich.console import Console
 
 from hcrctl.live.plotcanvas import BRAILLE_BASE, Canvas
 from hcrctl.live.plotchart import Charts, by_unit, chart_lines, x_axis, y_range
-from hcrctl.live.plotdata import MIN_GAP, PlotState, Trace, TraceView, capacity, gap_after, sensors_of
+from hcrctl.live.plotdata import (
+    BUCKETS,
+    MIN_GAP,
+    PlotState,
+    Trace,
+    TraceView,
+    capacity,
+    gap_after,
+    sensors_of,
+)
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.decoder import FrameDecoder
 from hcrctl.protocol.frames import encode
@@ -223,3 +232,16 @@ def test_plot_state_keeps_points_breaks_and_stations():
     assert [v for _, v in traces["compass.heading"].samples] == [12.5, None, 12.5]
     assert traces["position.d1@0x50"].latest == 0x50 and traces["position.d1@0x51"].latest == 0x51
     assert [t.index for t in state.traces()] == [0, 1, 2]
+
+
+def test_a_fast_poll_keeps_each_buckets_lowest_highest_and_latest():
+    step = WINDOW / BUCKETS
+    kept = Trace("sonar.1", find("sonar.1"), 0, keep=45.0, cap=capacity(30, None), step=step)
+    values = [50.0] * 10_000
+    values[4321] = 250.0  # one spike among a thousand samples a second
+    for i, value in enumerate(values):
+        kept.add(i * 0.001, value + (i % 3))
+    assert len(kept.samples) <= 3 * (10 / step + 1)
+    assert max(v for _, v in kept.samples) == 250.0 + 4321 % 3  # the spike survives
+    assert kept.samples[-1] == (9.999, 50.0 + 9999 % 3)  # and so does the latest value
+    assert [t for t, _ in kept.samples] == sorted(t for t, _ in kept.samples)

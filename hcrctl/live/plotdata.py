@@ -35,6 +35,8 @@ GAP_FACTOR = 3.0
 MIN_GAP = 0.25
 #: The hard cap on samples per trace (at ``--rate max`` or from a chatty broadcaster).
 MAX_SAMPLES = 20_000
+#: Buckets per window: each keeps at most its lowest, highest and latest sample.
+BUCKETS = 600
 #: Intervals the expected spacing of a trace is measured over.
 RECENT = 16
 
@@ -62,19 +64,46 @@ class TraceView:
 
 
 class Trace:
-    """Samples of one series, pruned to the last ``keep`` seconds."""
+    """Samples of one series, pruned to the last ``keep`` seconds, at most 3 per ``step`` seconds.
 
-    def __init__(self, label: str, series: Series, index: int, keep: float, cap: int) -> None:
-        self.label, self.series, self.index, self.keep = label, series, index, keep
+    A chart is a few hundred dots wide, so a poll at ``--rate max`` (a
+    thousand samples a second) brings nothing a window of 1/``BUCKETS``
+    of it can show beyond its lowest, highest and latest value: those are
+    kept, so a spike still shows, and drawing a frame stays cheap.
+    """
+
+    def __init__(
+        self, label: str, series: Series, index: int, keep: float, cap: int, step: float = 0.0
+    ) -> None:
+        self.label, self.series, self.index, self.keep, self.step = label, series, index, keep, step
         self.samples: deque[Sample] = deque(maxlen=cap)
 
     def add(self, at: float, value: float | None) -> None:
         samples = self.samples
         if value is None and samples and samples[-1][1] is None:
             return  # one break is enough: a dead sensor does not fill the memory with them
-        samples.append((at, value))
+        if value is not None and self.step > 0:
+            self._merge(at, value)
+        else:
+            samples.append((at, value))
         while samples[0][0] < at - self.keep:
             samples.popleft()
+
+    def _merge(self, at: float, value: float) -> None:
+        """Append, keeping only the lowest, highest and latest of the samples in ``at``'s bucket."""
+        samples, bucket = self.samples, at // self.step
+        group: list[Sample] = []
+        while (
+            samples
+            and len(group) < 3
+            and samples[-1][1] is not None
+            and samples[-1][0] // self.step == bucket
+        ):
+            group.append(samples.pop())
+        group = [*reversed(group), (at, value)]
+        lowest = min(group, key=lambda s: s[1] if s[1] is not None else 0.0)
+        highest = max(group, key=lambda s: s[1] if s[1] is not None else 0.0)
+        samples.extend(sorted({lowest, highest, group[-1]}))
 
     def view(self, period: float) -> TraceView:
         return TraceView(
@@ -130,7 +159,9 @@ class PlotState(LiveState):
     def _trace(self, label: str, series: Series) -> Trace:
         trace = self._traces.get(label)
         if trace is None:
-            trace = self._traces[label] = Trace(label, series, len(self._traces), self._keep, self._cap)
+            step = self.window / BUCKETS
+            trace = Trace(label, series, len(self._traces), self._keep, self._cap, step)
+            self._traces[label] = trace
         return trace
 
     def record(self, name: str, value: C.Reply, rtt: float | None) -> None:
