@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import statistics
 import threading
 import time
 from collections import deque
@@ -119,7 +118,7 @@ def gap_after(samples: Sequence[Sample], period: float) -> float:
     """
     recent = list(itertools.islice(reversed(samples), RECENT + 1))[::-1]
     steps = [b[0] - a[0] for a, b in itertools.pairwise(recent) if a[1] is not None and b[1] is not None]
-    usual = max(period, statistics.median(steps) if steps else 0.0)
+    usual = max(period, sorted(steps)[len(steps) // 2] if steps else 0.0)
     return max(MIN_GAP, GAP_FACTOR * usual)
 
 
