@@ -245,3 +245,13 @@ def test_a_fast_poll_keeps_each_buckets_lowest_highest_and_latest():
     assert max(v for _, v in kept.samples) == 250.0 + 4321 % 3  # the spike survives
     assert kept.samples[-1] == (9.999, 50.0 + 9999 % 3)  # and so does the latest value
     assert [t for t, _ in kept.samples] == sorted(t for t, _ in kept.samples)
+
+
+def test_a_short_screen_says_which_charts_it_left_out():
+    heading = trace("compass.heading", every(30, 0, 90.0), index=0)
+    wheel = trace("wheels.left", every(30, 0, 10.0), index=1)
+    temperature = trace("env.temperature", every(30, 0, 21.0), index=2)
+    lines = text_of(Charts([heading, wheel, temperature], NOW, WINDOW, height=9), 80).splitlines()
+    assert len(lines) == 9
+    assert lines[-1] == "not shown (too short): env.temperature"
+    assert "compass.heading" in lines[0] and "wheels.left" in lines[4]

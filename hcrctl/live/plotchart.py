@@ -63,11 +63,16 @@ class Charts:
             return
         total = self.height or options.height or CHART_LINES * len(groups)
         shown = max(1, min(len(groups), total // MIN_LINES))
-        heights = _shares(max(total, MIN_LINES * shown), shown)
+        if shown < len(groups):  # a line to say which charts the terminal is too short for
+            shown = max(1, min(shown, (total - 1) // MIN_LINES))
+        heights = _shares(max(total - (shown < len(groups)), MIN_LINES * shown), shown)
         for group, height in zip(groups, heights, strict=False):
             yield from chart_lines(
                 group, self.now, self.window, options.max_width, height, options.ascii_only
             )
+        if shown < len(groups):
+            hidden = ", ".join(t.label for group in groups[shown:] for t in group)
+            yield Text(f"not shown (too short): {hidden}", style="yellow", no_wrap=True, overflow="crop")
 
 
 def _shares(total: int, parts: int) -> list[int]:
