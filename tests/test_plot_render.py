@@ -255,3 +255,13 @@ def test_a_short_screen_says_which_charts_it_left_out():
     assert len(lines) == 9
     assert lines[-1] == "not shown (too short): env.temperature"
     assert "compass.heading" in lines[0] and "wheels.left" in lines[4]
+
+
+@pytest.mark.parametrize("braille", [True, False])
+def test_a_vertical_stroke_sets_the_same_dots_as_point_by_point(braille):
+    for y0, y1 in ((0, 11), (3, 6), (9, 2), (5, 5), (-4, 30)):
+        fast, slow = Canvas(2, 3, braille), Canvas(2, 3, braille)
+        fast.line(1, y0, 1, y1, 0)
+        for y in range(min(y0, y1), max(y0, y1) + 1):
+            slow.point(1, y, 0)
+        assert fast.rows() == slow.rows(), (y0, y1)

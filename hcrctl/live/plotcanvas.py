@@ -45,8 +45,23 @@ class Canvas:
         self._bits[row[0]][col[0]] |= bit
         self._owner[row[0]][col[0]] = series
 
+    def vline(self, x: int, y0: int, y1: int, series: int) -> None:
+        """Every point from (x, y0) to (x, y1): a cell's worth of dots at a time (a plot's strokes)."""
+        top, bottom = max(0, min(y0, y1)), min(self.height * self.dy - 1, max(y0, y1))
+        if not 0 <= x < self.width * self.dx or top > bottom:
+            return
+        col, sub = divmod(x, self.dx)
+        column = BRAILLE_BITS[sub] if self.braille else (1,)
+        for row in range(top // self.dy, bottom // self.dy + 1):
+            first = row * self.dy
+            self._bits[row][col] |= sum(column[max(top - first, 0) : min(bottom - first, self.dy - 1) + 1])
+            self._owner[row][col] = series
+
     def line(self, x0: int, y0: int, x1: int, y1: int, series: int) -> None:
         """Every point from (x0, y0) to (x1, y1) (Bresenham), both ends included."""
+        if x0 == x1:
+            self.vline(x0, y0, y1, series)
+            return
         dx, dy = abs(x1 - x0), -abs(y1 - y0)
         sx, sy = (1 if x0 < x1 else -1), (1 if y0 < y1 else -1)
         err = dx + dy
