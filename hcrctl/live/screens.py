@@ -27,6 +27,7 @@ from .panels import (
     panel_title,
     positioning_panel,
 )
+from .plotchart import PlotPanel
 from .sensorpanels import PanelSpec, panel_for
 from .state import DriveStatus, Reading, View
 
@@ -40,9 +41,13 @@ WATCH_KEYS = "q quit · space stop · p pause · r reset counters"
 TELEOP_KEYS = "↑↓←→/wasd drive · +/- speed · space/k stop · q quit"
 
 
+PLOT_KEYS = "q quit · space stop · p pause"
+
+
 #: Shorter key lines for narrower screens, longest first: "q quit" is always on the screen.
 SHORTER_KEYS = {
     WATCH_KEYS: ("q quit · space stop · p pause · r reset", "q quit · space stop · p pause", "q quit · space stop"),
+    PLOT_KEYS: ("q quit · space stop",),
     TELEOP_KEYS: ("wasd drive · +/- speed · space stop · q quit", "wasd drive · space stop · q quit",
                   "space stop · q quit"),
 }  # fmt: skip
@@ -81,7 +86,12 @@ def reading_key(reading: Reading, now: float) -> tuple[object, ...]:
 
 
 def dashboard(
-    view: View, now: float, keys: str = WATCH_KEYS, cache: dict | None = None, fit: bool = False
+    view: View,
+    now: float,
+    keys: str = WATCH_KEYS,
+    cache: dict | None = None,
+    fit: bool = False,
+    plot: PlotPanel | None = None,
 ) -> Group:
     """The ``watch`` screen: three columns of panels between a header and a footer.
 
@@ -89,12 +99,18 @@ def dashboard(
     reuse their rendered lines; the picture is the same with or without it.
     ``fit`` (a full-screen terminal) switches to compact panels when the full
     ones would not fit its height (80x24 shows every panel), and crops what
-    still does not, so the keys in the footer stay on the screen.
+    still does not, so the keys in the footer stay on the screen. ``plot``
+    (``watch --plot``) goes full width above the panels, which get what is left.
     """
     body = SideBySide(
-        dashboard_columns(view, now), cache=cache, compact=dashboard_columns(view, now, compact=True), fit=fit
+        dashboard_columns(view, now),
+        cache=cache,
+        compact=dashboard_columns(view, now, compact=True),
+        fit=fit,
+        reserve=2 + (plot.height if plot is not None else 0),
     )
-    return Group(header("hcrctl watch", view), body, footer(keys, view.note))
+    above: tuple[RenderableType, ...] = (plot,) if plot is not None else ()
+    return Group(header("hcrctl watch", view), *above, body, footer(keys, view.note))
 
 
 #: The dashboard's columns, left to right; a read's ``column`` in the table picks one.
