@@ -1,0 +1,130 @@
+"""``hcrctl bridge``: the robot on the Foxglove WebSocket protocol, live, for any number of viewers.
+
+One serial link, polled like ``watch`` (``Feed``); every message it yields is
+logged once on its topic's channel and the SDK fans it out to each subscribed
+client and to the ``--mcap`` file. A client may drive through ``/cmd_vel``
+(``Driver``), under teleop's deadman and bumper rules.
+
+How it ends: ``--duration``, Ctrl-C, SIGTERM or SIGHUP (turned into a flag the
+loop reads, so the server, the driver and the recording all close in order),
+or a failure. Stop goes out whenever motion was sent (``stopping()``), and
+the run's summary is printed however it ends, so the bench can compare the
+sweep rate with ``watch --json``'s.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from ..link.context import Connection, Reconnect
+from ..link.dialects import supported_sensors
+from ..link.rescue import stopping, warn
+from ..link.signals import Terminated, stop_signals_handled
+from ..live.watch import quick_handoff
+from ..protocol import commands as C
+from ..protocol.topics import all_topics
+from .bridge_drive import Driver
+from .bridge_status import Status
+from .cmdvel import TOPIC
+from .source import Feed
+
+Report = Callable[[dict[str, Any]], None]
+
+
+@dataclass
+class Options:
+    """What ``hcrctl bridge`` was asked for (validated by the CLI)."""
+
+    host: str = "127.0.0.1"
+    port: int = 8765
+    mcap: str | None = None
+    rate: float | None = 10.0
+    duration: float | None = None
+    timeout: float = 0.5
+
+
+class Signalled:
+    """SIGTERM/SIGHUP as a flag: the loop ends and everything closes before the exit status says why."""
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+
+    def __call__(self, signum: int, frame: object) -> None:
+        self.signum = signum
+
+    def __bool__(self) -> bool:
+        return self.signum is not None
+
+
+def is_loopback(host: str) -> bool:
+    if host.lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+def url(host: str, port: int) -> str:
+    shown = f"[{host}]" if ":" in host else host
+    return f"ws://{shown}:{port}"
+
+
+def run_bridge(settings: Connection, options: Options, *, report: Report | None = None) -> dict[str, Any]:
+    """Serve until the duration ends or a signal; the summary (also given to ``report``, however it ends)."""
+    from .bridge_server import Server
+
+    if not is_loopback(options.host):
+        warn(f"listening on {options.host}: anyone on the network who can reach it can drive the robot")
+    names = supported_sensors(settings.protocol, [])
+    signalled = Signalled()
+    with settings.robot() as robot, quick_handoff():
+        drives = robot.profile.has(C.BY_NAME["velocity"].code)
+        server = Server(all_topics(Feed.counters), options.host, options.port, None, options.mcap)
+        feed = Feed(robot, names, options.rate, server.publish, reconnect=Reconnect(settings, robot))
+        status = Status(sys.stderr)
+        driver = Driver(lambda: feed.current, feed.state, options.timeout, status.note)
+        server.listener.driver = driver if drives else None
+        summary: dict[str, Any] = {}
+        try:
+            with stop_signals_handled(signalled), server:
+                status.start(url(options.host, server.bound_port), server, feed, driver)
+                if not drives:
+                    status.note(
+                        f"this firmware ({robot.profile.name}) has no velocity command: {TOPIC} is off"
+                    )
+                with feed, stopping(robot), driver:
+                    feed.run(options.duration, lambda: bool(signalled) or driver.error is not None)
+                    if driver.error is not None:
+                        raise driver.error
+        finally:
+            status.stop()
+            summary = _summary(feed, server.clients.most, driver.frames)
+            if report is not None:
+                report(summary)
+    if signalled.signum is not None:
+        raise Terminated(signalled.signum)
+    return summary
+
+
+def _summary(feed: Feed, clients: int, drive_frames: int) -> dict[str, Any]:
+    """watch's summary (sweeps, sweeps_per_s...) plus what only the bridge has."""
+    summary = dict(feed.state.summary())
+    summary.pop("latest", None)
+    summary.pop("stations", None)
+    summary.update(messages=feed.messages, clients_most=clients, drive_frames=drive_frames)
+    return summary
+
+
+def summary_line(summary: dict[str, Any]) -> str:
+    rate = summary.get("sweeps_per_s")
+    shown = f"{rate:g} sweeps/s" if rate else "no sweep rate"
+    return (
+        f"bridge: {summary.get('sweeps', 0)} sweeps in {summary.get('seconds', 0):g} s ({shown}), "
+        f"{summary['messages']} messages, at most {summary['clients_most']} client(s), "
+        f"{summary['drive_frames']} drive frame(s)"
+    )
