@@ -18,7 +18,7 @@ import ipaddress
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..link.context import Connection, Reconnect
 from ..link.dialects import supported_sensors
@@ -26,11 +26,15 @@ from ..link.rescue import stopping, warn
 from ..link.signals import Terminated, stop_signals_handled
 from ..live.watch import quick_handoff
 from ..protocol import commands as C
+from ..protocol.profiles import profile
 from ..protocol.topics import all_topics
 from .bridge_drive import Driver
 from .bridge_status import Status
 from .cmdvel import TOPIC
 from .source import Feed
+
+if TYPE_CHECKING:
+    from .bridge_server import Server
 
 Report = Callable[[dict[str, Any]], None]
 
@@ -75,39 +79,59 @@ def url(host: str, port: int) -> str:
 
 
 def run_bridge(settings: Connection, options: Options, *, report: Report | None = None) -> dict[str, Any]:
-    """Serve until the duration ends or a signal; the summary (also given to ``report``, however it ends)."""
+    """Serve until the duration ends or a signal; the summary (also given to ``report``, however it ends).
+
+    The server binds before the robot's port opens, so an address in use
+    fails at once with nothing sent.
+    """
     from .bridge_server import Server
 
     if not is_loopback(options.host):
         warn(f"listening on {options.host}: anyone on the network who can reach it can drive the robot")
     names = supported_sensors(settings.protocol, [])
+    firmware = profile(settings.protocol)
+    drives = firmware.has(C.BY_NAME["velocity"].code)
     signalled = Signalled()
+    status = Status(sys.stderr)
+    driver = Driver(options.timeout, status.note)
+    server = Server(
+        all_topics(Feed.counters), options.host, options.port, options.mcap, driver if drives else None
+    )
+    with stop_signals_handled(signalled), server:
+        status.start(url(options.host, server.bound_port))
+        if not drives:
+            status.note(f"this firmware ({firmware.name}) has no velocity command: {TOPIC} is off")
+        summary = _serve(settings, options, server, driver, names, status, lambda: bool(signalled), report)
+    if signalled.signum is not None:
+        raise Terminated(signalled.signum)
+    return summary
+
+
+def _serve(
+    settings: Connection,
+    options: Options,
+    server: Server,
+    driver: Driver,
+    names: list[str],
+    status: Status,
+    signalled: Callable[[], bool],
+    report: Report | None,
+) -> dict[str, Any]:
+    """Poll and publish, and drive when asked, until the end; stop goes out however it ends."""
     with settings.robot() as robot, quick_handoff():
-        drives = robot.profile.has(C.BY_NAME["velocity"].code)
-        server = Server(all_topics(Feed.counters), options.host, options.port, None, options.mcap)
         feed = Feed(robot, names, options.rate, server.publish, reconnect=Reconnect(settings, robot))
-        status = Status(sys.stderr)
-        driver = Driver(lambda: feed.current, feed.state, options.timeout, status.note)
-        server.listener.driver = driver if drives else None
-        summary: dict[str, Any] = {}
+        driver.attach(lambda: feed.current, feed.state)
         try:
-            with stop_signals_handled(signalled), server:
-                status.start(url(options.host, server.bound_port), server, feed, driver)
-                if not drives:
-                    status.note(
-                        f"this firmware ({robot.profile.name}) has no velocity command: {TOPIC} is off"
-                    )
-                with feed, stopping(robot), driver:
-                    feed.run(options.duration, lambda: bool(signalled) or driver.error is not None)
-                    if driver.error is not None:
-                        raise driver.error
+            status.watch(server, feed, driver)
+            with feed, stopping(robot), driver:
+                feed.run(options.duration, lambda: signalled() or driver.error is not None)
+                if driver.error is not None:
+                    raise driver.error
         finally:
             status.stop()
             summary = _summary(feed, server.clients.most, driver.frames)
             if report is not None:
                 report(summary)
-    if signalled.signum is not None:
-        raise Terminated(signalled.signum)
     return summary
 
 

@@ -34,14 +34,12 @@ Note = Callable[[str], None]
 class Driver:
     """Owns ``/cmd_vel``: callbacks hand over, its thread decides and writes."""
 
-    def __init__(
-        self, robot: Callable[[], Robot | None], state: LiveState, timeout: float, note: Note
-    ) -> None:
+    def __init__(self, timeout: float, note: Note) -> None:
         self.rules = CmdVel(timeout)
         self.frames = 0
         self.error: HcrError | None = None
-        self._robot = robot
-        self._state = state
+        self._robot: Callable[[], Robot | None] = lambda: None
+        self._state: LiveState | None = None
         self._note = note
         self._inbox: queue.SimpleQueue[tuple[str, Publisher, Any]] = queue.SimpleQueue()
         self._channels: set[Publisher] = set()
@@ -64,6 +62,13 @@ class Driver:
         self._inbox.put(("unadvertise", (client, channel), None))
 
     # -- the thread ----------------------------------------------------------------------
+
+    def attach(self, robot: Callable[[], Robot | None], state: LiveState) -> None:
+        """Where to write and where the bumpers are: known once the port is open (what came before waits)."""
+        self._robot, self._state = robot, state
+
+    def _bumped(self) -> bool:
+        return self._state is not None and bumper_hit(self._state)
 
     def __enter__(self) -> Driver:
         self._thread.start()
@@ -112,14 +117,14 @@ class Driver:
                 self._note(f"client {publisher[0]}: {TOPIC} ignored: {exc}")
             return
         driver = self.rules.driver
-        if not self.rules.message(publisher, wheels, at, bumper_hit(self._state)):
+        if not self.rules.message(publisher, wheels, at, self._bumped()):
             return
         if driver != publisher:
             self._note(f"client {publisher[0]} drives the robot ({TOPIC})")
 
     def _turn(self, now: float) -> None:
         """The deadman and the bumpers, then the wire: a change at once, a repeat every RESEND."""
-        self.rules.check(now, bumper_hit(self._state))
+        self.rules.check(now, self._bumped())
         wheels = self.rules.wheels
         if self.rules.version != self._seen:
             self._seen = self.rules.version

@@ -87,7 +87,7 @@ class Server:
     """Serve ``topics`` on ``host:port`` (and record them to ``mcap``) between enter and exit."""
 
     def __init__(
-        self, topics: Iterable[Topic], host: str, port: int, driver: Driver | None, mcap: str | None
+        self, topics: Iterable[Topic], host: str, port: int, mcap: str | None, driver: Driver | None
     ) -> None:
         self.topics = tuple(topics)
         self.host, self.port = host, port
@@ -134,13 +134,12 @@ class Server:
         self.channels[topic].log(message, log_time=int(at * 1e9))
 
     def _start(self) -> WebSocketServer:
-        driving = self.listener.driver is not None
         try:
             return foxglove.start_server(
                 name=SERVER_NAME,
                 host=self.host,
                 port=self.port,
-                capabilities=[Capability.ClientPublish] if driving else [],
+                capabilities=[Capability.ClientPublish] if self.listener.driver else [],
                 supported_encodings=["json"],
                 server_listener=self.listener,
                 context=self.context,

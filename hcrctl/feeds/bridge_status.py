@@ -32,11 +32,14 @@ class Status:
         self._thread: threading.Thread | None = None
         self._shown = False
 
-    def start(self, address: str, server: Server, feed: Feed, driver: Driver) -> None:
+    def start(self, address: str) -> None:
         self._write(
             f"{PREFIX}serving on {address} (Foxglove WebSocket, subprotocol foxglove.sdk.v1); "
             "Ctrl-C ends it\n"
         )
+
+    def watch(self, server: Server, feed: Feed, driver: Driver) -> None:
+        """The status line, redrawn on a terminal (elsewhere only the events are written)."""
         if self.live:
             self._thread = threading.Thread(
                 target=self._run, args=(server, feed, driver), name="hcrctl-bridge-status", daemon=True
