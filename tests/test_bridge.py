@@ -246,19 +246,29 @@ def test_sigterm_while_driving_stops_the_robot(env: dict[str, str], pty_robot: P
     assert pty_robot.received()[-1] == STOP_FRAME
 
 
-def test_the_bridge_records_what_it_serves_to_mcap(env: dict[str, str], tmp_path: Path) -> None:
+@pytest.mark.parametrize("ending", ["duration", "sigterm"])
+def test_the_bridge_records_what_it_serves_to_mcap(env: dict[str, str], tmp_path: Path, ending: str) -> None:
     from mcap.reader import make_reader
 
     out = tmp_path / "served.mcap"
-    with bridge("sim://", "--mcap", str(out), "--duration", "2", "--rate", "20", env=env) as running:
-        code, _ = running.finish(None)
-    assert code == 0, running.lines
+    args = ["--mcap", str(out), "--rate", "20", *(["--duration", "2"] if ending == "duration" else [])]
+    with bridge("sim://", *args, env=env) as running:
+        if ending == "sigterm":
+            with viewer(running.port) as client:
+                client.subscribe("/hcr/compass", 1)
+                served = client.data(1)[1]
+            code, _ = running.finish(signal.SIGTERM)
+            assert code == 128 + signal.SIGTERM
+        else:
+            code, _ = running.finish(None)
+            assert code == 0, running.lines
     with out.open("rb") as f:
         reader = make_reader(f)
         summary = reader.get_summary()
         assert summary is not None
         channels = {c.topic: c for c in summary.channels.values()}
-        assert set(channels) == set(TOPICS)
+        polled = {f"/hcr/{name}" for name in C.SENSORS} | {"/hcr/frames", "/hcr/link"}
+        assert polled <= set(channels) <= set(TOPICS)  # a topic is written with its first message
         for name, channel in channels.items():
             schema = summary.schemas[channel.schema_id]
             assert (channel.message_encoding, schema.encoding) == ("json", "jsonschema")
@@ -267,3 +277,5 @@ def test_the_bridge_records_what_it_serves_to_mcap(env: dict[str, str], tmp_path
             json.loads(m.data)["heading"] for _, c, m in reader.iter_messages(topics=["/hcr/compass"])
         ]
     assert headings and all(0 <= h < 360 for h in headings)
+    if ending == "sigterm":
+        assert served["heading"] in headings

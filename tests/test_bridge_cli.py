@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import re
 import socket
 import subprocess
 from pathlib import Path
 
 import pytest
-from helpers import TIMEOUT, hcrctl_exe
+from helpers import TIMEOUT, hcrctl_exe, terminal
+from test_bridge import viewer
 
 
 def run(args: list[str], env: dict[str, str]) -> subprocess.CompletedProcess[str]:
@@ -73,3 +75,16 @@ def test_without_the_sdk_one_line_names_the_extra(env: dict[str, str], tmp_path:
     assert result.returncode == 1
     lines = result.stderr.splitlines()
     assert len(lines) == 1 and "pip install 'hcrctl[foxglove]'" in lines[0], result.stderr
+
+
+def test_on_a_terminal_a_status_line_counts_clients_and_messages() -> None:
+    with terminal(["--port", "sim://", "bridge", "--listen", "127.0.0.1:0"]) as term:
+        port = int(re.search(r"ws://127\.0\.0\.1:(\d+)", term.wait_for(r"serving on ws://\S+:\d+")).group(1))
+        term.wait_for(r"0 client\(s\) · [\d,]+ messages/s")
+        with viewer(port) as client:
+            client.subscribe("/hcr/compass", 1)
+            client.data(1)
+            term.wait_for(r"1 client\(s\) · [\d,]+ messages/s · [\d,]+ sent · not driving")
+        term.send("\x03")
+        assert term.finish() == 130
+        assert re.search(r"bridge: \d+ sweeps in [\d.]+ s .* at most 1 client\(s\)", term.text())
