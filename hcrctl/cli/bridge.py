@@ -8,6 +8,7 @@ from typing import Any
 import click
 
 from ..errors import HcrError
+from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
 from .params import FloatRange
 from .settings import Settings
 
@@ -56,7 +57,7 @@ class Listen(click.ParamType):
 @click.option(
     "--timeout",
     type=FloatRange(0.05, 10),
-    default=0.5,
+    default=DEFAULT_TIMEOUT_S,
     show_default=True,
     metavar="S",
     help="Deadman: stop when no /cmd_vel message arrives for S seconds.",

@@ -82,15 +82,15 @@ def run_bridge(settings: Connection, options: Options, *, report: Report | None 
     """Serve until the duration ends or a signal; the summary (also given to ``report``, however it ends).
 
     The server binds before the robot's port opens, so an address in use
-    fails at once with nothing sent.
+    fails at once with nothing sent; where it serves is said once both are
+    open, so either failure is the one line on stderr.
     """
     from .bridge_server import Server
 
     if not is_loopback(options.host):
         warn(f"listening on {options.host}: anyone on the network who can reach it can drive the robot")
     names = supported_sensors(settings.protocol, [])
-    firmware = profile(settings.protocol)
-    drives = firmware.has(C.BY_NAME["velocity"].code)
+    drives = profile(settings.protocol).has(C.BY_NAME["velocity"].code)
     signalled = Signalled()
     status = Status(sys.stderr)
     driver = Driver(options.timeout, status.note)
@@ -98,9 +98,6 @@ def run_bridge(settings: Connection, options: Options, *, report: Report | None 
         all_topics(Feed.counters), options.host, options.port, options.mcap, driver if drives else None
     )
     with stop_signals_handled(signalled), server:
-        status.start(url(options.host, server.bound_port))
-        if not drives:
-            status.note(f"this firmware ({firmware.name}) has no velocity command: {TOPIC} is off")
         summary = _serve(settings, options, server, driver, names, status, lambda: bool(signalled), report)
     if signalled.signum is not None:
         raise Terminated(signalled.signum)
@@ -119,6 +116,9 @@ def _serve(
 ) -> dict[str, Any]:
     """Poll and publish, and drive when asked, until the end; stop goes out however it ends."""
     with settings.robot() as robot, quick_handoff():
+        status.start(url(options.host, server.bound_port))
+        if server.listener.driver is None:
+            status.note(f"this firmware ({robot.profile.name}) has no velocity command: {TOPIC} is off")
         feed = Feed(robot, names, options.rate, server.publish, reconnect=Reconnect(settings, robot))
         driver.attach(lambda: feed.current, feed.state)
         try:
