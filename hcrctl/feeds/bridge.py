@@ -30,7 +30,7 @@ from ..protocol.profiles import profile
 from ..protocol.topics import all_topics
 from .bridge_drive import Driver
 from .bridge_status import Status
-from .cmdvel import TOPIC
+from .cmdvel import DEFAULT_TIMEOUT_S, TOPIC
 from .source import Feed
 
 if TYPE_CHECKING:
@@ -48,16 +48,24 @@ class Options:
     mcap: str | None = None
     rate: float | None = 10.0
     duration: float | None = None
-    timeout: float = 0.5
+    timeout: float = DEFAULT_TIMEOUT_S
 
 
 class Signalled:
-    """SIGTERM/SIGHUP as a flag: the loop ends and everything closes before the exit status says why."""
+    """SIGTERM/SIGHUP as a flag: the loop ends and everything closes before the exit status says why.
+
+    Once the loop is over (``closing``), or at a second signal, one raises
+    ``Terminated`` as everywhere else, so a stop rescue waiting for a lost
+    port gives up on it as ``rescue`` promises.
+    """
 
     def __init__(self) -> None:
         self.signum: int | None = None
+        self.closing = False
 
     def __call__(self, signum: int, frame: object) -> None:
+        if self.closing or self.signum is not None:
+            raise Terminated(signum)
         self.signum = signum
 
     def __bool__(self) -> bool:
@@ -98,7 +106,7 @@ def run_bridge(settings: Connection, options: Options, *, report: Report | None 
         all_topics(Feed.counters), options.host, options.port, options.mcap, driver if drives else None
     )
     with stop_signals_handled(signalled), server:
-        summary = _serve(settings, options, server, driver, names, status, lambda: bool(signalled), report)
+        summary = _serve(settings, options, server, driver, names, status, signalled, report)
     if signalled.signum is not None:
         raise Terminated(signalled.signum)
     return summary
@@ -111,7 +119,7 @@ def _serve(
     driver: Driver,
     names: list[str],
     status: Status,
-    signalled: Callable[[], bool],
+    signalled: Signalled,
     report: Report | None,
 ) -> dict[str, Any]:
     """Poll and publish, and drive when asked, until the end; stop goes out however it ends."""
@@ -124,7 +132,10 @@ def _serve(
         try:
             status.watch(server, feed, driver)
             with feed, stopping(robot), driver:
-                feed.run(options.duration, lambda: signalled() or driver.error is not None)
+                try:
+                    feed.run(options.duration, lambda: bool(signalled) or driver.error is not None)
+                finally:
+                    signalled.closing = True
                 if driver.error is not None:
                     raise driver.error
         finally:
@@ -138,8 +149,6 @@ def _serve(
 def _summary(feed: Feed, clients: int, drive_frames: int) -> dict[str, Any]:
     """watch's summary (sweeps, sweeps_per_s...) plus what only the bridge has."""
     summary = dict(feed.state.summary())
-    summary.pop("latest", None)
-    summary.pop("stations", None)
     summary.update(messages=feed.messages, clients_most=clients, drive_frames=drive_frames)
     return summary
 
