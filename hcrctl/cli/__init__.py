@@ -44,6 +44,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "teleop": ("hcrctl.cli.teleop:teleop", "Drive the robot with the arrow keys or WASD (deadman stop)."),
     "hex": ("hcrctl.cli.hex:hex_group", "Decode, encode and send raw frames (the hex debugger)."),
     "monitor": ("hcrctl.cli.monitor:monitor", "Watch every frame on the line, decoded, with counters."),
+    "bridge": ("hcrctl.cli.bridge:bridge", "Serve the robot live to Foxglove; drive it from /cmd_vel."),
     "replay": ("hcrctl.cli.replay:replay", "Re-send the requests of a --log file with their timing."),
     "shell": ("hcrctl.shell.command:shell", "The interactive session: every command, one connection."),
 }
