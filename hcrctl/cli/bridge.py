@@ -9,11 +9,9 @@ import click
 
 from ..errors import HcrError
 from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
-from .params import FloatRange
+from .params import MAX_DURATION_S, FloatRange, Rate
 from .settings import Settings
 
-MAX_RATE = 1000.0
-MAX_DURATION_S = 864_000
 EXTRA = "pip install 'hcrctl[foxglove]'"
 
 
@@ -43,7 +41,7 @@ class Listen(click.ParamType):
 @click.option("--mcap", metavar="FILE", help="Also record every message served to this MCAP file.")
 @click.option(
     "--rate",
-    type=FloatRange(0, MAX_RATE, min_open=True, unit="Hz", words={"max": None}),
+    type=Rate(),
     default="10",
     show_default=True,
     help="Sweeps per second, or max.",

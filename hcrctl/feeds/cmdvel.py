@@ -23,6 +23,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from ..link.rescue import DEADMAN_S
 from ..protocol import commands as C
 from ..sim.body import WHEEL_BASE_CM
 
@@ -30,7 +31,7 @@ TOPIC = "/cmd_vel"
 #: What the Teleop panel advertises (ROS 1 spelling; ROS 2 clients say geometry_msgs/msg/Twist).
 SCHEMA_NAMES = ("geometry_msgs/Twist", "geometry_msgs/msg/Twist")
 #: The deadman's default: teleop's (``hcrctl teleop --timeout``).
-DEFAULT_TIMEOUT_S = 0.5
+DEFAULT_TIMEOUT_S = DEADMAN_S
 STILL = (0, 0)
 
 #: Who publishes: (client id, client channel id).
