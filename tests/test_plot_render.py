@@ -265,3 +265,11 @@ def test_a_vertical_stroke_sets_the_same_dots_as_point_by_point(braille):
         for y in range(min(y0, y1), max(y0, y1) + 1):
             slow.point(1, y, 0)
         assert fast.rows() == slow.rows(), (y0, y1)
+
+
+def test_the_too_small_hint_counts_the_rows_a_plot_takes() -> None:
+    from hcrctl.live.screens import left_out
+
+    columns = [[("map", [[]] * 12)]]
+    assert left_out(columns, 10, "80x12") == " cut: map (80x12 is too small, 80x24 shows all)"
+    assert left_out(columns, 10, "80x22", reserve=14).endswith("(80x22 is too small, 80x36 shows all)")

@@ -192,7 +192,7 @@ class SideBySide:
                 columns, width = self._layout(console, options, self.compact, fresh)
             if _tallest(columns) > room:
                 room = max(1, room - 1)  # a line to say what is missing
-                missing = left_out(columns, room, f"{options.max_width}x{options.max_height}")
+                missing = left_out(columns, room, f"{options.max_width}x{options.max_height}", self.reserve)
         if self.cache is not None:  # keep only what this frame used
             self.cache.clear()
             self.cache.update(fresh)
@@ -242,10 +242,12 @@ def _tallest(columns: list[list[Block]]) -> int:
     return max((sum(len(lines) for _, lines in col) for col in columns), default=0)
 
 
-def left_out(columns: list[list[Block]], room: int, size: str) -> str:
+def left_out(columns: list[list[Block]], room: int, size: str, reserve: int = 2) -> str:
     """``not shown: map, link; cut: IR (60x20 is too small, 80x24 shows all)``, or "".
 
-    The names come first: a narrow screen crops the hint, not the news."""
+    The names come first: a narrow screen crops the hint, not the news. A
+    plot above the panels (``reserve`` beyond the header and footer's 2)
+    needs that many more rows for all of them."""
     hidden, cut = [], []
     for col in columns:
         top = 0
@@ -259,7 +261,8 @@ def left_out(columns: list[list[Block]], room: int, size: str) -> str:
         return ""
     said = [f"not shown: {', '.join(hidden)}"] if hidden else []
     said += [f"cut: {', '.join(cut)}"] if cut else []
-    return f" {'; '.join(said)} ({size} is too small, {ALL_PANELS_FIT} shows all)"
+    cols, rows = ALL_PANELS_FIT.split("x")
+    return f" {'; '.join(said)} ({size} is too small, {cols}x{int(rows) + reserve - 2} shows all)"
 
 
 def _pour(blocks: list[Block], n: int) -> list[list[Block]]:
