@@ -169,7 +169,8 @@ def _valid(param: click.Parameter, tmp: Path) -> str:
         return repr((kind.min + kind.max) / 2)
     if isinstance(kind, P.IntRange) and kind.min is not None:
         return str(kind.min + (1 if kind.min_open else 0))
-    return "55"
+    offered = kind.shell_complete(click.Context(click.Command("valid")), param, "")
+    return offered[0].value if offered else "55"  # a named value (a plot FIELD) is one the type offers
 
 
 def command_args(numeric: Numeric, value: str, tmp: Path) -> list[str]:

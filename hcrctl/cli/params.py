@@ -107,6 +107,21 @@ class FloatRange(click.FloatRange):
         return f"{low}x{high}{unit}{words}"
 
 
+#: The fastest ``--rate`` of the live views (watch, plot).
+MAX_RATE = 1000.0
+#: The longest ``--duration``: ten days.
+MAX_DURATION_S = 864_000
+
+
+class Rate(FloatRange):
+    """Polls per second, or ``max``: as fast as the device answers (watch and plot)."""
+
+    name = "HZ|max"
+
+    def __init__(self) -> None:
+        super().__init__(0, MAX_RATE, min_open=True, unit="Hz", words={"max": None})
+
+
 class ByteNumber(IntRange):
     """A byte given in decimal or 0x-hex, such as an address: 1, 0x01, 0x50."""
 
@@ -231,3 +246,39 @@ def table_command(
         return command
 
     return decorator
+
+
+class SeriesField(click.ParamType):
+    """A reading field to plot (``compass.heading``, ``sonar.1``), named as ``protocol.series`` names it.
+
+    The names are the table's (``series.paths()``), so completion offers a
+    plugin's fields too, and a typo is refused with the closest names.
+    """
+
+    name = "FIELD"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        from ..protocol import series
+
+        if isinstance(value, series.Series):
+            return value
+        try:
+            return series.find(str(value).strip())
+        except KeyError as exc:
+            self.fail(str(exc.args[0]), param, ctx)
+
+    def shell_complete(self, ctx: click.Context, param: click.Parameter, incomplete: str) -> list[Any]:
+        return complete_field(ctx, param, incomplete)
+
+
+def complete_field(ctx: click.Context | None, param: click.Parameter | None, incomplete: str) -> list[Any]:
+    """The field paths starting with ``incomplete``, each with its unit as help."""
+    from click.shell_completion import CompletionItem
+
+    from ..protocol import series
+
+    return [
+        CompletionItem(s.path, help=f"{s.command.kind} {s.command.name}" + (f", {s.unit}" if s.unit else ""))
+        for s in series.all_series()
+        if s.path.startswith(incomplete)
+    ]

@@ -7,6 +7,7 @@ import sys
 
 import click
 
+from ..link.rescue import DEADMAN_S
 from ..protocol import commands as C
 from .params import FloatRange, IntRange
 from .settings import Settings
@@ -24,7 +25,7 @@ PERCENT = IntRange(0, int(_PERCENT.hi))
 @click.option(
     "--timeout",
     type=FloatRange(0.05, 10),
-    default=0.5,
+    default=DEADMAN_S,
     show_default=True,
     metavar="S",
     help="Deadman: stop when no key arrives for S seconds.",

@@ -7,22 +7,9 @@ import json
 import click
 
 from ..protocol import commands as C
-from .params import FloatRange
+from ..protocol.series import Series
+from .params import MAX_DURATION_S, FloatRange, Rate, SeriesField, complete_field
 from .settings import Settings
-
-MAX_RATE = 1000.0
-#: The longest --duration: ten days.
-MAX_DURATION_S = 864_000
-
-
-class Rate(FloatRange):
-    """Polls per second, or ``max``: as fast as the device answers."""
-
-    name = "HZ|max"
-
-    def __init__(self) -> None:
-        super().__init__(0, MAX_RATE, min_open=True, unit="Hz", words={"max": None})
-
 
 WATCH_HELP = """Live dashboard of SENSORS ({sensors}); none means all.
 
@@ -50,12 +37,34 @@ the end, however it ends (q, --duration, Ctrl-C, SIGTERM).
     help="Send a sweep's requests at once (replies matched as they come); "
     "--no-pipeline asks one at a time, for firmware with a one-frame receive buffer.",
 )
+@click.option(
+    "--plot",
+    "plot",
+    multiple=True,
+    type=SeriesField(),
+    shell_complete=complete_field,
+    help="Add a live plot of FIELD (compass.heading, wheels.left...) above the panels; repeatable.",
+)
 @click.pass_obj
 def watch(
-    settings: Settings, sensors: tuple[str, ...], rate: float | None, duration: float | None, pipeline: bool
+    settings: Settings,
+    sensors: tuple[str, ...],
+    rate: float | None,
+    duration: float | None,
+    pipeline: bool,
+    plot: tuple[Series, ...],
 ) -> None:
     """The sensor names in the help are the table's (``WATCH_HELP``), so a new read is listed."""
     from ..live.watch import run_watch
 
     report = (lambda summary: click.echo(json.dumps(summary))) if settings.as_json else None
-    run_watch(settings, sensors, rate, duration, pipeline=pipeline, report=report, as_json=settings.as_json)
+    run_watch(
+        settings,
+        sensors,
+        rate,
+        duration,
+        pipeline=pipeline,
+        report=report,
+        as_json=settings.as_json,
+        plot=plot,
+    )

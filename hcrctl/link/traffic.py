@@ -76,11 +76,25 @@ TrafficHook = Callable[[Traffic], None]
 FrameHook = Callable[[Frame], None]
 
 
+#: Distinct frames ``decode_sent`` remembers: a poll sends the same few requests again and again.
+SENT_MEMO = 256
+_SENT: dict[tuple[bytes, ChecksumRule, str], Event | None] = {}
+
+
 def decode_sent(frame: bytes, rule: ChecksumRule, profile: Profile = DEFAULT) -> Event | None:
-    """What we sent, as the decoder reads it, for the traffic hook and the log."""
+    """What we sent, as the decoder reads it, for the traffic hook and the log.
+
+    Events are frozen values, so one decoded request serves every time it is sent.
+    """
+    key = (frame, rule, profile.name)
+    if key in _SENT:
+        return _SENT[key]
     decoder = make_decoder(profile, rule)
     events = decoder.feed(frame) + decoder.flush()
-    return events[0] if events else None
+    if len(_SENT) >= SENT_MEMO:
+        _SENT.clear()
+    event = _SENT[key] = events[0] if events else None
+    return event
 
 
 class Watchers:

@@ -27,6 +27,7 @@ from .panels import (
     panel_title,
     positioning_panel,
 )
+from .plotchart import PlotPanel
 from .sensorpanels import PanelSpec, panel_for
 from .state import DriveStatus, Reading, View
 
@@ -40,9 +41,13 @@ WATCH_KEYS = "q quit · space stop · p pause · r reset counters"
 TELEOP_KEYS = "↑↓←→/wasd drive · +/- speed · space/k stop · q quit"
 
 
+PLOT_KEYS = "q quit · space stop · p pause"
+
+
 #: Shorter key lines for narrower screens, longest first: "q quit" is always on the screen.
 SHORTER_KEYS = {
     WATCH_KEYS: ("q quit · space stop · p pause · r reset", "q quit · space stop · p pause", "q quit · space stop"),
+    PLOT_KEYS: ("q quit · space stop",),
     TELEOP_KEYS: ("wasd drive · +/- speed · space stop · q quit", "wasd drive · space stop · q quit",
                   "space stop · q quit"),
 }  # fmt: skip
@@ -81,7 +86,12 @@ def reading_key(reading: Reading, now: float) -> tuple[object, ...]:
 
 
 def dashboard(
-    view: View, now: float, keys: str = WATCH_KEYS, cache: dict | None = None, fit: bool = False
+    view: View,
+    now: float,
+    keys: str = WATCH_KEYS,
+    cache: dict | None = None,
+    fit: bool = False,
+    plot: PlotPanel | None = None,
 ) -> Group:
     """The ``watch`` screen: three columns of panels between a header and a footer.
 
@@ -89,12 +99,18 @@ def dashboard(
     reuse their rendered lines; the picture is the same with or without it.
     ``fit`` (a full-screen terminal) switches to compact panels when the full
     ones would not fit its height (80x24 shows every panel), and crops what
-    still does not, so the keys in the footer stay on the screen.
+    still does not, so the keys in the footer stay on the screen. ``plot``
+    (``watch --plot``) goes full width above the panels, which get what is left.
     """
     body = SideBySide(
-        dashboard_columns(view, now), cache=cache, compact=dashboard_columns(view, now, compact=True), fit=fit
+        dashboard_columns(view, now),
+        cache=cache,
+        compact=dashboard_columns(view, now, compact=True),
+        fit=fit,
+        reserve=2 + (plot.height if plot is not None else 0),
     )
-    return Group(header("hcrctl watch", view), body, footer(keys, view.note))
+    above: tuple[RenderableType, ...] = (plot,) if plot is not None else ()
+    return Group(header("hcrctl watch", view), *above, body, footer(keys, view.note))
 
 
 #: The dashboard's columns, left to right; a read's ``column`` in the table picks one.
@@ -176,7 +192,7 @@ class SideBySide:
                 columns, width = self._layout(console, options, self.compact, fresh)
             if _tallest(columns) > room:
                 room = max(1, room - 1)  # a line to say what is missing
-                missing = left_out(columns, room, f"{options.max_width}x{options.max_height}")
+                missing = left_out(columns, room, f"{options.max_width}x{options.max_height}", self.reserve)
         if self.cache is not None:  # keep only what this frame used
             self.cache.clear()
             self.cache.update(fresh)
@@ -226,10 +242,12 @@ def _tallest(columns: list[list[Block]]) -> int:
     return max((sum(len(lines) for _, lines in col) for col in columns), default=0)
 
 
-def left_out(columns: list[list[Block]], room: int, size: str) -> str:
+def left_out(columns: list[list[Block]], room: int, size: str, reserve: int = 2) -> str:
     """``not shown: map, link; cut: IR (60x20 is too small, 80x24 shows all)``, or "".
 
-    The names come first: a narrow screen crops the hint, not the news."""
+    The names come first: a narrow screen crops the hint, not the news. A
+    plot above the panels (``reserve`` beyond the header and footer's 2)
+    needs that many more rows for all of them."""
     hidden, cut = [], []
     for col in columns:
         top = 0
@@ -243,7 +261,8 @@ def left_out(columns: list[list[Block]], room: int, size: str) -> str:
         return ""
     said = [f"not shown: {', '.join(hidden)}"] if hidden else []
     said += [f"cut: {', '.join(cut)}"] if cut else []
-    return f" {'; '.join(said)} ({size} is too small, {ALL_PANELS_FIT} shows all)"
+    cols, rows = ALL_PANELS_FIT.split("x")
+    return f" {'; '.join(said)} ({size} is too small, {cols}x{int(rows) + reserve - 2} shows all)"
 
 
 def _pour(blocks: list[Block], n: int) -> list[list[Block]]:

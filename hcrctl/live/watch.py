@@ -21,7 +21,7 @@ import contextlib
 import math
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
 from ..link.context import Reconnect
@@ -29,6 +29,7 @@ from ..link.dialects import supported_sensors
 from ..link.rescue import OwedStop
 from .keys import KeyReader
 from .painter import FPS, TICK, Painter, Redrawer, can_redraw, full_screen, live_screen, plain_lines
+from .plotdata import PlotState, sensors_of
 from .poller import Poller
 from .state import LiveState
 
@@ -36,8 +37,9 @@ if TYPE_CHECKING:
     from rich.console import Console, RenderableType
 
     from ..link.context import Connection
+    from ..protocol.series import Series
 
-__all__ = ["FPS", "MIN_FPS", "TICK", "Redrawer", "live_screen", "run_watch"]
+__all__ = ["FPS", "MIN_FPS", "TICK", "Redrawer", "live_screen", "run_live", "run_watch"]
 
 #: Drawing faster than the values change buys nothing: a 10 Hz poll gets 10 frames a second.
 MIN_FPS = 10
@@ -50,6 +52,10 @@ SWITCH_INTERVAL = 0.0005
 QUIT_KEYS = frozenset({"q", "Q", "ctrl-d", "ctrl-c"})
 
 
+#: ``frame(fit)``: a function drawing the screen for a moment (``fit``: to a full-screen terminal's height).
+Frame = Callable[[bool], Callable[[float], "RenderableType"]]
+
+
 def run_watch(
     settings: Connection,
     sensors: list[str] | tuple[str, ...] = (),
@@ -60,37 +66,76 @@ def run_watch(
     pipeline: bool = True,
     report: Callable[[dict[str, Any]], None] | None = None,
     as_json: bool = False,
+    plot: Sequence[Series] = (),
+    window: float = 30.0,
 ) -> dict[str, Any]:
     """Show the dashboard until ``q`` or ``duration``; returns the run's summary.
 
     ``report`` is given the summary however the watch ends (q, ``duration``,
     Ctrl-C, SIGTERM, a lost link), so ``--json`` never loses it. With
-    ``as_json`` nothing is drawn (and rich is never imported).
+    ``as_json`` nothing is drawn (and rich is never imported). ``plot`` adds
+    a panel charting those series over the last ``window`` seconds (their
+    sensors are polled too).
     """
     names = supported_sensors(settings.protocol, list(dict.fromkeys(sensors)))
+    needed = sensors_of(plot)
+    names += [n for n in (supported_sensors(settings.protocol, needed) if needed else []) if n not in names]
+    state = PlotState(names, plot, window, target_rate=rate) if plot else LiveState(names, target_rate=rate)
+    return run_live(
+        settings, state, rate, duration, lambda fit: _dashboard(state, fit), _plain(state),
+        console=console, pipeline=pipeline, report=report, as_json=as_json,
+    )  # fmt: skip
+
+
+def run_live(
+    settings: Connection,
+    state: LiveState,
+    rate: float | None,
+    duration: float | None,
+    frame: Frame,
+    line: Callable[[float], str],
+    *,
+    console: Console | None = None,
+    pipeline: bool = True,
+    report: Callable[[dict[str, Any]], None] | None = None,
+    as_json: bool = False,
+) -> dict[str, Any]:
+    """Poll ``state.sensors`` into ``state`` and draw it with ``frame`` (or ``line``) until ``q`` or ``duration``.
+
+    What ``watch`` and ``plot`` share: the poller, the key loop (space sends
+    stop, owed until the link is back), the painter thread, and the last
+    frame printed at the end where the screen could not be redrawn.
+    """
     console = None if as_json else console or default_console()
-    state = LiveState(names, target_rate=rate)
     owed = OwedStop()
     with settings.robot() as robot, quick_handoff():
-        poller = Poller(robot, state, names, rate, reconnect=Reconnect(settings, robot), pipeline=pipeline)
+        poller = Poller(
+            robot, state, state.sensors, rate, reconnect=Reconnect(settings, robot), pipeline=pipeline
+        )
         try:  # started inside: a signal the moment its first request is out still reports
             poller.start()
-            _watch_loop(state, poller, console, duration, owed)
+            _watch_loop(state, poller, console, duration, owed, frame, line)
         finally:
             poller.stop()
             if report is not None:
                 report(state.summary())
         owed.finish(poller.robot, robot)
     if console is not None and not can_redraw(console):
-        console.print(_dashboard(state)(time.monotonic()))
+        console.print(frame(False)(time.monotonic()))
     return state.summary()
 
 
 def _watch_loop(
-    state: LiveState, poller: Poller, console: Console | None, duration: float | None, owed: OwedStop
+    state: LiveState,
+    poller: Poller,
+    console: Console | None,
+    duration: float | None,
+    owed: OwedStop,
+    frame: Frame,
+    line: Callable[[float], str],
 ) -> None:
     deadline = time.monotonic() + duration if duration else math.inf
-    with KeyReader() as keys, painting(console, state) as painter:
+    with KeyReader() as keys, painting(console, state, frame, line) as painter:
         while (now := time.monotonic()) < deadline:
             raise_from(poller)
             painter.check()
@@ -104,19 +149,19 @@ def _watch_loop(
 
 
 @contextlib.contextmanager
-def painting(console: Console | None, state: LiveState) -> Iterator[Painter]:
-    """The dashboard drawn on its own thread: full screen, plain lines, or nothing (``--json``)."""
+def painting(
+    console: Console | None, state: LiveState, frame: Frame, line: Callable[[float], str]
+) -> Iterator[Painter]:
+    """The screen drawn on its own thread: full screen, plain lines, or nothing (``--json``)."""
     if console is None:
         screen: contextlib.AbstractContextManager[Callable[[], None]] = contextlib.nullcontext(lambda: None)
         interval = TICK
     elif can_redraw(console):
         fps = frame_rate(state.target_rate)
-        redraw = Redrawer(None, _dashboard(state, fit=True), lambda: state.version, fps=fps)
+        redraw = Redrawer(None, frame(True), lambda: state.version, fps=fps)
         screen, interval = full_screen(console, redraw), redraw.interval
     else:
-        from .plainview import plain_line
-
-        screen = plain_lines(console.file, lambda now: plain_line(state.view(), now), LINE_PERIOD)
+        screen = plain_lines(console.file, line, LINE_PERIOD)
         interval = STEP
     with Painter(screen, interval) as painter:
         yield painter
@@ -139,11 +184,24 @@ def on_watch_key(key: str, state: LiveState, poller: Poller, owed: OwedStop) -> 
 
 
 def _dashboard(state: LiveState, fit: bool = False) -> Callable[[float], RenderableType]:
-    """The frame for a moment; ``fit``: to the height of a full-screen terminal."""
+    """The frame for a moment; ``fit``: to the height of a full-screen terminal; a plot panel for a ``PlotState``."""
     from .screens import dashboard
 
     cache: dict = {}
-    return lambda now: dashboard(state.view(), now, cache=cache, fit=fit)
+    if not isinstance(state, PlotState):
+        return lambda now: dashboard(state.view(), now, cache=cache, fit=fit)
+    from .plotchart import PlotPanel
+
+    return lambda now: dashboard(
+        state.view(), now, cache=cache, fit=fit, plot=PlotPanel(state.traces(), now, state.window)
+    )
+
+
+def _plain(state: LiveState) -> Callable[[float], str]:
+    """The dashboard as one plain line (``TERM=dumb``, output to a file)."""
+    from .plainview import plain_line
+
+    return lambda now: plain_line(state.view(), now)
 
 
 # -- shared with teleop ---------------------------------------------------------

@@ -161,6 +161,12 @@ def reading_of(event: Event, direction: str) -> tuple[C.Command, C.Reply] | None
         return None
 
 
+#: Distinct pieces of traffic remembered by ``messages``: a poll repeats the same
+#: requests and mostly the same replies, so decoding each once is most of the saving.
+MEMO_SIZE = 4096
+_MEMO: dict[tuple[str, bytes, ChecksumRule, str], tuple[tuple[str, dict[str, Any]], ...]] = {}
+
+
 def messages(
     time: float,
     direction: str,
@@ -169,10 +175,32 @@ def messages(
     rule: ChecksumRule,
     profile: Profile = DEFAULT,
 ) -> list[tuple[str, dict[str, Any]]]:
-    """What one piece of traffic publishes: always a frame message, and a reading when it is one."""
-    out = [(FRAMES, frame_message(time, direction, data, event, rule, profile))]
+    """What one piece of traffic publishes: always a frame message, and a reading when it is one.
+
+    The same bytes in the same direction always publish the same bodies, so
+    they are decoded once (in a bounded memo) and only ``time`` is new. The
+    nested values are shared between calls: a consumer must not mutate them.
+    """
+    key = (direction, data, rule, profile.name)
+    parts = _MEMO.get(key)
+    if parts is None:
+        parts = _bodies(direction, data, event, rule, profile)
+        if len(_MEMO) >= MEMO_SIZE:
+            _MEMO.clear()
+        _MEMO[key] = parts
+    return [(topic, {"time": time, **body}) for topic, body in parts]
+
+
+def _bodies(
+    direction: str, data: bytes, event: Event, rule: ChecksumRule, profile: Profile
+) -> tuple[tuple[str, dict[str, Any]], ...]:
+    frame = frame_message(0.0, direction, data, event, rule, profile)
+    del frame["time"]
+    out = [(FRAMES, frame)]
     reading = reading_of(event, direction)
     if reading is not None and isinstance(event, Frame):
         cmd, reply = reading
-        out.append((topic_name(cmd), reading_message(cmd, reply, event.address, time)))
-    return out
+        body = reading_message(cmd, reply, event.address, 0.0)
+        del body["time"]
+        out.append((topic_name(cmd), body))
+    return tuple(out)

@@ -1,0 +1,99 @@
+"""``hcrctl bridge [--listen HOST:PORT] [--mcap FILE] [--rate HZ|max] [--duration S] [--timeout S]``."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import click
+
+from ..errors import HcrError
+from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
+from .params import MAX_DURATION_S, FloatRange, Rate
+from .settings import Settings
+
+EXTRA = "pip install 'hcrctl[foxglove]'"
+
+
+class Listen(click.ParamType):
+    """HOST:PORT ([v6 address]:PORT); port 0 asks the system for a free one."""
+
+    name = "HOST:PORT"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if isinstance(value, tuple):
+            return value
+        host, sep, port = str(value).rpartition(":")
+        host = host[1:-1] if host.startswith("[") and host.endswith("]") else host
+        if not sep or not host or not port.isdigit() or int(port) > 65535:
+            self.fail(f"{value!r} is not HOST:PORT with a port in 0..65535 (e.g. 127.0.0.1:8765)", param, ctx)
+        return host, int(port)
+
+
+@click.command()
+@click.option(
+    "--listen",
+    type=Listen(),
+    default="127.0.0.1:8765",
+    show_default=True,
+    help="Where to serve; loopback unless told (anyone who reaches it can drive). Port 0 picks a free one.",
+)
+@click.option("--mcap", metavar="FILE", help="Also record every message served to this MCAP file.")
+@click.option(
+    "--rate",
+    type=Rate(),
+    default="10",
+    show_default=True,
+    help="Sweeps per second, or max.",
+)
+@click.option(
+    "--duration",
+    type=FloatRange(0, MAX_DURATION_S, min_open=True),
+    metavar="S",
+    help="Exit by itself after S seconds.",
+)
+@click.option(
+    "--timeout",
+    type=FloatRange(0.05, 10),
+    default=DEFAULT_TIMEOUT_S,
+    show_default=True,
+    metavar="S",
+    help="Deadman: stop when no /cmd_vel message arrives for S seconds.",
+)
+@click.pass_obj
+def bridge(
+    settings: Settings,
+    listen: tuple[str, int],
+    mcap: str | None,
+    rate: float | None,
+    duration: float | None,
+    timeout: float,
+) -> None:
+    """Serve the readings live on the Foxglove WebSocket protocol, and drive from /cmd_vel.
+
+    Open it in Foxglove: Open connection, Foxglove WebSocket, ws://127.0.0.1:8765.
+    One topic per sensor (/hcr/compass ...), plus /hcr/frames and /hcr/link,
+    with JSON schemas. A client may publish geometry_msgs/Twist JSON on
+    /cmd_vel (linear.x m/s, angular.z rad/s): it becomes wheel velocities,
+    stopped when messages stop for --timeout, when forward motion meets a
+    pressed bumper, when the client leaves, and when the bridge ends. Needs
+    the foxglove extra (pip install 'hcrctl[foxglove]'). With --json a
+    summary (sweeps per second, messages) is printed at the end.
+    """
+    require_sdk()
+    from ..feeds.bridge import Options, run_bridge, summary_line
+
+    options = Options(listen[0], listen[1], mcap, rate, duration, timeout)
+    if settings.as_json:
+        report = lambda summary: click.echo(json.dumps(summary))  # noqa: E731
+    else:
+        report = lambda summary: click.echo(f"hcrctl: {summary_line(summary)}", err=True)  # noqa: E731
+    run_bridge(settings, options, report=report)
+
+
+def require_sdk() -> None:
+    """The SDK is an extra: without it, one line naming it, before anything is opened."""
+    try:
+        import foxglove  # noqa: F401
+    except ImportError as exc:
+        raise HcrError(f"hcrctl bridge needs foxglove-sdk ({exc})", hint=EXTRA) from exc

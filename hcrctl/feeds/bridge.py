@@ -1,0 +1,163 @@
+"""``hcrctl bridge``: the robot on the Foxglove WebSocket protocol, live, for any number of viewers.
+
+One serial link, polled like ``watch`` (``Feed``); every message it yields is
+logged once on its topic's channel and the SDK fans it out to each subscribed
+client and to the ``--mcap`` file. A client may drive through ``/cmd_vel``
+(``Driver``), under teleop's deadman and bumper rules.
+
+How it ends: ``--duration``, Ctrl-C, SIGTERM or SIGHUP (turned into a flag the
+loop reads, so the server, the driver and the recording all close in order),
+or a failure. Stop goes out whenever motion was sent (``stopping()``), and
+the run's summary is printed however it ends, so the bench can compare the
+sweep rate with ``watch --json``'s.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from ..link.context import Connection, Reconnect
+from ..link.dialects import supported_sensors
+from ..link.rescue import stopping, warn
+from ..link.signals import Terminated, stop_signals_handled
+from ..live.watch import quick_handoff
+from ..protocol import commands as C
+from ..protocol.profiles import profile
+from ..protocol.topics import all_topics
+from .bridge_drive import Driver
+from .bridge_status import Status
+from .cmdvel import DEFAULT_TIMEOUT_S, TOPIC
+from .source import Feed
+
+if TYPE_CHECKING:
+    from .bridge_server import Server
+
+Report = Callable[[dict[str, Any]], None]
+
+
+@dataclass
+class Options:
+    """What ``hcrctl bridge`` was asked for (validated by the CLI)."""
+
+    host: str = "127.0.0.1"
+    port: int = 8765
+    mcap: str | None = None
+    rate: float | None = 10.0
+    duration: float | None = None
+    timeout: float = DEFAULT_TIMEOUT_S
+
+
+class Signalled:
+    """SIGTERM/SIGHUP as a flag: the loop ends and everything closes before the exit status says why.
+
+    Once the loop is over (``closing``), or at a second signal, one raises
+    ``Terminated`` as everywhere else, so a stop rescue waiting for a lost
+    port gives up on it as ``rescue`` promises.
+    """
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+        self.closing = False
+
+    def __call__(self, signum: int, frame: object) -> None:
+        if self.closing or self.signum is not None:
+            raise Terminated(signum)
+        self.signum = signum
+
+    def __bool__(self) -> bool:
+        return self.signum is not None
+
+
+def is_loopback(host: str) -> bool:
+    if host.lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+def url(host: str, port: int) -> str:
+    shown = f"[{host}]" if ":" in host else host
+    return f"ws://{shown}:{port}"
+
+
+def run_bridge(settings: Connection, options: Options, *, report: Report | None = None) -> dict[str, Any]:
+    """Serve until the duration ends or a signal; the summary (also given to ``report``, however it ends).
+
+    The server binds before the robot's port opens, so an address in use
+    fails at once with nothing sent; where it serves is said once both are
+    open, so either failure is the one line on stderr.
+    """
+    from .bridge_server import Server
+
+    if not is_loopback(options.host):
+        warn(f"listening on {options.host}: anyone on the network who can reach it can drive the robot")
+    names = supported_sensors(settings.protocol, [])
+    drives = profile(settings.protocol).has(C.BY_NAME["velocity"].code)
+    signalled = Signalled()
+    status = Status(sys.stderr)
+    driver = Driver(options.timeout, status.note)
+    server = Server(
+        all_topics(Feed.counters), options.host, options.port, options.mcap, driver if drives else None
+    )
+    with stop_signals_handled(signalled), server:
+        summary = _serve(settings, options, server, driver, names, status, signalled, report)
+    if signalled.signum is not None:
+        raise Terminated(signalled.signum)
+    return summary
+
+
+def _serve(
+    settings: Connection,
+    options: Options,
+    server: Server,
+    driver: Driver,
+    names: list[str],
+    status: Status,
+    signalled: Signalled,
+    report: Report | None,
+) -> dict[str, Any]:
+    """Poll and publish, and drive when asked, until the end; stop goes out however it ends."""
+    with settings.robot() as robot, quick_handoff():
+        status.start(url(options.host, server.bound_port))
+        if server.listener.driver is None:
+            status.note(f"this firmware ({robot.profile.name}) has no velocity command: {TOPIC} is off")
+        feed = Feed(robot, names, options.rate, server.publish, reconnect=Reconnect(settings, robot))
+        driver.attach(lambda: feed.current, feed.state)
+        try:
+            status.watch(server, feed, driver)
+            with feed, stopping(robot), driver:
+                try:
+                    feed.run(options.duration, lambda: bool(signalled) or driver.error is not None)
+                finally:
+                    signalled.closing = True
+                if driver.error is not None:
+                    raise driver.error
+        finally:
+            status.stop()
+            summary = _summary(feed, server.clients.most, driver.frames)
+            if report is not None:
+                report(summary)
+    return summary
+
+
+def _summary(feed: Feed, clients: int, drive_frames: int) -> dict[str, Any]:
+    """watch's summary (sweeps, sweeps_per_s...) plus what only the bridge has."""
+    summary = dict(feed.state.summary())
+    summary.update(messages=feed.messages, clients_most=clients, drive_frames=drive_frames)
+    return summary
+
+
+def summary_line(summary: dict[str, Any]) -> str:
+    rate = summary.get("sweeps_per_s")
+    shown = f"{rate:g} sweeps/s" if rate else "no sweep rate"
+    return (
+        f"bridge: {summary.get('sweeps', 0)} sweeps in {summary.get('seconds', 0):g} s ({shown}), "
+        f"{summary['messages']} messages, at most {summary['clients_most']} client(s), "
+        f"{summary['drive_frames']} drive frame(s)"
+    )

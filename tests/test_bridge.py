@@ -1,0 +1,281 @@
+"""``hcrctl bridge``: the installed executable, on the simulator, seen by real WebSocket clients.
+
+The clients are the ``websockets`` package speaking the Foxglove WebSocket
+protocol by hand (JSON control messages, binary data frames), as a viewer
+does: no part of foxglove-sdk is on the client side, so the tests check the
+wire a viewer sees. Driving is checked on the robot's side of a pty
+(``pty_robot``: the simulator's model, recording every frame it receives).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import signal
+import struct
+import subprocess
+import threading
+from collections.abc import Iterator
+from contextlib import ExitStack, contextmanager
+from pathlib import Path
+from typing import Any
+
+import pytest
+from helpers import TIMEOUT, hcrctl_exe, wait_until
+from helpers_shell import STOP_FRAME, PtyRobot, stop_after_motion
+from websockets.exceptions import InvalidStatus
+from websockets.sync.client import ClientConnection, connect
+
+from hcrctl.feeds.source import Feed
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.topics import all_topics
+
+SUBPROTOCOL = "foxglove.sdk.v1"
+TOPICS = {t.name: t for t in all_topics(Feed.counters)}
+CMD_VEL = 5  # the client's channel id for /cmd_vel
+TWIST = {"linear": {"x": 0.2, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}
+
+
+class Bridge:
+    """``hcrctl [GLOBAL] bridge --listen 127.0.0.1:0 ARGS``: its stderr lines collected as they come."""
+
+    def __init__(self, port: str, *args: str, env: dict[str, str]) -> None:
+        cmd = [hcrctl_exe(), "--port", port, "bridge", "--listen", "127.0.0.1:0", *args]
+        self.proc = subprocess.Popen(
+            cmd, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        )
+        self.lines: list[str] = []
+        self._changed = threading.Condition()
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+        first = self.wait_line("serving on ")
+        found = re.search(r"ws://127\.0\.0\.1:(\d+)", first)
+        assert found, first
+        self.port = int(found.group(1))
+
+    def _read(self) -> None:
+        assert self.proc.stderr is not None
+        for line in self.proc.stderr:
+            with self._changed:
+                self.lines.append(line.rstrip("\n"))
+                self._changed.notify_all()
+
+    def wait_line(self, text: str) -> str:
+        """The first stderr line containing ``text`` (fails, showing stderr, if the bridge ends without it)."""
+
+        def found() -> str | None:
+            return next((line for line in self.lines if text in line), None)
+
+        with self._changed:
+            self._changed.wait_for(lambda: found() or self.proc.poll() is not None, TIMEOUT)
+            line = found()
+        assert line, f"no {text!r} on stderr: {self.lines}"
+        return line
+
+    def finish(self, sig: int | None = signal.SIGTERM) -> tuple[int, str]:
+        """End it (``sig``, or wait for --duration): exit status and stdout."""
+        if sig is not None and self.proc.poll() is None:
+            self.proc.send_signal(sig)
+        out, _ = self.proc.communicate(timeout=TIMEOUT)
+        self._reader.join(TIMEOUT)
+        return self.proc.returncode, out
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+        self.proc.communicate()
+
+
+@contextmanager
+def bridge(port: str, *args: str, env: dict[str, str]) -> Iterator[Bridge]:
+    running = Bridge(port, *args, env=env)
+    try:
+        yield running
+    finally:
+        running.close()
+
+
+class Viewer:
+    """A Foxglove WebSocket client: serverInfo and advertise read on connect."""
+
+    def __init__(self, port: int) -> None:
+        self._open = ExitStack()
+        self.ws: ClientConnection = self._open.enter_context(
+            connect(f"ws://127.0.0.1:{port}", subprotocols=[SUBPROTOCOL], open_timeout=TIMEOUT)
+        )
+        self.info = self.control("serverInfo")
+        self.channels: dict[str, dict[str, Any]] = {}
+        while set(self.channels) != set(TOPICS):
+            self.channels.update((c["topic"], c) for c in self.control("advertise")["channels"])
+
+    def control(self, op: str) -> dict[str, Any]:
+        """The next JSON message with this ``op`` (data frames before it are skipped)."""
+        while True:
+            message = self.ws.recv(timeout=TIMEOUT)
+            if isinstance(message, str) and (decoded := json.loads(message))["op"] == op:
+                return dict(decoded)
+
+    def subscribe(self, topic: str, sub: int) -> None:
+        subscription = {"id": sub, "channelId": self.channels[topic]["id"]}
+        self.ws.send(json.dumps({"op": "subscribe", "subscriptions": [subscription]}))
+
+    def data(self, sub: int) -> tuple[int, dict[str, Any]]:
+        """The next messageData frame of subscription ``sub``: (log time in ns, the message)."""
+        while True:
+            message = self.ws.recv(timeout=TIMEOUT)
+            if isinstance(message, bytes):
+                opcode, got, log_time = struct.unpack_from("<BIQ", message)
+                assert opcode == 0x01, message[:16]
+                if got == sub:
+                    return log_time, json.loads(message[13:])
+
+    def advertise_cmd_vel(self) -> None:
+        channel = {
+            "id": CMD_VEL,
+            "topic": "/cmd_vel",
+            "encoding": "json",
+            "schemaName": "geometry_msgs/Twist",
+        }
+        self.ws.send(json.dumps({"op": "advertise", "channels": [channel]}))
+
+    def publish(self, message: dict[str, Any]) -> None:
+        """Binary client message data: opcode 0x01, the client channel id, the JSON."""
+        self.ws.send(b"\x01" + struct.pack("<I", CMD_VEL) + json.dumps(message).encode())
+
+    def close(self) -> None:
+        self._open.close()
+
+
+@contextmanager
+def viewer(port: int) -> Iterator[Viewer]:
+    client = Viewer(port)
+    try:
+        yield client
+    finally:
+        client.close()
+
+
+def velocity_frames(robot: PtyRobot) -> list[bytes]:
+    code = C.BY_NAME["velocity"].code
+    return [f for f in robot.received() if f[4] == code]
+
+
+def drive_until_moving(client: Viewer, robot: PtyRobot) -> None:
+    """Publish linear.x 0.2 m/s until a velocity frame of +20 cm/s per wheel reached the robot."""
+    client.advertise_cmd_vel()
+    wanted = C.Velocity(20, 20).content()
+
+    def moving() -> bool:
+        client.publish(TWIST)
+        return any(f[5 : 5 + len(wanted)] == wanted for f in velocity_frames(robot))
+
+    wait_until(moving, what="a velocity frame of 20 cm/s per wheel")
+
+
+def test_a_viewer_gets_server_info_topics_with_schemas_and_readings(env: dict[str, str]) -> None:
+    with bridge("sim://", env=env) as running, viewer(running.port) as client:
+        assert client.info["capabilities"] == ["clientPublish"]
+        assert client.info["supportedEncodings"] == ["json"]
+        for name, topic in TOPICS.items():
+            channel = client.channels[name]
+            assert (channel["encoding"], channel["schemaEncoding"]) == ("json", "jsonschema")
+            assert (channel["schemaName"], json.loads(channel["schema"])) == (topic.schema_name, topic.schema)
+        client.subscribe("/hcr/compass", 7)
+        log_time, message = client.data(7)
+        schema = TOPICS["/hcr/compass"].schema
+        assert set(message) == set(schema["required"])
+        assert 0 <= message["heading"] <= schema["properties"]["heading"]["maximum"]
+        assert log_time == pytest.approx(message["time"] * 1e9, abs=1e3)
+        code, _ = running.finish()
+    assert code == 128 + signal.SIGTERM
+
+
+def test_a_client_offering_only_the_old_subprotocol_is_refused(env: dict[str, str]) -> None:
+    with bridge("sim://", env=env) as running:
+        with pytest.raises(InvalidStatus) as refused:
+            connect(
+                f"ws://127.0.0.1:{running.port}", subprotocols=["foxglove.websocket.v1"], open_timeout=TIMEOUT
+            )
+        assert refused.value.response.status_code == 400
+
+
+def test_three_clients_at_once_all_receive(env: dict[str, str]) -> None:
+    with bridge("sim://", env=env) as running:
+        clients = [Viewer(running.port) for _ in range(3)]
+        try:
+            for client in clients:
+                client.subscribe("/hcr/frames", 1)
+            frames = [client.data(1)[1] for client in clients]
+        finally:
+            for client in clients:
+                client.close()
+        assert all(f["direction"] in ("tx", "rx") and f["hex"].startswith("55 AA") for f in frames)
+        code, _ = running.finish()
+    assert code == 128 + signal.SIGTERM
+
+
+def test_cmd_vel_drives_the_wheels_and_the_deadman_stops_them(
+    env: dict[str, str], pty_robot: PtyRobot
+) -> None:
+    with bridge(pty_robot.port, "--rate", "20", env=env) as running, viewer(running.port) as client:
+        client.subscribe("/hcr/wheels", 2)
+        drive_until_moving(client, pty_robot)
+        wait_until(lambda: client.data(2)[1]["left"] > 0, what="/hcr/wheels to show the wheels turning")
+        pty_robot.wait_for(stop_after_motion)  # publishing stopped: the deadman
+        running.wait_line("stop: deadman")
+        code, _ = running.finish()
+    assert code == 128 + signal.SIGTERM
+
+
+def test_a_client_that_disconnects_stops_the_robot(env: dict[str, str], pty_robot: PtyRobot) -> None:
+    with bridge(pty_robot.port, "--timeout", "10", env=env) as running:
+        with viewer(running.port) as client:
+            drive_until_moving(client, pty_robot)
+        pty_robot.wait_for(stop_after_motion)
+        assert running.wait_line("stop: client")  # why: it left, not the 10 s deadman
+        code, _ = running.finish()
+    assert code == 128 + signal.SIGTERM
+
+
+def test_sigterm_while_driving_stops_the_robot(env: dict[str, str], pty_robot: PtyRobot) -> None:
+    with bridge(pty_robot.port, "--timeout", "10", env=env) as running, viewer(running.port) as client:
+        drive_until_moving(client, pty_robot)
+        code, _ = running.finish(signal.SIGTERM)
+        pty_robot.wait_for(stop_after_motion)
+    assert code == 128 + signal.SIGTERM
+    assert pty_robot.received()[-1] == STOP_FRAME
+
+
+@pytest.mark.parametrize("ending", ["duration", "sigterm"])
+def test_the_bridge_records_what_it_serves_to_mcap(env: dict[str, str], tmp_path: Path, ending: str) -> None:
+    from mcap.reader import make_reader
+
+    out = tmp_path / "served.mcap"
+    args = ["--mcap", str(out), "--rate", "20", *(["--duration", "2"] if ending == "duration" else [])]
+    with bridge("sim://", *args, env=env) as running:
+        if ending == "sigterm":
+            with viewer(running.port) as client:
+                client.subscribe("/hcr/compass", 1)
+                served = client.data(1)[1]
+            code, _ = running.finish(signal.SIGTERM)
+            assert code == 128 + signal.SIGTERM
+        else:
+            code, _ = running.finish(None)
+            assert code == 0, running.lines
+    with out.open("rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        assert summary is not None
+        channels = {c.topic: c for c in summary.channels.values()}
+        polled = {f"/hcr/{name}" for name in C.SENSORS} | {"/hcr/frames", "/hcr/link"}
+        assert polled <= set(channels) <= set(TOPICS)  # a topic is written with its first message
+        for name, channel in channels.items():
+            schema = summary.schemas[channel.schema_id]
+            assert (channel.message_encoding, schema.encoding) == ("json", "jsonschema")
+            assert json.loads(schema.data) == TOPICS[name].schema
+        headings = [
+            json.loads(m.data)["heading"] for _, c, m in reader.iter_messages(topics=["/hcr/compass"])
+        ]
+    assert headings and all(0 <= h < 360 for h in headings)
+    if ending == "sigterm":
+        assert served["heading"] in headings
