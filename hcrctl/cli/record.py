@@ -13,12 +13,8 @@ import click
 
 from ..feeds.outfile import OutFile, formats_help
 from ..protocol import commands as C
-from .params import FloatRange
+from .params import MAX_DURATION_S, FloatRange, Rate
 from .settings import Settings, json_option
-
-#: The fastest --rate (as watch's), and the longest --duration: ten days.
-MAX_RATE = 1000.0
-MAX_DURATION_S = 864_000
 
 RECORD_HELP = """Poll SENSORS ({sensors}; none means all) and record to OUT.
 
@@ -45,10 +41,9 @@ hcrctl record sonar.csv sonar compass --rate 20
 @click.argument("sensors", nargs=-1, type=click.Choice(C.SENSORS), metavar="[SENSOR]...")
 @click.option(
     "--rate",
-    type=FloatRange(0, MAX_RATE, min_open=True, unit="Hz", words={"max": None}),
+    type=Rate(),
     default="10",
     show_default=True,
-    metavar="HZ|max",
     help="Sweeps per second, or max.",
 )
 @click.option(
