@@ -165,6 +165,9 @@ def _valid(param: click.Parameter, tmp: Path) -> str:
         log = tmp / "empty.jsonl"
         log.touch()
         return str(log)
+    suffixes = getattr(kind, "suffixes", None)  # an output whose suffix chooses its format (record, export)
+    if suffixes:
+        return str(tmp / f"out{suffixes[0]}")
     if isinstance(kind, P.FloatRange) and kind.min is not None and kind.max is not None:
         return repr((kind.min + kind.max) / 2)
     if isinstance(kind, P.IntRange) and kind.min is not None:

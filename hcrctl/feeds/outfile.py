@@ -7,9 +7,12 @@ is never touched.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
+
+if TYPE_CHECKING:
+    from click.shell_completion import CompletionItem
 
 from .formats import SUFFIXES, BadSuffix, sink_kind
 
@@ -18,6 +21,16 @@ class OutFile(click.ParamType):
     """A path ending in ``.mcap`` or ``.csv``."""
 
     name = "OUT.mcap|OUT.csv"
+    #: What the path may end in (the table of formats'), for whoever needs a valid example.
+    suffixes = tuple(SUFFIXES)
+
+    def shell_complete(
+        self, ctx: click.Context, param: click.Parameter, incomplete: str
+    ) -> list[CompletionItem]:
+        """The shell's own file-name completion, as for any path."""
+        from click.shell_completion import CompletionItem
+
+        return [CompletionItem(incomplete, type="file")]
 
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> str:
         text = str(value)
