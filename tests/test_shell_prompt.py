@@ -79,7 +79,7 @@ def test_monitor_on_prints_every_frame_and_monitor_off_none(tmp_path):
 def test_a_mistyped_command_gets_did_you_mean_and_clear_clears(tmp_path):
     with shell(["--port", QUIET_SIM, "shell"], tmp_path) as term:
         screen = term.run("raed compass")
-        assert "error: No such command 'raed'. Did you mean 'read'?" in screen
+        assert "error: No such command 'raed'. Did you mean one of 'read', 'record'?" in screen
         screen = term.run("clear")
         lines = [line for line in screen.splitlines() if line.strip()]
         assert lines[0].startswith("hcr sim://") and "raed" not in screen

@@ -112,7 +112,7 @@ def test_errors_name_the_file_and_the_line(tmp_path):
     code, out, err, _ = run_measured(["--port", QUIET_SIM, "shell", "--script", str(path)], tmp_path)
     assert code == 2
     assert err.splitlines()[-1] == (
-        f"{path}:4: error: No such command 'reed'. Did you mean 'read'? (help lists the commands)"
+        f"{path}:4: error: No such command 'reed'. Did you mean one of 'read', 'record'? (help lists the commands)"
     )
     assert "humidity" not in out
 
