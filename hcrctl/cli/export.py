@@ -45,8 +45,8 @@ hcrctl export session.jsonl session.mcap
 @click.pass_obj
 def export(settings: Settings, logfile: str, out: str, duration: float | None) -> None:
     from ..feeds.export import export_log, export_topics
-    from ..feeds.progress import per_topic, size
     from ..feeds.formats import open_sink
+    from ..feeds.progress import per_topic, size
     from ..protocol.profiles import profile
 
     with open_sink(out, export_topics()) as sink:
