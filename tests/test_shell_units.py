@@ -375,7 +375,10 @@ def test_a_mistyped_command_gets_the_closest_names(session, capsys):
     assert run_line(session, "xyzzy") == 2
     assert run_line(session, "drive powr 1 1") == 2
     err = capsys.readouterr().err.splitlines()
-    assert err[0] == "error: No such command 'raed'. Did you mean one of 'read', 'record'? (help lists the commands)"
+    assert (
+        err[0]
+        == "error: No such command 'raed'. Did you mean one of 'read', 'record'? (help lists the commands)"
+    )
     assert "Did you mean one of 'connect', 'disconnect'?" in err[1]
     assert err[2] == "error: No such command 'xyzzy'. (help lists the commands)"
     assert "power" in err[3]
