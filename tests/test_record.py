@@ -214,3 +214,12 @@ def test_the_progress_line_is_redrawn_in_place_on_a_terminal(robot: str, tmp_pat
         term.send("\x03")
         assert term.finish() == 0
         assert "hcrctl: record:" in term.text()
+
+
+def test_a_port_that_cannot_open_leaves_no_empty_recording(tmp_path: Path) -> None:
+    out = tmp_path / "never.mcap"
+    done = run(["--port", str(tmp_path / "no-such-port"), "record", str(out)], clean_env(tmp_path))
+    assert done.returncode == 1
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "no-such-port" in lines[0], lines
+    assert not out.exists()

@@ -17,8 +17,10 @@ import signal
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, TextIO
 
+from ..errors import HcrError
 from ..link.context import Connection, Reconnect
 from ..link.dialects import supported_sensors
 from ..link.signals import Terminated, stop_signals_handled
@@ -96,6 +98,10 @@ def run_record(
             progress = Progress(stream, progress_line(out, sink))
             try:
                 _poll(settings, names, rate, duration, sink, progress, stop, pipeline)
+            except (HcrError, OSError):
+                if not sink.counts:  # the port never opened: leave no empty recording behind
+                    _discard(sink)
+                raise
             finally:
                 progress.clear()
         summary = {
@@ -106,6 +112,16 @@ def run_record(
             "bytes": sink.bytes_written,
         }
     return summary | {"signal": stop.signum}
+
+
+def _discard(sink: Sink) -> None:
+    """Close ``sink`` and remove its file, if it is a plain file of its own (not a device or a link)."""
+    with contextlib.suppress(HcrError):
+        sink.close()
+    path = Path(sink.path)
+    if path.is_file() and not path.is_symlink():
+        with contextlib.suppress(OSError):
+            path.unlink()
 
 
 def _poll(

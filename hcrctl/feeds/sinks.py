@@ -34,7 +34,7 @@ class SinkWriteError(HcrError):
     """The recording could not be written (a full disk, a vanished directory): exit 1."""
 
     def __init__(self, path: str, why: str) -> None:
-        super().__init__(f"cannot write {path} ({why})", hint="free some space or choose another file")
+        super().__init__(f"cannot write {path} ({why})", hint="check the path and the free space")
 
 
 def seconds(t: float) -> tuple[int, str]:
