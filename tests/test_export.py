@@ -108,6 +108,16 @@ def test_mcap_holds_every_frame_and_reading_with_the_logs_times(log: Path, tmp_p
         ]
     channels = {c.topic: c for c in summary.channels.values()}
     assert set(channels) == {*READINGS.values(), T.FRAMES}
+    stats = summary.statistics  # the summary a viewer reads first must agree with the messages
+    assert stats is not None and stats.message_count == len(messages)
+    per_channel = {c.topic: stats.channel_message_counts.get(c.id, 0) for c in channels.values()}
+    assert per_channel == {t: sum(topic == t for topic, _ in messages) for t in channels}
+    assert (stats.message_start_time, stats.message_end_time) == (
+        min(m.log_time for _, m in messages),
+        max(m.log_time for _, m in messages),
+    )
+    indexed = sum(len(index.message_index_offsets) for index in summary.chunk_indexes)
+    assert indexed >= len({topic for topic, _ in messages})
     for channel in channels.values():
         schema = summary.schemas[channel.schema_id]
         assert (channel.message_encoding, schema.encoding) == ("json", "jsonschema")
