@@ -21,7 +21,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from ..errors import HcrError
+from ..errors import HcrError, PortError
 from ..link.client import Robot
 from ..live.state import LiveState
 from ..live.teleop import RESEND, STEP, bumper_hit
@@ -38,6 +38,8 @@ class Driver:
         self.rules = CmdVel(timeout)
         self.frames = 0
         self.error: HcrError | None = None
+        #: The robot the last frame went to: after a reconnect, not the one the bridge opened.
+        self.driven: Robot | None = None
         self._robot: Callable[[], Robot | None] = lambda: None
         self._state: LiveState | None = None
         self._note = note
@@ -146,8 +148,12 @@ class Driver:
                 robot.stop()
             else:
                 robot.send(C.Velocity(*wheels))
+        except PortError:
+            return  # the link just dropped: the poller reconnects, as above
         except HcrError as exc:
             self.error = self.error or exc
             return
+        finally:
+            self.driven = robot
         self.frames += 1
         self._sent, self._sent_at = wheels, time.monotonic()
