@@ -8,7 +8,7 @@ blocks, and ``Driver``'s own thread does the rest: parse, apply teleop's rules
 deadman and the bumpers are checked even when no message comes.
 
 Stop is sent here the moment motion ends for any reason (deadman, bumper,
-zero asked, the client gone); the bridge's ``stopping()`` sends it once more
+zero asked, the client gone); the bridge's ``stopping_driven()`` sends it once more
 when the bridge ends, however it ends.
 """
 
@@ -80,7 +80,7 @@ class Driver:
         self._done.set()
         self._thread.join()
         if self._sent not in (None, STILL):
-            self._write(STILL)  # best effort: the bridge's stopping() sends it again and reports
+            self._write(STILL)  # best effort: the bridge's stopping_driven() sends it again and reports
 
     def _run(self) -> None:
         while not self._done.is_set():
@@ -139,10 +139,10 @@ class Driver:
             self._write(wheels)
 
     def _write(self, wheels: tuple[int, int]) -> None:
-        """Velocity, or stop (motor power 0x80 0x80) for no motion; a failure is the bridge's to raise."""
+        """Velocity, or stop (motor power 0x80 0x80) for no motion; a failure other than a lost link ends the bridge."""
         robot = self._robot()
         if robot is None:
-            return  # the port is gone: the poller reconnects; stopping() rescues a robot left moving
+            return  # the port is gone: the poller reconnects; stopping_driven() rescues a robot left moving
         try:
             if wheels == STILL:
                 robot.stop()
