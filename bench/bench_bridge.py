@@ -5,9 +5,10 @@ alternating rounds (medians), and both report their own sweep rate in their ``--
 summary (``sweeps_per_s``, the poller's count from the first sweep to the last). During the
 bridge's rounds three WebSocket clients (``websockets``, subprotocol ``foxglove.sdk.v1``)
 subscribe to every topic and read every message until the bridge ends; the messages they
-received are printed beside the rate.
+received are printed beside the rate. ``--encoding cdr`` serves ROS 2 messages (CDR, as
+PlotJuggler reads them) instead of JSON: the encoding is the bridge's work, so it is measured too.
 
-    python bench/bench_bridge.py [--rounds 3] [--seconds 6]
+    python bench/bench_bridge.py [--rounds 3] [--seconds 6] [--encoding json|cdr]
 """
 
 from __future__ import annotations
@@ -60,10 +61,10 @@ def client(port: int, received: list[int]) -> None:
         received.append(count)
 
 
-def bridge_rate(path: str, seconds: float) -> tuple[float, list[int], int]:
+def bridge_rate(path: str, seconds: float, encoding: str = "json") -> tuple[float, list[int], int]:
     """The bridge's sweeps/s with CLIENTS clients reading everything; what each received; messages logged."""
     args = [hcrctl_exe(), "--port", path, "--json", "bridge", "--rate", "max", "--duration", str(seconds)]
-    args += ["--listen", "127.0.0.1:0"]
+    args += ["--listen", "127.0.0.1:0", "--encoding", encoding]
     proc = subprocess.Popen(
         args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, stdin=subprocess.DEVNULL
     )
@@ -92,28 +93,30 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--seconds", type=float, default=6.0)
+    parser.add_argument("--encoding", choices=("json", "cdr"), default="json")
     args = parser.parse_args()
     watch: list[float] = []
     served: list[float] = []
     with sim_pty() as path:
         for _ in range(args.rounds):
             watch.append(watch_rate(path, args.seconds))
-            rate, received, messages = bridge_rate(path, args.seconds)
+            rate, received, messages = bridge_rate(path, args.seconds, args.encoding)
             served.append(rate)
             print(
                 f"  watch {watch[-1]:.1f}/s, bridge {rate:.1f}/s, {messages} messages, clients got {received}"
             )
     ratio = statistics.median(served) / statistics.median(watch)
     record(
-        "bridge",
+        "bridge" if args.encoding == "json" else f"bridge_{args.encoding}",
         {
             "watch_sweeps_per_s": statistics.median(watch),
             "bridge_sweeps_per_s": statistics.median(served),
             "ratio": ratio,
             "clients": CLIENTS,
+            "encoding": args.encoding,
         },
     )
-    return 0 if check("bridge sweeps / watch sweeps, 3 clients", ratio, TARGET) else 1
+    return 0 if check(f"bridge ({args.encoding}) sweeps / watch sweeps, 3 clients", ratio, TARGET) else 1
 
 
 if __name__ == "__main__":

@@ -45,9 +45,14 @@ class Bridge:
             cmd, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
         )
         self.lines: list[str] = []
+        self._out: list[str] = []
         self._changed = threading.Condition()
-        self._reader = threading.Thread(target=self._read, daemon=True)
-        self._reader.start()
+        # stdout on a thread of its own too: communicate() would race the stderr reader for the last lines.
+        self._readers = [
+            threading.Thread(target=target, daemon=True) for target in (self._read, self._read_out)
+        ]
+        for reader in self._readers:
+            reader.start()
         first = self.wait_line("serving on ")
         found = re.search(r"ws://127\.0\.0\.1:(\d+)", first)
         assert found, first
@@ -59,6 +64,10 @@ class Bridge:
             with self._changed:
                 self.lines.append(line.rstrip("\n"))
                 self._changed.notify_all()
+
+    def _read_out(self) -> None:
+        assert self.proc.stdout is not None
+        self._out.append(self.proc.stdout.read())
 
     def wait_line(self, text: str) -> str:
         """The first stderr line containing ``text`` (fails, showing stderr, if the bridge ends without it)."""
@@ -76,14 +85,17 @@ class Bridge:
         """End it (``sig``, or wait for --duration): exit status and stdout."""
         if sig is not None and self.proc.poll() is None:
             self.proc.send_signal(sig)
-        out, _ = self.proc.communicate(timeout=TIMEOUT)
-        self._reader.join(TIMEOUT)
-        return self.proc.returncode, out
+        self.proc.wait(timeout=TIMEOUT)
+        for reader in self._readers:
+            reader.join(TIMEOUT)
+        return self.proc.returncode, "".join(self._out)
 
     def close(self) -> None:
         if self.proc.poll() is None:
             self.proc.kill()
-        self.proc.communicate()
+        self.proc.wait()
+        for reader in self._readers:
+            reader.join(TIMEOUT)
 
 
 @contextmanager

@@ -31,6 +31,14 @@ def test_a_bad_listen_address_is_a_usage_error_naming_it(env: dict[str, str], li
     assert len(lines) == 1 and "--listen" in lines[0] and "0..65535" in lines[0], result.stderr
 
 
+def test_an_unknown_encoding_is_a_usage_error_naming_the_choices(env: dict[str, str]) -> None:
+    result = run(["--port", "sim://", "bridge", "--encoding", "protobuf"], env)
+    assert result.returncode == 2
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1, result.stderr
+    assert "--encoding" in lines[0] and "'json', 'cdr'" in lines[0]
+
+
 def test_a_port_in_use_is_one_line_naming_the_address_with_a_hint(env: dict[str, str]) -> None:
     with socket.socket() as taken:
         taken.bind(("127.0.0.1", 0))

@@ -1,4 +1,4 @@
-"""``hcrctl bridge [--listen HOST:PORT] [--mcap FILE] [--rate HZ|max] [--duration S] [--timeout S]``."""
+"""``hcrctl bridge [--listen HOST:PORT] [--encoding json|cdr] [--mcap FILE] [--rate HZ|max] [--duration S] [--timeout S]``."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import click
 
 from ..errors import HcrError
 from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
+from ..protocol.ros2msg import ENCODINGS
 from .params import MAX_DURATION_S, FloatRange, Rate
 from .settings import Settings
 
@@ -38,6 +39,13 @@ class Listen(click.ParamType):
     show_default=True,
     help="Where to serve; loopback unless told (anyone who reaches it can drive). Port 0 picks a free one.",
 )
+@click.option(
+    "--encoding",
+    type=click.Choice(ENCODINGS),
+    default="json",
+    show_default=True,
+    help="json (JSON Schema), or cdr (ROS 2 msg definitions: PlotJuggler's Foxglove ROS2 Bridge). Foxglove reads both.",
+)
 @click.option("--mcap", metavar="FILE", help="Also record every message served to this MCAP file.")
 @click.option(
     "--rate",
@@ -64,6 +72,7 @@ class Listen(click.ParamType):
 def bridge(
     settings: Settings,
     listen: tuple[str, int],
+    encoding: str,
     mcap: str | None,
     rate: float | None,
     duration: float | None,
@@ -73,7 +82,8 @@ def bridge(
 
     Open it in Foxglove: Open connection, Foxglove WebSocket, ws://127.0.0.1:8765.
     One topic per sensor (/hcr/compass ...), plus /hcr/frames and /hcr/link,
-    with JSON schemas. A client may publish geometry_msgs/Twist JSON on
+    with JSON schemas, or with --encoding cdr as ROS 2 messages (CDR) for
+    PlotJuggler's "Foxglove ROS2 Bridge" streaming plugin. A client may publish geometry_msgs/Twist JSON on
     /cmd_vel (linear.x m/s, angular.z rad/s): it becomes wheel velocities,
     stopped when messages stop for --timeout, when forward motion meets a
     pressed bumper, when the client leaves, and when the bridge ends. Needs
@@ -83,7 +93,7 @@ def bridge(
     require_sdk()
     from ..feeds.bridge import Options, run_bridge, summary_line
 
-    options = Options(listen[0], listen[1], mcap, rate, duration, timeout)
+    options = Options(listen[0], listen[1], mcap, rate, duration, timeout, encoding)
     if settings.as_json:
         report = lambda summary: click.echo(json.dumps(summary))  # noqa: E731
     else:

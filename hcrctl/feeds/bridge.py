@@ -7,7 +7,8 @@ client and to the ``--mcap`` file. A client may drive through ``/cmd_vel``
 
 How it ends: ``--duration``, Ctrl-C, SIGTERM or SIGHUP (turned into a flag the
 loop reads, so the server, the driver and the recording all close in order),
-or a failure. Stop goes out whenever motion was sent (``stopping()``), and
+or a failure. Stop goes out whenever motion was sent (``stopping_driven()``:
+to the robot driven then, which after a reconnect is not the one opened), and
 the run's summary is printed however it ends, so the bench can compare the
 sweep rate with ``watch --json``'s.
 """
@@ -22,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..link.context import Connection, Reconnect
 from ..link.dialects import supported_sensors
-from ..link.rescue import stopping, warn
+from ..link.rescue import warn
 from ..link.signals import Terminated, stop_signals_handled
 from ..live.watch import quick_handoff
 from ..protocol import commands as C
@@ -30,6 +31,7 @@ from ..protocol.profiles import profile
 from ..protocol.topics import all_topics
 from .bridge_drive import Driver
 from .bridge_status import Status
+from .bridge_stop import stopping_driven
 from .cmdvel import DEFAULT_TIMEOUT_S, TOPIC
 from .source import Feed
 
@@ -49,6 +51,8 @@ class Options:
     rate: float | None = 10.0
     duration: float | None = None
     timeout: float = DEFAULT_TIMEOUT_S
+    #: ``json`` (JSON Schema) or ``cdr`` (ROS 2 message definitions, for PlotJuggler).
+    encoding: str = "json"
 
 
 class Signalled:
@@ -102,8 +106,9 @@ def run_bridge(settings: Connection, options: Options, *, report: Report | None 
     signalled = Signalled()
     status = Status(sys.stderr)
     driver = Driver(options.timeout, status.note)
+    topics = all_topics(Feed.counters)
     server = Server(
-        all_topics(Feed.counters), options.host, options.port, options.mcap, driver if drives else None
+        topics, options.host, options.port, options.mcap, driver if drives else None, options.encoding
     )
     with stop_signals_handled(signalled), server:
         summary = _serve(settings, options, server, driver, names, status, signalled, report)
@@ -131,7 +136,7 @@ def _serve(
         driver.attach(lambda: feed.current, feed.state)
         try:
             status.watch(server, feed, driver)
-            with feed, stopping(robot), driver:
+            with feed, stopping_driven(feed, robot, lambda: driver.driven), driver:
                 try:
                     feed.run(options.duration, lambda: bool(signalled) or driver.error is not None)
                 finally:

@@ -8,7 +8,7 @@ blocks, and ``Driver``'s own thread does the rest: parse, apply teleop's rules
 deadman and the bumpers are checked even when no message comes.
 
 Stop is sent here the moment motion ends for any reason (deadman, bumper,
-zero asked, the client gone); the bridge's ``stopping()`` sends it once more
+zero asked, the client gone); the bridge's ``stopping_driven()`` sends it once more
 when the bridge ends, however it ends.
 """
 
@@ -21,7 +21,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from ..errors import HcrError
+from ..errors import HcrError, PortError
 from ..link.client import Robot
 from ..live.state import LiveState
 from ..live.teleop import RESEND, STEP, bumper_hit
@@ -38,6 +38,8 @@ class Driver:
         self.rules = CmdVel(timeout)
         self.frames = 0
         self.error: HcrError | None = None
+        #: The robot the last frame went to: after a reconnect, not the one the bridge opened.
+        self.driven: Robot | None = None
         self._robot: Callable[[], Robot | None] = lambda: None
         self._state: LiveState | None = None
         self._note = note
@@ -78,7 +80,7 @@ class Driver:
         self._done.set()
         self._thread.join()
         if self._sent not in (None, STILL):
-            self._write(STILL)  # best effort: the bridge's stopping() sends it again and reports
+            self._write(STILL)  # best effort: the bridge's stopping_driven() sends it again and reports
 
     def _run(self) -> None:
         while not self._done.is_set():
@@ -137,17 +139,21 @@ class Driver:
             self._write(wheels)
 
     def _write(self, wheels: tuple[int, int]) -> None:
-        """Velocity, or stop (motor power 0x80 0x80) for no motion; a failure is the bridge's to raise."""
+        """Velocity, or stop (motor power 0x80 0x80) for no motion; a failure other than a lost link ends the bridge."""
         robot = self._robot()
         if robot is None:
-            return  # the port is gone: the poller reconnects; stopping() rescues a robot left moving
+            return  # the port is gone: the poller reconnects; stopping_driven() rescues a robot left moving
         try:
             if wheels == STILL:
                 robot.stop()
             else:
                 robot.send(C.Velocity(*wheels))
+        except PortError:
+            return  # the link just dropped: the poller reconnects, as above
         except HcrError as exc:
             self.error = self.error or exc
             return
+        finally:
+            self.driven = robot
         self.frames += 1
         self._sent, self._sent_at = wheels, time.monotonic()

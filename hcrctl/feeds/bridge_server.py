@@ -8,13 +8,18 @@ slow client instead of waiting for it), so the bridge only logs each message
 once on its topic's channel: every subscribed client and the ``--mcap`` file
 get it from there. A context of our own keeps the channels off the SDK's
 global one.
+
+Each topic is served either as JSON with its JSON Schema (``json``, what
+Foxglove reads best) or as CDR with a ROS 2 message definition (``cdr``:
+``protocol.ros2msg``, the only kind PlotJuggler's Foxglove bridge client
+subscribes to); Foxglove reads both, and the recording holds what is served.
 """
 
 from __future__ import annotations
 
 import json
 import threading
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import Any
 
 import foxglove
@@ -23,6 +28,7 @@ from foxglove.mcap import MCAPWriter
 from foxglove.websocket import Capability, ChannelView, Client, ClientChannel, ServerListener, WebSocketServer
 
 from ..errors import HcrError
+from ..protocol import ros2msg
 from ..protocol.topics import Topic
 from .bridge_drive import Driver
 
@@ -87,26 +93,29 @@ class Server:
     """Serve ``topics`` on ``host:port`` (and record them to ``mcap``) between enter and exit."""
 
     def __init__(
-        self, topics: Iterable[Topic], host: str, port: int, mcap: str | None, driver: Driver | None
+        self,
+        topics: Iterable[Topic],
+        host: str,
+        port: int,
+        mcap: str | None,
+        driver: Driver | None,
+        encoding: str = "json",
     ) -> None:
         self.topics = tuple(topics)
+        self.encoding = encoding
         self.host, self.port = host, port
         self.clients = Clients()
         self.listener = Listener(self.clients, driver)
         self.mcap = mcap
         self.context = Context()
         self.channels: dict[str, Channel] = {}
+        self._logs: dict[str, Callable[[dict[str, Any], int], None]] = {}
         self._server: WebSocketServer | None = None
         self._writer: MCAPWriter | None = None
 
     def __enter__(self) -> Server:
         for topic in self.topics:
-            schema = Schema(
-                name=topic.schema_name, encoding="jsonschema", data=json.dumps(topic.schema).encode()
-            )
-            self.channels[topic.name] = Channel(
-                topic.name, schema=schema, message_encoding="json", context=self.context
-            )
+            self._add_channel(topic)
         try:
             if self.mcap is not None:
                 self._writer = self._open_mcap(self.mcap)
@@ -131,7 +140,28 @@ class Server:
 
     def publish(self, topic: str, message: dict[str, Any], at: float) -> None:
         """One message to every subscriber and the recording; ``at`` in seconds since the epoch."""
-        self.channels[topic].log(message, log_time=int(at * 1e9))
+        self._logs[topic](message, int(at * 1e9))
+
+    def _add_channel(self, topic: Topic) -> None:
+        """The topic's channel in this server's encoding, and how a message dict is logged on it."""
+        if self.encoding == "cdr":
+            schema = Schema(
+                name=ros2msg.schema_name(topic),
+                encoding=ros2msg.SCHEMA_ENCODING,
+                data=ros2msg.definition(topic).encode(),
+            )
+            channel = Channel(
+                topic.name, schema=schema, message_encoding=ros2msg.MESSAGE_ENCODING, context=self.context
+            )
+            encode = ros2msg.encoder(topic)
+            self._logs[topic.name] = lambda message, at: channel.log(encode(message), log_time=at)
+        else:
+            schema = Schema(
+                name=topic.schema_name, encoding="jsonschema", data=json.dumps(topic.schema).encode()
+            )
+            channel = Channel(topic.name, schema=schema, message_encoding="json", context=self.context)
+            self._logs[topic.name] = lambda message, at: channel.log(message, log_time=at)
+        self.channels[topic.name] = channel
 
     def _start(self) -> WebSocketServer:
         try:

@@ -1,0 +1,53 @@
+"""The bridge's end-of-run stop, sent to the robot it drives *then*, not the one it opened.
+
+The bridge's poller re-opens a port that vanished and came back (a USB
+adapter re-plugged), and the driver then writes to that new ``Robot``. So the
+robot to stop is only known when the run ends: the poller's current one when
+the link is up (``stopping()`` on it, as every command does), and when the
+link is down at that moment the one the driver last wrote to, through
+``rescue`` (warn, re-open the port, deliver stop, report the outcome) once the
+poller has been told to stop, so that it does not race the rescue for the port.
+This is watch's ``OwedStop`` problem, ended the way ``OwedStop.finish`` ends it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable, Iterator
+
+from ..link.client import Robot
+from ..link.rescue import rescue, stop_frame, stopping
+from .source import Feed
+
+
+@contextlib.contextmanager
+def stopping_driven(feed: Feed, first: Robot, driven: Callable[[], Robot | None]) -> Iterator[None]:
+    """``stopping()`` whose robot is chosen when the block ends; ``driven()``: the last one written to."""
+    try:
+        yield
+    except BaseException:
+        with _final_stop(feed, first, driven()):
+            raise
+    with _final_stop(feed, first, driven()):
+        pass
+
+
+def _final_stop(feed: Feed, first: Robot, driven: Robot | None) -> contextlib.AbstractContextManager[None]:
+    current = feed.current
+    if current is not None and current.connected:
+        return stopping(current)
+    moved = [robot for robot in (driven, first) if robot is not None and robot.moved]
+    if not moved:
+        return stopping(first)  # nothing moved: stop is still tried, and a dead link is the news
+    feed.poller.stop()
+    return _rescued(moved[0])
+
+
+@contextlib.contextmanager
+def _rescued(robot: Robot) -> Iterator[None]:
+    """The link is down and ``robot`` moved: the rescue's outcome is the error, after the block's own."""
+    try:
+        yield
+    except BaseException as exc:
+        raise rescue(robot, lambda: [stop_frame(robot)]) from exc
+    raise rescue(robot, lambda: [stop_frame(robot)])

@@ -1,0 +1,105 @@
+"""A bridge whose port vanished and came back: the end-of-run stop goes to the robot it drives now.
+
+The installed ``hcrctl bridge`` opens a symlink to a pty pair (``PtyRobot``,
+the simulator's model); the test unplugs it (the pair closes and the link goes)
+and plugs a new pair in at the same path, as udev re-points /dev/serial/by-id.
+The bridge's poller re-opens the path and a /cmd_vel client drives the robot
+there; what ends the bridge must then stop *that* device, checked on its wire,
+and, if the link is down again at that moment, go through the rescue (re-open,
+deliver stop, say so).
+"""
+
+from __future__ import annotations
+
+import signal
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from helpers_shell import STOP_FRAME, PtyRobot
+from test_bridge import Bridge, bridge, drive_until_moving, viewer
+
+DELIVERED = "while the robot was moving: stop delivered after"
+
+
+def polled(frames: list[bytes]) -> bool:
+    """The poller has swept this device: it re-opened the port."""
+    return len(frames) >= 3
+
+
+def moving(frames: list[bytes]) -> bool:
+    return any(0x01 <= f[4] <= 0x04 and f != STOP_FRAME for f in frames)
+
+
+@contextmanager
+def robots(link: Path) -> Iterator[list[PtyRobot]]:
+    """The devices plugged in at ``link`` (the first one now), all closed at the end."""
+    plugged = [PtyRobot(link)]
+    try:
+        yield plugged
+    finally:
+        for robot in plugged:
+            robot.close()
+
+
+def replug(plugged: list[PtyRobot], link: Path) -> PtyRobot:
+    """Unplug the device in use; plug a new one in at the same path; once the bridge polls it."""
+    plugged[-1].close()
+    again = PtyRobot(link)
+    plugged.append(again)
+    again.wait_for(polled)
+    return again
+
+
+def stop_after(robot: PtyRobot, before: int) -> list[bytes]:
+    """Wait for a stop frame among the frames after the first ``before``; those frames."""
+    return robot.wait_for(lambda frames: STOP_FRAME in frames[before:])[before:]
+
+
+def sigterm(running: Bridge) -> tuple[int, str]:
+    running.proc.send_signal(signal.SIGTERM)
+    code, _ = running.finish(None)
+    return code, "\n".join(running.lines)
+
+
+def test_sigterm_after_a_reconnect_stops_the_robot_on_the_new_port(
+    env: dict[str, str], tmp_path: Path
+) -> None:
+    link = tmp_path / "robot"
+    with (
+        robots(link) as plugged,
+        bridge(str(link), "--timeout", "10", env=env) as running,
+        viewer(running.port) as client,
+    ):
+        drive_until_moving(client, plugged[0])
+        again = replug(plugged, link)
+        drive_until_moving(client, again)  # the client drives the robot on the new port
+        before = len(again.received())
+        code, err = sigterm(running)
+        after = stop_after(again, before)
+    assert code == 128 + signal.SIGTERM, err
+    assert after[-1] == STOP_FRAME and not moving(after[after.index(STOP_FRAME) :])
+    assert "lost the link" not in err and "error" not in err, err  # nothing to rescue: the port was there
+
+
+def test_sigterm_with_the_new_port_gone_again_rescues_the_stop_on_the_next(
+    env: dict[str, str], tmp_path: Path
+) -> None:
+    """Driven only after the reconnect, then lost: the rescue re-opens the path and delivers stop there."""
+    link = tmp_path / "robot"
+    with robots(link) as plugged, bridge(str(link), "--timeout", "10", env=env) as running:
+        plugged[0].wait_for(polled)
+        again = replug(plugged, link)  # lost before any motion: the first robot never moved
+        with viewer(running.port) as client:
+            drive_until_moving(client, again)
+            again.close()  # lost while moving, and not back yet when the bridge is told to end
+            running.proc.send_signal(signal.SIGTERM)
+            running.wait_line("stop could NOT be delivered")  # said before the port is back
+            third = PtyRobot(link)
+            plugged.append(third)
+            stop_after(third, 0)
+            code, _ = running.finish(None)
+    err = "\n".join(running.lines)
+    assert code == 1, err  # the rescue's outcome is the news, as for every command
+    assert DELIVERED in err.splitlines()[-1], err
+    assert not moving(third.received())
