@@ -95,7 +95,7 @@ FRAME_SCHEMA: dict[str, Any] = {
         "direction": {"type": "string", "enum": ["tx", "rx"]},
         "hex": {"type": "string", "description": "the bytes as they crossed the wire"},
         "address": COMMON["address"],
-        "command": {"type": "integer"},
+        "command": {"type": "integer", "minimum": 0, "maximum": 255},
         "name": {"type": "string"},
         "checksum_ok": {"type": "boolean", "description": "the frame passes the configured checksum rule"},
         "other_ok": {"type": "boolean", "description": "it passes the other rule instead"},
