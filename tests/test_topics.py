@@ -95,3 +95,16 @@ def test_a_request_a_bad_checksum_and_an_impossible_reply_publish_only_the_frame
     for data, direction in ((good, "tx"), (impossible, "rx"), (bad, "rx")):
         (event,) = decode_all(data, ChecksumRule.HEADER)
         assert [t for t, _ in T.messages(1.0, direction, data, event, ChecksumRule.HEADER)] == [T.FRAMES]
+
+
+def test_a_v011_board_reading_is_read_as_that_firmware_lays_it_out() -> None:
+    """Active-low bumpers: the reading agrees with what hex decode shows for the same frame."""
+    from hcrctl.protocol.profiles import V011
+
+    data = V011.encode(0x01, 0x11, b"\x06", ChecksumRule.HEADER)
+    events = [e for e in decode_all(data, ChecksumRule.HEADER, V011) if hasattr(e, "command")]
+    (event,) = events
+    published = dict(T.messages(3.0, "rx", data, event, ChecksumRule.HEADER, V011))
+    frame, bump = published[T.FRAMES], published["/hcr/bump"]
+    assert frame["fields"] == {"bump": [bump["left"], bump["front"], bump["right"]]}
+    assert [bump["left"], bump["front"], bump["right"]] != [False, True, True], "read as active-high"

@@ -146,17 +146,25 @@ def frame_message(
     return {"time": time, "direction": direction, "hex": data.hex(" ").upper(), **record}
 
 
-def reading_of(event: Event, direction: str) -> tuple[C.Command, C.Reply] | None:
-    """The reading a received frame carries, if it is a good, possible reply of a read or broadcast."""
+def reading_of(
+    event: Event, direction: str, profile: Profile = DEFAULT, checked: bool = False
+) -> tuple[C.Command, C.Reply] | None:
+    """The reading a received frame carries, if it is a good, possible reply of a read or broadcast.
+
+    The content is read as the profile's firmware lays it out (v0.11's
+    active-low bumpers), as ``hex decode`` and ``watch`` read it. ``checked``:
+    the caller has already held this content to the table's ranges.
+    """
     if direction != "rx" or not isinstance(event, Frame):
         return None
     cmd = C.BY_CODE.get(event.command)
-    if cmd is None or cmd.reply is None or cmd.kind not in ("read", "broadcast"):
+    if cmd is None or cmd.reply is None or cmd.kind not in ("read", "broadcast") or not profile.has(cmd.code):
         return None
     if C.is_request(event.command, event.content):
         return None
+    content = event.content if profile is DEFAULT else profile.to_document(cmd.code, event.content)
     try:
-        return cmd, cmd.reply.decode(event.content)
+        return cmd, cmd.reply.from_content(content) if checked else cmd.reply.decode(content)
     except ProtocolError:
         return None
 
@@ -197,7 +205,9 @@ def _bodies(
     frame = frame_message(0.0, direction, data, event, rule, profile)
     del frame["time"]
     out = [(FRAMES, frame)]
-    reading = reading_of(event, direction)
+    # The frame's own fields were decoded and range-checked just now: a good one needs no second check.
+    good = frame.get("fields") is not None and "error" not in frame
+    reading = reading_of(event, direction, profile, checked=True) if good else None
     if reading is not None and isinstance(event, Frame):
         cmd, reply = reading
         body = reading_message(cmd, reply, event.address, 0.0)
