@@ -11,6 +11,8 @@ reuses it. Standard library only.
 
 from __future__ import annotations
 
+from collections import Counter
+
 from .frames import (
     HEADER,
     MAX_KEPT,
@@ -26,8 +28,11 @@ from .frames import (
     _new_frame,
     checksum,
 )
-from .runs import SMALL, small_run, valid_run
+from .runs import SMALL, count_run, small_run, valid_run
 from .textlines import split_skipped
+
+#: Bytes ``count`` checks at a time: a problem sends the rest of its window through the ordinary scan.
+COUNT_WINDOW = 1 << 14
 
 
 class _Pending:
@@ -98,6 +103,24 @@ class FrameDecoder:
             if self._pending is None and len(self._buf) <= SMALL:
                 self._small(out)
             else:
+                self._scan(out)
+        return out
+
+    def count(self, data: bytes, heads: Counter[bytes]) -> list[Event]:
+        """``feed`` for a summary: valid frames are counted in ``heads``, every other event is returned.
+
+        ``heads`` counts each valid frame's address, length and command bytes
+        (``frame[2:5]``); the frames counted and the events returned are exactly
+        those ``feed`` would give. Runs of valid frames are checked in bulk
+        (``count_run``), a window at a time, so a problem costs the ordinary
+        scan for the rest of its window only.
+        """
+        out: list[Event] = []
+        for at in range(0, len(data), COUNT_WINDOW):
+            self._buf += data[at : at + COUNT_WINDOW]
+            if self._pending is None and self._buf[:2] == HEADER:
+                self._compact(count_run(self._buf, self._bias, heads))
+            if self._buf:
                 self._scan(out)
         return out
 

@@ -7,9 +7,13 @@ Kept apart so the scanner's rules stay readable. Standard library only.
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Callable
+from itertools import repeat
+from operator import add, and_, gt, itemgetter, ne
+from zlib import adler32
 
-from .frames import HEADER, MAX_FRAME, OVERHEAD, Event, Frame, _new_frame
+from .frames import HEADER, MAX_FRAME, OVERHEAD, TERMINATOR, Event, Frame, _new_frame
 
 
 def small_run(buf: bytes, bias: int, base: int, append: Callable[[Event], None]) -> tuple[int, bool]:
@@ -98,3 +102,60 @@ def _take_frames(
     except IndexError:  # a part too short to hold a length: a header right after a header, or the tail
         return pos, False
     return pos, True
+
+
+# -- counting without events (``hex decode --summary``) ----------------------------------------------------
+
+#: Frames this long or shorter cannot make adler32's sum wrap (255 * 256 < 65521), so its low byte is the
+#: byte sum's (plus one); a longer one is summed by ``sum``.
+ADLER_SAFE = 256
+
+
+def count_run(buf: bytes, bias: int, heads: Counter[bytes]) -> int:
+    """Count the frames ``valid_run`` would take from ``buf[0]`` (a header); return the bytes they cover.
+
+    The same rule as ``valid_run`` (split at every header; a part is one valid
+    frame exactly when its size agrees with its length byte, it ends in 0D 0A
+    and its checksum passes), checked for all parts at once by C-level maps,
+    with no event built: ``heads`` counts each frame's address, length and
+    command bytes. A summary of a night's capture costs little more than
+    splitting it.
+    """
+    parts = buf.split(HEADER)
+    del parts[0]  # the empty part before the first header
+    lens = list(map(len, parts))
+    good = len(parts)
+    if min(lens, default=6) < 6:  # too short to hold a frame (a header right after a header, the tail)
+        good = list(map(gt, repeat(6), lens)).index(True)
+        del parts[good:], lens[good:]
+    good = _agree(lens, list(map(add, map(itemgetter(1), parts), repeat(6))), good)
+    covered = sum(lens[:good]) + 2 * good
+    if good and (  # each header of the run but the first comes right after a terminator, and so does the end
+        buf.count(TERMINATOR + HEADER, 0, covered) != good - 1 or not parts[good - 1].endswith(TERMINATOR)
+    ):
+        good = _agree(list(map(bytes.endswith, parts, repeat(TERMINATOR))), [True] * good, good)
+    if good:
+        del parts[good:], lens[good:]
+        checks = bytes(map(itemgetter(-3), parts))
+        # adler32's low half is 1 + the byte sum, for a part short enough not to wrap it
+        ones = map(adler32, parts) if max(lens) <= ADLER_SAFE else map(add, map(sum, parts), repeat(1))
+        sums = bytes(map(and_, ones, repeat(0xFF)))
+        wanted = checks.translate(_WANTED[bias])
+        good = _agree(sums, wanted, good)
+    if not good:
+        return 0
+    heads.update(map(itemgetter(slice(0, 3)), parts[:good]))
+    return sum(lens[:good]) + 2 * good
+
+
+#: For a checksum byte c: the low byte of 1 + the sum of its part (the frame without its header) when
+#: the frame is valid, under the text rule ([0]) and the address rule ([1]). A part sums to
+#: s + c + 0x17 (0D 0A), and a valid frame has s == c - 0xFF - bias.
+_WANTED = tuple(bytes((2 * c - 0xE7 - bias) & 0xFF for c in range(256)) for bias in (0, 1))
+
+
+def _agree(got: list | bytes, want: list | bytes, limit: int) -> int:
+    """How many leading items of ``got`` equal ``want``'s, up to ``limit``."""
+    if got[:limit] == want[:limit]:
+        return limit
+    return min(limit, list(map(ne, got, want)).index(True))
