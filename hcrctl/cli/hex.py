@@ -68,11 +68,11 @@ def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None, s
     chunks = _decode_input(hex_text, capture)
     if summary:
         _summarise(ctx, settings, chunks)
-    from ..hex.decoding import decode_rows
+    from ..hex.decoding import decode_to
     from ..hex.view import FrameTally
 
     tally, sink = FrameTally(), _row_sink(settings)
-    size = decode_rows(chunks, settings.checksum, tally.add, sink.add, profile=profile(settings.protocol))
+    size = decode_to(chunks, settings.checksum, tally, sink, profile(settings.protocol))
     sink.close()
     hint = tally.hint()
     click.echo(f"hcrctl: {size} bytes: {tally.text()}{f' (hint: {hint})' if hint else ''}", err=True)

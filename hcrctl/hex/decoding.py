@@ -8,12 +8,17 @@ what the closing line says comes from counters.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
-from typing import Any
+from itertools import islice
+from typing import TYPE_CHECKING, Any
 
 from ..protocol.dialect import make_decoder
 from ..protocol.frames import ChecksumRule, Event, Frame
 from ..protocol.profiles import DEFAULT, Profile
 from ..protocol.records import event_dict
+
+if TYPE_CHECKING:
+    from .sinks import RowSink, TextSink
+    from .view import FrameTally
 
 Row = dict[str, Any]
 
@@ -73,3 +78,99 @@ def _hand(events: list[Event], make: RowMaker, consumers: tuple[Callable[[Row], 
         row = make(event)
         for consume in consumers:
             consume(row)
+
+
+class Bounded(dict[tuple, tuple]):
+    """A dict its owner keeps bounded by forgetting the oldest half when it is full.
+
+    Cheaper per hit than an LRU (a hit moves nothing), and nearly as good for a
+    capture's repeats: a frame still in use is simply made again once per cycle.
+    """
+
+    def forget_half(self) -> None:
+        for old in list(islice(self, len(self) // 2)):
+            del self[old]
+
+
+#: Distinct frames whose rendered text ``FrameText`` remembers.
+TEXT_FRAMES = 1 << 14
+
+
+class FrameText:
+    """``hex decode``'s loop for a sink that writes text: a frame's text is made once per distinct frame.
+
+    A frame's rendering (all but its offset) and its effect on the tally depend
+    only on its address, command, content and checksum; a capture repeats
+    those a lot. So a frame costs a dict lookup and one format, and the text
+    of a chunk's frames is written at once. Every other event takes the
+    ordinary path (a row to the tally and to the sink), in order.
+    """
+
+    def __init__(self, rule: ChecksumRule, tally: FrameTally, sink: TextSink) -> None:
+        self.rule = rule
+        self.tally = tally
+        self.sink = sink
+        self.make = RowMaker(rule)
+        self._texts = Bounded()
+
+    def events(self, events: list[Event]) -> None:
+        texts = self._texts
+        out: list[str] = []
+        get, add, fmt = texts.get, out.append, self.sink.frame_format
+        simple = bad = 0
+        for event in events:
+            if type(event) is Frame:
+                key = event[:4]
+                entry = get(key) or self._new(event, key)
+                add(fmt(event[4], entry[0]))
+                if entry[2] is None:
+                    simple += 1
+                    bad += entry[1]
+                else:
+                    self.tally.add(entry[2])
+            else:
+                if out:
+                    self.sink.write(out)
+                    out = []
+                    add = out.append
+                row = self.make(event)
+                self.tally.add(row)
+                self.sink.add(row)
+        if out:
+            self.sink.write(out)
+        self.tally.frames += simple
+        self.tally.bad_frames += bad
+
+    def _new(self, event: Frame, key: tuple) -> tuple[str, int, Row | None]:
+        """The text of a frame not seen lately, whether the tally just counts it, and when not, its row."""
+        direct = self.sink.frame_event_text
+        made = direct(self.rule, event) if direct is not None else None
+        if made is not None:
+            entry: tuple[str, int, Row | None] = (made[0], int(not made[1]), None)
+        else:
+            row = event_dict(event, self.rule)
+            simple = "problem" not in row and row["checksum_ok"] and "as_v0.11" not in row
+            entry = (self.sink.frame_text(row), int("error" in row), None if simple else row)
+        texts = self._texts
+        if len(texts) >= TEXT_FRAMES:
+            texts.forget_half()
+        texts[key] = entry
+        return entry
+
+
+def decode_to(
+    chunks: Iterable[bytes], rule: ChecksumRule, tally: FrameTally, sink: RowSink, profile: Profile = DEFAULT
+) -> int:
+    """``decode_rows`` into ``tally`` and ``sink``, through ``FrameText`` when the sink writes text."""
+    from .sinks import TextSink
+
+    if profile is not DEFAULT or not isinstance(sink, TextSink):
+        return decode_rows(chunks, rule, tally.add, sink.add, profile=profile)
+    decoder = make_decoder(profile, rule)
+    text = FrameText(rule, tally, sink)
+    size = 0
+    for chunk in chunks:
+        size += len(chunk)
+        text.events(decoder.feed(chunk))
+    text.events(decoder.flush())
+    return size

@@ -10,7 +10,10 @@ from __future__ import annotations
 import json
 import sys
 from collections.abc import Callable
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
+
+if TYPE_CHECKING:
+    from ..protocol.frames import ChecksumRule, Frame
 
 #: Rows per table on a terminal: a table must measure its rows before printing any.
 TABLE_ROWS = 1000
@@ -33,14 +36,56 @@ class RowSink(Protocol):
     def close(self) -> None: ...
 
 
-class JsonArraySink:
-    """``[row, row, ...]``, streamed: byte for byte what ``json.dumps(rows)`` prints."""
+class TextSink:
+    """A sink that writes text, so that ``decoding.FrameText`` can hand it frames ready made.
+
+    ``frame_text(row)`` is a frame row's text without its offset (made once per
+    distinct frame), ``frame_format(offset, text)`` the piece written for one
+    frame, and ``write(pieces)`` writes a run of them at once.
+    """
+
+    frame_format: Callable[[int, str], str]
 
     def __init__(self, write: Callable[[str], object] | None = None) -> None:
         self._write = write or sys.stdout.write
+
+    def frame_text(self, row: dict[str, Any]) -> str:
+        raise NotImplementedError
+
+    #: A frame's text and whether its row is good, made straight from the frame (None: use the row);
+    #: a sink that can sets it to a plain function, called once per new frame.
+    frame_event_text: Callable[[ChecksumRule, Frame], tuple[str, bool] | None] | None = None
+
+    def write(self, pieces: list[str]) -> None:
+        self._write("".join(pieces))
+
+    def add(self, row: dict[str, Any]) -> None:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        sys.stdout.flush()
+
+
+class JsonArraySink(TextSink):
+    """``[row, row, ...]``, streamed: byte for byte what ``json.dumps(rows)`` prints."""
+
+    frame_format = ', {{"offset": {}, {}'.format
+
+    def __init__(self, write: Callable[[str], object] | None = None) -> None:
+        super().__init__(write)
         self._sep = "["
         self._dumps = json.JSONEncoder(ensure_ascii=False).encode
         self._cache: dict[tuple, str] = {}
+
+    def frame_text(self, row: dict[str, Any]) -> str:
+        return self._dumps({k: v for k, v in row.items() if k != "offset"})[1:]
+
+    def write(self, pieces: list[str]) -> None:
+        text = "".join(pieces)
+        if self._sep == "[":  # the first element: the array opens instead of a separator
+            text = "[" + text[2:]
+            self._sep = ", "
+        self._write(text)
 
     def add(self, row: dict[str, Any]) -> None:
         key = frame_key(row)
@@ -61,15 +106,21 @@ class JsonArraySink:
         sys.stdout.flush()
 
 
-class PlainSink:
+class PlainSink(TextSink):
     """One text line per row, for pipes and files."""
 
-    def __init__(self, write: Callable[[str], object] | None = None) -> None:
-        from .view import plain_line
+    frame_format = "{:>6}  {}\n".format
 
+    def __init__(self, write: Callable[[str], object] | None = None) -> None:
+        from .view import frame_plain, plain_line
+
+        super().__init__(write)
         self._line = plain_line
-        self._write = write or sys.stdout.write
+        self.frame_event_text = frame_plain
         self._cache: dict[tuple, str] = {}
+
+    def frame_text(self, row: dict[str, Any]) -> str:
+        return self._line(row, offset=False)
 
     def add(self, row: dict[str, Any]) -> None:
         key = frame_key(row)

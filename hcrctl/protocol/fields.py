@@ -198,11 +198,47 @@ def check_reply(value: Reply, content: bytes) -> None:
     (``compass``); a reply of several fields carries one byte per field, in
     order, and each is named by its field (``humidity``).
     """
+    if _plainly_in_range(value):
+        return
     infos = fields_of(type(value))
     for index, info in enumerate(infos):
         what = name_of(value.CODE) if len(infos) == 1 else info.name
         raw = content if len(infos) == 1 else content[index : index + 1]
         _check_field(what, info, getattr(value, info.name), raw)
+
+
+#: Reply class -> (name, lo, hi, count) of each field, or None when a field has ``bits`` (checked in full).
+_RANGES: dict[type, tuple[tuple[str, float, float, tuple[int, int] | None], ...] | None] = {}
+
+
+def _plainly_in_range(value: Reply) -> bool:
+    """Whether every field is plainly within its range: the common case, decided without building errors.
+
+    False means "check in full" (``check_reply``'s loop decides and words the error), never "out of range".
+    """
+    cls = type(value)
+    if cls in _RANGES:
+        ranges = _RANGES[cls]
+    else:
+        infos = fields_of(cls)
+        ranges = _RANGES[cls] = (
+            None
+            if any(info.bits is not None for info in infos)
+            else tuple((info.name, info.lo, info.hi, info.count) for info in infos)
+        )
+    if ranges is None:
+        return False
+    for name, lo, hi, count in ranges:
+        item = getattr(value, name)
+        kind = type(item)
+        if kind is tuple:
+            if count is not None and not count[0] <= len(item) <= count[1]:
+                return False
+            if item and not (lo <= min(item) and max(item) <= hi):
+                return False
+        elif (kind is not int and kind is not float) or count is not None or not lo <= item <= hi:
+            return False
+    return True
 
 
 def _check_field(what: str, info: FieldInfo, value: Any, raw: bytes) -> None:
