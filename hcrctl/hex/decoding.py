@@ -80,7 +80,7 @@ def _hand(events: list[Event], make: RowMaker, consumers: tuple[Callable[[Row], 
             consume(row)
 
 
-class Bounded(dict[tuple, tuple]):
+class Bounded(dict[tuple, Any]):
     """A dict its owner keeps bounded by forgetting the oldest half when it is full.
 
     Cheaper per hit than an LRU (a hit moves nothing), and nearly as good for a
@@ -114,48 +114,46 @@ class FrameText:
         self._texts = Bounded()
 
     def events(self, events: list[Event]) -> None:
-        texts = self._texts
+        texts, tally, rule, direct = self._texts, self.tally, self.rule, self.sink.frame_event_text
         out: list[str] = []
         get, add, fmt = texts.get, out.append, self.sink.frame_format
-        simple = bad = 0
+        simple = 0
         for event in events:
             if type(event) is Frame:
                 key = event[:4]
-                entry = get(key) or self._new(event, key)
-                add(fmt(event[4], entry[0]))
-                if entry[2] is None:
+                entry: str | tuple[str, Row] | None = get(key)
+                if entry is None:
+                    made = direct(rule, event) if direct is not None else None
+                    # a good frame the tally just counts is remembered as its text alone
+                    entry = made[0] if made is not None and made[1] else self._entry(event, made)
+                    if len(texts) >= TEXT_FRAMES:
+                        texts.forget_half()
+                    texts[key] = entry
+                if isinstance(entry, str):
+                    add(fmt(event[4], entry))
                     simple += 1
-                    bad += entry[1]
                 else:
-                    self.tally.add(entry[2])
+                    text, row = entry
+                    add(fmt(event[4], text))
+                    tally.add(row)
             else:
                 if out:
                     self.sink.write(out)
                     out = []
                     add = out.append
                 row = self.make(event)
-                self.tally.add(row)
+                tally.add(row)
                 self.sink.add(row)
         if out:
             self.sink.write(out)
-        self.tally.frames += simple
-        self.tally.bad_frames += bad
+        tally.frames += simple
 
-    def _new(self, event: Frame, key: tuple) -> tuple[str, int, Row | None]:
-        """The text of a frame not seen lately, whether the tally just counts it, and when not, its row."""
-        direct = self.sink.frame_event_text
-        made = direct(self.rule, event) if direct is not None else None
-        if made is not None:
-            entry: tuple[str, int, Row | None] = (made[0], int(not made[1]), None)
-        else:
-            row = event_dict(event, self.rule)
-            simple = "problem" not in row and row["checksum_ok"] and "as_v0.11" not in row
-            entry = (self.sink.frame_text(row), int("error" in row), None if simple else row)
-        texts = self._texts
-        if len(texts) >= TEXT_FRAMES:
-            texts.forget_half()
-        texts[key] = entry
-        return entry
+    def _entry(self, event: Frame, made: tuple[str, bool] | None) -> str | tuple[str, Row]:
+        """What to remember of a frame that is not simply good: its text, or its text and its row."""
+        row = event_dict(event, self.rule)
+        simple = "problem" not in row and row["checksum_ok"] and "as_v0.11" not in row and "error" not in row
+        text = made[0] if made is not None else self.sink.frame_text(row)
+        return text if simple else (text, {k: v for k, v in row.items() if k != "offset"})
 
 
 def decode_to(

@@ -8,7 +8,9 @@ function that builds a table.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 from ..errors import ProtocolError, other_rule_hint, printable
@@ -187,51 +189,70 @@ def frame_plain(rule: ChecksumRule, frame: tuple[int, int, bytes, int, int]) -> 
     address, command, content, received = frame[0], frame[1], frame[2], frame[3]
     if received != (address + len(content) + command + sum(content) + _BIAS[rule]) & 0xFF:
         return None
-    hexs = content.hex(" ").upper()
-    payload = hexs if len(hexs) <= SHOW_BYTES * 3 - 1 else hexs[: SHOW_BYTES * 3 - 1] + " …"
-    cmd = C.BY_CODE.get(command)
-    if cmd is None:
-        return (
-            f"@{address:02X}  {f'0x{command:02X}':<9}  {payload}  unknown command  checksum {received:02X} ok",
-            True,
-        )
-    good = True
+    payload = content.hex(" ").upper()
+    if len(payload) > SHOW_BYTES * 3 - 1:
+        payload = payload[: SHOW_BYTES * 3 - 1] + " …"
     request = C.is_request(command, content)
-    try:  # C.decode_fields, with the command and the side already known
-        if request and cmd.request is not None:
-            fields = field_values(cmd.request.from_content(content))
-        elif not request and cmd.reply is not None:
-            fields = cmd.reply.decode(content).fields()
-        else:
-            fields = C.decode_fields(command, content)  # it says why there is nothing to decode
-    except ProtocolError as exc:
-        detail, good = f"  ? {exc.message}", False
-    else:
-        if fields:
-            units = _suffixes(cmd, request)
-            detail = "  " + "  ".join(
-                [f"{name}={_value(value)}{units.get(name, '')}" for name, value in fields.items()]
-            )
-        else:
-            detail = "  read request" if request else ""
-    name = cmd.name or f"0x{command:02X}"
-    return f"@{address:02X}  {name:<9}  {payload}{detail}  checksum {received:02X} ok", good
+    known = _DETAILS.get((command, request))
+    if known is None or known[0] is not C.BY_CODE.get(command):
+        known = _details(command, request)
+    detail, good = known[2](content)
+    return f"@{address:02X}  {known[1]}  {payload}{detail}  checksum {received:02X} ok", good
 
 
 #: What each rule adds to the sum from the address: the header's 55 + AA, or nothing.
 _BIAS = {ChecksumRule.HEADER: 0xFF, ChecksumRule.ADDRESS: 0}
 
-
-def _suffixes(cmd: C.Command, request: bool) -> dict[str, str]:
-    """``units`` as the text after a value (`` %``, or nothing), made once per command and side."""
-    known = _SUFFIXES.get((cmd.code, request))
-    if known is None or known[0] is not cmd:
-        suffixes = {name: f" {unit}" for name, unit in units(cmd.code, request).items() if unit}
-        known = _SUFFIXES[cmd.code, request] = (cmd, suffixes)
-    return known[1]
+Details = Callable[[bytes], tuple[str, bool]]
+#: (code, request side) -> (the table's command, its padded name, content -> fields text and goodness).
+_DETAILS: dict[tuple[int, bool], tuple[C.Command | None, str, Details]] = {}
 
 
-_SUFFIXES: dict[tuple[int, bool], tuple[C.Command, dict[str, str]]] = {}
+def _details(code: int, request: bool) -> tuple[C.Command | None, str, Details]:
+    """``frame_plain``'s part that depends on the command and the side only, made once for each.
+
+    The fields come from the table's own codec (``C.decode_fields`` split by
+    side, with the side already known); the text is ``fields_text``'s.
+    """
+    cmd = C.BY_CODE.get(code)
+    if cmd is None:
+        known: tuple[C.Command | None, str, Details] = (None, f"{f'0x{code:02X}':<9}", _unknown)
+        _DETAILS[code, request] = known
+        return known
+    if request and cmd.request is not None:
+        parse: Callable[[bytes], dict[str, Any]] = partial(_request_fields, cmd.request)
+    elif not request and cmd.reply is not None:
+        parse = partial(_reply_fields, cmd.reply)
+    else:
+        parse = partial(C.decode_fields, code)  # it says why there is nothing to decode
+    suffix = {name: f" {unit}" for name, unit in units(code, request).items() if unit}.get
+    empty = "  read request" if request else ""
+
+    def details(content: bytes) -> tuple[str, bool]:
+        try:
+            fields = parse(content)
+        except ProtocolError as exc:
+            return f"  ? {exc.message}", False
+        if not fields:
+            return empty, True
+        return "  " + "  ".join(
+            [f"{n}={v if type(v) is int else _value(v)}{suffix(n, '')}" for n, v in fields.items()]
+        ), True
+
+    known = _DETAILS[code, request] = (cmd, f"{cmd.name or f'0x{code:02X}':<9}", details)
+    return known
+
+
+def _unknown(content: bytes) -> tuple[str, bool]:
+    return "  unknown command", True
+
+
+def _request_fields(cls: type[C.Request], content: bytes) -> dict[str, Any]:
+    return field_values(cls.from_content(content))
+
+
+def _reply_fields(cls: type[C.Reply], content: bytes) -> dict[str, Any]:
+    return cls.decode(content).fields()
 
 
 def summary_text(row: dict[str, Any]) -> str:

@@ -129,7 +129,34 @@ def _read_fields(cls: type) -> tuple[FieldInfo, ...]:
 
 def field_values(value: Any) -> dict[str, Any]:
     """``dataclasses.asdict`` for our flat messages (scalars and tuples of scalars), without its deep copy."""
-    return {info.name: getattr(value, info.name) for info in fields_of(type(value))}
+    names = _NAMES.get(type(value))
+    if names is None:
+        names = _NAMES[type(value)] = tuple(info.name for info in fields_of(type(value)))
+    return {name: getattr(value, name) for name in names}
+
+
+#: A message class's field names, in order (``field_values`` is asked for every decoded frame).
+_NAMES: dict[type, tuple[str, ...]] = {}
+
+#: Request class -> (name, lo, hi, is_flag) of each field, for ``_plainly_valid``.
+_REQUEST_RANGES: dict[type, tuple[tuple[str, float, float, bool], ...]] = {}
+
+
+def _plainly_valid(value: Request) -> bool:
+    """Whether every field of a request is an int plainly within its range (a flag: 0 or 1).
+
+    The common case, decided without building an error; False means "check in
+    full" (``Request.__post_init__`` decides and words the error).
+    """
+    ranges = _REQUEST_RANGES.get(type(value))
+    if ranges is None:
+        infos = fields_of(type(value))
+        ranges = _REQUEST_RANGES[type(value)] = tuple((i.name, i.lo, i.hi, i.is_flag) for i in infos)
+    for name, lo, hi, is_flag in ranges:
+        item = getattr(value, name)
+        if type(item) is not int or not ((0 <= item <= 1) if is_flag else (lo <= item <= hi)):
+            return False
+    return True
 
 
 def _type_text(annotation: object) -> str:
@@ -145,6 +172,8 @@ class Request:
     CODE: ClassVar[int]
 
     def __post_init__(self) -> None:
+        if _plainly_valid(self):
+            return
         for info in fields_of(type(self)):
             value = getattr(self, info.name)
             if info.is_flag:  # a truthy "no" must not turn the robot counter-clockwise
