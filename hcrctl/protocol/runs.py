@@ -7,10 +7,12 @@ Kept apart so the scanner's rules stay readable. Standard library only.
 
 from __future__ import annotations
 
+import sys
+from array import array
 from collections import Counter
 from collections.abc import Callable
 from itertools import repeat
-from operator import add, and_, gt, itemgetter, ne
+from operator import add, gt, itemgetter, ne
 from zlib import adler32
 
 from .frames import HEADER, MAX_FRAME, OVERHEAD, TERMINATOR, Event, Frame, _new_frame
@@ -139,13 +141,18 @@ def count_run(buf: bytes, bias: int, heads: Counter[bytes]) -> int:
         checks = bytes(map(itemgetter(-3), parts))
         # adler32's low half is 1 + the byte sum, for a part short enough not to wrap it
         ones = map(adler32, parts) if max(lens) <= ADLER_SAFE else map(add, map(sum, parts), repeat(1))
-        sums = bytes(map(and_, ones, repeat(0xFF)))
+        sums = array("I", ones).tobytes()[_LOW_BYTE::4]  # the low byte of each
         wanted = checks.translate(_WANTED[bias])
         good = _agree(sums, wanted, good)
     if not good:
         return 0
-    heads.update(map(itemgetter(slice(0, 3)), parts[:good]))
+    del parts[good:]
+    heads.update(map(itemgetter(slice(0, 3)), parts))
     return sum(lens[:good]) + 2 * good
+
+
+#: Where an unsigned int's low byte stands in its machine representation.
+_LOW_BYTE = 0 if sys.byteorder == "little" else array("I").itemsize - 1
 
 
 #: For a checksum byte c: the low byte of 1 + the sum of its part (the frame without its header) when
