@@ -178,11 +178,12 @@ def log_fields(path: str) -> Iterator[tuple[int, dict[str, Any], float, str, byt
         handle = open(path, encoding="utf-8")  # noqa: SIM115 - closed below, lazily iterated
     except OSError as exc:
         raise LogFormatError(f"cannot read the log {path} ({exc.strerror})", hint=LOG_HINT) from exc
-    loads, parse_time, fromhex = json.loads, datetime.fromisoformat, bytes.fromhex
+    scan = json.decoder.JSONDecoder().scan_once  # type: ignore[attr-defined]  # set in __init__, untyped
+    parse_time, fromhex = datetime.fromisoformat, bytes.fromhex
     with handle:
         for number, text in enumerate(handle, 1):
             try:
-                obj = loads(text)
+                obj = _json_line(scan, text)
                 moment, direction, data = (
                     parse_time(obj["time"]).timestamp(),
                     obj["direction"],
@@ -197,6 +198,20 @@ def log_fields(path: str) -> Iterator[tuple[int, dict[str, Any], float, str, byt
                 if not text.endswith("\n"):
                     return  # the process died while writing it
                 raise _bad(path, number, f"not a traffic log record ({why})")
+
+
+def _json_line(scan: Callable[[str, int], tuple[Any, int]], text: str) -> Any:
+    """``json.loads(text)``: the C scanner alone for a line as the log writes them (an object, then
+    the line end), ``json.loads`` for anything else (its result, or its error, word for word)."""
+    if text[:1] == "{":
+        try:
+            obj, end = scan(text, 0)
+        except StopIteration:
+            pass
+        else:
+            if end == len(text) or (end == len(text) - 1 and text[end] == "\n"):
+                return obj
+    return json.loads(text)
 
 
 def _bad(path: str, number: int, why: str) -> LogFormatError:
