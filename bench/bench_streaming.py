@@ -150,7 +150,7 @@ def _run(args: argparse.Namespace, env: dict[str, str], work: Path) -> int:
         )
         metrics[f"view_{mib}MiB"] = _pair(got, "view", "ref")
         metrics[f"view_json_{mib}MiB"] = _pair(got, "json", "ref")
-        if args.root == ROOT:
+        if not args.no_summary:
             got = best(
                 {
                     "summary": [*hcrctl, "hex", "decode", "--summary", "--file", str(cap)],
