@@ -117,6 +117,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeat", type=int, default=2)
     parser.add_argument("--name", default="streaming")
     parser.add_argument(
+        "--no-summary", action="store_true", help="for a checkout without hex decode --summary"
+    )
+    parser.add_argument(
         "--env-as-is", action="store_true", help="keep PYTHONUNBUFFERED and friends as inherited"
     )
     args = parser.parse_args(argv)
