@@ -66,6 +66,7 @@ def timed(args: list[str], env: dict[str, str], out: str = os.devnull) -> tuple[
             stdout=sink,
             stderr=subprocess.DEVNULL,
             env=env,
+            cwd=env["PYTHONPATH"],  # ``python -m`` looks in the working directory before PYTHONPATH
         )
         return time.perf_counter() - start, int(report.read_text())
 

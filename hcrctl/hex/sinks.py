@@ -12,6 +12,9 @@ import sys
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Protocol
 
+from ..protocol.frames import HEADER
+from ..protocol.records import frame_dict
+
 if TYPE_CHECKING:
     from ..protocol.frames import ChecksumRule, Frame
 
@@ -76,9 +79,19 @@ class JsonArraySink(TextSink):
         self._sep = "["
         self._dumps = json.JSONEncoder(ensure_ascii=False).encode
         self._cache: dict[tuple, str] = {}
+        self.frame_event_text = self._frame_json
 
     def frame_text(self, row: dict[str, Any]) -> str:
         return self._dumps({k: v for k, v in row.items() if k != "offset"})[1:]
+
+    def _frame_json(self, rule: ChecksumRule, frame: Frame) -> tuple[str, bool] | None:
+        """``frame_text`` of the frame's row, made from ``frame_dict`` (the row but its offset) with
+        no copy; None for a frame whose checksum fails under ``rule``."""
+        address, command, content, received = frame[0], frame[1], frame[2], frame[3]
+        row = frame_dict(HEADER + bytes((address, len(content), command)) + content, received, rule)
+        if not row["checksum_ok"]:
+            return None
+        return self._dumps(row)[1:], "error" not in row
 
     def write(self, pieces: list[str]) -> None:
         text = "".join(pieces)
