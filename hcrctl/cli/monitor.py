@@ -141,15 +141,7 @@ def _render_log(
     """Each record re-decoded under the active rule, at its recorded offset."""
     from ..link.trafficlog import log_fields
 
-    printer.live = False
-    show = printer.show_record
-    first = None
-    for _number, fields, moment, direction, data in log_fields(path):
-        first = moment if first is None else first
-        if duration is not None and moment - first > duration:
-            break
-        show(moment, direction, data, fields.get("offset", 0), rule, prof)
-    printer.flush_lines()
+    printer.show_log(log_fields(path), rule, prof, duration)
     sys.stdout.flush()
     click.echo(f"hcrctl: monitor: {printer.counters()}", err=True)
 

@@ -68,6 +68,16 @@ class Stamper:
         self.last = start
         self._at = datetime.fromtimestamp  # once, not per line
 
+    def quick(self) -> Callable[[float], str]:
+        """This stamper, or for a style that keeps no state a plain function doing the same, for a
+        loop over a whole log."""
+        if self.style == "none":
+            return lambda t: ""
+        if self.style == "iso":
+            at = self._at
+            return lambda t: at(t).isoformat(timespec="microseconds")[11:] + "  "  # the time of day
+        return self
+
     def __call__(self, t: float) -> str:
         if self.style == "none":
             return ""
@@ -145,6 +155,47 @@ class TrafficPrinter:
             if tail is not None:
                 lines.append(f"{head}{self._iso(t) if self.as_json else self.stamp(t)}{tail}")
         if len(lines) >= WRITE_LINES or self.live:
+            self.flush_lines()
+
+    def show_log(
+        self,
+        records: Iterable[tuple[int, dict[str, Any], float, str, bytes]],
+        rule: ChecksumRule,
+        profile: Profile = DEFAULT,
+        duration: float | None = None,
+    ) -> None:
+        """``show_record`` for each record of a log (``trafficlog.log_fields``) up to ``duration``
+        seconds after the first: ``monitor --from``'s loop, with what it looks up per record held
+        in locals (a day-long log has millions of records)."""
+        self._import_once()
+        self.live = False
+        get, make, lines, tally = self._records.get, self._made_record, self._lines, self.tally
+        stamp = self._iso if self.as_json else self.stamp.quick()
+        first: float | None = None
+        frames = sent = 0
+        try:
+            for _number, fields, moment, direction, data in records:
+                if first is None:
+                    first = moment
+                if duration is not None and moment - first > duration:
+                    break
+                offset = fields.get("offset", 0)
+                made = get((direction, data, offset)) or make(direction, data, offset, rule, profile)
+                rx = direction == "rx"
+                for row, simple, head, tail in made:
+                    if not rx:
+                        sent += 1
+                    elif simple:
+                        frames += 1
+                    else:
+                        tally.add(row)
+                    if tail is not None:
+                        lines.append(f"{head}{stamp(moment)}{tail}")
+                if len(lines) >= WRITE_LINES:
+                    self.flush_lines()
+        finally:
+            self.sent += sent
+            tally.frames += frames
             self.flush_lines()
 
     def flush_lines(self) -> None:
