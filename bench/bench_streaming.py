@@ -25,7 +25,6 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import time
 import tracemalloc
 from pathlib import Path
 
@@ -43,16 +42,18 @@ for line in open(sys.argv[1], encoding="utf-8"):
 """
 
 
-#: Runs argv[2:] from a fresh, small interpreter and writes its peak RSS (KiB) to argv[1]: Linux
-#: counts a child's memory from before exec in ru_maxrss, so forking from this (large) process
-#: directly would report this process's size.
+#: Runs argv[2:] from a fresh, small interpreter and writes its peak RSS (KiB) and wall seconds to
+#: argv[1]: Linux counts a child's memory from before exec in ru_maxrss, so forking from this (large)
+#: process directly would report this process's size. The time runs from the fork to the child's
+#: end, so the trampoline's own start-up is counted for neither side.
 TRAMPOLINE = """
-import os, sys
+import os, sys, time
+start = time.perf_counter()
 pid = os.fork()
 if pid == 0:
     os.execv(sys.argv[2], sys.argv[2:])
 _, status, usage = os.wait4(pid, 0)
-open(sys.argv[1], "w").write(str(usage.ru_maxrss))
+open(sys.argv[1], "w").write(f"{usage.ru_maxrss} {time.perf_counter() - start}")
 """
 
 
@@ -60,7 +61,6 @@ def timed(args: list[str], env: dict[str, str], out: str = os.devnull) -> tuple[
     """Wall seconds and peak RSS (KiB) of one child run, its stdout to ``out``."""
     report = Path(tempfile.gettempdir()) / f"bench15-rss-{os.getpid()}"
     with open(out, "wb") as sink:
-        start = time.perf_counter()
         subprocess.run(
             [sys.executable, "-c", TRAMPOLINE, str(report), *args],
             stdout=sink,
@@ -68,7 +68,8 @@ def timed(args: list[str], env: dict[str, str], out: str = os.devnull) -> tuple[
             env=env,
             cwd=env["PYTHONPATH"],  # ``python -m`` looks in the working directory before PYTHONPATH
         )
-        return time.perf_counter() - start, int(report.read_text())
+        rss, seconds = report.read_text().split()
+        return float(seconds), int(rss)
 
 
 def best(runs: dict[str, list[str]], env: dict[str, str], repeat: int) -> dict[str, tuple[float, int]]:
