@@ -180,10 +180,18 @@ def log_fields(path: str) -> Iterator[tuple[int, dict[str, Any], float, str, byt
         raise LogFormatError(f"cannot read the log {path} ({exc.strerror})", hint=LOG_HINT) from exc
     scan = json.decoder.JSONDecoder().scan_once  # type: ignore[attr-defined]  # set in __init__, untyped
     parse_time, fromhex = datetime.fromisoformat, bytes.fromhex
+    obj: Any
     with handle:
         for number, text in enumerate(handle, 1):
             try:
-                obj = _json_line(scan, text)
+                # json.loads(text): the C scanner alone for a line as the log writes them (an object,
+                # then the line end); json.loads for anything else (its result or its error)
+                try:
+                    obj, end = scan(text, 0) if text[:1] == "{" else (None, -1)
+                except StopIteration:
+                    end = -1
+                if end != len(text) and (end != len(text) - 1 or text[end] != "\n"):
+                    obj = json.loads(text)
                 moment, direction, data = (
                     parse_time(obj["time"]).timestamp(),
                     obj["direction"],
@@ -198,20 +206,6 @@ def log_fields(path: str) -> Iterator[tuple[int, dict[str, Any], float, str, byt
                 if not text.endswith("\n"):
                     return  # the process died while writing it
                 raise _bad(path, number, f"not a traffic log record ({why})")
-
-
-def _json_line(scan: Callable[[str, int], tuple[Any, int]], text: str) -> Any:
-    """``json.loads(text)``: the C scanner alone for a line as the log writes them (an object, then
-    the line end), ``json.loads`` for anything else (its result, or its error, word for word)."""
-    if text[:1] == "{":
-        try:
-            obj, end = scan(text, 0)
-        except StopIteration:
-            pass
-        else:
-            if end == len(text) or (end == len(text) - 1 and text[end] == "\n"):
-                return obj
-    return json.loads(text)
 
 
 def _bad(path: str, number: int, why: str) -> LogFormatError:
