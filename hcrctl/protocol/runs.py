@@ -128,7 +128,10 @@ def count_run(buf: bytes, bias: int, heads: Counter[bytes]) -> int:
     lens = list(map(len, parts))
     good = len(parts)
     if min(lens, default=6) < 6:  # too short to hold a frame (a header right after a header, the tail)
-        good = list(map(gt, repeat(6), lens)).index(True)
+        if lens[-1] < 6 and min(lens[:-1], default=6) >= 6:  # only the tail: the common case
+            good -= 1
+        else:
+            good = list(map(gt, repeat(6), lens)).index(True)
         del parts[good:], lens[good:]
     good = _agree(lens, list(map(add, map(itemgetter(1), parts), repeat(6))), good)
     covered = sum(lens[:good]) + 2 * good
@@ -146,9 +149,9 @@ def count_run(buf: bytes, bias: int, heads: Counter[bytes]) -> int:
         good = _agree(sums, wanted, good)
     if not good:
         return 0
-    del parts[good:]
+    del parts[good:], lens[good:]
     heads.update(map(itemgetter(slice(0, 3)), parts))
-    return sum(lens[:good]) + 2 * good
+    return sum(lens) + 2 * good
 
 
 #: Where an unsigned int's low byte stands in its machine representation.
@@ -165,4 +168,6 @@ def _agree(got: list | bytes, want: list | bytes, limit: int) -> int:
     """How many leading items of ``got`` equal ``want``'s, up to ``limit``."""
     if got[:limit] == want[:limit]:
         return limit
+    if got[: limit - 1] == want[: limit - 1]:  # the last one only: a frame the window cut, usually
+        return limit - 1
     return min(limit, list(map(ne, got, want)).index(True))
