@@ -21,10 +21,9 @@ CHUNK = 1 << 16
 
 
 def binary_chunks(head: bytes, handle: BinaryIO) -> Iterator[bytes]:
-    """``head``, then the rest of ``handle`` in ``CHUNK`` reads; the head too in ``CHUNK`` pieces,
-    so that no more than a chunk's events are ever held at once."""
-    for at in range(0, len(head), CHUNK):
-        yield head[at : at + CHUNK]
+    """``head``, then the rest of ``handle`` in ``CHUNK`` reads."""
+    if head:
+        yield head
     while chunk := handle.read(CHUNK):
         yield chunk
 

@@ -28,11 +28,8 @@ from .frames import (
     _new_frame,
     checksum,
 )
-from .runs import SMALL, count_run, small_run, valid_run
+from .runs import SMALL, count_runs, small_run, valid_run
 from .textlines import split_skipped
-
-#: Bytes ``count`` checks at a time: a problem sends the rest of its window through the ordinary scan.
-COUNT_WINDOW = 1 << 14
 
 
 class _Pending:
@@ -66,6 +63,7 @@ class FrameDecoder:
         self._buf = b""  # bytes, not bytearray: scanned and sliced as is, with no snapshot copy
         self._base = 0  # stream offset of _buf[0]
         self._pending: _Pending | None = None
+        self._heads: Counter[bytes] | None = None  # set while ``count`` runs
 
     @property
     def rule(self) -> ChecksumRule:
@@ -107,22 +105,19 @@ class FrameDecoder:
         return out
 
     def count(self, data: bytes, heads: Counter[bytes]) -> list[Event]:
-        """``feed`` for a summary: valid frames are counted in ``heads``, every other event is returned.
+        """``feed`` for a summary: runs of valid frames are counted in ``heads``, not returned.
 
-        ``heads`` counts each valid frame's address, length and command bytes
-        (``frame[2:5]``); the frames counted and the events returned are exactly
-        those ``feed`` would give. Runs of valid frames are checked in bulk
-        (``count_run``), a window at a time, so a problem costs the ordinary
-        scan for the rest of its window only.
+        ``heads`` counts each such frame's address, length and command bytes
+        (``frame[2:5]``); every other event is returned as ``feed`` returns it.
+        The scanner is the same, at the same points: only its fast path for
+        runs of valid frames counts them in bulk (``count_runs``) instead of
+        building one event each, so a summary says what the rows say.
         """
-        out: list[Event] = []
-        for at in range(0, len(data), COUNT_WINDOW):
-            self._buf += data[at : at + COUNT_WINDOW]
-            if self._pending is None and self._buf[:2] == HEADER:
-                self._compact(count_run(self._buf, self._bias, heads))
-            if self._buf:
-                self._scan(out)
-        return out
+        self._heads = heads
+        try:
+            return self.feed(data)
+        finally:
+            self._heads = None
 
     def _small(self, out: list[Event]) -> None:
         """The live path: a few bytes, usually whole frames then part of one; anything else goes to ``_scan``."""
@@ -192,7 +187,10 @@ class FrameDecoder:
                 pos = h
                 break
             if self._pending is None:
-                pos, h = valid_run(buf, h, bias, self._base, out.append)
+                if self._heads is None:
+                    pos, h = valid_run(buf, h, bias, self._base, out.append)
+                else:
+                    pos, h = count_runs(buf, h, bias, self._heads)
                 if h != pos or n - h < OVERHEAD:
                     continue
             end = h + buf[h + 3] + OVERHEAD

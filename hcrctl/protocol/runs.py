@@ -113,6 +113,23 @@ def _take_frames(
 ADLER_SAFE = 256
 
 
+#: Bytes ``count_runs`` checks at a time.
+COUNT_WINDOW = 1 << 14
+
+
+def count_runs(buf: bytes, h: int, bias: int, heads: Counter[bytes]) -> tuple[int, int]:
+    """``valid_run`` for a summary: the frames it would take from the header at ``h`` are counted in
+    ``heads`` (``count_run``, a window at a time) instead of appended; returns what it returns."""
+    pos, n = h, len(buf)
+    while True:
+        taken = count_run(buf[pos : pos + COUNT_WINDOW], bias, heads)
+        pos += taken
+        if pos >= n:
+            return n, -1  # the last frame ran to the end of the buffer
+        if not taken:
+            return pos, pos  # a frame the caller explains (or the start of one still to come)
+
+
 def count_run(buf: bytes, bias: int, heads: Counter[bytes]) -> int:
     """Count the frames ``valid_run`` would take from ``buf[0]`` (a header); return the bytes they cover.
 
