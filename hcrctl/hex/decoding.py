@@ -92,6 +92,8 @@ class Bounded(dict[tuple, Any]):
             del self[old]
 
 
+#: Frames whose text ``FrameText`` writes at once.
+WRITE_FRAMES = 2048
 #: Distinct frames whose rendered text ``FrameText`` remembers.
 TEXT_FRAMES = 1 << 14
 
@@ -114,6 +116,11 @@ class FrameText:
         self._texts = Bounded()
 
     def events(self, events: list[Event]) -> None:
+        """Hand ``events`` on in order, a batch of ``WRITE_FRAMES`` at a time (the text held is bounded)."""
+        for at in range(0, len(events), WRITE_FRAMES):
+            self._batch(events[at : at + WRITE_FRAMES])
+
+    def _batch(self, events: list[Event]) -> None:
         texts, tally, rule, direct = self._texts, self.tally, self.rule, self.sink.frame_event_text
         out: list[str] = []
         get, add, fmt = texts.get, out.append, self.sink.frame_format
