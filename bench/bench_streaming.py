@@ -5,7 +5,12 @@ times another checkout's hcrctl (``python -m hcrctl`` with PYTHONPATH=CHECKOUT),
 table. Every hcrctl run and its reference run on the same files in turns (best of ``--repeat``);
 peak memory is the child's ru_maxrss from wait4. Writes ``bench/results/streaming.json``.
 
-- ``hex decode --file`` to a file vs ``ref_framer.py`` (bytes.find, one line per frame): 1 and 4 MiB;
+Children run as a user runs them: stdout buffered (PYTHONUNBUFFERED removed: it costs the
+references a system call per line) and bytecode cached (PYTHONDONTWRITEBYTECODE removed; the
+caches go to a temporary PYTHONPYCACHEPREFIX, written by one untimed run of each command, so no
+checkout is touched). ``--env-as-is`` keeps the environment as inherited instead.
+
+- ``hex decode --file`` (and ``--json``) to a file vs ``ref_framer.py`` (bytes.find, one line per frame): 1 and 4 MiB;
 - ``hex decode --summary --file`` vs ``ref_framer.py --count``;
 - 1 and 2 MiB of ``55 AA``: time and peak memory;
 - ``monitor --from`` a log of 25,000 and 100,000 records vs a json.loads loop printing one line each;
@@ -16,10 +21,10 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
-import time
 import tracemalloc
 from pathlib import Path
 
@@ -37,16 +42,18 @@ for line in open(sys.argv[1], encoding="utf-8"):
 """
 
 
-#: Runs argv[2:] from a fresh, small interpreter and writes its peak RSS (KiB) to argv[1]: Linux
-#: counts a child's memory from before exec in ru_maxrss, so forking from this (large) process
-#: directly would report this process's size.
+#: Runs argv[2:] from a fresh, small interpreter and writes its peak RSS (KiB) and wall seconds to
+#: argv[1]: Linux counts a child's memory from before exec in ru_maxrss, so forking from this (large)
+#: process directly would report this process's size. The time runs from the fork to the child's
+#: end, so the trampoline's own start-up is counted for neither side.
 TRAMPOLINE = """
-import os, sys
+import os, sys, time
+start = time.perf_counter()
 pid = os.fork()
 if pid == 0:
     os.execv(sys.argv[2], sys.argv[2:])
 _, status, usage = os.wait4(pid, 0)
-open(sys.argv[1], "w").write(str(usage.ru_maxrss))
+open(sys.argv[1], "w").write(f"{usage.ru_maxrss} {time.perf_counter() - start}")
 """
 
 
@@ -54,19 +61,22 @@ def timed(args: list[str], env: dict[str, str], out: str = os.devnull) -> tuple[
     """Wall seconds and peak RSS (KiB) of one child run, its stdout to ``out``."""
     report = Path(tempfile.gettempdir()) / f"bench15-rss-{os.getpid()}"
     with open(out, "wb") as sink:
-        start = time.perf_counter()
         subprocess.run(
             [sys.executable, "-c", TRAMPOLINE, str(report), *args],
             stdout=sink,
             stderr=subprocess.DEVNULL,
             env=env,
+            cwd=env["PYTHONPATH"],  # ``python -m`` looks in the working directory before PYTHONPATH
         )
-        return time.perf_counter() - start, int(report.read_text())
+        rss, seconds = report.read_text().split()
+        return float(seconds), int(rss)
 
 
 def best(runs: dict[str, list[str]], env: dict[str, str], repeat: int) -> dict[str, tuple[float, int]]:
-    """Best time and the peak RSS of each command, taken in turns."""
+    """Best time and the peak RSS of each command, taken in turns (after one untimed run of each)."""
     out: dict[str, tuple[float, int]] = {name: (1e9, 0) for name in runs}
+    for args in runs.values():
+        timed(args, env)  # bytecode caches written, files in the page cache
     for _ in range(repeat):
         for name, args in runs.items():
             seconds, rss = timed(args, env, out=str(Path(tempfile.gettempdir()) / f"bench15-{name}.out"))
@@ -108,25 +118,44 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--root", type=Path, default=ROOT, help="the checkout whose hcrctl is timed")
     parser.add_argument("--repeat", type=int, default=2)
     parser.add_argument("--name", default="streaming")
+    parser.add_argument(
+        "--no-summary", action="store_true", help="for a checkout without hex decode --summary"
+    )
+    parser.add_argument(
+        "--env-as-is", action="store_true", help="keep PYTHONUNBUFFERED and friends as inherited"
+    )
     args = parser.parse_args(argv)
+    work = Path(tempfile.mkdtemp(prefix="bench15-"))
     env = dict(os.environ, PYTHONPATH=str(args.root), COLUMNS="120")
+    if not args.env_as_is:
+        env.pop("PYTHONUNBUFFERED", None)
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
+        env["PYTHONPYCACHEPREFIX"] = str(work / "pycache")
+    try:
+        return _run(args, env, work)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def _run(args: argparse.Namespace, env: dict[str, str], work: Path) -> int:
     hcrctl = [sys.executable, "-m", "hcrctl"]
     py = [sys.executable]
-    metrics: dict[str, object] = {"root": str(args.root)}
-    work = Path(tempfile.mkdtemp(prefix="bench15-"))
+    metrics: dict[str, object] = {"root": str(args.root), "env_as_is": args.env_as_is}
     for mib, frames in ((1, 90_000), (4, 360_000)):
         cap = work / f"cap{mib}.bin"
         cap.write_bytes(mixed_stream(frames))
         got = best(
             {
                 "view": [*hcrctl, "hex", "decode", "--file", str(cap)],
+                "json": [*hcrctl, "hex", "decode", "--json", "--file", str(cap)],
                 "ref": [*py, str(HERE / "ref_framer.py"), str(cap)],
             },
             env,
             args.repeat,
         )
         metrics[f"view_{mib}MiB"] = _pair(got, "view", "ref")
-        if args.root == ROOT:
+        metrics[f"view_json_{mib}MiB"] = _pair(got, "json", "ref")
+        if not args.no_summary:
             got = best(
                 {
                     "summary": [*hcrctl, "hex", "decode", "--summary", "--file", str(cap)],
@@ -163,7 +192,26 @@ def main(argv: list[str] | None = None) -> int:
     for key, value in metrics.items():
         print(f"  {key}: {value}")
     record(args.name, metrics)
-    return 0
+    missed = [
+        f"{key} {value['ratio']} > {target}"
+        for key, target in TARGETS.items()
+        if isinstance(value := metrics.get(key), dict) and value["ratio"] > target
+    ]
+    for line in missed:
+        print(f"  MISS {line}")
+    return 1 if missed else 0
+
+
+#: Issue 15's time targets, as ratios to the reference measured in the same run.
+TARGETS = {
+    "view_1MiB": 2.0,
+    "view_4MiB": 2.0,
+    "view_json_1MiB": 2.0,
+    "view_json_4MiB": 2.0,
+    "summary_4MiB": 0.5,
+    "monitor_25000": 2.0,
+    "monitor_100000": 2.0,
+}
 
 
 def _pair(got: dict[str, tuple[float, int]], ours: str, ref: str) -> dict[str, float]:

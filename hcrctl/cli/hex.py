@@ -68,11 +68,11 @@ def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None, s
     chunks = _decode_input(hex_text, capture)
     if summary:
         _summarise(ctx, settings, chunks)
-    from ..hex.decoding import decode_rows
+    from ..hex.decoding import decode_to
     from ..hex.view import FrameTally
 
     tally, sink = FrameTally(), _row_sink(settings)
-    size = decode_rows(chunks, settings.checksum, tally.add, sink.add, profile=profile(settings.protocol))
+    size = decode_to(chunks, settings.checksum, tally, sink, profile(settings.protocol))
     sink.close()
     hint = tally.hint()
     click.echo(f"hcrctl: {size} bytes: {tally.text()}{f' (hint: {hint})' if hint else ''}", err=True)
@@ -87,13 +87,15 @@ def _encoded(settings: Settings, request: C.Request | C.Command) -> bytes:
 def _summarise(ctx: click.Context, settings: Settings, chunks: Iterator[bytes]) -> None:
     """``--summary``: the counts, as text or one JSON object; exit as decode would."""
     from ..hex.summary import Summary
-    from ..protocol.dialect import make_decoder
+    from ..protocol.dialect import ProfileDecoder, make_decoder
 
     counts = Summary(settings.checksum)
     decoder = make_decoder(profile(settings.protocol), settings.checksum)
     for chunk in chunks:
         counts.bytes += len(chunk)
-        counts.add(decoder.feed(chunk))
+        counts.add(
+            decoder.feed(chunk) if isinstance(decoder, ProfileDecoder) else decoder.count(chunk, counts.heads)
+        )
     counts.add(decoder.flush())
     click.echo(json.dumps(counts.as_dict(), ensure_ascii=False) if settings.as_json else counts.text())
     ctx.exit(0 if counts.all_good else 1)

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from ..hex.traffic import FrameFilter, TrafficPrinter, rows_of
+from ..hex.traffic import FrameFilter, TrafficPrinter
 from ..protocol import commands as C
 from ..protocol.dialect import decode_all
 from ..protocol.frames import ChecksumRule
@@ -139,18 +139,9 @@ def _render_log(
     printer: TrafficPrinter, path: str, rule: ChecksumRule, duration: float | None, prof: Profile
 ) -> None:
     """Each record re-decoded under the active rule, at its recorded offset."""
-    from ..link.trafficlog import read_log
+    from ..link.trafficlog import log_fields
 
-    printer.live = False
-    first = None
-    for rec in read_log(path):
-        first = rec.time if first is None else first
-        if duration is not None and rec.time - first > duration:
-            break
-        rows = rows_of(decode_all(rec.data, rule, prof), rule, rec.direction, prof)
-        for row in rows:
-            row["offset"] += rec.fields.get("offset", 0)
-        printer.show(rec.time, rec.direction, rec.data, rows)
+    printer.show_log(log_fields(path), rule, prof, duration)
     sys.stdout.flush()
     click.echo(f"hcrctl: monitor: {printer.counters()}", err=True)
 

@@ -8,12 +8,17 @@ what the closing line says comes from counters.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
-from typing import Any
+from itertools import islice
+from typing import TYPE_CHECKING, Any
 
 from ..protocol.dialect import make_decoder
 from ..protocol.frames import ChecksumRule, Event, Frame
 from ..protocol.profiles import DEFAULT, Profile
 from ..protocol.records import event_dict
+
+if TYPE_CHECKING:
+    from .sinks import RowSink, TextSink
+    from .view import FrameTally
 
 Row = dict[str, Any]
 
@@ -73,3 +78,104 @@ def _hand(events: list[Event], make: RowMaker, consumers: tuple[Callable[[Row], 
         row = make(event)
         for consume in consumers:
             consume(row)
+
+
+class Bounded(dict[tuple, Any]):
+    """A dict its owner keeps bounded by forgetting the oldest half when it is full.
+
+    Cheaper per hit than an LRU (a hit moves nothing), and nearly as good for a
+    capture's repeats: a frame still in use is simply made again once per cycle.
+    """
+
+    def forget_half(self) -> None:
+        for old in list(islice(self, len(self) // 2)):
+            del self[old]
+
+
+#: Frames whose text ``FrameText`` writes at once.
+WRITE_FRAMES = 2048
+#: Distinct frames whose rendered text ``FrameText`` remembers.
+TEXT_FRAMES = 1 << 14
+
+
+class FrameText:
+    """``hex decode``'s loop for a sink that writes text: a frame's text is made once per distinct frame.
+
+    A frame's rendering (all but its offset) and its effect on the tally depend
+    only on its address, command, content and checksum; a capture repeats
+    those a lot. So a frame costs a dict lookup and one format, and the text
+    of a chunk's frames is written at once. Every other event takes the
+    ordinary path (a row to the tally and to the sink), in order.
+    """
+
+    def __init__(self, rule: ChecksumRule, tally: FrameTally, sink: TextSink) -> None:
+        self.rule = rule
+        self.tally = tally
+        self.sink = sink
+        self.make = RowMaker(rule)
+        self._texts = Bounded()
+
+    def events(self, events: list[Event]) -> None:
+        """Hand ``events`` on in order, a batch of ``WRITE_FRAMES`` at a time (the text held is bounded)."""
+        for at in range(0, len(events), WRITE_FRAMES):
+            self._batch(events[at : at + WRITE_FRAMES])
+
+    def _batch(self, events: list[Event]) -> None:
+        texts, tally, rule, direct = self._texts, self.tally, self.rule, self.sink.frame_event_text
+        out: list[str] = []
+        get, add, fmt = texts.get, out.append, self.sink.frame_format
+        simple = 0
+        for event in events:
+            if type(event) is Frame:
+                key = event[:4]
+                entry: str | tuple[str, Row] | None = get(key)
+                if entry is None:
+                    made = direct(rule, event) if direct is not None else None
+                    # a good frame the tally just counts is remembered as its text alone
+                    entry = made[0] if made is not None and made[1] else self._entry(event, made)
+                    if len(texts) >= TEXT_FRAMES:
+                        texts.forget_half()
+                    texts[key] = entry
+                if isinstance(entry, str):
+                    add(fmt(event[4], entry))
+                    simple += 1
+                else:
+                    text, row = entry
+                    add(fmt(event[4], text))
+                    tally.add(row)
+            else:
+                if out:
+                    self.sink.write(out)
+                    out = []
+                    add = out.append
+                row = self.make(event)
+                tally.add(row)
+                self.sink.add(row)
+        if out:
+            self.sink.write(out)
+        tally.frames += simple
+
+    def _entry(self, event: Frame, made: tuple[str, bool] | None) -> str | tuple[str, Row]:
+        """What to remember of a frame that is not simply good: its text, or its text and its row."""
+        row = event_dict(event, self.rule)
+        simple = "problem" not in row and row["checksum_ok"] and "as_v0.11" not in row and "error" not in row
+        text = made[0] if made is not None else self.sink.frame_text(row)
+        return text if simple else (text, {k: v for k, v in row.items() if k != "offset"})
+
+
+def decode_to(
+    chunks: Iterable[bytes], rule: ChecksumRule, tally: FrameTally, sink: RowSink, profile: Profile = DEFAULT
+) -> int:
+    """``decode_rows`` into ``tally`` and ``sink``, through ``FrameText`` when the sink writes text."""
+    from .sinks import TextSink
+
+    if profile is not DEFAULT or not isinstance(sink, TextSink):
+        return decode_rows(chunks, rule, tally.add, sink.add, profile=profile)
+    decoder = make_decoder(profile, rule)
+    text = FrameText(rule, tally, sink)
+    size = 0
+    for chunk in chunks:
+        size += len(chunk)
+        text.events(decoder.feed(chunk))
+    text.events(decoder.flush())
+    return size

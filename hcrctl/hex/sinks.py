@@ -10,7 +10,13 @@ from __future__ import annotations
 import json
 import sys
 from collections.abc import Callable
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
+
+from ..protocol.frames import HEADER
+from ..protocol.records import frame_dict
+
+if TYPE_CHECKING:
+    from ..protocol.frames import ChecksumRule, Frame
 
 #: Rows per table on a terminal: a table must measure its rows before printing any.
 TABLE_ROWS = 1000
@@ -33,14 +39,66 @@ class RowSink(Protocol):
     def close(self) -> None: ...
 
 
-class JsonArraySink:
-    """``[row, row, ...]``, streamed: byte for byte what ``json.dumps(rows)`` prints."""
+class TextSink:
+    """A sink that writes text, so that ``decoding.FrameText`` can hand it frames ready made.
+
+    ``frame_text(row)`` is a frame row's text without its offset (made once per
+    distinct frame), ``frame_format(offset, text)`` the piece written for one
+    frame, and ``write(pieces)`` writes a run of them at once.
+    """
+
+    frame_format: Callable[[int, str], str]
 
     def __init__(self, write: Callable[[str], object] | None = None) -> None:
         self._write = write or sys.stdout.write
+
+    def frame_text(self, row: dict[str, Any]) -> str:
+        raise NotImplementedError
+
+    #: A frame's text and whether its row is good, made straight from the frame (None: use the row);
+    #: a sink that can sets it to a plain function, called once per new frame.
+    frame_event_text: Callable[[ChecksumRule, Frame], tuple[str, bool] | None] | None = None
+
+    def write(self, pieces: list[str]) -> None:
+        self._write("".join(pieces))
+
+    def add(self, row: dict[str, Any]) -> None:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        sys.stdout.flush()
+
+
+class JsonArraySink(TextSink):
+    """``[row, row, ...]``, streamed: byte for byte what ``json.dumps(rows)`` prints."""
+
+    frame_format = ', {{"offset": {}, {}'.format
+
+    def __init__(self, write: Callable[[str], object] | None = None) -> None:
+        super().__init__(write)
         self._sep = "["
         self._dumps = json.JSONEncoder(ensure_ascii=False).encode
         self._cache: dict[tuple, str] = {}
+        self.frame_event_text = self._frame_json
+
+    def frame_text(self, row: dict[str, Any]) -> str:
+        return self._dumps({k: v for k, v in row.items() if k != "offset"})[1:]
+
+    def _frame_json(self, rule: ChecksumRule, frame: Frame) -> tuple[str, bool] | None:
+        """``frame_text`` of the frame's row, made from ``frame_dict`` (the row but its offset) with
+        no copy; None for a frame whose checksum fails under ``rule``."""
+        address, command, content, received = frame[0], frame[1], frame[2], frame[3]
+        row = frame_dict(HEADER + bytes((address, len(content), command)) + content, received, rule)
+        if not row["checksum_ok"]:
+            return None
+        return self._dumps(row)[1:], "error" not in row
+
+    def write(self, pieces: list[str]) -> None:
+        text = "".join(pieces)
+        if self._sep == "[":  # the first element: the array opens instead of a separator
+            text = "[" + text[2:]
+            self._sep = ", "
+        self._write(text)
 
     def add(self, row: dict[str, Any]) -> None:
         key = frame_key(row)
@@ -61,15 +119,21 @@ class JsonArraySink:
         sys.stdout.flush()
 
 
-class PlainSink:
+class PlainSink(TextSink):
     """One text line per row, for pipes and files."""
 
-    def __init__(self, write: Callable[[str], object] | None = None) -> None:
-        from .view import plain_line
+    frame_format = "{:>6}  {}\n".format
 
+    def __init__(self, write: Callable[[str], object] | None = None) -> None:
+        from .view import frame_plain, plain_line
+
+        super().__init__(write)
         self._line = plain_line
-        self._write = write or sys.stdout.write
+        self.frame_event_text = frame_plain
         self._cache: dict[tuple, str] = {}
+
+    def frame_text(self, row: dict[str, Any]) -> str:
+        return self._line(row, offset=False)
 
     def add(self, row: dict[str, Any]) -> None:
         key = frame_key(row)

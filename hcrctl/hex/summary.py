@@ -8,6 +8,7 @@ when the input has timestamps (a ``--log`` file, a live port).
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Iterable
 from datetime import datetime
 from typing import TYPE_CHECKING, Any
@@ -30,6 +31,8 @@ class Summary:
         #: and per-address counts are sums of these, made once at the end.
         self.pairs: dict[tuple[int, int], int] = {}
         self.bad_pairs: dict[tuple[int, int], int] = {}
+        #: Frames counted in bulk (``FrameDecoder.count``), by their address, length and command bytes.
+        self.heads: Counter[bytes] = Counter()
         self.other_ok = 0  # bad under ``rule``, good under the other one
         self.junk_bytes = self.junk_runs = self.malformed_bytes = self.malformed = 0
         self.truncated_bytes = self.text_lines = 0
@@ -50,6 +53,14 @@ class Summary:
             else:
                 self._add_problem(event)
 
+    def _fold_heads(self) -> None:
+        """Move the frames counted in bulk into ``pairs``."""
+        pairs = self.pairs
+        for head, n in self.heads.items():
+            key = (head[0], head[2])
+            pairs[key] = pairs.get(key, 0) + n
+        self.heads.clear()
+
     def _add_problem(self, event: Event) -> None:
         if isinstance(event, BadChecksum):
             key = (event.address, event.command)
@@ -68,9 +79,11 @@ class Summary:
 
     @property
     def all_good(self) -> bool:
+        self._fold_heads()
         return not (self.bad_pairs or self.junk_bytes or self.malformed or self.truncated_bytes)
 
     def as_dict(self) -> dict[str, Any]:
+        self._fold_heads()
         good, bad = sum(self.pairs.values()), sum(self.bad_pairs.values())
         commands: dict[str, int] = {}
         addresses: dict[str, int] = {}

@@ -19,6 +19,11 @@ from ..protocol.profiles import DEFAULT, Profile
 if TYPE_CHECKING:
     from ..link.traffic import Traffic
 
+#: Distinct records whose rows ``show_record`` remembers; past this it starts afresh (bounded).
+CACHE_RECORDS = 4096
+#: Lines ``show_record`` holds before writing them at once (when not live).
+WRITE_LINES = 512
+
 #: The colours of a line on a terminal (as click.style writes them).
 ANSI = {"cyan": "\x1b[36m", "red": "\x1b[31m"}
 RESET = "\x1b[0m"
@@ -57,16 +62,27 @@ class Stamper:
     """iso: local time of day with microseconds; delta: seconds since the previous line; none."""
 
     def __init__(self, style: str, start: float | None = None) -> None:
+        from datetime import datetime
+
         self.style = style
         self.last = start
+        self._at = datetime.fromtimestamp  # once, not per line
+
+    def quick(self) -> Callable[[float], str]:
+        """This stamper, or for a style that keeps no state a plain function doing the same, for a
+        loop over a whole log."""
+        if self.style == "none":
+            return lambda t: ""
+        if self.style == "iso":
+            at = self._at
+            return lambda t: at(t).isoformat(timespec="microseconds")[11:] + "  "  # the time of day
+        return self
 
     def __call__(self, t: float) -> str:
         if self.style == "none":
             return ""
         if self.style == "iso":
-            from datetime import datetime
-
-            return datetime.fromtimestamp(t).time().isoformat(timespec="microseconds") + "  "
+            return self._at(t).time().isoformat(timespec="microseconds") + "  "
         delta = 0.0 if self.last is None else t - self.last
         self.last = t
         return f"+{delta:.6f}  "
@@ -87,11 +103,15 @@ class TrafficPrinter:
         #: A live line is flushed row by row, for whoever watches; a log rendered from a file
         #: (``monitor --from``) need not pay a write per row.
         self.live = True
-        self._plain: Callable[..., str] | None = None
+        self._imported = False
+        self._plain: Callable[..., str]
         self._iso: Callable[[float], str]
         self._hexs: Callable[[bytes], str]
         self._is_good: Callable[[dict[str, Any]], bool]
         self._is_text: Callable[[dict[str, Any]], bool]
+        #: ``show_record``'s rows and text per distinct record, and its lines not yet written.
+        self._records: dict[tuple[str, bytes, int], list[tuple[dict[str, Any], bool, str, str | None]]] = {}
+        self._lines: list[str] = []
 
     def show(self, t: float, direction: str, data: bytes, rows: list[dict[str, Any]]) -> None:
         for row in rows:
@@ -104,11 +124,124 @@ class TrafficPrinter:
         if self.live:
             sys.stdout.flush()
 
+    def show_record(
+        self,
+        t: float,
+        direction: str,
+        data: bytes,
+        offset: int,
+        rule: ChecksumRule,
+        profile: Profile = DEFAULT,
+    ) -> None:
+        """``show`` for a logged record (decoded here, its rows moved to ``offset``), as ``monitor --from`` does.
+
+        A log repeats itself (the same request, the same reply), so a record's
+        rows and their text, all but the time stamp, are made once per distinct
+        record and remembered (a bounded number of them).
+        """
+        key = (direction, data, offset)
+        made = self._records.get(key)
+        if made is None:
+            made = self._made_record(direction, data, offset, rule, profile)
+        count = direction == "rx"
+        lines = self._lines
+        for row, simple, head, tail in made:
+            if not count:
+                self.sent += 1
+            elif simple:
+                self.tally.frames += 1
+            else:
+                self.tally.add(row)
+            if tail is not None:
+                lines.append(f"{head}{self._iso(t) if self.as_json else self.stamp(t)}{tail}")
+        if len(lines) >= WRITE_LINES or self.live:
+            self.flush_lines()
+
+    def show_log(
+        self,
+        records: Iterable[tuple[int, dict[str, Any], float, str, bytes]],
+        rule: ChecksumRule,
+        profile: Profile = DEFAULT,
+        duration: float | None = None,
+    ) -> None:
+        """``show_record`` for each record of a log (``trafficlog.log_fields``) up to ``duration``
+        seconds after the first: ``monitor --from``'s loop, with what it looks up per record held
+        in locals (a day-long log has millions of records)."""
+        self._import_once()
+        self.live = False
+        get, make, lines, tally = self._records.get, self._made_record, self._lines, self.tally
+        stamp = self._iso if self.as_json else self.stamp.quick()
+        first: float | None = None
+        frames = sent = 0
+        try:
+            for _number, fields, moment, direction, data in records:
+                if first is None:
+                    first = moment
+                if duration is not None and moment - first > duration:
+                    break
+                offset = fields.get("offset", 0)
+                made = get((direction, data, offset)) or make(direction, data, offset, rule, profile)
+                rx = direction == "rx"
+                for row, simple, head, tail in made:
+                    if not rx:
+                        sent += 1
+                    elif simple:
+                        frames += 1
+                    else:
+                        tally.add(row)
+                    if tail is not None:
+                        lines.append(f"{head}{stamp(moment)}{tail}")
+                if len(lines) >= WRITE_LINES:
+                    self.flush_lines()
+        finally:
+            self.sent += sent
+            tally.frames += frames
+            self.flush_lines()
+
+    def flush_lines(self) -> None:
+        """Write the lines ``show_record`` holds back (a few hundred at a time)."""
+        if self._lines:
+            sys.stdout.write("".join(self._lines))
+            self._lines.clear()
+        if self.live:
+            sys.stdout.flush()
+
+    def _made_record(
+        self, direction: str, data: bytes, offset: int, rule: ChecksumRule, profile: Profile
+    ) -> list[tuple[dict[str, Any], bool, str, str | None]]:
+        """Each row of a record: the row, whether the tally just counts it as a frame, and its line
+        around the time stamp (None when the filter hides it)."""
+        self._import_once()
+        rows = rows_of(decode_all(data, rule, profile), rule, direction, profile)
+        made = []
+        for row in rows:
+            row["offset"] += offset
+            simple = self._is_good(row) and "problem" not in row and "as_v0.11" not in row
+            head, tail = "", None
+            if self.keep(row):
+                if self.as_json:
+                    rest = json.dumps(row)
+                    head = '{"time": "'
+                    tail = f'", "direction": {json.dumps(direction)}, "hex": {json.dumps(self._hexs(data))}'
+                    tail += f", {rest[1:]}\n" if rest != "{}" else "}\n"
+                else:
+                    colour = "cyan" if self._is_text(row) else None if self._is_good(row) else "red"
+                    tail = f"{direction}  {self._plain(row, offset=False)}"
+                    if self.color and colour:
+                        head, tail = ANSI[colour], tail + RESET
+                    tail += "\n"
+            made.append((row, simple, head, tail))
+        if len(self._records) >= CACHE_RECORDS:
+            self._records.clear()
+        self._records[direction, data, offset] = made
+        return made
+
     def show_traffic(self, traffic: Traffic, rule: ChecksumRule, profile: Profile = DEFAULT) -> None:
         self.show(traffic.time, traffic.direction, traffic.data, traffic_rows(traffic, rule, profile))
 
-    def _line(self, t: float, direction: str, data: bytes, row: dict[str, Any]) -> None:
-        if self._plain is None:  # imported on first use, once (not per row): start-up stays lean
+    def _import_once(self) -> None:
+        if not self._imported:  # imported on first use, once (not per row): start-up stays lean
+            self._imported = True
             from ..link.trafficlog import iso_time
             from ..protocol.records import hexs, is_good, is_text
             from .view import plain_line
@@ -120,6 +253,9 @@ class TrafficPrinter:
                 is_text,
                 plain_line,
             )
+
+    def _line(self, t: float, direction: str, data: bytes, row: dict[str, Any]) -> None:
+        self._import_once()
         if self.as_json:
             line = json.dumps({"time": self._iso(t), "direction": direction, "hex": self._hexs(data), **row})
         else:

@@ -11,6 +11,8 @@ reuses it. Standard library only.
 
 from __future__ import annotations
 
+from collections import Counter
+
 from .frames import (
     HEADER,
     MAX_KEPT,
@@ -26,7 +28,7 @@ from .frames import (
     _new_frame,
     checksum,
 )
-from .runs import SMALL, small_run, valid_run
+from .runs import SMALL, count_runs, small_run, valid_run
 from .textlines import split_skipped
 
 
@@ -61,6 +63,7 @@ class FrameDecoder:
         self._buf = b""  # bytes, not bytearray: scanned and sliced as is, with no snapshot copy
         self._base = 0  # stream offset of _buf[0]
         self._pending: _Pending | None = None
+        self._heads: Counter[bytes] | None = None  # set while ``count`` runs
 
     @property
     def rule(self) -> ChecksumRule:
@@ -100,6 +103,21 @@ class FrameDecoder:
             else:
                 self._scan(out)
         return out
+
+    def count(self, data: bytes, heads: Counter[bytes]) -> list[Event]:
+        """``feed`` for a summary: runs of valid frames are counted in ``heads``, not returned.
+
+        ``heads`` counts each such frame's address, length and command bytes
+        (``frame[2:5]``); every other event is returned as ``feed`` returns it.
+        The scanner is the same, at the same points: only its fast path for
+        runs of valid frames counts them in bulk (``count_runs``) instead of
+        building one event each, so a summary says what the rows say.
+        """
+        self._heads = heads
+        try:
+            return self.feed(data)
+        finally:
+            self._heads = None
 
     def _small(self, out: list[Event]) -> None:
         """The live path: a few bytes, usually whole frames then part of one; anything else goes to ``_scan``."""
@@ -169,7 +187,10 @@ class FrameDecoder:
                 pos = h
                 break
             if self._pending is None:
-                pos, h = valid_run(buf, h, bias, self._base, out.append)
+                if self._heads is None:
+                    pos, h = valid_run(buf, h, bias, self._base, out.append)
+                else:
+                    pos, h = count_runs(buf, h, bias, self._heads)
                 if h != pos or n - h < OVERHEAD:
                     continue
             end = h + buf[h + 3] + OVERHEAD

@@ -135,7 +135,34 @@ def _read_fields(cls: type) -> tuple[FieldInfo, ...]:
 
 def field_values(value: Any) -> dict[str, Any]:
     """``dataclasses.asdict`` for our flat messages (scalars and tuples of scalars), without its deep copy."""
-    return {info.name: getattr(value, info.name) for info in fields_of(type(value))}
+    names = _NAMES.get(type(value))
+    if names is None:
+        names = _NAMES[type(value)] = tuple(info.name for info in fields_of(type(value)))
+    return {name: getattr(value, name) for name in names}
+
+
+#: A message class's field names, in order (``field_values`` is asked for every decoded frame).
+_NAMES: dict[type, tuple[str, ...]] = {}
+
+#: Request class -> (name, lo, hi, is_flag) of each field, for ``_plainly_valid``.
+_REQUEST_RANGES: dict[type, tuple[tuple[str, float, float, bool], ...]] = {}
+
+
+def _plainly_valid(value: Request) -> bool:
+    """Whether every field of a request is an int plainly within its range (a flag: 0 or 1).
+
+    The common case, decided without building an error; False means "check in
+    full" (``Request.__post_init__`` decides and words the error).
+    """
+    ranges = _REQUEST_RANGES.get(type(value))
+    if ranges is None:
+        infos = fields_of(type(value))
+        ranges = _REQUEST_RANGES[type(value)] = tuple((i.name, i.lo, i.hi, i.is_flag) for i in infos)
+    for name, lo, hi, is_flag in ranges:
+        item = getattr(value, name)
+        if type(item) is not int or not ((0 <= item <= 1) if is_flag else (lo <= item <= hi)):
+            return False
+    return True
 
 
 def _type_text(annotation: object) -> str:
@@ -151,6 +178,8 @@ class Request:
     CODE: ClassVar[int]
 
     def __post_init__(self) -> None:
+        if _plainly_valid(self):
+            return
         for info in fields_of(type(self)):
             value = getattr(self, info.name)
             if info.is_flag:  # a truthy "no" must not turn the robot counter-clockwise
@@ -204,11 +233,47 @@ def check_reply(value: Reply, content: bytes) -> None:
     (``compass``); a reply of several fields carries one byte per field, in
     order, and each is named by its field (``humidity``).
     """
+    if _plainly_in_range(value):
+        return
     infos = fields_of(type(value))
     for index, info in enumerate(infos):
         what = name_of(value.CODE) if len(infos) == 1 else info.name
         raw = content if len(infos) == 1 else content[index : index + 1]
         _check_field(what, info, getattr(value, info.name), raw)
+
+
+#: Reply class -> (name, lo, hi, count) of each field, or None when a field has ``bits`` (checked in full).
+_RANGES: dict[type, tuple[tuple[str, float, float, tuple[int, int] | None], ...] | None] = {}
+
+
+def _plainly_in_range(value: Reply) -> bool:
+    """Whether every field is plainly within its range: the common case, decided without building errors.
+
+    False means "check in full" (``check_reply``'s loop decides and words the error), never "out of range".
+    """
+    cls = type(value)
+    if cls in _RANGES:
+        ranges = _RANGES[cls]
+    else:
+        infos = fields_of(cls)
+        ranges = _RANGES[cls] = (
+            None
+            if any(info.bits is not None for info in infos)
+            else tuple((info.name, info.lo, info.hi, info.count) for info in infos)
+        )
+    if ranges is None:
+        return False
+    for name, lo, hi, count in ranges:
+        item = getattr(value, name)
+        kind = type(item)
+        if kind is tuple:
+            if count is not None and not count[0] <= len(item) <= count[1]:
+                return False
+            if item and not (lo <= min(item) and max(item) <= hi):
+                return False
+        elif (kind is not int and kind is not float) or count is not None or not lo <= item <= hi:
+            return False
+    return True
 
 
 def _check_field(what: str, info: FieldInfo, value: Any, raw: bytes) -> None:

@@ -22,7 +22,6 @@ from .frames import (
     Malformed,
     TextLine,
     Truncated,
-    checksum,
 )
 from .profiles import DEFAULT, LONE_LF_HINT, V011, Profile, lone_lf_frame
 
@@ -33,9 +32,10 @@ def event_dict(
     event: Event, rule: ChecksumRule | str, direction: str | None = None, profile: Profile = DEFAULT
 ) -> dict[str, Any]:
     """The JSON shape of one decoder event; problems carry a ``problem`` key."""
-    rule = ChecksumRule(rule)
+    if type(rule) is not ChecksumRule:
+        rule = ChecksumRule(rule)
     if isinstance(event, Frame | BadChecksum):
-        received = event.checksum if isinstance(event, Frame) else event.received
+        received = event.checksum if type(event) is Frame else event.received  # type: ignore[union-attr]
         body = HEADER + bytes((event.address, len(event.content), event.command)) + event.content
         return {"offset": event.offset, **frame_dict(body, received, rule, direction, profile)}
     if isinstance(event, Malformed):
@@ -92,14 +92,17 @@ def frame_dict(
     if profile is not DEFAULT:
         return _profile_frame_dict(body, received, rule, direction, profile)
     address, command, content = body[2], body[4], body[5:]
-    expected, other = checksum(body, rule), checksum(body, rule.other)
+    by_address = sum(body[2:])  # the address rule's sum; the text rule's adds the header
+    by_header = (by_address + body[0] + body[1]) & 0xFF
+    by_address &= 0xFF
+    expected, other = (by_header, by_address) if rule == ChecksumRule.HEADER else (by_address, by_header)
     cmd = C.BY_CODE.get(command)
     out: dict[str, Any] = {
         "address": address,
         "command": command,
         "name": cmd.name if cmd else None,
         "kind": _kind(cmd, command, content, direction),
-        "payload": hexs(content),
+        "payload": content.hex(" ").upper(),
         "checksum": received,
         "checksum_ok": received == expected,
         "expected": expected,

@@ -7,9 +7,15 @@ Kept apart so the scanner's rules stay readable. Standard library only.
 
 from __future__ import annotations
 
+import sys
+from array import array
+from collections import Counter
 from collections.abc import Callable
+from itertools import repeat
+from operator import add, gt, itemgetter, ne
+from zlib import adler32
 
-from .frames import HEADER, MAX_FRAME, OVERHEAD, Event, Frame, _new_frame
+from .frames import HEADER, MAX_FRAME, OVERHEAD, TERMINATOR, Event, Frame, _new_frame
 
 
 def small_run(buf: bytes, bias: int, base: int, append: Callable[[Event], None]) -> tuple[int, bool]:
@@ -98,3 +104,87 @@ def _take_frames(
     except IndexError:  # a part too short to hold a length: a header right after a header, or the tail
         return pos, False
     return pos, True
+
+
+# -- counting without events (``hex decode --summary``) ----------------------------------------------------
+
+#: Frames this long or shorter cannot make adler32's sum wrap (255 * 256 < 65521), so its low byte is the
+#: byte sum's (plus one); a longer one is summed by ``sum``.
+ADLER_SAFE = 256
+
+
+#: Bytes ``count_runs`` checks at a time.
+COUNT_WINDOW = 1 << 14
+
+
+def count_runs(buf: bytes, h: int, bias: int, heads: Counter[bytes]) -> tuple[int, int]:
+    """``valid_run`` for a summary: the frames it would take from the header at ``h`` are counted in
+    ``heads`` (``count_run``, a window at a time) instead of appended; returns what it returns."""
+    pos, n = h, len(buf)
+    while True:
+        taken = count_run(buf[pos : pos + COUNT_WINDOW], bias, heads)
+        pos += taken
+        if pos >= n:
+            return n, -1  # the last frame ran to the end of the buffer
+        if not taken:
+            return pos, pos  # a frame the caller explains (or the start of one still to come)
+
+
+def count_run(buf: bytes, bias: int, heads: Counter[bytes]) -> int:
+    """Count the frames ``valid_run`` would take from ``buf[0]`` (a header); return the bytes they cover.
+
+    The same rule as ``valid_run`` (split at every header; a part is one valid
+    frame exactly when its size agrees with its length byte, it ends in 0D 0A
+    and its checksum passes), checked for all parts at once by C-level maps,
+    with no event built: ``heads`` counts each frame's address, length and
+    command bytes. A summary of a night's capture costs little more than
+    splitting it.
+    """
+    parts = buf.split(HEADER)
+    del parts[0]  # the empty part before the first header
+    lens = list(map(len, parts))
+    good = len(parts)
+    if min(lens, default=6) < 6:  # too short to hold a frame (a header right after a header, the tail)
+        if lens[-1] < 6 and min(lens[:-1], default=6) >= 6:  # only the tail: the common case
+            good -= 1
+        else:
+            good = list(map(gt, repeat(6), lens)).index(True)
+        del parts[good:], lens[good:]
+    good = _agree(lens, list(map(add, map(itemgetter(1), parts), repeat(6))), good)
+    covered = sum(lens[:good]) + 2 * good
+    if good and (  # each header of the run but the first comes right after a terminator, and so does the end
+        buf.count(TERMINATOR + HEADER, 0, covered) != good - 1 or not parts[good - 1].endswith(TERMINATOR)
+    ):
+        good = _agree(list(map(bytes.endswith, parts, repeat(TERMINATOR))), [True] * good, good)
+    if good:
+        del parts[good:], lens[good:]
+        checks = bytes(map(itemgetter(-3), parts))
+        # adler32's low half is 1 + the byte sum, for a part short enough not to wrap it
+        ones = map(adler32, parts) if max(lens) <= ADLER_SAFE else map(add, map(sum, parts), repeat(1))
+        sums = array("I", ones).tobytes()[_LOW_BYTE::4]  # the low byte of each
+        wanted = checks.translate(_WANTED[bias])
+        good = _agree(sums, wanted, good)
+    if not good:
+        return 0
+    del parts[good:], lens[good:]
+    heads.update(map(itemgetter(slice(0, 3)), parts))
+    return sum(lens) + 2 * good
+
+
+#: Where an unsigned int's low byte stands in its machine representation.
+_LOW_BYTE = 0 if sys.byteorder == "little" else array("I").itemsize - 1
+
+
+#: For a checksum byte c: the low byte of 1 + the sum of its part (the frame without its header) when
+#: the frame is valid, under the text rule ([0]) and the address rule ([1]). A part sums to
+#: s + c + 0x17 (0D 0A), and a valid frame has s == c - 0xFF - bias.
+_WANTED = tuple(bytes((2 * c - 0xE7 - bias) & 0xFF for c in range(256)) for bias in (0, 1))
+
+
+def _agree(got: list | bytes, want: list | bytes, limit: int) -> int:
+    """How many leading items of ``got`` equal ``want``'s, up to ``limit``."""
+    if got[:limit] == want[:limit]:
+        return limit
+    if got[: limit - 1] == want[: limit - 1]:  # the last one only: a frame the window cut, usually
+        return limit - 1
+    return min(limit, list(map(ne, got, want)).index(True))

@@ -1,0 +1,231 @@
+"""The fast paths of issue 15 say exactly what the ordinary ones say: frame text made straight from
+the frame, bulk counting for ``--summary``, cached records for ``monitor --from``; and their caches
+stay bounded."""
+
+from __future__ import annotations
+
+import json
+import random
+import subprocess
+import tracemalloc
+from collections import Counter
+from collections.abc import Iterator
+from pathlib import Path
+
+from hcrctl.hex import decoding
+from hcrctl.hex.decoding import FrameText, decode_to
+from hcrctl.hex.sinks import JsonArraySink, PlainSink
+from hcrctl.hex.summary import Summary
+from hcrctl.hex.traffic import CACHE_RECORDS, FrameFilter, TrafficPrinter, rows_of
+from hcrctl.hex.view import FrameTally, frame_plain, plain_line
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.decoder import FrameDecoder, decode_all
+from hcrctl.protocol.frames import HEADER, ChecksumRule, Frame, encode
+from hcrctl.protocol.records import event_dict, is_good
+
+RULES = tuple(ChecksumRule)
+
+
+def varied_frames(rng: random.Random, count: int) -> list[bytes]:
+    """Frames of every command in the table and of unknown ones, with contents of every length that
+    matters: valid readings, impossible ones, wrong lengths, read requests, under both rules."""
+    codes = [c.code for c in C.COMMANDS] + [0x00, 0x77, 0xFE]
+    out = []
+    for _ in range(count):
+        code = rng.choice(codes)
+        size = rng.choice((0, 1, 1, 2, 2, 3, 4, 5, 8, 9, 16, 17))
+        content = b"\xff" if rng.random() < 0.1 else rng.randbytes(size)
+        out.append(encode(rng.choice((0x01, 0x50, 0x53)), code, content, rng.choice(RULES)))
+    return out
+
+
+def capture(seed: int = 7, count: int = 3000) -> bytes:
+    """Frames that repeat and frames that do not, with junk, printed lines, bad checksums and false headers."""
+    rng = random.Random(seed)
+    frames = varied_frames(rng, 400)
+    parts = []
+    for n in range(count):
+        parts.append(rng.choice(frames) if n % 3 else varied_frames(rng, 1)[0])
+        if n % 97 == 0:
+            parts.append(rng.choice((b"\x00\x13", b"dbg: x=1\r\n", HEADER + b"\x01", HEADER * 5)))
+    return b"".join(parts)
+
+
+def test_frame_text_is_plain_line_of_the_row_frame_by_frame() -> None:
+    rng = random.Random(1)
+    checked = bad = 0
+    for data in varied_frames(rng, 4000):
+        for rule in RULES:
+            for event in decode_all(data, rule):
+                if type(event) is not Frame:
+                    continue
+                row = event_dict(event, rule)
+                assert frame_plain(rule, event) == (plain_line(row, offset=False), is_good(row)), row
+                other = rule.other
+                if row["checksum"] != row["other"]:  # the frame read under the rule it fails
+                    assert frame_plain(other, event) is None
+                checked += 1
+                bad += not is_good(row)
+    assert checked > 3000 and bad > 300  # impossible readings and wrong lengths were among them
+
+
+def counted(data: bytes, rule: ChecksumRule, step: int, bulk: bool) -> dict:
+    decoder, summary = FrameDecoder(rule), Summary(rule)
+    for at in range(0, len(data), step):
+        chunk = data[at : at + step]
+        summary.bytes += len(chunk)
+        summary.add(decoder.count(chunk, summary.heads) if bulk else decoder.feed(chunk))
+    summary.add(decoder.flush())
+    return summary.as_dict()
+
+
+def test_bulk_counting_counts_what_feeding_finds() -> None:
+    rng = random.Random(3)
+    data = capture()
+    long_frames = b"".join(
+        encode(1, 0x99, bytes([n]) * 250) + encode(2, 0x98, bytes([n]) * n) for n in range(256)
+    )
+    inputs = [data, long_frames, HEADER * 3000, rng.randbytes(20_000), b""]
+    for _ in range(20):  # corrupted copies: bytes changed, inserted, dropped
+        damaged = bytearray(data[: rng.randrange(2000, len(data))])
+        for _ in range(rng.randrange(1, 30)):
+            at = rng.randrange(len(damaged))
+            damaged[at : at + rng.randrange(3)] = rng.randbytes(rng.randrange(4))
+        inputs.append(bytes(damaged))
+    for data in inputs:
+        for rule in RULES:
+            for step in (len(data) or 1, 70_000, 4096, 13):
+                assert counted(data, rule, step, bulk=True) == counted(data, rule, step, bulk=False)
+
+
+def run(hcrctl: str, env: dict[str, str], *args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([hcrctl, *args], capture_output=True, text=True, env=env, timeout=120)
+
+
+def test_hex_decode_writes_what_the_ordinary_rows_say(
+    hcrctl: str, env: dict[str, str], tmp_path: Path
+) -> None:
+    data = capture()
+    path = tmp_path / "cap.bin"
+    path.write_bytes(data)
+    for rule in RULES:
+        rows = [event_dict(e, rule) for e in decode_all(data, rule)]
+        tally = FrameTally()
+        for row in rows:
+            tally.add(row)
+        plain = run(hcrctl, env, "--checksum-from", rule.value, "hex", "decode", "--file", str(path))
+        assert plain.stdout == "".join(plain_line(row) + "\n" for row in rows)
+        assert tally.text() in plain.stderr and plain.returncode == (0 if tally.all_good else 1)
+        as_json = run(
+            hcrctl, env, "--checksum-from", rule.value, "hex", "decode", "--json", "--file", str(path)
+        )
+        assert as_json.stdout == json.dumps(rows, ensure_ascii=False) + "\n"
+        summary = run(
+            hcrctl,
+            env,
+            "--checksum-from",
+            rule.value,
+            "hex",
+            "decode",
+            "--summary",
+            "--json",
+            "--file",
+            str(path),
+        )
+        expected = Summary(rule)
+        expected.bytes = len(data)
+        expected.add(decode_all(data, rule))
+        assert json.loads(summary.stdout) == expected.as_dict()
+
+
+def log_lines(rng: random.Random, count: int) -> Iterator[str]:
+    frames = [f.hex(" ").upper() for f in varied_frames(rng, 30)] + [
+        "64 62 67 0D 0A",
+        "01 02 03",
+        "55 AA 01 02",
+    ]
+    for n in range(count):
+        record = {"time": f"2026-01-01T00:{n // 60000 % 60:02d}:{n // 1000 % 60:02d}.{n % 1000:03d}000"}
+        record.update(direction=rng.choice(("rx", "tx")), hex=rng.choice(frames))
+        if n % 7 == 0:
+            record["offset"] = rng.choice((0, 10, 200))
+        yield json.dumps(record) + "\n"
+
+
+def test_monitor_from_writes_what_the_ordinary_rows_say(
+    hcrctl: str, env: dict[str, str], tmp_path: Path
+) -> None:
+    log = tmp_path / "traffic.jsonl"
+    log.write_text("".join(log_lines(random.Random(5), 2000)))
+    records = [json.loads(line) for line in log.read_text().splitlines()]
+    for rule in RULES:
+        expected, tally, sent = [], FrameTally(), 0
+        for rec in records:
+            data = bytes.fromhex(rec["hex"])
+            for row in rows_of(decode_all(data, rule), rule, rec["direction"]):
+                row["offset"] += rec.get("offset", 0)
+                if rec["direction"] == "rx":
+                    tally.add(row)
+                else:
+                    sent += 1
+                expected.append(f"{rec['direction']}  {plain_line(row, offset=False)}\n")
+        shown = run(
+            hcrctl, env, "--checksum-from", rule.value, "monitor", "--from", str(log), "--timestamps", "none"
+        )
+        assert shown.stdout == "".join(expected)
+        assert f"{tally.text()}, {sent} sent" in shown.stderr
+
+
+def test_the_caches_stay_bounded() -> None:
+    """More distinct frames and records than the caches hold: they forget, memory stays put."""
+    rng = random.Random(9)
+    frames = [encode(1, 0x12, rng.randbytes(5)) for _ in range(3 * decoding.TEXT_FRAMES)]
+
+    def chunks() -> Iterator[bytes]:
+        for at in range(0, len(frames), 1000):
+            yield b"".join(frames[at : at + 1000])
+
+    text = FrameText(ChecksumRule.HEADER, FrameTally(), PlainSink(lambda s: None))
+    decoder = FrameDecoder()
+    for chunk in chunks():
+        text.events(decoder.feed(chunk))
+        assert len(text._texts) <= decoding.TEXT_FRAMES
+    assert text.tally.frames == len(frames)
+
+    printer = TrafficPrinter(False, "none", FrameFilter())
+    printer.live = False
+    for n, frame in enumerate(frames[: 2 * CACHE_RECORDS]):
+        printer.show_record(float(n), "rx", frame, 0, ChecksumRule.HEADER)
+        printer._lines.clear()
+        assert len(printer._records) <= CACHE_RECORDS
+
+
+def test_decoding_to_a_text_sink_memory_does_not_grow_with_the_input() -> None:
+    """Distinct frames (the cache's worst case) through the path ``hex decode`` takes."""
+    rng = random.Random(2)
+
+    def stream(frames: int) -> Iterator[bytes]:
+        for _ in range(frames // 1000):
+            yield b"".join(encode(1, 0x13, rng.randbytes(3)) for _ in range(1000))
+
+    peaks = []
+    for frames in (40_000, 160_000):
+        for sink in (PlainSink(lambda s: None), JsonArraySink(lambda s: None)):
+            tally = FrameTally()
+            tracemalloc.start()
+            try:
+                decode_to(stream(frames), ChecksumRule.HEADER, tally, sink)
+                peaks.append(tracemalloc.get_traced_memory()[1])
+            finally:
+                tracemalloc.stop()
+            assert tally.frames == frames
+    small, big = max(peaks[:2]), max(peaks[2:])
+    assert big < small + (1 << 20), peaks
+
+
+def test_bulk_counting_counts_heads_by_address_length_and_command() -> None:
+    frames = [encode(1, 0x14, b"\x0d\x0a"), encode(0x50, 0xA0, b"\x01\x02\x03\x04")]
+    heads: Counter[bytes] = Counter()
+    events = FrameDecoder().count((frames[0] * 3 + frames[1] * 2) * 100, heads)
+    assert events == []
+    assert heads == {b"\x01\x02\x14": 300, b"\x50\x04\xa0": 200}
