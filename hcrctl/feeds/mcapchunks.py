@@ -76,6 +76,24 @@ class RawChunkBuilder(ChunkBuilder):
         self.num_messages += 1
         return len(buf)
 
+    def add_all(self, items: list[tuple[int, bytes]], log_time: int, head: bytes) -> int:
+        """``add_raw`` for the messages of one moment, each data ``head + tail``; the chunk's size so far.
+
+        One call a log line instead of one a message, and the head is appended, not joined to each tail.
+        """
+        buf, indices, pack = self._buf, self.message_indices, MESSAGE_HEAD.pack
+        fixed, op = MESSAGE_FIXED + len(head), Opcode.MESSAGE
+        for channel_id, tail in items:
+            index = indices.get(channel_id)
+            if index is None:
+                index = indices[channel_id] = PackedIndex(channel_id, [])
+            index.records.append((log_time, len(buf)))
+            buf += pack(op, fixed + len(tail), channel_id, 0, log_time, log_time)
+            buf += head
+            buf += tail
+        self.num_messages += len(items)
+        return len(buf)
+
     def end(self) -> bytes:
         """The chunk's records, once its time span is known and its messages are counted in the statistics."""
         if self.num_messages:  # min/max over the index, once, rather than two comparisons a message

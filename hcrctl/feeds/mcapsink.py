@@ -109,7 +109,6 @@ class McapSink(Sink):
         assert self._file is not None
         self._file.flush()
         self._chunks = attach(self._writer)
-        self._add = self._chunks.add_raw if self._chunks is not None else self._add_message
         self._topics = {channel: name for name, channel in self._channels.items()}
         self._time, self._ns, self._head = float("nan"), 0, b""
 
@@ -128,15 +127,19 @@ class McapSink(Sink):
         if log_time != self._time:  # a frame and its reading share it: work it out once
             us, text = seconds(log_time)
             self._time, self._ns, self._head = log_time, us * 1000, b'{"time":' + text.encode()
-        ns, head, add = self._ns, self._head, self._add
-        for prepared in items:
-            encoded = prepared.encoded
-            if encoded is None:
-                encoded = prepared.encoded = self._encode(prepared)
-            if add(encoded[0], ns, head + encoded[1]) > CHUNK_SIZE:
-                self._writer.flush()
+        encoded = [p.encoded or self._encoded(p) for p in items]
+        if self._chunks is not None:
+            size = self._chunks.add_all(encoded, self._ns, self._head)
+        else:
+            size = max((self._add_message(c, self._ns, self._head + tail) for c, tail in encoded), default=0)
+        if size > CHUNK_SIZE:
+            self._writer.flush()
         if self.flush_every and time.monotonic() >= self._next_flush:
             self.flush()
+
+    def _encoded(self, prepared: Prepared) -> tuple[int, bytes]:
+        encoded = prepared.encoded = self._encode(prepared)
+        return encoded
 
     def _encode(self, prepared: Prepared) -> tuple[int, bytes]:
         """The channel, and the JSON after ``{"time":`` (the time is spliced in per message)."""
