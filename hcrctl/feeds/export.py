@@ -2,7 +2,7 @@
 
 Each log line is one piece of traffic, decoded under the active checksum rule
 and profile as ``monitor --from`` decodes it, and turned into messages by
-``topics.messages()``, the same function ``Feed`` uses live, so an exported
+``topics.bodies()``, what ``topics.messages()`` (``Feed``, live) is made of, so an exported
 file and a recorded one carry the same topics and the same shapes. As the
 log line was written from the first event of its bytes, so is the message.
 
@@ -23,15 +23,17 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..link.trafficlog import read_log
+from ..link.trafficlog import log_fields
 from ..protocol.dialect import decode_all
 from ..protocol.frames import ChecksumRule
 from ..protocol.profiles import Profile
-from ..protocol.topics import FRAMES, LINK, Topic, all_topics, messages
+from ..protocol.topics import FRAMES, LINK, Topic, all_topics, bodies
 from .sinks import Prepared, Sink
 
 #: Distinct (direction, bytes) kept decoded and encoded.
 CACHE_LIMIT = 8192
+#: Log lines handed to the sink at once.
+BATCH = 1024
 #: Records between two calls of ``progress``.
 PROGRESS_EVERY = 10_000
 
@@ -65,7 +67,10 @@ def prepare(direction: str, data: bytes, rule: ChecksumRule, prof: Profile) -> l
     events = decode_all(data, rule, prof)
     if not events:
         return []
-    return [Prepared(topic, m) for topic, m in messages(0.0, direction, data, events[0], rule, prof)]
+    # time first, as every producer orders a message (the MCAP sink splices the time in there)
+    return [
+        Prepared(topic, {"time": 0.0, **m}) for topic, m in bodies(direction, data, events[0], rule, prof)
+    ]
 
 
 def export_log(
@@ -105,26 +110,30 @@ def _export(
     summary = ExportSummary()
     young: dict[tuple[str, bytes], list[Prepared]] = {}
     old: dict[tuple[str, bytes], list[Prepared]] = {}
-    write, records, first, last = sink.write_prepared, 0, None, None
-    for rec in read_log(path):
-        t = rec.time
+    batch: list[tuple[list[Prepared], float, str | None]] = []
+    records, first, last = 0, None, None
+    for _, fields, t, direction, data in log_fields(path):
         if first is None:
             first = t
         elif duration is not None and t - first > duration:
             break
-        key = (rec.direction, rec.data)
+        key = (direction, data)
         prepared = young.get(key)
         if prepared is None:
             if len(young) >= CACHE_LIMIT:
                 old, young = young, {}
-            prepared = old.pop(key, None) or prepare(rec.direction, rec.data, rule, prof)
+            prepared = old.pop(key, None) or prepare(direction, data, rule, prof)
             young[key] = prepared
-        write(prepared, t, rec.fields.get("time"))
+        batch.append((prepared, t, fields.get("time")))
         records += 1
         last = t
+        if len(batch) >= BATCH:
+            sink.write_batch(batch)
+            batch.clear()
         if progress is not None and not records % PROGRESS_EVERY:
             summary.records, summary.first, summary.last = records, first, last
             progress(summary)
+    sink.write_batch(batch)
     summary.records, summary.first, summary.last = records, first, last
     summary.counts = dict(sink.counts)
     return summary

@@ -28,6 +28,9 @@ from mcap.writer import Writer
 
 #: opcode, record length, channel id, sequence, log time, publish time: a Message record's head.
 MESSAGE_HEAD = struct.Struct("<BQHIQQ")
+#: The same head in two parts: what stays for a message (opcode, length, channel, sequence), and its times.
+RECORD_HEAD = struct.Struct("<BQHI")
+TIMES = struct.Struct("<QQ")
 #: What a record's length counts beyond the data: channel, sequence and the two times.
 MESSAGE_FIXED = 2 + 4 + 8 + 8
 
@@ -76,20 +79,30 @@ class RawChunkBuilder(ChunkBuilder):
         self.num_messages += 1
         return len(buf)
 
-    def add_all(self, items: list[tuple[int, bytes]], log_time: int, head: bytes) -> int:
+    def add_all(self, items: list[list[Any]], log_time: int, head: bytes) -> int:
         """``add_raw`` for the messages of one moment, each data ``head + tail``; the chunk's size so far.
 
-        One call a log line instead of one a message, and the head is appended, not joined to each tail.
+        ``items`` are ``[channel_id, tail, record_head, head_size]`` lists kept by the caller
+        between calls: a message's record head (opcode, length, channel, sequence) depends only
+        on its tail and the head's size, so it is packed once and remembered in place; the two
+        times are packed once for the moment, not once a message.
         """
-        buf, indices, pack = self._buf, self.message_indices, MESSAGE_HEAD.pack
-        fixed, op = MESSAGE_FIXED + len(head), Opcode.MESSAGE
-        for channel_id, tail in items:
+        buf, indices = self._buf, self.message_indices
+        times = TIMES.pack(log_time, log_time) + head
+        size = len(head)
+        for item in items:
+            channel_id, tail, record_head, head_size = item
+            if head_size != size:
+                record_head = item[2] = RECORD_HEAD.pack(
+                    Opcode.MESSAGE, MESSAGE_FIXED + size + len(tail), channel_id, 0
+                )
+                item[3] = size
             index = indices.get(channel_id)
             if index is None:
                 index = indices[channel_id] = PackedIndex(channel_id, [])
             index.records.append((log_time, len(buf)))
-            buf += pack(op, fixed + len(tail), channel_id, 0, log_time, log_time)
-            buf += head
+            buf += record_head
+            buf += times
             buf += tail
         self.num_messages += len(items)
         return len(buf)

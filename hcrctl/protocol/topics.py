@@ -192,16 +192,17 @@ def messages(
     key = (direction, data, rule, profile.name)
     parts = _MEMO.get(key)
     if parts is None:
-        parts = _bodies(direction, data, event, rule, profile)
+        parts = bodies(direction, data, event, rule, profile)
         if len(_MEMO) >= MEMO_SIZE:
             _MEMO.clear()
         _MEMO[key] = parts
     return [(topic, {"time": time, **body}) for topic, body in parts]
 
 
-def _bodies(
-    direction: str, data: bytes, event: Event, rule: ChecksumRule, profile: Profile
+def bodies(
+    direction: str, data: bytes, event: Event, rule: ChecksumRule, profile: Profile = DEFAULT
 ) -> tuple[tuple[str, dict[str, Any]], ...]:
+    """``messages`` without ``time`` and without the memo: for a caller that keeps its own (``export``)."""
     frame = frame_message(0.0, direction, data, event, rule, profile)
     del frame["time"]
     out = [(FRAMES, frame)]
