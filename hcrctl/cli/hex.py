@@ -9,7 +9,6 @@ bytes on the wire, completing or checking the checksum first.
 
 from __future__ import annotations
 
-import json
 import sys
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any, BinaryIO
@@ -17,7 +16,6 @@ from typing import TYPE_CHECKING, Any, BinaryIO
 import click
 
 from ..hex.parse import STYLES, format_hex, parse_hex, parse_hex_args
-from ..ops.hexsend import holds_motion, retries_set, send_frame, traffic_row
 from ..ops.motion import DRIVE_COMMANDS
 from ..protocol import commands as C
 from ..protocol.profiles import profile
@@ -97,7 +95,7 @@ def _summarise(ctx: click.Context, settings: Settings, chunks: Iterator[bytes]) 
             decoder.feed(chunk) if isinstance(decoder, ProfileDecoder) else decoder.count(chunk, counts.heads)
         )
     counts.add(decoder.flush())
-    click.echo(json.dumps(counts.as_dict(), ensure_ascii=False) if settings.as_json else counts.text())
+    click.echo(_json(counts.as_dict()) if settings.as_json else counts.text())
     ctx.exit(0 if counts.all_good else 1)
 
 
@@ -257,8 +255,10 @@ def encode_read(settings: Settings, sensors: tuple[str, ...], style: str) -> Non
 
 def _print_frame(settings: Settings, frame: bytes, style: str) -> None:
     if settings.as_json:
+        from ..ops.hexsend import traffic_row
+
         row = traffic_row(frame, settings.checksum, "tx", profile(settings.protocol))
-        click.echo(json.dumps(row, ensure_ascii=False))
+        click.echo(_json(row))
     else:
         click.echo(format_hex(frame, style))
 
@@ -284,6 +284,7 @@ def send(ctx: click.Context, hex_text: tuple[str, ...], force: bool, hold_for: f
     stop is sent.
     """
     from ..hex.frames import complete_frame
+    from ..ops.hexsend import holds_motion, retries_set, send_frame, traffic_row
 
     settings: Settings = ctx.obj
     frame, note = complete_frame(
@@ -303,7 +304,7 @@ def _report(settings: Settings, result: dict[str, Any]) -> None:
     from ..hex.view import summary_text
 
     if settings.as_json:
-        click.echo(json.dumps(result, ensure_ascii=False))
+        click.echo(_json(result))
         return
     click.echo(f"sent   {result['sent']['hex']}   {summary_text(result['sent'])}")
     if result["reply"] is not None:
@@ -330,3 +331,11 @@ def _explicit_retries(ctx: click.Context) -> int | None:
     root = ctx.find_root()
     source = root.get_parameter_source("retries")
     return ctx.obj.retries if source not in (None, ParameterSource.DEFAULT) else None
+
+
+def _json(value: Any) -> str:
+    """``json.dumps`` without ASCII escapes; json is imported here, where the output is JSON
+    (``hex decode --summary`` and ``--file`` start without it)."""
+    import json
+
+    return json.dumps(value, ensure_ascii=False)
