@@ -14,14 +14,14 @@ from pathlib import Path
 
 from hcrctl.hex import decoding
 from hcrctl.hex.decoding import FrameText, decode_to
-from hcrctl.hex.sinks import JsonArraySink, PlainSink
+from hcrctl.hex.sinks import JsonArraySink, PlainSink, json_encoder
 from hcrctl.hex.summary import Summary
 from hcrctl.hex.traffic import CACHE_RECORDS, FrameFilter, TrafficPrinter, rows_of
 from hcrctl.hex.view import FrameTally, frame_plain, plain_line
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.decoder import FrameDecoder, decode_all
 from hcrctl.protocol.frames import HEADER, ChecksumRule, Frame, encode
-from hcrctl.protocol.records import event_dict, is_good
+from hcrctl.protocol.records import event_dict, frame_json, is_good
 
 RULES = tuple(ChecksumRule)
 
@@ -67,6 +67,33 @@ def test_frame_text_is_plain_line_of_the_row_frame_by_frame() -> None:
                 checked += 1
                 bad += not is_good(row)
     assert checked > 3000 and bad > 300  # impossible readings and wrong lengths were among them
+
+
+def test_frame_json_is_the_rows_json_frame_by_frame() -> None:
+    """``frame_json`` (the text made without the row) is json.dumps of the row but its offset."""
+    rng = random.Random(2)
+    encode = json_encoder()
+    checked = bad = 0
+    for data in varied_frames(rng, 4000):
+        for rule in RULES:
+            for event in decode_all(data, rule):
+                if type(event) is not Frame:
+                    continue
+                row = event_dict(event, rule)
+                del row["offset"]
+                text = json.dumps(row, ensure_ascii=False)
+                assert frame_json(rule, event, encode) == (text[1:], "error" not in row), row
+                if row["checksum"] != row["other"]:  # the frame read under the rule it fails
+                    assert frame_json(rule.other, event, encode) is None
+                checked += 1
+                bad += "out_of_range" in row
+    assert checked > 3000 and bad > 100  # impossible readings were among them
+
+
+def test_json_encoder_is_json_dumps() -> None:
+    encode = json_encoder()
+    for value in ({"a": 1.5, "b": [None, True, "é\n"], "c": {"d": -0.0}}, [], "x", 3, None):
+        assert encode(value) == json.dumps(value, ensure_ascii=False)
 
 
 def counted(data: bytes, rule: ChecksumRule, step: int, bulk: bool) -> dict:

@@ -12,8 +12,7 @@ import sys
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Protocol
 
-from ..protocol.frames import HEADER
-from ..protocol.records import frame_dict
+from ..protocol.records import frame_json
 
 if TYPE_CHECKING:
     from ..protocol.frames import ChecksumRule, Frame
@@ -112,13 +111,9 @@ class JsonArraySink(TextSink):
         return self._dumps({k: v for k, v in row.items() if k != "offset"})[1:]
 
     def _frame_json(self, rule: ChecksumRule, frame: Frame) -> tuple[str, bool] | None:
-        """``frame_text`` of the frame's row, made from ``frame_dict`` (the row but its offset) with
-        no copy; None for a frame whose checksum fails under ``rule``."""
-        address, command, content, received = frame[0], frame[1], frame[2], frame[3]
-        row = frame_dict(HEADER + bytes((address, len(content), command)) + content, received, rule)
-        if not row["checksum_ok"]:
-            return None
-        return self._dumps(row)[1:], "error" not in row
+        """``frame_text`` of the frame's row, made by ``frame_json`` with no row at all; None for a
+        frame whose checksum fails under ``rule``."""
+        return frame_json(rule, frame, self._dumps)
 
     def write(self, pieces: list[str]) -> None:
         text = "".join(pieces)
