@@ -9,10 +9,12 @@ protocol, below the link, because the traffic log writes it. Standard library on
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import partial
 from typing import Any
 
 from ..errors import ImpossibleReply, ProtocolError
 from . import commands as C
+from .fields import field_values
 from .frames import (
     HEADER,
     BadChecksum,
@@ -146,9 +148,9 @@ def frame_json(
     if head is None or head[0] is not cmd:
         head = _json_head(cmd, command, request, rule, encode)
     fields, good = "null", True
-    if cmd is not None:
+    if head[3] is not None:
         try:
-            fields = encode(C.decode_fields(command, content, "tx" if request else "rx"))
+            fields = encode(head[3](content))
         except ProtocolError as exc:
             fields, good = f'null, "error": {encode(exc.message)}', False
             if isinstance(exc, ImpossibleReply):
@@ -162,22 +164,37 @@ def frame_json(
 
 
 #: (code, request side, rule) -> (the table's command, the text from "command" to the payload's quote,
-#: the "rule" pair): what ``frame_json`` writes alike for every frame of a command, made once.
-_JSON_HEADS: dict[tuple[int, bool, ChecksumRule], tuple[C.Command | None, str, str]] = {}
+#: the "rule" pair, content -> fields): what ``frame_json`` does alike for every frame of a command.
+Head = tuple[C.Command | None, str, str, Callable[[bytes], dict[str, Any]] | None]
+_JSON_HEADS: dict[tuple[int, bool, ChecksumRule], Head] = {}
 
 
 def _json_head(
     cmd: C.Command | None, code: int, request: bool, rule: ChecksumRule, encode: Callable[[Any], str]
-) -> tuple[C.Command | None, str, str]:
+) -> Head:
+    """``frame_json``'s part made once per command, side and rule: the fields are parsed by the
+    table's own codec, split by side as ``C.decode_fields`` does (the side is known already)."""
+    direction = "tx" if request else "rx"
     name = encode(cmd.name if cmd else None)
-    kind = encode(_kind(cmd, code, b"\xff" if request else b"", "tx" if request else "rx"))
-    head = (
-        cmd,
-        f'"command": {code}, "name": {name}, "kind": {kind}, "payload": "',
-        f'"rule": {encode(rule.value)}',
-    )
-    _JSON_HEADS[code, request, rule] = head
+    kind = encode(_kind(cmd, code, b"", direction))
+    parse: Callable[[bytes], dict[str, Any]] | None = None
+    if cmd is not None:
+        parse = partial(C.decode_fields, code, direction=direction)  # it says why there is nothing
+        if request and cmd.request is not None:
+            parse = partial(_request_fields, cmd.request)
+        elif not request and cmd.reply is not None:
+            parse = partial(_reply_fields, cmd.reply)
+    text = f'"command": {code}, "name": {name}, "kind": {kind}, "payload": "'
+    head = _JSON_HEADS[code, request, rule] = (cmd, text, f'"rule": {encode(rule.value)}', parse)
     return head
+
+
+def _request_fields(cls: type[C.Request], content: bytes) -> dict[str, Any]:
+    return field_values(cls.from_content(content))
+
+
+def _reply_fields(cls: type[C.Reply], content: bytes) -> dict[str, Any]:
+    return cls.decode(content).fields()
 
 
 def _profile_frame_dict(
