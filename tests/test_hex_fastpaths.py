@@ -14,13 +14,14 @@ from pathlib import Path
 
 from hcrctl.hex import decoding
 from hcrctl.hex.decoding import FrameText, decode_to
-from hcrctl.hex.sinks import JsonArraySink, PlainSink, json_encoder
+from hcrctl.hex.sinks import JsonArraySink, PlainSink
 from hcrctl.hex.summary import Summary
 from hcrctl.hex.traffic import CACHE_RECORDS, FrameFilter, TrafficPrinter, rows_of
 from hcrctl.hex.view import FrameTally, frame_plain, plain_line
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.decoder import FrameDecoder, decode_all
 from hcrctl.protocol.frames import HEADER, ChecksumRule, Frame, encode
+from hcrctl.protocol.jsontext import json_encoder
 from hcrctl.protocol.records import event_dict, frame_json, is_good
 
 RULES = tuple(ChecksumRule)

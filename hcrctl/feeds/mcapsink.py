@@ -17,15 +17,15 @@ iteration), losing at most the last ``flush_every`` seconds.
 
 from __future__ import annotations
 
-import json
 import time
 from collections import Counter
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Sequence
 from typing import IO, Any, cast
 
 from mcap.writer import CompressionType, Writer
 
 from .. import __version__
+from ..protocol.jsontext import json_encoder
 from ..protocol.topics import Topic
 from .mcapchunks import attach
 from .sinks import Prepared, Sink, seconds
@@ -33,34 +33,8 @@ from .sinks import Prepared, Sink, seconds
 #: Uncompressed chunk size: big enough to compress well, small enough to lose little.
 CHUNK_SIZE = 1 << 20
 PROFILE = ""  # no ROS profile: plain JSON messages
-#: For the schemas, and for messages where the C encoder is missing.
-COMPACT = json.JSONEncoder(separators=(",", ":"))
-
-
-def _refuse(value: object) -> object:
-    raise TypeError(f"{type(value).__name__} is not JSON")
-
-
-def compact_encoder() -> Callable[[Any], str]:
-    """Compact JSON, as ``COMPACT.encode``, from one C encoder made once.
-
-    ``JSONEncoder.encode`` builds a new C encoder on every call, which is half
-    of what encoding a frame's message costs; an export encodes one per new
-    frame, so this one is made once, with the arguments ``JSONEncoder`` gives it.
-    """
-    make = getattr(json.encoder, "c_make_encoder", None)
-    if make is None:
-        return COMPACT.encode
-    try:  # the arguments JSONEncoder.iterencode passes: markers, default, strings, indent, separators, flags
-        encoder = make(
-            None, _refuse, json.encoder.encode_basestring_ascii, None, ":", ",", False, False, True
-        )
-    except TypeError:  # another signature: the documented way
-        return COMPACT.encode
-    return lambda value: "".join(encoder(value, 0))
-
-
-ENCODE = compact_encoder()
+#: Compact ASCII JSON, for the schemas and the messages.
+ENCODE = json_encoder(compact=True, ensure_ascii=True)
 
 
 def compression() -> CompressionType:
@@ -102,7 +76,7 @@ class McapSink(Sink):
         self._writer.start(profile=PROFILE, library=f"hcrctl {__version__}")
         self._channels: dict[str, int] = {}
         for topic in self.topics.values():
-            schema = COMPACT.encode(topic.schema).encode()
+            schema = ENCODE(topic.schema).encode()
             schema_id = self._writer.register_schema(topic.schema_name, "jsonschema", schema)
             self._channels[topic.name] = self._writer.register_channel(topic.name, "json", schema_id)
         self._writer.flush()  # a bad path or a full disk shows now, not at the first message

@@ -7,11 +7,11 @@ whole list gives), plain lines in a pipe, and on a terminal a rich table per
 
 from __future__ import annotations
 
-import json
 import sys
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Protocol
 
+from ..protocol.jsontext import json_encoder
 from ..protocol.records import frame_json
 
 if TYPE_CHECKING:
@@ -30,33 +30,6 @@ def frame_key(row: dict[str, Any]) -> tuple | None:
     if "problem" in row or "payload" not in row:
         return None
     return (row["address"], row["command"], row["payload"], row["checksum"], row["rule"], row["kind"])
-
-
-def json_encoder() -> Callable[[Any], str]:
-    """``json.dumps(value, ensure_ascii=False)`` from one C encoder made once.
-
-    ``JSONEncoder.encode`` builds a new C encoder (and a Python generator) on
-    every call, which was a third of what a new frame's JSON line cost; the
-    arguments are those ``JSONEncoder.iterencode`` gives it, so the text is the
-    same. Falls back to the documented way where the C encoder is missing.
-    """
-    plain = json.JSONEncoder(ensure_ascii=False).encode
-    make = getattr(json.encoder, "c_make_encoder", None)
-    if make is None:
-        return plain
-    try:  # markers, default, strings, indent, key separator, item separator, sort_keys, skipkeys, allow_nan
-        encoder = make(None, _refuse, json.encoder.encode_basestring, None, ": ", ", ", False, False, True)
-    except TypeError:  # another signature: the documented way
-        return plain
-
-    def encode(value: Any) -> str:
-        return "".join(encoder(value, 0)) if isinstance(value, (dict, list)) else plain(value)
-
-    return encode
-
-
-def _refuse(value: object) -> object:
-    raise TypeError(f"Object of type {type(value).__name__} is not JSON serializable")
 
 
 class RowSink(Protocol):
