@@ -10,7 +10,7 @@ import click
 from ..errors import HcrError
 from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
 from ..protocol.ros2msg import ENCODINGS
-from .params import MAX_DURATION_S, FloatRange, Rate
+from .params import deadman_option, duration_option, rate_option
 from .settings import Settings
 
 EXTRA = "pip install 'hcrctl[foxglove]'"
@@ -47,27 +47,9 @@ class Listen(click.ParamType):
     help="json (JSON Schema), or cdr (ROS 2 msg definitions: PlotJuggler's Foxglove ROS2 Bridge). Foxglove reads both.",
 )
 @click.option("--mcap", metavar="FILE", help="Also record every message served to this MCAP file.")
-@click.option(
-    "--rate",
-    type=Rate(),
-    default="10",
-    show_default=True,
-    help="Sweeps per second, or max.",
-)
-@click.option(
-    "--duration",
-    type=FloatRange(0, MAX_DURATION_S, min_open=True),
-    metavar="S",
-    help="Exit by itself after S seconds.",
-)
-@click.option(
-    "--timeout",
-    type=FloatRange(0.05, 10),
-    default=DEFAULT_TIMEOUT_S,
-    show_default=True,
-    metavar="S",
-    help="Deadman: stop when no /cmd_vel message arrives for S seconds.",
-)
+@rate_option()
+@duration_option("Exit by itself after S seconds.")
+@deadman_option(DEFAULT_TIMEOUT_S, "Deadman: stop when no /cmd_vel message arrives for S seconds.")
 @click.pass_obj
 def bridge(
     settings: Settings,

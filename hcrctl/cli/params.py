@@ -122,6 +122,25 @@ class Rate(FloatRange):
         super().__init__(0, MAX_RATE, min_open=True, unit="Hz", words={"max": None})
 
 
+def rate_option(help: str = "Sweeps per second, or max.") -> Callable:
+    """``--rate HZ|max``, default 10: how often the polling commands sweep (watch, plot, record, bridge)."""
+    return click.option("--rate", type=Rate(), default="10", show_default=True, help=help)
+
+
+def duration_option(help: str = "Exit by itself after S seconds (for scripts and tests).") -> Callable:
+    """``--duration S``: how long a polling command runs before it ends by itself."""
+    return click.option(
+        "--duration", type=FloatRange(0, MAX_DURATION_S, min_open=True), metavar="S", help=help
+    )
+
+
+def deadman_option(default: float, help: str) -> Callable:
+    """``--timeout S``: the deadman of the commands that drive continuously (teleop, bridge)."""
+    return click.option(
+        "--timeout", type=FloatRange(0.05, 10), default=default, show_default=True, metavar="S", help=help
+    )
+
+
 class ByteNumber(IntRange):
     """A byte given in decimal or 0x-hex, such as an address: 1, 0x01, 0x50."""
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from ..protocol.series import Series
-from .params import MAX_DURATION_S, FloatRange, NamedArgument, Rate, SeriesField, complete_field
+from .params import FloatRange, NamedArgument, SeriesField, complete_field, duration_option, rate_option
 from .settings import Settings
 
 #: The longest --window: an hour (a chart a few hundred columns wide shows no more anyway).
@@ -42,13 +42,8 @@ with the latest values, and the chart at the end.
     metavar="SECONDS",
     help="How many seconds of history the x axis shows.",
 )
-@click.option("--rate", type=Rate(), default="10", show_default=True, help="Polls per second, or max.")
-@click.option(
-    "--duration",
-    type=FloatRange(0, MAX_DURATION_S, min_open=True),
-    metavar="S",
-    help="Exit by itself after S seconds (for scripts and tests).",
-)
+@rate_option("Polls per second, or max.")
+@duration_option()
 @click.pass_obj
 def plot(
     settings: Settings, fields: tuple[Series, ...], window: float, rate: float | None, duration: float | None

@@ -13,7 +13,7 @@ import click
 
 from ..feeds.outfile import OutFile, formats_help
 from ..protocol import commands as C
-from .params import MAX_DURATION_S, FloatRange, Rate
+from .params import duration_option, rate_option
 from .settings import Settings, json_option
 
 RECORD_HELP = """Poll SENSORS ({sensors}; none means all) and record to OUT.
@@ -39,19 +39,8 @@ hcrctl record sonar.csv sonar compass --rate 20
 @click.command(help=RECORD_HELP.format(sensors=", ".join(C.SENSORS), formats=formats_help()))
 @click.argument("out", type=OutFile(), metavar="OUT.mcap|OUT.csv")
 @click.argument("sensors", nargs=-1, type=click.Choice(C.SENSORS), metavar="[SENSOR]...")
-@click.option(
-    "--rate",
-    type=Rate(),
-    default="10",
-    show_default=True,
-    help="Sweeps per second, or max.",
-)
-@click.option(
-    "--duration",
-    type=FloatRange(0, MAX_DURATION_S, min_open=True),
-    metavar="S",
-    help="Stop after S seconds (default: until Ctrl-C).",
-)
+@rate_option()
+@duration_option("Stop after S seconds (default: until Ctrl-C).")
 @click.option(
     "--pipeline/--no-pipeline",
     default=True,

@@ -9,7 +9,7 @@ import click
 
 from ..link.rescue import DEADMAN_S
 from ..protocol import commands as C
-from .params import FloatRange, IntRange
+from .params import IntRange, deadman_option
 from .settings import Settings
 
 #: Percent ranges come from the motor-speed command (0x02) in the table.
@@ -22,14 +22,7 @@ PERCENT = IntRange(0, int(_PERCENT.hi))
     "--speed", type=PERCENT, default=50, show_default=True, help="Forward/back speed, % of maximum."
 )
 @click.option("--turn", type=PERCENT, default=30, show_default=True, help="Turning speed, % of maximum.")
-@click.option(
-    "--timeout",
-    type=FloatRange(0.05, 10),
-    default=DEADMAN_S,
-    show_default=True,
-    metavar="S",
-    help="Deadman: stop when no key arrives for S seconds.",
-)
+@deadman_option(DEADMAN_S, "Deadman: stop when no key arrives for S seconds.")
 @click.pass_obj
 def teleop(settings: Settings, speed: int, turn: int, timeout: float) -> None:
     """Drive with the arrow keys or WASD; space or k stops, +/- change the speed, q quits.

@@ -8,7 +8,7 @@ import click
 
 from ..protocol import commands as C
 from ..protocol.series import Series
-from .params import MAX_DURATION_S, FloatRange, Rate, SeriesField, complete_field
+from .params import SeriesField, complete_field, duration_option, rate_option
 from .settings import Settings
 
 WATCH_HELP = """Live dashboard of SENSORS ({sensors}); none means all.
@@ -23,13 +23,8 @@ the end, however it ends (q, --duration, Ctrl-C, SIGTERM).
 
 @click.command(help=WATCH_HELP.format(sensors=", ".join(C.SENSORS)))
 @click.argument("sensors", nargs=-1, type=click.Choice(C.SENSORS), metavar="[SENSOR]...")
-@click.option("--rate", type=Rate(), default="10", show_default=True, help="Sweeps per second, or max.")
-@click.option(
-    "--duration",
-    type=FloatRange(0, MAX_DURATION_S, min_open=True),
-    metavar="S",
-    help="Exit by itself after S seconds (for scripts and tests).",
-)
+@rate_option()
+@duration_option()
 @click.option(
     "--pipeline/--no-pipeline",
     default=True,
