@@ -14,15 +14,17 @@ from pathlib import Path
 
 from hcrctl.hex import decoding
 from hcrctl.hex.decoding import FrameText, decode_to
+from hcrctl.hex.frameline import frame_plain
 from hcrctl.hex.sinks import JsonArraySink, PlainSink
 from hcrctl.hex.summary import Summary
 from hcrctl.hex.traffic import CACHE_RECORDS, FrameFilter, TrafficPrinter, rows_of
-from hcrctl.hex.view import FrameTally, frame_plain, plain_line
+from hcrctl.hex.view import FrameTally, plain_line
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.decoder import FrameDecoder, decode_all
 from hcrctl.protocol.frames import HEADER, ChecksumRule, Frame, encode
 from hcrctl.protocol.jsontext import json_encoder
 from hcrctl.protocol.records import event_dict, frame_json, is_good
+from hcrctl.protocol.runs import FrameRun
 
 RULES = tuple(ChecksumRule)
 
@@ -107,7 +109,8 @@ def counted(data: bytes, rule: ChecksumRule, step: int, bulk: bool) -> dict:
     return summary.as_dict()
 
 
-def test_bulk_counting_counts_what_feeding_finds() -> None:
+def awkward_inputs() -> list[bytes]:
+    """A capture, long frames, a header at every other byte, noise, nothing, and damaged copies."""
     rng = random.Random(3)
     data = capture()
     long_frames = b"".join(
@@ -120,10 +123,44 @@ def test_bulk_counting_counts_what_feeding_finds() -> None:
             at = rng.randrange(len(damaged))
             damaged[at : at + rng.randrange(3)] = rng.randbytes(rng.randrange(4))
         inputs.append(bytes(damaged))
-    for data in inputs:
+    return inputs
+
+
+def test_bulk_counting_counts_what_feeding_finds() -> None:
+    for data in awkward_inputs():
         for rule in RULES:
             for step in (len(data) or 1, 70_000, 4096, 13):
                 assert counted(data, rule, step, bulk=True) == counted(data, rule, step, bulk=False)
+
+
+def unrolled(events: list) -> list:
+    """``feed_runs``'s events with each run of valid frames made the ``Frame`` events ``feed`` gives."""
+    out = []
+    for event in events:
+        if type(event) is not FrameRun:
+            out.append(event)
+            continue
+        offset = event.offset
+        for part in event.parts:
+            out.append(Frame(part[0], part[2], part[3:-3], part[-3], offset))
+            offset += len(part) + len(HEADER)
+    return out
+
+
+def test_runs_in_bulk_are_the_frames_feeding_finds_in_the_same_order() -> None:
+    bulk = 0
+    for data in awkward_inputs():
+        for rule in RULES:
+            for step in (len(data) or 1, 70_000, 4096, 13):
+                fed, ran = FrameDecoder(rule), FrameDecoder(rule)
+                expected, got = [], []
+                for at in range(0, len(data), step):
+                    expected += fed.feed(data[at : at + step])
+                    events = ran.feed_runs(data[at : at + step])
+                    bulk += any(type(e) is FrameRun for e in events)
+                    got += unrolled(events)
+                assert got + ran.flush() == expected + fed.flush()
+    assert bulk > 100  # the runs were taken in bulk, not frame by frame
 
 
 def run(hcrctl: str, env: dict[str, str], *args: str) -> subprocess.CompletedProcess[str]:

@@ -7,14 +7,17 @@ what the closing line says comes from counters.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
-from itertools import islice
+from collections.abc import Callable, Iterable, Sequence
+from itertools import accumulate, islice, repeat
+from operator import add
 from typing import TYPE_CHECKING, Any
 
+from ..protocol.decoder import FrameDecoder
 from ..protocol.dialect import make_decoder
-from ..protocol.frames import ChecksumRule, Event, Frame
+from ..protocol.frames import HEADER, ChecksumRule, Event, Frame
 from ..protocol.profiles import DEFAULT, Profile
 from ..protocol.records import event_dict
+from ..protocol.runs import FrameRun
 
 if TYPE_CHECKING:
     from .sinks import RowSink, TextSink
@@ -80,7 +83,7 @@ def _hand(events: list[Event], make: RowMaker, consumers: tuple[Callable[[Row], 
             consume(row)
 
 
-class Bounded(dict[tuple, Any]):
+class Bounded(dict[Any, Any]):
     """A dict its owner keeps bounded by forgetting the oldest half when it is full.
 
     Cheaper per hit than an LRU (a hit moves nothing), and nearly as good for a
@@ -114,13 +117,14 @@ class FrameText:
         self.sink = sink
         self.make = RowMaker(rule)
         self._texts = Bounded()
+        self._odd = False  # whether an entry with a row has been remembered (then runs look at each)
 
-    def events(self, events: list[Event]) -> None:
+    def events(self, events: Sequence[Event | FrameRun]) -> None:
         """Hand ``events`` on in order, a batch of ``WRITE_FRAMES`` at a time (the text held is bounded)."""
         for at in range(0, len(events), WRITE_FRAMES):
             self._batch(events[at : at + WRITE_FRAMES])
 
-    def _batch(self, events: list[Event]) -> None:
+    def _batch(self, events: Sequence[Event | FrameRun]) -> None:
         texts, tally, rule, direct = self._texts, self.tally, self.rule, self.sink.frame_event_text
         out: list[str] = []
         get, add, fmt = texts.get, out.append, self.sink.frame_format
@@ -132,10 +136,7 @@ class FrameText:
                 if entry is None:
                     made = direct(rule, event) if direct is not None else None
                     # a good frame the tally just counts is remembered as its text alone
-                    entry = made[0] if made is not None and made[1] else self._entry(event, made)
-                    if len(texts) >= TEXT_FRAMES:
-                        texts.forget_half()
-                    texts[key] = entry
+                    entry = self._remember(key, made[0] if made and made[1] else self._entry(event, made))
                 if isinstance(entry, str):
                     add(fmt(event[4], entry))
                     simple += 1
@@ -148,12 +149,61 @@ class FrameText:
                     self.sink.write(out)
                     out = []
                     add = out.append
+                if isinstance(event, FrameRun):
+                    self._run(event)
+                    continue
                 row = self.make(event)
                 tally.add(row)
                 self.sink.add(row)
         if out:
             self.sink.write(out)
         tally.frames += simple
+
+    def _run(self, run: FrameRun) -> None:
+        """Write a run of valid frames: one dict lookup each (in C), the text made only for new ones."""
+        parts = run.parts
+        entries = list(map(self._texts.get, parts))
+        if None in entries:
+            self._fill(parts, entries)
+        offsets = accumulate(map(add, map(len, parts), repeat(len(HEADER))), initial=run.offset)
+        self.sink.write(list(map(self.sink.frame_format, offsets, self._tallied(entries))))
+
+    def _tallied(self, entries: list[Any]) -> list[str]:
+        """The entries' texts, each frame counted in the tally (its row added when one was remembered)."""
+        if not self._odd:  # all text: every frame is simply good
+            self.tally.frames += len(entries)
+            return entries
+        texts = []
+        for entry in entries:
+            if type(entry) is str:
+                self.tally.frames += 1
+                texts.append(entry)
+            else:
+                self.tally.add(entry[1])
+                texts.append(entry[0])
+        return texts
+
+    def _fill(self, parts: list[bytes], entries: list[str | tuple[str, Row] | None]) -> None:
+        """Make the entries of the frames not seen lately, from their parts (address .. 0D 0A)."""
+        rule, made_of, new = self.rule, self.sink.part_text, Frame._make
+        for at, entry in enumerate(entries):
+            if entry is None:
+                part = parts[at]
+                made = made_of(rule, part) if made_of is not None else None
+                if made is not None and made[1]:  # the common case: no event needed
+                    entries[at] = self._remember(part, made[0])
+                    continue
+                event = new((part[0], part[2], part[3:-3], part[-3], 0))  # the text leaves the offset out
+                entries[at] = self._remember(part, self._entry(event, made))
+
+    def _remember(self, key: bytes | tuple, entry: str | tuple[str, Row]) -> str | tuple[str, Row]:
+        texts = self._texts
+        if len(texts) >= TEXT_FRAMES:
+            texts.forget_half()
+        texts[key] = entry
+        if type(entry) is not str:
+            self._odd = True
+        return entry
 
     def _entry(self, event: Frame, made: tuple[str, bool] | None) -> str | tuple[str, Row]:
         """What to remember of a frame that is not simply good: its text, or its text and its row."""
@@ -171,11 +221,11 @@ def decode_to(
 
     if profile is not DEFAULT or not isinstance(sink, TextSink):
         return decode_rows(chunks, rule, tally.add, sink.add, profile=profile)
-    decoder = make_decoder(profile, rule)
+    decoder = FrameDecoder(rule)  # the default profile's
     text = FrameText(rule, tally, sink)
     size = 0
     for chunk in chunks:
         size += len(chunk)
-        text.events(decoder.feed(chunk))
+        text.events(decoder.feed_runs(chunk))
     text.events(decoder.flush())
     return size

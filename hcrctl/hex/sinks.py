@@ -12,7 +12,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Protocol
 
 from ..protocol.jsontext import json_encoder
-from ..protocol.records import frame_json
+from ..protocol.records import frame_json, part_json
 
 if TYPE_CHECKING:
     from ..protocol.frames import ChecksumRule, Frame
@@ -58,6 +58,10 @@ class TextSink:
     #: a sink that can sets it to a plain function, called once per new frame.
     frame_event_text: Callable[[ChecksumRule, Frame], tuple[str, bool] | None] | None = None
 
+    #: ``frame_event_text`` of a frame known to be valid under the rule, from its bytes after the
+    #: header (``FrameRun``'s parts); None: the sink has none, and such frames take the events' path.
+    part_text: Callable[[ChecksumRule, bytes], tuple[str, bool]] | None = None
+
     def write(self, pieces: list[str]) -> None:
         self._write("".join(pieces))
 
@@ -79,6 +83,7 @@ class JsonArraySink(TextSink):
         self._dumps = json_encoder()
         self._cache: dict[tuple, str] = {}
         self.frame_event_text = self._frame_json
+        self.part_text = self._part_json
 
     def frame_text(self, row: dict[str, Any]) -> str:
         return self._dumps({k: v for k, v in row.items() if k != "offset"})[1:]
@@ -87,6 +92,9 @@ class JsonArraySink(TextSink):
         """``frame_text`` of the frame's row, made by ``frame_json`` with no row at all; None for a
         frame whose checksum fails under ``rule``."""
         return frame_json(rule, frame, self._dumps)
+
+    def _part_json(self, rule: ChecksumRule, part: bytes) -> tuple[str, bool]:
+        return part_json(rule, part, self._dumps)
 
     def write(self, pieces: list[str]) -> None:
         text = "".join(pieces)
@@ -120,11 +128,13 @@ class PlainSink(TextSink):
     frame_format = "{:>6}  {}\n".format
 
     def __init__(self, write: Callable[[str], object] | None = None) -> None:
-        from .view import frame_plain, plain_line
+        from .frameline import frame_plain, part_plain
+        from .view import plain_line
 
         super().__init__(write)
         self._line = plain_line
         self.frame_event_text = frame_plain
+        self.part_text = part_plain
         self._cache: dict[tuple, str] = {}
 
     def frame_text(self, row: dict[str, Any]) -> str:

@@ -8,14 +8,11 @@ function that builds a table.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
-from functools import partial
 from typing import TYPE_CHECKING, Any, NamedTuple
 
-from ..errors import ProtocolError, other_rule_hint, printable
+from ..errors import other_rule_hint, printable
 from ..protocol import commands as C
-from ..protocol.fields import field_values
 from ..protocol.frames import (
     ChecksumRule,
 )
@@ -66,24 +63,32 @@ def fields_text(row: dict[str, Any]) -> str:
 
 
 def _field(name: str, value: Any, unit: str) -> str:
-    return f"{name}={_value(value)}{' ' + unit if unit else ''}"
+    return f"{name}={value_text(value)}{' ' + unit if unit else ''}"
 
 
-def _value(value: Any) -> str:
+def value_text(value: Any) -> str:
+    """A field's value as a row shows it: a flag as yes or no, a list in brackets."""
     kind = type(value)
     if kind is int or kind is float or kind is str:  # the common case, first
         return str(value)
+    if kind is list or kind is tuple:
+        kinds = set(map(type, value))
+        if kinds <= _AS_REPR:  # numbers only: a list's own text is the same, made in C
+            return str(value if kind is list else list(value))
+        if kinds <= _AS_STR:  # no flags, no nesting: each item is its str
+            return "[" + ", ".join(map(str, value)) + "]"
+        return "[" + ", ".join(map(value_text, value)) + "]"
     if isinstance(value, bool):
         return "yes" if value else "no"
     if isinstance(value, (list, tuple)):
-        if set(map(type, value)) <= _AS_STR:  # no flags, no nesting: each item is its str
-            return "[" + ", ".join(map(str, value)) + "]"
-        return "[" + ", ".join(_value(v) for v in value) + "]"
+        return value_text(list(value))
     return str(value)
 
 
 #: Types a value of which prints as its ``str`` (``bool`` is not one: a flag prints yes or no).
 _AS_STR = frozenset((int, float, str))
+#: Types whose ``repr`` is their ``str``, so that ``str`` of a list of them prints each as its ``str``.
+_AS_REPR = frozenset((int, float))
 
 
 def verdict_text(row: dict[str, Any]) -> str:
@@ -175,84 +180,6 @@ def plain_line(row: dict[str, Any], offset: bool = True) -> str:
     detail = f"  {c.detail}" if c.detail else ""
     head = f"{c.offset:>6}  " if offset else ""
     return f"{head}{c.address:<3}  {c.command:<9}  {c.content}{detail}{checksum_part}"
-
-
-def frame_plain(rule: ChecksumRule, frame: tuple[int, int, bytes, int, int]) -> tuple[str, bool] | None:
-    """``plain_line(event_dict(frame), offset=False)`` and ``is_good`` of that row, without the row.
-
-    For ``hex decode``'s frames not seen lately, where building the row dict
-    and its columns was most of the cost. Only for a frame whose checksum
-    passes under ``rule`` (what the decoder hands as a ``Frame``); None for
-    anything else, which then takes the ordinary path. ``tests/test_hexview.py``
-    holds the two paths to the same text, frame by frame.
-    """
-    address, command, content, received = frame[0], frame[1], frame[2], frame[3]
-    if received != (address + len(content) + command + sum(content) + _BIAS[rule]) & 0xFF:
-        return None
-    payload = content.hex(" ").upper()
-    if len(payload) > SHOW_BYTES * 3 - 1:
-        payload = payload[: SHOW_BYTES * 3 - 1] + " …"
-    request = C.is_request(command, content)
-    known = _DETAILS.get((command, request))
-    if known is None or known[0] is not C.BY_CODE.get(command):
-        known = _details(command, request)
-    detail, good = known[2](content)
-    return f"@{address:02X}  {known[1]}  {payload}{detail}  checksum {received:02X} ok", good
-
-
-#: What each rule adds to the sum from the address: the header's 55 + AA, or nothing.
-_BIAS = {ChecksumRule.HEADER: 0xFF, ChecksumRule.ADDRESS: 0}
-
-Details = Callable[[bytes], tuple[str, bool]]
-#: (code, request side) -> (the table's command, its padded name, content -> fields text and goodness).
-_DETAILS: dict[tuple[int, bool], tuple[C.Command | None, str, Details]] = {}
-
-
-def _details(code: int, request: bool) -> tuple[C.Command | None, str, Details]:
-    """``frame_plain``'s part that depends on the command and the side only, made once for each.
-
-    The fields come from the table's own codec (``C.decode_fields`` split by
-    side, with the side already known); the text is ``fields_text``'s.
-    """
-    cmd = C.BY_CODE.get(code)
-    if cmd is None:
-        known: tuple[C.Command | None, str, Details] = (None, f"{f'0x{code:02X}':<9}", _unknown)
-        _DETAILS[code, request] = known
-        return known
-    if request and cmd.request is not None:
-        parse: Callable[[bytes], dict[str, Any]] = partial(_request_fields, cmd.request)
-    elif not request and cmd.reply is not None:
-        parse = partial(_reply_fields, cmd.reply)
-    else:
-        parse = partial(C.decode_fields, code)  # it says why there is nothing to decode
-    suffix = {name: f" {unit}" for name, unit in units(code, request).items() if unit}.get
-    empty = "  read request" if request else ""
-
-    def details(content: bytes) -> tuple[str, bool]:
-        try:
-            fields = parse(content)
-        except ProtocolError as exc:
-            return f"  ? {exc.message}", False
-        if not fields:
-            return empty, True
-        return "  " + "  ".join(
-            [f"{n}={v if type(v) is int else _value(v)}{suffix(n, '')}" for n, v in fields.items()]
-        ), True
-
-    known = _DETAILS[code, request] = (cmd, f"{cmd.name or f'0x{code:02X}':<9}", details)
-    return known
-
-
-def _unknown(content: bytes) -> tuple[str, bool]:
-    return "  unknown command", True
-
-
-def _request_fields(cls: type[C.Request], content: bytes) -> dict[str, Any]:
-    return field_values(cls.from_content(content))
-
-
-def _reply_fields(cls: type[C.Reply], content: bytes) -> dict[str, Any]:
-    return cls.decode(content).fields()
 
 
 def summary_text(row: dict[str, Any]) -> str:

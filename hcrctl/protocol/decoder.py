@@ -12,6 +12,7 @@ reuses it. Standard library only.
 from __future__ import annotations
 
 from collections import Counter
+from typing import Any
 
 from .frames import (
     HEADER,
@@ -28,7 +29,7 @@ from .frames import (
     _new_frame,
     checksum,
 )
-from .runs import SMALL, count_runs, small_run, valid_run
+from .runs import SMALL, FrameRun, TakeParts, bulk_runs, counter_of, small_run, valid_run
 from .textlines import split_skipped
 
 
@@ -63,7 +64,7 @@ class FrameDecoder:
         self._buf = b""  # bytes, not bytearray: scanned and sliced as is, with no snapshot copy
         self._base = 0  # stream offset of _buf[0]
         self._pending: _Pending | None = None
-        self._heads: Counter[bytes] | None = None  # set while ``count`` runs
+        self._runs: TakeParts | None = None  # set while ``count`` or ``feed_runs`` runs
 
     @property
     def rule(self) -> ChecksumRule:
@@ -83,11 +84,8 @@ class FrameDecoder:
 
     @property
     def wanted(self) -> int:
-        """Bytes still missing from the frame in progress (at least 1).
-
-        A reader can ask its port for exactly this many, instead of waking
-        once per byte while a frame trickles in at line speed.
-        """
+        """Bytes still missing from the frame in progress (at least 1): what a reader asks its port for,
+        instead of waking once per byte while a frame trickles in at line speed."""
         buf = self._buf
         if len(buf) >= 4 and buf[:2] == HEADER:
             return max(1, buf[3] + OVERHEAD - len(buf))
@@ -95,7 +93,9 @@ class FrameDecoder:
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[Event]:
         """Decode what ``data`` completes. Never raises on any input."""
-        out: list[Event] = []
+        return self._feed(data, [])
+
+    def _feed(self, data: bytes | bytearray | memoryview, out: list[Event]) -> list[Event]:
         if data:
             self._buf += data
             if self._pending is None and len(self._buf) <= SMALL:
@@ -105,19 +105,27 @@ class FrameDecoder:
         return out
 
     def count(self, data: bytes, heads: Counter[bytes]) -> list[Event]:
-        """``feed`` for a summary: runs of valid frames are counted in ``heads``, not returned.
+        """``feed`` for a summary: each frame of a run of valid frames is counted in ``heads`` (by its
+        address, length and command bytes, ``frame[2:5]``), not returned; other events are returned."""
+        return self._bulk(data, counter_of(heads), [])
 
-        ``heads`` counts each such frame's address, length and command bytes
-        (``frame[2:5]``); every other event is returned as ``feed`` returns it.
-        The scanner is the same, at the same points: only its fast path for
-        runs of valid frames counts them in bulk (``count_runs``) instead of
-        building one event each, so a summary says what the rows say.
-        """
-        self._heads = heads
+    def feed_runs(self, data: bytes) -> list[Event | FrameRun]:
+        """``feed`` for a view of a whole capture: a run of valid frames comes as one ``FrameRun``, in
+        bulk (``bulk_runs``), not an event each; the scanner, its frames and their order are ``feed``'s."""
+        out: list[Any] = []  # events and runs, in order
+        append, new = out.append, FrameRun._make
+
+        def take(parts: list[bytes], at: int) -> None:
+            append(new((self._base + at, parts)))  # the base when the run is found: the scan moves it after
+
+        return self._bulk(data, take, out)
+
+    def _bulk(self, data: bytes, take: TakeParts, out: list[Any]) -> list[Any]:
+        self._runs = take
         try:
-            return self.feed(data)
+            return self._feed(data, out)
         finally:
-            self._heads = None
+            self._runs = None
 
     def _small(self, out: list[Event]) -> None:
         """The live path: a few bytes, usually whole frames then part of one; anything else goes to ``_scan``."""
@@ -187,10 +195,10 @@ class FrameDecoder:
                 pos = h
                 break
             if self._pending is None:
-                if self._heads is None:
+                if self._runs is None:
                     pos, h = valid_run(buf, h, bias, self._base, out.append)
                 else:
-                    pos, h = count_runs(buf, h, bias, self._heads)
+                    pos, h = bulk_runs(buf, h, bias, self._runs)
                 if h != pos or n - h < OVERHEAD:
                     continue
             end = h + buf[h + 3] + OVERHEAD

@@ -137,11 +137,27 @@ def frame_json(
     """
     address, command, content, received = frame[0], frame[1], frame[2], frame[3]
     by_address = address + len(content) + command + sum(content)
-    by_header = (by_address + 0xFF) & 0xFF  # the header's 55 + AA
-    by_address &= 0xFF
-    expected, other = (by_header, by_address) if rule == ChecksumRule.HEADER else (by_address, by_header)
-    if received != expected:
+    if received != (by_address + 0xFF if rule is ChecksumRule.HEADER else by_address) & 0xFF:
         return None
+    return valid_frame_json(rule, address, command, content, received, encode)
+
+
+def part_json(rule: ChecksumRule, part: bytes, encode: Callable[[Any], str]) -> tuple[str, bool]:
+    """``frame_json`` of a frame known to be valid under ``rule``, from its bytes after the header."""
+    return valid_frame_json(rule, part[0], part[2], part[3:-3], part[-3], encode)
+
+
+def valid_frame_json(
+    rule: ChecksumRule,
+    address: int,
+    command: int,
+    content: bytes,
+    received: int,
+    encode: Callable[[Any], str],
+) -> tuple[str, bool]:
+    """``frame_json``'s text of a frame whose checksum passes under ``rule``."""
+    # the other rule's sum differs by the header's 55 + AA: 0xFF more under the address rule, so 1 less
+    other = (received + 1 if rule is ChecksumRule.HEADER else received + 0xFF) & 0xFF
     cmd = C.BY_CODE.get(command)
     request = cmd is not None and C.is_request(command, content)
     head = _JSON_HEADS.get((command, request, rule))
@@ -158,7 +174,7 @@ def frame_json(
     other_ok = "true" if received == other else "false"
     return (
         f'"address": {address}, {head[1]}{content.hex(" ").upper()}", "checksum": {received}, '
-        f'"checksum_ok": true, "expected": {expected}, {head[2]}, "other": {other}, '
+        f'"checksum_ok": true, "expected": {received}, {head[2]}, "other": {other}, '
         f'"other_ok": {other_ok}, "fields": {fields}}}'
     ), good
 
@@ -177,24 +193,26 @@ def _json_head(
     direction = "tx" if request else "rx"
     name = encode(cmd.name if cmd else None)
     kind = encode(_kind(cmd, code, b"", direction))
-    parse: Callable[[bytes], dict[str, Any]] | None = None
-    if cmd is not None:
-        parse = partial(C.decode_fields, code, direction=direction)  # it says why there is nothing
-        if request and cmd.request is not None:
-            parse = partial(_request_fields, cmd.request)
-        elif not request and cmd.reply is not None:
-            parse = partial(_reply_fields, cmd.reply)
+    parse = None if cmd is None else fields_parser(cmd, request)
     text = f'"command": {code}, "name": {name}, "kind": {kind}, "payload": "'
     head = _JSON_HEADS[code, request, rule] = (cmd, text, f'"rule": {encode(rule.value)}', parse)
     return head
 
 
-def _request_fields(cls: type[C.Request], content: bytes) -> dict[str, Any]:
-    return field_values(cls.from_content(content))
+def fields_parser(cmd: C.Command, request: bool) -> Callable[[bytes], dict[str, Any]]:
+    """``C.decode_fields`` for the frames of ``cmd`` on one side, the side known: made once per side.
 
-
-def _reply_fields(cls: type[C.Reply], content: bytes) -> dict[str, Any]:
-    return cls.decode(content).fields()
+    The table's own codec parses (and a reply is held to its ranges); only
+    the choice of message class, which every frame of a command and side
+    shares, is taken out of the per-frame work.
+    """
+    if request and cmd.request is not None:
+        from_content = cmd.request.from_content
+        return lambda content: field_values(from_content(content))
+    if not request and cmd.reply is not None:
+        decode = cmd.reply.decode
+        return lambda content: decode(content).fields()
+    return partial(C.decode_fields, cmd.code, direction="tx" if request else "rx")  # it says why: nothing
 
 
 def _profile_frame_dict(

@@ -13,6 +13,7 @@ from collections import Counter
 from collections.abc import Callable
 from itertools import repeat
 from operator import add, gt, itemgetter, ne
+from typing import NamedTuple
 from zlib import adler32
 
 from .frames import HEADER, MAX_FRAME, OVERHEAD, TERMINATOR, Event, Frame, _new_frame
@@ -106,23 +107,39 @@ def _take_frames(
     return pos, True
 
 
-# -- counting without events (``hex decode --summary``) ----------------------------------------------------
+# -- runs in bulk, without one event per frame (``hex decode``'s summary and its views) --------------------
 
 #: Frames this long or shorter cannot make adler32's sum wrap (255 * 256 < 65521), so its low byte is the
 #: byte sum's (plus one); a longer one is summed by ``sum``.
 ADLER_SAFE = 256
 
 
-#: Bytes ``count_runs`` checks at a time.
+#: Bytes ``bulk_runs`` checks at a time.
 COUNT_WINDOW = 1 << 14
 
 
-def count_runs(buf: bytes, h: int, bias: int, heads: Counter[bytes]) -> tuple[int, int]:
-    """``valid_run`` for a summary: the frames it would take from the header at ``h`` are counted in
-    ``heads`` (``count_run``, a window at a time) instead of appended; returns what it returns."""
+class FrameRun(NamedTuple):
+    """Valid frames back to back, as ``FrameDecoder.feed_runs`` hands them: one item, not one event each."""
+
+    #: The stream offset of the first frame's header.
+    offset: int
+    #: Each frame without its header (``frame[2:]``): address, length, command, content, checksum, 0D 0A.
+    parts: list[bytes]
+
+
+#: What ``bulk_runs`` hands each window's valid frames to: their parts (``frame[2:]``: address to
+#: terminator, the header cut) and the buffer position of the first one's header.
+TakeParts = Callable[[list[bytes], int], None]
+
+
+def bulk_runs(buf: bytes, h: int, bias: int, take: TakeParts) -> tuple[int, int]:
+    """``valid_run`` in bulk: the frames it would take from the header at ``h`` are handed to ``take``
+    a window at a time (``valid_parts``) instead of one event each; returns what it returns."""
     pos, n = h, len(buf)
     while True:
-        taken = count_run(buf[pos : pos + COUNT_WINDOW], bias, heads)
+        parts, taken = valid_parts(buf[pos : pos + COUNT_WINDOW], bias)
+        if parts:
+            take(parts, pos)
         pos += taken
         if pos >= n:
             return n, -1  # the last frame ran to the end of the buffer
@@ -130,15 +147,23 @@ def count_runs(buf: bytes, h: int, bias: int, heads: Counter[bytes]) -> tuple[in
             return pos, pos  # a frame the caller explains (or the start of one still to come)
 
 
-def count_run(buf: bytes, bias: int, heads: Counter[bytes]) -> int:
-    """Count the frames ``valid_run`` would take from ``buf[0]`` (a header); return the bytes they cover.
+def counter_of(heads: Counter[bytes]) -> TakeParts:
+    """A ``take`` that counts each frame's address, length and command bytes in ``heads`` (a summary)."""
+    update, head = heads.update, itemgetter(slice(0, 3))
+
+    def take(parts: list[bytes], _at: int) -> None:
+        update(map(head, parts))
+
+    return take
+
+
+def valid_parts(buf: bytes, bias: int) -> tuple[list[bytes], int]:
+    """The frames ``valid_run`` would take from ``buf[0]`` (a header), as parts; and the bytes they cover.
 
     The same rule as ``valid_run`` (split at every header; a part is one valid
     frame exactly when its size agrees with its length byte, it ends in 0D 0A
     and its checksum passes), checked for all parts at once by C-level maps,
-    with no event built: ``heads`` counts each frame's address, length and
-    command bytes. A summary of a night's capture costs little more than
-    splitting it.
+    with no event built: a night's capture costs little more than splitting it.
     """
     parts = buf.split(HEADER)
     del parts[0]  # the empty part before the first header
@@ -165,10 +190,9 @@ def count_run(buf: bytes, bias: int, heads: Counter[bytes]) -> int:
         wanted = checks.translate(_WANTED[bias])
         good = _agree(sums, wanted, good)
     if not good:
-        return 0
+        return [], 0
     del parts[good:], lens[good:]
-    heads.update(map(itemgetter(slice(0, 3)), parts))
-    return sum(lens) + 2 * good
+    return parts, sum(lens) + 2 * good
 
 
 #: Where an unsigned int's low byte stands in its machine representation.

@@ -1,0 +1,109 @@
+"""A valid frame's plain line made straight from its bytes: ``hex decode``'s cost for a frame not seen lately.
+
+``view.plain_line(event_dict(frame))`` says the same (``tests/test_hex_fastpaths.py``
+holds the two to the same text, frame by frame), but building the row dict and
+its columns was most of a large capture's cost. Here, everything that depends
+only on the command and the side (its padded name, how to parse the content,
+each field's label and unit) is prepared once from the command table, and a
+frame costs its parse and one format.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from ..errors import ProtocolError
+from ..protocol import commands as C
+from ..protocol.frames import ChecksumRule
+from ..protocol.records import fields_parser
+from .view import SHOW_BYTES, units, value_text
+
+#: Content shown in full up to this many characters of hex; past it, cut and marked.
+_CUT = SHOW_BYTES * 3 - 1
+
+#: What each rule adds to the sum from the address: the header's 55 + AA, or nothing.
+_BIAS = {ChecksumRule.HEADER: 0xFF, ChecksumRule.ADDRESS: 0}
+
+#: content -> (the fields text, whether the frame is good).
+Details = Callable[[bytes], tuple[str, bool]]
+
+#: (code, request side) -> (the table's command, its padded name, its ``Details``).
+_LINES: dict[tuple[int, bool], tuple[C.Command | None, str, Details]] = {}
+
+
+def frame_plain(rule: ChecksumRule, frame: tuple[int, int, bytes, int, int]) -> tuple[str, bool] | None:
+    """``plain_line(event_dict(frame), offset=False)`` and ``is_good`` of that row, without the row.
+
+    Only for a frame whose checksum passes under ``rule`` (what the decoder
+    hands as a ``Frame`` may not); None for anything else, which then takes
+    the ordinary path.
+    """
+    address, command, content, received = frame[0], frame[1], frame[2], frame[3]
+    if received != (address + len(content) + command + sum(content) + _BIAS[rule]) & 0xFF:
+        return None
+    return valid_line(address, command, content, received)
+
+
+def part_plain(_rule: ChecksumRule, part: bytes) -> tuple[str, bool]:
+    """``frame_plain`` of a frame known to be valid, from its bytes after the header (``FrameRun``)."""
+    return valid_line(part[0], part[2], part[3:-3], part[-3])
+
+
+def valid_line(address: int, command: int, content: bytes, received: int) -> tuple[str, bool]:
+    """``frame_plain``'s line of a frame whose checksum passed."""
+    payload = content.hex(" ").upper()
+    if len(payload) > _CUT:
+        payload = payload[:_CUT] + " …"
+    request = C.is_request(command, content)
+    known = _LINES.get((command, request))
+    if known is None or known[0] is not C.BY_CODE.get(command):  # a command registered later replaces it
+        known = _prepare(command, request)
+    detail, good = known[2](content)
+    return f"@{address:02X}  {known[1]}  {payload}{detail}  checksum {received:02X} ok", good
+
+
+def _prepare(code: int, request: bool) -> tuple[C.Command | None, str, Details]:
+    """The part of a line that depends on the command and the side only, made once for each."""
+    cmd = C.BY_CODE.get(code)
+    if cmd is None:
+        known: tuple[C.Command | None, str, Details] = (None, f"{f'0x{code:02X}':<9}", _unknown)
+    else:
+        known = (cmd, f"{cmd.name or f'0x{code:02X}':<9}", _details(cmd, request))
+    _LINES[code, request] = known
+    return known
+
+
+def _details(cmd: C.Command, request: bool) -> Details:
+    """``fields_text`` of a frame of ``cmd``: its fields parsed by the table's own codec for that side.
+
+    Each field's ``name=`` and `` unit`` are joined once into a label and a
+    suffix; a reply whose fields are not the ones declared (a plugin's own
+    ``fields()``) is labelled as it comes.
+    """
+    parse = fields_parser(cmd, request)
+    unit_of = units(cmd.code, request)
+    labels: dict[str, tuple[str, str]] = {}
+    empty = "  read request" if request else ""
+
+    def label(name: str) -> tuple[str, str]:
+        made = labels[name] = (f"{name}=", f" {unit_of[name]}" if unit_of.get(name) else "")
+        return made
+
+    def details(content: bytes) -> tuple[str, bool]:
+        try:
+            fields = parse(content)
+        except ProtocolError as exc:
+            return f"  ? {exc.message}", False
+        if not fields:
+            return empty, True
+        parts = []
+        for name, value in fields.items():
+            head, unit = labels.get(name) or label(name)
+            parts.append(f"{head}{value if type(value) is int else value_text(value)}{unit}")
+        return "  " + "  ".join(parts), True
+
+    return details
+
+
+def _unknown(content: bytes) -> tuple[str, bool]:
+    return "  unknown command", True
