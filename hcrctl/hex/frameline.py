@@ -24,10 +24,10 @@ _CUT = SHOW_BYTES * 3 - 1
 #: What each rule adds to the sum from the address: the header's 55 + AA, or nothing.
 _BIAS = {ChecksumRule.HEADER: 0xFF, ChecksumRule.ADDRESS: 0}
 
-#: content -> (the fields text, whether the frame is good).
-Details = Callable[[bytes], tuple[str, bool]]
+#: content -> the fields text; raises ``ProtocolError`` as the table's codec does (the frame is not good).
+Details = Callable[[bytes], str]
 
-#: (code, request side) -> (the table's command, its padded name, its ``Details``).
+#: (code, request side) -> (the table's command, its padded name between the columns' gaps, its ``Details``).
 _LINES: dict[tuple[int, bool], tuple[C.Command | None, str, Details]] = {}
 
 
@@ -51,24 +51,32 @@ def part_plain(_rule: ChecksumRule, part: bytes) -> tuple[str, bool]:
 
 def valid_line(address: int, command: int, content: bytes, received: int) -> tuple[str, bool]:
     """``frame_plain``'s line of a frame whose checksum passed."""
-    payload = content.hex(" ").upper()
-    if len(payload) > _CUT:
-        payload = payload[:_CUT] + " …"
     request = C.is_request(command, content)
     known = _LINES.get((command, request))
     if known is None or known[0] is not C.BY_CODE.get(command):  # a command registered later replaces it
         known = _prepare(command, request)
-    detail, good = known[2](content)
-    return f"@{address:02X}  {known[1]}  {payload}{detail}  checksum {received:02X} ok", good
+    payload = content.hex(" ").upper()
+    if len(content) > SHOW_BYTES:
+        payload = payload[:_CUT] + " …"
+    try:
+        detail = known[2](content)
+    except ProtocolError as exc:
+        return f"{_AT[address]}{known[1]}{payload}  ? {exc.message}{_OK[received]}", False
+    return f"{_AT[address]}{known[1]}{payload}{detail}{_OK[received]}", True
+
+
+#: A line's address column and its checksum verdict, for each byte: formatted once, not per frame.
+_AT = tuple(f"@{b:02X}" for b in range(256))
+_OK = tuple(f"  checksum {b:02X} ok" for b in range(256))
 
 
 def _prepare(code: int, request: bool) -> tuple[C.Command | None, str, Details]:
     """The part of a line that depends on the command and the side only, made once for each."""
     cmd = C.BY_CODE.get(code)
     if cmd is None:
-        known: tuple[C.Command | None, str, Details] = (None, f"{f'0x{code:02X}':<9}", _unknown)
+        known: tuple[C.Command | None, str, Details] = (None, f"  {f'0x{code:02X}':<9}  ", _unknown)
     else:
-        known = (cmd, f"{cmd.name or f'0x{code:02X}':<9}", _details(cmd, request))
+        known = (cmd, f"  {cmd.name or f'0x{code:02X}':<9}  ", _details(cmd, request))
     _LINES[code, request] = known
     return known
 
@@ -89,21 +97,22 @@ def _details(cmd: C.Command, request: bool) -> Details:
         made = labels[name] = (f"{name}=", f" {unit_of[name]}" if unit_of.get(name) else "")
         return made
 
-    def details(content: bytes) -> tuple[str, bool]:
-        try:
-            fields = parse(content)
-        except ProtocolError as exc:
-            return f"  ? {exc.message}", False
+    def details(content: bytes) -> str:
+        fields = parse(content)
+        if len(fields) == 1:  # most readings: one field
+            ((name, value),) = fields.items()
+            head, unit = labels.get(name) or label(name)
+            return f"  {head}{value if type(value) is int else value_text(value)}{unit}"
         if not fields:
-            return empty, True
+            return empty
         parts = []
         for name, value in fields.items():
             head, unit = labels.get(name) or label(name)
             parts.append(f"{head}{value if type(value) is int else value_text(value)}{unit}")
-        return "  " + "  ".join(parts), True
+        return "  " + "  ".join(parts)
 
     return details
 
 
-def _unknown(content: bytes) -> tuple[str, bool]:
-    return "  unknown command", True
+def _unknown(content: bytes) -> str:
+    return "  unknown command"
