@@ -185,16 +185,18 @@ class FrameText:
 
     def _fill(self, parts: list[bytes], entries: list[str | tuple[str, Row] | None]) -> None:
         """Make the entries of the frames not seen lately, from their parts (address .. 0D 0A)."""
-        rule, made_of, new = self.rule, self.sink.part_text, Frame._make
-        for at, entry in enumerate(entries):
-            if entry is None:
-                part = parts[at]
-                made = made_of(rule, part) if made_of is not None else None
-                if made is not None and made[1]:  # the common case: no event needed
-                    entries[at] = self._remember(part, made[0])
-                    continue
-                event = new((part[0], part[2], part[3:-3], part[-3], 0))  # the text leaves the offset out
-                entries[at] = self._remember(part, self._entry(event, made))
+        rule, made_of, texts = self.rule, self.sink.part_text, self._texts
+        misses = [at for at, entry in enumerate(entries) if entry is None]
+        if len(texts) + len(misses) > TEXT_FRAMES:
+            texts.forget_half()
+        for at in misses:
+            part = parts[at]
+            made = made_of(rule, part) if made_of is not None else None
+            if made is not None and made[1]:  # the common case: a good frame, remembered as its text alone
+                entries[at] = texts[part] = made[0]
+                continue
+            event = Frame._make((part[0], part[2], part[3:-3], part[-3], 0))  # the text leaves the offset out
+            entries[at] = self._remember(part, self._entry(event, made))
 
     def _remember(self, key: bytes | tuple, entry: str | tuple[str, Row]) -> str | tuple[str, Row]:
         texts = self._texts
