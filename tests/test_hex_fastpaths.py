@@ -22,7 +22,7 @@ from hcrctl.hex.view import FrameTally, plain_line
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.decoder import FrameDecoder, decode_all
 from hcrctl.protocol.frames import HEADER, ChecksumRule, Frame, encode
-from hcrctl.protocol.jsontext import json_encoder
+from hcrctl.protocol.jsontext import flat_dict_encoder, json_encoder
 from hcrctl.protocol.records import event_dict, frame_json, is_good
 from hcrctl.protocol.runs import FrameRun
 
@@ -97,6 +97,32 @@ def test_json_encoder_is_json_dumps() -> None:
     encode = json_encoder()
     for value in ({"a": 1.5, "b": [None, True, "é\n"], "c": {"d": -0.0}}, [], "x", 3, None):
         assert encode(value) == json.dumps(value, ensure_ascii=False)
+
+
+def test_flat_dict_encoder_is_json_dumps() -> None:
+    encode = flat_dict_encoder(json_encoder())
+    nan, inf = float("nan"), float("inf")
+    values = (
+        1,
+        -0.0,
+        2.5,
+        1e300,
+        1e-7,
+        2**70,
+        nan,
+        inf,
+        -inf,
+        True,
+        None,
+        "é\n",
+        [],
+        [1, 2],
+        [1.5, 2],
+        [True],
+    )
+    for value in (*values, (1, 2), {"b": 1}, [[1]]):
+        for fields in ({"a": value}, {"é": value, "z": 3}, {}):
+            assert encode(fields) == json.dumps(fields, ensure_ascii=False), fields
 
 
 def counted(data: bytes, rule: ChecksumRule, step: int, bulk: bool) -> dict:

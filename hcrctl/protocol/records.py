@@ -9,7 +9,7 @@ protocol, below the link, because the traffic log writes it. Standard library on
 from __future__ import annotations
 
 from collections.abc import Callable
-from functools import partial
+from functools import cache, partial
 from typing import Any
 
 from ..errors import ImpossibleReply, ProtocolError
@@ -26,6 +26,7 @@ from .frames import (
     TextLine,
     Truncated,
 )
+from .jsontext import flat_dict_encoder
 from .profiles import DEFAULT, LONE_LF_HINT, V011, Profile, lone_lf_frame
 
 # -- the dict shape ------------------------------------------------------------
@@ -156,8 +157,6 @@ def valid_frame_json(
     encode: Callable[[Any], str],
 ) -> tuple[str, bool]:
     """``frame_json``'s text of a frame whose checksum passes under ``rule``."""
-    # the other rule's sum differs by the header's 55 + AA: 0xFF more under the address rule, so 1 less
-    other = (received + 1 if rule is ChecksumRule.HEADER else received + 0xFF) & 0xFF
     cmd = C.BY_CODE.get(command)
     request = cmd is not None and C.is_request(command, content)
     head = _JSON_HEADS.get((command, request, rule))
@@ -166,22 +165,39 @@ def valid_frame_json(
     fields, good = "null", True
     if head[3] is not None:
         try:
-            fields = encode(head[3](content))
+            fields = head[3](content)
         except ProtocolError as exc:
             fields, good = f'null, "error": {encode(exc.message)}', False
             if isinstance(exc, ImpossibleReply):
                 fields += f', "out_of_range": {encode(exc.detail())}'
-    other_ok = "true" if received == other else "false"
-    return (
-        f'"address": {address}, {head[1]}{content.hex(" ").upper()}", "checksum": {received}, '
-        f'"checksum_ok": true, "expected": {received}, {head[2]}, "other": {other}, '
-        f'"other_ok": {other_ok}, "fields": {fields}}}'
-    ), good
+    return f"{_JSON_ADDRESS[address]}{head[1]}{content.hex(' ').upper()}{head[2][received]}{fields}}}", good
+
+
+@cache
+def _verdicts(rule: ChecksumRule) -> tuple[str, ...]:
+    """For each checksum byte, a valid frame's JSON from the payload's closing quote to ``"fields": ``.
+
+    The other rule's sum differs by the header's 55 + AA (0xFF more under the
+    address rule, so 1 less), never by a multiple of 256: it never matches too.
+    """
+    texts = []
+    for received in range(256):
+        other = (received + 1 if rule is ChecksumRule.HEADER else received + 0xFF) & 0xFF
+        texts.append(
+            f'", "checksum": {received}, "checksum_ok": true, "expected": {received}, '
+            f'"rule": "{rule.value}", "other": {other}, "other_ok": false, "fields": '
+        )
+    return tuple(texts)
+
+
+#: A frame's JSON up to its command, for each address byte: formatted once, not per frame.
+_JSON_ADDRESS = tuple(f'"address": {a}, ' for a in range(256))
 
 
 #: (code, request side, rule) -> (the table's command, the text from "command" to the payload's quote,
-#: the "rule" pair, content -> fields): what ``frame_json`` does alike for every frame of a command.
-Head = tuple[C.Command | None, str, str, Callable[[bytes], dict[str, Any]] | None]
+#: the rule's ``_verdicts``, content -> its fields' JSON): what ``frame_json`` does alike for every frame
+#: of a command.
+Head = tuple[C.Command | None, str, tuple[str, ...], Callable[[bytes], str] | None]
 _JSON_HEADS: dict[tuple[int, bool, ChecksumRule], Head] = {}
 
 
@@ -193,10 +209,16 @@ def _json_head(
     direction = "tx" if request else "rx"
     name = encode(cmd.name if cmd else None)
     kind = encode(_kind(cmd, code, b"", direction))
-    parse = None if cmd is None else fields_parser(cmd, request)
+    parse = None if cmd is None else _fields_json(fields_parser(cmd, request), flat_dict_encoder(encode))
     text = f'"command": {code}, "name": {name}, "kind": {kind}, "payload": "'
-    head = _JSON_HEADS[code, request, rule] = (cmd, text, f'"rule": {encode(rule.value)}', parse)
+    head = _JSON_HEADS[code, request, rule] = (cmd, text, _verdicts(rule), parse)
     return head
+
+
+def _fields_json(
+    parse: Callable[[bytes], dict[str, Any]], encode: Callable[[dict[str, Any]], str]
+) -> Callable[[bytes], str]:
+    return lambda content: encode(parse(content))
 
 
 def fields_parser(cmd: C.Command, request: bool) -> Callable[[bytes], dict[str, Any]]:
