@@ -41,16 +41,12 @@ def frame_plain(rule: ChecksumRule, frame: tuple[int, int, bytes, int, int]) -> 
     address, command, content, received = frame[0], frame[1], frame[2], frame[3]
     if received != (address + len(content) + command + sum(content) + _BIAS[rule]) & 0xFF:
         return None
-    return valid_line(address, command, content, received)
+    return part_plain(rule, bytes((address, len(content), command)) + content + bytes((received, 0x0D, 0x0A)))
 
 
 def part_plain(_rule: ChecksumRule, part: bytes) -> tuple[str, bool]:
     """``frame_plain`` of a frame known to be valid, from its bytes after the header (``FrameRun``)."""
-    return valid_line(part[0], part[2], part[3:-3], part[-3])
-
-
-def valid_line(address: int, command: int, content: bytes, received: int) -> tuple[str, bool]:
-    """``frame_plain``'s line of a frame whose checksum passed."""
+    command, content = part[2], part[3:-3]
     request = C.is_request(command, content)
     known = _LINES.get((command, request))
     if known is None or known[0] is not C.BY_CODE.get(command):  # a command registered later replaces it
@@ -61,8 +57,8 @@ def valid_line(address: int, command: int, content: bytes, received: int) -> tup
     try:
         detail = known[2](content)
     except ProtocolError as exc:
-        return f"{_AT[address]}{known[1]}{payload}  ? {exc.message}{_OK[received]}", False
-    return f"{_AT[address]}{known[1]}{payload}{detail}{_OK[received]}", True
+        return f"{_AT[part[0]]}{known[1]}{payload}  ? {exc.message}{_OK[part[-3]]}", False
+    return f"{_AT[part[0]]}{known[1]}{payload}{detail}{_OK[part[-3]]}", True
 
 
 #: A line's address column and its checksum verdict, for each byte: formatted once, not per frame.
