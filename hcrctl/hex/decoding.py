@@ -98,7 +98,7 @@ class Bounded(dict[Any, Any]):
 #: Frames whose text ``FrameText`` writes at once.
 WRITE_FRAMES = 2048
 #: Distinct frames whose rendered text ``FrameText`` remembers.
-TEXT_FRAMES = 1 << 14
+TEXT_FRAMES = 1 << 15
 
 
 class FrameText:
