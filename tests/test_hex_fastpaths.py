@@ -12,6 +12,8 @@ from collections import Counter
 from collections.abc import Iterator
 from pathlib import Path
 
+import pytest
+
 from hcrctl.hex import decoding
 from hcrctl.hex.decoding import FrameText, decode_to
 from hcrctl.hex.frameline import frame_plain
@@ -291,8 +293,13 @@ def test_the_caches_stay_bounded() -> None:
         assert len(printer._records) <= CACHE_RECORDS
 
 
-def test_decoding_to_a_text_sink_memory_does_not_grow_with_the_input() -> None:
-    """Distinct frames (the cache's worst case) through the path ``hex decode`` takes."""
+def test_decoding_to_a_text_sink_memory_does_not_grow_with_the_input(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Distinct frames (the cache's worst case) through the path ``hex decode`` takes.
+
+    The text memory is made small, so that both inputs fill it many times over
+    and the test looks at its bound, not at how full it happens to be.
+    """
+    monkeypatch.setattr(decoding, "TEXT_FRAMES", 4096)
     rng = random.Random(2)
 
     def stream(frames: int) -> Iterator[bytes]:
