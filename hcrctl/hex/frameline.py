@@ -11,11 +11,12 @@ frame costs its parse and one format.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 from ..errors import ProtocolError
 from ..protocol import commands as C
 from ..protocol.frames import ChecksumRule
-from ..protocol.records import fields_parser
+from ..protocol.records import fields_reader
 from .view import SHOW_BYTES, units, value_text
 
 #: Content shown in full up to this many characters of hex; past it, cut and marked.
@@ -84,7 +85,6 @@ def _details(cmd: C.Command, request: bool) -> Details:
     suffix; a reply whose fields are not the ones declared (a plugin's own
     ``fields()``) is labelled as it comes.
     """
-    parse = fields_parser(cmd, request)
     unit_of = units(cmd.code, request)
     labels: dict[str, tuple[str, str]] = {}
     empty = "  read request" if request else ""
@@ -93,8 +93,7 @@ def _details(cmd: C.Command, request: bool) -> Details:
         made = labels[name] = (f"{name}=", f" {unit_of[name]}" if unit_of.get(name) else "")
         return made
 
-    def details(content: bytes) -> str:
-        fields = parse(content)
+    def text(fields: dict[str, Any]) -> str:
         if len(fields) == 1:  # most readings: one field
             ((name, value),) = fields.items()
             head, unit = labels.get(name) or label(name)
@@ -107,7 +106,7 @@ def _details(cmd: C.Command, request: bool) -> Details:
             parts.append(f"{head}{value if type(value) is int else value_text(value)}{unit}")
         return "  " + "  ".join(parts)
 
-    return details
+    return fields_reader(cmd, request, text)
 
 
 def _unknown(content: bytes) -> str:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable
+from functools import partial
 from typing import TYPE_CHECKING, Any, Protocol
 
 from ..protocol.jsontext import json_encoder
@@ -83,7 +84,7 @@ class JsonArraySink(TextSink):
         self._dumps = json_encoder()
         self._cache: dict[tuple, str] = {}
         self.frame_event_text = self._frame_json
-        self.part_text = self._part_json
+        self.part_text = partial(part_json, self._dumps)
 
     def frame_text(self, row: dict[str, Any]) -> str:
         return self._dumps({k: v for k, v in row.items() if k != "offset"})[1:]
@@ -92,9 +93,6 @@ class JsonArraySink(TextSink):
         """``frame_text`` of the frame's row, made by ``frame_json`` with no row at all; None for a
         frame whose checksum fails under ``rule``."""
         return frame_json(rule, frame, self._dumps)
-
-    def _part_json(self, rule: ChecksumRule, part: bytes) -> tuple[str, bool]:
-        return part_json(rule, part, self._dumps)
 
     def write(self, pieces: list[str]) -> None:
         text = "".join(pieces)

@@ -50,23 +50,23 @@ def flat_dict_encoder(encode: Callable[[Any], str]) -> Callable[[dict[str, Any]]
     keys: dict[str, str] = {}
 
     def encode_flat(fields: dict[str, Any]) -> str:
-        parts = []
-        for name, value in fields.items():
-            key = keys.get(name)
-            if key is None:
-                if type(name) is not str:
-                    return encode(fields)
-                key = keys[name] = f"{encode(name)}: "
-            kind = type(value)
-            if (
-                kind is int
-                or (kind is float and value - value == 0)  # finite: NaN and infinities are not
-                or (kind is list and set(map(type, value)) <= _INT)
-            ):
-                parts.append(f"{key}{value!r}")
-            else:
-                parts.append(key + encode(value))
-        return "{" + ", ".join(parts) + "}"
+        if len(fields) == 1:  # most messages: one field
+            ((name, value),) = fields.items()
+            return f"{{{item(name, value)}}}"
+        return "{" + ", ".join([item(name, value) for name, value in fields.items()]) + "}"
+
+    def item(name: str, value: Any) -> str:
+        key = keys.get(name)
+        if key is None:
+            key = keys[name] = f"{encode(name)}: "
+        kind = type(value)
+        if (
+            kind is int
+            or (kind is float and value - value == 0)  # finite: NaN and infinities are not
+            or (kind is list and set(map(type, value)) <= _INT)
+        ):
+            return f"{key}{value!r}"
+        return key + encode(value)
 
     return encode_flat
 

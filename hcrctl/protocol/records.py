@@ -9,8 +9,7 @@ protocol, below the link, because the traffic log writes it. Standard library on
 from __future__ import annotations
 
 from collections.abc import Callable
-from functools import cache, partial
-from typing import Any
+from typing import Any, TypeVar
 
 from ..errors import ImpossibleReply, ProtocolError
 from . import commands as C
@@ -28,6 +27,8 @@ from .frames import (
 )
 from .jsontext import flat_dict_encoder
 from .profiles import DEFAULT, LONE_LF_HINT, V011, Profile, lone_lf_frame
+
+T = TypeVar("T")
 
 # -- the dict shape ------------------------------------------------------------
 
@@ -140,23 +141,15 @@ def frame_json(
     by_address = address + len(content) + command + sum(content)
     if received != (by_address + 0xFF if rule is ChecksumRule.HEADER else by_address) & 0xFF:
         return None
-    return valid_frame_json(rule, address, command, content, received, encode)
+    return part_json(
+        encode, rule, bytes((address, len(content), command)) + content + bytes((received, 13, 10))
+    )
 
 
-def part_json(rule: ChecksumRule, part: bytes, encode: Callable[[Any], str]) -> tuple[str, bool]:
-    """``frame_json`` of a frame known to be valid under ``rule``, from its bytes after the header."""
-    return valid_frame_json(rule, part[0], part[2], part[3:-3], part[-3], encode)
-
-
-def valid_frame_json(
-    rule: ChecksumRule,
-    address: int,
-    command: int,
-    content: bytes,
-    received: int,
-    encode: Callable[[Any], str],
-) -> tuple[str, bool]:
-    """``frame_json``'s text of a frame whose checksum passes under ``rule``."""
+def part_json(encode: Callable[[Any], str], rule: ChecksumRule, part: bytes) -> tuple[str, bool]:
+    """``frame_json`` of a frame known to be valid under ``rule``, from its bytes after the header
+    (``FrameRun``'s parts)."""
+    command, content = part[2], part[3:-3]
     cmd = C.BY_CODE.get(command)
     request = cmd is not None and C.is_request(command, content)
     head = _JSON_HEADS.get((command, request, rule))
@@ -170,10 +163,9 @@ def valid_frame_json(
             fields, good = f'null, "error": {encode(exc.message)}', False
             if isinstance(exc, ImpossibleReply):
                 fields += f', "out_of_range": {encode(exc.detail())}'
-    return f"{_JSON_ADDRESS[address]}{head[1]}{content.hex(' ').upper()}{head[2][received]}{fields}}}", good
+    return f"{_JSON_ADDRESS[part[0]]}{head[1]}{content.hex(' ').upper()}{head[2][part[-3]]}{fields}}}", good
 
 
-@cache
 def _verdicts(rule: ChecksumRule) -> tuple[str, ...]:
     """For each checksum byte, a valid frame's JSON from the payload's closing quote to ``"fields": ``.
 
@@ -209,32 +201,28 @@ def _json_head(
     direction = "tx" if request else "rx"
     name = encode(cmd.name if cmd else None)
     kind = encode(_kind(cmd, code, b"", direction))
-    parse = None if cmd is None else _fields_json(fields_parser(cmd, request), flat_dict_encoder(encode))
+    parse = None if cmd is None else fields_reader(cmd, request, flat_dict_encoder(encode))
     text = f'"command": {code}, "name": {name}, "kind": {kind}, "payload": "'
     head = _JSON_HEADS[code, request, rule] = (cmd, text, _verdicts(rule), parse)
     return head
 
 
-def _fields_json(
-    parse: Callable[[bytes], dict[str, Any]], encode: Callable[[dict[str, Any]], str]
-) -> Callable[[bytes], str]:
-    return lambda content: encode(parse(content))
-
-
-def fields_parser(cmd: C.Command, request: bool) -> Callable[[bytes], dict[str, Any]]:
-    """``C.decode_fields`` for the frames of ``cmd`` on one side, the side known: made once per side.
+def fields_reader(cmd: C.Command, request: bool, then: Callable[[dict[str, Any]], T]) -> Callable[[bytes], T]:
+    """``then(C.decode_fields(...))`` for the frames of ``cmd`` on one side, the side known: made once.
 
     The table's own codec parses (and a reply is held to its ranges); only
     the choice of message class, which every frame of a command and side
-    shares, is taken out of the per-frame work.
+    shares, is taken out of the per-frame work. ``then`` (a view's text of
+    the fields) is called in the same step: one call less per frame.
     """
     if request and cmd.request is not None:
         from_content = cmd.request.from_content
-        return lambda content: field_values(from_content(content))
+        return lambda content: then(field_values(from_content(content)))
     if not request and cmd.reply is not None:
         decode = cmd.reply.decode
-        return lambda content: decode(content).fields()
-    return partial(C.decode_fields, cmd.code, direction="tx" if request else "rx")  # it says why: nothing
+        return lambda content: then(decode(content).fields())
+    code, direction = cmd.code, "tx" if request else "rx"
+    return lambda content: then(C.decode_fields(code, content, direction))  # it says why: nothing to decode
 
 
 def _profile_frame_dict(
