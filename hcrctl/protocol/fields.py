@@ -11,6 +11,7 @@ reading). The messages themselves are in ``messages``, the table in
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -135,14 +136,25 @@ def _read_fields(cls: type) -> tuple[FieldInfo, ...]:
 
 def field_values(value: Any) -> dict[str, Any]:
     """``dataclasses.asdict`` for our flat messages (scalars and tuples of scalars), without its deep copy."""
-    names = _NAMES.get(type(value))
-    if names is None:
-        names = _NAMES[type(value)] = tuple(info.name for info in fields_of(type(value)))
-    return {name: getattr(value, name) for name in names}
+    getter = _GETTERS.get(type(value))
+    if getter is None:
+        getter = _GETTERS[type(value)] = _values_getter(tuple(info.name for info in fields_of(type(value))))
+    return getter(value)
 
 
-#: A message class's field names, in order (``field_values`` is asked for every decoded frame).
-_NAMES: dict[type, tuple[str, ...]] = {}
+def _values_getter(names: tuple[str, ...]) -> Callable[[Any], dict[str, Any]]:
+    """A message's fields as a dict, made for its field names: most messages have one or two."""
+    if len(names) == 1:
+        (a,) = names
+        return lambda value: {a: getattr(value, a)}
+    if len(names) == 2:
+        a, b = names
+        return lambda value: {a: getattr(value, a), b: getattr(value, b)}
+    return lambda value: {name: getattr(value, name) for name in names}
+
+
+#: A message class -> its ``_values_getter`` (``field_values`` is asked for every decoded frame).
+_GETTERS: dict[type, Callable[[Any], dict[str, Any]]] = {}
 
 #: Request class -> (name, lo, hi, is_flag) of each field, for ``_plainly_valid``.
 _REQUEST_RANGES: dict[type, tuple[tuple[str, float, float, bool], ...]] = {}
@@ -246,15 +258,18 @@ def check_reply(value: Reply, content: bytes) -> None:
 _RANGES: dict[type, tuple[tuple[str, float, float, tuple[int, int] | None], ...] | None] = {}
 
 
+#: Not yet in ``_RANGES`` (where None means "has ``bits``": check in full).
+_UNKNOWN: Any = object()
+
+
 def _plainly_in_range(value: Reply) -> bool:
     """Whether every field is plainly within its range: the common case, decided without building errors.
 
     False means "check in full" (``check_reply``'s loop decides and words the error), never "out of range".
     """
     cls = type(value)
-    if cls in _RANGES:
-        ranges = _RANGES[cls]
-    else:
+    ranges = _RANGES.get(cls, _UNKNOWN)
+    if ranges is _UNKNOWN:
         infos = fields_of(cls)
         ranges = _RANGES[cls] = (
             None
