@@ -107,8 +107,10 @@ class FrameText:
     A frame's rendering (all but its offset) and its effect on the tally depend
     only on its address, command, content and checksum; a capture repeats
     those a lot. So a frame costs a dict lookup and one format, and the text
-    of a chunk's frames is written at once. Every other event takes the
-    ordinary path (a row to the tally and to the sink), in order.
+    of a chunk's frames is written at once. A run of valid frames
+    (``FrameRun``) is looked up by the frames' own bytes, a window at a time,
+    with no event built; every other event takes the ordinary path (a row to
+    the tally and to the sink), in order.
     """
 
     def __init__(self, rule: ChecksumRule, tally: FrameTally, sink: TextSink) -> None:
