@@ -35,6 +35,7 @@ from ..protocol import commands as C
 from ..protocol.dialect import make_decoder
 from ..protocol.frames import BadChecksum, ChecksumRule, Event, Frame, Malformed, Truncated
 from ..protocol.profiles import DEFAULT, Profile, profile
+from .context import DEFAULT_WAIT_S as DEFAULT_WAIT_S
 from .dialects import Dialect
 from .reads import TypedReads
 from .traffic import FrameHook, LinkStats, Traffic, TrafficHook, Watchers, decode_sent
@@ -49,9 +50,6 @@ MAX_READ = 16
 ECHO_MEMORY = 16
 #: Stands for "some frame" among the keys of frames that passed only the other checksum rule.
 ON_THE_LINE = (-1, -1)
-
-#: How long a rescue keeps trying the port by default (``--stop-wait``).
-DEFAULT_WAIT_S = 30.0
 
 
 class Robot(TypedReads, Dialect):
