@@ -9,7 +9,6 @@ counters) is shared with ``replay``.
 
 from __future__ import annotations
 
-import queue
 import sys
 import time
 from typing import TYPE_CHECKING, Any
@@ -25,6 +24,8 @@ from .params import FloatRange
 from .settings import ByteNumber, Settings, json_option
 
 if TYPE_CHECKING:
+    import queue
+
     from ..hex.summary import SummaryPrinter
     from ..link.traffic import Traffic
 
@@ -150,8 +151,11 @@ def _listen(settings: Settings, printer: TrafficPrinter | SummaryPrinter, durati
     """Print traffic as it comes; the listener stays on while the port closes.
 
     Closing makes the reader report what it still held (a line printed just
-    before the end, a frame cut short), so that is printed too.
+    before the end, a frame cut short), so that is printed too. ``queue`` is
+    imported here: ``monitor --from`` never listens, and need not load it.
     """
+    import queue
+
     inbox: queue.SimpleQueue[Traffic] = queue.SimpleQueue()
     listener = inbox.put
     robot = None
@@ -173,6 +177,8 @@ def _listen(settings: Settings, printer: TrafficPrinter | SummaryPrinter, durati
 def _print_rest(
     inbox: queue.SimpleQueue, printer: TrafficPrinter | SummaryPrinter, rule: ChecksumRule, prof: Profile
 ) -> None:
+    import queue
+
     while True:
         try:
             traffic = inbox.get_nowait()
@@ -185,6 +191,8 @@ def _drain_until(
     robot: Any, inbox: queue.SimpleQueue, printer: TrafficPrinter | SummaryPrinter, deadline: float | None
 ) -> None:
     """Print traffic until the deadline; Ctrl-C is the normal end of an open-ended monitor."""
+    import queue
+
     try:
         while deadline is None or time.monotonic() < deadline:
             if robot.error is not None:

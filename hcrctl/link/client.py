@@ -35,9 +35,9 @@ from ..protocol import commands as C
 from ..protocol.dialect import make_decoder
 from ..protocol.frames import BadChecksum, ChecksumRule, Event, Frame, Malformed, Truncated
 from ..protocol.profiles import DEFAULT, Profile, profile
-from .context import DEFAULT_WAIT_S as DEFAULT_WAIT_S
 from .dialects import Dialect
 from .reads import TypedReads
+from .stopwait import DEFAULT_WAIT_S as DEFAULT_WAIT_S
 from .traffic import FrameHook, LinkStats, Traffic, TrafficHook, Watchers, decode_sent
 
 #: How long the reader blocks in one read; bounds how fast close() returns.

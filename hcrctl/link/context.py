@@ -18,13 +18,10 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import PortError
 from ..protocol.frames import ChecksumRule
+from .stopwait import DEFAULT_WAIT_S
 
 if TYPE_CHECKING:
     from .client import Robot
-
-#: How long a rescue keeps trying the port by default (``--stop-wait``). Here, not in ``client``,
-#: so the CLI's option table can say it without importing the client (about 4 ms of every start).
-DEFAULT_WAIT_S = 30.0
 
 
 @dataclass
