@@ -105,8 +105,15 @@ def test_fast_exit_flushes_runs_atexit_and_waits_for_threads(mode, out):
 
 
 #: What a whole-file command (no port, no robot) never loads: the client with its reader thread,
-#: traffic hooks and typed reads, nor the live listener's queue.
-NEVER_FOR_A_FILE = ("hcrctl.link.client", "hcrctl.link.traffic", "hcrctl.link.reads", "queue", "serial")
+#: traffic hooks and typed reads, nor the live listener's queue, nor ``string`` (for hexdigits).
+NEVER_FOR_A_FILE = (
+    "hcrctl.link.client",
+    "hcrctl.link.traffic",
+    "hcrctl.link.reads",
+    "queue",
+    "serial",
+    "string",
+)
 
 
 def whole_file_commands(tmp_path) -> list[tuple[list[str], str]]:
