@@ -1,6 +1,9 @@
-"""``monitor --from`` asks for the local time once a second, not per record: its time stamps must
-still be exactly what ``datetime.fromtimestamp`` writes, in any zone, across DST changes, at the
-rounding edges of a microsecond; text lines and --json lines alike."""
+"""``monitor --from``'s fast paths say exactly what the ordinary ones say.
+
+Its time stamps ask for the local time once a second, not per record: they must still be exactly
+what ``datetime.fromtimestamp`` writes, in any zone, across DST changes, at the rounding edges of a
+microsecond; text lines and --json lines alike. ``--summary`` decodes each distinct record once
+(a bounded cache): its counts must be those of decoding every record."""
 
 from __future__ import annotations
 
@@ -14,7 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from hcrctl.hex.traffic import Stamper, by_the_second, iso_stamp, rows_of
+from hcrctl.hex.summary import Summary
+from hcrctl.hex.traffic import CACHE_RECORDS, Stamper, by_the_second, iso_stamp, rows_of
 from hcrctl.hex.view import plain_line
 from hcrctl.link.trafficlog import iso_time
 from hcrctl.protocol.decoder import decode_all
@@ -131,3 +135,41 @@ def test_monitor_from_stamps_lines_as_the_ordinary_rendering(
     assert as_json.returncode == 0, as_json.stderr
     assert as_json.stdout.splitlines() == json_lines
     assert {json.loads(line)["time"][-6:] for line in json_lines} == {"+02:00", "+01:00"}  # the change is in
+
+
+def test_monitor_summary_from_counts_as_decoding_every_record(
+    hcrctl: str, env: dict[str, str], tmp_path: Path
+) -> None:
+    """Records that repeat and, more of them than the cache holds, records that do not: junk, bad
+    checksums, cut frames, printed lines; the counts under both rules are those of every record."""
+    rng = random.Random(11)
+    common = [encode(1, 0x14, b"\x0d\x0a"), encode(1, 0x14, b"\xff"), b"\x00\x13", b"dbg: x=1\r\n"]
+    common += [encode(0x50, 0xA0, b"\x01\x02\x03\x04", ChecksumRule.ADDRESS), bytes.fromhex("55 AA 01 02")]
+    records = []
+    for n in range(3 * CACHE_RECORDS):
+        data = rng.choice(common) if n % 2 else encode(rng.randrange(256), 0x12, rng.randbytes(5))
+        records.append(
+            {
+                "time": f"2026-01-01T00:{n // 60000 % 60:02d}:{n // 1000 % 60:02d}.{n % 1000:03d}000",
+                "direction": rng.choice(("rx", "tx")),
+                "hex": hexs(data),
+            }
+        )
+    log = tmp_path / "traffic.jsonl"
+    log.write_text("".join(json.dumps(rec) + "\n" for rec in records))
+    for rule in ChecksumRule:
+        expected = Summary(rule)
+        for rec in records:
+            data = bytes.fromhex(rec["hex"])
+            expected.bytes += len(data)
+            expected.add(decode_all(data, rule), datetime.fromisoformat(rec["time"]).timestamp())
+        shown = subprocess.run(
+            [hcrctl, "--checksum-from", rule.value, "monitor", "--from", str(log), "--summary", "--json"],
+            capture_output=True,
+            text=True,
+            env=env,
+            timeout=120,
+        )
+        assert shown.returncode == 0, shown.stderr
+        assert json.loads(shown.stdout) == expected.as_dict()
+        assert expected.as_dict()["junk_bytes"] and expected.as_dict()["text_lines"]  # the mix is in
