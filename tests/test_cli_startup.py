@@ -12,6 +12,7 @@ import subprocess
 import sys
 
 import pytest
+from helpers import hcrctl_exe
 from helpers_cli import clean_env, sim_pty, wire
 
 HARNESS = """
@@ -101,3 +102,83 @@ def test_fast_exit_flushes_runs_atexit_and_waits_for_threads(mode, out):
     )
     assert result.returncode == 3
     assert result.stdout == out
+
+
+#: What a whole-file command (no port, no robot) never loads: the client with its reader thread,
+#: traffic hooks and typed reads, nor the live listener's queue, nor ``string`` (for hexdigits).
+NEVER_FOR_A_FILE = (
+    "hcrctl.link.client",
+    "hcrctl.link.traffic",
+    "hcrctl.link.reads",
+    "queue",
+    "serial",
+    "string",
+)
+
+
+def whole_file_commands(tmp_path) -> list[tuple[list[str], str]]:
+    """(arguments, a module that shows the command really ran) for each whole-file command."""
+    capture = tmp_path / "capture.bin"
+    capture.write_bytes(bytes.fromhex("55 AA 01 02 14 0D 0A 2D 0D 0A") * 3)
+    log = tmp_path / "traffic.jsonl"
+    log.write_text(
+        '{"time": "2026-01-01T00:00:00.000000", "direction": "rx", "hex": "55 AA 01 02 14 0D 0A 2D 0D 0A"}\n'
+    )
+    return [
+        (["hex", "decode", "--summary", "--file", str(capture)], "hcrctl.hex.summary"),
+        (["hex", "decode", "--file", str(capture)], "hcrctl.hex.decoding"),
+        (["monitor", "--from", str(log)], "hcrctl.link.trafficlog"),
+        (["monitor", "--summary", "--from", str(log)], "hcrctl.hex.summary"),
+    ]
+
+
+def test_whole_file_commands_do_not_load_the_client(tmp_path):
+    """``hex decode`` and ``monitor --from`` read a file: the global options' table must not pull in
+    ``link.client`` (it once did, for the --stop-wait default alone)."""
+    for args, ran in whole_file_commands(tmp_path):
+        code, modules = modules_after(args, clean_env(tmp_path))
+        assert code == 0, args
+        assert ran in modules, args  # the harness really ran that command
+        for name in (*NEVER_FOR_A_FILE, *NEVER_IN_ONE_SHOT):
+            assert not loaded(modules, name), (args, name)
+
+
+TEARDOWN_MARKER = """
+import sys
+
+
+class _Marker:
+    def __del__(self):
+        sys.stderr.write("torn down\\n")
+
+
+marker = _Marker()
+"""
+
+
+def test_python_dash_m_skips_the_teardown_as_the_script_does(tmp_path):
+    """``python -m hcrctl`` runs ``entry`` as the console script does: same status and output, atexit
+    run, and the interpreter's teardown (some 5 ms) skipped. A plugin module's object that speaks
+    when it is torn down shows it: it speaks after ``main()``, and after neither of these."""
+    (tmp_path / "teardown_marker.py").write_text(TEARDOWN_MARKER)
+    env = clean_env(tmp_path, PYTHONPATH=str(tmp_path), HCRCTL_PLUGINS="teardown_marker")
+    args = ["hex", "decode", "55", "AA", "01", "02", "14", "0D", "0A", "2D", "0D", "0A"]
+    runs = {
+        "python -m": [sys.executable, "-m", "hcrctl", *args],
+        "script": [hcrctl_exe(), *args],
+        "main()": [
+            sys.executable,
+            "-c",
+            "import sys; from hcrctl.cli import main; main(sys.argv[1:])",
+            *args,
+        ],
+    }
+    done = {
+        name: subprocess.run(argv, env=env, capture_output=True, text=True, timeout=60)
+        for name, argv in runs.items()
+    }
+    assert "torn down" in done["main()"].stderr  # the marker works
+    for name in ("python -m", "script"):
+        assert done[name].returncode == 0, done[name].stderr
+        assert "heading=333.8 deg" in done[name].stdout
+        assert done[name].stderr == done["main()"].stderr.replace("torn down\n", ""), name

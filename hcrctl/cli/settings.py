@@ -20,8 +20,8 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
-from ..link.client import DEFAULT_WAIT_S
 from ..link.context import Connection
+from ..link.stopwait import DEFAULT_WAIT_S
 from ..protocol.frames import ChecksumRule
 from ..protocol.profiles import DEFAULT, PROFILES
 from .params import ByteNumber, FloatRange, IntRange

@@ -37,6 +37,7 @@ from ..protocol.frames import BadChecksum, ChecksumRule, Event, Frame, Malformed
 from ..protocol.profiles import DEFAULT, Profile, profile
 from .dialects import Dialect
 from .reads import TypedReads
+from .stopwait import DEFAULT_WAIT_S as DEFAULT_WAIT_S
 from .traffic import FrameHook, LinkStats, Traffic, TrafficHook, Watchers, decode_sent
 
 #: How long the reader blocks in one read; bounds how fast close() returns.
@@ -49,9 +50,6 @@ MAX_READ = 16
 ECHO_MEMORY = 16
 #: Stands for "some frame" among the keys of frames that passed only the other checksum rule.
 ON_THE_LINE = (-1, -1)
-
-#: How long a rescue keeps trying the port by default (``--stop-wait``).
-DEFAULT_WAIT_S = 30.0
 
 
 class Robot(TypedReads, Dialect):

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import PortError
 from ..protocol.frames import ChecksumRule
-from .client import DEFAULT_WAIT_S
+from .stopwait import DEFAULT_WAIT_S
 
 if TYPE_CHECKING:
     from .client import Robot

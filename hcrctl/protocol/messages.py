@@ -3,6 +3,9 @@
 Each declares its fields with ``fields.spec`` and its wire form
 (``to_content``/``from_content``); the table in ``commands`` pairs them with
 codes and names. Standard library only.
+
+Every class has a docstring: a dataclass without one gets a signature built
+by ``inspect`` as its ``__doc__``, a cost every start-up of every command paid.
 """
 
 from __future__ import annotations
@@ -20,6 +23,8 @@ DIR_MOTOR2 = 0x10
 
 @dataclass(frozen=True)
 class _PercentPair(Request):
+    """Both motors in percent, each byte 0x80 + p (``percent_to_byte``)."""
+
     left: int = spec(-100, 100, "%", "motor 1, -100 (full reverse) to 100 (full forward)")
     right: int = spec(-100, 100, "%", "motor 2, -100 (full reverse) to 100 (full forward)")
 
@@ -34,11 +39,15 @@ class _PercentPair(Request):
 
 @dataclass(frozen=True)
 class MotorPower(_PercentPair):
+    """Motor power, percent of full."""
+
     CODE: ClassVar[int] = 0x01
 
 
 @dataclass(frozen=True)
 class MotorSpeed(_PercentPair):
+    """Motor speed, percent of maximum."""
+
     CODE: ClassVar[int] = 0x02
 
 
@@ -86,6 +95,8 @@ class Turn(Request):
 
 @dataclass(frozen=True)
 class Servo(Request):
+    """Servo 1 and 2 positions, one byte each."""
+
     CODE: ClassVar[int] = 0x41
     p1: int = spec(0, 255, "", "servo 1 position")
     p2: int = spec(0, 255, "", "servo 2 position")
@@ -101,6 +112,8 @@ class Servo(Request):
 
 @dataclass(frozen=True)
 class Pid(Request):
+    """The speed controller's P, I and D gains, one byte each."""
+
     CODE: ClassVar[int] = 0x21
     p: int = spec(0, 255, "", "proportional gain")
     i: int = spec(0, 255, "", "integral gain")
@@ -137,6 +150,8 @@ BUMPER_NAMES = ("left", "front", "right")
 
 @dataclass(frozen=True)
 class Bumpers(Reply):
+    """Bumpers 1-3 in bits 0-2, set when hit."""
+
     CODE: ClassVar[int] = 0x11
     bump: tuple[bool, bool, bool] = spec(
         0, 1, "", "bumpers 1-3, true when hit", bits=0x07, names=BUMPER_NAMES
@@ -160,9 +175,12 @@ class Bumpers(Reply):
 MAX_SENSORS = 8
 
 
-@dataclass(frozen=True)
 class _ByteList(Reply):
-    """One byte per sensor; the length field says how many sensors there are."""
+    """One byte per sensor; the length field says how many sensors there are.
+
+    A plain base, not a dataclass: it has no field of its own (each subclass
+    declares its list), and each dataclass costs start-up time to build.
+    """
 
     KEY: ClassVar[str]
 
@@ -181,6 +199,8 @@ class _ByteList(Reply):
 
 @dataclass(frozen=True)
 class Infrared(_ByteList):
+    """IR distances, one raw byte per sensor."""
+
     CODE: ClassVar[int] = 0x12
     KEY: ClassVar[str] = "ir"
     ir: tuple[int, ...] = spec(
@@ -190,6 +210,8 @@ class Infrared(_ByteList):
 
 @dataclass(frozen=True)
 class Ultrasonic(_ByteList):
+    """Ultrasonic distances in cm, one byte per sensor."""
+
     CODE: ClassVar[int] = 0x13
     KEY: ClassVar[str] = "sonar"
     sonar: tuple[int, ...] = spec(0, 255, "cm", "ultrasonic distances", count=(1, MAX_SENSORS))
@@ -213,6 +235,8 @@ class Compass(Reply):
 
 @dataclass(frozen=True)
 class WheelSpeed(Reply):
+    """Both wheel speeds from the encoders, cm/s."""
+
     CODE: ClassVar[int] = 0x15
     wheels: tuple[int, int] = spec(0, 255, "cm/s", "wheel speeds from the encoders", names=("left", "right"))
 
@@ -247,6 +271,8 @@ class Environment(Reply):
 
 @dataclass(frozen=True)
 class PidAck(Reply):
+    """Whether the PID gains were set (0x01) or not (0x00)."""
+
     CODE: ClassVar[int] = 0x21
     ok: bool = spec(0, 1, "", "0x01 set, 0x00 failed", bits=0x01)
 
@@ -261,6 +287,8 @@ class PidAck(Reply):
 
 @dataclass(frozen=True)
 class Position(Reply):
+    """A positioning station's broadcast: data id, two distances, time since the last id."""
+
     CODE: ClassVar[int] = 0xA0
     did: int = spec(0, 255, "", "data id")
     d1: int = spec(0, 255, "cm", "distance 1")
