@@ -222,7 +222,8 @@ class Reply:
         ``ImpossibleReply`` when they parse to a value the field cannot have.
         """
         value = cls.from_content(content)
-        check_reply(value, content)
+        if not _plainly_in_range(value):  # the common case costs one call
+            check_reply(value, content)
         return value
 
     @classmethod
@@ -254,12 +255,7 @@ def check_reply(value: Reply, content: bytes) -> None:
         _check_field(what, info, getattr(value, info.name), raw)
 
 
-#: Reply class -> (name, lo, hi, count) of each field, or None when a field has ``bits`` (checked in full).
-_RANGES: dict[type, tuple[tuple[str, float, float, tuple[int, int] | None], ...] | None] = {}
-
-
-#: Not yet in ``_RANGES`` (where None means "has ``bits``": check in full).
-_UNKNOWN: Any = object()
+Ranges = tuple[tuple[str, float, float, tuple[int, int] | None], ...]
 
 
 def _plainly_in_range(value: Reply) -> bool:
@@ -267,28 +263,36 @@ def _plainly_in_range(value: Reply) -> bool:
 
     False means "check in full" (``check_reply``'s loop decides and words the error), never "out of range".
     """
-    cls = type(value)
-    ranges = _RANGES.get(cls, _UNKNOWN)
-    if ranges is _UNKNOWN:
-        infos = fields_of(cls)
-        ranges = _RANGES[cls] = (
-            None
-            if any(info.bits is not None for info in infos)
-            else tuple((info.name, info.lo, info.hi, info.count) for info in infos)
-        )
-    if ranges is None:
-        return False
-    for name, lo, hi, count in ranges:
-        item = getattr(value, name)
-        kind = type(item)
-        if kind is tuple:
-            if count is not None and not count[0] <= len(item) <= count[1]:
-                return False
-            if item and not (lo <= min(item) and max(item) <= hi):
-                return False
-        elif (kind is not int and kind is not float) or count is not None or not lo <= item <= hi:
+    check = _IN_RANGE.get(type(value))
+    if check is None:
+        check = _IN_RANGE[type(value)] = _range_check(fields_of(type(value)))
+    return check(value)
+
+
+def _range_check(infos: tuple[FieldInfo, ...]) -> Callable[[Any], bool]:
+    """``_plainly_in_range`` made for one reply class: every decoded reply asks."""
+    if any(info.bits is not None for info in infos):  # flag bytes are checked in full
+        return lambda value: False
+    ranges: Ranges = tuple((info.name, info.lo, info.hi, info.count) for info in infos)
+    if len(ranges) == 1:  # most replies: one field, checked without a loop
+        ((name, lo, hi, count),) = ranges
+        return lambda value: _in_range(getattr(value, name), lo, hi, count)
+    return lambda value: all(
+        [_in_range(getattr(value, name), lo, hi, count) for name, lo, hi, count in ranges]
+    )
+
+
+def _in_range(item: Any, lo: float, hi: float, count: tuple[int, int] | None) -> bool:
+    kind = type(item)
+    if kind is tuple:
+        if count is not None and not count[0] <= len(item) <= count[1]:
             return False
-    return True
+        return not item or (lo <= min(item) and max(item) <= hi)
+    return (kind is int or kind is float) and count is None and lo <= item <= hi
+
+
+#: Reply class -> its ``_range_check``.
+_IN_RANGE: dict[type, Callable[[Any], bool]] = {}
 
 
 def _check_field(what: str, info: FieldInfo, value: Any, raw: bytes) -> None:

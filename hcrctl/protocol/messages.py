@@ -188,7 +188,7 @@ class _ByteList(Reply):
     def from_content(cls, content: bytes) -> Reply:
         if not content:
             raise ProtocolError(f"{cls.KEY} reply carries no readings")
-        return cls(**{cls.KEY: tuple(content)})
+        return cls(tuple(content))  # type: ignore[call-arg]  # each subclass's one field: its list
 
     def content(self) -> bytes:
         return bytes(getattr(self, self.KEY))
