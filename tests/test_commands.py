@@ -353,3 +353,15 @@ def test_the_core_imports_only_the_standard_library(module: str) -> None:
     loaded = _top_level_modules_after_importing(module)
     assert "hcrctl" in loaded  # the probe did import something
     assert not loaded & set(FORBIDDEN), f"{module} pulled in {sorted(loaded & set(FORBIDDEN))}"
+
+
+def test_messages_compare_hash_and_print_by_field_as_dataclasses_do() -> None:
+    """Equality, hash and repr are shared (``fields.Message``), not generated per class: same behaviour."""
+    a, b = C.Velocity(1, -2), C.Velocity(1, -2)
+    assert a == b and hash(a) == hash(b) and len({a, b}) == 1
+    assert a != C.Velocity(1, 2)
+    assert C.MotorPower(0, 0) != C.MotorSpeed(0, 0)  # another message with the same fields
+    assert a.__eq__("Velocity(1, -2)") is NotImplemented
+    assert repr(a) == "Velocity(left=1, right=-2)"
+    assert repr(C.Infrared((1, 2))) == "Infrared(ir=(1, 2))" and repr(C.ReadRequest()) == "ReadRequest()"
+    assert C.Turn(90) == C.Turn(90, False, 0xFF)

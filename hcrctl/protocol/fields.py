@@ -184,7 +184,31 @@ def _type_text(annotation: object) -> str:
     return annotation.__name__ if isinstance(annotation, type) else str(annotation)
 
 
-class Request:
+class Message:
+    """Equality, hash and repr by field, as a dataclass's own, for messages declared with
+    ``@dataclass(frozen=True, eq=False, repr=False)``.
+
+    Shared instead of generated per class: a dataclass compiles each method it
+    makes, and the table's twenty messages paid that at every start-up.
+    """
+
+    def _values(self) -> tuple[Any, ...]:
+        return tuple(field_values(self).values())
+
+    def __eq__(self, other: object) -> bool:
+        if other.__class__ is not self.__class__:
+            return NotImplemented
+        return self._values() == other._values()
+
+    def __hash__(self) -> int:
+        return hash(self._values())
+
+    def __repr__(self) -> str:
+        shown = ", ".join(f"{name}={value!r}" for name, value in field_values(self).items())
+        return f"{type(self).__qualname__}({shown})"
+
+
+class Request(Message):
     """Base of request values: ranges are checked when the value is built."""
 
     CODE: ClassVar[int]
@@ -209,7 +233,7 @@ class Request:
         raise NotImplementedError
 
 
-class Reply:
+class Reply(Message):
     """Base of reply values; ``fields()`` is the JSON shape shared by every output."""
 
     CODE: ClassVar[int]

@@ -6,6 +6,8 @@ codes and names. Standard library only.
 
 Every class has a docstring: a dataclass without one gets a signature built
 by ``inspect`` as its ``__doc__``, a cost every start-up of every command paid.
+For the same reason equality, hash and repr are ``fields.Message``'s, shared,
+not generated and compiled for each class (``eq=False, repr=False``).
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ DIR_MOTOR1 = 0x01
 DIR_MOTOR2 = 0x10
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
 class _PercentPair(Request):
     """Both motors in percent, each byte 0x80 + p (``percent_to_byte``)."""
 
@@ -37,21 +39,21 @@ class _PercentPair(Request):
         return cls(byte_to_percent(content[0]), byte_to_percent(content[1]))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
 class MotorPower(_PercentPair):
     """Motor power, percent of full."""
 
     CODE: ClassVar[int] = 0x01
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
 class MotorSpeed(_PercentPair):
     """Motor speed, percent of maximum."""
 
     CODE: ClassVar[int] = 0x02
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
 class Velocity(Request):
     """Signed speeds; the signs become the DIR bits, in DIR AS1 AS2 order."""
 
@@ -75,7 +77,7 @@ class Velocity(Request):
         return cls(-a1 if direction & DIR_MOTOR1 else a1, -a2 if direction & DIR_MOTOR2 else a2)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
 class Turn(Request):
     """Turn in place by ANGLE degrees; RV is the rotation speed (0xFF default)."""
 
@@ -93,7 +95,7 @@ class Turn(Request):
         return cls(content[1], bool(content[0] & 1), content[2])
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
 class Servo(Request):
     """Servo 1 and 2 positions, one byte each."""
 
@@ -110,7 +112,7 @@ class Servo(Request):
         return cls(content[0], content[1])
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
 class Pid(Request):
     """The speed controller's P, I and D gains, one byte each."""
 
@@ -128,7 +130,7 @@ class Pid(Request):
         return cls(*content)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
 class ReadRequest(Request):
     """Every sensor read carries one 0xFF byte; an empty content is accepted too."""
 
@@ -148,7 +150,7 @@ class ReadRequest(Request):
 BUMPER_NAMES = ("left", "front", "right")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
 class Bumpers(Reply):
     """Bumpers 1-3 in bits 0-2, set when hit."""
 
@@ -197,7 +199,7 @@ class _ByteList(Reply):
         return {self.KEY: list(getattr(self, self.KEY))}
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
 class Infrared(_ByteList):
     """IR distances, one raw byte per sensor."""
 
@@ -208,7 +210,7 @@ class Infrared(_ByteList):
     )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
 class Ultrasonic(_ByteList):
     """Ultrasonic distances in cm, one byte per sensor."""
 
@@ -217,7 +219,7 @@ class Ultrasonic(_ByteList):
     sonar: tuple[int, ...] = spec(0, 255, "cm", "ultrasonic distances", count=(1, MAX_SENSORS))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
 class Compass(Reply):
     """Big-endian tenths of a degree; 3600 and above are out of the documented range."""
 
@@ -233,7 +235,7 @@ class Compass(Reply):
         return round(self.heading * 10).to_bytes(2, "big")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
 class WheelSpeed(Reply):
     """Both wheel speeds from the encoders, cm/s."""
 
@@ -252,7 +254,7 @@ class WheelSpeed(Reply):
         return {"wheels": list(self.wheels)}
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
 class Environment(Reply):
     """Humidity %, then temperature in degrees C, read as signed (a cold garage)."""
 
@@ -269,7 +271,7 @@ class Environment(Reply):
         return bytes((self.humidity, self.temperature & 0xFF))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
 class PidAck(Reply):
     """Whether the PID gains were set (0x01) or not (0x00)."""
 
@@ -285,7 +287,7 @@ class PidAck(Reply):
         return b"\x01" if self.ok else b"\x00"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
 class Position(Reply):
     """A positioning station's broadcast: data id, two distances, time since the last id."""
 
@@ -307,7 +309,7 @@ class Position(Reply):
 MAP_ROWS = 16
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
 class GridMap(Reply):
     """16 bytes, layout unspecified: shown raw and as a bit grid, MSB first."""
 
