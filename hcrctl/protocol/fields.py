@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any, ClassVar
 
 from ..errors import ImpossibleReply, ProtocolError, RangeError
@@ -301,9 +302,15 @@ def _range_check(infos: tuple[FieldInfo, ...]) -> Callable[[Any], bool]:
     if len(ranges) == 1:  # most replies: one field, checked without a loop
         ((name, lo, hi, count),) = ranges
         return lambda value: _in_range(getattr(value, name), lo, hi, count)
-    return lambda value: all(
-        [_in_range(getattr(value, name), lo, hi, count) for name, lo, hi, count in ranges]
-    )
+    return partial(_all_in_range, ranges)
+
+
+def _all_in_range(ranges: Ranges, value: Any) -> bool:
+    """Every field in range; a loop, not all() of a generator: every decoded reply asks."""
+    for name, lo, hi, count in ranges:  # noqa: SIM110
+        if not _in_range(getattr(value, name), lo, hi, count):
+            return False
+    return True
 
 
 def _in_range(item: Any, lo: float, hi: float, count: tuple[int, int] | None) -> bool:

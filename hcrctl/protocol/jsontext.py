@@ -50,8 +50,12 @@ def flat_dict_encoder(encode: Callable[[Any], str]) -> Callable[[dict[str, Any]]
     keys: dict[str, str] = {}
 
     def encode_flat(fields: dict[str, Any]) -> str:
-        if len(fields) == 1:  # most messages: one field
+        if len(fields) == 1:  # most messages: one field, and it is a number or a list of ints
             ((name, value),) = fields.items()
+            key = keys.get(name)
+            kind = type(value)
+            if key is not None and (kind is int or (kind is list and set(map(type, value)) <= _INT)):
+                return f"{{{key}{value!r}}}"
             return f"{{{item(name, value)}}}"
         return "{" + ", ".join([item(name, value) for name, value in fields.items()]) + "}"
 
