@@ -299,27 +299,36 @@ def _range_check(infos: tuple[FieldInfo, ...]) -> Callable[[Any], bool]:
     if any(info.bits is not None for info in infos):  # flag bytes are checked in full
         return lambda value: False
     ranges: Ranges = tuple((info.name, info.lo, info.hi, info.count) for info in infos)
-    if len(ranges) == 1:  # most replies: one field, checked without a loop
+    if len(ranges) == 1:  # most replies: one field, checked in one call
         ((name, lo, hi, count),) = ranges
-        return lambda value: _in_range(getattr(value, name), lo, hi, count)
+
+        def one_in_range(value: Any) -> bool:
+            item = getattr(value, name)
+            if type(item) is tuple:
+                return _tuple_in_range(item, lo, hi, count)
+            return (type(item) is int or type(item) is float) and count is None and lo <= item <= hi
+
+        return one_in_range
     return partial(_all_in_range, ranges)
 
 
 def _all_in_range(ranges: Ranges, value: Any) -> bool:
-    """Every field in range; a loop, not all() of a generator: every decoded reply asks."""
-    for name, lo, hi, count in ranges:  # noqa: SIM110
-        if not _in_range(getattr(value, name), lo, hi, count):
+    """Every field in range, in a loop with the scalar case inline: every decoded reply asks."""
+    for name, lo, hi, count in ranges:
+        item = getattr(value, name)
+        kind = type(item)
+        if kind is tuple:
+            if not _tuple_in_range(item, lo, hi, count):
+                return False
+        elif (kind is not int and kind is not float) or count is not None or not lo <= item <= hi:
             return False
     return True
 
 
-def _in_range(item: Any, lo: float, hi: float, count: tuple[int, int] | None) -> bool:
-    kind = type(item)
-    if kind is tuple:
-        if count is not None and not count[0] <= len(item) <= count[1]:
-            return False
-        return not item or (lo <= min(item) and max(item) <= hi)
-    return (kind is int or kind is float) and count is None and lo <= item <= hi
+def _tuple_in_range(item: tuple[Any, ...], lo: float, hi: float, count: tuple[int, int] | None) -> bool:
+    if count is not None and not count[0] <= len(item) <= count[1]:
+        return False
+    return not item or (lo <= min(item) and max(item) <= hi)
 
 
 #: Reply class -> its ``_range_check``.
