@@ -138,9 +138,15 @@ def _read_fields(cls: type) -> tuple[FieldInfo, ...]:
 def field_values(value: Any) -> dict[str, Any]:
     """``dataclasses.asdict`` for our flat messages (scalars and tuples of scalars), without its deep copy."""
     getter = _GETTERS.get(type(value))
+    return getter(value) if getter is not None else values_getter(type(value))(value)
+
+
+def values_getter(cls: type) -> Callable[[Any], dict[str, Any]]:
+    """``field_values`` for the messages of ``cls``, made once: a decoder of many frames calls it directly."""
+    getter = _GETTERS.get(cls)
     if getter is None:
-        getter = _GETTERS[type(value)] = _values_getter(tuple(info.name for info in fields_of(type(value))))
-    return getter(value)
+        getter = _GETTERS[cls] = _values_getter(tuple(info.name for info in fields_of(cls)))
+    return getter
 
 
 def _values_getter(names: tuple[str, ...]) -> Callable[[Any], dict[str, Any]]:

@@ -13,7 +13,7 @@ from typing import Any, TypeVar
 
 from ..errors import ImpossibleReply, ProtocolError
 from . import commands as C
-from .fields import field_values
+from .fields import values_getter
 from .frames import (
     HEADER,
     BadChecksum,
@@ -216,10 +216,13 @@ def fields_reader(cmd: C.Command, request: bool, then: Callable[[dict[str, Any]]
     the fields) is called in the same step: one call less per frame.
     """
     if request and cmd.request is not None:
-        from_content = cmd.request.from_content
-        return lambda content: then(field_values(from_content(content)))
+        from_content, values = cmd.request.from_content, values_getter(cmd.request)
+        return lambda content: then(values(from_content(content)))
     if not request and cmd.reply is not None:
         decode = cmd.reply.decode
+        if cmd.reply.fields is C.Reply.fields:  # the base's: the fields as declared
+            values = values_getter(cmd.reply)
+            return lambda content: then(values(decode(content)))
         return lambda content: then(decode(content).fields())
     code, direction = cmd.code, "tx" if request else "rx"
     return lambda content: then(C.decode_fields(code, content, direction))  # it says why: nothing to decode
