@@ -9,11 +9,10 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable
-from functools import partial
 from typing import TYPE_CHECKING, Any, Protocol
 
 from ..protocol.jsontext import json_encoder
-from ..protocol.records import frame_json, part_json
+from ..protocol.records import frame_part_json, json_of_parts
 
 if TYPE_CHECKING:
     from ..protocol.frames import ChecksumRule, Frame
@@ -84,7 +83,7 @@ class JsonArraySink(TextSink):
         self._dumps = json_encoder()
         self._cache: dict[tuple, str] = {}
         self.frame_event_text = self._frame_json
-        self.part_text = partial(part_json, self._dumps)
+        self.part_text = self._part_json = json_of_parts(self._dumps)
 
     def frame_text(self, row: dict[str, Any]) -> str:
         return self._dumps({k: v for k, v in row.items() if k != "offset"})[1:]
@@ -92,7 +91,7 @@ class JsonArraySink(TextSink):
     def _frame_json(self, rule: ChecksumRule, frame: Frame) -> tuple[str, bool] | None:
         """``frame_text`` of the frame's row, made by ``frame_json`` with no row at all; None for a
         frame whose checksum fails under ``rule``."""
-        return frame_json(rule, frame, self._dumps)
+        return frame_part_json(rule, frame, self._part_json)
 
     def write(self, pieces: list[str]) -> None:
         text = "".join(pieces)

@@ -137,33 +137,50 @@ def frame_json(
     values are ``frame_dict``'s, in its order, so the text is the same;
     ``tests/test_hex_fastpaths.py`` holds the two to it, frame by frame.
     """
+    return frame_part_json(rule, frame, json_of_parts(encode))
+
+
+def frame_part_json(
+    rule: ChecksumRule, frame: tuple[int, int, bytes, int, int], part_text: PartText
+) -> tuple[str, bool] | None:
+    """``frame_json`` through a ``json_of_parts`` made once (a view's)."""
     address, command, content, received = frame[0], frame[1], frame[2], frame[3]
     by_address = address + len(content) + command + sum(content)
     if received != (by_address + 0xFF if rule is ChecksumRule.HEADER else by_address) & 0xFF:
         return None
-    return part_json(
-        encode, rule, bytes((address, len(content), command)) + content + bytes((received, 13, 10))
-    )
+    return part_text(rule, bytes((address, len(content), command)) + content + bytes((received, 13, 10)))
 
 
-def part_json(encode: Callable[[Any], str], rule: ChecksumRule, part: bytes) -> tuple[str, bool]:
-    """``frame_json`` of a frame known to be valid under ``rule``, from its bytes after the header
-    (``FrameRun``'s parts)."""
-    command, content = part[2], part[3:-3]
-    cmd = C.BY_CODE.get(command)
-    request = cmd is not None and C.is_request(command, content)
-    head = _JSON_HEADS.get((command, request, rule))
-    if head is None or head[0] is not cmd:
-        head = _json_head(cmd, command, request, rule, encode)
-    fields, good = "null", True
-    if head[3] is not None:
-        try:
-            fields = head[3](content)
-        except ProtocolError as exc:
-            fields, good = f'null, "error": {encode(exc.message)}', False
-            if isinstance(exc, ImpossibleReply):
-                fields += f', "out_of_range": {encode(exc.detail())}'
-    return f"{_JSON_ADDRESS[part[0]]}{head[1]}{content.hex(' ').upper()}{head[2][part[-3]]}{fields}}}", good
+#: A valid frame's JSON text (``frame_json``'s) and goodness, from the rule and its bytes after the header.
+PartText = Callable[[ChecksumRule, bytes], tuple[str, bool]]
+
+
+def json_of_parts(encode: Callable[[Any], str]) -> PartText:
+    """``frame_json`` of frames known to be valid, from their bytes after the header (``FrameRun``'s
+    parts), with ``encode`` bound: a view calls it once per new frame, and a closure is the cheapest call."""
+
+    def part_text(rule: ChecksumRule, part: bytes) -> tuple[str, bool]:
+        command, content = part[2], part[3:-3]
+        cmd = BY_CODE.get(command)
+        request = cmd is not None and is_request(command, content)
+        head = _JSON_HEADS[rule].get((command, request))
+        if head is None or head[0] is not cmd:
+            head = _json_head(cmd, command, request, rule, encode)
+        fields, good = "null", True
+        if head[3] is not None:
+            try:
+                fields = head[3](content)
+            except ProtocolError as exc:
+                fields, good = f'null, "error": {encode(exc.message)}', False
+                if isinstance(exc, ImpossibleReply):
+                    fields += f', "out_of_range": {encode(exc.detail())}'
+        return (
+            f"{_JSON_ADDRESS[part[0]]}{head[1]}{content.hex(' ').upper()}{head[2][part[-3]]}{fields}}}",
+            good,
+        )
+
+    BY_CODE, is_request = C.BY_CODE, C.is_request
+    return part_text
 
 
 def _verdicts(rule: ChecksumRule) -> tuple[str, ...]:
@@ -190,7 +207,7 @@ _JSON_ADDRESS = tuple(f'"address": {a}, ' for a in range(256))
 #: the rule's ``_verdicts``, content -> its fields' JSON): what ``frame_json`` does alike for every frame
 #: of a command.
 Head = tuple[C.Command | None, str, tuple[str, ...], Callable[[bytes], str] | None]
-_JSON_HEADS: dict[tuple[int, bool, ChecksumRule], Head] = {}
+_JSON_HEADS: dict[ChecksumRule, dict[tuple[int, bool], Head]] = {rule: {} for rule in ChecksumRule}
 
 
 def _json_head(
@@ -203,7 +220,7 @@ def _json_head(
     kind = encode(_kind(cmd, code, b"", direction))
     parse = None if cmd is None else fields_reader(cmd, request, flat_dict_encoder(encode))
     text = f'"command": {code}, "name": {name}, "kind": {kind}, "payload": "'
-    head = _JSON_HEADS[code, request, rule] = (cmd, text, _verdicts(rule), parse)
+    head = _JSON_HEADS[rule][code, request] = (cmd, text, _verdicts(rule), parse)
     return head
 
 
