@@ -57,7 +57,11 @@ def flat_dict_encoder(encode: Callable[[Any], str]) -> Callable[[dict[str, Any]]
             if key is not None and (kind is int or (kind is list and set(map(type, value)) <= _INT)):
                 return f"{{{key}{value!r}}}"
             return f"{{{item(name, value)}}}"
-        return "{" + ", ".join([item(name, value) for name, value in fields.items()]) + "}"
+        parts = []
+        for name, value in fields.items():  # several: ints, mostly (a pair of speeds, a broadcast)
+            key = keys.get(name)
+            parts.append(f"{key}{value!r}" if key is not None and type(value) is int else item(name, value))
+        return "{" + ", ".join(parts) + "}"
 
     def item(name: str, value: Any) -> str:
         key = keys.get(name)
