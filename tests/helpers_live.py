@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import os
 import subprocess
+import time
 from collections.abc import Callable, Iterator
 
 from helpers import COLS, ROWS, TIMEOUT, DevicePty, Terminal, hcrctl_exe, sim_process, terminal, terminal_env
@@ -123,6 +124,14 @@ def usage_error(*args: str) -> str:
 def is_stop(frame: Frame) -> bool:
     """Motor power 0x80 0x80: what ``Robot.stop()`` sends."""
     return frame.command == C.STOP.CODE and frame.content == C.STOP.content()
+
+
+def press_stop(term: Terminal, robot: FakeRobot) -> None:
+    """Press space in a live panel: it says so, and stop reaches the robot after the key."""
+    sent = time.monotonic()
+    term.send(" ")
+    term.wait_for("stop sent")
+    robot.wait_frame(is_stop, after=sent)
 
 
 def speed_of(frame: Frame) -> tuple[int, int] | None:

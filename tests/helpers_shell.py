@@ -67,6 +67,13 @@ class Term(Terminal):
     def _matcher(self, what: str | Callable[[str], Any]) -> Callable[[str], Any]:
         return (lambda s: what in s) if isinstance(what, str) else what
 
+    def complete(self, typed: str, completed: str) -> str:
+        """Type ``typed`` at the prompt, press Tab, and wait until the line reads ``completed``."""
+        self.send(typed)
+        self.wait_for(lambda s: self.prompt_line().endswith(typed))
+        self.send("\t")
+        return self.wait_for(lambda s: self.prompt_line().endswith(completed))
+
 
 @contextmanager
 def shell(args: list[str], state_home: Path, timeout: float = TIMEOUT) -> Iterator[Term]:

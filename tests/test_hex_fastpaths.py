@@ -56,42 +56,38 @@ def capture(seed: int = 7, count: int = 3000) -> bytes:
     return b"".join(parts)
 
 
-def test_frame_text_is_plain_line_of_the_row_frame_by_frame() -> None:
-    rng = random.Random(1)
-    checked = bad = 0
-    for data in varied_frames(rng, 4000):
+def frames_and_rows(seed: int) -> Iterator[tuple[ChecksumRule, Frame, dict]]:
+    """Every ``Frame`` of ``varied_frames`` under each rule, with its ordinary row."""
+    for data in varied_frames(random.Random(seed), 4000):
         for rule in RULES:
             for event in decode_all(data, rule):
-                if type(event) is not Frame:
-                    continue
-                row = event_dict(event, rule)
-                assert frame_plain(rule, event) == (plain_line(row, offset=False), is_good(row)), row
-                other = rule.other
-                if row["checksum"] != row["other"]:  # the frame read under the rule it fails
-                    assert frame_plain(other, event) is None
-                checked += 1
-                bad += not is_good(row)
+                if type(event) is Frame:
+                    yield rule, event, event_dict(event, rule)
+
+
+def test_frame_text_is_plain_line_of_the_row_frame_by_frame() -> None:
+    checked = bad = 0
+    for rule, event, row in frames_and_rows(1):
+        assert frame_plain(rule, event) == (plain_line(row, offset=False), is_good(row)), row
+        if row["checksum"] != row["other"]:  # the frame read under the rule it fails
+            assert frame_plain(rule.other, event) is None
+        checked += 1
+        bad += not is_good(row)
     assert checked > 3000 and bad > 300  # impossible readings and wrong lengths were among them
 
 
 def test_frame_json_is_the_rows_json_frame_by_frame() -> None:
     """``frame_json`` (the text made without the row) is json.dumps of the row but its offset."""
-    rng = random.Random(2)
     encode = json_encoder()
     checked = bad = 0
-    for data in varied_frames(rng, 4000):
-        for rule in RULES:
-            for event in decode_all(data, rule):
-                if type(event) is not Frame:
-                    continue
-                row = event_dict(event, rule)
-                del row["offset"]
-                text = json.dumps(row, ensure_ascii=False)
-                assert frame_json(rule, event, encode) == (text[1:], "error" not in row), row
-                if row["checksum"] != row["other"]:  # the frame read under the rule it fails
-                    assert frame_json(rule.other, event, encode) is None
-                checked += 1
-                bad += "out_of_range" in row
+    for rule, event, row in frames_and_rows(2):
+        del row["offset"]
+        text = json.dumps(row, ensure_ascii=False)
+        assert frame_json(rule, event, encode) == (text[1:], "error" not in row), row
+        if row["checksum"] != row["other"]:  # the frame read under the rule it fails
+            assert frame_json(rule.other, event, encode) is None
+        checked += 1
+        bad += "out_of_range" in row
     assert checked > 3000 and bad > 100  # impossible readings were among them
 
 

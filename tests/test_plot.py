@@ -5,10 +5,9 @@ from __future__ import annotations
 import re
 import subprocess
 import threading
-import time
 
 from helpers import DevicePty
-from helpers_live import FakeRobot, hcrctl_exe, is_stop, terminal, terminal_env, usage_error
+from helpers_live import FakeRobot, hcrctl_exe, press_stop, terminal, terminal_env, usage_error
 from helpers_shell import shell
 from test_completions import complete
 
@@ -39,10 +38,7 @@ def test_the_simulator_plotted_with_a_legend_units_and_points_and_q_quits() -> N
 def test_space_sends_stop_and_only_the_fields_sensors_are_polled() -> None:
     with FakeRobot() as robot, terminal(["--port", robot.path, "plot", "compass.heading"]) as term:
         term.wait_for(lambda t: "compass.heading 123.4" in t and BRAILLE.search(t))
-        sent = time.monotonic()
-        term.send(" ")
-        term.wait_for("stop sent")
-        robot.wait_frame(is_stop, after=sent)
+        press_stop(term, robot)
         term.send("q")
         assert term.finish() == 0
     commands = {frame.command for _, frame in robot.frames()}
@@ -138,10 +134,7 @@ def test_watch_shows_a_plot_panel_above_the_sensors() -> None:
 def test_the_shells_plot_returns_to_the_prompt_on_q(tmp_path) -> None:
     with shell(["--port", "sim://", "shell"], tmp_path) as term:
         term.wait_prompt()
-        term.send("plot comp")
-        term.wait_for(lambda s: term.prompt_line().endswith("plot comp"))
-        term.send("\t")
-        term.wait_for(lambda s: term.prompt_line().endswith("plot compass.heading"))
+        term.complete("plot comp", "plot compass.heading")
         term.send("\r")
         term.wait_for(lambda t: "hcrctl plot" in t and "compass.heading 90" in t)
         term.send("q")

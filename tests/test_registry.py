@@ -130,10 +130,7 @@ def test_watch_draws_a_panel_for_the_new_read_in_its_dashboard_column(plugin_env
 def test_the_shell_completes_the_new_read(plugin_env: dict[str, str], tmp_path: Path) -> None:
     with shell(["--port", "sim://", "shell"], tmp_path / "state") as term:
         term.wait_prompt()
-        term.send("read batt")
-        term.wait_for(lambda s: term.prompt_line().endswith("read batt"))
-        term.send("\t")
-        term.wait_for(lambda s: term.prompt_line().endswith("read battery"))
+        term.complete("read batt", "read battery")
         term.send("\r")
         screen = term.wait_prompt()
     assert "12.8 V" in screen and "50 %" in screen

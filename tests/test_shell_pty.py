@@ -102,10 +102,7 @@ def test_help_lists_shell_and_cli_commands(tmp_path):
 def test_tab_completes_commands_and_sensor_names_with_descriptions(tmp_path):
     with shell(["--port", SIM, "shell"], tmp_path) as term:
         term.wait_prompt()
-        term.send("read comp")
-        term.wait_for(lambda s: term.prompt_line().endswith("read comp"))
-        term.send("\t")
-        term.wait_for(lambda s: term.prompt_line().endswith("read compass"))
+        term.complete("read comp", "read compass")
         term.send("\x15")  # Ctrl-U: clear the line
         term.send("dis")
         term.wait_for("dis")

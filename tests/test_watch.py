@@ -7,10 +7,9 @@ import json
 import re
 import subprocess
 import sys
-import time
 
 import pytest
-from helpers_live import FakeRobot, hcrctl_exe, is_stop, sim_server, terminal, usage_error
+from helpers_live import FakeRobot, hcrctl_exe, press_stop, sim_server, terminal, usage_error
 
 from hcrctl.errors import PortError
 from hcrctl.link.client import Robot
@@ -107,10 +106,7 @@ def test_keys_pause_reset_and_send_stop() -> None:
         term.wait_for(r"status +ok")
         term.send("r")
         term.wait_for("counters reset")
-        sent = time.monotonic()
-        term.send(" ")
-        term.wait_for("stop sent")
-        robot.wait_frame(is_stop, after=sent)
+        press_stop(term, robot)
         term.send("q")
         assert term.finish() == 0
 
