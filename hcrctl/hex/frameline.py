@@ -17,13 +17,11 @@ from ..errors import ProtocolError
 from ..protocol import commands as C
 from ..protocol.frames import ChecksumRule
 from ..protocol.records import fields_reader
+from ..protocol.runs import frame_part
 from .view import SHOW_BYTES, units, value_text
 
 #: Content shown in full up to this many characters of hex; past it, cut and marked.
 _CUT = SHOW_BYTES * 3 - 1
-
-#: What each rule adds to the sum from the address: the header's 55 + AA, or nothing.
-_BIAS = {ChecksumRule.HEADER: 0xFF, ChecksumRule.ADDRESS: 0}
 
 #: content -> the fields text; raises ``ProtocolError`` as the table's codec does (the frame is not good).
 Details = Callable[[bytes], str]
@@ -39,10 +37,8 @@ def frame_plain(rule: ChecksumRule, frame: tuple[int, int, bytes, int, int]) -> 
     hands as a ``Frame`` may not); None for anything else, which then takes
     the ordinary path.
     """
-    address, command, content, received = frame[0], frame[1], frame[2], frame[3]
-    if received != (address + len(content) + command + sum(content) + _BIAS[rule]) & 0xFF:
-        return None
-    return part_plain(rule, bytes((address, len(content), command)) + content + bytes((received, 0x0D, 0x0A)))
+    part = frame_part(rule, frame)
+    return None if part is None else part_plain(rule, part)
 
 
 def part_plain(_rule: ChecksumRule, part: bytes) -> tuple[str, bool]:

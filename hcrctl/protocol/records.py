@@ -9,6 +9,7 @@ protocol, below the link, because the traffic log writes it. Standard library on
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import cache
 from typing import Any, TypeVar
 
 from ..errors import ImpossibleReply, ProtocolError
@@ -27,6 +28,7 @@ from .frames import (
 )
 from .jsontext import flat_dict_encoder
 from .profiles import DEFAULT, LONE_LF_HINT, V011, Profile, lone_lf_frame
+from .runs import frame_part
 
 T = TypeVar("T")
 
@@ -144,11 +146,8 @@ def frame_part_json(
     rule: ChecksumRule, frame: tuple[int, int, bytes, int, int], part_text: PartText
 ) -> tuple[str, bool] | None:
     """``frame_json`` through a ``json_of_parts`` made once (a view's)."""
-    address, command, content, received = frame[0], frame[1], frame[2], frame[3]
-    by_address = address + len(content) + command + sum(content)
-    if received != (by_address + 0xFF if rule is ChecksumRule.HEADER else by_address) & 0xFF:
-        return None
-    return part_text(rule, bytes((address, len(content), command)) + content + bytes((received, 13, 10)))
+    part = frame_part(rule, frame)
+    return None if part is None else part_text(rule, part)
 
 
 #: A valid frame's JSON text (``frame_json``'s) and goodness, from the rule and its bytes after the header.
@@ -183,6 +182,7 @@ def json_of_parts(encode: Callable[[Any], str]) -> PartText:
     return part_text
 
 
+@cache
 def _verdicts(rule: ChecksumRule) -> tuple[str, ...]:
     """For each checksum byte, a valid frame's JSON from the payload's closing quote to ``"fields": ``.
 
@@ -203,7 +203,7 @@ def _verdicts(rule: ChecksumRule) -> tuple[str, ...]:
 _JSON_ADDRESS = tuple(f'"address": {a}, ' for a in range(256))
 
 
-#: (code, request side, rule) -> (the table's command, the text from "command" to the payload's quote,
+#: rule -> (code, request side) -> (the table's command, the text from "command" to the payload's quote,
 #: the rule's ``_verdicts``, content -> its fields' JSON): what ``frame_json`` does alike for every frame
 #: of a command.
 Head = tuple[C.Command | None, str, tuple[str, ...], Callable[[bytes], str] | None]

@@ -16,7 +16,7 @@ from operator import add, gt, itemgetter, ne
 from typing import NamedTuple
 from zlib import adler32
 
-from .frames import HEADER, MAX_FRAME, OVERHEAD, TERMINATOR, Event, Frame, _new_frame
+from .frames import HEADER, MAX_FRAME, OVERHEAD, TERMINATOR, ChecksumRule, Event, Frame, _new_frame
 
 
 def small_run(buf: bytes, bias: int, base: int, append: Callable[[Event], None]) -> tuple[int, bool]:
@@ -125,6 +125,16 @@ class FrameRun(NamedTuple):
     offset: int
     #: Each frame without its header (``frame[2:]``): address, length, command, content, checksum, 0D 0A.
     parts: list[bytes]
+
+
+def frame_part(rule: ChecksumRule, frame: tuple[int, int, bytes, int, int]) -> bytes | None:
+    """A decoded frame's bytes after the header, as a ``FrameRun`` holds them, if its checksum passes
+    under ``rule`` (None if not): so that a view renders a frame outside a run as it renders one inside."""
+    address, command, content, received = frame[0], frame[1], frame[2], frame[3]
+    by_address = address + len(content) + command + sum(content)
+    if received != (by_address + 0xFF if rule == ChecksumRule.HEADER else by_address) & 0xFF:
+        return None
+    return bytes((address, len(content), command)) + content + bytes((received,)) + TERMINATOR
 
 
 #: What ``bulk_runs`` hands each window's valid frames to: their parts (``frame[2:]``: address to
