@@ -139,3 +139,40 @@ def test_a_log_that_works_changes_nothing(env: dict[str, str], tmp_path: Path) -
     assert done.returncode == 0, done.stderr
     assert done.stderr == ""
     assert [json.loads(line)["direction"] for line in log.read_text().splitlines()] == ["tx", "rx"]
+
+
+def to_full_disk(args: list[str], env: dict[str, str]) -> subprocess.CompletedProcess[str]:
+    """The installed hcrctl with its stdout on /dev/full (every write fails: ENOSPC)."""
+    with open("/dev/full", "w") as full:
+        return subprocess.run(
+            [hcrctl_exe(), *args], env=env, stdout=full, stderr=subprocess.PIPE, text=True, timeout=120
+        )
+
+
+@needs_dev_full
+def test_output_to_a_full_disk_is_one_line_not_an_internal_error(env: dict[str, str], tmp_path: Path) -> None:
+    capture = tmp_path / "capture.bin"
+    capture.write_bytes(encode(1, 0x14, b"\x0b\x8b") * 50_000)  # more than any output buffer holds
+    for args in (
+        ["hex", "decode", "--file", str(capture)],
+        ["hex", "decode", "--json", "--file", str(capture)],
+    ):
+        done = to_full_disk(args, env)
+        assert done.returncode == 1
+        assert done.stderr.splitlines()[-1] == (
+            f"hcrctl: error: cannot write the output: {NO_SPACE} (hint: free some space, or write elsewhere)"
+        ), done.stderr
+        assert "internal error" not in done.stderr and "Traceback" not in done.stderr
+
+
+@needs_dev_full
+def test_a_drive_with_its_output_on_a_full_disk_still_stops(env: dict[str, str]) -> None:
+    with FakeRobot() as robot:
+        done = to_full_disk(
+            ["--port", robot.path, "--json", "drive", "power", "20", "20", "--for", "0.3"], env
+        )
+        robot.wait_frame(is_stop, timeout=30)
+        sent = [f for _, f in robot.frames()]
+    assert done.returncode == 1 and f"cannot write the output: {NO_SPACE}" in done.stderr, done.stderr
+    assert "internal error" not in done.stderr
+    assert sent[0].command == C.MotorPower.CODE and is_stop(sent[-1])

@@ -8,6 +8,7 @@ here, and only here.
 
 from __future__ import annotations
 
+import errno
 import importlib
 import os
 import sys
@@ -200,8 +201,18 @@ def exit_code_for(exc: BaseException, args: list[str] | None = None) -> int:
         return exc.exit_code
     if not isinstance(exc, Exception):
         raise exc
+    if isinstance(exc, OSError) and exc.errno in _FULL:  # stdout (or a file) on a full disk: not our bug
+        where = exc.filename or "the output"
+        say_error(
+            f"hcrctl: error: cannot write {where}: {exc.strerror} (hint: free some space, or write elsewhere)"
+        )
+        return 1
     say_error(f"hcrctl: internal error: {exc!r} (run with --debug for the traceback)")
     return 1
+
+
+#: Write errors that mean the disk (or the quota, or the file's size limit) is full.
+_FULL = frozenset((errno.ENOSPC, errno.EDQUOT, errno.EFBIG))
 
 
 def say_error(line: str) -> None:
