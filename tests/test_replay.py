@@ -121,7 +121,9 @@ def test_interrupted_replay_sends_stop(tmp_path: Path, sig: signal.Signals) -> N
     log = write_log(tmp_path / "long.jsonl", [(0.0, drive), (60.0, STOP)])
     with device_pty() as (master, path):
         proc = subprocess.Popen(
-            [hcrctl_exe(), "--port", path, "replay", str(log)], stdout=subprocess.PIPE, stderr=subprocess.PIPE
+            [hcrctl_exe(), "--port", path, "replay", str(log), "--max-gap", "120"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
         )
         try:
             first = b"".join(c for _, c in read_until(master, drive))

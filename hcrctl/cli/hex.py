@@ -297,7 +297,7 @@ def send(ctx: click.Context, hex_text: tuple[str, ...], force: bool, hold_for: f
         result["reply"] = send_frame(robot, frame)
         _report(settings, result)
         if holds_motion(robot, frame) and settings.shared_robot is None:
-            _hold_motion(robot, frame[2], hold_for)
+            _hold_motion(robot, hold_for)
 
 
 def _report(settings: Settings, result: dict[str, Any]) -> None:
@@ -311,15 +311,15 @@ def _report(settings: Settings, result: dict[str, Any]) -> None:
         click.echo(f"reply  {result['reply']['hex']}   {summary_text(result['reply'])}")
 
 
-def _hold_motion(robot: Robot, address: int, hold_for: float | None) -> None:
-    """Hold like ``drive``, then stop the address the frame moved (which need not be --address) and ours."""
-    from ..link.rescue import stop_frame, stopping
+def _hold_motion(robot: Robot, hold_for: float | None) -> None:
+    """Hold like ``drive``, then stop every address the frame moved (which need not be --address) and ours."""
+    from ..link.rescue import stopping
     from ..ops.motion import hold
     from .output import say
 
     until = f"for {hold_for:g} s" if hold_for is not None else "until Ctrl-C"
     say(f"holding the motion {until} — Ctrl-C to stop")
-    with stopping(robot, lambda: dict.fromkeys([stop_frame(robot, address), stop_frame(robot)])):
+    with stopping(robot):
         held = hold(robot, hold_for)
     say(f"stopped after {held:.3g} s")
 

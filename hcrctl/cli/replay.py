@@ -24,6 +24,9 @@ from .settings import Settings, json_option
 if TYPE_CHECKING:
     pass
 
+#: The longest --max-gap: an hour of waiting on a log's word is already more than anyone means.
+MAX_GAP_S = 3600.0
+
 
 @click.command()
 @click.argument("logfile", type=click.Path(exists=True, dir_okay=False))
@@ -49,20 +52,35 @@ if TYPE_CHECKING:
     metavar="N",
     help="Replay N times; 0 repeats until Ctrl-C.",
 )
+@click.option(
+    "--max-gap",
+    type=FloatRange(0, MAX_GAP_S),
+    default=5.0,
+    show_default=True,
+    metavar="S",
+    help="A longer gap between two records is not waited (said on stderr): motion is never held longer.",
+)
 @json_option
 @click.pass_obj
-def replay(settings: Settings, logfile: str, speed: float, ignore_timestamps: bool, loops: int) -> None:
+def replay(
+    settings: Settings, logfile: str, speed: float, ignore_timestamps: bool, loops: int, max_gap: float
+) -> None:
     """Re-send the tx frames of LOGFILE (written by --log) and print the replies decoded.
 
     Exit 1 if any request went unanswered within --timeout. Stop is sent at
-    the end, and on Ctrl-C or SIGTERM.
+    the end, and on Ctrl-C or SIGTERM, to every address the log moved. A gap
+    between records longer than --max-gap is skipped, not waited.
     """
     records = tx_records(logfile)
     printer = TrafficPrinter(settings.as_json, "delta", FrameFilter(), start=time.time())
     pending = Pending()
     with settings.robot() as robot:
         run_replay(
-            robot, records, printer, pending, Timing(speed, ignore_timestamps, loops, settings.timeout)
+            robot,
+            records,
+            printer,
+            pending,
+            Timing(speed, ignore_timestamps, loops, settings.timeout, max_gap),
         )
     click.echo(f"hcrctl: replay: {printer.counters()}", err=True)
     if pending.missed:

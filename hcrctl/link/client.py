@@ -34,8 +34,9 @@ from ..errors import (
 from ..protocol import commands as C
 from ..protocol.dialect import make_decoder
 from ..protocol.frames import BadChecksum, ChecksumRule, Event, Frame, Malformed, Truncated
+from ..protocol.motionscan import MotionScan
 from ..protocol.profiles import DEFAULT, Profile, profile
-from .dialects import Dialect
+from .dialects import Dialect, stop_frames
 from .reads import TypedReads
 from .stopwait import DEFAULT_WAIT_S as DEFAULT_WAIT_S
 from .traffic import FrameHook, LinkStats, Traffic, TrafficHook, Watchers, decode_sent
@@ -80,6 +81,8 @@ class Robot(TypedReads, Dialect):
         self.stats = LinkStats()
         self.unsolicited: queue.Queue[Frame] = queue.Queue(UNSOLICITED_BACKLOG)
         self.moved = False
+        #: Every address the bytes written here sent motion to (stopped on close and by ``stopping``).
+        self.motion = MotionScan()
         #: Bytes of any kind received since the port opened: zero after a timeout
         #: means a silent line (no power, wrong port), not a lost reply.
         self.rx_bytes = 0
@@ -131,7 +134,8 @@ class Robot(TypedReads, Dialect):
             return
         with contextlib.suppress(Exception):
             if self.moved:
-                self.stop()
+                for frame in stop_frames(self):
+                    self.write(frame)
         self._closing.set()
         with contextlib.suppress(Exception):
             self.serial.cancel_read()
@@ -236,7 +240,7 @@ class Robot(TypedReads, Dialect):
         frame = bytes(frame)
         with self._tx:
             self._check_link()
-            if len(frame) > 4 and C.is_motion(frame[4]):
+            if self.motion.feed(frame):
                 self.moved = True
             self._recent_tx.append(frame)
             # Told before the bytes leave, so the hook never sees the reply first.

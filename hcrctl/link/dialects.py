@@ -77,6 +77,19 @@ def frame_of(robot: Any, request: C.Request | C.Command, address: int | None = N
     return prof.retarget(C.encode_request(request, robot.address if address is None else address, robot.rule))
 
 
+def stop_frames(robot: Any) -> list[bytes]:
+    """Stop (motor power 0x80 0x80) to the robot's address and to every other address its writes moved.
+
+    ``robot.motion`` (a ``MotionScan``) saw every byte sent, so motion hidden
+    in junk, in a record of two frames or in a frame split over two writes is
+    stopped at its own address, under the checksum rule its frames passed.
+    """
+    prof: Profile = getattr(robot, "profile", DEFAULT)
+    scan = getattr(robot, "motion", None)
+    pairs = [*(scan.stops(robot.rule) if scan is not None else []), (robot.address, robot.rule)]
+    return [prof.retarget(C.encode_request(C.STOP, a, r)) for a, r in dict.fromkeys(pairs)]
+
+
 def check_command(protocol: str, cmd: C.Command) -> C.Command:
     """``cmd``, or the usage error if the firmware of ``protocol`` lacks it: for callers that have no robot yet."""
     prof = profile(protocol)

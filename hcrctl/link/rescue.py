@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 
 from ..errors import HcrError, LinkLostWhileMoving, PortError
 from ..protocol import commands as C
-from .dialects import frame_of
+from .dialects import frame_of, stop_frames
 from .signals import Terminated
 
 if TYPE_CHECKING:
@@ -61,12 +61,12 @@ def stopping(robot: Robot, frames: StopFrames | None = None) -> Iterator[None]:
     """Send stop when the block ends, however it ends; rescue it if the link is gone.
 
     ``frames`` gives the stop frames to send (default: stop to the robot's
-    address); it is called at the end, so a replay can stop every address it
-    moved. When the block raised and stop went out (or nothing had moved),
+    address and to every address its writes moved, ``stop_frames``); it is
+    called at the end, so every address moved by then is stopped. When the block raised and stop went out (or nothing had moved),
     the block's error is the news; when stop could not be delivered because
     the link dropped, the rescue's outcome is.
     """
-    frames = frames or (lambda: [stop_frame(robot)])
+    frames = frames or (lambda: stop_frames(robot))
     try:
         yield
     except BaseException as exc:

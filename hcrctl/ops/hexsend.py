@@ -60,10 +60,20 @@ def valid_frame(frame: bytes, rule: ChecksumRule, profile: Profile = DEFAULT) ->
 
 
 def holds_motion(robot: Robot, frame: bytes) -> bool:
-    """A valid motion frame that is not itself a stop (a drive of all zeros) keeps the robot moving."""
+    """Whether ``frame`` may leave the robot moving, so it is held and then stopped.
+
+    One valid frame is judged by its fields (a drive of all zeros is itself a
+    stop); anything else holds the moment motion appears anywhere in it (junk
+    before a frame, several frames, a frame under another rule or address):
+    the firmware does not check checksums, so it may well move.
+    """
+    from ..protocol.motionscan import MotionScan
+
     request = valid_frame(frame, robot.rule, robot.profile)
-    cmd = C.BY_CODE.get(request.command) if request else None
-    if request is None or cmd is None or not cmd.motion:
+    if request is None:
+        return MotionScan().feed(frame)
+    cmd = C.BY_CODE.get(request.command)
+    if cmd is None or not cmd.motion:
         return False
     try:
         fields = C.decode_fields(request.command, request.content, "tx")

@@ -1,26 +1,32 @@
 """Replaying a ``--log`` file: the tx frames out at their recorded offsets, the replies shown.
 
-``Pending`` tracks the replies still owed and where stop must go (every
-address that was sent motion, under the checksum rule those frames used);
-``run_replay`` does the passes inside ``stopping()``, so stop is sent however
-the replay ends.
+``Pending`` tracks the replies still owed; ``run_replay`` does the passes
+inside ``stopping()``, so stop is sent however the replay ends, to every
+address the records moved (the robot's ``MotionScan`` saw every byte: motion
+after junk, two frames in a record, a frame split over two records).
+
+A log's time stamps are data, not orders: a gap longer than ``max_gap``
+(a record stamped years later, a session left idle) is not waited out with the
+robot moving; it is said on stderr and skipped.
 """
 
 from __future__ import annotations
 
 import contextlib
+import math
 import queue
+import sys
 import time
 from collections import Counter
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from ..errors import LogFormatError
 from ..hex.traffic import TrafficPrinter, traffic_rows
 from ..protocol import commands as C
 from ..protocol.decoder import decode_all
-from ..protocol.frames import ChecksumRule, Frame, encode
+from ..protocol.frames import ChecksumRule, Frame
 
 if TYPE_CHECKING:
     from ..link.client import Robot
@@ -33,19 +39,16 @@ POLL_S = 0.02
 
 @dataclass
 class Pending:
-    """Replies still owed, by (address, command); and where stop must go at the end."""
+    """Replies still owed, by (address, command)."""
 
     owed: Counter = field(default_factory=Counter)
     missed: int = 0
-    stops: dict[int, ChecksumRule] = field(default_factory=dict)
 
     def sent(self, data: bytes, rule: ChecksumRule) -> None:
-        frame, used = _frame_under_either_rule(data, rule)
+        frame, _ = _frame_under_either_rule(data, rule)
         if frame is None:
             return
         cmd = C.BY_CODE.get(frame.command)
-        if cmd is not None and cmd.motion:
-            self.stops[frame.address] = used
         if cmd is not None and cmd.reply is not None and C.is_request(cmd.code, frame.content):
             self.owed[(frame.address, frame.command)] += 1
 
@@ -102,6 +105,8 @@ class Timing:
     ignore_timestamps: bool
     loops: int
     timeout: float
+    #: The longest gap between two records that is waited; a longer one is skipped and said.
+    max_gap: float = 5.0
 
 
 def run_replay(
@@ -114,7 +119,7 @@ def run_replay(
     listener = inbox.put
     robot.add_traffic_hook(listener)
     try:
-        with stopping(robot, lambda: _stop_frames(robot, pending)):
+        with stopping(robot):
             done = 0
             while timing.loops == 0 or done < timing.loops:
                 _one_pass(robot, records, inbox, printer, pending, timing)
@@ -134,17 +139,44 @@ def _one_pass(
     pending: Pending,
     timing: Timing,
 ) -> None:
-    start, first = time.monotonic(), None
+    clock = Clock(timing)
     for rec in records:
-        first = rec.time if first is None else first
         if timing.ignore_timestamps:
             _wait(robot, inbox, printer, pending, time.monotonic() + timing.timeout, until_answered=True)
         else:
-            _wait(robot, inbox, printer, pending, start + (rec.time - first) / timing.speed)
+            _wait(robot, inbox, printer, pending, clock.due(rec.time))
         if pending.owed and timing.ignore_timestamps:
             pending.give_up()
         robot.write(rec.data)
         pending.sent(rec.data, robot.rule)
+
+
+class Clock:
+    """When each record is due: its offset from the last one, scaled, but never more than ``max_gap``."""
+
+    def __init__(self, timing: Timing) -> None:
+        self.timing = timing
+        self._last: float | None = None
+        self._due = time.monotonic()
+
+    def due(self, stamp: float) -> float:
+        gap = 0.0 if self._last is None else (stamp - self._last) / self.timing.speed
+        self._last = stamp
+        if not math.isfinite(gap) or gap > self.timing.max_gap:
+            _say(
+                f"replay: a gap of {_seconds(gap)} in the log is not waited (--max-gap {self.timing.max_gap:g})"
+            )
+            gap = 0.0
+        self._due += max(gap, 0.0)
+        return self._due
+
+
+def _seconds(gap: float) -> str:
+    return f"{gap:,.1f} s" if math.isfinite(gap) and gap < 1e9 else "ages"
+
+
+def _say(text: str) -> None:
+    print(f"hcrctl: {text}", file=sys.stderr, flush=True)
 
 
 def _wait(
@@ -180,9 +212,3 @@ def _show(robot: Robot, traffic: Traffic, printer: TrafficPrinter, pending: Pend
     if traffic.direction == "rx":
         pending.received(traffic)
     printer.show(traffic.time, traffic.direction, traffic.data, traffic_rows(traffic, robot.rule))
-
-
-def _stop_frames(robot: Robot, pending: Pending) -> list[bytes]:
-    """Stop at every address that was sent motion, under its rule, then at ours."""
-    targets: dict[int, Any] = {**pending.stops, robot.address: robot.rule}
-    return [encode(address, C.STOP.CODE, C.STOP.content(), rule) for address, rule in targets.items()]

@@ -1,0 +1,66 @@
+"""Every address a byte stream sent motion to, however the bytes were framed.
+
+Stop must reach each address that was told to move, and the bytes that moved
+it need not be one tidy frame per write: a log record may carry junk before a
+frame, two frames, or half of one (the rest in the next record), and the
+published firmware never checks a checksum at all. So this scan is
+deliberately generous: any header ``55 AA``, address, length and a motion
+command byte counts as motion to that address the moment the command byte is
+seen, whatever follows. A stop too many is harmless; a stop too few is a
+runaway robot.
+
+Sans-IO and standard library only: ``Robot.write`` feeds it every byte it
+sends, so every source of motion (a drive, ``hex send``, ``replay``, the
+bridge) is covered by the one place bytes leave.
+"""
+
+from __future__ import annotations
+
+from . import commands as C
+from .frames import HEADER, ChecksumRule, checksum
+
+#: Header, address, length, command: what must be seen before a frame's kind is known.
+_HEAD = 5
+
+
+class MotionScan:
+    """Fed the bytes sent, in order; remembers each address moved and the checksum rules its frames passed."""
+
+    def __init__(self) -> None:
+        #: address -> the rules a complete motion frame to it passed (empty: none was complete, or none passed).
+        self.moved: dict[int, set[ChecksumRule]] = {}
+        self._tail = b""
+
+    def feed(self, data: bytes) -> bool:
+        """Scan the next bytes; whether they hold (or complete) motion to any address."""
+        buf = self._tail + bytes(data)
+        found = False
+        at = buf.find(HEADER)
+        keep = max(0, len(buf) - 1) if buf.endswith(HEADER[:1]) else len(buf)
+        while at != -1:
+            if at + _HEAD > len(buf):
+                keep = min(keep, at)  # the command byte is still to come
+                break
+            if C.is_motion(buf[at + 4]):
+                found = True
+                self._note(buf, at)
+                if at + _HEAD + buf[at + 3] + 1 > len(buf):
+                    keep = min(keep, at)  # its checksum is still to come
+            at = buf.find(HEADER, at + 1)
+        self._tail = buf[keep:]
+        return found
+
+    def _note(self, buf: bytes, at: int) -> None:
+        rules = self.moved.setdefault(buf[at + 2], set())
+        end = at + _HEAD + buf[at + 3]
+        if end < len(buf):
+            frame = buf[at:end]
+            rules.update(rule for rule in ChecksumRule if checksum(frame, rule) == buf[end])
+
+    def stops(self, rule: ChecksumRule) -> list[tuple[int, ChecksumRule]]:
+        """(address, rule) pairs to stop, in the order moved: under the rules its frames passed (a log
+        from other firmware may use the other one), or under ``rule`` when none passed or none was whole."""
+        pairs = []
+        for address, passed in self.moved.items():
+            pairs.extend((address, r) for r in sorted(passed or {rule}, key=lambda r: r is not rule))
+        return pairs
