@@ -110,10 +110,11 @@ def bridge(port: str, *args: str, env: dict[str, str]) -> Iterator[Bridge]:
 class Viewer:
     """A Foxglove WebSocket client: serverInfo and advertise read on connect."""
 
-    def __init__(self, port: int) -> None:
+    def __init__(self, port: int, subprotocols: list[str] | None = None, **options: Any) -> None:
         self._open = ExitStack()
+        offered = subprotocols or [SUBPROTOCOL]
         self.ws: ClientConnection = self._open.enter_context(
-            connect(f"ws://127.0.0.1:{port}", subprotocols=[SUBPROTOCOL], open_timeout=TIMEOUT)
+            connect(f"ws://127.0.0.1:{port}", subprotocols=offered, open_timeout=TIMEOUT, **options)  # type: ignore[arg-type]
         )
         self.info = self.control("serverInfo")
         self.channels: dict[str, dict[str, Any]] = {}
@@ -159,8 +160,8 @@ class Viewer:
 
 
 @contextmanager
-def viewer(port: int) -> Iterator[Viewer]:
-    client = Viewer(port)
+def viewer(port: int, subprotocols: list[str] | None = None, **options: Any) -> Iterator[Viewer]:
+    client = Viewer(port, subprotocols, **options)
     try:
         yield client
     finally:
@@ -202,12 +203,22 @@ def test_a_viewer_gets_server_info_topics_with_schemas_and_readings(env: dict[st
     assert code == 128 + signal.SIGTERM
 
 
-def test_a_client_offering_only_the_old_subprotocol_is_refused(env: dict[str, str]) -> None:
+@pytest.mark.parametrize(
+    "offered", [["foxglove.sdk.v1"], ["foxglove.websocket.v1"], ["x", "foxglove.websocket.v1"]]
+)
+def test_either_subprotocol_name_is_served(env: dict[str, str], offered: list[str]) -> None:
+    """``@foxglove/ws-protocol`` and Lichtblick before its PR 819 offer only the older name."""
+    with bridge("sim://", env=env) as running, viewer(running.port, offered) as client:
+        assert client.ws.subprotocol == offered[-1]
+        client.subscribe("/hcr/compass", 1)
+        assert "heading" in client.data(1)[1]
+
+
+@pytest.mark.parametrize("offered", [[], ["chat"]])
+def test_a_client_offering_neither_name_is_refused(env: dict[str, str], offered: list[str]) -> None:
     with bridge("sim://", env=env) as running:
         with pytest.raises(InvalidStatus) as refused:
-            connect(
-                f"ws://127.0.0.1:{running.port}", subprotocols=["foxglove.websocket.v1"], open_timeout=TIMEOUT
-            )
+            connect(f"ws://127.0.0.1:{running.port}", subprotocols=offered or None, open_timeout=TIMEOUT)
         assert refused.value.response.status_code == 400
 
 

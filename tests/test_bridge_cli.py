@@ -12,10 +12,11 @@ from helpers import TIMEOUT, hcrctl_exe, terminal
 from test_bridge import viewer
 
 
-def run(args: list[str], env: dict[str, str]) -> subprocess.CompletedProcess[str]:
+def run(args: list[str], env: dict[str, str], cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
         [hcrctl_exe(), *args],
         env=env,
+        cwd=cwd,
         stdin=subprocess.DEVNULL,
         capture_output=True,
         text=True,
@@ -75,14 +76,29 @@ def test_help_does_not_import_the_sdk(env: dict[str, str], args: list[str]) -> N
     assert not [name for name in imported if name.split(".")[0] in ("foxglove", "websockets", "mcap")]
 
 
-def test_without_the_sdk_one_line_names_the_extra(env: dict[str, str], tmp_path: Path) -> None:
-    shadow = tmp_path / "foxglove"
-    shadow.mkdir()
-    (shadow / "__init__.py").write_text("raise ImportError(\"No module named 'foxglove'\")\n")
-    result = run(["--port", "sim://", "bridge"], dict(env, PYTHONPATH=str(tmp_path)))
+@pytest.mark.parametrize(("module", "args"), [("websockets", []), ("foxglove", ["--mcap", "x.mcap"])])
+def test_without_the_extra_one_line_names_it(
+    env: dict[str, str], tmp_path: Path, module: str, args: list[str]
+) -> None:
+    """The package absent (as ``import`` sees it when it is not installed): one line, nothing opened."""
+    (tmp_path / "sitecustomize.py").write_text(f"import sys\nsys.modules[{module!r}] = None\n")
+    result = run(["--port", "sim://", "bridge", *args], dict(env, PYTHONPATH=str(tmp_path)), cwd=tmp_path)
     assert result.returncode == 1
     lines = result.stderr.splitlines()
     assert len(lines) == 1 and "pip install 'hcrctl[foxglove]'" in lines[0], result.stderr
+    assert not (tmp_path / "x.mcap").exists()
+
+
+def test_a_broken_import_inside_an_installed_package_is_not_called_missing(
+    env: dict[str, str], tmp_path: Path
+) -> None:
+    """The extra's message only when the package is missing, not when an import inside it fails."""
+    shadow = tmp_path / "websockets"
+    shadow.mkdir()
+    (shadow / "__init__.py").write_text("import no_such_module_inside_websockets\n")
+    result = run(["--port", "sim://", "bridge"], dict(env, PYTHONPATH=str(tmp_path)))
+    assert result.returncode == 1
+    assert "hcrctl[foxglove]" not in result.stderr and "no_such_module_inside_websockets" in result.stderr
 
 
 def test_on_a_terminal_a_status_line_counts_clients_and_messages() -> None:

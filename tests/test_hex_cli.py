@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 import pytest
+from helpers import TIMEOUT, sleeping, wait_until
 from helpers_hex import device_pty, hcrctl_exe, read_for, read_until, run, sim_pty
 from test_hexview import DOCUMENT_FRAMES, expected_verdict, printed, verdict_of
 
@@ -374,3 +375,59 @@ def test_json_may_follow_the_subcommand_as_the_issue_spells_it() -> None:
     )
     row = json.loads(run("hex", "encode", "read", "compass", "--json").stdout)
     assert row["hex"] == "55 AA 01 01 14 FF 14 0D 0A"
+
+
+# -- send --force: motion anywhere in the bytes is held, then stopped at every address it moved -------
+
+VELOCITY_02 = encode(2, 0x03, H("00 1E 1E"))  # motor speed, absolute: 30 cm/s on both wheels, at @02
+STOP_02 = encode(2, 0x01, H("80 80"))
+
+
+@pytest.mark.parametrize(
+    ("typed", "stops"),
+    [
+        pytest.param(b"\x00" + VELOCITY_02, STOP_02 + STOP, id="junk-then-frame"),
+        pytest.param(encode(1, 0x41, H("01 01")) + VELOCITY_02, STOP_02 + STOP, id="servo-then-motion"),
+        pytest.param(
+            encode(3, 0x01, H("CC CC")) + VELOCITY_02,
+            encode(3, 0x01, H("80 80")) + STOP_02 + STOP,
+            id="two-motions",
+        ),
+    ],
+)
+def test_send_force_holds_motion_anywhere_in_the_bytes_then_stops_every_address(
+    typed: bytes, stops: bytes
+) -> None:
+    with device_pty() as (master, path):
+        proc = run("--port", path, "hex", "send", "--force", typed.hex(" "), "--for", "0.3")
+        chunks = read_until(master, typed + stops, timeout=TIMEOUT) + read_for(master, 0.2)
+    assert proc.returncode == 0, proc.stderr
+    assert b"".join(c for _, c in chunks) == typed + stops
+    assert "sending as typed (--force)" in proc.stderr
+    assert "holding the motion for 0.3 s" in proc.stderr and "stopped after" in proc.stderr
+
+
+def test_send_force_of_junk_and_motion_holds_until_ctrl_c_then_stops_its_address() -> None:
+    """Held for real: the program sleeps with nothing but the motion sent, until Ctrl-C sends the stops."""
+    typed = b"\x00" + VELOCITY_02
+    with device_pty() as (master, path):
+        proc = subprocess.Popen(
+            [hcrctl_exe(), "--port", path, "hex", "send", "--force", typed.hex(" ")],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        try:
+            first = read_until(master, typed, timeout=TIMEOUT)
+            wait_until(lambda: sleeping(proc.pid) or proc.poll() is not None, what="the hold")
+            assert proc.poll() is None, proc.communicate()
+            first += read_for(master, 0.2)  # nothing more while it holds
+            proc.send_signal(signal.SIGINT)
+            rest = read_until(master, STOP_02 + STOP, timeout=TIMEOUT) + read_for(master, 0.2)
+            _, err = proc.communicate(timeout=TIMEOUT)
+        finally:
+            proc.kill()
+    assert b"".join(c for _, c in first) == typed
+    assert b"".join(c for _, c in rest) == STOP_02 + STOP
+    assert "holding the motion until Ctrl-C" in err and "stopped after" in err
+    assert proc.returncode == 0  # Ctrl-C is the normal end of an open-ended hold, as for drive

@@ -21,7 +21,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("hcrctl.protocol",),
     ("hcrctl.sim",),
     ("hcrctl.link", "hcrctl.urlhandler"),
-    ("hcrctl.hex", "hcrctl.render", "hcrctl.ops"),
+    ("hcrctl.hex", "hcrctl.render", "hcrctl.ops", "hcrctl.motion"),
     ("hcrctl.live", "hcrctl.feeds"),
     ("hcrctl.cli",),
     ("hcrctl.shell", "hcrctl.__main__"),

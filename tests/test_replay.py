@@ -13,7 +13,8 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from helpers_hex import device_pty, hcrctl_exe, read_for, read_until, run, sim_pty
+from helpers import TIMEOUT
+from helpers_hex import RUN_TIMEOUT, device_pty, hcrctl_exe, read_for, read_until, run, sim_pty
 
 from hcrctl.link.trafficlog import iso_time, read_log
 from hcrctl.protocol.frames import encode
@@ -170,3 +171,93 @@ def test_an_answered_request_is_no_longer_owed() -> None:
     assert not pending.owed
     pending.give_up()
     assert pending.missed == 0
+
+
+# -- stop reaches every address moved, however the records framed the bytes ------------------------------
+
+VELOCITY_02 = encode(2, 0x03, H("00 1E 1E"))  # motor speed, absolute: 30 cm/s on both wheels, at @02
+STOP_02 = encode(2, 0x01, H("80 80"))
+
+
+def replayed(
+    log: Path, *args: str, until: bytes, timeout: float = RUN_TIMEOUT
+) -> tuple[subprocess.CompletedProcess, bytes]:
+    """``hcrctl replay LOG ARGS`` on a pty we play: the process, and the bytes up to ``until`` and after.
+
+    Waits for ``until`` to arrive (the last stop), then takes whatever follows
+    it before the line goes quiet, so an extra byte fails the caller's check.
+    """
+    with device_pty() as (master, path):
+        proc = run("--port", path, "replay", str(log), *args, timeout=timeout)
+        chunks = read_until(master, until, timeout=TIMEOUT) + read_for(master, 0.2)
+    return proc, b"".join(chunk for _, chunk in chunks)
+
+
+def test_motion_after_a_junk_byte_is_stopped_at_its_address(tmp_path: Path) -> None:
+    log = write_log(tmp_path / "junk.jsonl", [(0.0, b"\x00" + VELOCITY_02)])
+    proc, arrived = replayed(log, until=b"\x00" + VELOCITY_02 + STOP_02 + STOP)
+    assert proc.returncode == 0, proc.stderr
+    assert arrived == b"\x00" + VELOCITY_02 + STOP_02 + STOP
+
+
+def test_motion_in_the_second_of_two_frames_in_one_record_is_stopped(tmp_path: Path) -> None:
+    servo = encode(1, 0x41, H("01 01"))  # harmless: the servos, no motor
+    log = write_log(tmp_path / "two.jsonl", [(0.0, servo + VELOCITY_02)])
+    proc, arrived = replayed(log, until=servo + VELOCITY_02 + STOP_02 + STOP)
+    assert proc.returncode == 0, proc.stderr
+    assert arrived == servo + VELOCITY_02 + STOP_02 + STOP
+
+
+@pytest.mark.parametrize(
+    ("cut", "rule"),
+    [
+        (1, "header"),  # between 55 and AA
+        (4, "header"),  # the command byte in the second record
+        (5, "header"),  # the command in the first, its content in the second
+        (8, "address"),  # all but the checksum: the rule is known only from the second record
+        (9, "header"),  # all but the end 0D 0A
+    ],
+)
+def test_a_motion_frame_split_over_two_records_is_stopped(tmp_path: Path, cut: int, rule: str) -> None:
+    moved = encode(2, 0x03, H("00 1E 1E"), rule=rule)
+    log = write_log(tmp_path / "split.jsonl", [(0.0, moved[:cut]), (0.0, moved[cut:])])
+    stops = encode(2, 0x01, H("80 80"), rule=rule) + STOP
+    proc, arrived = replayed(log, until=moved + stops)
+    assert proc.returncode == 0, proc.stderr
+    assert arrived == moved + stops
+
+
+def test_a_record_stamped_at_the_end_of_time_is_not_waited(tmp_path: Path) -> None:
+    """The subprocess timeout (20 s) fails the test if the gap were waited: nothing here times it."""
+    servo = encode(1, 0x41, H("01 01"))
+    log = tmp_path / "ages.jsonl"
+    records = [("2026-01-01T00:00:00.000000+00:00", VELOCITY_02), ("9999-12-31T23:59:59.999999+00:00", servo)]
+    log.write_text(
+        "".join(json.dumps({"time": t, "direction": "tx", "hex": d.hex(" ")}) + "\n" for t, d in records)
+    )
+    proc, arrived = replayed(log, until=VELOCITY_02 + servo + STOP_02 + STOP, timeout=20)
+    assert proc.returncode == 0, proc.stderr
+    assert arrived == VELOCITY_02 + servo + STOP_02 + STOP
+    (said,) = [line for line in proc.stderr.splitlines() if "gap" in line]
+    assert said.startswith("hcrctl: replay: a gap of ") and said.endswith("is not waited (--max-gap 5)")
+
+
+def test_a_gap_longer_than_max_gap_is_skipped_and_said(tmp_path: Path) -> None:
+    servo = encode(1, 0x41, H("01 01"))
+    log = write_log(tmp_path / "idle.jsonl", [(0.0, VELOCITY_02), (600.0, servo)])
+    proc, arrived = replayed(log, "--max-gap", "1", until=VELOCITY_02 + servo + STOP_02 + STOP, timeout=20)
+    assert proc.returncode == 0, proc.stderr
+    assert "a gap of 600.0 s in the log is not waited (--max-gap 1)" in proc.stderr
+    assert arrived == VELOCITY_02 + servo + STOP_02 + STOP
+
+
+@pytest.mark.parametrize("value", ["-1", "3601", "nan", "inf", "0x5", "five"])
+def test_max_gap_out_of_range_or_not_a_number_is_a_usage_error(tmp_path: Path, value: str) -> None:
+    log = write_log(tmp_path / "drive.jsonl", [(0.0, VELOCITY_02)])
+    with device_pty() as (master, path):
+        proc = run("--port", path, "replay", str(log), "--max-gap", value)
+        arrived = read_for(master, 0.3)
+    assert proc.returncode == 2
+    (line,) = proc.stderr.strip().splitlines()
+    assert "error:" in line and "--max-gap" in line and "Traceback" not in proc.stderr
+    assert arrived == []

@@ -31,6 +31,20 @@ class Listen(click.ParamType):
         return host, int(port)
 
 
+class Origin(click.ParamType):
+    """A web origin as a browser sends it: scheme://host[:port], nothing after."""
+
+    name = "ORIGIN"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        import re
+
+        text = str(value).strip().rstrip("/")
+        if not re.fullmatch(r"https?://[^\s/?#@]+", text):
+            self.fail(f"{value!r} is not an origin such as https://viewer.example:8080", param, ctx)
+        return text
+
+
 @click.command()
 @click.option(
     "--listen",
@@ -50,6 +64,17 @@ class Listen(click.ParamType):
 @rate_option()
 @duration_option("Exit by itself after S seconds.")
 @deadman_option(DEFAULT_TIMEOUT_S, "Deadman: stop when no /cmd_vel message arrives for S seconds.")
+@click.option(
+    "--allow-origin",
+    "allow_origins",
+    type=Origin(),
+    multiple=True,
+    envvar="HCRCTL_ALLOW_ORIGIN",
+    show_envvar=True,
+    metavar="ORIGIN",
+    help="Also let web pages from ORIGIN (https://viewer.example:8080) connect; repeatable. "
+    "Loopback pages, https://app.foxglove.dev and clients without an Origin always may.",
+)
 @click.pass_obj
 def bridge(
     settings: Settings,
@@ -59,6 +84,7 @@ def bridge(
     rate: float | None,
     duration: float | None,
     timeout: float,
+    allow_origins: tuple[str, ...],
 ) -> None:
     """Serve the readings live on the Foxglove WebSocket protocol, and drive from /cmd_vel.
 
@@ -68,14 +94,16 @@ def bridge(
     PlotJuggler's "Foxglove ROS2 Bridge" streaming plugin. A client may publish geometry_msgs/Twist JSON on
     /cmd_vel (linear.x m/s, angular.z rad/s): it becomes wheel velocities,
     stopped when messages stop for --timeout, when forward motion meets a
-    pressed bumper, when the client leaves, and when the bridge ends. Needs
-    the foxglove extra (pip install 'hcrctl[foxglove]'). With --json a
-    summary (sweeps per second, messages) is printed at the end.
+    pressed bumper, when the client leaves, and when the bridge ends. One
+    client drives at a time. A web page may connect only from this machine,
+    from Foxglove's app or from an --allow-origin. Needs the foxglove extra
+    (pip install 'hcrctl[foxglove]'). With --json a summary (sweeps per
+    second, messages) is printed at the end.
     """
-    require_sdk()
+    require_extra(mcap is not None)
     from ..feeds.bridge import Options, run_bridge, summary_line
 
-    options = Options(listen[0], listen[1], mcap, rate, duration, timeout, encoding)
+    options = Options(listen[0], listen[1], mcap, rate, duration, timeout, encoding, allow_origins)
     if settings.as_json:
         report = lambda summary: click.echo(json.dumps(summary))  # noqa: E731
     else:
@@ -83,9 +111,15 @@ def bridge(
     run_bridge(settings, options, report=report)
 
 
-def require_sdk() -> None:
-    """The SDK is an extra: without it, one line naming it, before anything is opened."""
-    try:
-        import foxglove  # noqa: F401
-    except ImportError as exc:
-        raise HcrError(f"hcrctl bridge needs foxglove-sdk ({exc})", hint=EXTRA) from exc
+def require_extra(mcap: bool) -> None:
+    """The server (websockets) and the MCAP writer (foxglove-sdk) are an extra: without them, one line
+    naming it, before anything is opened. Only the package missing is this error: a failing import
+    inside an installed one is that failure, with its own message."""
+    needed = [("websockets", "websockets")] + ([("foxglove", "foxglove-sdk")] if mcap else [])
+    for module, package in needed:
+        try:
+            __import__(module)
+        except ModuleNotFoundError as exc:
+            if exc.name != module:
+                raise
+            raise HcrError(f"hcrctl bridge needs {package}, which is not installed", hint=EXTRA) from exc

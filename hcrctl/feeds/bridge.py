@@ -1,9 +1,10 @@
 """``hcrctl bridge``: the robot on the Foxglove WebSocket protocol, live, for any number of viewers.
 
 One serial link, polled like ``watch`` (``Feed``); every message it yields is
-logged once on its topic's channel and the SDK fans it out to each subscribed
-client and to the ``--mcap`` file. A client may drive through ``/cmd_vel``
-(``Driver``), under teleop's deadman and bumper rules.
+encoded once for its topic and fanned out to each subscribed client and to
+the ``--mcap`` file. A client may drive through ``/cmd_vel``
+(``CmdVelSource``): its messages are offers to the motion governor, which
+alone writes motion, runs the deadman on its own clock and stops.
 
 How it ends: ``--duration``, Ctrl-C, SIGTERM or SIGHUP (turned into a flag the
 loop reads, so the server, the driver and the recording all close in order),
@@ -25,15 +26,18 @@ from ..link.context import Connection, Reconnect
 from ..link.dialects import supported_sensors
 from ..link.rescue import warn
 from ..link.signals import Terminated, stop_signals_handled
+from ..live.teleop import bumper_hit
 from ..live.watch import quick_handoff
+from ..motion.governor import Governor
 from ..protocol import commands as C
 from ..protocol.profiles import profile
 from ..protocol.topics import all_topics
-from .bridge_drive import Driver
+from .bridge_drive import CmdVelSource
 from .bridge_status import Status
 from .bridge_stop import stopping_driven
 from .cmdvel import DEFAULT_TIMEOUT_S, TOPIC
 from .source import Feed
+from .untrusted import shown
 
 if TYPE_CHECKING:
     from .bridge_server import Server
@@ -53,6 +57,8 @@ class Options:
     timeout: float = DEFAULT_TIMEOUT_S
     #: ``json`` (JSON Schema) or ``cdr`` (ROS 2 message definitions, for PlotJuggler).
     encoding: str = "json"
+    #: Web pages beyond loopback and Foxglove's app that may connect (``untrusted.origin_allowed``).
+    allow_origins: tuple[str, ...] = ()
 
 
 class Signalled:
@@ -105,23 +111,43 @@ def run_bridge(settings: Connection, options: Options, *, report: Report | None 
     drives = profile(settings.protocol).has(C.BY_NAME["velocity"].code)
     signalled = Signalled()
     status = Status(sys.stderr)
-    driver = Driver(options.timeout, status.note)
+    governor = Governor(C.Velocity, deadman=options.timeout)
+    cmd_vel = CmdVelSource(governor, status.note) if drives else None
     topics = all_topics(Feed.counters)
     server = Server(
-        topics, options.host, options.port, options.mcap, driver if drives else None, options.encoding
+        topics,
+        options.host,
+        options.port,
+        options.mcap,
+        cmd_vel,
+        status.note,
+        options.encoding,
+        options.allow_origins,
     )
+    governor.on_stop = _told_stop(server, status)
     with stop_signals_handled(signalled), server:
-        summary = _serve(settings, options, server, driver, names, status, signalled, report)
+        summary = _serve(settings, options, server, governor, names, status, signalled, report)
     if signalled.signum is not None:
         raise Terminated(signalled.signum)
     return summary
+
+
+def _told_stop(server: Server, status: Status) -> Callable[[object, str], None]:
+    """A stop for any reason but a new message: said on stderr, and to the client that drove."""
+
+    def told(source: object, why: str) -> None:
+        status.note(f"stop: {shown(why, 120)}")
+        if isinstance(source, str) and source.startswith("client "):
+            server.ws.tell(int(source.split()[1]), 1, f"stopped: {why}")
+
+    return told
 
 
 def _serve(
     settings: Connection,
     options: Options,
     server: Server,
-    driver: Driver,
+    governor: Governor,
     names: list[str],
     status: Status,
     signalled: Signalled,
@@ -130,22 +156,23 @@ def _serve(
     """Poll and publish, and drive when asked, until the end; stop goes out however it ends."""
     with settings.robot() as robot, quick_handoff():
         status.start(url(options.host, server.bound_port))
-        if server.listener.driver is None:
+        if not server.driving:
             status.note(f"this firmware ({robot.profile.name}) has no velocity command: {TOPIC} is off")
         feed = Feed(robot, names, options.rate, server.publish, reconnect=Reconnect(settings, robot))
-        driver.attach(lambda: feed.current, feed.state)
+        governor.attach(lambda: feed.current)
+        governor.bumped = lambda: bumper_hit(feed.state)
         try:
-            status.watch(server, feed, driver)
-            with feed, stopping_driven(feed, robot, lambda: driver.driven), driver:
+            status.watch(server, feed, governor)
+            with feed, stopping_driven(feed, robot, lambda: governor.driven), governor:
                 try:
-                    feed.run(options.duration, lambda: bool(signalled) or driver.error is not None)
+                    feed.run(options.duration, lambda: bool(signalled) or governor.error is not None)
                 finally:
                     signalled.closing = True
-                if driver.error is not None:
-                    raise driver.error
+                if governor.error is not None:
+                    raise governor.error
         finally:
             status.stop()
-            summary = _summary(feed, server.clients.most, driver.frames)
+            summary = _summary(feed, server.ws.most, governor.frames)
             if report is not None:
                 report(summary)
     return summary

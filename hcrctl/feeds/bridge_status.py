@@ -15,7 +15,7 @@ import time
 from typing import TYPE_CHECKING, TextIO
 
 if TYPE_CHECKING:
-    from .bridge_drive import Driver
+    from ..motion.governor import Governor
     from .bridge_server import Server
     from .source import Feed
 
@@ -34,15 +34,15 @@ class Status:
 
     def start(self, address: str) -> None:
         self._write(
-            f"{PREFIX}serving on {address} (Foxglove WebSocket, subprotocol foxglove.sdk.v1); "
+            f"{PREFIX}serving on {address} (Foxglove WebSocket: foxglove.sdk.v1 or foxglove.websocket.v1); "
             "Ctrl-C ends it\n"
         )
 
-    def watch(self, server: Server, feed: Feed, driver: Driver) -> None:
+    def watch(self, server: Server, feed: Feed, governor: Governor) -> None:
         """The status line, redrawn on a terminal (elsewhere only the events are written)."""
         if self.live:
             self._thread = threading.Thread(
-                target=self._run, args=(server, feed, driver), name="hcrctl-bridge-status", daemon=True
+                target=self._run, args=(server, feed, governor), name="hcrctl-bridge-status", daemon=True
             )
             self._thread.start()
 
@@ -57,14 +57,14 @@ class Status:
         if self._shown:
             self._write("")
 
-    def _run(self, server: Server, feed: Feed, driver: Driver) -> None:
+    def _run(self, server: Server, feed: Feed, governor: Governor) -> None:
         last, count = time.monotonic(), feed.messages
         while not self._done.wait(PERIOD):
             now, messages = time.monotonic(), feed.messages
             rate = (messages - count) / max(now - last, 1e-9)
             last, count = now, messages
-            who = f"client {driver.rules.driver[0]} driving" if driver.rules.driver else "not driving"
-            line = f"{len(server.clients)} client(s) · {rate:,.0f} messages/s · {messages:,} sent · {who}"
+            who = f"{governor.driver} driving" if governor.driver else "not driving"
+            line = f"{len(server.ws.sessions)} client(s) · {rate:,.0f} messages/s · {messages:,} sent · {who}"
             self._write(line, status=True)
 
     def _write(self, text: str, *, status: bool = False) -> None:

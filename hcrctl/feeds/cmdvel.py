@@ -8,11 +8,12 @@ as the velocity command (0x03, cm/s per wheel). The limits are the table's
 Velocity field ranges; a request beyond them is scaled down as a whole, so
 the robot still follows the arc it was asked for, only slower.
 
-``CmdVel`` holds the rules, pure so they are tested without a socket: the
-deadman of teleop (motion lasts only while messages keep arriving), its bumper
-rule (no forward motion while a bumper is pressed), and one driver at a time
-(the first client to publish owns the robot until it stops publishing,
-unadvertises or disconnects).
+A message comes from the network, so it is read as untrusted input, on a
+budget: at most ``MAX_TWIST_BYTES``, ``MAX_NESTING`` objects or arrays, numbers
+of at most ``MAX_DIGITS`` digits and at most ``LIMIT`` in size. Anything else
+is a ``BadTwist``, refused and said, never an exception in someone's thread.
+Who may drive, the deadman and the bumpers are the motion governor's
+(``motion.governor``).
 """
 
 from __future__ import annotations
@@ -20,7 +21,6 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any
 
 from ..link.rescue import DEADMAN_S
@@ -32,10 +32,14 @@ TOPIC = "/cmd_vel"
 SCHEMA_NAMES = ("geometry_msgs/Twist", "geometry_msgs/msg/Twist")
 #: The deadman's default: teleop's (``hcrctl teleop --timeout``).
 DEFAULT_TIMEOUT_S = DEADMAN_S
-STILL = (0, 0)
-
-#: Who publishes: (client id, client channel id).
-Publisher = tuple[int, int]
+#: A Twist is about 100 bytes of JSON; a viewer's with every field and spaces, a few hundred.
+MAX_TWIST_BYTES = 4096
+#: Objects and arrays in one message: a Twist has three.
+MAX_NESTING = 16
+#: Digits in one integer: more is no speed anyone meant (and 10**400 does not fit a float).
+MAX_DIGITS = 15
+#: m/s or rad/s beyond which a number is refused rather than scaled down: no robot's intent.
+LIMIT = 1000.0
 
 
 class BadTwist(ValueError):
@@ -54,16 +58,38 @@ def _number(message: Mapping[str, Any], group: str, axis: str) -> float:
         raise BadTwist(f"{group} is not an object")
     value = part.get(axis, 0.0)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise BadTwist(f"{group}.{axis} is not a finite number: {value!r}")
+        raise BadTwist(f"{group}.{axis} is not a finite number")
+    if abs(value) > LIMIT:
+        raise BadTwist(f"{group}.{axis} is {value:g}: beyond ±{LIMIT:g}")
     return float(value)
 
 
+def _integer(text: str) -> int:
+    if len(text.lstrip("-")) > MAX_DIGITS:
+        raise BadTwist(f"an integer of {len(text)} digits")
+    return int(text)
+
+
+def _constant(text: str) -> float:
+    raise BadTwist(f"{text} is not a number")
+
+
 def parse_twist(data: bytes) -> tuple[float, float]:
-    """(linear.x m/s, angular.z rad/s) from a JSON Twist; missing parts count as 0, as in ROS."""
+    """(linear.x m/s, angular.z rad/s) from a JSON Twist; missing parts count as 0, as in ROS.
+
+    The budget is checked before the JSON is read, so no message costs more
+    than a few kilobytes of parsing, whatever it holds.
+    """
+    if len(data) > MAX_TWIST_BYTES:
+        raise BadTwist(f"{len(data):,} bytes: a Twist is at most {MAX_TWIST_BYTES:,}")
+    if data.count(b"{") + data.count(b"[") > MAX_NESTING:
+        raise BadTwist(f"more than {MAX_NESTING} objects or arrays")
     try:
-        message = json.loads(data)
-    except (UnicodeDecodeError, ValueError) as exc:
-        raise BadTwist(f"not JSON: {exc}") from exc
+        message = json.loads(data, parse_int=_integer, parse_constant=_constant)
+    except BadTwist:
+        raise
+    except (ValueError, RecursionError) as exc:  # UnicodeDecodeError is a ValueError
+        raise BadTwist(f"not JSON ({type(exc).__name__})") from exc
     if not isinstance(message, Mapping):
         raise BadTwist("not a JSON object")
     return _number(message, "linear", "x"), _number(message, "angular", "z")
@@ -74,57 +100,8 @@ def twist_wheels(linear: float, angular: float, wheel_base_cm: float = WHEEL_BAS
     v = linear * 100.0
     half = angular * wheel_base_cm / 2
     left, right = v - half, v + half
+    if not all(map(math.isfinite, (left, right))):
+        raise BadTwist("speeds out of any range")
     lo, hi = wheel_limits()
     over = max(left / hi if left > 0 else left / lo, right / hi if right > 0 else right / lo, 1.0)
     return round(left / over), round(right / over)
-
-
-def forward(wheels: tuple[int, int]) -> bool:
-    """Motion with a forward component: what a pressed bumper forbids (turning in place and backing off are fine)."""
-    return wheels[0] + wheels[1] > 0
-
-
-@dataclass
-class CmdVel:
-    """The wheels asked for, who asked, and why motion stopped; the clock is the caller's."""
-
-    timeout: float = DEFAULT_TIMEOUT_S
-    wheels: tuple[int, int] = STILL
-    driver: Publisher | None = None
-    last: float = -math.inf
-    why_stopped: str = ""
-    version: int = 0
-
-    def message(self, publisher: Publisher, wheels: tuple[int, int], now: float, bumped: bool) -> bool:
-        """A Twist arrived; whether it was taken (another client driving is refused)."""
-        if self.driver not in (None, publisher):
-            return False
-        self.driver, self.last = publisher, now
-        if forward(wheels) and bumped:
-            self._set(STILL, "bumper hit: forward blocked")
-        else:
-            self._set(wheels, "" if wheels != STILL else "asked for zero")
-        return True
-
-    def check(self, now: float, bumped: bool) -> None:
-        """The deadman and the bumpers, once per turn of the sender's loop."""
-        if self.wheels != STILL and now - self.last > self.timeout:
-            self.release(f"deadman: no /cmd_vel for {self.timeout:g} s")
-        elif self.wheels == STILL and self.driver is not None and now - self.last > self.timeout:
-            self.driver = None  # a silent driver gives the robot up to the next client
-        if forward(self.wheels) and bumped:
-            self._set(STILL, "bumper hit")
-
-    def gone(self, publisher: Publisher, why: str) -> None:
-        """A client channel was unadvertised (the SDK does that for each of a client's channels when it leaves)."""
-        if self.driver == publisher:
-            self.release(why)
-
-    def release(self, why: str) -> None:
-        self.driver = None
-        self._set(STILL, why)
-
-    def _set(self, wheels: tuple[int, int], why: str) -> None:
-        if (wheels, why) != (self.wheels, self.why_stopped):
-            self.wheels, self.why_stopped = wheels, why
-            self.version += 1

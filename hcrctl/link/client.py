@@ -81,8 +81,7 @@ class Robot(TypedReads, Dialect):
         self.stats = LinkStats()
         self.unsolicited: queue.Queue[Frame] = queue.Queue(UNSOLICITED_BACKLOG)
         self.moved = False
-        #: Every address the bytes written here sent motion to (stopped on close and by ``stopping``).
-        self.motion = MotionScan()
+        self.motion = MotionScan()  # every address the bytes written here moved: all are stopped
         #: Bytes of any kind received since the port opened: zero after a timeout
         #: means a silent line (no power, wrong port), not a lost reply.
         self.rx_bytes = 0

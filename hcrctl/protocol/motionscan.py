@@ -60,7 +60,7 @@ class MotionScan:
     def stops(self, rule: ChecksumRule) -> list[tuple[int, ChecksumRule]]:
         """(address, rule) pairs to stop, in the order moved: under the rules its frames passed (a log
         from other firmware may use the other one), or under ``rule`` when none passed or none was whole."""
-        pairs = []
+        pairs: list[tuple[int, ChecksumRule]] = []
         for address, passed in self.moved.items():
             pairs.extend((address, r) for r in sorted(passed or {rule}, key=lambda r: r is not rule))
         return pairs

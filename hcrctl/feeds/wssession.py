@@ -1,0 +1,72 @@
+"""One client of the Foxglove WebSocket server: its subscriptions, and what waits to be sent to it.
+
+Data waits in a bounded queue that drops the oldest (a slow viewer sees gaps,
+never holds the robot's readings up for anyone else); control messages
+(server info, advertisements, status) wait in their own and go first. A
+status of the same text goes to a client at most once per ``STATUS_EVERY``,
+so a client that floods is not answered with a flood.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from websockets.asyncio.server import ServerConnection
+
+OUTBOX = 1024
+STATUS_EVERY = 1.0
+INFO, WARNING, ERROR = 0, 1, 2
+
+
+@dataclass
+class Channel:
+    """One topic as advertised, and how a message dict becomes its payload."""
+
+    id: int
+    advert: dict[str, Any]
+    encode: Callable[[dict[str, Any]], bytes]
+    #: session -> its subscription ids on this channel
+    subscribers: dict[Session, set[int]] = field(default_factory=dict)
+
+
+class Session:
+    """One connected client: its subscriptions and outgoing queue (data drops oldest; control never)."""
+
+    def __init__(self, number: int, ws: ServerConnection) -> None:
+        self.number = number
+        self.ws = ws
+        self.subscriptions: dict[int, Channel] = {}
+        self.data: deque[bytes] = deque(maxlen=OUTBOX)
+        self.control: deque[str] = deque(maxlen=OUTBOX)
+        self.wake = asyncio.Event()
+        self.said: dict[str, float] = {}
+
+    def push(self, item: bytes) -> None:
+        self.data.append(item)
+        self.wake.set()
+
+    def say(self, message: dict[str, Any]) -> None:
+        self.control.append(json.dumps(message))
+        self.wake.set()
+
+    def status(self, level: int, text: str) -> None:
+        now = time.monotonic()
+        if now - self.said.get(text, -STATUS_EVERY) < STATUS_EVERY:
+            return
+        if len(self.said) > 64:
+            self.said.clear()
+        self.said[text] = now
+        self.say({"op": "status", "level": level, "message": text})
+
+    async def send_loop(self) -> None:
+        while True:
+            await self.wake.wait()
+            self.wake.clear()
+            while self.control or self.data:
+                await self.ws.send(self.control.popleft() if self.control else self.data.popleft())

@@ -1,0 +1,249 @@
+"""The motion governor: the one owner of a link's continuous motion.
+
+Sources of motion (the bridge's ``/cmd_vel`` clients, and any other that asks
+for motion for as long as it keeps asking) never write a motion frame
+themselves. They ``offer`` wheel speeds, and the governor decides:
+
+- one driver at a time: the first source to offer motion holds the lease;
+  another is refused, told who drives, until the lease is released, runs out
+  or the driver goes away (``release``);
+- a lease lasts ``deadman`` seconds from the driver's last offer: the
+  governor's own thread runs the clock, so no source can hold motion by
+  being slow, silent, flooded or dead;
+- forward motion is refused while a bumper is pressed;
+- anyone may ``stop``.
+
+The shape is ROS's twist_mux and ArduPilot's failsafe: many inputs, one
+arbiter with timeouts. Offers are applied under a lock by the caller's thread
+and only wake the governor's thread, which alone writes: there is no inbox a
+flood could fill, and each turn of its loop checks the clock first. A turn
+that fails (a bug, a write that raises) is a stop attempt and a note, never a
+dead loop. On exit it stops every address the link moved (``stop_frames``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import threading
+import time
+from collections.abc import Callable, Hashable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from ..errors import HcrError, PortError
+from ..link.rescue import DEADMAN_S
+
+if TYPE_CHECKING:
+    from ..link.client import Robot
+    from ..protocol import commands as C
+
+#: How often the governor's clock turns when nothing wakes it.
+STEP = 0.02
+#: An unchanged motion is re-sent this often (a lost frame costs one interval).
+RESEND = 0.1
+STILL = (0, 0)
+
+Wheels = tuple[int, int]
+#: What each wheel pair becomes on the wire (velocity in cm/s, motor speed in %...).
+MakeMotion = Callable[[int, int], "C.Request"]
+#: (source that drove, why motion stopped): told when motion stops for any reason but a new offer.
+OnStop = Callable[[Hashable | None, str], None]
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What became of an offer: ``taken``, or refused and why (said to the source)."""
+
+    taken: bool
+    why: str = ""
+
+    def __bool__(self) -> bool:
+        return self.taken
+
+
+def forward(wheels: Wheels) -> bool:
+    """Motion with a forward component: what a pressed bumper forbids (turning in place and backing off are fine)."""
+    return wheels[0] + wheels[1] > 0
+
+
+class Lease:
+    """Who drives, what was asked and until when: the arbitration, pure, the clock the caller's."""
+
+    def __init__(self, deadman: float) -> None:
+        self.deadman = deadman
+        self.wheels: Wheels = STILL
+        self.driver: Hashable | None = None
+        self.last = -math.inf
+        self.why_stopped = ""
+        self.stopped_driver: Hashable | None = None
+        self.version = 0
+
+    def offer(self, source: Hashable, wheels: Wheels, now: float, bumped: bool) -> Verdict:
+        if self.driver not in (None, source):
+            return Verdict(False, f"refused: {self.driver} drives the robot")
+        self.driver, self.last = source, now
+        if forward(wheels) and bumped:
+            self._set(STILL, "bumper hit: forward blocked")
+            return Verdict(False, "refused: a bumper is pressed (forward blocked)")
+        self._set(wheels, "" if wheels != STILL else "asked for zero")
+        return Verdict(True)
+
+    def check(self, now: float, bumped: bool) -> None:
+        """The deadman and the bumpers: once per turn of the governor's clock."""
+        if self.driver is not None and now - self.last > self.deadman:
+            if self.wheels != STILL:
+                self.release(self.driver, f"deadman: nothing from {self.driver} for {self.deadman:g} s")
+            else:
+                self.driver = None  # a silent driver gives the robot up to the next source
+        if forward(self.wheels) and bumped:
+            self._set(STILL, "bumper hit")
+
+    def release(self, source: Hashable, why: str) -> None:
+        if self.driver == source:
+            self.driver = None
+            self._set(STILL, why, source)
+
+    def stop(self, why: str) -> None:
+        self.driver, driver = None, self.driver
+        self._set(STILL, why, driver)
+
+    def _set(self, wheels: Wheels, why: str, source: Hashable | None = None) -> None:
+        if (wheels, why) != (self.wheels, self.why_stopped):
+            self.stopped_driver = source if wheels == STILL else None
+            self.wheels, self.why_stopped = wheels, why
+            self.version += 1
+
+
+class Governor:
+    """Owns the motion writes of one link between enter and exit; sources only offer."""
+
+    def __init__(
+        self,
+        make: MakeMotion,
+        *,
+        deadman: float = DEADMAN_S,
+        on_stop: OnStop | None = None,
+        bumped: Callable[[], bool] = lambda: False,
+    ) -> None:
+        self.lease = Lease(deadman)
+        self.frames = 0
+        self.error: HcrError | None = None
+        #: The robot the last frame went to: after a reconnect, not the one first opened.
+        self.driven: Robot | None = None
+        self._make = make
+        #: Told, on the governor's thread, when motion stops for any reason but a new offer.
+        self.on_stop: OnStop = on_stop or (lambda source, why: None)
+        #: Whether a fresh reading shows a bumper pressed (forward motion is then refused).
+        self.bumped = bumped
+        self._robot: Callable[[], Robot | None] = lambda: None
+        self._lock = threading.Lock()
+        self._wake = threading.Event()
+        self._done = threading.Event()
+        self._sent: Wheels | None = None
+        self._sent_at = 0.0
+        self._stop_asked = False
+        self._seen = 0
+        self._thread = threading.Thread(target=self._run, name="hcrctl-governor", daemon=True)
+
+    # -- the sources' side: any thread, never waits on the wire --------------------------
+
+    def offer(self, source: Hashable, wheels: Wheels) -> Verdict:
+        with self._lock:
+            verdict = self.lease.offer(source, wheels, time.monotonic(), self._bump())
+        self._wake.set()
+        return verdict
+
+    def release(self, source: Hashable, why: str) -> None:
+        """``source`` is gone (disconnected, unadvertised): if it drove, stop."""
+        with self._lock:
+            self.lease.release(source, why)
+        self._wake.set()
+
+    def stop(self, why: str) -> None:
+        """Anyone may stop: motion ends and the lease is free."""
+        with self._lock:
+            self.lease.stop(why)
+            self._stop_asked = True
+        self._wake.set()
+
+    @property
+    def driver(self) -> Hashable | None:
+        return self.lease.driver
+
+    # -- the governor's own thread -------------------------------------------------------------
+
+    def attach(self, robot: Callable[[], Robot | None]) -> None:
+        """Where to write: the link's current robot (after a reconnect, a new one)."""
+        self._robot = robot
+
+    def __enter__(self) -> Governor:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._done.set()
+        self._wake.set()
+        self._thread.join()
+        if self._sent not in (None, STILL):
+            self._write(STILL)  # best effort: the caller's final stop sends it again and reports
+
+    def _run(self) -> None:
+        while not self._done.is_set():
+            self._wake.wait(STEP)
+            self._wake.clear()
+            try:
+                self._turn(time.monotonic())
+            except Exception as exc:  # a bug must cost a stop, never the loop
+                self._failed(exc)
+
+    def _turn(self, now: float) -> None:
+        """The clock first (deadman, bumpers), then the wire: a change at once, a repeat every RESEND."""
+        with self._lock:
+            self.lease.check(now, self._bump())
+            wheels, version = self.lease.wheels, self.lease.version
+            stopped = (self.lease.stopped_driver, self.lease.why_stopped)
+            asked, self._stop_asked = self._stop_asked, False
+        if version != self._seen:
+            self._seen = version
+            if wheels == STILL and stopped[1]:
+                self.on_stop(*stopped)
+        if wheels == STILL:
+            if asked or self._sent not in (None, STILL):
+                self._write(STILL)
+        elif wheels != self._sent or now - self._sent_at >= RESEND:
+            self._write(wheels)
+
+    def _failed(self, exc: Exception) -> None:
+        with contextlib.suppress(Exception), self._lock:
+            self.lease.stop(f"internal error: {exc!r}")
+        with contextlib.suppress(Exception):
+            self._write(STILL)
+        with contextlib.suppress(Exception):
+            self.on_stop(None, f"internal error in the governor: {exc!r}")
+
+    def _bump(self) -> bool:
+        try:
+            return bool(self.bumped())
+        except Exception:
+            return False
+
+    def _write(self, wheels: Wheels) -> None:
+        """Motion, or stop for none; a failure other than a lost link ends the run (``error``)."""
+        robot = self._robot()
+        if robot is None:
+            return  # the port is gone: the poller reconnects; the final stop rescues a robot left moving
+        try:
+            if wheels == STILL:
+                robot.stop()
+            else:
+                robot.send(self._make(*wheels))
+        except PortError:
+            return  # the link just dropped: as above
+        except HcrError as exc:
+            self.error = self.error or exc
+            return
+        finally:
+            self.driven = robot
+        self.frames += 1
+        self._sent, self._sent_at = wheels, time.monotonic()
