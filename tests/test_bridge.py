@@ -15,7 +15,7 @@ import signal
 import struct
 import subprocess
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
@@ -39,10 +39,18 @@ TWIST = {"linear": {"x": 0.2, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.
 class Bridge:
     """``hcrctl [GLOBAL] bridge --listen 127.0.0.1:0 ARGS``: its stderr lines collected as they come."""
 
-    def __init__(self, port: str, *args: str, env: dict[str, str]) -> None:
+    def __init__(
+        self, port: str, *args: str, env: dict[str, str], preexec_fn: Callable[[], None] | None = None
+    ) -> None:
         cmd = [hcrctl_exe(), "--port", port, "bridge", "--listen", "127.0.0.1:0", *args]
         self.proc = subprocess.Popen(
-            cmd, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+            cmd,
+            env=env,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            preexec_fn=preexec_fn,
         )
         self.lines: list[str] = []
         self._out: list[str] = []
@@ -99,8 +107,10 @@ class Bridge:
 
 
 @contextmanager
-def bridge(port: str, *args: str, env: dict[str, str]) -> Iterator[Bridge]:
-    running = Bridge(port, *args, env=env)
+def bridge(
+    port: str, *args: str, env: dict[str, str], preexec_fn: Callable[[], None] | None = None
+) -> Iterator[Bridge]:
+    running = Bridge(port, *args, env=env, preexec_fn=preexec_fn)
     try:
         yield running
     finally:

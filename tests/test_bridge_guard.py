@@ -1,0 +1,307 @@
+"""``hcrctl bridge`` against an attacker: poison payloads, floods, foreign web pages, descriptor exhaustion.
+
+Every check reads the robot's side of a pty (``FakeRobot`` records each frame
+the bridge wrote, with when it arrived), so "the robot stopped" means a stop
+frame reached the wire. No check asserts a time: the deadman's promptness is
+checked structurally (after the driver's last good message, the governor
+repeats the motion at most ``deadman / RESEND + 1`` times before its stop,
+however slow the machine) and measured in ``bench/bench_bridge_flood.py``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import re
+import resource
+import signal
+import socket
+import struct
+import threading
+from collections.abc import Callable, Iterator
+
+import pytest
+from helpers import TIMEOUT, wait_until
+from helpers_live import FakeRobot, is_stop
+from test_bridge import CMD_VEL, TWIST, Bridge, bridge, viewer
+from test_bridge_drive import velocity_of
+from websockets.exceptions import ConnectionClosed, InvalidStatus
+from websockets.sync.client import connect
+
+from hcrctl.feeds.foxglove_ws import MAX_MESSAGE
+from hcrctl.motion.governor import RESEND
+
+DEADMAN = 0.5
+#: The most repeats of a held motion between the driver's last good message and the stop.
+MAX_REPEATS = int(DEADMAN / RESEND) + 1
+MOVING = (20, 20)
+
+POISON = {
+    "1e308": b'{"linear": {"x": 1e308}}',
+    "huge integer": b'{"linear": {"x": ' + b"9" * 400 + b"}}",
+    "deep nesting": b"[" * 60_000,
+    "too big (closes the connection)": b"[" * 100_000,
+    "NaN": b'{"linear": {"x": NaN}}',
+    "Infinity": b'{"angular": {"z": -Infinity}}',
+    "string": b'{"linear": {"x": "fast"}}',
+    "not UTF-8": b'{"linear": {"x": 0.2}}\xff\xfe',
+    "empty": b"",
+}
+
+
+def moving(frame: object) -> bool:
+    return velocity_of(frame) == MOVING
+
+
+def drive(client: object, robot: FakeRobot, after: float = 0.0) -> float:
+    """Publish TWIST until the robot gets velocity 20/20 after ``after``; when the last message went."""
+    client.advertise_cmd_vel()  # type: ignore[attr-defined]
+    sent = [0.0]
+
+    def arrived() -> bool:
+        import time
+
+        sent[0] = time.monotonic()
+        client.publish(TWIST)  # type: ignore[attr-defined]
+        return any(t >= after and moving(f) for t, f in robot.frames())
+
+    wait_until(arrived, what="velocity 20/20 on the wire")
+    return sent[0]
+
+
+def repeats_then_stop(robot: FakeRobot, after: float) -> tuple[int, float]:
+    """How many velocity frames came after ``after`` before the first stop, and when that stop came."""
+    stop = robot.wait_frame(is_stop, after=after)
+    repeats = sum(1 for t, f in robot.frames() if after <= t < stop and velocity_of(f) is not None)
+    return repeats, stop
+
+
+def send_raw(client: object, payload: bytes) -> None:
+    client.ws.send(b"\x01" + struct.pack("<I", CMD_VEL) + payload)  # type: ignore[attr-defined]
+
+
+@contextlib.contextmanager
+def running_bridge(env: dict[str, str], *args: str) -> Iterator[tuple[FakeRobot, Bridge]]:
+    with FakeRobot() as robot, bridge(robot.path, "--timeout", str(DEADMAN), *args, env=env) as running:
+        yield robot, running
+
+
+# -- poison payloads ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", sorted(POISON))
+def test_a_poison_payload_from_the_driver_costs_a_deadman_stop_and_nothing_more(
+    env: dict[str, str], name: str
+) -> None:
+    with running_bridge(env) as (robot, running), viewer(running.port) as client:
+        last = drive(client, robot)
+        send_raw(client, POISON[name])
+        repeats, stop = repeats_then_stop(robot, last)
+        assert repeats <= MAX_REPEATS
+        if len(POISON[name]) <= MAX_MESSAGE:
+            assert "refused" in client.control("status")["message"]  # told why
+        else:
+            with pytest.raises(ConnectionClosed):
+                client.control("status")  # too big: dropped at the frame, the connection closed (1009)
+        with viewer(running.port) as again:
+            drive(again, robot, after=stop)  # the governor still drives
+        assert running.proc.poll() is None
+    assert "Traceback" not in "\n".join(running.lines)
+
+
+@pytest.mark.parametrize("name", ["1e308", "deep nesting", "huge integer"])
+def test_a_poison_payload_from_another_client_does_not_touch_the_driver(
+    env: dict[str, str], name: str
+) -> None:
+    with (
+        running_bridge(env) as (robot, running),
+        viewer(running.port) as driver,
+        viewer(running.port) as other,
+    ):
+        other.advertise_cmd_vel()
+        last = drive(driver, robot)
+        for _ in range(20):
+            send_raw(other, POISON[name])
+        status = other.control("status")
+        assert "refused" in status["message"] and "client" in status["message"]
+        repeats, stop = repeats_then_stop(robot, last)
+        assert repeats <= MAX_REPEATS
+        drive(other, robot, after=stop)  # the lease is free: the other client drives now
+
+
+# -- floods ------------------------------------------------------------------------------------
+
+
+def rss_kib(pid: int) -> int:
+    with open(f"/proc/{pid}/status") as status:
+        return int(re.search(r"VmRSS:\s+(\d+)", status.read()).group(1))  # type: ignore[union-attr]
+
+
+@contextlib.contextmanager
+def flooding(port: int, payload: bytes, pause: float) -> Iterator[list[int]]:
+    """A client sending ``payload`` on /cmd_vel over and over, reconnecting when the server drops it."""
+    done, sent = threading.Event(), [0]
+
+    def flood() -> None:
+        while not done.is_set():
+            with contextlib.suppress(ConnectionClosed, OSError, InvalidStatus), viewer(port) as client:
+                client.advertise_cmd_vel()
+                while not done.is_set():
+                    send_raw(client, payload)
+                    sent[0] += 1
+                    if pause:
+                        done.wait(pause)
+
+    thread = threading.Thread(target=flood, daemon=True)
+    thread.start()
+    try:
+        wait_until(lambda: sent[0] > 20, what="the flood under way")
+        yield sent
+    finally:
+        done.set()
+        thread.join(TIMEOUT)
+
+
+@pytest.mark.parametrize(
+    ("payload", "pause"),
+    [
+        (json.dumps(TWIST).encode(), 0.001),
+        (b'{"linear": {"x": 0.1}, "pad": "' + b"x" * (1 << 20) + b'"}', 0.0),
+    ],
+    ids=["1 kHz small", "1 MB as fast as possible"],
+)
+def test_a_flood_from_another_client_neither_holds_motion_nor_grows_memory(
+    env: dict[str, str], payload: bytes, pause: float
+) -> None:
+    with running_bridge(env) as (robot, running), viewer(running.port) as driver:
+        before = rss_kib(running.proc.pid)
+        last = drive(driver, robot)
+        with flooding(running.port, payload, pause):
+            repeats, stop = repeats_then_stop(robot, last)
+            assert repeats <= MAX_REPEATS
+            grown = rss_kib(running.proc.pid) - before
+            assert grown < 64 * 1024, f"the bridge grew by {grown} KiB under the flood"
+            drive(driver, robot, after=stop)
+        assert running.proc.poll() is None
+
+
+# -- origins -------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "origin",
+    [None, "http://localhost:5173", "http://127.0.0.1:8080", "http://[::1]:3000", "https://app.foxglove.dev"],
+)
+def test_native_clients_loopback_pages_and_foxglove_may_drive(
+    env: dict[str, str], origin: str | None
+) -> None:
+    with running_bridge(env) as (robot, running), viewer(running.port, origin=origin) as client:
+        drive(client, robot)
+
+
+@pytest.mark.parametrize(
+    "origin", ["https://evil.example", "null", "http://localhost.evil.example", "http://127.0.0.1.nip.io"]
+)
+def test_any_other_web_page_is_refused_at_the_handshake(env: dict[str, str], origin: str) -> None:
+    with running_bridge(env) as (robot, running):
+        with pytest.raises(InvalidStatus) as refused:
+            connect(f"ws://127.0.0.1:{running.port}", subprotocols=["foxglove.sdk.v1"], origin=origin)  # type: ignore[arg-type]
+        assert refused.value.response.status_code == 403
+        running.wait_line("refused a client from")
+        robot.settle()
+        assert not [f for _, f in robot.frames() if velocity_of(f) is not None]
+
+
+def test_an_origin_the_user_names_may_drive(env: dict[str, str]) -> None:
+    named = "https://viewer.example:8443"
+    with running_bridge(env, "--allow-origin", named) as (robot, running):
+        with viewer(running.port, origin=named) as client:  # type: ignore[arg-type]
+            drive(client, robot)
+        with pytest.raises(InvalidStatus):
+            connect(
+                f"ws://127.0.0.1:{running.port}",
+                subprotocols=["foxglove.sdk.v1"],
+                origin="https://viewer.example",
+            )  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("bad", ["evil.example", "https://x.example/path", "nan"])
+def test_an_allow_origin_that_is_no_origin_is_a_usage_error(env: dict[str, str], bad: str) -> None:
+    from helpers_live import usage_error
+
+    assert "--allow-origin" in usage_error("bridge", "--allow-origin", bad)
+
+
+# -- what the clients are told ---------------------------------------------------------------
+
+
+def test_a_second_driver_is_told_who_drives_and_the_driver_is_told_of_its_deadman_stop(
+    env: dict[str, str],
+) -> None:
+    with (
+        running_bridge(env) as (robot, running),
+        viewer(running.port) as first,
+        viewer(running.port) as second,
+    ):
+        drive(first, robot)
+        second.advertise_cmd_vel()
+        second.publish(TWIST)
+        assert re.search(r"refused: client \d+ drives the robot", second.control("status")["message"])
+        assert "deadman" in first.control("status")["message"]
+        running.wait_line("stop: deadman")
+
+
+def test_client_text_reaches_the_terminal_escaped_and_short(env: dict[str, str]) -> None:
+    forged = "\x1b]0;pwned\x07\x1b[2J\nhcrctl: bridge: stop: deadman (forged)" + "x" * 40_000
+    with running_bridge(env) as (_, running), viewer(running.port) as client:
+        channel = {"id": CMD_VEL, "topic": "/cmd_vel", "encoding": "json", "schemaName": forged}
+        client.ws.send(json.dumps({"op": "advertise", "channels": [channel]}))
+        line = running.wait_line("reading it as a Twist")
+        assert "\x1b" not in line and "\x07" not in line and "\\x1b" in line
+        assert len(line) < 300
+        assert not [x for x in running.lines if x.startswith("hcrctl: bridge: stop: deadman (forged)")]
+
+
+# -- the listener --------------------------------------------------------------------------------
+
+
+def test_a_socket_that_never_handshakes_is_closed(env: dict[str, str]) -> None:
+    with running_bridge(env) as (_, running), socket.create_connection(("127.0.0.1", running.port)) as sock:
+        sock.settimeout(TIMEOUT)
+        assert sock.recv(1024) == b""  # closed by the server's handshake timeout
+
+
+def _limit_descriptors(limit: int) -> Callable[[], None]:
+    """For the child: at most ``limit`` open descriptors (its SIGINT left as the default, as everywhere)."""
+
+    def apply() -> None:
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+        resource.setrlimit(resource.RLIMIT_NOFILE, (limit, limit))
+
+    return apply
+
+
+def test_at_the_descriptor_limit_new_clients_wait_and_are_served_once_descriptors_free(
+    env: dict[str, str],
+) -> None:
+    """300 sockets that never handshake, against a bridge allowed 256 descriptors; closed, then a real client."""
+    with (
+        FakeRobot() as robot,
+        bridge(robot.path, "--timeout", str(DEADMAN), env=env, preexec_fn=_limit_descriptors(256)) as running,
+    ):
+        held = []
+        try:
+            for _ in range(300):
+                sock = socket.socket()
+                sock.setblocking(False)
+                with contextlib.suppress(BlockingIOError):
+                    sock.connect(("127.0.0.1", running.port))
+                held.append(sock)
+            running.wait_line("Too many open files")  # the limit was reached, and said in one line
+        finally:
+            for sock in held:
+                sock.close()
+        with viewer(running.port) as client:
+            drive(client, robot)
+        assert running.proc.poll() is None
+        assert "Traceback" not in "\n".join(running.lines)
