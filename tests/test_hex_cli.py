@@ -431,3 +431,13 @@ def test_send_force_of_junk_and_motion_holds_until_ctrl_c_then_stops_its_address
     assert b"".join(c for _, c in rest) == STOP_02 + STOP
     assert "holding the motion until Ctrl-C" in err and "stopped after" in err
     assert proc.returncode == 0  # Ctrl-C is the normal end of an open-ended hold, as for drive
+
+
+def test_send_force_of_junk_and_a_read_is_not_held_and_sends_no_stop() -> None:
+    typed = b"\x00" + encode(1, 0x14, b"\xff")
+    with device_pty() as (master, path):
+        proc = run("--port", path, "hex", "send", "--force", typed.hex(" "))
+        arrived = b"".join(c for _, c in read_until(master, typed, timeout=TIMEOUT) + read_for(master, 0.2))
+    assert proc.returncode == 0, proc.stderr
+    assert "holding" not in proc.stderr
+    assert arrived == typed
