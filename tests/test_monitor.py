@@ -123,7 +123,10 @@ def test_ctrl_c_ends_an_open_ended_monitor_with_counters() -> None:
 def test_from_renders_a_recorded_log_in_both_directions(tmp_path: Path) -> None:
     log = tmp_path / "session.jsonl"
     with sim_pty() as port:
-        assert run("--port", port, "--log", str(log), "read", "compass", "env").returncode == 0
+        # a long reply timeout: on a loaded machine a late compass reply would come after the env request
+        assert (
+            run("--port", port, "--timeout", "5", "--log", str(log), "read", "compass", "env").returncode == 0
+        )
     proc = run("monitor", "--from", str(log), "--timestamps", "none")
     assert proc.returncode == 0, proc.stderr
     lines = [line for line in proc.stdout.splitlines() if "position" not in line and "map" not in line]

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import contextlib
-import math
 import os
 import signal
 import threading
@@ -15,7 +14,8 @@ from helpers_live import FakeRobot, Terminal, is_stop, speed_of, terminal, usage
 from hcrctl.link.client import Robot
 from hcrctl.link.context import Connection
 from hcrctl.live.state import LiveState
-from hcrctl.live.teleop import Drive, Sender, run_teleop, step
+from hcrctl.live.teleop import Drive, press, run_teleop, teleop_governor
+from hcrctl.motion.governor import Governor
 from hcrctl.protocol import commands as C
 
 UP, DOWN, LEFT, RIGHT = "\x1b[A", "\x1b[B", "\x1b[D", "\x1b[C"
@@ -166,7 +166,7 @@ def test_usage_errors_exit_2_and_send_nothing(args: list[str], name: str, allowe
 
 
 class _Wire:
-    """A stand-in robot for ``Sender``: remembers what would have gone out."""
+    """A stand-in robot for the governor: remembers what would have gone out."""
 
     def __init__(self) -> None:
         self.sent: list[object] = []
@@ -178,62 +178,73 @@ class _Wire:
         self.sent.append(value)
 
 
-def _rig(timeout: float = 0.5) -> tuple[Drive, Sender, LiveState, _Wire]:
-    wire = _Wire()
-    return Drive(50, 30, timeout), Sender(wire), LiveState(["bump", "wheels"]), wire
+def _rig(timeout: float = 0.5) -> tuple[Drive, Governor, LiveState, _Wire]:
+    """Teleop's governor, its thread not started: each test turns its clock by hand."""
+    wire, drive, state = _Wire(), Drive(50, 30, timeout), LiveState(["bump", "wheels"])
+    governor = teleop_governor(drive, state)
+    governor.attach(lambda: wire)  # type: ignore[arg-type, return-value]
+    return drive, governor, state, wire
+
+
+def step(drive: Drive, governor: Governor, key: str | None, now: float) -> None:
+    """One key (or none), then one turn of the governor's clock."""
+    if key:
+        press(drive, governor, key, now)
+    governor.turn(now)
 
 
 def test_step_deadman_sends_one_stop_then_nothing() -> None:
-    drive, sender, state, wire = _rig(timeout=0.5)
-    step(drive, sender, state, "w", now=10.0)
-    step(drive, sender, state, None, now=10.4)
+    drive, governor, _, wire = _rig(timeout=0.5)
+    step(drive, governor, "w", now=10.0)
+    step(drive, governor, None, now=10.05)
     assert wire.sent == [C.MotorSpeed(50, 50)]
-    step(drive, sender, state, None, now=10.6)
-    step(drive, sender, state, None, now=11.0)
-    assert wire.sent == [C.MotorSpeed(50, 50), "stop"]
-    assert drive.why_stopped.startswith("deadman")
+    step(drive, governor, None, now=10.6)
+    step(drive, governor, None, now=11.0)
+    assert wire.sent[-1] == "stop" and wire.sent.count("stop") == 1
+    assert drive.why_stopped == "deadman: no key for 0.5 s" and drive.motion == "stop"
 
 
 def test_step_repeats_are_resent_at_most_every_resend_interval() -> None:
-    drive, sender, state, wire = _rig()
+    drive, governor, _, wire = _rig()
     for i in range(10):  # ten repeats in 90 ms
-        step(drive, sender, state, "w", now=10.0 + i * 0.01)
+        step(drive, governor, "w", now=10.0 + i * 0.01)
     assert wire.sent == [C.MotorSpeed(50, 50)]
-    step(drive, sender, state, "w", now=10.2)
+    step(drive, governor, "w", now=10.2)
     assert wire.sent == [C.MotorSpeed(50, 50)] * 2
 
 
 def test_step_bumper_blocks_forward_only() -> None:
-    drive, sender, state, wire = _rig()
+    drive, governor, state, wire = _rig()
     state.record("bump", C.Bumpers((True, False, False)), 0.001)
-    step(drive, sender, state, "w", now=1.0)
+    step(drive, governor, "w", now=1.0)
     assert wire.sent == [] and "forward blocked" in drive.why_stopped
-    step(drive, sender, state, "s", now=1.1)
+    step(drive, governor, "s", now=1.1)
     assert wire.sent == [C.MotorSpeed(-50, -50)]
 
 
 def test_step_stale_bumper_reading_does_not_block() -> None:
-    drive, sender, state, wire = _rig()
+    drive, governor, state, wire = _rig()
     state.record("bump", C.Bumpers((True, False, False)), 0.001)
     state.fail("bump", "no reply")
-    step(drive, sender, state, "w", now=1.0)
+    step(drive, governor, "w", now=1.0)
     assert wire.sent == [C.MotorSpeed(50, 50)]
+
+
+def test_a_stop_key_sends_stop_even_when_still() -> None:
+    drive, governor, _, wire = _rig()
+    step(drive, governor, " ", now=1.0)
+    assert wire.sent == ["stop"] and drive.why_stopped == "stop key"
 
 
 def test_speed_is_clamped_to_the_table_range() -> None:
     drive = Drive(95, 30, 0.5)
-    drive.press("+", 0.0, False)
+    drive.press("+", 0.0)
     assert drive.speed == 100
     drive.speed = 5
-    drive.press("-", 0.0, False)
+    drive.press("-", 0.0)
     assert drive.speed == 0
-    drive.press("W", 0.0, False)  # caps lock still drives
+    drive.press("W", 0.0)  # caps lock still drives
     assert drive.motion == "forward" and drive.wheels() == (0, 0)
-
-
-def test_drive_never_expires_while_stopped() -> None:
-    drive = Drive(50, 30, 0.5)
-    assert not drive.expired(math.inf)
 
 
 def test_run_teleop_in_the_shell_stops_and_leaves_the_session_open(monkeypatch: pytest.MonkeyPatch) -> None:

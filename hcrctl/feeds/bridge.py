@@ -111,7 +111,7 @@ def run_bridge(settings: Connection, options: Options, *, report: Report | None 
     drives = profile(settings.protocol).has(C.BY_NAME["velocity"].code)
     signalled = Signalled()
     status = Status(sys.stderr)
-    governor = Governor(C.Velocity, deadman=options.timeout)
+    governor = Governor(C.Velocity, deadman=options.timeout, silence=f"no {TOPIC}")
     cmd_vel = CmdVelSource(governor, status.note) if drives else None
     topics = all_topics(Feed.counters)
     server = Server(

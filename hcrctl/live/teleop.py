@@ -2,9 +2,11 @@
 
 A terminal sends a held key as one press, a pause (the key-repeat delay) and
 then a stream of repeats, and never sends a release. So motion lasts only
-while keys keep arriving: ``Drive`` stops when none came for ``timeout``
-seconds (the deadman), and each repeat re-sends the command (a lost frame
-costs one repeat interval, not the whole press).
+while keys keep arriving: the keys are a source of the motion governor
+(``motion.governor``), each one an offer that renews the lease, and the
+governor stops when none came for ``timeout`` seconds (the deadman) and
+re-sends a held motion (a lost frame costs one repeat interval, not the
+whole press). ``Drive`` only turns keys into wheel percentages.
 
 Stop goes out on every way out (q, Ctrl-D, Ctrl-C, SIGTERM/SIGHUP as
 ``Terminated``, a lost link, a bug), sent explicitly here even when already
@@ -27,6 +29,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from ..link.rescue import stopping
+from ..motion.governor import Governor
 from ..protocol import commands as C
 from .keys import KeyReader
 from .painter import Painter, Redrawer, can_redraw, full_screen
@@ -42,11 +45,11 @@ if TYPE_CHECKING:
 
 #: Bumpers and wheels are read this often while driving.
 POLL_HZ = 20.0
-#: How often the loop looks at the deadman and the bumpers.
+#: How long the key loop waits for a key before it looks at the poller and the painter again.
 STEP = 0.02
-#: A repeat of the same command is re-sent at most this often.
-RESEND = 0.1
 SPEED_STEP = 10
+#: The keys' name as a source of motion.
+KEYS = "keys"
 QUIT_KEYS = frozenset({"q", "Q", "ctrl-d", "ctrl-c", "eof"})
 STOP_KEYS = frozenset({" ", "k", "K"})
 MOTION_KEYS = {
@@ -75,7 +78,10 @@ def max_percent() -> int:
 
 @dataclass
 class Drive:
-    """Keys to wheel percentages; pure, so the rules are tested without a terminal."""
+    """Keys to wheel percentages, and what the panel shows; pure, so it is tested without a terminal.
+
+    The deadman and the bumper rule are the governor's: it tells ``halt`` why motion stopped.
+    """
 
     speed: int
     turn: int
@@ -92,15 +98,11 @@ class Drive:
         amount = self.speed if which == "speed" else self.turn
         return left * amount, right * amount
 
-    def press(self, key: str, now: float, bumped: bool) -> None:
-        """A key arrived: it feeds the deadman whatever it is."""
+    def press(self, key: str, now: float) -> None:
         self.last_key = now
         motion = MOTION_KEYS.get(key) or MOTION_KEYS.get(key.lower())
         if motion:
-            if motion == "forward" and bumped:
-                self.halt("bumper hit: forward blocked")
-            else:
-                self._set(motion, "")
+            self._set(motion, "")
         elif key in ("+", "="):
             self._speed(SPEED_STEP)
         elif key in ("-", "_"):
@@ -111,9 +113,6 @@ class Drive:
     def halt(self, why: str) -> None:
         self._set("stop", why)
 
-    def expired(self, now: float) -> bool:
-        return self.motion != "stop" and now - self.last_key > self.timeout
-
     def _speed(self, step: int) -> None:
         self.speed = max(0, min(max_percent(), self.speed + step))
         self.version += 1
@@ -123,26 +122,28 @@ class Drive:
         self.version += 1
 
 
-class Sender:
-    """Puts motor-speed frames and stops on the wire, counting them for the panel."""
+def press(drive: Drive, governor: Governor, key: str, now: float | None = None) -> None:
+    """A key: the drive's state, then the governor's say. A stop key stops (and sends stop even when
+    still); any other key while moving is an offer that renews the lease (a held key keeps it)."""
+    now = time.monotonic() if now is None else now
+    drive.press(key, now)
+    if key in STOP_KEYS:
+        governor.stop("stop key")
+    elif drive.motion != "stop":
+        verdict = governor.offer(KEYS, drive.wheels(), now)
+        if not verdict:
+            drive.halt(governor.lease.why_stopped or verdict.why)
 
-    def __init__(self, robot: Robot) -> None:
-        self.robot = robot
-        self.frames = 0
-        self.sent_at: float | None = None
-        self.last: tuple[int, int] | None = None
 
-    def drive(self, wheels: tuple[int, int], now: float) -> None:
-        """Motion as motor speed (0x02); no motion as stop (power 0x80 0x80)."""
-        if wheels == (0, 0):
-            self.robot.stop()
-        else:
-            self.robot.send(C.MotorSpeed(*wheels))
-        self.frames += 1
-        self.sent_at, self.last = now, wheels
-
-    def due(self, wheels: tuple[int, int], now: float) -> bool:
-        return wheels != self.last or self.sent_at is None or now - self.sent_at >= RESEND
+def teleop_governor(drive: Drive, state: LiveState) -> Governor:
+    """Motor speed (0x02) per key mix, the deadman from ``drive``, the bumpers from ``state``."""
+    return Governor(
+        C.MotorSpeed,
+        deadman=drive.timeout,
+        silence="no key",
+        on_stop=lambda source, why: drive.halt(why),
+        bumped=lambda: bumper_hit(state),
+    )
 
 
 def run_teleop(
@@ -159,15 +160,17 @@ def run_teleop(
     with settings.robot() as robot:
         state = LiveState(["bump", "wheels"], target_rate=POLL_HZ)
         poller = Poller(robot, state, state.sensors, POLL_HZ)
-        sender = Sender(robot)
+        governor = teleop_governor(drive, state)
+        governor.attach(lambda: robot)
         redraw = Redrawer(
-            None, _screen(drive, sender, state), lambda: (state.version, drive.version, sender.frames)
+            None, _screen(drive, governor, state), lambda: (state.version, drive.version, governor.frames)
         )
         try:
             with stopping(robot), KeyReader() as keys, painting(console, redraw) as painter:
                 poller.start()
                 try:
-                    _teleop_loop(drive, sender, state, poller, keys, painter, redraw)
+                    with governor:
+                        _teleop_loop(drive, governor, poller, keys, painter, redraw)
                 finally:
                     stop_now(robot)
         finally:
@@ -193,38 +196,24 @@ def painting(console: Console, redraw: Redrawer) -> Painter:
 
 def _teleop_loop(
     drive: Drive,
-    sender: Sender,
-    state: LiveState,
+    governor: Governor,
     poller: Poller,
     keys: KeyReader,
     painter: Painter,
     redraw: Redrawer,
 ) -> None:
-    """Keys, deadman, bumpers and the wire, on the loop's own clock; drawing is the painter's."""
+    """Keys to the governor; the deadman, the bumpers and the wire are its clock, drawing the painter's."""
     while True:
         raise_from(poller)
         painter.check()
+        if governor.error is not None:
+            raise governor.error
         key = keys.read(STEP)
         if key in QUIT_KEYS:
             return
-        step(drive, sender, state, key, time.monotonic())
+        if key:
+            press(drive, governor, key)
         redraw.tick = 0.1 if drive.motion != "stop" else 1.0
-
-
-def step(drive: Drive, sender: Sender, state: LiveState, key: str | None, now: float) -> None:
-    """One turn of the loop: the key, the deadman, the bumpers, then the wire."""
-    bumped = bumper_hit(state)
-    if key:
-        drive.press(key, now, bumped)
-    if drive.expired(now):
-        drive.halt(f"deadman: no key for {drive.timeout:g} s")
-    if drive.motion == "forward" and bumped:
-        drive.halt("bumper hit")
-    wheels = drive.wheels()
-    if key in STOP_KEYS or (wheels == (0, 0) and sender.last not in (None, (0, 0))):
-        sender.drive((0, 0), now)
-    elif wheels != (0, 0) and (key or wheels != sender.last) and sender.due(wheels, now):
-        sender.drive(wheels, now)
 
 
 def bumper_hit(state: LiveState) -> bool:
@@ -233,7 +222,7 @@ def bumper_hit(state: LiveState) -> bool:
     return isinstance(reading.value, C.Bumpers) and not reading.stale and any(reading.value.bump)
 
 
-def _screen(drive: Drive, sender: Sender, state: LiveState) -> Callable[[float], RenderableType]:
+def _screen(drive: Drive, governor: Governor, state: LiveState) -> Callable[[float], RenderableType]:
     from .screens import teleop_screen
 
     def render(now: float) -> RenderableType:
@@ -244,8 +233,8 @@ def _screen(drive: Drive, sender: Sender, state: LiveState) -> Callable[[float],
             drive.turn,
             drive.timeout,
             drive.last_key,
-            sender.sent_at,
-            sender.frames,
+            governor.sent_at,
+            governor.frames,
             drive.why_stopped,
         )
         return teleop_screen(status, state.view(), now, fit=True)

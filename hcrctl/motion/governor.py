@@ -70,8 +70,10 @@ def forward(wheels: Wheels) -> bool:
 class Lease:
     """Who drives, what was asked and until when: the arbitration, pure, the clock the caller's."""
 
-    def __init__(self, deadman: float) -> None:
+    def __init__(self, deadman: float, silence: str = "nothing from the driver") -> None:
         self.deadman = deadman
+        #: What the deadman's stop says was missing ("no key", "no /cmd_vel").
+        self.silence = silence
         self.wheels: Wheels = STILL
         self.driver: Hashable | None = None
         self.last = -math.inf
@@ -93,7 +95,7 @@ class Lease:
         """The deadman and the bumpers: once per turn of the governor's clock."""
         if self.driver is not None and now - self.last > self.deadman:
             if self.wheels != STILL:
-                self.release(self.driver, f"deadman: nothing from {self.driver} for {self.deadman:g} s")
+                self.release(self.driver, f"deadman: {self.silence} for {self.deadman:g} s")
             else:
                 self.driver = None  # a silent driver gives the robot up to the next source
         if forward(self.wheels) and bumped:
@@ -123,10 +125,11 @@ class Governor:
         make: MakeMotion,
         *,
         deadman: float = DEADMAN_S,
+        silence: str = "nothing from the driver",
         on_stop: OnStop | None = None,
         bumped: Callable[[], bool] = lambda: False,
     ) -> None:
-        self.lease = Lease(deadman)
+        self.lease = Lease(deadman, silence)
         self.frames = 0
         self.error: HcrError | None = None
         #: The robot the last frame went to: after a reconnect, not the one first opened.
@@ -148,9 +151,11 @@ class Governor:
 
     # -- the sources' side: any thread, never waits on the wire --------------------------
 
-    def offer(self, source: Hashable, wheels: Wheels) -> Verdict:
+    def offer(self, source: Hashable, wheels: Wheels, now: float | None = None) -> Verdict:
+        """``source`` asks for ``wheels`` (cm/s, %... as ``make`` reads them); its lease renewed if taken."""
+        now = time.monotonic() if now is None else now
         with self._lock:
-            verdict = self.lease.offer(source, wheels, time.monotonic(), self._bump())
+            verdict = self.lease.offer(source, wheels, now, self._bump())
         self._wake.set()
         return verdict
 
@@ -170,6 +175,11 @@ class Governor:
     @property
     def driver(self) -> Hashable | None:
         return self.lease.driver
+
+    @property
+    def sent_at(self) -> float | None:
+        """When the last frame went out (monotonic); None before the first."""
+        return self._sent_at if self._sent is not None else None
 
     # -- the governor's own thread -------------------------------------------------------------
 
@@ -193,11 +203,11 @@ class Governor:
             self._wake.wait(STEP)
             self._wake.clear()
             try:
-                self._turn(time.monotonic())
+                self.turn(time.monotonic())
             except Exception as exc:  # a bug must cost a stop, never the loop
                 self._failed(exc)
 
-    def _turn(self, now: float) -> None:
+    def turn(self, now: float) -> None:
         """The clock first (deadman, bumpers), then the wire: a change at once, a repeat every RESEND."""
         with self._lock:
             self.lease.check(now, self._bump())
@@ -210,9 +220,9 @@ class Governor:
                 self.on_stop(*stopped)
         if wheels == STILL:
             if asked or self._sent not in (None, STILL):
-                self._write(STILL)
+                self._write(STILL, now)
         elif wheels != self._sent or now - self._sent_at >= RESEND:
-            self._write(wheels)
+            self._write(wheels, now)
 
     def _failed(self, exc: Exception) -> None:
         with contextlib.suppress(Exception), self._lock:
@@ -228,7 +238,7 @@ class Governor:
         except Exception:
             return False
 
-    def _write(self, wheels: Wheels) -> None:
+    def _write(self, wheels: Wheels, now: float | None = None) -> None:
         """Motion, or stop for none; a failure other than a lost link ends the run (``error``)."""
         robot = self._robot()
         if robot is None:
@@ -246,4 +256,4 @@ class Governor:
         finally:
             self.driven = robot
         self.frames += 1
-        self._sent, self._sent_at = wheels, time.monotonic()
+        self._sent, self._sent_at = wheels, time.monotonic() if now is None else now

@@ -1,0 +1,116 @@
+"""The motion governor: one driver, a lease on its own clock, and a loop that nothing can kill."""
+
+from __future__ import annotations
+
+import threading
+
+import pytest
+from helpers import wait_until
+
+from hcrctl.errors import DeviceTimeout
+from hcrctl.motion.governor import STILL, Governor
+from hcrctl.protocol import commands as C
+
+
+class Wire:
+    """A stand-in robot: what would have gone out, in order; ``fail`` makes the next send raise."""
+
+    def __init__(self) -> None:
+        self.sent: list[object] = []
+        self.fail: Exception | None = None
+        self.lock = threading.Lock()
+
+    def stop(self) -> None:
+        with self.lock:
+            self.sent.append("stop")
+
+    def send(self, value: C.Request) -> None:
+        if self.fail is not None:
+            failure, self.fail = self.fail, None
+            raise failure
+        with self.lock:
+            self.sent.append(value)
+
+    def last(self) -> object:
+        with self.lock:
+            return self.sent[-1] if self.sent else None
+
+
+def governor(wire: Wire, **options: object) -> Governor:
+    made = Governor(C.Velocity, deadman=0.3, silence="no test", **options)  # type: ignore[arg-type]
+    made.attach(lambda: wire)  # type: ignore[arg-type, return-value]
+    return made
+
+
+def test_a_second_source_is_refused_while_the_first_drives_and_cannot_renew_its_lease() -> None:
+    wire = Wire()
+    gov = governor(wire)
+    assert gov.offer("a", (20, 20), now=0.0)
+    for i in range(100):  # a flood from b never counts for a
+        verdict = gov.offer("b", (-20, -20), now=0.01 * i)
+        assert not verdict and verdict.why == "refused: a drives the robot"
+    gov.turn(0.2)
+    assert wire.sent == [C.Velocity(20, 20)]
+    gov.turn(0.35)
+    assert wire.last() == "stop" and gov.driver is None
+    assert gov.offer("b", (-20, -20), now=0.4)
+
+
+def test_release_by_the_driver_stops_and_by_another_does_nothing() -> None:
+    wire = Wire()
+    gov = governor(wire)
+    gov.offer("a", (20, 20), now=0.0)
+    gov.turn(0.0)
+    gov.release("b", "b left")
+    gov.turn(0.01)
+    assert wire.sent == [C.Velocity(20, 20)]
+    gov.release("a", "a left")
+    gov.turn(0.02)
+    assert wire.sent == [C.Velocity(20, 20), "stop"]
+
+
+def test_anyone_may_stop_and_stop_goes_out_even_when_still() -> None:
+    told: list[tuple[object, str]] = []
+    wire = Wire()
+    gov = governor(wire, on_stop=lambda source, why: told.append((source, why)))
+    gov.stop("stop asked")
+    gov.turn(0.0)
+    assert wire.sent == ["stop"]
+    gov.offer("a", (10, 10), now=1.0)
+    gov.turn(1.0)
+    gov.stop("someone else")
+    gov.turn(1.01)
+    assert wire.sent == ["stop", C.Velocity(10, 10), "stop"] and told[-1] == ("a", "someone else")
+
+
+@pytest.mark.parametrize("where", ["bumped", "on_stop", "make"])
+def test_a_failure_anywhere_costs_a_stop_never_the_loop(where: str) -> None:
+    """The thread runs for real: the failure is injected, then the governor must still stop and drive."""
+    wire = Wire()
+
+    def boom(*_: object) -> bool:
+        raise RuntimeError(f"{where} failed")
+
+    options = {"bumped": boom} if where == "bumped" else {"on_stop": boom} if where == "on_stop" else {}
+    gov = governor(wire, **options)
+    if where == "make":
+        wire.fail = ValueError("cannot encode")
+    with gov:
+        gov.offer("a", (20, 20))
+        wait_until(
+            lambda: wire.last() == ("stop" if where == "make" else C.Velocity(20, 20)), what="the first turn"
+        )
+        wait_until(lambda: wire.last() == "stop", what="the deadman's stop")
+        gov.offer("c", (5, 5))  # still alive, and the lease is free
+        wait_until(lambda: wire.last() == C.Velocity(5, 5), what="motion after the failure")
+    assert wire.last() == "stop"  # leaving sends stop when moving
+
+
+def test_a_device_error_ends_the_run_through_error() -> None:
+    wire = Wire()
+    wire.fail = DeviceTimeout("velocity", 1, "/dev/x", 0.5, 1)
+    gov = governor(wire)
+    gov.offer("a", (20, 20), now=0.0)
+    gov.turn(0.0)
+    assert isinstance(gov.error, DeviceTimeout) and gov.frames == 0
+    assert gov.lease.wheels != STILL  # the caller ends the run, and its final stop goes out
