@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import itertools
 
+import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
@@ -105,8 +106,9 @@ def test_every_split_of_a_velocity_frame_after_junk_is_found() -> None:
     for cut in range(len(stream) + 1):
         scan, results = fed([stream[:cut], stream[cut:]])
         assert scan.stops(ChecksumRule.HEADER) == [(2, ChecksumRule.HEADER)], cut
-        # The command byte is byte 5, the checksum byte 9: until it is sent, the next write completes motion.
-        assert results == [cut >= 6, cut <= 9], cut
+        # The command byte is byte 5, the terminator ends at 11: until then the frame is open, and the
+        # next write completes (so again reports) the motion.
+        assert results == [cut >= 6, cut < len(stream)], cut
 
 
 def test_two_frames_in_one_write_find_the_moving_one() -> None:
@@ -224,3 +226,39 @@ def test_frames_to_one_address_under_both_rules_are_stopped_under_both_robots_fi
     scan.feed(encode(2, 0x01, H("CC CC"), ChecksumRule.ADDRESS) + encode(2, 0x01, H("CC CC")))
     assert scan.stops(ChecksumRule.HEADER) == [(2, ChecksumRule.HEADER), (2, ChecksumRule.ADDRESS)]
     assert scan.stops(ChecksumRule.ADDRESS) == [(2, ChecksumRule.ADDRESS), (2, ChecksumRule.HEADER)]
+
+
+@pytest.mark.parametrize("cut", range(1, 11))
+def test_an_open_frame_owes_the_bytes_that_complete_it(cut: int) -> None:
+    """Any command, motion or not: a stop sent behind it would be read as its content by length."""
+    for command in (0x03, 0x14):
+        frame = encode(2, command, H("00 1E 1E"))
+        scan = MotionScan()
+        scan.feed(b"\x07" + frame[:cut])
+        # half a header owes nothing (a device looks for 55 AA again); a header whose length is unknown, the most
+        expected = 0 if cut == 1 else MAX_FRAME if cut < 4 else len(frame) - cut
+        assert scan.owed() == expected, (command, cut)
+        scan.feed(frame[cut:])
+        assert scan.owed() == 0
+
+
+def test_stops_after_an_open_frame_fill_it_first_then_stand_whole() -> None:
+    """The stops a robot sends after half a frame: enough of them to fill it, then every stop whole."""
+    from hcrctl.link.dialects import stop_frames
+    from hcrctl.protocol.decoder import decode_all
+
+    class Robot:
+        address, rule, motion = 1, ChecksumRule.HEADER, MotionScan()
+
+    half = encode(2, 0x03, H("00 1E 1E"))[:5]
+    Robot.motion.feed(half)
+    owed = Robot.motion.owed()
+    assert owed == 3 + 1 + 2  # content, checksum, terminator
+    stops = stop_frames(Robot)
+    stop = encode(1, 0x01, H("80 80"))
+    assert stops[-2:] == [encode(2, 0x01, H("80 80")), stop]
+    filler = b"".join(stops[:-2])
+    assert owed <= len(filler) < owed + len(stop)
+    # A device that reads the open frame by its length swallows what it owes; the rest decodes as stops.
+    rest = decode_all(b"".join(stops)[owed:])
+    assert [e.address for e in rest if hasattr(e, "command") and e.command == 0x01][-2:] == [2, 1]

@@ -227,6 +227,18 @@ def test_a_motion_frame_split_over_two_records_is_stopped(tmp_path: Path, cut: i
     assert arrived == moved + stops
 
 
+def test_a_log_cut_mid_frame_gets_stops_that_a_length_reading_device_still_sees_whole(tmp_path: Path) -> None:
+    """The open frame would take the first stop's bytes as its content: stops that fill it go first."""
+    half = encode(2, 0x03, H("00 1E 1E"))[:5]
+    log = write_log(tmp_path / "cut.jsonl", [(0.0, half)])
+    proc, arrived = replayed(log, until=STOP_02 + STOP)
+    assert proc.returncode == 0, proc.stderr
+    owed = 3 + 1 + 2  # the content, checksum and terminator the cut frame announced
+    filler = arrived[len(half) : -len(STOP_02 + STOP)]
+    assert arrived.startswith(half) and arrived.endswith(STOP_02 + STOP)
+    assert filler == STOP * (len(filler) // len(STOP)) and owed <= len(filler) < owed + len(STOP)
+
+
 def test_a_record_stamped_at_the_end_of_time_is_not_waited(tmp_path: Path) -> None:
     """The subprocess timeout (20 s) fails the test if the gap were waited: nothing here times it."""
     servo = encode(1, 0x41, H("01 01"))

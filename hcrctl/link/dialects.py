@@ -83,11 +83,16 @@ def stop_frames(robot: Any) -> list[bytes]:
     ``robot.motion`` (a ``MotionScan``) saw every byte sent, so motion hidden
     in junk, in a record of two frames or in a frame split over two writes is
     stopped at its own address, under the checksum rule its frames passed.
+    A frame left unfinished (a log cut mid-frame) would swallow the first
+    stop as its content on a device that reads by length, so stops enough to
+    fill what it still lacks go first; the ones after them are whole frames.
     """
     prof: Profile = getattr(robot, "profile", DEFAULT)
     scan = getattr(robot, "motion", None)
     pairs = [*(scan.stops(robot.rule) if scan is not None else []), (robot.address, robot.rule)]
-    return [prof.retarget(C.encode_request(C.STOP, a, r)) for a, r in dict.fromkeys(pairs)]
+    frames = [prof.retarget(C.encode_request(C.STOP, a, r)) for a, r in dict.fromkeys(pairs)]
+    owed = scan.owed() if scan is not None else 0
+    return [frames[-1]] * -(-owed // len(frames[-1])) + frames
 
 
 def check_command(protocol: str, cmd: C.Command) -> C.Command:

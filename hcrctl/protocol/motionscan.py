@@ -17,7 +17,7 @@ bridge) is covered by the one place bytes leave.
 from __future__ import annotations
 
 from . import commands as C
-from .frames import HEADER, ChecksumRule, checksum
+from .frames import HEADER, MAX_FRAME, TERMINATOR, ChecksumRule, checksum
 
 #: Header, address, length, command: what must be seen before a frame's kind is known.
 _HEAD = 5
@@ -32,7 +32,11 @@ class MotionScan:
         self._tail = b""
 
     def feed(self, data: bytes) -> bool:
-        """Scan the next bytes; whether they hold (or complete) motion to any address."""
+        """Scan the next bytes; whether they hold (or complete) motion to any address.
+
+        The tail kept for the next call starts at the last frame still open (any
+        command: ``owed`` needs it), so it never holds more than one frame.
+        """
         buf = self._tail + bytes(data)
         found = False
         at = buf.find(HEADER)
@@ -44,10 +48,10 @@ class MotionScan:
             if C.is_motion(buf[at + 4]):
                 found = True
                 self._note(buf, at)
-                if at + _HEAD + buf[at + 3] + 1 > len(buf):
-                    keep = min(keep, at)  # its checksum is still to come
+            if at + _HEAD + buf[at + 3] + 1 + len(TERMINATOR) > len(buf):
+                keep = min(keep, at)  # still open: its checksum or terminator is to come
             at = buf.find(HEADER, at + 1)
-        self._tail = buf[keep:]
+        self._tail = buf[keep:][-MAX_FRAME:]
         return found
 
     def _note(self, buf: bytes, at: int) -> None:
@@ -56,6 +60,19 @@ class MotionScan:
         if end < len(buf):
             frame = buf[at:end]
             rules.update(rule for rule in ChecksumRule if checksum(frame, rule) == buf[end])
+
+    def owed(self) -> int:
+        """Bytes the last frame sent still lacks (its checksum and terminator included), 0 if none is open.
+
+        A device that reads a frame by its length takes the next bytes sent as
+        the rest of that frame: a stop sent right behind would be swallowed.
+        """
+        at = self._tail.find(HEADER)
+        if at == -1:
+            return 0
+        if at + 4 > len(self._tail):
+            return MAX_FRAME  # its length is not even known: assume the longest
+        return max(0, at + _HEAD + self._tail[at + 3] + 1 + len(TERMINATOR) - len(self._tail))
 
     def stops(self, rule: ChecksumRule) -> list[tuple[int, ChecksumRule]]:
         """(address, rule) pairs to stop, in the order moved: under the rules its frames passed (a log
