@@ -3,7 +3,10 @@
 It supplies defaults for the global options, below the environment and the
 command line (Click's ``default_map`` sits exactly there). Its keys are the
 long option names (``port``, ``baud``, ``checksum-from``, ``json``...), so the
-file, ``HCRCTL_<NAME>`` and ``--<name>`` read the same.
+file, ``HCRCTL_<NAME>`` and ``--<name>`` read the same. A table named after a
+subcommand holds that command's options the same way (``[bridge]`` with
+``allow-origin = ["https://viewer.example"]``); only then is that command
+loaded to check them.
 
 Every value is checked here, with the option's own Click type, so a typo in a
 file the user forgot about is reported as that file and that key, not as a
@@ -16,7 +19,7 @@ from __future__ import annotations
 
 import os
 import sys
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import click
@@ -60,23 +63,52 @@ def _toml_module() -> Any:
     return tomli
 
 
-def option_defaults(options: Mapping[str, click.Option], path: str | None = None) -> dict[str, Any]:
+Commands = Callable[[str], "click.Command | None"]
+
+
+def option_defaults(
+    options: Mapping[str, click.Option], path: str | None = None, commands: Commands = lambda name: None
+) -> dict[str, Any]:
     """The file's values as Click ``default_map`` entries, each one checked.
 
     ``options`` maps each config key to its Click option; the result is keyed
     by the option's parameter name, the way ``default_map`` wants it.
+    ``commands`` finds a subcommand by name, for a table of its options.
     """
     path = config_path() if path is None else path
     if not os.path.isfile(path):
         return {}
+    return _defaults(path, "", load_table(path), options, commands)
+
+
+def _defaults(
+    path: str, where: str, table: Mapping[str, Any], options: Mapping[str, click.Option], commands: Commands
+) -> dict[str, Any]:
     defaults: dict[str, Any] = {}
-    for key, value in load_table(path).items():
+    for key, value in table.items():
+        if isinstance(value, dict):
+            command = commands(key) if not where else None
+            if command is None:
+                raise ConfigError(path, where + key, "unknown table: a table is named after a subcommand")
+            defaults[key] = _defaults(path, f"{key}.", value, command_options(command), commands)
+            continue
         option = options.get(key) or options.get(key.replace("_", "-"))
         if option is None:
-            raise ConfigError(path, key, _unknown_key(key, options))
-        _check(path, key, option, value)
+            raise ConfigError(path, where + key, _unknown_key(key, options))
+        _check(path, where + key, option, value)
         defaults[option.name] = value
     return defaults
+
+
+def command_options(command: click.Command) -> dict[str, click.Option]:
+    """A subcommand's options by long name (``allow-origin``), as its config table names them."""
+    return {
+        name[2:]: param
+        for param in command.params
+        if isinstance(param, click.Option)
+        for name in param.opts
+        if name.startswith("--") and name != "--help"
+    }
 
 
 def _unknown_key(key: str, options: Mapping[str, click.Option]) -> str:
@@ -88,7 +120,19 @@ def _unknown_key(key: str, options: Mapping[str, click.Option]) -> str:
 
 
 def _check(path: str, key: str, option: click.Option, value: Any) -> None:
-    """The TOML type must fit, then the option's own type checks the range."""
+    """The TOML type must fit, then the option's own type checks the range; a repeatable option takes an array."""
+    if option.multiple:
+        if not isinstance(value, list):
+            raise ConfigError(
+                path, key, f"expected an array, got {_TOML_NAMES.get(type(value), type(value).__name__)}"
+            )
+        for item in value:
+            _check_one(path, key, option, item)
+        return
+    _check_one(path, key, option, value)
+
+
+def _check_one(path: str, key: str, option: click.Option, value: Any) -> None:
     expected = _toml_types(option)
     if isinstance(value, bool) is not (bool in expected) or not isinstance(value, expected):
         names = " or ".join(_TOML_NAMES[t] for t in expected)

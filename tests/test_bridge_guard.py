@@ -17,11 +17,13 @@ import resource
 import signal
 import socket
 import struct
+import subprocess
 import threading
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import pytest
-from helpers import TIMEOUT, wait_until
+from helpers import TIMEOUT, hcrctl_exe, wait_until
 from helpers_live import FakeRobot, is_stop
 from test_bridge import CMD_VEL, TWIST, Bridge, bridge, viewer
 from test_bridge_drive import velocity_of
@@ -305,3 +307,55 @@ def test_at_the_descriptor_limit_new_clients_wait_and_are_served_once_descriptor
             drive(client, robot)
         assert running.proc.poll() is None
         assert "Traceback" not in "\n".join(running.lines)
+
+
+def test_the_config_file_and_the_environment_name_allowed_origins(
+    env: dict[str, str], tmp_path: Path
+) -> None:
+    config = Path(env["XDG_CONFIG_HOME"]) / "hcrctl" / "config.toml"
+    config.parent.mkdir(parents=True, exist_ok=True)
+    config.write_text('[bridge]\nallow-origin = ["https://from-file.example"]\n')
+    env = dict(env, HCRCTL_ALLOW_ORIGIN="https://from-env-a.example https://from-env-b.example")
+    with running_bridge(env) as (robot, running):
+        for origin in ("https://from-env-a.example", "https://from-env-b.example"):
+            with viewer(running.port, origin=origin) as client:  # type: ignore[arg-type]
+                drive(client, robot, after=robot.frames()[-1][0] if robot.frames() else 0.0)
+        with pytest.raises(InvalidStatus):  # the environment beats the file, as for every option
+            connect(f"ws://127.0.0.1:{running.port}", origin="https://from-file.example")  # type: ignore[arg-type]
+    del env["HCRCTL_ALLOW_ORIGIN"]
+    with (
+        running_bridge(env) as (robot, running),
+        viewer(running.port, origin="https://from-file.example") as client,
+    ):  # type: ignore[arg-type]
+        drive(client, robot)
+
+
+@pytest.mark.parametrize(
+    ("table", "said"),
+    [
+        ('[bridge]\nallow-origin = "https://x.example"\n', "bridge.allow-origin: expected an array"),
+        ('[bridge]\nallow-origin = ["x.example"]\n', "bridge.allow-origin: 'x.example' is not an origin"),
+        ("[bridge]\nallow-orign = []\n", "did you mean 'allow-origin'"),
+        ("[nosuch]\nx = 1\n", "nosuch: unknown table"),
+    ],
+)
+def test_a_bad_bridge_table_is_a_usage_error_naming_the_key(
+    env: dict[str, str], table: str, said: str
+) -> None:
+    config = Path(env["XDG_CONFIG_HOME"]) / "hcrctl" / "config.toml"
+    config.parent.mkdir(parents=True, exist_ok=True)
+    config.write_text(table)
+    with FakeRobot() as robot:
+        result = subprocess.run(
+            [hcrctl_exe(), "--port", robot.path, "bridge", "--duration", "0.1"],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=TIMEOUT,
+            stdin=subprocess.DEVNULL,
+        )
+        robot.settle()
+        assert robot.frames() == []
+    assert result.returncode == 2, result.stderr
+    (line,) = result.stderr.splitlines()
+    assert said in line and str(config) in line

@@ -170,7 +170,7 @@ def config_defaults() -> dict[str, Any]:
     """The config file's values for the global options (checked), or {}."""
     from ..config import option_defaults
 
-    return option_defaults(config_keys(cli))
+    return option_defaults(config_keys(cli), commands=lambda name: cli.get_command(click.Context(cli), name))
 
 
 def _debug(args: list[str]) -> bool:
