@@ -262,3 +262,14 @@ def test_stops_after_an_open_frame_fill_it_first_then_stand_whole() -> None:
     # A device that reads the open frame by its length swallows what it owes; the rest decodes as stops.
     rest = decode_all(b"".join(stops)[owed:])
     assert [e.address for e in rest if hasattr(e, "command") and e.command == 0x01][-2:] == [2, 1]
+
+
+def test_a_v011_frame_ending_in_a_lone_0a_is_complete() -> None:
+    """The published firmware ends frames in 0A alone: such a frame owes nothing, so no filler stops."""
+    scan = MotionScan(terminator=b"\n")
+    v011 = encode(1, 0x01, H("CC CC"))[:-2] + b"\n"
+    assert scan.feed(v011)
+    assert scan.owed() == 0
+    v015 = MotionScan()
+    v015.feed(v011)  # read as v0.15, the same bytes lack one terminator byte
+    assert v015.owed() == 1

@@ -16,7 +16,8 @@ import contextlib
 from collections.abc import Callable, Iterator
 
 from ..link.client import Robot
-from ..link.rescue import rescue, stop_frame, stopping
+from ..link.dialects import stop_frames
+from ..link.rescue import rescue, stopping
 from .source import Feed
 
 
@@ -49,5 +50,5 @@ def _rescued(robot: Robot) -> Iterator[None]:
     try:
         yield
     except BaseException as exc:
-        raise rescue(robot, lambda: [stop_frame(robot)]) from exc
-    raise rescue(robot, lambda: [stop_frame(robot)])
+        raise rescue(robot, lambda: stop_frames(robot)) from exc
+    raise rescue(robot, lambda: stop_frames(robot))

@@ -81,7 +81,6 @@ class Robot(TypedReads, Dialect):
         self.stats = LinkStats()
         self.unsolicited: queue.Queue[Frame] = queue.Queue(UNSOLICITED_BACKLOG)
         self.moved = False
-        self.motion = MotionScan()  # every address the bytes written here moved: all are stopped
         #: Bytes of any kind received since the port opened: zero after a timeout
         #: means a silent line (no power, wrong port), not a lost reply.
         self.rx_bytes = 0
@@ -96,6 +95,7 @@ class Robot(TypedReads, Dialect):
         self.stop_wait = DEFAULT_WAIT_S
         self._rule = ChecksumRule(rule)
         self.profile = profile(protocol)  # the dialect the device speaks (see ``Dialect``)
+        self.motion = MotionScan(self.profile.terminator)  # every address written moved: all are stopped
         self._decoder = make_decoder(self.profile, self._rule)
         self.lone_lf_seen = False
         self._io = threading.Lock()  # one transaction at a time

@@ -26,7 +26,9 @@ _HEAD = 5
 class MotionScan:
     """Fed the bytes sent, in order; remembers each address moved and the checksum rules its frames passed."""
 
-    def __init__(self) -> None:
+    def __init__(self, terminator: bytes = TERMINATOR) -> None:
+        #: The firmware's frame end (v0.11 ends a frame in a lone 0A): what an open frame still owes.
+        self.terminator = terminator
         #: address -> the rules a complete motion frame to it passed (empty: none was complete, or none passed).
         self.moved: dict[int, set[ChecksumRule]] = {}
         self._tail = b""
@@ -48,7 +50,7 @@ class MotionScan:
             if C.is_motion(buf[at + 4]):
                 found = True
                 self._note(buf, at)
-            if at + _HEAD + buf[at + 3] + 1 + len(TERMINATOR) > len(buf):
+            if at + _HEAD + buf[at + 3] + 1 + len(self.terminator) > len(buf):
                 keep = min(keep, at)  # still open: its checksum or terminator is to come
             at = buf.find(HEADER, at + 1)
         self._tail = buf[keep:][-MAX_FRAME:]
@@ -72,7 +74,7 @@ class MotionScan:
             return 0
         if at + 4 > len(self._tail):
             return MAX_FRAME  # its length is not even known: assume the longest
-        return max(0, at + _HEAD + self._tail[at + 3] + 1 + len(TERMINATOR) - len(self._tail))
+        return max(0, at + _HEAD + self._tail[at + 3] + 1 + len(self.terminator) - len(self._tail))
 
     def stops(self, rule: ChecksumRule) -> list[tuple[int, ChecksumRule]]:
         """(address, rule) pairs to stop, in the order moved: under the rules its frames passed (a log
