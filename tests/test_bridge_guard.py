@@ -359,3 +359,26 @@ def test_a_bad_bridge_table_is_a_usage_error_naming_the_key(
     assert result.returncode == 2, result.stderr
     (line,) = result.stderr.splitlines()
     assert said in line and str(config) in line
+
+
+def test_one_client_too_many_is_told_so_at_the_handshake(env: dict[str, str]) -> None:
+    from hcrctl.feeds.foxglove_ws import MAX_CLIENTS
+
+    with running_bridge(env) as (robot, running), contextlib.ExitStack() as stack:
+        clients = [stack.enter_context(viewer(running.port)) for _ in range(MAX_CLIENTS)]
+        with pytest.raises(InvalidStatus) as refused:
+            connect(f"ws://127.0.0.1:{running.port}", subprotocols=["foxglove.sdk.v1"])  # type: ignore[list-item]
+        assert refused.value.response.status_code == 503
+        stack.close()  # every client gone: a new one is served again, once the server has seen them go
+        del clients
+        wait_until(lambda: _served(running.port), what="a seat for a new client")
+        with viewer(running.port) as client:
+            drive(client, robot)
+
+
+def _served(port: int) -> bool:
+    try:
+        with connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"]):  # type: ignore[list-item]
+            return True
+    except InvalidStatus:
+        return False
