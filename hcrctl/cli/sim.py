@@ -41,7 +41,7 @@ DEFAULT_HOST = "127.0.0.1"
     default="",
     metavar="QUERY",
     help="Simulator options, as in sim://?QUERY: drop, corrupt, noise, delay_ms, checksum, address, "
-    "silent, pid, broadcast_hz, map_hz, seed, pace, baud, protocol (e.g. 'drop=0.1&delay_ms=20').",
+    "silent, pid, broadcast_hz, map_hz, seed, pace, baud, protocol, wander (e.g. 'drop=0.1&delay_ms=20').",
 )
 @click.option(
     "--protocol",
@@ -52,7 +52,13 @@ DEFAULT_HOST = "127.0.0.1"
 @click.option(
     "--seed",
     type=IntRange(0, MAX_SEED),
-    help="Seed for sensor noise and faults (overrides seed= in --options).",
+    help="Seed for sensor noise, faults and wandering (overrides seed= in --options).",
+)
+@click.option(
+    "--wander",
+    is_flag=True,
+    help="The robot drives about the room by itself, avoiding what its sensors see, until a client "
+    "sends any motion command (stop included): from then on it does only what it is told.",
 )
 def sim(
     use_pty: bool,
@@ -62,11 +68,14 @@ def sim(
     query: str,
     protocol: str | None,
     seed: int | None,
+    wander: bool,
 ) -> None:
     """Serve the simulated robot on a pty or a TCP port until Ctrl-C or SIGTERM."""
     if use_pty == (tcp is not None):
         raise click.UsageError("give exactly one of --pty and --tcp")
     options = _options(query, pace, baud, seed)
+    if wander:
+        options = dataclasses.replace(options, wander=True)
     if protocol is not None:
         options = dataclasses.replace(options, protocol=protocol)
     if baud is None and "baud=" not in query:

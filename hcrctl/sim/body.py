@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Protocol
 
 from .world import World
 
@@ -46,6 +47,15 @@ class Pose:
 START_POSE = Pose(60.0, 100.0, 90.0)
 
 
+class Pilot(Protocol):
+    """Something that drives the body by itself (``wander.Wanderer``) until the host takes over."""
+
+    #: When (s of the body's own time) it wants to look at the sensors again.
+    next_at: float
+
+    def steer(self, body: Body, t: float) -> None: ...
+
+
 @dataclass
 class _Turn:
     remaining: float
@@ -62,6 +72,10 @@ class Body:
         self.wheels = [0.0, 0.0]
         self.targets = [0.0, 0.0]
         self._turn: _Turn | None = None
+        #: Drives the body when nobody else does (``sim://?wander=1``); the host's first motion ends it.
+        self.pilot: Pilot | None = None
+        #: Seconds integrated so far: the pilot's clock, independent of the caller's.
+        self.t = 0.0
 
     @property
     def pose(self) -> Pose:
@@ -72,12 +86,18 @@ class Body:
         return self._turn is not None
 
     def drive(self, left: float, right: float) -> None:
-        """New wheel targets in cm/s, clamped at the maximum; cancels a turn."""
+        """The host's new wheel targets in cm/s, clamped at the maximum; cancels a turn and any pilot."""
+        self.pilot = None
+        self.aim(left, right)
+
+    def aim(self, left: float, right: float) -> None:
+        """New wheel targets in cm/s, clamped at the maximum; cancels a turn (what a pilot calls)."""
         self._turn = None
         self.targets = [max(-MAX_SPEED_CM_S, min(MAX_SPEED_CM_S, v)) for v in (left, right)]
 
     def turn(self, angle: float, ccw: bool, rv: int) -> None:
-        """Rotate in place by ``angle`` degrees at a rate set by RV, then stop."""
+        """Rotate in place by ``angle`` degrees at a rate set by RV, then stop; the host takes over."""
+        self.pilot = None
         self.targets = [0.0, 0.0]
         rate = MAX_TURN_DEG_S * max(rv, 1) / 255
         self._turn = _Turn(float(angle), -1.0 if ccw else 1.0, rate) if angle > 0 else None
@@ -85,18 +105,30 @@ class Body:
             self.wheels = [0.0, 0.0]
 
     def advance(self, dt: float) -> None:
-        """Integrate ``dt`` seconds in fixed steps; free when the robot is at rest."""
-        while dt > 1e-12 and not self._at_rest():
-            h = min(dt, PHYSICS_STEP_S)
+        """Integrate ``dt`` seconds in fixed steps; free when the robot is at rest.
+
+        A pilot is asked at its own times (steps end there), so its choices do
+        not depend on how often the caller's clock is read.
+        """
+        end = self.t + dt
+        while end - self.t > 1e-12:
+            if self.pilot is not None and self.t + 1e-12 >= self.pilot.next_at:
+                self.pilot.steer(self, self.t)
+            if self._at_rest():
+                break
+            h = min(end - self.t, PHYSICS_STEP_S)
+            if self.pilot is not None:
+                h = min(h, max(self.pilot.next_at - self.t, 1e-9))
             if self._turn is not None:
                 self._turn_step(self._turn, h)
             else:
                 self._lag(h)
                 self._move(h)
-            dt -= h
+            self.t += h
+        self.t = end
 
     def _at_rest(self) -> bool:
-        return self._turn is None and not any(self.wheels) and not any(self.targets)
+        return self.pilot is None and self._turn is None and not any(self.wheels) and not any(self.targets)
 
     def _lag(self, h: float) -> None:
         k = 1.0 - math.exp(-h / WHEEL_TIME_CONSTANT_S)

@@ -60,6 +60,7 @@ _SPECS: dict[str, tuple[Callable[[str], Any], Callable[[Any], bool], str]] = {
     "pace": (_flag, _is_bool, "0 or 1"),
     "protocol": (str, lambda v: v in PROFILES, " or ".join(PROFILES)),
     "baud": (parse_int, _between(MIN_BAUD, MAX_BAUD), f"an integer {MIN_BAUD}..{MAX_BAUD}"),
+    "wander": (_flag, _is_bool, "0 or 1"),
 }
 
 
@@ -71,7 +72,8 @@ class SimOptions:
     they model a flaky robot, while broadcasts stay clean so a test of one
     fault is not muddied by another. ``silent`` mutes the robot (replies and
     its map); the positioning stations are other devices and keep
-    broadcasting (``broadcast_hz=0`` mutes them).
+    broadcasting (``broadcast_hz=0`` mutes them). ``wander`` drives the robot
+    about on its own until the host's first motion command (``sim.wander``).
     """
 
     drop: float = 0.0
@@ -89,6 +91,8 @@ class SimOptions:
     baud: int = 115200
     #: The protocol profile spoken (``protocol.profiles``): v0.11 is the published v0.33 firmware.
     protocol: str = "v0.15"
+    #: Drive about the room alone (seeded by ``seed``) until the host sends motion.
+    wander: bool = False
 
     @property
     def profile(self) -> Profile:

@@ -30,6 +30,7 @@ from ..protocol.frames import Frame, encode
 from .behaviours import ir_raw, read_behaviour, write_behaviour
 from .body import Body, Pose
 from .options import SimOptions
+from .wander import Wanderer
 
 __all__ = ["Pose", "SimOptions", "Simulator", "ir_raw"]
 
@@ -91,6 +92,8 @@ class Simulator:
         self.options = options or SimOptions()
         self.clock = clock
         self.body = body or Body()
+        if self.options.wander and self.body.pilot is None:
+            self.body.pilot = Wanderer(self.options.seed)
         self.servos: tuple[int, int] = (SERVO_HOME, SERVO_HOME)
         self.pid: tuple[int, int, int] | None = None
         self.profile = self.options.profile
