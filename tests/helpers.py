@@ -190,8 +190,18 @@ class PtySpawn(pexpect.spawn):
 COLS, ROWS = 120, 40
 ENTER_ALT, LEAVE_ALT = b"\x1b[?1049h", b"\x1b[?1049l"
 CPR_REQUEST = b"\x1b[6n"
+#: The primary device attributes request, which every terminal answers (as xterm does, here), and the
+#: kitty keyboard protocol's query, push and pop of its flags.
+DA_REQUEST, DA_ANSWER = b"\x1b[c", b"\x1b[?62;22c"
+KITTY_QUERY, KITTY_PUSH, KITTY_POP = b"\x1b[?u", b"\x1b[>11u", b"\x1b[<u"
 HIDE_CURSOR, SHOW_CURSOR = b"\x1b[?25l", b"\x1b[?25h"
-_SPLIT = re.compile(b"(" + b"|".join(map(re.escape, (ENTER_ALT, LEAVE_ALT, CPR_REQUEST))) + b")")
+_SPLIT = re.compile(
+    b"("
+    + b"|".join(
+        map(re.escape, (ENTER_ALT, LEAVE_ALT, CPR_REQUEST, DA_REQUEST, KITTY_QUERY, KITTY_PUSH, KITTY_POP))
+    )
+    + b")"
+)
 
 
 def terminal_env(cols: int = COLS, rows: int = ROWS) -> dict[str, str]:
@@ -211,7 +221,9 @@ class Terminal:
 
     A thread reads the pty all the time, as a terminal would (a program whose
     output nobody reads blocks in write() and stops reading keys), and answers
-    cursor-position requests (prompt-toolkit sizes its toolbar by them). With
+    cursor-position requests (prompt-toolkit sizes its toolbar by them) and the
+    device attributes request. With ``kitty`` it also speaks the kitty keyboard
+    protocol's query (``kitty_flags`` is the stack of flags pushed). With
     ``alt_screen`` the main screen is saved and restored around the alternate
     one, which pyte lacks. ``wait_for`` takes a regex or a predicate on the text.
     """
@@ -226,8 +238,11 @@ class Terminal:
         env: dict[str, str] | None = None,
         alt_screen: bool = False,
         strip: bool = False,
+        kitty: bool = False,
     ) -> None:
         cols, rows = size
+        self.kitty = kitty
+        self.kitty_flags: list[bytes] = []
         self.screen = pyte.Screen(cols, rows)
         self.stream = pyte.ByteStream(self.screen)
         self.raw = bytearray()
@@ -275,6 +290,16 @@ class Terminal:
                 cursor = self.screen.cursor
                 with contextlib.suppress(OSError):
                     os.write(self._fd, f"\x1b[{cursor.y + 1};{cursor.x + 1}R".encode())
+            elif piece == DA_REQUEST:
+                with contextlib.suppress(OSError):
+                    os.write(self._fd, DA_ANSWER)
+            elif piece == KITTY_QUERY and self.kitty:
+                with contextlib.suppress(OSError):
+                    os.write(self._fd, b"\x1b[?0u")
+            elif piece == KITTY_PUSH and self.kitty:
+                self.kitty_flags.append(piece)
+            elif piece == KITTY_POP and self.kitty and self.kitty_flags:
+                self.kitty_flags.pop()
             elif piece == ENTER_ALT and self._alt_screen:
                 self._saved = (copy.deepcopy(self.screen.buffer), copy.copy(self.screen.cursor))
             elif piece == LEAVE_ALT and self._alt_screen:

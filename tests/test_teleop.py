@@ -14,7 +14,7 @@ from helpers_live import FakeRobot, Terminal, is_stop, speed_of, terminal, usage
 from hcrctl.link.client import Robot
 from hcrctl.link.context import Connection
 from hcrctl.live.state import LiveState
-from hcrctl.live.teleop import Drive, press, run_teleop, teleop_governor
+from hcrctl.live.teleop import HOLD_GRACE, Drive, press, run_teleop, teleop_governor
 from hcrctl.motion.governor import Governor
 from hcrctl.protocol import commands as C
 
@@ -65,13 +65,14 @@ def test_plus_and_minus_change_the_speed_by_ten() -> None:
 
 
 def test_the_deadman_stops_when_no_key_comes() -> None:
+    """A tap is a first press: leased past the key-repeat delay (HOLD_GRACE), then stopped."""
     with FakeRobot() as robot, _teleop(robot, timeout="0.4") as term:
         term.wait_for("sending")
         term.send("w")
         moved = robot.wait_frame(lambda f: speed_of(f) == (50, 50))
         stopped = robot.wait_frame(is_stop, after=moved)
-        assert stopped - moved >= 0.3  # not before the deadman's time (no upper bound: noisy machine)
-        term.wait_for("deadman: no key for 0.4 s")
+        assert stopped - moved >= 0.8  # not before the grace's time (no upper bound: noisy machine)
+        term.wait_for(f"deadman: no key for {HOLD_GRACE:g} s")
         term.send("q")
         assert term.finish() == 0
 
@@ -196,12 +197,36 @@ def step(drive: Drive, governor: Governor, key: str | None, now: float) -> None:
 def test_step_deadman_sends_one_stop_then_nothing() -> None:
     drive, governor, _, wire = _rig(timeout=0.5)
     step(drive, governor, "w", now=10.0)
-    step(drive, governor, None, now=10.05)
-    assert wire.sent == [C.MotorSpeed(50, 50)]
-    step(drive, governor, None, now=10.6)
-    step(drive, governor, None, now=11.0)
+    step(drive, governor, "w", now=10.7)  # the first repeat, after X11's 660 ms delay: no stop before it
+    step(drive, governor, None, now=10.75)
+    assert "stop" not in wire.sent and wire.sent[0] == C.MotorSpeed(50, 50)
+    step(drive, governor, None, now=11.1)  # repeats are leased for the deadman: stopped 0.5 s after the last
+    assert "stop" not in wire.sent
+    step(drive, governor, None, now=11.25)
+    step(drive, governor, None, now=12.0)
     assert wire.sent[-1] == "stop" and wire.sent.count("stop") == 1
     assert drive.why_stopped == "deadman: no key for 0.5 s" and drive.motion == "stop"
+
+
+def test_a_tap_is_leased_past_the_repeat_delay_and_no_longer() -> None:
+    drive, governor, _, wire = _rig(timeout=0.5)
+    step(drive, governor, "w", now=10.0)
+    step(drive, governor, None, now=10.0 + HOLD_GRACE - 0.01)
+    assert "stop" not in wire.sent
+    step(drive, governor, None, now=10.0 + HOLD_GRACE + 0.01)
+    assert wire.sent[-1] == "stop" and drive.why_stopped == f"deadman: no key for {HOLD_GRACE:g} s"
+
+
+def test_a_key_release_stops_at_once_and_a_release_of_another_key_does_not() -> None:
+    drive, governor, _, wire = _rig(timeout=5)
+    step(drive, governor, "w", now=1.0)
+    step(drive, governor, "release:a", now=1.1)
+    assert "stop" not in wire.sent
+    step(drive, governor, "release:w", now=1.2)
+    assert wire.sent[-1] == "stop" and drive.why_stopped == "key released"
+    step(drive, governor, "up", now=1.3)
+    step(drive, governor, "release:up", now=1.4)
+    assert wire.sent[-2:] == [C.MotorSpeed(50, 50), "stop"]
 
 
 def test_step_repeats_are_resent_at_most_every_resend_interval() -> None:

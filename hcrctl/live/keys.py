@@ -8,6 +8,15 @@ runs on every way out, including ``Terminated`` from SIGTERM/SIGHUP.
 ``KeyDecoder`` is the sans-IO half: bytes in, key names out. An arrow key is
 three bytes (ESC [ A), and a held key arrives as a burst of them, so input is
 buffered and split; an ESC with nothing after it is the Escape key itself.
+
+A terminal that speaks the kitty keyboard protocol can also say when a key is
+released, which a terminal otherwise never does. ``KeyReader.use_kitty``
+probes for it as the protocol's specification recommends (``CSI ? u``, then
+the primary device attributes request, whose answer every terminal sends:
+a kitty answer before it means the protocol is there), pushes the flags
+"disambiguate", "report event types" and "report all keys as escape codes",
+and pops them on every way out. Its key events decode to the same names, and
+a release to ``release:<name>``.
 """
 
 from __future__ import annotations
@@ -24,6 +33,16 @@ ESC_WAIT = 0.03
 
 #: Final bytes of CSI (ESC [ x) and SS3 (ESC O x) sequences that we name.
 SEQUENCES = {"A": "up", "B": "down", "C": "right", "D": "left", "H": "home", "F": "end"}
+#: The kitty flags pushed: 1 disambiguate, 2 report event types, 8 report all keys as escape codes.
+KITTY_FLAGS = 1 | 2 | 8
+#: How long the probe waits for the answer to the device attributes request, which every terminal
+#: sends within milliseconds: only one that never answers (a bare pty) waits this long.
+PROBE_WAIT = 1.0
+#: The kitty protocol's event types: 1 press, 2 repeat, 3 release.
+RELEASE = 3
+#: Kitty key codes with names of their own (the rest are their Unicode character).
+KITTY_CODES = {27: "esc", 13: "enter", 9: "tab", 127: "backspace", 8: "backspace"}
+CTRL = 4
 CONTROLS = {
     0x03: "ctrl-c",
     0x04: "ctrl-d",
@@ -79,8 +98,44 @@ def _next_key(data: bytes, final: bool = False) -> tuple[str, int]:
         return "esc", 1  # ESC then an ordinary key (Alt+key): the ESC on its own
     for end in range(2, len(data)):
         if 0x40 <= data[end] <= 0x7E:
+            if data[1] == ord("[") and end > 2:
+                return _csi(data[2:end].decode("ascii", "replace"), chr(data[end])), end + 1
             return SEQUENCES.get(chr(data[end]), ""), end + 1
     return ("esc", 1) if final else ("", 0)
+
+
+def _csi(params: str, final: str) -> str:
+    """A CSI sequence with parameters: a kitty key event, an answer to a probe, or an arrow with modifiers."""
+    if params.startswith("?"):
+        if final == "u":
+            return f"kitty-flags:{params[1:]}"
+        return "device-attributes" if final == "c" else ""
+    fields = [part.split(":") for part in params.split(";")]
+    modifiers, event = _number(fields, 1, 0, 1), _number(fields, 1, 1, 1)
+    code = _number(fields, 0, 0, 0)
+    name = _kitty_key(code, modifiers - 1) if final == "u" else SEQUENCES.get(final, "")
+    if not name:
+        return ""
+    return f"release:{name}" if event == RELEASE else name
+
+
+def _number(fields: list[list[str]], field: int, part: int, default: int) -> int:
+    try:
+        text = fields[field][part]
+    except IndexError:
+        return default
+    return int(text) if text.isdigit() and len(text) <= 7 else default
+
+
+def _kitty_key(code: int, mods: int) -> str:
+    """A kitty key code as the name the legacy encoding would give (ctrl-c stays ctrl-c)."""
+    if mods & CTRL and code in (ord("c"), ord("d")):
+        return f"ctrl-{chr(code)}"
+    if code in KITTY_CODES:
+        return KITTY_CODES[code]
+    if 0x20 <= code < 0x110000 and not 0xD800 <= code < 0xE000 and not 57344 <= code <= 63743:
+        return chr(code)  # the private-use range holds kitty's functional keys: not text
+    return ""
 
 
 def _plain(data: bytes, final: bool) -> tuple[str, int]:
@@ -104,6 +159,8 @@ class KeyReader:
         self._keys: list[str] = []
         self._saved: list[Any] | None = None
         self._told_eof = False
+        #: Where the kitty flags were pushed (popped on restore); None when they were not.
+        self._kitty: int | None = None
         try:
             self.fd: int | None = self.stream.fileno()
         except (AttributeError, OSError, ValueError):  # no real input at all: it has ended
@@ -122,8 +179,39 @@ class KeyReader:
     def __exit__(self, *exc: object) -> None:
         self.restore()
 
+    @property
+    def kitty(self) -> bool:
+        """Whether the terminal reports key releases (the kitty keyboard protocol is on)."""
+        return self._kitty is not None
+
+    def use_kitty(self, out: int, wait: float = PROBE_WAIT) -> bool:
+        """Probe the terminal on ``out``; switch the kitty protocol on if it answers. Keys typed meanwhile are kept."""
+        if not self.is_terminal or not os.isatty(out):
+            return False
+        os.write(out, b"\x1b[?u\x1b[c")
+        found, kept, deadline = False, [], time.monotonic() + wait
+        while (left := deadline - time.monotonic()) > 0:
+            key = self.read(left)
+            if key is None or key == "device-attributes":
+                break
+            if key.startswith("kitty-flags:"):
+                found = True
+            elif key != "eof":
+                kept.append(key)
+        self._keys[:0] = kept
+        if found:
+            os.write(out, b"\x1b[>%du" % KITTY_FLAGS)
+            self._kitty = out
+        return found
+
     def restore(self) -> None:
         """Put the terminal back as it was; safe to call twice."""
+        if self._kitty is not None:
+            import contextlib
+
+            with contextlib.suppress(OSError):
+                os.write(self._kitty, b"\x1b[<u")
+            self._kitty = None
         if self._saved is not None and self.fd is not None:
             import termios
 

@@ -1,12 +1,18 @@
 """``teleop``: drive with the arrow keys or WASD, with a deadman and bumper stop.
 
-A terminal sends a held key as one press, a pause (the key-repeat delay) and
-then a stream of repeats, and never sends a release. So motion lasts only
-while keys keep arriving: the keys are a source of the motion governor
-(``motion.governor``), each one an offer that renews the lease, and the
-governor stops when none came for ``timeout`` seconds (the deadman) and
-re-sends a held motion (a lost frame costs one repeat interval, not the
-whole press). ``Drive`` only turns keys into wheel percentages.
+A terminal sends a held key as one press, a pause (the key-repeat delay:
+660 ms under X11, 500 ms in GNOME and Windows Terminal) and then a stream of
+repeats, and never sends a release. So motion lasts only while keys keep
+arriving: the keys are a source of the motion governor (``motion.governor``),
+each one an offer that renews the lease, and the governor stops when the
+lease runs out and re-sends a held motion (a lost frame costs one repeat
+interval, not the whole press). A key's first press is leased for
+``HOLD_GRACE`` (or the deadman, if longer), long enough for any common repeat
+delay to pass, so holding a key never stutters; its repeats are leased for the
+deadman, so the robot stops that long after the last one. A tap therefore
+moves the robot for under a second. On a terminal that speaks the kitty
+keyboard protocol the release itself is reported, and stops the robot at once.
+``Drive`` only turns keys into wheel percentages.
 
 Stop goes out on every way out (q, Ctrl-D, Ctrl-C, SIGTERM/SIGHUP as
 ``Terminated``, a lost link, a bug), sent explicitly here even when already
@@ -24,7 +30,7 @@ from __future__ import annotations
 import contextlib
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -50,6 +56,9 @@ STEP = 0.02
 SPEED_STEP = 10
 #: The keys' name as a source of motion.
 KEYS = "keys"
+#: The lease of a key's first press: past every common key-repeat delay (X11's 660 ms, a first
+#: repeat that comes late), yet a tap stops within a second.
+HOLD_GRACE = 0.9
 QUIT_KEYS = frozenset({"q", "Q", "ctrl-d", "ctrl-c", "eof"})
 STOP_KEYS = frozenset({" ", "k", "K"})
 MOTION_KEYS = {
@@ -123,14 +132,30 @@ class Drive:
 
 
 def press(drive: Drive, governor: Governor, key: str, now: float | None = None) -> None:
-    """A key: the drive's state, then the governor's say. A stop key stops (and sends stop even when
-    still); any other key while moving is an offer that renews the lease (a held key keeps it)."""
+    """A key: the drive's state, then the governor's say.
+
+    A stop key stops (and sends stop even when still); the release of the key
+    that drives stops (kitty protocol); any other key while moving is an offer
+    that renews the lease: a first press for ``HOLD_GRACE``, a repeat for the deadman.
+    """
     now = time.monotonic() if now is None else now
+    if key.startswith("release:"):
+        released = key.partition(":")[2]
+        if (
+            drive.motion != "stop"
+            and (MOTION_KEYS.get(released) or MOTION_KEYS.get(released.lower())) == drive.motion
+        ):
+            drive.halt("key released")
+            governor.release(KEYS, "key released")
+        return
+    before = drive.motion
     drive.press(key, now)
     if key in STOP_KEYS:
         governor.stop("stop key")
     elif drive.motion != "stop":
-        verdict = governor.offer(KEYS, drive.wheels(), now)
+        first = drive.motion != before
+        lease = max(drive.timeout, HOLD_GRACE) if first else drive.timeout
+        verdict = governor.offer(KEYS, drive.wheels(), now, lease)
         if not verdict:
             drive.halt(governor.lease.why_stopped or verdict.why)
 
@@ -166,7 +191,12 @@ def run_teleop(
             None, _screen(drive, governor, state), lambda: (state.version, drive.version, governor.frames)
         )
         try:
-            with stopping(robot), KeyReader() as keys, painting(console, redraw) as painter:
+            with (
+                stopping(robot),
+                KeyReader() as keys,
+                kitty_probed(keys, console),
+                painting(console, redraw) as painter,
+            ):
                 poller.start()
                 try:
                     with governor:
@@ -209,11 +239,24 @@ def _teleop_loop(
         if governor.error is not None:
             raise governor.error
         key = keys.read(STEP)
+        if key == "ctrl-c":  # only the kitty protocol reports it as a key: Ctrl-C as everywhere else
+            raise KeyboardInterrupt
         if key in QUIT_KEYS:
             return
         if key:
             press(drive, governor, key)
         redraw.tick = 0.1 if drive.motion != "stop" else 1.0
+
+
+@contextlib.contextmanager
+def kitty_probed(keys: KeyReader, console: Console) -> Iterator[None]:
+    """Key releases where the terminal can report them; probed before anything is drawn (never mid-frame)."""
+    try:
+        out = console.file.fileno()
+    except (AttributeError, OSError, ValueError):
+        out = -1
+    keys.use_kitty(out)
+    yield
 
 
 def bumper_hit(state: LiveState) -> bool:

@@ -7,9 +7,10 @@ themselves. They ``offer`` wheel speeds, and the governor decides:
 - one driver at a time: the first source to offer motion holds the lease;
   another is refused, told who drives, until the lease is released, runs out
   or the driver goes away (``release``);
-- a lease lasts ``deadman`` seconds from the driver's last offer: the
-  governor's own thread runs the clock, so no source can hold motion by
-  being slow, silent, flooded or dead;
+- a lease lasts ``deadman`` seconds from the driver's last offer (or the
+  offer's own, shorter or longer ``lease``: a key's first press waits out
+  the terminal's repeat delay): the governor's own thread runs the clock, so
+  no source can hold motion by being slow, silent, flooded or dead;
 - forward motion is refused while a bumper is pressed;
 - anyone may ``stop``.
 
@@ -43,6 +44,8 @@ STEP = 0.02
 #: An unchanged motion is re-sent this often (a lost frame costs one interval).
 RESEND = 0.1
 STILL = (0, 0)
+#: No single offer holds motion longer than this, whatever lease it asks for.
+MAX_LEASE = 10.0
 
 Wheels = tuple[int, int]
 #: What each wheel pair becomes on the wire (velocity in cm/s, motor speed in %...).
@@ -77,14 +80,19 @@ class Lease:
         self.wheels: Wheels = STILL
         self.driver: Hashable | None = None
         self.last = -math.inf
+        #: When the lease runs out (monotonic): the last offer's time plus its lease.
+        self.until = -math.inf
         self.why_stopped = ""
         self.stopped_driver: Hashable | None = None
         self.version = 0
 
-    def offer(self, source: Hashable, wheels: Wheels, now: float, bumped: bool) -> Verdict:
+    def offer(
+        self, source: Hashable, wheels: Wheels, now: float, bumped: bool, lease: float | None = None
+    ) -> Verdict:
         if self.driver not in (None, source):
             return Verdict(False, f"refused: {self.driver} drives the robot")
         self.driver, self.last = source, now
+        self.until = now + (self.deadman if lease is None else min(lease, MAX_LEASE))
         if forward(wheels) and bumped:
             self._set(STILL, "bumper hit: forward blocked")
             return Verdict(False, "refused: a bumper is pressed (forward blocked)")
@@ -93,9 +101,9 @@ class Lease:
 
     def check(self, now: float, bumped: bool) -> None:
         """The deadman and the bumpers: once per turn of the governor's clock."""
-        if self.driver is not None and now - self.last > self.deadman:
+        if self.driver is not None and now > self.until:
             if self.wheels != STILL:
-                self.release(self.driver, f"deadman: {self.silence} for {self.deadman:g} s")
+                self.release(self.driver, f"deadman: {self.silence} for {self.until - self.last:g} s")
             else:
                 self.driver = None  # a silent driver gives the robot up to the next source
         if forward(self.wheels) and bumped:
@@ -151,11 +159,14 @@ class Governor:
 
     # -- the sources' side: any thread, never waits on the wire --------------------------
 
-    def offer(self, source: Hashable, wheels: Wheels, now: float | None = None) -> Verdict:
-        """``source`` asks for ``wheels`` (cm/s, %... as ``make`` reads them); its lease renewed if taken."""
+    def offer(
+        self, source: Hashable, wheels: Wheels, now: float | None = None, lease: float | None = None
+    ) -> Verdict:
+        """``source`` asks for ``wheels`` (cm/s, %... as ``make`` reads them) for ``lease`` seconds (default:
+        the deadman); its lease renewed if taken."""
         now = time.monotonic() if now is None else now
         with self._lock:
-            verdict = self.lease.offer(source, wheels, now, self._bump())
+            verdict = self.lease.offer(source, wheels, now, self._bump(), lease)
         self._wake.set()
         return verdict
 
