@@ -35,6 +35,29 @@ def test_the_simulator_plotted_with_a_legend_units_and_points_and_q_quits() -> N
         assert term.finish() == 0
 
 
+def test_a_heading_that_wraps_back_and_forth_draws_no_vertical_lines() -> None:
+    """359.5, 0.5, 359.5: a robot wobbling about north, drawn as two flat lines, not a comb across the chart."""
+    with FakeRobot() as robot, terminal(["--port", robot.path, "plot", "compass.heading"]) as term:
+        for heading in (359.5, 0.5, 359.5):
+            robot.values["compass"] = C.Compass(heading)
+            term.wait_for(f"compass\\.heading {heading}\\b")
+        screen = term.wait_for(lambda t: len(plot_rows(t)) > 10 and BRAILLE.search(plot_rows(t)[0]))
+        rows = plot_rows(screen)
+        assert BRAILLE.search(rows[-1]), screen  # 0.5 along the bottom
+        assert not any(BRAILLE.search(row) for row in rows[1:-1]), screen  # nothing joins them
+        term.send("q")
+        assert term.finish() == 0
+
+
+def plot_rows(screen: str) -> list[str]:
+    """The plot area's rows, right of the y axis."""
+    return [
+        re.split("[│┤]", line, maxsplit=1)[1]
+        for line in screen.splitlines()
+        if re.match(r" *[\d.]* *[│┤]", line)
+    ]
+
+
 def test_space_sends_stop_and_only_the_fields_sensors_are_polled() -> None:
     with FakeRobot() as robot, terminal(["--port", robot.path, "plot", "compass.heading"]) as term:
         term.wait_for(lambda t: "compass.heading 123.4" in t and BRAILLE.search(t))

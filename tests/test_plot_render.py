@@ -22,7 +22,7 @@ from hcrctl.live.plotdata import (
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.decoder import FrameDecoder
 from hcrctl.protocol.frames import encode
-from hcrctl.protocol.series import find
+from hcrctl.protocol.series import all_series, find
 
 NOW = 1000.0
 WINDOW = 30.0
@@ -122,6 +122,35 @@ def test_a_failed_read_breaks_the_line_even_between_close_samples():
     jump = column_of(15, len(plot_rows(joined)[0]))
     assert any(row[jump] != " " for row in plot_rows(joined)[middle])  # joined: the jump is a vertical line
     assert all(row[jump] == " " for row in plot_rows(broken)[middle])  # broken: nothing in between
+
+
+def turning(t: float) -> float:
+    """A heading turning clockwise at 10 deg/s through north: 330 30 s ago, 0 27 s ago, 270 now."""
+    return round((330 + 10 * (t - (NOW - 30))) % 360, 1)
+
+
+def test_an_angle_crossing_its_wrap_breaks_the_line_instead_of_drawing_across_the_chart():
+    samples = every(30, 0, turning)  # 330 .. 359, then 0 .. 270: one wrap, 27 s ago
+    rows = plot_rows(chart_lines([trace("compass.heading", samples)], NOW, WINDOW, WIDTH, HEIGHT))
+    wrap = column_of(27, len(rows[0]))
+    # Joined, the wrap is a vertical line through every row; broken, the rows between the two ends stay empty.
+    assert all(row[wrap] == " " for row in rows[3:-3]), "\n".join(rows)
+    assert drawn(rows, range(column_of(27, len(rows[0])), column_of(1, len(rows[0]))))
+
+
+def test_only_angles_wrap_a_jump_of_other_units_is_still_joined():
+    jump = [(at, 10.0 if at < NOW - 15 else 250.0) for at, _ in every(30, 0, 0.0)]
+    rows = plot_rows(chart_lines([trace("sonar.1", jump)], NOW, WINDOW, WIDTH, HEIGHT))
+    assert any(row[column_of(15, len(rows[0]))] != " " for row in rows[3:-3])  # cm: a real jump, drawn
+
+
+def test_wrapping_is_read_from_the_table_units():
+    heading = trace("compass.heading", [])
+    assert heading.turn == 360.0 and heading.wrapped(359.9, 0.1) and heading.wrapped(0.5, 350.0)
+    assert not heading.wrapped(10.0, 150.0)  # a fast turn, not a wrap
+    assert trace("env.temperature", []).turn is None and not trace("sonar.1", []).wrapped(0, 255)
+    degrees = [s for s in all_series() if s.unit == "deg"]
+    assert degrees and all(trace(s.path, []).turn == 360.0 for s in degrees)
 
 
 def test_a_series_gone_quiet_is_not_drawn_up_to_now():

@@ -8,7 +8,9 @@ chart each. The y range comes from the values in the window.
 
 A line joins two samples only when they are close enough in time
 (``TraceView.gap_after``) and both have a value: a failed read or a sensor
-that fell silent leaves a gap, never a flat line. Where the console cannot
+that fell silent leaves a gap, never a flat line. An angle (a field in
+degrees in the table) that crosses its wrap, 359.9 to 0.1, leaves a gap too,
+never a vertical line across the chart. Where the console cannot
 show Braille (``options.ascii_only``: a C or Latin-1 locale) the canvas
 draws one point per cell with each series' own ASCII mark, and the legend
 shows the same marks.
@@ -145,12 +147,15 @@ def draw(canvas: Canvas, trace: TraceView, now: float, window: float, lo: float,
     Samples that fall in one column of dots are drawn as one vertical stroke
     from their lowest to their highest (then joined to the next column), so
     a thousand samples a second cost a frame no more than the columns do.
+    An angle that wraps (359.9 then 0.1) breaks the line there: the robot
+    turned a little, and a line across the whole chart would say it spun.
     """
     width, height = canvas.pixels
     x_scale, y_scale = (width - 1) / window, (height - 1) / (hi - lo or 1.0)
     left, gap, index = now - window - trace.gap_after, trace.gap_after, trace.index
     column: list[int] | None = None  # x, top, bottom and the latest y of the column being drawn
     last_at: float | None = None
+    last_value = 0.0
     for at, value in trace.samples:
         if value is None:
             _stroke(canvas, column, index)
@@ -159,8 +164,8 @@ def draw(canvas: Canvas, trace: TraceView, now: float, window: float, lo: float,
         if at < left:
             continue  # well off the left edge: nothing of it is drawn
         x, y = math.floor((at - left - gap) * x_scale + 0.5), math.floor((hi - value) * y_scale + 0.5)
-        joined = last_at is not None and at - last_at <= gap
-        last_at = at
+        joined = last_at is not None and at - last_at <= gap and not trace.wrapped(last_value, value)
+        last_at, last_value = at, value
         if column is not None and joined and x == column[0]:
             column[1], column[2], column[3] = min(column[1], y), max(column[2], y), y
             continue

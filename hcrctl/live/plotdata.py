@@ -38,6 +38,9 @@ MAX_SAMPLES = 20_000
 BUCKETS = 600
 #: Intervals the expected spacing of a trace is measured over.
 RECENT = 16
+#: The command table's unit for angles: a series in it lives on a circle, where 359.9 is next to 0.
+ANGLE_UNIT = "deg"
+FULL_TURN = 360.0
 
 Sample = tuple[float, float | None]
 
@@ -56,6 +59,20 @@ class TraceView:
     @property
     def latest(self) -> float | None:
         return self.samples[-1][1] if self.samples else None
+
+    @property
+    def turn(self) -> float | None:
+        """A full turn (360) for an angle, whose values wrap around; None for any other series.
+
+        Read from the field's unit in the command table, so any angle a read
+        declares wraps, and a plugin's too.
+        """
+        return FULL_TURN if self.series.unit == ANGLE_UNIT else None
+
+    def wrapped(self, before: float, after: float) -> bool:
+        """The step from ``before`` to ``after`` crossed the wrap (359 to 1, not 1 to 359 the long way)."""
+        turn = self.turn
+        return turn is not None and abs(after - before) > turn / 2
 
     def stale(self, now: float) -> bool:
         """No value now: the last try failed, or the last value is older than a gap."""
