@@ -47,7 +47,7 @@ class Pattern:
 PATTERNS = {
     "X11 (660 ms, 25 Hz)": Pattern(0.66, 0.04),
     "GNOME, Windows Terminal (500 ms, 33 Hz), first repeat 10 ms late": Pattern(0.51, 0.03),
-    "over ssh: repeats in 200 ms bursts": Pattern(0.5, 0.04, burst=5),
+    "X11 over ssh (660 ms, then repeats in 200 ms bursts)": Pattern(0.66, 0.04, burst=5),
     "macOS default (225 ms, 33 Hz)": Pattern(0.225, 0.03),
 }
 
