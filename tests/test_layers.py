@@ -1,4 +1,8 @@
-"""The package layout keeps its promises: layers, no cycles, stdlib-only bottom, small modules.
+"""The package layout keeps its promises: layers, no cycles, stdlib-only bottom.
+
+A module's size is a reason to look in review, not a rule here: a hard line cap
+once split ``Robot`` into mixins that needed each other's private attributes
+(see the README, "How the code is organised").
 
 Every module's imports are read with ``ast``, including the ones inside
 functions and under ``if TYPE_CHECKING:``, so a cycle cannot hide in a lazy
@@ -28,7 +32,6 @@ LAYERS: list[tuple[str, ...]] = [
 ]
 STDLIB_ONLY = ("hcrctl.protocol", "hcrctl.sim")
 MAX_TOP_LEVEL = 8
-MAX_LINES = 400
 
 
 def module_name(path: Path) -> str:
@@ -127,12 +130,6 @@ def test_protocol_and_sim_import_only_the_standard_library(name: str) -> None:
 def test_at_most_eight_modules_directly_in_the_package() -> None:
     top = sorted(p.name for p in PACKAGE.glob("*.py"))
     assert len(top) <= MAX_TOP_LEVEL, top
-
-
-@pytest.mark.parametrize("name", sorted(MODULES))
-def test_no_module_is_over_400_lines(name: str) -> None:
-    lines = len(MODULES[name].read_text().splitlines())
-    assert lines <= MAX_LINES, f"{name}: {lines} lines"
 
 
 #: The CLI modules every subcommand may use: option declarations, settings, output; and the shell's door.

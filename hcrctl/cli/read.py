@@ -29,7 +29,10 @@ def _sensor_help() -> str:
 @click.argument("sensors", nargs=-1, type=click.Choice(C.SENSORS), metavar="[SENSOR]...", cls=NamedArgument)
 @click.pass_obj
 def read(settings: Settings, sensors: tuple[str, ...]) -> None:
-    names = list(dict.fromkeys(sensors)) or list(C.SENSORS)
+    from ..link.dialects import supported_sensors
+
+    # none named: every sensor the firmware has (a v0.11 board has bump and ir); one it lacks is refused
+    names = supported_sensors(settings.protocol, list(dict.fromkeys(sensors)))
     with settings.robot() as robot:
         results = robot.sweep(names)
     _print(settings, results)

@@ -44,9 +44,9 @@ from .traffic import FrameHook, LinkStats, Traffic, TrafficHook, Watchers, decod
 #: How long the reader blocks in one read; bounds how fast close() returns.
 READ_SLICE = 0.05
 UNSOLICITED_BACKLOG = 1000
-#: Cap on one blocking read: a false header announcing a long frame must not
-#: keep a real reply waiting in the OS buffer for a whole read slice.
+#: Cap on one blocking read: a false header's long frame must not keep a real reply waiting a read slice.
 MAX_READ = 16
+MAX_HELD = 4096  # skipped bytes held before they are reported anyway: counters keep up, memory bounded
 #: How many recent requests an echo is compared with (a pipelined sweep's worth).
 ECHO_MEMORY = 16
 #: Stands for "some frame" among the keys of frames that passed only the other checksum rule.
@@ -326,6 +326,8 @@ class Robot(TypedReads, Dialect):
             if data:
                 self.rx_bytes += len(data)
                 self._dispatch(self._decoder.feed(data))
+                if self._decoder.held > MAX_HELD:  # a run of junk that never ends: counted as it goes
+                    self._dispatch(self._decoder.idle())
             elif self._decoder.holding:  # a quiet gap: show what the device printed without a frame after it
                 self._dispatch(self._decoder.idle())
         # Closing: skipped bytes and text held back, to the hooks still listening. Not flush():

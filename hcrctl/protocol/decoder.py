@@ -166,6 +166,12 @@ class FrameDecoder:
         """Whether skipped bytes wait for ``idle`` (or the next frame) to be reported."""
         return self._pending is not None
 
+    @property
+    def held(self) -> int:
+        """How many skipped bytes wait: a line that never stops sending junk (endless 0A) never ends
+        the run, so a live reader calls ``idle`` once this is large, for counters that keep up."""
+        return self._pending.size if self._pending is not None else 0
+
     # -- the scanner ------------------------------------------------------
 
     def _scan(self, out: list[Event]) -> None:

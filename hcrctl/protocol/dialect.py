@@ -61,6 +61,11 @@ class ProfileDecoder:
         return bool(self._skipped)
 
     @property
+    def held(self) -> int:
+        """Skipped bytes held back (a live reader reports them once there are many: see ``FrameDecoder.held``)."""
+        return len(self._skipped)
+
+    @property
     def wanted(self) -> int:
         buf, overhead = self._buf, self.profile.overhead
         if len(buf) >= 4 and buf[:2] == HEADER:

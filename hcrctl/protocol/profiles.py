@@ -137,6 +137,8 @@ class Profile:
     def to_document(self, command: int, content: bytes) -> bytes:
         """A reply's content as the v0.15 document lays it out, for the table's decoders."""
         if command == 0x11 and content and content != b"\xff" and self is not V015:  # 0xFF: a request
+            if content[0] & ~_bits(self):
+                return content  # bits no bumper has: left as sent, so the table's range check refuses it
             return bytes((_bumper_byte(content[0], self, V015),)) + content[1:]
         return content
 
@@ -145,6 +147,11 @@ class Profile:
         if command == 0x11 and content and self is not V015:
             return bytes((_bumper_byte(content[0], V015, self),)) + content[1:]
         return content
+
+
+def _bits(profile: Profile) -> int:
+    """The mask of the bits a profile's bumpers use."""
+    return sum(1 << bit for bit in profile.bumper_bits)
 
 
 def _bumper_byte(value: int, source: Profile, target: Profile) -> int:
