@@ -33,7 +33,7 @@ from ..errors import (
 )
 from ..protocol import commands as C
 from ..protocol.dialect import make_decoder
-from ..protocol.frames import BadChecksum, ChecksumRule, Event, Frame, Malformed, Truncated
+from ..protocol.frames import MAX_FRAME, BadChecksum, ChecksumRule, Event, Frame, Malformed, Truncated
 from ..protocol.motionscan import MotionScan
 from ..protocol.profiles import DEFAULT, Profile, profile
 from .dialects import Dialect, stop_frames
@@ -97,7 +97,8 @@ class Robot(TypedReads, Dialect):
         self.profile = profile(protocol)  # the dialect the device speaks (see ``Dialect``)
         self.motion = MotionScan(self.profile.terminator)  # every address written moved: all are stopped
         self._decoder = make_decoder(self.profile, self._rule)
-        self.lone_lf_seen = False
+        self.dialect_hint: str | None = None
+        self._heard = b""  # the last bytes read, where a frame of the other dialect may stand whole
         self._io = threading.Lock()  # one transaction at a time
         self._tx = threading.Lock()  # one write at a time (stop may cut in)
         self._waiting: set[tuple[int, int]] = set()
@@ -325,6 +326,9 @@ class Robot(TypedReads, Dialect):
                 return
             if data:
                 self.rx_bytes += len(data)
+                if self.dialect_hint is None and self.profile.terminator != b"\r\n":
+                    self._heard = (self._heard + data)[-MAX_FRAME:]
+                    self.hear(self._heard)
                 self._dispatch(self._decoder.feed(data))
                 if self._decoder.held > MAX_HELD:  # a run of junk that never ends: counted as it goes
                     self._dispatch(self._decoder.idle())
@@ -343,7 +347,7 @@ class Robot(TypedReads, Dialect):
             elif isinstance(event, BadChecksum) and event.matches_other_rule:
                 self._other_rule_keys.update(((event.address, event.command), ON_THE_LINE))
             elif isinstance(event, Malformed | Truncated):
-                self.lone_lf_seen = self.lone_lf_seen or self.speaks_v011(event.data)
+                self.hear(event.data)
             if self.watchers.hooks:
                 data = self.wire_bytes(event) if isinstance(event, Frame) else event.data
                 self.watchers.tell(Traffic(now, "rx", data, event))

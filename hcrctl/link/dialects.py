@@ -11,8 +11,16 @@ from typing import Any
 
 from ..errors import DeviceTimeout, HcrError, NotInProtocol
 from ..protocol import commands as C
-from ..protocol.frames import ChecksumRule, Frame
-from ..protocol.profiles import DEFAULT, LONE_LF_HINT, Profile, lone_lf_frame, profile
+from ..protocol.frames import TERMINATOR, ChecksumRule, Frame
+from ..protocol.profiles import (
+    CRLF_HINT,
+    DEFAULT,
+    LONE_LF_HINT,
+    Profile,
+    crlf_frame_in,
+    lone_lf_frame,
+    profile,
+)
 
 
 class Dialect:
@@ -20,8 +28,8 @@ class Dialect:
 
     #: The protocol dialect the device speaks (``protocol.profiles``).
     profile: Profile
-    #: Frames ending in a lone 0A seen while speaking v0.15: a v0.11 board, said in timeouts.
-    lone_lf_seen: bool
+    #: Frames of the other dialect heard (a lone 0A under v0.15, 0D 0A under v0.11): said in timeouts.
+    dialect_hint: str | None
     _rule: ChecksumRule
 
     def _address(self, address: int | None) -> int:
@@ -31,14 +39,19 @@ class Dialect:
         """The exact bytes sending ``request`` puts on the wire, in this robot's protocol."""
         return frame_of(self, request, address)
 
-    def speaks_v011(self, data: bytes) -> bool:
-        """Whether ``data``, unreadable as v0.15, is a frame ending in a lone 0A, as v0.11 firmware sends."""
-        return self.profile is DEFAULT and lone_lf_frame(data)
+    def hear(self, data: bytes) -> None:
+        """Bytes the decoder could not read: remember if they are frames of the other dialect."""
+        if self.dialect_hint is not None:
+            return
+        if self.profile is DEFAULT and lone_lf_frame(data):
+            self.dialect_hint = LONE_LF_HINT
+        elif self.profile.terminator != TERMINATOR and crlf_frame_in(data):
+            self.dialect_hint = CRLF_HINT
 
     def explain(self, error: DeviceTimeout) -> DeviceTimeout:
-        """A timeout, with the cause when the device was heard speaking v0.11 meanwhile."""
-        if self.lone_lf_seen:
-            seen, fix = LONE_LF_HINT.split(": ")
+        """A timeout, with the cause when the device was heard speaking the other dialect meanwhile."""
+        if self.dialect_hint is not None:
+            seen, fix = self.dialect_hint.split(": ")
             error.message += f"; the device sends {seen}"
             error.hint = fix
         return error

@@ -205,3 +205,17 @@ def lone_lf_frame(data: bytes) -> bool:
 
 #: What a v0.15 reader says when it meets such frames.
 LONE_LF_HINT = "frames ending in a lone 0A, as v0.11 firmware sends: try --protocol v0.11"
+#: What a v0.11 reader says when it meets frames of the document's own firmware.
+CRLF_HINT = "frames ending in 0D 0A, as the v0.15 document's firmware sends: drop --protocol v0.11"
+
+
+def crlf_frame_in(data: bytes) -> bool:
+    """Whether ``data`` holds a whole frame ending in 0D 0A (a v0.11 frame never does: its 0A is where
+    the 0D would be)."""
+    at = data.find(b"\x55\xaa")
+    while at != -1 and at + 4 <= len(data):
+        end = at + data[at + 3] + V015.overhead
+        if end <= len(data) and data[end - 2 : end] == b"\r\n":
+            return True
+        at = data.find(b"\x55\xaa", at + 1)
+    return False
