@@ -12,7 +12,7 @@ import sys
 
 import click
 
-from ..feeds.outfile import OutFile, formats_help
+from ..feeds.outfile import OutFile, force_option, formats_help
 from .params import FloatRange
 from .settings import Settings, json_option
 
@@ -29,6 +29,11 @@ per reading (time, t, direction, address, command, then one column per field,
 empty where a reading has no such field); frames that carry no reading, such
 as requests, and the grid map (not a number) are not rows. A summary goes to stderr (with --json, to stdout).
 
+An existing OUT is refused unless --force is given. OUT is written beside
+itself under a temporary name and renamed only when whole, so a failure
+(a bad log line, a full disk, Ctrl-C) leaves no half file and an earlier OUT
+as it was.
+
 \b
 hcrctl --port sim:// --log session.jsonl watch --duration 10
 hcrctl export session.jsonl session.mcap
@@ -41,17 +46,21 @@ hcrctl export session.jsonl session.mcap
 @click.option(
     "--duration", type=FloatRange(0, 864_000), metavar="S", help="Only the first S seconds of the log."
 )
+@force_option()
 @json_option
 @click.pass_obj
-def export(settings: Settings, logfile: str, out: str, duration: float | None) -> None:
+def export(settings: Settings, logfile: str, out: str, duration: float | None, force: bool) -> None:
     from ..feeds.export import export_log, export_topics
     from ..feeds.formats import open_sink
+    from ..feeds.outputs import check_outputs, written_whole
     from ..feeds.progress import per_topic, size
     from ..protocol.profiles import profile
 
-    with open_sink(out, export_topics()) as sink:
+    # --log is never written by export, but a command line naming one file twice is a mistake
+    check_outputs([("OUT", out)], [("LOG", logfile)], appended=[("--log", settings.log)], force=force)
+    with written_whole(out, force=force) as path, open_sink(path, export_topics()) as sink:
         summary = export_log(logfile, sink, settings.checksum, profile(settings.protocol), duration)
-    report = summary.as_dict(sink)
+    report = summary.as_dict(sink) | {"output": out}  # the sink wrote the temporary name
     if settings.as_json:
         click.echo(json.dumps(report))
         return

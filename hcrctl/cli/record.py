@@ -11,7 +11,7 @@ import sys
 
 import click
 
-from ..feeds.outfile import OutFile, formats_help
+from ..feeds.outfile import OutFile, force_option, formats_help
 from ..protocol import commands as C
 from .params import duration_option, rate_option
 from .settings import Settings, json_option
@@ -28,7 +28,8 @@ CSV holds one row per reading, one column per field; frames that carry no
 reading (the requests) and the grid map (not a number) are not rows. A progress line (elapsed, messages,
 bytes, rate) goes to stderr. Ctrl-C, SIGTERM or --duration ends it with the
 file closed and whole; at most the last second is lost if the process is
-killed outright. Nothing but reads is sent.
+killed outright. Nothing but reads is sent. An existing OUT is refused
+(before the port is opened) unless --force is given.
 
 \b
 hcrctl --port sim:// record run.mcap --duration 10
@@ -47,6 +48,7 @@ hcrctl record sonar.csv sonar compass --rate 20
     show_default=True,
     help="Send a sweep's requests at once, as watch does.",
 )
+@force_option()
 @json_option
 @click.pass_obj
 def record(
@@ -56,9 +58,14 @@ def record(
     rate: float | None,
     duration: float | None,
     pipeline: bool,
+    force: bool,
 ) -> None:
+    from ..feeds.outputs import check_outputs
     from ..feeds.progress import per_topic, size
     from ..feeds.record import reraise, run_record
+
+    # written under its own name as it goes (readable after a kill -9), so only the refusals apply
+    check_outputs([("OUT", out)], appended=[("--log", settings.log)], force=force)
 
     summary = run_record(settings, out, sensors, rate, duration, sys.stderr, pipeline=pipeline)
     if settings.as_json:

@@ -2,12 +2,14 @@
 
 Checked by Click before anything is opened, so a wrong suffix is a usage
 error (exit 2, naming the argument and the suffixes allowed) and the robot
-is never touched.
+is never touched. ``force_option`` is the ``--force`` that lets a command
+overwrite an existing output; the policy it relaxes is ``outputs.py``'s.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
@@ -15,6 +17,8 @@ if TYPE_CHECKING:
     from click.shell_completion import CompletionItem
 
 from .formats import SUFFIXES, BadSuffix, sink_kind
+
+_F = TypeVar("_F", bound=Callable[..., Any])
 
 
 class OutFile(click.ParamType):
@@ -40,6 +44,15 @@ class OutFile(click.ParamType):
             allowed = " or ".join(SUFFIXES)
             self.fail(f"{text!r} must end in {allowed} (the suffix chooses the format)", param, ctx)
         return text
+
+
+def force_option(what: str = "OUT") -> Callable[[_F], _F]:
+    """``--force``: without it an existing ``what`` is refused (``outputs.check_outputs``), never overwritten."""
+    return click.option(
+        "--force",
+        is_flag=True,
+        help=f"Overwrite {what} if it exists (refused otherwise).",
+    )
 
 
 def formats_help() -> str:

@@ -1,0 +1,370 @@
+"""Nothing a user records is lost or overwritten silently (issue 23): ``record``'s and ``export``'s outputs.
+
+The installed executable is run against files the test made: every refusal
+must exit 2 on one line naming the file(s), leave every file as it was (its
+bytes and its mtime) and, for ``record``, leave the port unopened and the
+wire silent. ``export`` writes beside its target and renames at the end, so
+a log that breaks off mid-way, a signal or a file that appears meanwhile
+leaves the directory exactly as it was.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import os
+import signal
+import subprocess
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from helpers_cli import clean_env, finish, hcrctl_exe, one_line, run, start, wait_until, wire
+
+SUFFIXES = [".mcap", ".csv"]
+OLD = b"an earlier recording, not to be lost\n"
+
+
+@pytest.fixture(scope="module")
+def log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A real traffic log: a read of every sensor on the simulator."""
+    home = tmp_path_factory.mktemp("outputs")
+    path = home / "session.jsonl"
+    done = run(["--port", "sim://", "--log", str(path), "read"], clean_env(home))
+    assert done.returncode == 0, done.stderr
+    assert path.read_text().count("\n") >= 6
+    return path
+
+
+def state(path: Path) -> tuple[bytes, int]:
+    """What a refusal must not change: the file's bytes and its modification time."""
+    return path.read_bytes(), path.stat().st_mtime_ns
+
+
+def existing(path: Path) -> tuple[bytes, int]:
+    path.write_bytes(OLD)
+    return state(path)
+
+
+def listing(folder: Path) -> list[str]:
+    """Every name in ``folder``, hidden ones (a temporary file) included."""
+    return sorted(os.listdir(folder))
+
+
+def refused(done: subprocess.CompletedProcess[str], *named: object) -> str:
+    """The one-line usage error of a refusal, which names every path given."""
+    assert done.returncode == 2, done.stderr
+    line = one_line(done.stderr)
+    assert "Traceback" not in done.stderr
+    for name in named:
+        assert str(name) in line, line
+    return line
+
+
+# -- an existing output -------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("suffix", SUFFIXES)
+def test_export_refuses_an_existing_out_and_leaves_it_as_it_was(
+    log: Path, tmp_path: Path, suffix: str
+) -> None:
+    out = tmp_path / f"old{suffix}"
+    before = existing(out)
+    line = refused(run(["export", str(log), str(out)], clean_env(tmp_path)), out, "--force")
+    assert "exists" in line
+    assert state(out) == before
+    assert listing(tmp_path) == [out.name]
+
+
+@pytest.mark.parametrize("suffix", SUFFIXES)
+def test_export_force_overwrites(log: Path, tmp_path: Path, suffix: str) -> None:
+    out = tmp_path / f"old{suffix}"
+    existing(out)
+    done = run(["export", str(log), str(out), "--force"], clean_env(tmp_path))
+    assert done.returncode == 0, done.stderr
+    written = out.read_bytes()
+    assert OLD not in written
+    assert written.startswith(b"\x89MCAP" if suffix == ".mcap" else b"time,t,direction,address,command,")
+    assert listing(tmp_path) == [out.name]  # no temporary file left beside it
+
+
+@pytest.mark.parametrize("suffix", SUFFIXES)
+def test_record_refuses_an_existing_out_before_the_port_is_touched(tmp_path: Path, suffix: str) -> None:
+    out = tmp_path / f"old{suffix}"
+    before = existing(out)
+    with wire() as tap:
+        done = run(["--port", tap.path, "record", str(out)], clean_env(tmp_path))
+        assert tap.read(quiet=0.3) == b""  # the process has ended: anything it wrote is there already
+    refused(done, out, "--force")
+    assert state(out) == before
+
+
+def test_record_refuses_before_opening_the_port(tmp_path: Path) -> None:
+    """A port that cannot open would be exit 1 naming the port, had it been opened first."""
+    out = tmp_path / "old.csv"
+    before = existing(out)
+    port = tmp_path / "no-such-port"
+    line = refused(run(["--port", str(port), "record", str(out)], clean_env(tmp_path)), out, "--force")
+    assert str(port) not in line
+    assert state(out) == before
+
+
+def test_record_force_overwrites(tmp_path: Path) -> None:
+    out = tmp_path / "old.csv"
+    existing(out)
+    args = ["--port", "sim://", "record", str(out), "compass", "--duration", "0.3", "--force"]
+    done = run(args, clean_env(tmp_path))
+    assert done.returncode == 0, done.stderr
+    lines = out.read_text().splitlines()
+    assert lines[0].startswith("time,t,direction,address,command,")
+    assert OLD.decode().strip() not in lines
+
+
+# -- an output that is an input, or another output -------------------------------------
+
+
+def input_as_out(kind: str, log: Path, folder: Path) -> tuple[Path, Path]:
+    """(LOG, OUT) naming one file: the same name, a symlink to it, or a hard link to it."""
+    source = folder / "session.mcap"  # a log with the suffix of an output: nothing else stops it
+    source.write_bytes(log.read_bytes())
+    if kind == "same name":
+        return source, source
+    out = folder / "out.mcap"
+    if kind == "symlink":
+        out.symlink_to(source.name)
+    elif kind == "hard link":
+        os.link(source, out)
+    else:  # another spelling of the same path
+        (folder / "sub").mkdir()
+        out = folder / "sub" / ".." / source.name
+    return source, out
+
+
+@pytest.mark.parametrize("kind", ["same name", "symlink", "hard link", "another spelling"])
+@pytest.mark.parametrize("force", [False, True])
+def test_export_refuses_to_write_its_own_input(log: Path, tmp_path: Path, kind: str, force: bool) -> None:
+    source, out = input_as_out(kind, log, tmp_path)
+    before, names = state(source), listing(tmp_path)
+    args = ["export", str(source), str(out), *(["--force"] if force else [])]
+    line = refused(run(args, clean_env(tmp_path)), source, out)
+    assert "same file" in line
+    assert state(source) == before
+    assert listing(tmp_path) == names
+
+
+@pytest.mark.parametrize("force", [False, True])
+def test_record_refuses_an_out_that_is_its_log(tmp_path: Path, force: bool) -> None:
+    out = tmp_path / "run.csv"
+    with wire() as tap:
+        args = ["--port", tap.path, "--log", str(out), "record", str(out), *(["--force"] if force else [])]
+        done = run(args, clean_env(tmp_path))
+        assert tap.read(quiet=0.3) == b""
+    line = refused(done, out, "--log")
+    assert "same file" in line
+    assert listing(tmp_path) == []  # neither the recording nor the log was opened
+
+
+def test_record_refuses_an_existing_log_linked_to_its_out(tmp_path: Path) -> None:
+    """An existing --log is fine (it is appended to); one that is the recording's file is not."""
+    log, out = tmp_path / "wire.jsonl", tmp_path / "run.mcap"
+    before = existing(log)
+    out.symlink_to(log.name)
+    with wire() as tap:
+        args = ["--port", tap.path, "--log", str(log), "record", str(out), "--force"]
+        done = run(args, clean_env(tmp_path))
+        assert tap.read(quiet=0.3) == b""
+    refused(done, out, log)
+    assert state(log) == before
+
+
+@pytest.mark.parametrize("force", [False, True])
+def test_export_refuses_an_out_that_is_the_log_option(log: Path, tmp_path: Path, force: bool) -> None:
+    out = tmp_path / "out.mcap"
+    args = ["--log", str(out), "export", str(log), str(out), *(["--force"] if force else [])]
+    line = refused(run(args, clean_env(tmp_path)), out, "--log")
+    assert "same file" in line
+    assert listing(tmp_path) == []
+
+
+def test_an_existing_log_is_appended_to_while_recording(tmp_path: Path) -> None:
+    log, out = tmp_path / "wire.jsonl", tmp_path / "run.csv"
+    before, _ = existing(log)
+    args = ["--port", "sim://", "--log", str(log), "record", str(out), "compass", "--duration", "0.3"]
+    done = run(args, clean_env(tmp_path))
+    assert done.returncode == 0, done.stderr
+    after = log.read_bytes()
+    assert after.startswith(before) and b'"direction": "tx"' in after[len(before) :]
+    assert out.read_text().startswith("time,t,")
+
+
+def test_export_may_read_the_log_named_by_the_log_option(log: Path, tmp_path: Path) -> None:
+    """HCRCTL_LOG set for every command must not stop an export of that very log (export never writes it)."""
+    out = tmp_path / "out.csv"
+    done = run(["export", str(log), str(out)], clean_env(tmp_path, HCRCTL_LOG=str(log)))
+    assert done.returncode == 0, done.stderr
+    assert out.read_text().startswith("time,t,")
+
+
+# -- export: written beside the target, renamed when whole -------------------------------
+
+
+def broken_log(log: Path, folder: Path) -> Path:
+    """``log`` with a line that is no record in the middle: the export fails half-way through."""
+    lines = log.read_text().splitlines(keepends=True)
+    middle = len(lines) // 2
+    bad = folder / "broken.jsonl"
+    bad.write_text("".join([*lines[:middle], "this is not a record\n", *lines[middle:]]))
+    return bad
+
+
+@pytest.mark.parametrize("suffix", SUFFIXES)
+def test_a_failed_export_leaves_the_existing_out_and_no_temporary_file(
+    log: Path, tmp_path: Path, suffix: str
+) -> None:
+    bad = broken_log(log, tmp_path)
+    out = tmp_path / f"old{suffix}"
+    before, names = existing(out), listing(tmp_path)
+    done = run(["export", str(bad), str(out), "--force"], clean_env(tmp_path))
+    assert done.returncode != 0
+    assert str(bad) in one_line(done.stderr)  # the bad line is the log's fault, said as such
+    assert state(out) == before
+    assert listing(tmp_path) == names
+
+
+@pytest.mark.parametrize("suffix", SUFFIXES)
+def test_a_failed_export_to_a_new_out_leaves_no_file(log: Path, tmp_path: Path, suffix: str) -> None:
+    bad = broken_log(log, tmp_path)
+    names = listing(tmp_path)
+    done = run(["export", str(bad), str(tmp_path / f"new{suffix}")], clean_env(tmp_path))
+    assert done.returncode != 0
+    assert str(bad) in one_line(done.stderr)
+    assert listing(tmp_path) == names
+
+
+@contextlib.contextmanager
+def small_disk(where: Path) -> Iterator[Path]:
+    """A 256 KiB tmpfs on ``where``: a disk that fills up (mounting needs root, else the test is skipped)."""
+    if os.geteuid() != 0:
+        pytest.skip("a full disk is a small tmpfs, and mounting one needs root")
+    where.mkdir()
+    mounted = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(where)], capture_output=True, text=True
+    )
+    if mounted.returncode != 0:
+        pytest.skip(f"mount -t tmpfs refused: {mounted.stderr.strip()}")
+    try:
+        yield where
+    finally:
+        subprocess.run(["umount", str(where)], check=True)
+
+
+def test_a_disk_that_fills_up_mid_export_keeps_the_old_out(log: Path, tmp_path: Path) -> None:
+    """The error names OUT (not the temporary file), OUT is as it was, and the space is given back."""
+    big = tmp_path / "big.jsonl"
+    big.write_bytes(log.read_bytes() * 2000)  # its CSV is megabytes: far more than the disk holds
+    with small_disk(tmp_path / "small") as disk:
+        out = disk / "old.csv"
+        before = existing(out)
+        done = run(["export", str(big), str(out), "--force"], clean_env(tmp_path))
+        after, names = state(out), listing(disk)
+    assert done.returncode == 1, done.stderr
+    line = one_line(done.stderr)
+    assert f"cannot write {out} " in line and "No space left" in line, line
+    assert after == before
+    assert names == [out.name]
+
+
+def test_force_through_a_symlink_replaces_the_file_it_points_at(log: Path, tmp_path: Path) -> None:
+    real = tmp_path / "real.csv"
+    existing(real)
+    real.chmod(0o640)
+    link = tmp_path / "link.csv"
+    link.symlink_to(real.name)
+    done = run(["export", str(log), str(link), "--force"], clean_env(tmp_path))
+    assert done.returncode == 0, done.stderr
+    assert link.is_symlink() and link.resolve() == real
+    assert real.read_text().startswith("time,t,")
+    assert real.stat().st_mode & 0o777 == 0o640  # the replaced file's permissions
+    assert listing(tmp_path) == ["link.csv", "real.csv"]
+
+
+# -- export, caught mid-way: its log is a FIFO the test writes ------------------------------
+
+
+@pytest.fixture
+def fifo(tmp_path: Path) -> Path:
+    path = tmp_path / "live.jsonl"
+    os.mkfifo(path)
+    return path
+
+
+def open_writer(path: Path, proc: subprocess.Popen[str]) -> int:
+    """The FIFO's writing end, once the export has opened the reading one (ENXIO until then)."""
+
+    def attempt() -> int | None:
+        try:
+            return os.open(path, os.O_WRONLY | os.O_NONBLOCK)
+        except OSError as exc:
+            if exc.errno != errno.ENXIO:
+                raise
+        if proc.poll() is not None:  # it ended without reading its log: say why, at once
+            _, err = proc.communicate()
+            raise AssertionError(f"hcrctl exited {proc.returncode} before reading its log: {err!r}")
+        return None
+
+    return wait_until(attempt, what="export to open its log")
+
+
+def temporaries(folder: Path) -> list[str]:
+    return [name for name in os.listdir(folder) if name.startswith(".")]
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_mid_export_leaves_the_out_as_it_was(
+    log: Path, fifo: Path, tmp_path: Path, sig: signal.Signals
+) -> None:
+    out = tmp_path / "old.mcap"
+    before = existing(out)
+    proc = subprocess.Popen(
+        [hcrctl_exe(), "export", str(fifo), str(out), "--force"],
+        env=clean_env(tmp_path),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # the suite may ignore SIGINT
+    )
+    writer = None
+    try:
+        writer = open_writer(fifo, proc)
+        os.write(writer, log.read_bytes()[:300])  # some whole records, then half of one
+        assert wait_until(lambda: temporaries(tmp_path), what="the temporary file")
+        proc.send_signal(sig)
+    finally:
+        _, err = finish(proc)
+        if writer is not None:
+            os.close(writer)
+    assert proc.returncode == 128 + sig, err
+    assert state(out) == before
+    assert temporaries(tmp_path) == []
+
+
+def test_an_out_that_appears_during_the_export_is_not_replaced(log: Path, fifo: Path, tmp_path: Path) -> None:
+    """Without --force the finished file takes the name only if it is still free when the export ends."""
+    out = tmp_path / "new.csv"
+    proc = start(["export", str(fifo), str(out)], clean_env(tmp_path))
+    writer = None
+    try:
+        writer = open_writer(fifo, proc)
+        assert wait_until(lambda: temporaries(tmp_path), what="the temporary file")
+        before = existing(out)  # someone else's file, made while the export runs
+        os.write(writer, log.read_bytes())
+    finally:
+        if writer is not None:
+            os.close(writer)  # the end of the log
+        _, err = finish(proc)
+    assert proc.returncode == 2, err
+    line = one_line(err)
+    assert str(out) in line and "--force" in line
+    assert state(out) == before
+    assert temporaries(tmp_path) == []
