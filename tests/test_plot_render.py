@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import re
 
 import pytest
 from rich.console import Console
@@ -297,8 +298,35 @@ def test_a_vertical_stroke_sets_the_same_dots_as_point_by_point(braille):
 
 
 def test_the_too_small_hint_counts_the_rows_a_plot_takes() -> None:
-    from hcrctl.live.screens import left_out
+    from rich.screen import Screen
 
-    columns = [[("map", [[]] * 12)]]
-    assert left_out(columns, 10, "80x12") == " cut: map (80x12 is too small, 80x24 shows all)"
-    assert left_out(columns, 10, "80x22", reserve=14).endswith("(80x22 is too small, 80x36 shows all)")
+    from hcrctl.live.plotchart import PlotPanel
+    from hcrctl.live.screens import dashboard
+    from hcrctl.live.state import LiveState
+
+    state = LiveState(C.SENSORS, clock=lambda: NOW)
+    plot = PlotPanel([trace("compass.heading", every(30, 0, 90.0))], NOW, WINDOW)
+    assert plot.height == 8
+
+    def screen(height: int) -> str:
+        console = Console(width=80, height=height, record=True, file=io.StringIO(), color_system=None)
+        console.print(Screen(dashboard(state.view(), NOW, fit=True, plot=plot)))
+        return console.export_text()
+
+    said = re.search(r"not shown: (.*) \(80x(\d+) shows all\)", screen(24))
+    assert said, screen(24)
+    rows = int(said.group(2))  # exactly: one row fewer still leaves something out
+    assert "not shown" not in screen(rows) and "─ map" in screen(rows) and "─ plot" in screen(rows)
+    assert "not shown" in screen(rows - 1)
+    without = re.search(r"\(80x(\d+) shows all\)", screen_without_plot(state))
+    assert without and int(without.group(1)) == rows - plot.height  # the plot's rows, counted in
+
+
+def screen_without_plot(state: object) -> str:
+    from rich.screen import Screen
+
+    from hcrctl.live.screens import dashboard
+
+    console = Console(width=80, height=12, record=True, file=io.StringIO(), color_system=None)
+    console.print(Screen(dashboard(state.view(), NOW, fit=True)))
+    return console.export_text()

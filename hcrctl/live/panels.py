@@ -31,6 +31,12 @@ UNIT_TEXT = {"deg": degrees}
 BAR_WIDTH = 16
 SPARK_WIDTH = 18
 DIAL_ROWS, DIAL_COLS = 7, 15
+#: The largest dial a wide panel gets: beyond it the needle gains nothing.
+MAX_DIAL_COLS = 31
+#: Rows of each wheel's sparkline in a large wheels panel.
+TALL_SPARK_ROWS = 3
+#: A panel's border and padding take this many columns of its width.
+FRAME_COLS = 4
 POSITION_TITLE = "positioning (0xA0)"
 
 
@@ -104,6 +110,22 @@ def bar(value: float, hi: float, width: int = BAR_WIDTH) -> str:
     return "█" * filled + "░" * (width - filled)
 
 
+def inner_width(width: int | None) -> int | None:
+    """What a panel ``width`` columns wide holds inside its border and padding."""
+    return None if width is None else max(1, width - FRAME_COLS)
+
+
+def tall_sparkline(values: Sequence[float], hi: float, rows: int) -> list[str]:
+    """A sparkline ``rows`` lines tall, top line first: eight steps a line, so small changes show."""
+    steps = len(SPARKS)
+    levels = [max(1, min(rows * steps, round(rows * steps * v / hi))) if hi > 0 else 1 for v in values]
+    out = []
+    for row in range(rows):
+        base = (rows - 1 - row) * steps
+        out.append("".join(SPARKS[min(level - base, steps) - 1] if level > base else " " for level in levels))
+    return out
+
+
 def sparkline(values: Sequence[float], hi: float | None = None) -> str:
     """One character per value, scaled to ``hi`` (default: the largest value)."""
     if not values:
@@ -132,8 +154,10 @@ def bumpers_panel(reading: Reading, now: float) -> Panel:
     return sensor_panel("bump", text, reading, now)
 
 
-def bars_panel(sensor: str, reading: Reading, now: float, compact: bool = False) -> Panel:
-    """IR or ultrasonic: one bar per sensor, scaled to the table's range."""
+def bars_panel(
+    sensor: str, reading: Reading, now: float, compact: bool = False, width: int | None = None
+) -> Panel:
+    """IR or ultrasonic: one bar per sensor, scaled to the table's range; ``width`` stretches the bars to fill it."""
     value = reading.value
     if value is None:
         return sensor_panel(sensor, waiting(reading), reading, now)
@@ -143,7 +167,12 @@ def bars_panel(sensor: str, reading: Reading, now: float, compact: bool = False)
         line = "  ".join(f"{sparkline([v], info.hi)} {v}" for v in values)
         return sensor_panel(sensor, Text(line), reading, now, f"{panel_title(sensor)} ({shown})")
     prefix = "IR" if sensor == "ir" else "US"
-    lines = [f"{prefix}{i} {bar(v, info.hi)} {v:>3} {shown}".rstrip() for i, v in enumerate(values, start=1)]
+    inner = inner_width(width)
+    length = BAR_WIDTH if inner is None else max(BAR_WIDTH, inner - len(f"{prefix}8  255 {shown}"))
+    lines = [
+        f"{prefix}{i} {bar(v, info.hi, length)} {v:>3} {shown}".rstrip()
+        for i, v in enumerate(values, start=1)
+    ]
     return sensor_panel(sensor, Text("\n".join(lines)), reading, now)
 
 
@@ -151,14 +180,16 @@ def dial(heading: float, rows: int = DIAL_ROWS, cols: int = DIAL_COLS) -> list[s
     """A small compass rose with a needle pointing at ``heading`` (0 = north, clockwise)."""
     grid = [[" "] * cols for _ in range(rows)]
     cy, cx = rows // 2, cols // 2
-    for k in range(16):
-        a = 2 * math.pi * k / 16
+    ring = 16 * (1 + (cols > DIAL_COLS) + (cols > 2 * DIAL_COLS - 7))  # more dots to read as a circle
+    for k in range(ring):
+        a = 2 * math.pi * k / ring
         grid[round(cy - cy * math.cos(a))][round(cx + cx * math.sin(a))] = "·"
     for label, y, x in (("N", 0, cx), ("S", rows - 1, cx), ("E", cy, cols - 1), ("W", cy, 0)):
         grid[y][x] = label
     h = math.radians(heading)
     ry, rx = cy - 1, cx - 2  # the needle stays inside the ring and its labels
-    for t in (0.4, 0.7):
+    dots = (0.4, 0.7) if rows <= DIAL_ROWS else [0.1 + 0.7 * (i + 1) / (cy - 1) for i in range(cy - 1)]
+    for t in dots:
         grid[round(cy - t * ry * math.cos(h))][round(cx + t * rx * math.sin(h))] = "•"
     grid[round(cy - ry * math.cos(h))][round(cx + rx * math.sin(h))] = arrow(heading)
     grid[cy][cx] = "o"
@@ -169,29 +200,57 @@ def arrow(heading: float) -> str:
     return ARROWS[round(heading % 360 / 45) % 8]
 
 
-def compass_panel(reading: Reading, now: float, with_dial: bool = True) -> Panel:
-    """The heading, its cardinal point and an arrow; above them a dial when there is room."""
+def dial_size(width: int | None) -> tuple[int, int]:
+    """Rows and columns of the dial for a panel ``width`` wide: half its inside, within 15..31 columns.
+
+    Both odd, so the dial has a middle; about two columns a row, as terminal cells are twice as tall as wide.
+    """
+    inner = inner_width(width)
+    if inner is None:
+        return DIAL_ROWS, DIAL_COLS
+    cols = max(DIAL_COLS, min(MAX_DIAL_COLS, inner // 2)) | 1
+    return (cols // 2) | 1, cols
+
+
+def compass_panel(
+    reading: Reading, now: float, with_dial: bool = True, size: tuple[int, int] = (DIAL_ROWS, DIAL_COLS)
+) -> Panel:
+    """The heading, its cardinal point and an arrow; above them a dial (``size``: rows, columns) when there is room."""
     value = reading.value
     if not isinstance(value, C.Compass):
         return sensor_panel("compass", waiting(reading), reading, now)
     heading = value.heading
     label = Text(f"{heading:5.1f}{unit('compass')} {cardinal(heading)} {arrow(heading)}", style="bold")
-    body = Group(Text("\n".join(dial(heading))), label) if with_dial else label
+    body = Group(Text("\n".join(dial(heading, *size))), label) if with_dial else label
     return sensor_panel("compass", body, reading, now)
 
 
-def wheels_panel(reading: Reading, history: Iterable[tuple[int, ...]], now: float) -> Panel:
-    """Both wheel speeds with a sparkline of their recent history."""
+def wheels_panel(
+    reading: Reading, history: Iterable[tuple[int, ...]], now: float, width: int | None = None
+) -> Panel:
+    """Both wheel speeds with a sparkline of their recent history.
+
+    Given a ``width`` (a large panel), each wheel's history is a taller
+    sparkline under its speed, as long as the history or the width allows.
+    """
     value = reading.value
     if not isinstance(value, C.WheelSpeed):
         return sensor_panel("wheels", waiting(reading), reading, now)
     series = list(zip(*[h for h in history if len(h) == 2], strict=True)) or [(), ()]
     top = max([1, *series[0], *series[1]])
     shown = unit("wheels")
-    lines = [
-        f"{side:<5} {speed:>3} {shown}  {sparkline(hist[-SPARK_WIDTH:], top)}"
-        for side, speed, hist in zip(("left", "right"), value.wheels, series, strict=True)
-    ]
+    sides = list(zip(("left", "right"), value.wheels, series, strict=True))
+    inner = inner_width(width)
+    if inner is None:
+        lines = [
+            f"{side:<5} {speed:>3} {shown}  {sparkline(hist[-SPARK_WIDTH:], top)}"
+            for side, speed, hist in sides
+        ]
+    else:
+        lines = []
+        for side, speed, hist in sides:
+            lines.append(f"{side:<5} {speed:>3} {shown}")
+            lines += tall_sparkline(hist[-inner:], top, TALL_SPARK_ROWS) if hist else [""] * TALL_SPARK_ROWS
     return sensor_panel("wheels", Text("\n".join(lines)), reading, now)
 
 
@@ -227,10 +286,11 @@ def positioning_panel(stations: dict[int, Reading], now: float) -> Panel:
     return Panel(text, title=POSITION_TITLE, title_align="left", border_style="cyan")
 
 
-def map_panel(grid: Reading, now: float, compact: bool = False) -> Panel:
+def map_panel(grid: Reading, now: float, compact: bool = False, width: int | None = None) -> Panel:
     """The 0xB0 bit grid, one byte per row (MSB first), with the raw byte beside it.
 
     Compact, two rows share a line (half blocks) and the age moves to the border.
+    Given a ``width`` that holds them, each bit is twice as big (four columns, two lines).
     """
     value = grid.value
     title = "map (0xB0)"
@@ -240,10 +300,15 @@ def map_panel(grid: Reading, now: float, compact: bool = False) -> Panel:
     if compact:
         body = Text("\n".join(_half_block_rows(value)))
         return Panel(body, title=title, title_align="left", subtitle=received, border_style="cyan")
-    lines = [
-        f"{r.replace('#', '██').replace('.', '··')}  {b:02X}"
-        for r, b in zip(value.grid(), value.rows, strict=True)
-    ]
+    rows = list(zip(value.grid(), value.rows, strict=True))
+    inner = inner_width(width)
+    if inner is not None and rows and inner >= 4 * len(rows[0][0]) + 4:
+        lines = []
+        for r, b in rows:
+            cells = r.replace("#", "████").replace(".", "····")
+            lines += [f"{cells}  {b:02X}", cells]
+    else:
+        lines = [f"{r.replace('#', '██').replace('.', '··')}  {b:02X}" for r, b in rows]
     return Panel(Text("\n".join([*lines, received])), title=title, title_align="left", border_style="cyan")
 
 

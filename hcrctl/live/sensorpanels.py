@@ -23,6 +23,7 @@ from .panels import (
     bars_panel,
     bumpers_panel,
     compass_panel,
+    dial_size,
     env_panel,
     labelled,
     sensor_panel,
@@ -41,11 +42,16 @@ class PanelSpec:
     """How a sensor's panel is drawn: ``make(name, reading, now, compact, history)``.
 
     ``history`` says the panel plots the sensor's recent values, so the
-    dashboard hands them over and redraws when they change.
+    dashboard hands them over and redraws when they change. ``large``, if
+    the panel has a larger form for a screen with room to spare, draws it
+    ``large(name, reading, now, history, width)`` to fill ``width`` columns.
     """
 
     make: Callable[[str, Reading, float, bool, History], Panel]
     history: bool = False
+    large: Callable[[str, Reading, float, History, int], Panel] | None = None
+    #: A compact form that differs from the full one (a layout then tries it before leaving a panel out).
+    compact: bool = True
 
 
 def generic_panel(name: str, reading: Reading, now: float, compact: bool = False) -> Panel:
@@ -80,11 +86,25 @@ GENERIC = PanelSpec(lambda name, r, now, compact, _h: generic_panel(name, r, now
 
 #: The specialised panels by command name; a read not here gets ``GENERIC``.
 PANELS: dict[str, PanelSpec] = {
-    "bump": PanelSpec(lambda _n, r, now, _c, _h: bumpers_panel(r, now)),
-    "ir": PanelSpec(lambda _n, r, now, compact, _h: bars_panel("ir", r, now, compact)),
-    "sonar": PanelSpec(lambda _n, r, now, compact, _h: bars_panel("sonar", r, now, compact)),
-    "compass": PanelSpec(lambda _n, r, now, compact, _h: compass_panel(r, now, with_dial=not compact)),
-    "wheels": PanelSpec(lambda _n, r, now, _c, history: wheels_panel(r, history, now), history=True),
+    "bump": PanelSpec(lambda _n, r, now, _c, _h: bumpers_panel(r, now), compact=False),
+    "ir": PanelSpec(
+        lambda _n, r, now, compact, _h: bars_panel("ir", r, now, compact),
+        large=lambda _n, r, now, _h, width: bars_panel("ir", r, now, width=width),
+    ),
+    "sonar": PanelSpec(
+        lambda _n, r, now, compact, _h: bars_panel("sonar", r, now, compact),
+        large=lambda _n, r, now, _h, width: bars_panel("sonar", r, now, width=width),
+    ),
+    "compass": PanelSpec(
+        lambda _n, r, now, compact, _h: compass_panel(r, now, with_dial=not compact),
+        large=lambda _n, r, now, _h, width: compass_panel(r, now, size=dial_size(width)),
+    ),
+    "wheels": PanelSpec(
+        lambda _n, r, now, _c, history: wheels_panel(r, history, now),
+        history=True,
+        large=lambda _n, r, now, history, width: wheels_panel(r, history, now, width),
+        compact=False,
+    ),
     "env": PanelSpec(lambda _n, r, now, compact, _h: env_panel(r, now, compact)),
 }
 
