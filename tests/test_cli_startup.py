@@ -33,6 +33,10 @@ NEVER_IN_ONE_SHOT = (
     "tomllib",
     "tomli",
     "importlib.metadata",
+    # only `hcrctl man` and `hcrctl completion` (and a Tab) need these
+    "hcrctl.cli.man",
+    "hcrctl.cli.completion",
+    "click.shell_completion",
 )
 
 
@@ -71,6 +75,15 @@ def test_one_shot_writes_do_not_import_rich_either(tmp_path):
     assert code == 0
     for name in (*NEVER_IN_ONE_SHOT, "rich"):
         assert not loaded(modules, name), name
+
+
+def test_printing_a_completion_script_imports_no_subcommand(tmp_path):
+    code, modules = modules_after(["completion", "bash"], clean_env(tmp_path))
+    assert code == 0
+    assert "hcrctl.cli.completion" in modules  # the harness really ran it
+    subcommands = {m for m in modules if m.startswith("hcrctl.cli.")} - {"hcrctl.cli.completion"}
+    assert subcommands <= {"hcrctl.cli.params", "hcrctl.cli.settings"}
+    assert not loaded(modules, "prompt_toolkit")
 
 
 def test_the_config_parser_loads_only_when_there_is_a_file(tmp_path, device):

@@ -50,7 +50,12 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "export": ("hcrctl.cli.export:export", "Convert a --log file to MCAP (Foxglove, PlotJuggler) or CSV."),
     "record": ("hcrctl.cli.record:record", "Poll the sensors and record to MCAP or CSV (no motion sent)."),
     "shell": ("hcrctl.shell.command:shell", "The interactive session: every command, one connection."),
+    "completion": ("hcrctl.cli.completion:completion", "Print the bash, zsh or fish completion script."),
+    "man": ("hcrctl.cli.man:man", "Print the manual page (roff): hcrctl man > .../man1/hcrctl.1"),
 }
+
+#: Click's completion protocol variable for the program name "hcrctl".
+COMPLETE_VAR = "_HCRCTL_COMPLETE"
 
 CONTEXT: dict[str, Any] = {
     "help_option_names": ["-h", "--help"],
@@ -72,6 +77,15 @@ class LazyGroup(click.Group):
         module, attr = entry[0].split(":")
         return getattr(importlib.import_module(module), attr)
 
+    def resolve_command(
+        self, ctx: click.Context, args: list[str]
+    ) -> tuple[str | None, click.Command | None, list[str]]:
+        """Click's lookup, plus "Did you mean 'read'?": Click's own looks in ``self.commands``, empty here."""
+        name = args[0] if args else ""
+        if name and name not in SUBCOMMANDS and not name.startswith("-") and not ctx.resilient_parsing:
+            raise click.UsageError(no_such_command(name, self.list_commands(ctx)), ctx)
+        return super().resolve_command(ctx, args)
+
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         rows = [(name, SUBCOMMANDS[name][1]) for name in self.list_commands(ctx)]
         with formatter.section("Commands"):
@@ -84,6 +98,24 @@ class LazyGroup(click.Group):
         names = [n for n in self.list_commands(ctx) if n.startswith(incomplete)]
         items = [CompletionItem(n, help=SUBCOMMANDS[n][1]) for n in names]
         return items + click.Command.shell_complete(self, ctx, incomplete)
+
+
+def no_such_command(name: str, known: list[str]) -> str:
+    """``No such command 'raed'. Did you mean 'read'?``, worded as Click words it.
+
+    Only the names nearly as close as the closest are offered: difflib alone
+    also offers 'record' for 'raed', which is noise next to 'read'.
+    """
+    import difflib
+
+    scored = sorted(((difflib.SequenceMatcher(None, name, k).ratio(), k) for k in known), reverse=True)
+    close = sorted(k for ratio, k in scored if ratio >= max(0.6, scored[0][0] - 0.1)) if scored else []
+    message = f"No such command {name!r}."
+    if len(close) == 1:
+        return f"{message} Did you mean {close[0]!r}?"
+    if close:
+        return f"{message} (Did you mean one of: {', '.join(map(repr, close))}?)"
+    return message
 
 
 @click.group(cls=LazyGroup, context_settings=CONTEXT)
@@ -144,6 +176,10 @@ def main(argv: list[str] | None = None) -> None:
     """Console-script entry point: run the CLI and map every failure to an exit code."""
     args = sys.argv[1:] if argv is None else list(argv)
     defaults: dict[str, Any] = {}
+    if COMPLETE_VAR in os.environ:  # a Tab, or _HCRCTL_COMPLETE=bash_source: our scripts, not Click's stock
+        from .completion import register
+
+        register()
     try:
         with stop_signals_raise():
             defaults = config_defaults()

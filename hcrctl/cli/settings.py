@@ -80,7 +80,14 @@ def global_options() -> list[click.Option]:
             help="Device path or pyserial URL (socket://, rfc2217://, spy://); sim:// is the simulator. "
             "Default: the only USB serial port.",
         ),
-        _option("--baud", type=IntRange(50, 4_000_000), default=115200, show_default=True),
+        _option(
+            "--baud",
+            type=IntRange(50, 4_000_000),
+            default=DEFAULT.baud,
+            help="Serial line rate, bit/s. Default: the --protocol's own ("
+            + ", ".join(f"{p.baud} for {p.name}" for p in PROFILES.values())
+            + ").",
+        ),
         _option("--address", type=ByteNumber(), default="0x01", show_default=True, help="Device address."),
         _option(
             "--timeout",

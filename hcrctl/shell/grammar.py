@@ -22,8 +22,8 @@ if TYPE_CHECKING:
 
 #: Where builtins find their session: ``ctx.meta`` is shared by a whole context chain.
 SESSION_KEY = "hcrctl.shell.session"
-#: CLI commands that make no sense inside the shell.
-HIDDEN = frozenset({"shell"})
+#: CLI commands that make no sense inside the shell (completion and man print files for the outer shell).
+HIDDEN = frozenset({"shell", "completion", "man"})
 #: Builtin forms that share their name with a CLI command: ``hex`` alone, ``monitor on|changes|off``.
 OVERLAYS = {"hex": ((),), "monitor": (("on",), ("changes",), ("off",))}
 

@@ -29,7 +29,20 @@ def enter(session: Session) -> None:
     if not isinstance(group, click.Group) or _hex_send(group, root) is None:
         raise click.UsageError("raw hex mode needs 'hex send', which this hcrctl lacks")
     session.hex_mode = True
-    click.echo(HELP)
+    click.echo(banner())
+
+
+def banner(width: int | None = None) -> str:
+    """HELP wrapped at word boundaries to ``width``: a terminal left to wrap it cuts words in two.
+
+    By default the terminal's width, as ``shutil`` finds it (``COLUMNS``, else
+    the terminal on stdout, else 80), as rich finds it for the shell's tables.
+    """
+    import shutil
+    import textwrap
+
+    columns = width if width is not None else shutil.get_terminal_size().columns
+    return textwrap.fill(HELP, width=max(columns, 20), break_long_words=False, break_on_hyphens=False)
 
 
 def leave(session: Session) -> None:
@@ -48,7 +61,7 @@ def hex_line_words(session: Session, line: str) -> list[str] | None:
         leave(session)
         return None
     if text == "help":
-        click.echo(HELP)
+        click.echo(banner())
         return None
     force = text.startswith(FORCE)
     if force:
