@@ -6,7 +6,7 @@ Everything is read on the robot's wire. The robot is a pty pair this script
 opens (``FakeRobot``): a thread decodes every frame the bridge writes,
 timestamps it (``time.monotonic``, the clock the driver's sends are stamped
 with) and answers each sensor read at once, so the bridge polls as it would a
-real robot. ``hcrctl --port <pty> bridge --listen 127.0.0.1:0 --timeout 0.5``
+real robot. ``hcrctl --port <pty> bridge --listen 127.0.0.1:0 --deadman 0.5``
 runs for the whole bench; one driver client (``websockets``, subprotocol
 ``foxglove.sdk.v1``) advertises ``/cmd_vel`` (json) once. In each round it
 publishes a Twist (linear.x 0.2 m/s) ``PUBLISHES`` times, one every
@@ -217,10 +217,10 @@ class FakeRobot:
 
 
 class Bridge:
-    """``hcrctl --port PTY bridge --listen 127.0.0.1:0 --timeout 0.5``, its stderr drained on a thread."""
+    """``hcrctl --port PTY bridge --listen 127.0.0.1:0 --deadman 0.5``, its stderr drained on a thread."""
 
     def __init__(self, path: str) -> None:
-        args = [hcrctl_exe(), "--port", path, "bridge", "--listen", "127.0.0.1:0", "--timeout", str(DEADMAN)]
+        args = [hcrctl_exe(), "--port", path, "bridge", "--listen", "127.0.0.1:0", "--deadman", str(DEADMAN)]
         self.proc = subprocess.Popen(
             args, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
         )

@@ -43,7 +43,7 @@ from hcrctl.protocol.frames import Frame
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--hold", type=float, default=5.0, help="longest stall of the terminal, s")
-    parser.add_argument("--deadman", type=float, default=0.5, help="teleop --timeout, s")
+    parser.add_argument("--deadman", type=float, default=0.5, help="teleop --deadman, s")
     parser.add_argument("--source", help="run the hcrctl package found in this directory")
     args = parser.parse_args()
     if args.source:
@@ -84,7 +84,7 @@ def teleop_one_key(hold: float, deadman: float) -> tuple[float, float]:
     """Stall, press w once: (key to motion, motion to stop)."""
     with (
         FakeRobot() as robot,
-        _terminal(["--port", robot.path, "teleop", "--timeout", f"{deadman:g}"]) as term,
+        _terminal(["--port", robot.path, "teleop", "--deadman", f"{deadman:g}"]) as term,
     ):
         term.wait_for("sending", timeout=30)
         moving = _motion(50)
@@ -102,7 +102,7 @@ def teleop_key_when_full(hold: float, deadman: float) -> tuple[float, float]:
     """Stall, hold w until the pty is full, then press s: (key to motion, motion to stop)."""
     with (
         FakeRobot() as robot,
-        _terminal(["--port", robot.path, "teleop", "--timeout", f"{deadman:g}"]) as term,
+        _terminal(["--port", robot.path, "teleop", "--deadman", f"{deadman:g}"]) as term,
     ):
         term.wait_for("sending", timeout=30)
         with term.stalled():

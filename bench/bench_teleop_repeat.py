@@ -44,7 +44,7 @@ def stutters(pattern_name: str, holds: int, env: dict[str, str]) -> list[int]:
     pattern = PATTERNS[pattern_name]
     counts: list[int] = []
     with FakeRobot() as robot:
-        term = Terminal(["--port", robot.path, "teleop", "--timeout", "0.5"], env=env)
+        term = Terminal(["--port", robot.path, "teleop", "--deadman", "0.5"], env=env)
         try:
             term.wait_for("sending")
             while len(counts) < holds:
@@ -65,7 +65,7 @@ def release_to_stop(rounds: int) -> tuple[list[float], list[float]]:
     """(key press to motion, release to stop) on a kitty terminal, in seconds, ``rounds`` each."""
     motion, stop = [], []
     with FakeRobot() as robot:
-        term = Terminal(["--port", robot.path, "teleop", "--timeout", "10"], kitty=True)
+        term = Terminal(["--port", robot.path, "teleop", "--deadman", "10"], kitty=True)
         try:
             term.wait_for("sending")
             for _ in range(rounds):

@@ -261,7 +261,7 @@ def test_cmd_vel_drives_the_wheels_and_the_deadman_stops_them(
 
 
 def test_a_client_that_disconnects_stops_the_robot(env: dict[str, str], pty_robot: PtyRobot) -> None:
-    with bridge(pty_robot.port, "--timeout", "10", env=env) as running:
+    with bridge(pty_robot.port, "--deadman", "10", env=env) as running:
         with viewer(running.port) as client:
             drive_until_moving(client, pty_robot)
         pty_robot.wait_for(stop_after_motion)
@@ -271,7 +271,7 @@ def test_a_client_that_disconnects_stops_the_robot(env: dict[str, str], pty_robo
 
 
 def test_sigterm_while_driving_stops_the_robot(env: dict[str, str], pty_robot: PtyRobot) -> None:
-    with bridge(pty_robot.port, "--timeout", "10", env=env) as running, viewer(running.port) as client:
+    with bridge(pty_robot.port, "--deadman", "10", env=env) as running, viewer(running.port) as client:
         drive_until_moving(client, pty_robot)
         code, _ = running.finish(signal.SIGTERM)
         pty_robot.wait_for(stop_after_motion)

@@ -113,7 +113,7 @@ def test_a_silent_driver_gives_the_robot_up() -> None:
 
 
 def test_a_pressed_bumper_stops_forward_motion_and_allows_backing_off(env: dict[str, str]) -> None:
-    with FakeRobot() as robot, bridge(robot.path, "--timeout", "10", env=env) as running:
+    with FakeRobot() as robot, bridge(robot.path, "--deadman", "10", env=env) as running:
         with viewer(running.port) as client:
             client.advertise_cmd_vel()
             client.publish(TWIST)
@@ -135,7 +135,7 @@ def test_a_pressed_bumper_stops_forward_motion_and_allows_backing_off(env: dict[
 def test_unadvertising_cmd_vel_stops_the_robot(env: dict[str, str]) -> None:
     with (
         FakeRobot() as robot,
-        bridge(robot.path, "--timeout", "10", env=env) as running,
+        bridge(robot.path, "--deadman", "10", env=env) as running,
         viewer(running.port) as client,
     ):
         client.advertise_cmd_vel()

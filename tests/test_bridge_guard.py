@@ -84,7 +84,7 @@ def send_raw(client: object, payload: bytes) -> None:
 
 @contextlib.contextmanager
 def running_bridge(env: dict[str, str], *args: str) -> Iterator[tuple[FakeRobot, Bridge]]:
-    with FakeRobot() as robot, bridge(robot.path, "--timeout", str(DEADMAN), *args, env=env) as running:
+    with FakeRobot() as robot, bridge(robot.path, "--deadman", str(DEADMAN), *args, env=env) as running:
         yield robot, running
 
 
@@ -289,7 +289,7 @@ def test_at_the_descriptor_limit_new_clients_wait_and_are_served_once_descriptor
     """300 sockets that never handshake, against a bridge allowed 256 descriptors; closed, then a real client."""
     with (
         FakeRobot() as robot,
-        bridge(robot.path, "--timeout", str(DEADMAN), env=env, preexec_fn=_limit_descriptors(256)) as running,
+        bridge(robot.path, "--deadman", str(DEADMAN), env=env, preexec_fn=_limit_descriptors(256)) as running,
     ):
         held = []
         try:

@@ -68,7 +68,7 @@ def test_sigterm_after_a_reconnect_stops_the_robot_on_the_new_port(
     link = tmp_path / "robot"
     with (
         robots(link) as plugged,
-        bridge(str(link), "--timeout", "10", env=env) as running,
+        bridge(str(link), "--deadman", "10", env=env) as running,
         viewer(running.port) as client,
     ):
         drive_until_moving(client, plugged[0])
@@ -87,7 +87,7 @@ def test_sigterm_with_the_new_port_gone_again_rescues_the_stop_on_the_next(
 ) -> None:
     """Driven only after the reconnect, then lost: the rescue re-opens the path and delivers stop there."""
     link = tmp_path / "robot"
-    with robots(link) as plugged, bridge(str(link), "--timeout", "10", env=env) as running:
+    with robots(link) as plugged, bridge(str(link), "--deadman", "10", env=env) as running:
         plugged[0].wait_for(polled)
         again = replug(plugged, link)  # lost before any motion: the first robot never moved
         with viewer(running.port) as client:

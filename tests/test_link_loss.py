@@ -199,7 +199,7 @@ def test_teleop_gets_stop_delivered_when_the_device_returns(tmp_path):
     link = tmp_path / "robot"
     with robots(link) as plugged:
         plugged.append(PtyRobot(link))
-        with terminal(["--port", str(link), "teleop", "--timeout", "10"], timeout=TIMEOUT) as term:
+        with terminal(["--port", str(link), "teleop", "--deadman", "10"], timeout=TIMEOUT) as term:
             term.wait_for("sending", timeout=TIMEOUT)
             term.send("w")
             plugged[0].wait_for(moving, timeout=TIMEOUT)

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import signal
 import threading
 import time
+from pathlib import Path
 
 import pytest
-from helpers_live import FakeRobot, Terminal, is_stop, speed_of, terminal, usage_error
+from helpers_live import FakeRobot, Terminal, is_stop, speed_of, terminal, terminal_env, usage_error
 
 from hcrctl.link.client import Robot
 from hcrctl.link.context import Connection
@@ -24,7 +26,8 @@ UP, DOWN, LEFT, RIGHT = "\x1b[A", "\x1b[B", "\x1b[D", "\x1b[C"
 def _teleop(
     robot: FakeRobot, *extra: str, timeout: str = "0.5"
 ) -> contextlib.AbstractContextManager[Terminal]:
-    return terminal(["--port", robot.path, "teleop", "--timeout", timeout, *extra])
+    """``timeout``: teleop's deadman (``--deadman``)."""
+    return terminal(["--port", robot.path, "teleop", "--deadman", timeout, *extra])
 
 
 def _speed_after(robot: FakeRobot, after: float) -> tuple[int, int]:
@@ -156,7 +159,8 @@ def test_a_lost_link_exits_1_with_one_line() -> None:
 @pytest.mark.parametrize(
     ("args", "name", "allowed"),
     [(["--speed", "101"], "--speed", "0<=x<=100"), (["--turn", "-5"], "--turn", "0<=x<=100"),
-     (["--timeout", "0"], "--timeout", "0.05<=x<=10")],
+     (["--deadman", "0"], "--deadman", "0.05<=x<=10"), (["--deadman", "nan"], "--deadman", "0.05<=x<=10"),
+     (["--timeout", "0.8"], "--timeout", "the deadman is --deadman S now")],
 )  # fmt: skip
 def test_usage_errors_exit_2_and_send_nothing(args: list[str], name: str, allowed: str) -> None:
     stderr = usage_error("teleop", *args)
@@ -291,3 +295,29 @@ def test_run_teleop_in_the_shell_stops_and_leaves_the_session_open(monkeypatch: 
         finally:
             os.close(write_end)
             robot.close()
+
+
+@pytest.mark.parametrize(
+    ("global_args", "own", "env", "config", "shown"),
+    [
+        ([], [], {}, "", "0.5"),
+        ([], [], {"HCRCTL_DEADMAN": "2"}, "", "2"),
+        ([], [], {}, "deadman = 1.5\n", "1.5"),
+        (["--deadman", "3"], [], {"HCRCTL_DEADMAN": "2"}, "", "3"),  # the command line beats the environment
+        ([], ["--deadman", "4"], {"HCRCTL_DEADMAN": "2"}, "deadman = 1.5\n", "4"),  # the command's own wins
+    ],
+)
+def test_the_deadman_comes_from_the_command_the_global_option_the_environment_or_the_file(
+    tmp_path: Path, global_args: list[str], own: list[str], env: dict[str, str], config: str, shown: str
+) -> None:
+    (tmp_path / "hcrctl").mkdir()
+    (tmp_path / "hcrctl" / "config.toml").write_text(config)
+    environ = {k: v for k, v in terminal_env().items() if k != "HCRCTL_DEADMAN"}
+    environ.update(XDG_CONFIG_HOME=str(tmp_path), **env)
+    with (
+        FakeRobot() as robot,
+        terminal(["--port", robot.path, *global_args, "teleop", *own], env=environ) as term,
+    ):
+        term.wait_for(rf"deadman +{re.escape(shown)} s")
+        term.send("q")
+        assert term.finish() == 0

@@ -68,7 +68,7 @@ def type_schedule(term: object, key: bytes, times: list[float]) -> bool:
 @pytest.mark.parametrize("name", sorted(PATTERNS))
 def test_a_held_key_never_stutters(name: str) -> None:
     pattern = PATTERNS[name]
-    with FakeRobot() as robot, terminal(["--port", robot.path, "teleop", "--timeout", "0.5"]) as term:
+    with FakeRobot() as robot, terminal(["--port", robot.path, "teleop", "--deadman", "0.5"]) as term:
         term.wait_for("sending")
         for _ in range(TRIES):
             start = time.monotonic()
@@ -90,7 +90,7 @@ def test_on_a_kitty_terminal_the_release_stops_the_robot() -> None:
     """Deadman 10 s: a stop within 5 s of the release is the release's, not the deadman's."""
     with (
         FakeRobot() as robot,
-        terminal(["--port", robot.path, "teleop", "--timeout", "10"], kitty=True) as term,
+        terminal(["--port", robot.path, "teleop", "--deadman", "10"], kitty=True) as term,
     ):
         term.wait_for("sending")
         assert term.kitty_flags == [KITTY_PUSH]
@@ -110,7 +110,7 @@ def test_on_a_kitty_terminal_the_release_stops_the_robot() -> None:
 def test_on_a_kitty_terminal_ctrl_c_still_interrupts_and_stops() -> None:
     with (
         FakeRobot() as robot,
-        terminal(["--port", robot.path, "teleop", "--timeout", "10"], kitty=True) as term,
+        terminal(["--port", robot.path, "teleop", "--deadman", "10"], kitty=True) as term,
     ):
         term.wait_for("sending")
         term.send(W_PRESS)

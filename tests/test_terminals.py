@@ -41,7 +41,7 @@ def _default_sigint() -> None:
 
 
 def test_the_deadman_stops_while_nobody_reads_the_terminal() -> None:
-    with FakeRobot() as robot, terminal(["--port", robot.path, "teleop", "--timeout", "0.5"]) as term:
+    with FakeRobot() as robot, terminal(["--port", robot.path, "teleop", "--deadman", "0.5"]) as term:
         term.wait_for(r"sending +stop", timeout=30)
         with term.stalled():
             term.send("w")
@@ -54,7 +54,7 @@ def test_the_deadman_stops_while_nobody_reads_the_terminal() -> None:
 
 
 def test_a_key_drives_and_the_deadman_stops_when_the_pty_is_already_full() -> None:
-    with FakeRobot() as robot, terminal(["--port", robot.path, "teleop", "--timeout", "0.5"]) as term:
+    with FakeRobot() as robot, terminal(["--port", robot.path, "teleop", "--deadman", "0.5"]) as term:
         term.wait_for(r"sending +stop", timeout=30)
         with term.stalled():
             term.fill(lambda: term.send("w"))  # a held key: the screen changes ten times a second
@@ -67,7 +67,7 @@ def test_a_key_drives_and_the_deadman_stops_when_the_pty_is_already_full() -> No
 
 
 def test_quitting_teleop_sends_stop_before_the_stalled_terminal_is_restored() -> None:
-    with FakeRobot() as robot, terminal(["--port", robot.path, "teleop", "--timeout", "5"]) as term:
+    with FakeRobot() as robot, terminal(["--port", robot.path, "teleop", "--deadman", "5"]) as term:
         term.wait_for(r"sending +stop", timeout=30)
         with term.stalled():
             term.fill(lambda: term.send("w"))
@@ -229,7 +229,7 @@ def test_teleop_without_a_terminal_is_a_usage_error_that_sends_nothing() -> None
 def test_teleop_at_40x10_keeps_the_key_line_after_the_deadman_notice() -> None:
     with (
         FakeRobot() as robot,
-        terminal(["--port", robot.path, "teleop", "--timeout", "0.3"], size=(40, 10)) as term,
+        terminal(["--port", robot.path, "teleop", "--deadman", "0.3"], size=(40, 10)) as term,
     ):
         screen = term.wait_for(r"sending +stop", timeout=30)
         assert screen.splitlines()[-1].rstrip().endswith("q quit")

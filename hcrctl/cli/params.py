@@ -134,11 +134,40 @@ def duration_option(help: str = "Exit by itself after S seconds (for scripts and
     )
 
 
+#: The deadman's range: below it a terminal's own key repeat could not keep up; above it, no deadman.
+DEADMAN_RANGE = (0.05, 10.0)
+
+
 def deadman_option(default: float, help: str) -> Callable:
-    """``--timeout S``: the deadman of the commands that drive continuously (teleop, bridge)."""
-    return click.option(
-        "--timeout", type=FloatRange(0.05, 10), default=default, show_default=True, metavar="S", help=help
-    )
+    """``--deadman S`` for the commands that drive continuously (teleop, bridge), and ``--timeout`` refused.
+
+    Unset, the global ``--deadman`` (``HCRCTL_DEADMAN``, config ``deadman``) applies, else ``default``.
+    ``--timeout`` once named this; it is the global reply timeout now, so the old spelling is refused
+    with the new name instead of silently setting the wrong thing.
+    """
+
+    def decorate(func: Callable) -> Callable:
+        func = click.option(
+            "--deadman",
+            type=FloatRange(*DEADMAN_RANGE),
+            metavar="S",
+            help=f"{help} [default: the global --deadman, else {default:g}]",
+        )(func)
+        return click.option(
+            "--timeout", "old_timeout", hidden=True, expose_value=False, callback=_renamed, is_eager=False
+        )(func)
+
+    return decorate
+
+
+def _renamed(ctx: click.Context, param: click.Parameter, value: Any) -> None:
+    if value is not None:
+        raise click.BadParameter(
+            "the deadman is --deadman S now; --timeout is the reply timeout, a global option "
+            f"(hcrctl --timeout S {ctx.info_name} ...)",
+            ctx,
+            param,
+        )
 
 
 class ByteNumber(IntRange):

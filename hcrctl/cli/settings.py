@@ -121,6 +121,13 @@ def global_options() -> list[click.Option]:
             metavar="SECONDS",
             help="If the link drops while the robot moves, keep re-opening the port this long to send stop.",
         ),
+        _option(
+            "--deadman",
+            type=FloatRange(0.05, 10),
+            metavar="S",
+            help="Deadman of teleop and the bridge's /cmd_vel: motion stops S s after the last key or "
+            "message (default 0.5; their own --deadman wins).",
+        ),
         _option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout."),
         _option("--log", type=click.Path(dir_okay=False), help="Append every frame to FILE."),
         _option("--debug", is_flag=True, help="Show tracebacks."),
@@ -175,6 +182,12 @@ class Settings(Connection):
 
     as_json: bool = False
     debug: bool = False
+    #: The global --deadman: teleop's and the bridge's unless they are given their own.
+    deadman: float | None = None
+
+    def deadman_or(self, own: float | None, default: float) -> float:
+        """The deadman a driving command uses: its own option, else the global one, else ``default``."""
+        return own if own is not None else self.deadman if self.deadman is not None else default
 
     @classmethod
     def from_options(cls, options: dict[str, Any]) -> Settings:

@@ -1,4 +1,4 @@
-"""``hcrctl teleop [--speed PERCENT] [--turn PERCENT] [--timeout S]``: keyboard driving."""
+"""``hcrctl teleop [--speed PERCENT] [--turn PERCENT] [--deadman S]``: keyboard driving."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ PERCENT = IntRange(0, int(_PERCENT.hi))
 @click.option("--turn", type=PERCENT, default=30, show_default=True, help="Turning speed, % of maximum.")
 @deadman_option(DEADMAN_S, "Deadman: stop when no key arrives for S seconds.")
 @click.pass_obj
-def teleop(settings: Settings, speed: int, turn: int, timeout: float) -> None:
+def teleop(settings: Settings, speed: int, turn: int, deadman: float | None) -> None:
     """Drive with the arrow keys or WASD; space or k stops, +/- change the speed, q quits.
 
     Motion lasts only while keys keep arriving: hold a key and its repeats
@@ -42,7 +42,7 @@ def teleop(settings: Settings, speed: int, turn: int, timeout: float) -> None:
     refuse_without_a_screen()
     from ..live.teleop import run_teleop
 
-    run_teleop(settings, speed, turn, timeout)
+    run_teleop(settings, speed, turn, settings.deadman_or(deadman, DEADMAN_S))
 
 
 def refuse_without_a_screen() -> None:
