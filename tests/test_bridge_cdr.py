@@ -220,3 +220,27 @@ def test_a_named_field_of_a_many_field_reply_becomes_a_nested_type() -> None:
     }
     decode = generate_dynamic(ros2msg.schema_name(topic), text)[ros2msg.schema_name(topic)]
     assert plain(decode(ros2msg.encoder(topic)(message))) == message
+
+
+def test_the_cdr_sink_records_a_message_or_the_bytes_served_and_the_decoder_factory_reads_both(
+    tmp_path: Path,
+) -> None:
+    """``McapSink(encoding="cdr")``, which ``bridge --encoding cdr --mcap`` records with: its own encoding
+    of a message (``write``, as ``record`` hands them) and the bytes the bridge served (``write_encoded``)
+    must be the same CDR, under the ros2msg definition an independent parser reads."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    from hcrctl.feeds.mcapsink import McapSink
+
+    topic = TOPICS[T.LINK]
+    first = {"time": 1.5, **{name: i for i, name in enumerate(Feed.counters)}}
+    second = first | {"time": 2.25, Feed.counters[0]: 99}
+    out = tmp_path / "link.mcap"
+    with McapSink(str(out), TOPICS.values(), encoding="cdr") as sink:
+        sink.write(T.LINK, first, first["time"])
+        sink.write_encoded(T.LINK, ros2msg.encoder(topic)(second), second["time"])
+    with out.open("rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        got = [(m.log_time, m.data, plain(ros)) for _, _, m, ros in reader.iter_decoded_messages()]
+    assert got == [(int(m["time"] * 1e9), ros2msg.encoder(topic)(m), m) for m in (first, second)]

@@ -1,4 +1,4 @@
-"""``hcrctl bridge``'s edges: usage errors, a port in use, a non-loopback warning, the SDK as an extra."""
+"""``hcrctl bridge``'s edges: usage errors, a port in use, a non-loopback warning, its packages as an extra."""
 
 from __future__ import annotations
 
@@ -66,7 +66,7 @@ def test_loopback_gives_no_warning(env: dict[str, str]) -> None:
 
 
 @pytest.mark.parametrize("args", [["--help"], ["bridge", "--help"]])
-def test_help_does_not_import_the_sdk(env: dict[str, str], args: list[str]) -> None:
+def test_help_does_not_import_the_extra(env: dict[str, str], args: list[str]) -> None:
     result = run(args, dict(env, PYTHONPROFILEIMPORTTIME="1"))
     assert result.returncode == 0
     imported = [
@@ -76,7 +76,7 @@ def test_help_does_not_import_the_sdk(env: dict[str, str], args: list[str]) -> N
     assert not [name for name in imported if name.split(".")[0] in ("foxglove", "websockets", "mcap")]
 
 
-@pytest.mark.parametrize(("module", "args"), [("websockets", []), ("foxglove", ["--mcap", "x.mcap"])])
+@pytest.mark.parametrize(("module", "args"), [("websockets", []), ("mcap", ["--mcap", "x.mcap"])])
 def test_without_the_extra_one_line_names_it(
     env: dict[str, str], tmp_path: Path, module: str, args: list[str]
 ) -> None:
@@ -89,16 +89,17 @@ def test_without_the_extra_one_line_names_it(
     assert not (tmp_path / "x.mcap").exists()
 
 
+@pytest.mark.parametrize(("module", "args"), [("websockets", []), ("mcap", ["--mcap", "x.mcap"])])
 def test_a_broken_import_inside_an_installed_package_is_not_called_missing(
-    env: dict[str, str], tmp_path: Path
+    env: dict[str, str], tmp_path: Path, module: str, args: list[str]
 ) -> None:
     """The extra's message only when the package is missing, not when an import inside it fails."""
-    shadow = tmp_path / "websockets"
+    shadow = tmp_path / module
     shadow.mkdir()
-    (shadow / "__init__.py").write_text("import no_such_module_inside_websockets\n")
-    result = run(["--port", "sim://", "bridge"], dict(env, PYTHONPATH=str(tmp_path)))
+    (shadow / "__init__.py").write_text(f"import no_such_module_inside_{module}\n")
+    result = run(["--port", "sim://", "bridge", *args], dict(env, PYTHONPATH=str(tmp_path)), cwd=tmp_path)
     assert result.returncode == 1
-    assert "hcrctl[foxglove]" not in result.stderr and "no_such_module_inside_websockets" in result.stderr
+    assert "hcrctl[foxglove]" not in result.stderr and f"no_such_module_inside_{module}" in result.stderr
 
 
 def test_on_a_terminal_a_status_line_counts_clients_and_messages() -> None:

@@ -441,3 +441,11 @@ def test_rtt_ends_at_the_last_reply_not_at_a_timeout() -> None:
     assert _reply_time(robot, 10.0, results) == pytest.approx(0.003)
     assert _reply_time(robot, 10.0, {"sonar": lost}) is None
     assert _reply_time(SimpleNamespace(last_reply_at=9.0), 10.0, results) is None  # an older sweep's
+
+
+@pytest.mark.parametrize(("frames", "said"), [(1, "1 frame, last"), (2, "2 frames, last"), (0, "0 frames, last")])
+def test_one_frame_is_said_in_the_singular(frames: int, said: str) -> None:
+    clock = Clock()
+    state = LiveState(["bump", "wheels"], clock=clock)
+    drive = DriveStatus("forward", 40, 40, 40, 30, 0.5, clock.now - 0.2, clock.now - 0.1, frames, "")
+    assert said in text_of(screens.teleop_screen(drive, state.view(), clock.now))

@@ -13,6 +13,7 @@ import io
 import json
 import signal
 import subprocess
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -20,8 +21,11 @@ from typing import Any
 import pytest
 from helpers import terminal, terminal_env
 from helpers_cli import clean_env, finish, run, sim_pty, start, wait_until, wire
-from mcap.reader import NonSeekingReader, make_reader
+from helpers_mcap import LOSS_MARGIN, last_log_time, small_tmpfs, worst_lag
+from helpers_mcap import messages as flushed
+from mcap.reader import make_reader
 
+from hcrctl.feeds.record import FLUSH_EVERY
 from hcrctl.protocol import commands as C
 from hcrctl.protocol import series as S
 from hcrctl.protocol import topics as T
@@ -32,21 +36,6 @@ def robot(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     """The simulator on a pty, broadcasting as it does by default."""
     with sim_pty(clean_env(tmp_path_factory.mktemp("sim"))) as path:
         yield path
-
-
-def flushed(path: Path) -> list[tuple[str, Any]]:
-    """The messages a reader gets from ``path`` as it is now, reading front to back up to any damage."""
-    if not path.exists():
-        return []
-    out: list[tuple[str, Any]] = []
-    try:
-        for _, channel, message in NonSeekingReader(io.BytesIO(path.read_bytes())).iter_messages(
-            log_time_order=False
-        ):
-            out.append((channel.topic, message))
-    except Exception:
-        pass
-    return out
 
 
 def recording(robot: str, out: Path, *args: str) -> subprocess.Popen[str]:
@@ -110,13 +99,16 @@ def test_sigterm_leaves_a_csv_of_whole_lines(robot: str, tmp_path: Path) -> None
     assert all(0 <= float(row[heading]) < 360 for row in rows[1:] if row[4] == "compass")
 
 
-def test_kill_9_keeps_every_flushed_chunk(robot: str, tmp_path: Path) -> None:
+def test_kill_9_keeps_every_flushed_chunk_and_loses_at_most_the_last_second(
+    robot: str, tmp_path: Path
+) -> None:
+    """Read with the README's recipe, which must end without an exception at the cut."""
     out = tmp_path / "killed.mcap"
     proc = recording(robot, out)
     try:
-        seen = len(
-            wait_until(lambda: (got := flushed(out)) and len(got) >= 40 and got, what="a flushed chunk")
-        )
+        lag = worst_lag(out, 3)  # a kill at any moment of these 3 s would have lost at most this
+        seen = len(flushed(out))
+        killed_at = time.time()
         proc.kill()
     finally:
         finish(proc)
@@ -125,6 +117,8 @@ def test_kill_9_keeps_every_flushed_chunk(robot: str, tmp_path: Path) -> None:
     after = flushed(out)
     assert len(after) >= seen
     assert {"/hcr/compass", T.FRAMES} <= {topic for topic, _ in after}
+    lost = killed_at - last_log_time(after)
+    assert max(lag, lost) <= FLUSH_EVERY + LOSS_MARGIN, f"{lag:.2f} s behind while running, {lost:.2f} s lost"
 
 
 def test_ctrl_c_ends_an_open_ended_recording_with_status_0(robot: str, tmp_path: Path) -> None:
@@ -193,6 +187,20 @@ def test_a_full_disk_is_said_on_one_line_and_nothing_is_sent(tmp_path: Path) -> 
     assert done.returncode == 1
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and f"cannot write {out}" in lines[0] and "No space left" in lines[0], lines
+
+
+def test_a_disk_that_fills_up_mid_recording_is_one_line_and_the_file_keeps_what_it_got(
+    tmp_path: Path,
+) -> None:
+    with small_tmpfs(tmp_path / "small") as where:
+        out = where / "full.mcap"
+        argv = ["--port", "sim://", "record", str(out), "--rate", "max", "--duration", "20"]
+        done = run(argv, clean_env(tmp_path))  # 256 KiB: a fraction of a second at this rate
+        kept = flushed(out)  # the README's recipe: no exception at the damaged tail
+    assert done.returncode == 1, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and f"cannot write {out}" in lines[0] and "No space left" in lines[0], lines
+    assert {"/hcr/compass", T.FRAMES} <= {topic for topic, _ in kept}
 
 
 def test_a_bad_suffix_is_a_usage_error_before_the_port_is_opened(tmp_path: Path) -> None:

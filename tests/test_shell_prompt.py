@@ -174,3 +174,19 @@ def test_a_read_only_home_says_history_not_kept_once(tmp_path, monkeypatch, vari
         screen = term.run("read compass")
         assert "90.0° E" in screen
         assert term.raw.decode(errors="replace").count("history not kept") == 1
+
+
+def test_a_missing_xdg_state_home_is_created_owner_only(tmp_path, monkeypatch):
+    """The XDG Base Directory specification: a missing destination directory is created, mode 0700."""
+    state = tmp_path / "not" / "yet"
+    env = _env_with(tmp_path, XDG_STATE_HOME=str(state))
+    monkeypatch.setattr(helpers_shell, "shell_env", lambda _state_home: env)
+    with shell(["--port", QUIET_SIM, "shell"], tmp_path) as term:
+        term.wait_prompt()
+        term.run("read compass")
+        term.send("exit\r")
+        assert term.finish() == 0
+    assert "history not kept" not in term.raw.decode(errors="replace")
+    assert "read compass" in (state / "hcrctl" / "history").read_text()
+    for folder in (tmp_path / "not", state, state / "hcrctl"):
+        assert folder.stat().st_mode & 0o777 == 0o700, folder

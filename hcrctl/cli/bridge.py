@@ -9,7 +9,7 @@ import click
 
 from ..errors import HcrError
 from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
-from ..protocol.ros2msg import ENCODINGS
+from ..protocol.encodings import ENCODINGS
 from .params import deadman_option, duration_option, rate_option
 from .settings import Settings
 
@@ -55,12 +55,16 @@ class Origin(click.ParamType):
 )
 @click.option(
     "--encoding",
-    type=click.Choice(ENCODINGS),
+    type=click.Choice(tuple(ENCODINGS)),
     default="json",
     show_default=True,
     help="json (JSON Schema), or cdr (ROS 2 msg definitions: PlotJuggler's Foxglove ROS2 Bridge). Foxglove reads both.",
 )
-@click.option("--mcap", metavar="FILE", help="Also record every message served to this MCAP file.")
+@click.option(
+    "--mcap",
+    metavar="FILE",
+    help="Also record every message served to this MCAP file (as record does: a kill loses at most ~1 s).",
+)
 @rate_option()
 @duration_option("Exit by itself after S seconds.")
 @deadman_option(DEFAULT_TIMEOUT_S, "Deadman: stop when no /cmd_vel message arrives for S seconds.")
@@ -98,7 +102,9 @@ def bridge(
     client drives at a time. A web page may connect only from this machine,
     from Foxglove's app or from an --allow-origin. Needs the foxglove extra
     (pip install 'hcrctl[foxglove]'). With --json a summary (sweeps per
-    second, messages) is printed at the end.
+    second, messages) is printed at the end. If the --mcap file cannot be
+    written (a full disk), that is said once, serving goes on, and the exit
+    status is 1.
     """
     require_extra(mcap is not None)
     from ..feeds.bridge import Options, run_bridge, summary_line
@@ -108,14 +114,16 @@ def bridge(
         report = lambda summary: click.echo(json.dumps(summary))  # noqa: E731
     else:
         report = lambda summary: click.echo(f"hcrctl: {summary_line(summary)}", err=True)  # noqa: E731
-    run_bridge(settings, options, report=report)
+    summary = run_bridge(settings, options, report=report)
+    if summary.get("recording_incomplete"):  # said on stderr when it happened: only the status is left
+        click.get_current_context().exit(1)
 
 
 def require_extra(mcap: bool) -> None:
-    """The server (websockets) and the MCAP writer (foxglove-sdk) are an extra: without them, one line
+    """The server (websockets) and the MCAP writer (mcap) are an extra: without them, one line
     naming it, before anything is opened. Only the package missing is this error: a failing import
     inside an installed one is that failure, with its own message."""
-    needed = [("websockets", "websockets")] + ([("foxglove", "foxglove-sdk")] if mcap else [])
+    needed = [("websockets", "websockets")] + ([("mcap", "mcap")] if mcap else [])
     for module, package in needed:
         try:
             __import__(module)

@@ -172,16 +172,27 @@ def _serve(
                     raise governor.error
         finally:
             status.stop()
-            summary = _summary(feed, server.ws.most, governor.frames)
+            server.close_recording()  # nothing publishes any more: the file is whole (or said not to be)
+            summary = _summary(feed, server, governor.frames)
             if report is not None:
                 report(summary)
     return summary
 
 
-def _summary(feed: Feed, clients: int, drive_frames: int) -> dict[str, Any]:
-    """watch's summary (sweeps, sweeps_per_s...) plus what only the bridge has."""
+def _summary(feed: Feed, server: Server, drive_frames: int) -> dict[str, Any]:
+    """watch's summary (sweeps, sweeps_per_s...) plus what only the bridge has.
+
+    ``recording_incomplete`` is why the ``--mcap`` file stopped early (None if
+    it did not): the CLI makes that exit status 1, as a ``--log`` that lost a write.
+    """
     summary = dict(feed.state.summary())
-    summary.update(messages=feed.messages, clients_most=clients, drive_frames=drive_frames)
+    incomplete = server.incomplete.why if server.incomplete is not None else None
+    summary.update(
+        messages=feed.messages,
+        clients_most=server.ws.most,
+        drive_frames=drive_frames,
+        recording_incomplete=incomplete,
+    )
     return summary
 
 

@@ -2,26 +2,37 @@
 
 Only ``hcrctl bridge`` imports this module, and only after checking that its
 extra is installed. Each message is encoded once per topic, and only when
-someone wants it: a subscribed client, or the ``--mcap`` recording (written
-through foxglove-sdk's MCAP writer, on a context of our own).
+someone wants it: a subscribed client, or the ``--mcap`` recording, which is
+written by ``record``'s own writer (``McapSink``) with those very bytes.
 
 Each topic is served either as JSON with its JSON Schema (``json``, what
 Foxglove reads best) or as CDR with a ROS 2 message definition (``cdr``:
 ``protocol.ros2msg``, the only kind PlotJuggler's Foxglove bridge client
-subscribes to); Foxglove reads both, and the recording holds what is served.
+subscribes to); Foxglove reads both, and the recording holds what is served
+(``protocol.encodings`` names both for the server and the file).
+
+The recording, like ``record``'s, finishes a chunk at least once a second, so
+a kill -9 loses at most about a second of it. A write that fails (a full
+disk) stops the recording, not the bridge: it is said once, on one line, the
+file is left readable up to the failure, and the exit status becomes 1
+(``incomplete``), as for a ``--log`` that lost a write.
 """
 
 from __future__ import annotations
 
-import json
+import contextlib
 from collections.abc import Callable, Iterable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from ..errors import HcrError
-from ..protocol import ros2msg
+from ..errors import HcrError, printable
+from ..protocol.encodings import ENCODINGS, Encode
 from ..protocol.topics import Topic
 from .bridge_drive import CmdVelSource
 from .foxglove_ws import Channel, FoxgloveServer
+from .sinks import RecordingIncomplete, SinkWriteError, seconds
+
+if TYPE_CHECKING:
+    from .mcapsink import McapSink
 
 SERVER_NAME = "hcrctl"
 Note = Callable[[str], None]
@@ -45,12 +56,13 @@ class Server:
         self.encoding = encoding
         self.host, self.port = host, port
         self.mcap = mcap
+        self.note = note
         self.ws = FoxgloveServer(SERVER_NAME, host, port, cmd_vel, note, allowed_origins)
         self.bound_port = 0
-        self._served: dict[str, tuple[Channel, Callable[[dict[str, Any]], bytes]]] = {}
-        self._recorded: dict[str, Any] = {}
-        self._writer: Any = None
-        self._context: Any = None
+        self._served: dict[str, tuple[Channel, Encode]] = {}
+        self._sink: McapSink | None = None
+        #: Why the recording stopped before the end (said once, when it happened); None while it is whole.
+        self.incomplete: RecordingIncomplete | None = None
 
     @property
     def driving(self) -> bool:
@@ -61,7 +73,7 @@ class Server:
             self._add_channel(topic)
         try:
             if self.mcap is not None:
-                self._writer = self._open_mcap(self.mcap)
+                self._sink = self._open_mcap(self.mcap)
             self.bound_port = self._start()
         except BaseException:
             self.__exit__()
@@ -70,32 +82,66 @@ class Server:
 
     def __exit__(self, *exc: object) -> None:
         self.ws.stop()
-        if self._writer is not None:
-            self._writer.close()
-            self._writer = None
+        self.close_recording()
 
     def publish(self, topic: str, message: dict[str, Any], at: float) -> None:
-        """One message to every subscriber and the recording; ``at`` in seconds since the epoch."""
+        """One message to every subscriber and the recording; ``at`` in seconds since the epoch.
+
+        The log time is ``at`` to the microsecond, as ``record`` and the traffic
+        log keep it, the same on the wire and in the file.
+        """
         channel, encode = self._served[topic]
-        recorded = self._recorded.get(topic)
-        if not channel.subscribers and recorded is None:
+        sink = self._sink
+        if not channel.subscribers and sink is None:
             return
-        payload, at_ns = encode(message), int(at * 1e9)
+        payload, us = encode(message), seconds(at)[0]
         if channel.subscribers:
-            self.ws.publish(channel, payload, at_ns)
-        if recorded is not None:
-            recorded.log(payload, log_time=at_ns)
+            self.ws.publish(channel, payload, us * 1000)
+        if sink is not None:
+            try:
+                sink.write_encoded(topic, payload, at)
+            except SinkWriteError as exc:
+                self._stop_recording(exc)
+
+    def close_recording(self) -> None:
+        """Finish the file (summary and footer) once nothing publishes any more; a second call does nothing.
+
+        A footer that cannot be written leaves the file as a failed write does:
+        incomplete, said, exit status 1.
+        """
+        sink, self._sink = self._sink, None
+        if sink is None:
+            return
+        try:
+            sink.close()
+        except SinkWriteError as exc:
+            self._said_incomplete(exc, "")
+
+    def _stop_recording(self, exc: SinkWriteError) -> None:
+        """A failed write: no more recording (the file keeps what it got), serving goes on; said once."""
+        sink, self._sink = self._sink, None
+        if sink is not None:
+            # closes the file; its footer fails as the write did, with the error already in hand
+            with contextlib.suppress(SinkWriteError):
+                sink.close()
+        self._said_incomplete(exc, "; serving goes on")
+
+    def _said_incomplete(self, exc: SinkWriteError, then: str) -> None:
+        said = self.incomplete = RecordingIncomplete(exc.path, exc.why)
+        self.note(printable(f"error: {said.message}{then} (hint: {said.hint})"))
 
     def _add_channel(self, topic: Topic) -> None:
         """The topic's channel in this server's encoding, and how a message dict becomes its payload."""
-        if self.encoding == "cdr":
-            name, schema = ros2msg.schema_name(topic), ros2msg.definition(topic)
-            kinds = (ros2msg.MESSAGE_ENCODING, ros2msg.SCHEMA_ENCODING)
-            encode: Callable[[dict[str, Any]], bytes] = ros2msg.encoder(topic)
-        else:
-            name, schema, kinds = topic.schema_name, json.dumps(topic.schema), ("json", "jsonschema")
-            encode = _json_bytes
-        channel = self.ws.add_channel(topic.name, kinds[0], name, schema, kinds[1], encode)
+        kind = ENCODINGS[self.encoding]
+        encode = kind.encoder(topic)
+        channel = self.ws.add_channel(
+            topic.name,
+            kind.message_encoding,
+            kind.schema_name(topic),
+            kind.schema(topic),
+            kind.schema_encoding,
+            encode,
+        )
         self._served[topic.name] = (channel, encode)
 
     def _start(self) -> int:
@@ -104,33 +150,12 @@ class Server:
         except OSError as exc:
             raise _listen_error(self.host, self.port, exc) from exc
 
-    def _open_mcap(self, path: str) -> Any:
-        """foxglove-sdk's MCAP writer, on a context of our own holding one channel per topic."""
-        import foxglove
-        from foxglove import Channel as SdkChannel
-        from foxglove import Context, Schema
+    def _open_mcap(self, path: str) -> McapSink:
+        """``record``'s MCAP writer in this server's encoding, every topic announced, flushed as ``record`` is."""
+        from .formats import open_mcap
+        from .record import FLUSH_EVERY
 
-        context = self._context = Context()  # the channels log through it: it must outlive this call
-        for topic, (channel, _) in self._served.items():
-            advert = channel.advert
-            schema = Schema(
-                name=advert["schemaName"], encoding=advert["schemaEncoding"], data=advert["schema"].encode()
-            )
-            self._recorded[topic] = SdkChannel(
-                topic, schema=schema, message_encoding=advert["encoding"], context=context
-            )
-        try:
-            return foxglove.open_mcap(path, allow_overwrite=True, context=context)
-        except (OSError, RuntimeError, ValueError) as exc:
-            raise HcrError(f"could not open {path} to record MCAP: {_reason(exc)}") from exc
-
-
-def _json_bytes(message: dict[str, Any]) -> bytes:
-    return json.dumps(message, separators=(",", ":")).encode()
-
-
-def _reason(exc: BaseException) -> str:
-    return str(exc).removeprefix("FoxgloveError: ")
+        return open_mcap(path, self.topics, flush_every=FLUSH_EVERY, encoding=self.encoding)
 
 
 def _listen_error(host: str, port: int, exc: OSError) -> HcrError:

@@ -9,10 +9,14 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..errors import HcrError
 from ..protocol.topics import Topic
 from .sinks import Sink
+
+if TYPE_CHECKING:
+    from .mcapsink import McapSink
 
 #: The suffixes ``open_sink`` knows, and what each writes.
 SUFFIXES = {".mcap": "MCAP (Foxglove, Lichtblick, PlotJuggler)", ".csv": "CSV (one row per reading)"}
@@ -50,10 +54,21 @@ def open_sink(path: str, topics: Iterable[Topic], *, flush_every: float | None =
         from .csvsink import CsvSink
 
         return CsvSink(path, topics, flush_every)
+    return open_mcap(path, topics, flush_every=flush_every)
+
+
+def open_mcap(
+    path: str, topics: Iterable[Topic], *, flush_every: float | None = None, encoding: str = "json"
+) -> McapSink:
+    """The MCAP sink for ``path`` whatever its suffix (the bridge's ``--mcap``), in ``encoding``.
+
+    The one place the ``mcap`` package is imported for writing: its absence
+    is MissingExtra, naming the extra to install.
+    """
     try:
         from .mcapsink import McapSink
     except ImportError as exc:
         if not (exc.name or "mcap").startswith("mcap"):
             raise
         raise MissingExtra(f"writing {path} needs the mcap package", hint=MCAP_EXTRA) from None
-    return McapSink(path, topics, flush_every)
+    return McapSink(path, topics, flush_every, encoding)

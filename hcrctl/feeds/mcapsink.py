@@ -1,18 +1,25 @@
 """The MCAP sink: what Foxglove, Lichtblick and PlotJuggler open, written with the ``mcap`` package.
 
-The encodings are the Foxglove convention for schemaless-binary-free JSON:
-schema encoding ``jsonschema`` (the topic's JSON Schema, from the command
-table), message encoding ``json``. One channel per topic, all announced when
-the file opens, so a viewer lists every topic even before it has data.
+``record``, ``export`` and the bridge's ``--mcap`` all write through it. The
+encoding is an entry of ``protocol.encodings``: ``json`` (the default: schema
+encoding ``jsonschema``, the topic's JSON Schema from the command table,
+Foxglove's convention) or ``cdr`` (ROS 2 messages with ``ros2msg``
+definitions, what ``bridge --encoding cdr`` serves). One channel per topic,
+all announced when the file opens, so a viewer lists every topic even before
+it has data. The bridge hands over the bytes it already encoded for its
+clients (``write_encoded``), so the file holds exactly what was served.
 
 Why a file survives a crash: messages go into chunks (zstd-compressed when
 ``zstandard`` is there, as the ``mcap`` package installs it; lz4 or none
 otherwise), and a chunk reaches the file whole when it fills up or when
 ``flush()`` closes it, which a live recording does every ``flush_every``
-seconds. Schemas and channels go in the first chunk, ahead of its messages.
-A file cut off mid-write therefore holds a header and every finished chunk: ``mcap``'s reader reads it front to back without the summary that
-``close()`` would have added (``NonSeekingReader``; the damaged tail ends the
-iteration), losing at most the last ``flush_every`` seconds.
+seconds (``flush`` also hands the file's buffer to the system, so a kill -9
+loses nothing flushed). Schemas and channels go in the first chunk, ahead of
+its messages. A file cut off mid-write therefore holds a header and every
+finished chunk: ``mcap.stream_reader.StreamReader`` reads it front to back
+without the summary that ``close()`` would have added, and raises
+``EndOfFile`` at the cut (the README's "reading a recording cut short" stops
+there), losing at most the last ``flush_every`` seconds.
 """
 
 from __future__ import annotations
@@ -25,16 +32,14 @@ from typing import IO, Any, cast
 from mcap.writer import CompressionType, Writer
 
 from .. import __version__
-from ..protocol.jsontext import json_encoder
+from ..protocol.encodings import ENCODINGS, JSON, JSON_TEXT, Encode
 from ..protocol.topics import Topic
 from .mcapchunks import attach
 from .sinks import Prepared, Sink, seconds
 
 #: Uncompressed chunk size: big enough to compress well, small enough to lose little.
 CHUNK_SIZE = 1 << 20
-PROFILE = ""  # no ROS profile: plain JSON messages
-#: Compact ASCII JSON, for the schemas and the messages.
-ENCODE = json_encoder(compact=True, ensure_ascii=True)
+PROFILE = ""  # no ROS profile: plain JSON messages, or CDR described by ros2msg definitions
 
 
 def compression() -> CompressionType:
@@ -54,20 +59,25 @@ def json_tail(message: dict[str, Any]) -> bytes:
     Every producer puts ``time`` first (``topics.messages``, the link counters), so the
     encoding of the whole message is cut after it; anything else is encoded without it.
     """
-    text = ENCODE(message)
+    text = JSON_TEXT(message)
     if text.startswith('{"time":') and "time" in message:
         if len(message) == 1:
             return b"}"
         return text[text.index(",", 8) :].encode()
-    rest = ENCODE({k: v for k, v in message.items() if k != "time"})
+    rest = JSON_TEXT({k: v for k, v in message.items() if k != "time"})
     return ("," + rest[1:] if rest != "{}" else "}").encode()
 
 
 class McapSink(Sink):
-    """Topic messages as JSON in an MCAP file, log and publish times in nanoseconds."""
+    """Topic messages in an MCAP file (JSON, or ``encoding="cdr"``), log and publish times in nanoseconds."""
 
-    def __init__(self, path: str, topics: Iterable[Topic], flush_every: float | None = None) -> None:
+    def __init__(
+        self, path: str, topics: Iterable[Topic], flush_every: float | None = None, encoding: str = "json"
+    ) -> None:
         super().__init__(path, topics, flush_every)
+        kind = self.encoding = ENCODINGS[encoding]
+        #: JSON gets each message's time spliced in (``json_tail``: the rest encoded once); others are whole.
+        self._splice = kind is JSON
         self._writer = Writer(
             cast(IO[bytes], self._open()),  # only write/tell/flush are used
             chunk_size=CHUNK_SIZE,
@@ -75,10 +85,15 @@ class McapSink(Sink):
         )
         self._writer.start(profile=PROFILE, library=f"hcrctl {__version__}")
         self._channels: dict[str, int] = {}
+        self._encoders: dict[str, Encode] = {}
         for topic in self.topics.values():
-            schema = ENCODE(topic.schema).encode()
-            schema_id = self._writer.register_schema(topic.schema_name, "jsonschema", schema)
-            self._channels[topic.name] = self._writer.register_channel(topic.name, "json", schema_id)
+            schema = kind.schema(topic).encode()
+            schema_id = self._writer.register_schema(kind.schema_name(topic), kind.schema_encoding, schema)
+            self._channels[topic.name] = self._writer.register_channel(
+                topic.name, kind.message_encoding, schema_id
+            )
+            if not self._splice:
+                self._encoders[topic.name] = kind.encoder(topic)
         self._writer.flush()  # a bad path or a full disk shows now, not at the first message
         assert self._file is not None
         self._file.flush()
@@ -100,7 +115,8 @@ class McapSink(Sink):
         """The base class's loop, inlined: an export spends most of its writing time here."""
         if log_time != self._time:  # a frame and its reading share it: work it out once
             us, text = seconds(log_time)
-            self._time, self._ns, self._head = log_time, us * 1000, b'{"time":' + text.encode()
+            self._time, self._ns = log_time, us * 1000
+            self._head = b'{"time":' + text.encode() if self._splice else b""
         encoded = [p.encoded or self._encoded(p) for p in items]
         if self._chunks is not None:
             size = self._chunks.add_all(encoded, self._ns, self._head)
@@ -108,6 +124,23 @@ class McapSink(Sink):
             size = max(
                 (self._add_message(c, self._ns, self._head + tail) for c, tail, *_ in encoded), default=0
             )
+        self._settle(size)
+
+    def write_encoded(self, topic: str, data: bytes, log_time: float) -> None:
+        """Record ``data`` as it is: ``topic``'s message already in this sink's encoding, at ``log_time`` (s).
+
+        The bridge encodes each message once, for its clients and this file
+        alike, so nothing is encoded twice and the file holds the bytes served.
+        """
+        ns, channel = seconds(log_time)[0] * 1000, self._channels[topic]
+        if self._chunks is not None:
+            size = self._chunks.add_raw(channel, ns, data)
+        else:
+            size = self._add_message(channel, ns, data)
+        self._settle(size)
+
+    def _settle(self, size: int) -> None:
+        """Finish the chunk once it is full (``size``, uncompressed), and flush every ``flush_every`` s."""
         if size > CHUNK_SIZE:
             self._writer.flush()
         if self.flush_every and time.monotonic() >= self._next_flush:
@@ -119,13 +152,13 @@ class McapSink(Sink):
         if chunks is None:
             super().write_batch(batch)
             return
-        add, encoded_of = chunks.add_all, self._encoded
+        add, encoded_of, splice = chunks.add_all, self._encoded, self._splice
         for items, log_time, _ in batch:
             us = round(log_time * 1_000_000)
             size = add(
                 [p.encoded or encoded_of(p) for p in items],
                 us * 1000,
-                b'{"time":%d.%06d' % divmod(us, 1_000_000),
+                b'{"time":%d.%06d' % divmod(us, 1_000_000) if splice else b"",
             )
             if size > CHUNK_SIZE:
                 self._writer.flush()
@@ -134,14 +167,16 @@ class McapSink(Sink):
             self.flush()
 
     def _encoded(self, prepared: Prepared) -> list[Any]:
-        """The channel and the JSON tail, with room for the record head ``add_all`` packs once."""
+        """The channel and the encoded tail, with room for the record head ``add_all`` packs once."""
         channel, tail = self._encode(prepared)
         encoded = prepared.encoded = [channel, tail, b"", -1]
         return encoded
 
     def _encode(self, prepared: Prepared) -> tuple[int, bytes]:
-        """The channel, and the JSON after ``{"time":`` (the time is spliced in per message)."""
-        return self._channels[prepared.topic], json_tail(prepared.message)
+        """The channel, and the JSON after ``{"time":`` (the time is spliced in per message) or the whole CDR."""
+        if self._splice:
+            return self._channels[prepared.topic], json_tail(prepared.message)
+        return self._channels[prepared.topic], self._encoders[prepared.topic](prepared.message)
 
     def _add_message(self, channel: int, ns: int, data: bytes) -> int:
         """Without the raw chunk builder: the documented way (the writer sizes its chunks itself)."""

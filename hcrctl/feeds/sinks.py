@@ -35,6 +35,23 @@ class SinkWriteError(HcrError):
 
     def __init__(self, path: str, why: str) -> None:
         super().__init__(f"cannot write {path} ({why})", hint="check the path and the free space")
+        self.path, self.why = path, why
+
+
+class RecordingIncomplete(HcrError):
+    """A recording that stopped at a failed write while its command went on (the bridge serving).
+
+    Said once, when it happens; the exit status is 1 at the end, as for a
+    ``--log`` that lost a write (``errors.LogIncomplete``). Everything the
+    file got before the failure stays readable, front to back.
+    """
+
+    def __init__(self, path: str, why: str) -> None:
+        super().__init__(
+            f"the recording {path} is incomplete: {why}",
+            hint="free some space; what was recorded before the failure stays readable",
+        )
+        self.path, self.why = path, why
 
 
 def seconds(t: float) -> tuple[int, str]:

@@ -367,7 +367,7 @@ def link_panel(view: View, now: float, compact: bool = False) -> Panel:
         ("timeouts", f"{c.timeouts}  bad replies {c.bad_replies}"),
         ("checksum", f"{c.checksum_errors} errors  malformed {c.malformed}"),
         ("junk", f"{c.junk_bytes} B"),
-        ("unasked", f"{c.unsolicited} frames  reconnects {c.reconnects}"),
+        ("unasked", f"{c.unsolicited} frame{'' if c.unsolicited == 1 else 's'}  reconnects {c.reconnects}"),
         *_other_rule_row(c),
     ]
     return Panel(labelled(rows), title="link", title_align="left", border_style="cyan")

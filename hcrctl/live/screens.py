@@ -531,7 +531,7 @@ def drive_text(drive: DriveStatus, now: float, size: str = "full", width: int | 
         command = Text(f"{drive.motion:<8} left {drive.left:+4d} %  right {drive.right:+4d} %", style)
         rows = [
             ("sending", command),
-            ("sent", f"{drive.frames} frames, last {sent}"),
+            ("sent", f"{drive.frames} frame{'' if drive.frames == 1 else 's'}, last {sent}"),
             ("speed", f"{drive.speed} %   turn {drive.turn} %"),
             ("deadman", deadman),
         ]

@@ -36,8 +36,6 @@ from .topics import Topic
 ENCAPSULATION = b"\x00\x01\x00\x00"
 SCHEMA_ENCODING = "ros2msg"
 MESSAGE_ENCODING = "cdr"
-#: How the bridge may serve a topic: JSON with its JSON Schema, or this module's CDR.
-ENCODINGS = ("json", MESSAGE_ENCODING)
 #: Where keys a varying message does not list go.
 REST = "json"
 SEPARATOR = "=" * 80

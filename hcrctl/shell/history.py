@@ -20,13 +20,18 @@ DIR_MODE = 0o700
 def base_and_dir(env: Mapping[str, str] | None = None) -> tuple[Path, Path]:
     """(the base that must already exist, ``.../hcrctl`` under it).
 
-    The base is ``$XDG_STATE_HOME`` (a relative value is ignored, as the spec
-    says) or ``$HOME``, whose ``.local/state`` the XDG spec lets us create.
+    With ``$XDG_STATE_HOME`` set (a relative value is ignored, as the spec
+    says) the base is its nearest existing ancestor: the XDG Base Directory
+    specification says a missing destination directory is created, mode 0700.
+    Otherwise it is ``$HOME``, whose ``.local/state`` the spec lets us create.
     """
     env = os.environ if env is None else env
     base = env.get("XDG_STATE_HOME", "")
     if base and os.path.isabs(base):
-        return Path(base), Path(base) / "hcrctl"
+        existing = Path(base)
+        while not existing.exists() and existing != existing.parent:
+            existing = existing.parent
+        return existing, Path(base) / "hcrctl"
     home = Path(env["HOME"]) if env.get("HOME") else Path.home()
     return home, home / ".local" / "state" / "hcrctl"
 

@@ -1,0 +1,66 @@
+"""How a topic's messages are encoded, served and recorded: one entry per encoding, by name.
+
+The bridge serves a channel per topic and ``McapSink`` records one, both from
+the entry named here, so a recording and a viewer's channel carry the same
+schema, the same encodings and the same bytes (the bridge records what it
+encoded once for its clients). Adding an encoding is one entry.
+
+- ``json``: the message as compact ASCII JSON, described by the topic's JSON
+  Schema (schema encoding ``jsonschema``): Foxglove's convention, and what it
+  reads best.
+- ``cdr``: the message as ROS 2 CDR, described by a ``ros2msg`` definition
+  (``ros2msg``): the only kind PlotJuggler's Foxglove bridge client and its
+  MCAP loader read.
+
+Standard library only, like the rest of the protocol layer.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from . import ros2msg
+from .jsontext import json_encoder
+from .topics import Topic
+
+Encode = Callable[[dict[str, Any]], bytes]
+#: Compact ASCII JSON: what the bridge serves, and the text ``McapSink`` splices times into.
+JSON_TEXT = json_encoder(compact=True, ensure_ascii=True)
+
+
+@dataclass(frozen=True)
+class Encoding:
+    """The MCAP / Foxglove names of one encoding, and how a topic gets its schema and encoder."""
+
+    name: str
+    message_encoding: str
+    schema_encoding: str
+    schema_name: Callable[[Topic], str]
+    schema: Callable[[Topic], str]
+    encoder: Callable[[Topic], Encode]
+
+
+def json_bytes(message: dict[str, Any]) -> bytes:
+    return JSON_TEXT(message).encode()
+
+
+JSON = Encoding(
+    "json",
+    "json",
+    "jsonschema",
+    lambda topic: topic.schema_name,
+    lambda topic: JSON_TEXT(topic.schema),
+    lambda topic: json_bytes,
+)
+CDR = Encoding(
+    "cdr",
+    ros2msg.MESSAGE_ENCODING,
+    ros2msg.SCHEMA_ENCODING,
+    ros2msg.schema_name,
+    ros2msg.definition,
+    ros2msg.encoder,
+)
+#: Every encoding by its name (``bridge --encoding``'s choices, in this order).
+ENCODINGS: dict[str, Encoding] = {e.name: e for e in (JSON, CDR)}

@@ -1,0 +1,103 @@
+"""Reading recordings as a user does, and a disk that fills up, for the ``record`` and ``bridge --mcap`` tests.
+
+``read_cut_short`` is not a copy of the README's recipe: it is taken out of
+README.md and run as it stands there, so the recipe users copy is the one the
+kill -9 tests hold to its promise (every message written whole, no exception
+at the cut).
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import subprocess
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import pytest
+from helpers import wait_until
+
+README = Path(__file__).resolve().parent.parent / "README.md"
+RECIPE = "### Reading a recording cut short"
+#: ``record`` and the bridge finish a chunk at least every ``feeds.record.FLUSH_EVERY`` s, so a kill -9
+#: loses the messages of at most the last FLUSH_EVERY seconds, plus those of the flush under way at the
+#: kill: the first write after the deadline starts it (a few ms later at --rate 20), then one chunk is
+#: compressed and written. LOSS_MARGIN covers that, generously for a loaded machine. It bounds lost
+#: data, not speed: a slower machine makes fewer messages, and loses no more seconds of them.
+LOSS_MARGIN = 0.5
+
+
+@functools.cache
+def readme_recipe() -> Callable[[str | Path], Iterator[tuple[str, Any]]]:
+    """The README's ``read_cut_short(path)``: the first python block under its heading, executed."""
+    text = README.read_text(encoding="utf-8")
+    section = text[text.index(RECIPE) :]
+    start = section.index("```python\n") + len("```python\n")
+    code = section[start : section.index("```", start)]
+    namespace: dict[str, Any] = {"__name__": "readme_recipe"}
+    exec(compile(code, f"{README} ({RECIPE})", "exec"), namespace)
+    return namespace["read_cut_short"]  # type: ignore[no-any-return]
+
+
+def messages(path: Path) -> list[tuple[str, Any]]:
+    """(topic, mcap Message) for each message of ``path`` as it is now (none if it is not there yet)."""
+    if not path.exists():
+        return []
+    return list(readme_recipe()(path))
+
+
+def last_log_time(found: list[tuple[str, Any]]) -> float:
+    """The latest log time among ``found``, in seconds since the epoch (time.time's clock)."""
+    return max(message.log_time for _, message in found) / 1e9
+
+
+def span(found: list[tuple[str, Any]]) -> float:
+    """Seconds between the first and the last log time of ``found`` (0 for none)."""
+    if not found:
+        return 0.0
+    return last_log_time(found) - min(message.log_time for _, message in found) / 1e9
+
+
+def worst_lag(path: Path, seconds: float) -> float:
+    """Watch ``path`` grow until it holds ``seconds`` of messages; the most it ever lagged behind the clock.
+
+    What can be read from the file at a moment is what a kill -9 at that
+    moment would leave (it is in the system's hands), so the lag of its last
+    message behind ``time.time()``, sampled all along, is what a kill would
+    have lost at each sample: not only just after a flush, where the kill of
+    a test that waits for data to appear tends to fall.
+    """
+    worst = 0.0
+
+    def enough() -> bool:
+        nonlocal worst
+        found = messages(path)
+        if found:
+            worst = max(worst, time.time() - last_log_time(found))
+        return span(found) >= seconds
+
+    wait_until(enough, what=f"{seconds} s of flushed messages in {path}")
+    return worst
+
+
+@contextmanager
+def small_tmpfs(where: Path, size: str = "256k") -> Iterator[Path]:
+    """A tmpfs of ``size`` mounted on ``where`` (made here), unmounted at the end: a disk that fills up.
+
+    Mounting needs root; otherwise the test is skipped, saying so.
+    """
+    if os.geteuid() != 0:
+        pytest.skip("a full disk is a small tmpfs mounted for the test, and mounting needs root")
+    where.mkdir()
+    mounted = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(where)], capture_output=True, text=True
+    )
+    if mounted.returncode != 0:
+        pytest.skip(f"mount -t tmpfs refused (a container without CAP_SYS_ADMIN?): {mounted.stderr.strip()}")
+    try:
+        yield where
+    finally:
+        subprocess.run(["umount", str(where)], check=True)
