@@ -1,4 +1,4 @@
-"""``hcrctl bridge [--listen HOST:PORT] [--encoding json|cdr] [--mcap FILE] [--rate HZ|max] [--duration S] [--timeout S]``."""
+"""``hcrctl bridge [--listen HOST:PORT] [--encoding json|cdr] [--mcap FILE] [--rate HZ|max] [--duration S] [--deadman S]``."""
 
 from __future__ import annotations
 
@@ -87,7 +87,7 @@ def bridge(
     mcap: str | None,
     rate: float | None,
     duration: float | None,
-    timeout: float,
+    deadman: float | None,
     allow_origins: tuple[str, ...],
 ) -> None:
     """Serve the readings live on the Foxglove WebSocket protocol, and drive from /cmd_vel.
@@ -97,7 +97,7 @@ def bridge(
     with JSON schemas, or with --encoding cdr as ROS 2 messages (CDR) for
     PlotJuggler's "Foxglove ROS2 Bridge" streaming plugin. A client may publish geometry_msgs/Twist JSON on
     /cmd_vel (linear.x m/s, angular.z rad/s): it becomes wheel velocities,
-    stopped when messages stop for --timeout, when forward motion meets a
+    stopped when messages stop for --deadman, when forward motion meets a
     pressed bumper, when the client leaves, and when the bridge ends. One
     client drives at a time. A web page may connect only from this machine,
     from Foxglove's app or from an --allow-origin. Needs the foxglove extra
@@ -109,6 +109,7 @@ def bridge(
     require_extra(mcap is not None)
     from ..feeds.bridge import Options, run_bridge, summary_line
 
+    timeout = settings.deadman_or(deadman, DEFAULT_TIMEOUT_S)
     options = Options(listen[0], listen[1], mcap, rate, duration, timeout, encoding, allow_origins)
     if settings.as_json:
         report = lambda summary: click.echo(json.dumps(summary))  # noqa: E731
