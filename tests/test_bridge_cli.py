@@ -113,3 +113,43 @@ def test_on_a_terminal_a_status_line_counts_clients_and_messages() -> None:
         term.send("\x03")
         assert term.finish() == 130
         assert re.search(r"bridge: \d+ sweeps in [\d.]+ s .* at most 1 client\(s\)", term.text())
+
+
+def test_an_existing_mcap_is_refused_without_force_and_nothing_is_served(
+    env: dict[str, str], tmp_path: Path
+) -> None:
+    keep = tmp_path / "keep.mcap"
+    keep.write_bytes(b"precious")
+    result = run(["--port", "sim://", "bridge", "--listen", "127.0.0.1:0", "--mcap", str(keep)], env)
+    assert result.returncode == 2
+    (line,) = result.stderr.splitlines()
+    assert str(keep) in line and "--force" in line and "serving" not in result.stderr
+    assert keep.read_bytes() == b"precious"
+    forced = run(
+        [
+            "--port",
+            "sim://",
+            "bridge",
+            "--listen",
+            "127.0.0.1:0",
+            "--mcap",
+            str(keep),
+            "--force",
+            "--duration",
+            "0.5",
+        ],
+        env,
+    )
+    assert forced.returncode == 0, forced.stderr
+    assert keep.read_bytes().startswith(b"\x89MCAP")
+
+
+def test_the_mcap_and_the_log_on_one_path_are_refused_before_anything_opens(
+    env: dict[str, str], tmp_path: Path
+) -> None:
+    same = tmp_path / "same.mcap"
+    result = run(["--port", "sim://", "--log", str(same), "bridge", "--mcap", str(same)], env)
+    assert result.returncode == 2
+    (line,) = result.stderr.splitlines()
+    assert "--mcap" in line and "--log" in line and "same file" in line
+    assert not same.exists()

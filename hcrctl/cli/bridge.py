@@ -9,6 +9,7 @@ import click
 
 from ..errors import HcrError
 from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
+from ..feeds.outfile import force_option
 from ..protocol.encodings import ENCODINGS
 from .params import deadman_option, duration_option, rate_option
 from .settings import Settings
@@ -65,6 +66,7 @@ class Origin(click.ParamType):
     metavar="FILE",
     help="Also record every message served to this MCAP file (as record does: a kill loses at most ~1 s).",
 )
+@force_option("the --mcap FILE")
 @rate_option()
 @duration_option("Exit by itself after S seconds.")
 @deadman_option(DEFAULT_TIMEOUT_S, "Deadman: stop when no /cmd_vel message arrives for S seconds.")
@@ -85,6 +87,7 @@ def bridge(
     listen: tuple[str, int],
     encoding: str,
     mcap: str | None,
+    force: bool,
     rate: float | None,
     duration: float | None,
     deadman: float | None,
@@ -106,6 +109,9 @@ def bridge(
     written (a full disk), that is said once, serving goes on, and the exit
     status is 1.
     """
+    from ..feeds.outputs import check_outputs
+
+    check_outputs([("--mcap", mcap)], appended=[("--log", settings.log)], force=force)
     require_extra(mcap is not None)
     from ..feeds.bridge import Options, run_bridge, summary_line
 
