@@ -443,7 +443,9 @@ def test_rtt_ends_at_the_last_reply_not_at_a_timeout() -> None:
     assert _reply_time(SimpleNamespace(last_reply_at=9.0), 10.0, results) is None  # an older sweep's
 
 
-@pytest.mark.parametrize(("frames", "said"), [(1, "1 frame, last"), (2, "2 frames, last"), (0, "0 frames, last")])
+@pytest.mark.parametrize(
+    ("frames", "said"), [(1, "1 frame, last"), (2, "2 frames, last"), (0, "0 frames, last")]
+)
 def test_one_frame_is_said_in_the_singular(frames: int, said: str) -> None:
     clock = Clock()
     state = LiveState(["bump", "wheels"], clock=clock)

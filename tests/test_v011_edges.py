@@ -104,7 +104,9 @@ def test_watch_counts_an_endless_run_of_junk_as_monitor_does() -> None:
 
 def test_under_v011_a_board_sending_0d_0a_frames_is_named_in_the_hint() -> None:
     """The mirror of "try --protocol v0.11": frames ending in 0D 0A mean the flag is wrong."""
-    result = run("--protocol", "v0.11", "--port", "sim://", "--timeout", "0.2", "--retries", "0", "read", "bump")
+    result = run(
+        "--protocol", "v0.11", "--port", "sim://", "--timeout", "0.2", "--retries", "0", "read", "bump"
+    )
     assert result.returncode == 1
     (line,) = result.stderr.splitlines()
     assert "frames ending in 0D 0A" in line and "drop --protocol v0.11" in line
