@@ -157,23 +157,34 @@ def test_csv_has_one_row_per_reading_and_every_series_column(log: Path, tmp_path
     assert text.endswith("\n")
     with out.open(newline="") as handle:
         rows = list(csv.reader(handle))
-    assert rows[0] == ["time", "t", "direction", "address", "command", *S.paths()]
-    assert all(len(row) == len(rows[0]) for row in rows)
-    numeric = {path.split(".")[0] for path in S.paths()}
+    numeric = {S.find(path).command.name for path in S.paths()}
     wanted = [line for line in lines_of(log) if is_reading(line) and line["name"] in numeric]
+    most = {"sonar": 0, "ir": 0}  # the items the log's lists have, at most: the columns they fill
+    for line in wanted:
+        for name in most.keys() & line["fields"].keys():
+            most[name] = max(most[name], len(line["fields"][name]))
+    assert most == {"sonar": 3, "ir": 5}, most  # what the v0.15 simulator sends
+    lists = [f"{name}[{i}]" for name, count in most.items() for i in range(count)]
+    columns = [p for p in S.paths() if not S.find(p).is_list_item or p in lists]
+    assert rows[0] == ["time", "t", "direction", "address", "command", "name", *columns]
+    assert all(len(row) == len(rows[0]) for row in rows)
     body = [dict(zip(rows[0], row, strict=True)) for row in rows[1:]]
-    assert [(r["time"], r["direction"], r["command"]) for r in body] == [
-        (line["time"], "rx", line["name"]) for line in wanted
-    ]
+    assert [(r["time"], r["direction"], int(r["command"]), r["name"]) for r in body] == [
+        (line["time"], "rx", line["command"], line["name"]) for line in wanted
+    ]  # the command's number and name, as the log (and /hcr/frames) give them
     for row, line in zip(body, wanted, strict=True):
         assert round(float(row["t"]) * 1e6) * 1000 == ns_of(line["time"])
         assert int(row["address"]) == line["address"]
         filled = {
-            k for k, v in row.items() if v and k not in ("time", "t", "direction", "address", "command")
+            k
+            for k, v in row.items()
+            if v and k not in ("time", "t", "direction", "address", "command", "name")
         }
-        assert filled and all(k.startswith(line["name"] + ".") for k in filled)
+        assert filled and all(S.find(k).command.name == line["name"] for k in filled)
         if line["name"] == "compass":
             assert float(row["compass.heading"]) == line["fields"]["heading"]
+        if line["name"] == "sonar":
+            assert [int(row[f"sonar[{i}]"]) for i in range(3)] == line["fields"]["sonar"]
 
 
 def test_json_summary_counts_records_and_messages(log: Path, tmp_path: Path) -> None:

@@ -96,9 +96,16 @@ def test_broadcast_fields_come_from_the_stream_and_nothing_is_asked() -> None:
 def test_an_unknown_field_is_a_usage_error_with_the_closest_names() -> None:
     error = usage_error("plot", "compass.heading", "compas.heading")
     assert "'FIELD'" in error and "'compas.heading'" in error and "did you mean compass.heading" in error
-    assert "'--plot': no reading field 'sonar.9' (did you mean sonar.8" in usage_error(
-        "watch", "--plot", "sonar.9"
+    assert "'--plot': no reading field 'sonar[8]' (did you mean sonar[7]" in usage_error(
+        "watch", "--plot", "sonar[8]"
     )
+
+
+def test_an_old_one_based_name_is_refused_with_its_new_name() -> None:
+    """``sonar.1`` was the first sonar; taking it as ``sonar[1]`` would plot the second one."""
+    error = usage_error("plot", "compass.heading", "sonar.1")
+    assert "sonar.1 is now sonar[0] (0-based, as Foxglove's paths)" in error, error
+    assert "ir.7 is now ir[6]" in usage_error("watch", "--plot", "ir.7")
 
 
 def test_duration_ends_it_and_a_pipe_gets_plain_lines_then_the_chart() -> None:
@@ -139,11 +146,11 @@ def test_an_ascii_locale_plots_in_ascii() -> None:
 
 
 def test_watch_shows_a_plot_panel_above_the_sensors() -> None:
-    args = ["--port", "sim://", "watch", "compass", "--plot", "compass.heading", "--plot", "sonar.2"]
+    args = ["--port", "sim://", "watch", "compass", "--plot", "compass.heading", "--plot", "sonar[1]"]
     with terminal(args, size=(120, 40)) as term:
         screen = term.wait_for(
             lambda t: (
-                "─ plot · last 30 s" in t and "● sonar.2" in t and BRAILLE.search(t) and "─ compass" in t
+                "─ plot · last 30 s" in t and "● sonar[1]" in t and BRAILLE.search(t) and "─ compass" in t
             )
         )
         assert screen.index("─ plot") < screen.index("─ compass")
@@ -171,4 +178,6 @@ def test_bash_completes_field_names(tmp_path) -> None:
         "wheels.left",
         "wheels.right",
     ]
-    assert "sonar.1" in complete(tmp_path, "hcrctl watch --plot so")
+    offered = complete(tmp_path, "hcrctl watch --plot so")
+    assert "sonar[0]" in offered and "sonar[7]" in offered and "sonar.1" not in offered
+    assert complete(tmp_path, "hcrctl plot 'sonar[") == [f"sonar[{i}]" for i in range(C.MAX_SENSORS)]

@@ -115,9 +115,9 @@ def test_samples_missing_for_a_while_leave_a_gap_not_a_line():
 def test_a_failed_read_breaks_the_line_even_between_close_samples():
     before = every(30, 15.05, 0.0)
     after = every(14.95, 0, 100.0)
-    joined = chart_lines([trace("sonar.1", before + after)], NOW, WINDOW, WIDTH, HEIGHT)
+    joined = chart_lines([trace("sonar[0]", before + after)], NOW, WINDOW, WIDTH, HEIGHT)
     broken = chart_lines(
-        [trace("sonar.1", [*before, (NOW - 15.0, None), *after])], NOW, WINDOW, WIDTH, HEIGHT
+        [trace("sonar[0]", [*before, (NOW - 15.0, None), *after])], NOW, WINDOW, WIDTH, HEIGHT
     )
     middle = slice(2, HEIGHT - 4)  # rows well between 0 and 100
     jump = column_of(15, len(plot_rows(joined)[0]))
@@ -141,7 +141,7 @@ def test_an_angle_crossing_its_wrap_breaks_the_line_instead_of_drawing_across_th
 
 def test_only_angles_wrap_a_jump_of_other_units_is_still_joined():
     jump = [(at, 10.0 if at < NOW - 15 else 250.0) for at, _ in every(30, 0, 0.0)]
-    rows = plot_rows(chart_lines([trace("sonar.1", jump)], NOW, WINDOW, WIDTH, HEIGHT))
+    rows = plot_rows(chart_lines([trace("sonar[0]", jump)], NOW, WINDOW, WIDTH, HEIGHT))
     assert any(row[column_of(15, len(rows[0]))] != " " for row in rows[3:-3])  # cm: a real jump, drawn
 
 
@@ -149,7 +149,7 @@ def test_wrapping_is_read_from_the_table_units():
     heading = trace("compass.heading", [])
     assert heading.turn == 360.0 and heading.wrapped(359.9, 0.1) and heading.wrapped(0.5, 350.0)
     assert not heading.wrapped(10.0, 150.0)  # a fast turn, not a wrap
-    assert trace("env.temperature", []).turn is None and not trace("sonar.1", []).wrapped(0, 255)
+    assert trace("env.temperature", []).turn is None and not trace("sonar[0]", []).wrapped(0, 255)
     degrees = [s for s in all_series() if s.unit == "deg"]
     assert degrees and all(trace(s.path, []).turn == 360.0 for s in degrees)
 
@@ -219,7 +219,7 @@ def test_ascii_charts_use_marks_and_no_other_glyphs():
 def test_flat_data_gets_a_range_within_the_field():
     assert y_range([trace("wheels.left", every(30, 0, 0.0))], NOW, WINDOW) == (0.0, 1.0)
     assert y_range([trace("bump.left", every(30, 0, 1.0))], NOW, WINDOW) == (0.0, 1.0)
-    assert y_range([trace("sonar.1", [])], NOW, WINDOW) == (0, 255)  # nothing yet: the table's range
+    assert y_range([trace("sonar[0]", [])], NOW, WINDOW) == (0, 255)  # nothing yet: the table's range
 
 
 def test_x_axis_says_seconds_ago():
@@ -232,11 +232,11 @@ def test_x_axis_says_seconds_ago():
 
 
 def test_history_is_bounded_by_the_window_and_a_cap():
-    kept = Trace("sonar.1", find("sonar.1"), 0, keep=45.0, cap=capacity(30, 10))
+    kept = Trace("sonar[0]", find("sonar[0]"), 0, keep=45.0, cap=capacity(30, 10))
     for i in range(100_000):
         kept.add(i * 0.1, float(i % 255))
     assert len(kept.samples) <= capacity(30, 10) and kept.samples[0][0] >= 100_000 * 0.1 - 45.1
-    fast = Trace("sonar.1", find("sonar.1"), 0, keep=45.0, cap=capacity(30, None))
+    fast = Trace("sonar[0]", find("sonar[0]"), 0, keep=45.0, cap=capacity(30, None))
     for i in range(50_000):
         fast.add(i * 0.0001, 1.0)
     assert len(fast.samples) == capacity(30, None)
@@ -266,7 +266,7 @@ def test_plot_state_keeps_points_breaks_and_stations():
 
 def test_a_fast_poll_keeps_each_buckets_lowest_highest_and_latest():
     step = WINDOW / BUCKETS
-    kept = Trace("sonar.1", find("sonar.1"), 0, keep=45.0, cap=capacity(30, None), step=step)
+    kept = Trace("sonar[0]", find("sonar[0]"), 0, keep=45.0, cap=capacity(30, None), step=step)
     values = [50.0] * 10_000
     values[4321] = 250.0  # one spike among a thousand samples a second
     for i, value in enumerate(values):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
 from hcrctl.protocol import commands as C
@@ -43,17 +45,27 @@ def test_every_read_and_broadcast_has_a_topic_and_nothing_else_does() -> None:
     assert T.FRAMES in [t.name for t in T.all_topics()]
 
 
-def test_series_paths_are_named_items_or_numbered_readings() -> None:
+def test_series_paths_are_named_items_or_indexed_readings() -> None:
+    """A list's items are indexed from 0, as a Foxglove message path indexes them (``/hcr/sonar.sonar[0]``)."""
     paths = S.paths()
-    for path in ("compass.heading", "wheels.left", "wheels.right", "bump.front", "sonar.1", "env.humidity"):
+    for path in ("compass.heading", "wheels.left", "wheels.right", "bump.front", "sonar[0]", "env.humidity"):
         assert path in paths
-    assert f"ir.{C.MAX_SENSORS}" in paths and f"ir.{C.MAX_SENSORS + 1}" not in paths
+    assert f"ir[{C.MAX_SENSORS - 1}]" in paths and f"ir[{C.MAX_SENSORS}]" not in paths
+    assert not any(re.search(r"\.[0-9]+$", p) for p in paths), "no 1-based item numbers left"
     assert not any(p.startswith("map.") for p in paths), "the grid map is a picture, not a series"
 
 
 def test_an_unknown_series_suggests_the_closest() -> None:
     with pytest.raises(KeyError, match=r"did you mean compass\.heading"):
         S.find("compas.heading")
+
+
+def test_an_old_one_based_item_name_names_its_new_one() -> None:
+    with pytest.raises(KeyError, match=r"sonar\.1 is now sonar\[0\] \(0-based"):
+        S.find("sonar.1")
+    with pytest.raises(KeyError, match=r"no reading field 'sonar\.0'"):  # never a name: no new one to give
+        S.find("sonar.0")
+    assert S.find("position.d1").index is None  # a name that ends in a digit is not an old item number
 
 
 @pytest.mark.parametrize(

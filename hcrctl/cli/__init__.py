@@ -41,7 +41,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "ports": ("hcrctl.cli.ports:ports", "List the serial ports present."),
     "sim": ("hcrctl.cli.sim:sim", "Serve the simulated robot on a pty or TCP port."),
     "watch": ("hcrctl.cli.watch:watch", "Live full-screen dashboard of the sensors and the link."),
-    "plot": ("hcrctl.cli.plot:plot", "Live plot of any reading field (compass.heading, sonar.1...)."),
+    "plot": ("hcrctl.cli.plot:plot", "Live plot of any reading field (compass.heading, sonar[0]...)."),
     "teleop": ("hcrctl.cli.teleop:teleop", "Drive the robot with the arrow keys or WASD (deadman stop)."),
     "hex": ("hcrctl.cli.hex:hex_group", "Decode, encode and send raw frames (the hex debugger)."),
     "monitor": ("hcrctl.cli.monitor:monitor", "Watch every frame on the line, decoded, with counters."),

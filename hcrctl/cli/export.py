@@ -25,8 +25,9 @@ The suffix of OUT chooses the format:
 MCAP holds the topics the bridge serves: /hcr/frames (every frame, both ways,
 with its checksum verdict) and /hcr/<read> for every good reading, JSON with
 JSON Schemas; Foxglove, Lichtblick and PlotJuggler open it. CSV holds one row
-per reading (time, t, direction, address, command, then one column per field,
-empty where a reading has no such field); frames that carry no reading, such
+per reading (time, t, direction, address, command (its number), name, then
+one column per field, named as plot names them, e.g. sonar[0], with as many
+list items as the readings have; empty where a reading has no such field); frames that carry no reading, such
 as requests, and the grid map (not a number) are not rows. A summary goes to stderr (with --json, to stdout).
 
 An existing OUT is refused unless --force is given. OUT is written beside

@@ -297,7 +297,7 @@ def table_command(
 
 
 class SeriesField(click.ParamType):
-    """A reading field to plot (``compass.heading``, ``sonar.1``), named as ``protocol.series`` names it.
+    """A reading field to plot (``compass.heading``, ``sonar[0]``), named as ``protocol.series`` names it.
 
     The names are the table's (``series.paths()``), so completion offers a
     plugin's fields too, and a typo is refused with the closest names.

@@ -11,7 +11,7 @@ from .settings import Settings
 #: The longest --window: an hour (a chart a few hundred columns wide shows no more anyway).
 MAX_WINDOW_S = 3600.0
 
-PLOT_HELP = """Live time series of reading FIELDs, e.g. compass.heading sonar.1 wheels.left.
+PLOT_HELP = """Live time series of reading FIELDs, e.g. compass.heading 'sonar[0]' wheels.left.
 
 A field is a sensor's name, a dot, and one of its values (TAB completes
 them). Only the sensors the fields need are polled; position.* fields come

@@ -24,7 +24,8 @@ The suffix of OUT chooses the format:
 
 MCAP holds the bridge's topics: /hcr/<read> for every reading, /hcr/frames for
 every frame both ways, /hcr/link for the link's counters (once a second).
-CSV holds one row per reading, one column per field; frames that carry no
+CSV holds one row per reading, one column per field (as plot names them,
+e.g. sonar[0]; a list gets as many as the robot sends); frames that carry no
 reading (the requests) and the grid map (not a number) are not rows. A progress line (elapsed, messages,
 bytes, rate) goes to stderr. Ctrl-C, SIGTERM or --duration ends it with the
 file closed and whole; at most the last second is lost if the process is

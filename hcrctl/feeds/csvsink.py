@@ -1,11 +1,25 @@
 """The CSV sink: one row per decoded reading, one column per series, for spreadsheets and pandas.
 
 Every row has every column (``time``, ``t``, ``direction``, ``address``,
-``command``, then each series path of ``protocol.series`` in table order), so
-the file is one rectangular table whatever the mix of readings; a reading
-leaves the other commands' cells empty. ``time`` is ISO 8601 as the traffic
-log writes it, ``t`` the same moment in seconds since the epoch, for
-arithmetic. Frames that carry no reading (requests, errors, the link's
+``command``, ``name``, then each series path of ``protocol.series`` in table
+order), so the file is one rectangular table whatever the mix of readings; a
+reading leaves the other commands' cells empty. ``time`` is ISO 8601 as the
+traffic log writes it, ``t`` the same moment in seconds since the epoch, for
+arithmetic. ``command`` is the command's number and ``name`` its name, as in
+the traffic log and ``/hcr/frames``, so a row and a frame can be joined on them.
+
+A list whose length the robot decides (``sonar``: the table allows 8, the
+v0.15 robot has 3) gets as many columns as the readings fill, not the table's
+maximum: the sink holds its rows until it has seen every such list once, or
+``HOLD_SECONDS`` of readings or ``HOLD_ROWS`` rows, whichever comes first (a
+``flush()`` or ``close()`` also ends the wait), then writes the header with
+the most items seen and the rows it held. A later reading with more items
+than that loses the extra ones, and ``close()`` says so in one warning line
+(how many readings, which columns they would have needed).
+
+Until the header is complete the file holds its first names only (``time,t,
+...,name``, no line end): written and flushed at once, so a bad path or a full
+disk is said before anything is polled. Frames that carry no reading (requests, errors, the link's
 counters) are not rows: they belong to the MCAP file's ``/hcr/frames``; nor
 are readings with no number in them (the grid map is a picture, not a series).
 
@@ -21,12 +35,17 @@ import io
 from collections.abc import Iterable, Sequence
 from typing import Any
 
+from ..link.rescue import warn
 from ..link.trafficlog import iso_time
 from ..protocol import series as S
+from ..protocol.commands import Command
 from ..protocol.topics import Topic
 from .sinks import Prepared, Sink, seconds
 
-HEAD = ("time", "t", "direction", "address", "command")
+HEAD = ("time", "t", "direction", "address", "command", "name")
+#: The longest the header waits for every list to be seen: seconds of readings (their log times), and rows.
+HOLD_SECONDS = 1.0
+HOLD_ROWS = 1000
 
 
 def csv_line(cells: Sequence[object]) -> str:
@@ -58,36 +77,126 @@ def series_value(message: dict[str, Any], s: S.Series) -> Any:
     return value[s.index] if isinstance(value, list) and s.index < len(value) else None
 
 
+class Row:
+    """One reading's cells, made once per message (``Prepared`` caches it), its line once the header is known.
+
+    A list's length is kept apart (``sizes``) because the header's column
+    count comes from it; the line is made lazily, since the columns it has are
+    not known while the header waits.
+    """
+
+    __slots__ = ("cells", "command", "head", "line", "over", "sizes")
+
+    def __init__(self, command: str, head: list[object], cells: list[str], sizes: dict[str, int]) -> None:
+        self.command = command
+        self.head = head
+        #: One cell per series of ``S.all_series()``, in its order.
+        self.cells = cells
+        #: A list's number of items in this reading, by the list's name (``sonar``, ``cmd.field``).
+        self.sizes = sizes
+        self.line: bytes | None = None
+        #: The lists with more items than the header has columns for (known with ``line``).
+        self.over: tuple[str, ...] = ()
+
+
+def list_name(s: S.Series) -> str:
+    """The list a list item belongs to, as its path names it without the index: ``sonar``, ``cmd.field``."""
+    return s.path.rpartition("[")[0]
+
+
 class CsvSink(Sink):
-    """Readings as rows; the column set is fixed when the file opens."""
+    """Readings as rows; the columns are fixed when the header is written (see the module's docstring)."""
 
     def __init__(self, path: str, topics: Iterable[Topic], flush_every: float | None = None) -> None:
         super().__init__(path, topics, flush_every)
-        self.columns = [*HEAD, *S.paths()]
+        self._series = S.all_series()
+        self.columns: list[str] | None = None
+        #: The commands whose lists the header waits to see once.
+        self._waiting = {
+            t.command.name for t in self.topics.values() if t.command is not None and self._lists(t.command)
+        }
+        self._seen: dict[str, int] = {}
+        self._held: list[tuple[bytes, Row]] = []
+        self._first: float | None = None
+        self._keep: list[int] = []
+        self._dropped: dict[str, int] = {}  # list -> readings that had more items than the header
         self._out = self._open()
-        self._out.write(csv_line(self.columns).encode())
+        self._out.write(csv_line(HEAD)[:-1].encode())
         self._out.flush()  # a bad path or a full disk shows at once, not at the first reading
 
-    def _encode(self, prepared: Prepared) -> bytes | bool:
-        """The row after its two time cells, or False for a topic that is not a reading."""
+    def _lists(self, command: Command) -> list[S.Series]:
+        """The command's list items whose count the robot decides (``is_list_item``)."""
+        return [s for s in S.of_command(command) if s.is_list_item]
+
+    def _encode(self, prepared: Prepared) -> Row | bool:
+        """The reading's cells, or False for a topic that is not a reading."""
         topic = self.topics.get(prepared.topic)
-        found = S.of_command(topic.command) if topic is not None and topic.command is not None else ()
-        if topic is None or topic.command is None or not found:
+        cmd = topic.command if topic is not None else None
+        if cmd is None or not S.of_command(cmd):
             return False
         message = prepared.message
-        cells = dict.fromkeys(S.paths(), "")
-        for s in found:
-            cells[s.path] = cell(series_value(message, s))
-        head = [message.get("direction", "rx"), message.get("address", ""), topic.command.name]
-        return ("," + csv_line([*head, *cells.values()])).encode()
+        cells = [cell(series_value(message, s)) if s.command is cmd else "" for s in self._series]
+        sizes: dict[str, int] = {}
+        for s in self._lists(cmd):
+            value = message.get(s.key)
+            sizes[list_name(s)] = len(value) if isinstance(value, list) else 0
+        head = [message.get("direction", "rx"), message.get("address", ""), cmd.code, cmd.name]
+        return Row(cmd.name, head, cells, sizes)
 
     def _emit(self, topic: str, encoded: Any, log_time: float, stamp: str | None) -> None:
-        start = (stamp or iso_time(log_time)) + "," + seconds(log_time)[1]
-        self._out.write(start.encode() + encoded)
+        start = ((stamp or iso_time(log_time)) + "," + seconds(log_time)[1]).encode()
+        if self.columns is not None:
+            self._write_row(start, encoded)
+            return
+        row: Row = encoded
+        self._held.append((start, row))
+        for name, count in row.sizes.items():
+            self._seen[name] = max(count, self._seen.get(name, 0))
+        self._waiting.discard(row.command)
+        if self._first is None:
+            self._first = log_time
+        if not self._waiting or log_time - self._first >= HOLD_SECONDS or len(self._held) >= HOLD_ROWS:
+            self._write_header()
+
+    def _write_header(self) -> None:
+        """The rest of the header, with each list's items as many as seen, then the rows held for it."""
+        self._keep = [
+            i
+            for i, s in enumerate(self._series)
+            if not s.is_list_item or (s.index or 0) < self._seen.get(list_name(s), 0)
+        ]
+        names = [self._series[i].path for i in self._keep]
+        self.columns = [*HEAD, *names]
+        self._out.write(("," + csv_line(names) if names else "\n").encode())
+        held, self._held = self._held, []
+        for start, row in held:
+            self._write_row(start, row)
+
+    def _write_row(self, start: bytes, row: Row) -> None:
+        """The row in the header's columns (made once per ``Row``); items past them are counted as dropped."""
+        line = row.line
+        if line is None:
+            cells = row.cells
+            line = row.line = ("," + csv_line([*row.head, *(cells[i] for i in self._keep)])).encode()
+            row.over = tuple(name for name, n in row.sizes.items() if n > self._seen.get(name, 0))
+        for name in row.over:
+            self._dropped[name] = self._dropped.get(name, 0) + 1
+        self._out.write(start + line)
 
     def flush(self) -> None:
+        """Make what is held readable too: a recording killed now keeps a header and its rows."""
+        if self.columns is None and self._held:
+            self._write_header()
         super().flush()
         self._out.flush()
 
     def _finish(self) -> None:
+        if self.columns is None:
+            self._write_header()  # nothing started it: no list seen means no list columns
         self._out.flush()
+        if self._dropped:  # the sink's path may be a temporary one (export renames it): not named here
+            said = "; ".join(
+                f"{count} {name} reading(s) had more than {self._seen.get(name, 0)} items"
+                for name, count in self._dropped.items()
+            )
+            warn(f"CSV: {said}, the columns its header has: the extra items were dropped")

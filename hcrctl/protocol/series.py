@@ -1,4 +1,4 @@
-"""Every plottable number a reply carries, named once: ``compass.heading``, ``wheels.left``, ``sonar.1``.
+"""Every plottable number a reply carries, named once: ``compass.heading``, ``wheels.left``, ``sonar[0]``.
 
 ``plot``, ``watch --plot``, the CSV columns and the topic messages all name a
 reading's values the same way, and all of them derive the names from the
@@ -9,7 +9,12 @@ and then:
 - the field's name for a scalar (``compass.heading``, ``env.temperature``);
 - the item's name for a tuple whose field declares ``names`` (``wheels.left``,
   ``bump.front``), prefixed by the field's name when the reply has more fields;
-- the item's number, from 1, for a list of readings (``sonar.1``, ``ir.7``).
+- the item's index in brackets, from 0, for a list of readings (``sonar[0]``,
+  ``ir[6]``; ``cmd.field[0]`` when the reply has more fields): the index
+  Foxglove's message paths use (``/hcr/sonar.sonar[0]``), so one sensor has
+  one number in a CSV column, a ``plot`` and a Foxglove panel. The old
+  1-based names (``sonar.1``) are refused with the new name, not read as
+  something else.
 
 A tuple of unknown length without a declared ``count`` (the grid map's rows)
 is not a series: it is a picture, not a number over time. Standard library only.
@@ -18,6 +23,7 @@ is not a series: it is a picture, not a number over time. Standard library only.
 from __future__ import annotations
 
 import difflib
+import re
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -51,6 +57,15 @@ class Series:
         return self.field.hi
 
     @property
+    def is_list_item(self) -> bool:
+        """An item of a list whose length the robot decides (``sonar[2]``), not the table.
+
+        The table allows up to its ``count`` (8 sonars), the robot sends what
+        it has (3): a CSV holds only the columns the readings fill.
+        """
+        return self.index is not None and self.field.names is None and not self.field.items
+
+    @property
     def is_bool(self) -> bool:
         return "bool" in self.field.type
 
@@ -78,8 +93,8 @@ def _series_of(cmd: C.Command) -> Iterator[Series]:
             continue
         count = info.items or (info.count[1] if info.count else 0)
         for index in range(count):
-            label = str(index + 1) if single else f"{info.name}.{index + 1}"
-            yield Series(f"{cmd.name}.{label}", cmd, info, index, info.name)
+            path = f"{cmd.name}[{index}]" if single else f"{cmd.name}.{info.name}[{index}]"
+            yield Series(path, cmd, info, index, info.name)
 
 
 _CACHE: dict[int, tuple[Series, ...]] = {}
@@ -100,11 +115,24 @@ def paths() -> list[str]:
     return [s.path for s in all_series()]
 
 
+#: A list item's old, 1-based name (``sonar.1``, ``ir.7``), which named its items one higher.
+OLD_ITEM = re.compile(r"(?P<base>.+)\.(?P<number>[1-9][0-9]*)")
+
+
 def find(path: str) -> Series:
-    """The series named ``path``; KeyError whose message suggests the closest names."""
+    """The series named ``path``; KeyError whose message suggests the closest names.
+
+    An old 1-based name is refused with its new one rather than taken: quietly
+    reading ``sonar.1`` as ``sonar[1]`` would plot the wrong sensor.
+    """
     for s in all_series():
         if s.path == path:
             return s
+    old = OLD_ITEM.fullmatch(path)
+    if old is not None:
+        new = f"{old['base']}[{int(old['number']) - 1}]"
+        if known(new):
+            raise KeyError(f"{path} is now {new} (0-based, as Foxglove's paths)")
     close = difflib.get_close_matches(path, paths(), n=3, cutoff=0.5)
     hint = f" (did you mean {', '.join(close)}?)" if close else ""
     raise KeyError(f"no reading field {path!r}{hint}")
