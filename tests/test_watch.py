@@ -24,17 +24,18 @@ PANELS = ("bumpers", "IR", "ultrasonic", "compass", "wheels", "environment", "po
 
 def test_values_appear_from_the_simulator_on_a_pty_and_q_quits() -> None:
     with sim_server("--pty") as (_, path), terminal(["--port", path, "watch"]) as term:
+        # every panel, once the broadcasts that bring the map and the stations have been heard
         screen = term.wait_for(
             lambda t: (
                 HEADING.search(t)
                 and re.search(r"US1 \S+ +\d+ cm", t)
                 and re.search(r"temperature -?\d+ °C", t)
+                and all(f"─ {title}" in t for title in PANELS)
             )
         )
         heading, point = HEADING.search(screen).groups()
         assert point == cardinal(float(heading))
         assert "IR1" in screen and "left" in screen and "cm/s" in screen
-        assert all(f"─ {title}" in screen for title in PANELS)
         term.wait_for(r"status +ok")
         term.wait_for(r"0x50 +\d+ +\d+ +\d+")  # a positioning station's broadcast
         term.send("q")
