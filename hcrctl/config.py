@@ -17,14 +17,16 @@ plain ``os.path`` strings keep this module cheap to import).
 
 from __future__ import annotations
 
+import errno
 import os
+import stat
 import sys
 from collections.abc import Callable, Mapping
 from typing import Any
 
 import click
 
-from .errors import ConfigError
+from .errors import ConfigError, quoted
 
 APP_DIR = "hcrctl"
 FILE_NAME = "config.toml"
@@ -37,20 +39,122 @@ def config_path(environ: Mapping[str, str] = os.environ) -> str:
     return os.path.join(root, APP_DIR, FILE_NAME)
 
 
+#: The largest config file read: a real one is a few hundred bytes; a bigger one is refused unread.
+MAX_BYTES = 1 << 20
+#: The longest string value: a device path (PATH_MAX is 4096) or a URL is shorter.
+MAX_STRING = 4096
+#: The most dotted parts a key may have (``bridge.allow-origin`` has two): tomllib's memory grows
+#: with the square of a dotted key's length, and 100,000 parts take it past any machine's.
+MAX_KEY_PARTS = 16
+#: A UTF-8 byte order mark: Notepad wrote one until 2019. It means nothing in UTF-8 and TOML does not
+#: allow it, but refusing a file for an invisible mark the user's editor added helps no one; the
+#: shell's script reader skips it the same way.
+BOM = b"\xef\xbb\xbf"
+
+
 def load_table(path: str) -> dict[str, Any]:
     """The file's top-level table; {} when there is no file."""
+    data = read_config(path)
+    return {} if data is None else parse_table(path, data)
+
+
+def read_config(path: str) -> bytes | None:
+    """The file's bytes, or None when there is no file.
+
+    Anything else at that path that is not a regular file is refused by
+    name (a dangling symlink, a symlink loop, a directory, a FIFO: opening a
+    FIFO would block until someone writes to it), as is a file too large,
+    and it is never read past ``MAX_BYTES``. ``/dev/null`` (a config
+    disabled by a symlink) reads as empty.
+    """
     try:
-        with open(path, "rb") as file:
-            data = file.read()
+        info = os.stat(path)
     except FileNotFoundError:
-        return {}
+        if os.path.islink(path):
+            raise ConfigError(
+                path, None, f"a symlink to {os.readlink(path)!r}, which does not exist"
+            ) from None
+        return None
+    except NotADirectoryError:
+        return None  # a file where a directory should be (HOME=/dev/null): there is no config there
     except OSError as exc:
-        raise ConfigError(path, None, f"cannot read it ({exc.strerror or exc})") from exc
+        raise ConfigError(path, None, _unreadable(exc)) from exc
+    if not stat.S_ISREG(info.st_mode):
+        if stat.S_ISCHR(info.st_mode) and info.st_rdev == os.stat(os.devnull).st_rdev:
+            return b""
+        raise ConfigError(path, None, f"not a regular file but {_kind(info.st_mode)}: give a TOML file")
+    flags = os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0) | getattr(os, "O_CLOEXEC", 0)
+    try:
+        fd = os.open(path, flags)
+    except OSError as exc:
+        raise ConfigError(path, None, _unreadable(exc)) from exc
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):  # swapped since the stat: still never read it
+            raise ConfigError(path, None, "not a regular file: give a TOML file")
+        chunks, size = [], 0
+        while size <= MAX_BYTES and (chunk := os.read(fd, MAX_BYTES + 1 - size)):
+            chunks.append(chunk)
+            size += len(chunk)
+    except OSError as exc:
+        raise ConfigError(path, None, _unreadable(exc)) from exc
+    finally:
+        os.close(fd)
+    if size > MAX_BYTES:
+        raise ConfigError(path, None, f"larger than {MAX_BYTES >> 20} MiB: not a config file")
+    return b"".join(chunks)
+
+
+def parse_table(path: str, data: bytes) -> dict[str, Any]:
+    """``data`` as TOML, after the checks that keep a hostile file from taking the parser down."""
+    import re  # here, as tomllib: only a command that has a config file pays for them
+
+    from .inputs import MAX_DEPTH, TOML_STRINGS, blanked, too_deep
+
+    if data.startswith(BOM):
+        data = data[len(BOM) :]
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise ConfigError(path, None, f"not UTF-8 text: byte 0x{data[exc.start]:02X}", line) from None
+    deep = too_deep(data, TOML_STRINGS)
+    if deep >= 0:
+        line = data.count(b"\n", 0, deep) + 1
+        raise ConfigError(path, None, f"nested deeper than {MAX_DEPTH} arrays or inline tables", line)
+    for run in re.finditer(rb"[A-Za-z0-9_\-. \t]+", blanked(data, TOML_STRINGS)):
+        if run.group().count(b".") >= MAX_KEY_PARTS:
+            line = data.count(b"\n", 0, run.start()) + 1
+            raise ConfigError(path, None, f"a dotted key of more than {MAX_KEY_PARTS} parts", line)
     toml = _toml_module()
     try:
-        return toml.loads(data.decode("utf-8"))
-    except (toml.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise ConfigError(path, None, f"not valid TOML ({exc})") from exc
+        table: dict[str, Any] = toml.loads(text)
+    except toml.TOMLDecodeError as exc:
+        where = re.fullmatch(r"(.*) \(at line (\d+), column (\d+)\)", str(exc), re.DOTALL)
+        if where is None:  # "(at end of document)": the last line is where it went wrong
+            last = len(text.splitlines()) or 1
+            raise ConfigError(path, None, f"not valid TOML: {quoted(exc, 200)}", last) from None
+        what, row, column = where.groups()
+        raise ConfigError(
+            path, None, f"not valid TOML: {quoted(what)} at column {column}", int(row)
+        ) from None
+    return table
+
+
+def _unreadable(exc: OSError) -> str:
+    if exc.errno == errno.ELOOP:
+        return "a symlink loop: it leads back to itself"
+    return f"cannot read it ({exc.strerror or exc})"
+
+
+def _kind(mode: int) -> str:
+    kinds = [
+        (stat.S_ISDIR, "a directory"),
+        (stat.S_ISFIFO, "a FIFO"),
+        (stat.S_ISSOCK, "a socket"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+    ]
+    return next((name for test, name in kinds if test(mode)), "not a file")
 
 
 def _toml_module() -> Any:
@@ -76,9 +180,16 @@ def option_defaults(
     ``commands`` finds a subcommand by name, for a table of its options.
     """
     path = config_path() if path is None else path
-    if not os.path.isfile(path):
+    data = read_config(path)
+    if data is None:
         return {}
-    return _defaults(path, "", load_table(path), options, commands)
+    table = parse_table(path, data)
+    try:
+        return _defaults(path, "", table, options, commands)
+    except ConfigError as exc:
+        if exc.line is not None or not exc.key:
+            raise
+        raise ConfigError(path, exc.key, exc.problem, _line_of(data, exc.key)) from None
 
 
 def _defaults(
@@ -100,6 +211,25 @@ def _defaults(
     return defaults
 
 
+def _line_of(data: bytes, dotted: str) -> int | None:
+    """The line that sets ``dotted`` (``baud``, ``bridge.allow-origin``) or opens that table, if it is
+    written the plain way (``key = ...`` under ``[table]``): the line an error about it points at."""
+    import re
+
+    table, _, key = dotted.rpartition(".")
+    current = ""
+    for number, line in enumerate(data.decode("utf-8-sig", errors="replace").splitlines(), 1):
+        text = line.strip()
+        header = re.fullmatch(r"""\[\s*(["']?)([^\[\]]+?)\1\s*\](\s*#.*)?""", text)
+        if header is not None:
+            current = header.group(2)
+            if current == dotted:
+                return number
+        elif current == table and re.match(rf"""(["']?){re.escape(key)}\1\s*=""", text):
+            return number
+    return None
+
+
 def command_options(command: click.Command) -> dict[str, click.Option]:
     """A subcommand's options by long name (``allow-origin``), as its config table names them."""
     return {
@@ -114,7 +244,7 @@ def command_options(command: click.Command) -> dict[str, click.Option]:
 def _unknown_key(key: str, options: Mapping[str, click.Option]) -> str:
     import difflib
 
-    close = difflib.get_close_matches(key, list(options), n=1)
+    close = difflib.get_close_matches(key, list(options), n=1) if len(key) <= 100 else []
     hint = f"did you mean {close[0]!r}? " if close else ""
     return f"unknown key; {hint}known keys: {', '.join(options)}"
 
@@ -139,10 +269,17 @@ def _check_one(path: str, key: str, option: click.Option, value: Any) -> None:
         raise ConfigError(
             path, key, f"expected {names}, got {_TOML_NAMES.get(type(value), type(value).__name__)}"
         )
+    if isinstance(value, str) and len(value) > MAX_STRING:
+        raise ConfigError(
+            path, key, f"a string of {len(value):,} characters: at most {MAX_STRING} ({quoted(value, 40)!r})"
+        )
     try:
         option.type.convert(value, option, None)
     except click.BadParameter as exc:
-        raise ConfigError(path, key, exc.message) from None
+        message = exc.message  # it may quote the value: never more than its head
+        if isinstance(value, str) and len(value) > 40:
+            message = message.replace(value, quoted(value, 40)) if value in message else quoted(message, 200)
+        raise ConfigError(path, key, message) from None
 
 
 _TOML_NAMES = {bool: "true/false", int: "an integer", float: "a number", str: "a string"}

@@ -35,6 +35,24 @@ def printable(text: str) -> str:
     return "".join(ch if ch.isprintable() else _escape(ord(ch)) for ch in text)
 
 
+#: The most characters of an input's content an error line quotes.
+QUOTE_CHARS = 100
+
+
+def quoted(text: object, limit: int = QUOTE_CHARS) -> str:
+    """``text`` as an error may quote it: control characters escaped, at most ``limit`` characters.
+
+    A file's content may be a 50 MB value; an error that quoted it whole
+    would be 50 MB of stderr. Only the head is escaped: escaping the whole
+    value would cost as much as the value, to be cut anyway.
+    """
+    head = str(text)[: limit + 1]
+    shown = printable(head)
+    if len(shown) > limit or len(head) > limit:
+        return shown[: limit - 1] + "…"
+    return shown
+
+
 def _escape(code: int) -> str:
     if code < 0x100:
         return f"\\x{code:02x}"
@@ -209,9 +227,13 @@ class HexSyntaxError(HcrError):
 
     exit_code = 2
 
-    def __init__(self, token: str, where: str, hint: str | None = None) -> None:
+    def __init__(
+        self, token: str, where: str, hint: str | None = None, line: int = 1, column: int = 1
+    ) -> None:
         super().__init__(f"not hex: {token!r} at {where}", hint=hint)
         self.token, self.where = token, where
+        #: Where the token stands in its text (1-based), for a file's ``FILE:LINE:`` form.
+        self.line, self.column = line, column
 
 
 class FrameRefused(HcrError):
@@ -226,21 +248,40 @@ class LogIncomplete(HcrError):
         self.path, self.reason = path, reason
 
 
-class LogFormatError(HcrError):
-    """A traffic log line that is not what ``--log`` writes: the wrong file was given."""
+class InputFileError(HcrError):
+    """An input file that cannot be used, said as ``FILE:LINE: what is wrong`` (exit 1).
+
+    A log, a capture: data, not usage, so exit 1 as for a device that failed;
+    the files that say how to run (the config file, a shell script) exit 2.
+    ``line`` is None when the file as a whole is wrong (unreadable, empty).
+    """
+
+    def __init__(self, path: str, line: int | None, problem: str, hint: str | None = None) -> None:
+        super().__init__(f"{path}:{line}: {problem}" if line else f"{path}: {problem}", hint=hint)
+        self.path, self.line, self.problem = path, line, problem
+
+
+class LogFormatError(InputFileError):
+    """A traffic log line that is not what ``--log`` writes: the wrong file was given, or a damaged one."""
+
+
+class LogOpenError(HcrError):
+    """The ``--log FILE`` to write cannot be opened: the option's value is wrong, a usage error."""
 
     exit_code = 2
 
 
 class ConfigError(HcrError):
-    """A bad config file: a usage error (exit 2) naming the file and the key."""
+    """A bad config file: a usage error (exit 2) naming the file, the line when known, and the key."""
 
     exit_code = 2
 
-    def __init__(self, path: object, key: str | None, problem: str) -> None:
-        where = f"{path}: {key}" if key else f"{path}"
+    def __init__(self, path: object, key: str | None, problem: str, line: int | None = None) -> None:
+        where = f"{path}:{line}" if line else f"{path}"
+        if key:
+            where += f": {quoted(key)}"
         super().__init__(f"config file {where}: {problem}")
-        self.path, self.key = path, key
+        self.path, self.key, self.problem, self.line = path, key, problem, line
 
 
 class BadPortUrl(PortError):

@@ -164,12 +164,13 @@ def test_from_rejudges_checksums_under_the_active_rule(tmp_path: Path) -> None:
     assert len(lines) == 2 and all(line.endswith("ok") for line in lines)
 
 
-def test_from_a_file_that_is_not_a_log_is_a_usage_error(tmp_path: Path) -> None:
+def test_from_a_file_that_is_not_a_log_is_one_line_naming_file_and_line(tmp_path: Path) -> None:
+    """A log is data, not usage: exit 1, as FILE:LINE: what is wrong (issue 23)."""
     junk = tmp_path / "notes.txt"
     junk.write_text("hello\n")
     proc = run("monitor", "--from", str(junk))
-    assert proc.returncode == 2
-    assert f"{junk} line 1 is not a traffic log record" in proc.stderr
+    assert proc.returncode == 1
+    assert f"{junk}:1: not a traffic log record" in proc.stderr
 
 
 @pytest.mark.parametrize(

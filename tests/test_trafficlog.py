@@ -91,7 +91,7 @@ def test_read_log_round_trips_and_skips_a_line_cut_by_a_crash(tmp_path: Path) ->
 def test_a_bad_line_in_the_middle_names_file_and_line(tmp_path: Path) -> None:
     path = tmp_path / "log.jsonl"
     path.write_text('{"time": "2026-01-01T00:00:00.000001+00:00", "direction": "tx", "hex": "55"}\nnope\n')
-    with pytest.raises(LogFormatError, match=r"log.jsonl line 2 is not a traffic log record"):
+    with pytest.raises(LogFormatError, match=r"log.jsonl:2: not a traffic log record"):
         list(read_log(str(path)))
 
 

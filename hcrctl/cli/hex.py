@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any, BinaryIO
 
 import click
 
+from ..errors import HexSyntaxError, InputFileError
 from ..hex.parse import STYLES, format_hex, parse_hex, parse_hex_args
 from ..ops.motion import DRIVE_COMMANDS
 from ..protocol import commands as C
@@ -119,11 +120,14 @@ def _capture(path: str) -> Iterator[bytes]:
     """
     from ..hex.stream import WHOLE, binary_chunks, hex_line_chunks
 
-    handle = open(path, "rb")  # noqa: SIM115 - the generators returned close it
-    data = handle.read(WHOLE)
+    try:
+        handle = open(path, "rb")  # noqa: SIM115 - the generators returned close it
+        data = handle.read(WHOLE)
+    except OSError as exc:
+        raise InputFileError(path, None, f"cannot read it ({exc.strerror or exc})") from exc
     whole = len(data) < WHOLE
     if not data.isascii() or not data.strip():
-        return _closing(handle, binary_chunks(data, handle))
+        return _closing(handle, binary_chunks(data, handle), path)
     if data.lstrip().startswith(b"{"):
         handle.close()
         raise click.UsageError(
@@ -132,17 +136,26 @@ def _capture(path: str) -> Iterator[bytes]:
     text = data.decode("ascii")
     if not _mostly_hex(text):  # a capture of a device that only printed lines (a boot banner)
         click.echo(f"hcrctl: {path} holds printed text, not hex: decoding its bytes", err=True)
-        return _closing(handle, binary_chunks(data, handle))
+        return _closing(handle, binary_chunks(data, handle), path)
     click.echo(f"hcrctl: {path} is text, not a binary capture: reading it as hex", err=True)
     if whole:
         handle.close()
-        return iter((parse_hex(text, path),))
-    return _closing(handle, hex_line_chunks(data, handle, path))
+        try:
+            return iter((parse_hex(text, path),))
+        except HexSyntaxError as exc:  # a file's content, not usage: FILE:LINE and exit 1
+            raise InputFileError(
+                path, exc.line, f"not hex: {exc.token!r} at column {exc.column}", exc.hint
+            ) from None
+    return _closing(handle, hex_line_chunks(data, handle, path, file=True), path)
 
 
-def _closing(handle: BinaryIO, chunks: Iterator[bytes]) -> Iterator[bytes]:
+def _closing(handle: BinaryIO, chunks: Iterator[bytes], path: str) -> Iterator[bytes]:
+    """The chunks, the file closed after them; a read that fails (EIO) is the file's error, not ours."""
     with handle:
-        yield from chunks
+        try:
+            yield from chunks
+        except OSError as exc:
+            raise InputFileError(path, None, f"cannot read it ({exc.strerror or exc})") from exc
 
 
 #: One word of hex as people write it: 55, 0x55, 55AA01, \x55\xAA, with brackets and separators around.
@@ -159,7 +172,6 @@ def _mostly_hex(text: str) -> bool:
 
 def _stdin_hex() -> Iterator[bytes]:
     """Hex text on stdin: whole when small (a typo stops it before any row), else line by line."""
-    from ..errors import HexSyntaxError
     from ..hex.stream import WHOLE, hex_line_chunks
 
     stream = sys.stdin.buffer

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from ..hex.traffic import CACHE_RECORDS, FrameFilter, TrafficPrinter
+from ..hex.traffic import CACHE_RECORDS, CACHE_ROWS, FrameFilter, TrafficPrinter
 from ..protocol import commands as C
 from ..protocol.dialect import decode_all
 from ..protocol.frames import ChecksumRule, Event
@@ -132,9 +132,11 @@ def _summarise(settings: Settings, source: str | None, duration: float | None) -
                 break
             events = decoded.get(data)
             if events is None:
-                if len(decoded) >= CACHE_RECORDS:
-                    decoded.clear()  # bounded, like monitor --from's rows
-                events = decoded[data] = decode_all(data, rule, prof)
+                events = decode_all(data, rule, prof)
+                if len(events) <= CACHE_ROWS:  # bounded, like monitor --from's rows
+                    if len(decoded) >= CACHE_RECORDS:
+                        decoded.clear()
+                    decoded[data] = events
             counts.show_events(moment, data, events)
     else:
         _listen(settings, counts, duration)

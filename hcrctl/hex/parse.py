@@ -90,12 +90,12 @@ def _escaped(token: str) -> bytes:
 def _error(text: str, source: str, token: str, at: int, hint: str) -> HexSyntaxError:
     """The token quoted, with its line and column (1-based) in ``text``."""
     quoted = token if len(token) <= MAX_QUOTE else token[:MAX_QUOTE] + "…"
-    return HexSyntaxError(quoted, _where(text, source, token, at), hint=hint)
-
-
-def _where(text: str, source: str, token: str, at: int) -> str:
-    if text.strip() == token:
-        return source
     line = text.count("\n", 0, at) + 1
     column = at - (text.rfind("\n", 0, at) + 1) + 1
+    return HexSyntaxError(quoted, _where(text, source, token, line, column), hint, line, column)
+
+
+def _where(text: str, source: str, token: str, line: int, column: int) -> str:
+    if text.strip() == token:
+        return source
     return f"{source} line {line}, column {column}" if "\n" in text.strip() else f"{source} column {column}"

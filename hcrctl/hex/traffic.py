@@ -22,6 +22,9 @@ if TYPE_CHECKING:
 
 #: Distinct records whose rows ``show_record`` remembers; past this it starts afresh (bounded).
 CACHE_RECORDS = 4096
+#: Only a record of at most this many rows is remembered: what repeats in a log is a frame or two, and
+#: records of many rows (each of them carries the record's hex) would make that bound a gigabyte.
+CACHE_ROWS = 2
 #: Lines ``show_record`` holds before writing them at once (when not live).
 WRITE_LINES = 512
 
@@ -273,6 +276,8 @@ class TrafficPrinter:
                         head, tail = ANSI[colour], tail + RESET
                     tail += "\n"
             made.append((row, simple, head, tail))
+        if len(made) > CACHE_ROWS:
+            return made
         if len(self._records) >= CACHE_RECORDS:
             self._records.clear()
         self._records[direction, data, offset] = made

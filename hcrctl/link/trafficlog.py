@@ -20,6 +20,8 @@ and ``incomplete()`` lets the CLI's error mapper make the exit status 1.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
+import functools
 import json
 import sys
 import threading
@@ -29,7 +31,8 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import TYPE_CHECKING, Any
 
-from ..errors import LogFormatError, LogIncomplete
+from ..errors import LogFormatError, LogIncomplete, LogOpenError
+from ..inputs import MAX_DEPTH, quoted, too_deep
 from ..protocol.dialect import decode_all
 from ..protocol.frames import ChecksumRule
 from ..protocol.profiles import DEFAULT, Profile
@@ -87,9 +90,7 @@ class TrafficLog:
         try:
             self._file = open(path, "a", encoding="utf-8")  # noqa: SIM115 - closed by close()
         except OSError as exc:
-            raise LogFormatError(
-                f"cannot open the log {path} ({exc.strerror})", hint="check the path"
-            ) from exc
+            raise LogOpenError(f"cannot open the log {path} ({exc.strerror})", hint="check the path") from exc
 
     @property
     def rule(self) -> ChecksumRule:
@@ -97,7 +98,17 @@ class TrafficLog:
 
     def __call__(self, traffic: Traffic) -> None:
         """Append one line; never raises, as it runs in the reader thread and before stop goes out."""
-        line = json.dumps(record(traffic, self.rule, self.profile), ensure_ascii=False) + "\n"
+        data, rule = traffic.data, self.rule
+        if len(data) <= RECORD_BYTES:
+            line = json.dumps(record(traffic, rule, self.profile), ensure_ascii=False) + "\n"
+        else:  # one long write (a hex send): lines a reader takes (``log_fields``), the same bytes in order
+            pieces = (
+                dataclasses.replace(traffic, data=data[at : at + RECORD_BYTES], event=None)
+                for at in range(0, len(data), RECORD_BYTES)
+            )
+            line = "".join(
+                json.dumps(record(piece, rule, self.profile), ensure_ascii=False) + "\n" for piece in pieces
+            )
         with self._lock:
             if self._file.closed:
                 return
@@ -135,7 +146,7 @@ def attach(robot: Robot, path: str) -> TrafficLog:
     ref = weakref.ref(robot)
     try:
         log = TrafficLog(path, rule=lambda: _rule_of(ref), profile=robot.profile)
-    except LogFormatError:
+    except LogOpenError:
         robot.close()
         raise
     robot.add_traffic_hook(log)
@@ -173,40 +184,109 @@ def log_fields(path: str) -> Iterator[tuple[int, dict[str, Any], float, str, byt
 
     For a reader that goes through a day-long log once (``monitor --from``): a
     tuple costs less than a record object, and the checks are the same.
+
+    Every reader of a log comes through here, so here a damaged or hostile
+    log is stopped, as ``FILE:LINE: what is wrong`` (``LogFormatError``),
+    before it costs more than one line's worth: a line is read with a size
+    limit (``LINE_LIMIT``: a longer one is refused unread), decoded as UTF-8
+    on its own (so a bad byte is named by its line), refused if nested deeper
+    than ``inputs.MAX_DEPTH`` before the JSON parser recurses into it; a
+    record of more than ``RECORD_BYTES``, and a time stamp or offset outside
+    what the readers and writers can hold (``TIME_RANGE``: MCAP's unsigned
+    nanoseconds), are refused, not converted.
     """
     try:
-        handle = open(path, encoding="utf-8")  # noqa: SIM115 - closed below, lazily iterated
+        handle = open(path, "rb")  # noqa: SIM115 - closed below, lazily iterated
     except OSError as exc:
-        raise LogFormatError(f"cannot read the log {path} ({exc.strerror})", hint=LOG_HINT) from exc
+        raise LogFormatError(path, None, f"cannot read the log ({exc.strerror})", hint=LOG_HINT) from exc
     scan = json.decoder.JSONDecoder().scan_once  # type: ignore[attr-defined]  # set in __init__, untyped
     parse_time, fromhex = datetime.fromisoformat, bytes.fromhex
+    low, high = TIME_RANGE
     obj: Any
+    number = 0
+    lines = iter(functools.partial(handle.readline, LINE_LIMIT + 1), b"")  # never more than a line's cap
     with handle:
-        for number, text in enumerate(handle, 1):
-            try:
-                # json.loads(text): the C scanner alone for a line as the log writes them (an object,
-                # then the line end); json.loads for anything else (its result or its error)
+        try:
+            for number, raw in enumerate(lines, 1):
+                if len(raw) > LINE_LIMIT and raw[-1] != 0x0A:
+                    raise _bad(
+                        path, number, f"longer than {LINE_LIMIT >> 10} KiB, the most a log line may be"
+                    )
                 try:
-                    obj, end = scan(text, 0) if text[:1] == "{" else (None, -1)
-                except StopIteration:
-                    end = -1
-                if end != len(text) and (end != len(text) - 1 or text[end] != "\n"):
-                    obj = json.loads(text)
-                moment, direction, data = (
-                    parse_time(obj["time"]).timestamp(),
-                    obj["direction"],
-                    fromhex(obj["hex"]),
-                )
-                why = None if direction in ("tx", "rx") else f"direction {direction!r}"
-            except (ValueError, KeyError, TypeError) as exc:
-                why = str(exc)
-            if why is None:
-                yield number, obj, moment, direction, data
-            elif text.strip():
-                if not text.endswith("\n"):
-                    return  # the process died while writing it
-                raise _bad(path, number, f"not a traffic log record ({why})")
+                    text = raw.decode("utf-8")
+                    # too_deep's own first test, inline: it runs on every line of a day-long log
+                    if raw.count(b"[") + raw.count(b"{") > MAX_DEPTH and too_deep(raw) >= 0:
+                        raise _Refused(f"nested deeper than {MAX_DEPTH} arrays or objects")
+                    # json.loads(text): the C scanner alone for a line as the log writes them (an object,
+                    # then the line end); json.loads for anything else (its result or its error)
+                    try:
+                        obj, end = scan(text, 0) if text[:1] == "{" else (None, -1)
+                    except StopIteration:
+                        end = -1
+                    if end != len(text) and (end != len(text) - 1 or text[end] != "\n"):
+                        obj = json.loads(text)
+                    when = parse_time(obj["time"])
+                    try:
+                        moment = when.timestamp()
+                    except (ValueError, OverflowError, OSError):  # a local time past year 1..9999
+                        moment = -1.0  # refused below, as any time out of range
+                    direction, data, offset = obj["direction"], fromhex(obj["hex"]), obj.get("offset", 0)
+                    if not (
+                        low <= moment <= high
+                        and direction in ("tx", "rx")
+                        and len(data) <= RECORD_BYTES
+                        and type(offset) is int
+                        and 0 <= offset <= MAX_OFFSET
+                    ):
+                        raise _Refused(_refusal(obj, moment, direction, data, offset))
+                except _Refused as refused:
+                    why = refused.args[0]
+                except UnicodeDecodeError as exc:
+                    why = f"not UTF-8 text: byte 0x{raw[exc.start]:02X} at column {exc.start + 1}"
+                except (ValueError, KeyError, TypeError) as exc:
+                    why = f"not a traffic log record ({quoted(exc)})"
+                else:
+                    yield number, obj, moment, direction, data
+                    continue
+                if raw[-1] != 0x0A:
+                    return  # the last line, cut short: the process died while writing it
+                if raw.strip():
+                    raise _bad(path, number, why)
+        except OSError as exc:
+            raise _bad(path, number + 1, f"cannot be read ({exc.strerror})") from exc
+
+
+def _refusal(obj: dict[str, Any], moment: float, direction: object, data: bytes, offset: object) -> str:
+    """Why a record that parses is none the readers can take (the first reason)."""
+    low, high = TIME_RANGE
+    if not low <= moment <= high:
+        return f"time {quoted(obj['time'])!r} is outside {TIME_SPAN}, what readers can hold"
+    if direction not in ("tx", "rx"):
+        return f"not a traffic log record (direction {quoted(repr(direction))})"
+    if len(data) > RECORD_BYTES:
+        return f"a record of {len(data)} bytes: at most {RECORD_BYTES} (--log writes no more per line)"
+    return f"not a traffic log record (offset {quoted(repr(offset))})"
+
+
+class _Refused(Exception):
+    """A line that parses, but holds what no log record does."""
+
+
+#: The most bytes one record carries (``hex``): a frame is at most 263, and the decoder keeps at most
+#: 512 of a junk run or a printed line, so only a long write (``hex send``) is more, and the writer
+#: splits that. It bounds what one line costs a reader: ``monitor --json`` repeats a record's hex on
+#: each of its rows, and a record can hold a row every ~4.5 bytes: 512 bytes, ~110 KB of lines.
+RECORD_BYTES = 512
+#: The largest ``offset`` (bytes since the port opened): what a signed 64-bit integer holds.
+MAX_OFFSET = 2**63 - 1
+#: The longest line a log may hold: a record of ``RECORD_BYTES`` is under 8 KiB with its decoded
+#: fields (a printed line's text, escaped, and its hex), so this leaves room and bounds the rest.
+LINE_LIMIT = 64 << 10
+#: The time stamps every reader can represent: from the epoch to the last whole second MCAP's
+#: log time (unsigned 64-bit nanoseconds) holds; any local time of that span is a datetime too.
+TIME_RANGE = (0.0, float((2**64 - 1) // 10**9))
+TIME_SPAN = "1970-01-01..2554-07-21 UTC"
 
 
 def _bad(path: str, number: int, why: str) -> LogFormatError:
-    return LogFormatError(f"{path} line {number} is {why}", hint=LOG_HINT)
+    return LogFormatError(path, number, why, hint=LOG_HINT)

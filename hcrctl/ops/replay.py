@@ -84,7 +84,7 @@ class TxRecords:
         self.path = path
         if next(iter(self), None) is None:
             raise LogFormatError(
-                f"{path} holds no tx frames to replay", hint="record one with hcrctl --log FILE ..."
+                path, None, "holds no tx frames to replay", hint="record one with hcrctl --log FILE ..."
             )
         for _ in self:
             pass

@@ -232,12 +232,11 @@ def register_command(cmd: Command) -> Command:
     Click choices include it. A code or name already in the table is refused.
     """
     global COMMANDS, SENSORS
-    if cmd.kind not in KINDS:
-        raise ValueError(f"{cmd.name}: kind must be one of {', '.join(KINDS)}, not {cmd.kind!r}")
-    if cmd.code in BY_CODE or cmd.name in BY_NAME:
-        raise ValueError(f"0x{cmd.code:02X} {cmd.name}: the table already has that code or name")
-    if cmd.kind == "read" and (cmd.request is not ReadRequest or cmd.reply is None):
-        raise ValueError(f"{cmd.name}: a read takes ReadRequest and needs a reply class")
+    from .plugins import check_row
+
+    if not isinstance(cmd, Command):
+        raise ValueError(f"register_command takes a Command, not {type(cmd).__name__}")
+    check_row(cmd, BY_CODE, BY_NAME, KINDS)
     COMMANDS = (*COMMANDS, cmd)
     BY_CODE[cmd.code] = cmd
     BY_NAME[cmd.name] = cmd
@@ -345,25 +344,31 @@ def load_plugins(names: str | None = None) -> list[str]:
     """Import the modules named in ``HCRCTL_PLUGINS`` (or ``names``): each may register commands.
 
     Runs as this module finishes loading, so a plugin's commands are in the
-    table before the CLI builds its choices from it. A plugin that fails to
-    load costs a one-line warning, not the command the user asked for.
-    Returns the names of the modules that loaded.
+    table before the CLI builds its choices from it. Whatever else a plugin
+    does on import (raise, ``sys.exit``, KeyboardInterrupt, an impossible
+    command) costs one warning line naming it, and the table as it was
+    before it (``plugins.load``). Returns the names of the modules that loaded.
     """
     wanted = os.environ.get(PLUGINS_ENV, "") if names is None else names
-    loaded = []
-    for module in (m.strip() for m in wanted.split(",")):
-        if not module:
-            continue
-        import importlib
-        import sys
+    if not wanted.strip():
+        return []
+    from .plugins import load
 
-        try:
-            importlib.import_module(module)
-        except Exception as exc:  # a broken plugin must not take the tool down with a traceback
-            sys.stderr.write(f"hcrctl: warning: plugin {module} not loaded ({exc}); check {PLUGINS_ENV}\n")
-        else:
-            loaded.append(module)
-    return loaded
+    return load(wanted, PLUGINS_ENV, _table_state, _restore_table)
+
+
+def _table_state() -> tuple[Any, ...]:
+    return COMMANDS, SENSORS, dict(BY_CODE), dict(BY_NAME), dict(NAMES), dict(_BY_REQUEST)
+
+
+def _restore_table(state: tuple[Any, ...]) -> None:
+    """The table as ``_table_state`` saw it: the dicts refilled in place (other modules hold them)."""
+    global COMMANDS, SENSORS
+    COMMANDS, SENSORS = state[0], state[1]
+    tables: tuple[dict[Any, Any], ...] = (BY_CODE, BY_NAME, NAMES, _BY_REQUEST)
+    for table, saved in zip(tables, state[2:], strict=True):
+        table.clear()
+        table.update(saved)
 
 
 load_plugins()

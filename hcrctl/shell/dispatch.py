@@ -118,14 +118,22 @@ def report(session: Session, exc: Exception) -> int:
     """One line on stderr for any failure; the exit code the CLI would have used.
 
     In a script the line starts with where the command was: ``moves.hcr:3: error: ...``.
-    The line echoes what the user typed, so it is made printable like the CLI's.
+    The line echoes what the user typed, so it is made printable like the CLI's,
+    and a word of it longer than ``LONG_WORD`` (a 60 KB command name from a
+    script) is cut: an error names what is wrong, it does not copy it.
     """
     line, code = _failure_line(session, exc)
     if line is None:
         return _interrupted(session)
     where = f"{session.where}: " if session.where else ""
-    click.echo(printable(where + as_set_commands(line)), err=True)
+    short = _LONG_WORD.sub(lambda m: m.group()[: LONG_WORD - 1] + "…", as_set_commands(line))
+    click.echo(printable(where + short), err=True)
     return code
+
+
+#: The longest word an error line keeps whole: a device path by id is up to some 110 characters.
+LONG_WORD = 120
+_LONG_WORD = re.compile(rf"\S{{{LONG_WORD + 1},}}")
 
 
 def as_set_commands(hint: str) -> str:
