@@ -151,6 +151,7 @@ SAMPLES = {
     "--log": "LOGFILE",
     "--protocol": "v0.15",
     "--stop-wait": "5",
+    "--deadman": "0.8",
 }
 FRAME = encode(0x01, 0x14, b"\x04\xd2").hex(" ").split()
 

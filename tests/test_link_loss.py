@@ -127,7 +127,7 @@ MOTIONS = {
     "drive --for": ["drive", "velocity", "40", "40", "--for", "600"],
     "turn": ["turn", "250", "--rate", "5"],
     "hex send": ["hex", "send", "55", "AA", "01", "02", "01", "A8", "A8"],
-    "replay": ["replay", "LOG", "--speed", "0.01"],
+    "replay": ["replay", "LOG", "--speed", "0.01", "--max-gap", "3600"],
 }
 
 

@@ -555,12 +555,14 @@ def test_history_file_is_private_under_xdg_state_home(tmp_path):
 
 
 def test_history_makes_only_its_own_directories_under_an_existing_base(tmp_path):
+    """A missing HOME is never made; a missing XDG_STATE_HOME is, owner-only, as the XDG spec says."""
     missing = tmp_path / "nonexistent"
     with pytest.raises(FileNotFoundError):
         history_file(env={"HOME": str(missing)})
-    with pytest.raises(FileNotFoundError):
-        history_file(env={"XDG_STATE_HOME": str(missing)})
     assert not missing.exists()
+    state = tmp_path / "state" / "here"
+    assert history_file(env={"XDG_STATE_HOME": str(state)}) == state / "hcrctl" / "history"
+    assert stat.S_IMODE((tmp_path / "state").stat().st_mode) == 0o700
     home = tmp_path / "home"
     home.mkdir()
     path = history_file(env={"HOME": str(home)})
