@@ -149,7 +149,7 @@ def test_watch_shows_bump_and_ir_live_without_asking(board: str, tmp_path: Path)
         screen = term.wait_for(lambda t: "IR7" in t and re.search(r"status +ok", t))
         assert "─ bumpers" in screen and "─ IR" in screen
         assert "compass" not in screen and "ultrasonic" not in screen  # the firmware has neither
-        wait_until(lambda: sum(r.count("raw bumper byte") for r in [log.read_text()]) >= 3, what="3 rounds")
+        wait_until(lambda: log.read_text().count('"problem": "raw_byte"') >= 3, what="3 rounds")
         term.send("q")
         assert term.finish() == 0
     assert tx_frames(log) == []  # listened to the stream, never asked

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import select
 import subprocess
 import threading
@@ -110,3 +111,11 @@ def test_under_v011_a_board_sending_0d_0a_frames_is_named_in_the_hint() -> None:
     assert result.returncode == 1
     (line,) = result.stderr.splitlines()
     assert "frames ending in 0D 0A" in line and "drop --protocol v0.11" in line
+
+
+def test_monitor_names_the_raw_bumper_byte_in_its_rows_as_its_summary_counts_it() -> None:
+    result = run(*V011, "monitor", "--duration", "1")
+    assert result.returncode == 0, result.stderr
+    lone = [line for line in result.stdout.splitlines() if re.search(r"rx +\S+( \S+)? +07  ", line)]
+    assert lone and all("raw byte   07  raw bumper byte" in row and "junk" not in row for row in lone), lone
+    assert re.search(r"\d+ raw bumper bytes?", result.stderr)

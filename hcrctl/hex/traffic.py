@@ -55,7 +55,7 @@ class FrameFilter:
     def __call__(self, row: dict[str, Any]) -> bool:
         if not (self.commands or self.addresses):
             return True
-        if "command" not in row or row.get("problem") == "junk":
+        if "command" not in row or row.get("problem") in ("junk", "raw_byte"):
             return False
         return (not self.commands or row["command"] in self.commands) and (
             not self.addresses or row["address"] in self.addresses

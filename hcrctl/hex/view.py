@@ -148,16 +148,18 @@ def columns(row: dict[str, Any]) -> Columns:
             verdict_text(row),
             good,
         )
+    kind = "raw byte" if problem == "raw_byte" else problem
     return Columns(
-        str(row["offset"]), address, problem, _short(row["data"]), problem_text(row), verdict_text(row), good
+        str(row["offset"]), address, kind, _short(row["data"]), problem_text(row), verdict_text(row), good
     )
 
 
 def problem_text(row: dict[str, Any]) -> str:
     problem = row["problem"]
+    if problem == "raw_byte":
+        return f"raw bumper byte ({row['note']})"
     if problem == "junk":
-        note = f" ({row['note']})" if "note" in row else ""
-        return f"{row['size']} byte{'s' if row['size'] != 1 else ''} skipped, no frame{note}"
+        return f"{row['size']} byte{'s' if row['size'] != 1 else ''} skipped, no frame"
     if problem == "truncated":
         detail = f"input ends inside a frame, {row['needed']} byte{'s' if row['needed'] != 1 else ''} short"
     else:
@@ -251,7 +253,7 @@ class FrameTally:
             if not row["checksum_ok"] and row["other_ok"]:
                 self.other_rule += 1
                 self.other_rule_name = ChecksumRule(row["rule"]).other.value
-        elif problem == "junk" and "note" in row:
+        elif problem == "raw_byte":
             self.raw_bytes += row["size"]
         elif problem == "junk":
             self.junk_bytes += row["size"]

@@ -48,10 +48,16 @@ def event_dict(
     if isinstance(event, Malformed):
         return _lone_lf(_malformed_dict(event, rule, direction), event.data, rule, direction, profile)
     if isinstance(event, Junk):
-        out = {"offset": event.offset, "problem": "junk", "size": event.size, "data": hexs(event.data)}
-        if profile.raw_byte(event.data):
-            out["note"] = "the raw bumper byte " + profile.name + " firmware streams before each IR frame"
-        return out
+        if profile.raw_byte(event.data):  # named as the summaries count it: a raw bumper byte, not junk
+            note = f"the byte {profile.name} firmware streams before each IR frame"
+            return {
+                "offset": event.offset,
+                "problem": "raw_byte",
+                "size": 1,
+                "data": hexs(event.data),
+                "note": note,
+            }
+        return {"offset": event.offset, "problem": "junk", "size": event.size, "data": hexs(event.data)}
     if isinstance(event, TextLine):
         return text_dict(event)
     return _lone_lf(_truncated_dict(event), event.data, rule, direction, profile)
