@@ -28,8 +28,8 @@ from ..live.state import LiveState
 from ..protocol import topics as T
 
 Publish = Callable[[str, dict[str, Any], float], None]
-#: The link counters published on ``/hcr/link`` (``last_rx`` is a clock reading, not a count).
-COUNTERS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(LinkStats) if f.name != "last_rx")
+#: The link counters published on ``/hcr/link``.
+COUNTERS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(LinkStats))
 #: How often ``run`` looks at its deadline, ``should_stop`` and the poller.
 STEP = 0.05
 

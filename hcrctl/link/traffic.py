@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import sys
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -49,12 +48,10 @@ class LinkStats:
     text_lines: int = 0
     #: Raw bumper bytes a streaming (v0.11) board sends between its frames (not junk either).
     raw_bytes: int = 0
-    last_rx: float | None = None
 
     def count(self, event: Event, profile: Profile = DEFAULT) -> None:
         if isinstance(event, Frame):
             self.rx_frames += 1
-            self.last_rx = time.monotonic()
         elif isinstance(event, BadChecksum):
             self.checksum_errors += 1
             self.other_rule += event.matches_other_rule

@@ -250,9 +250,6 @@ def register_command(cmd: Command) -> Command:
 
 # -- typed lookups by name -----------------------------------------------------
 
-#: The table's own read names, for callers that want the reply's type from a name.
-ReadName = Literal["bump", "ir", "sonar", "compass", "wheels", "env"]
-
 
 @overload
 def reply_of(name: Literal["bump"]) -> type[Bumpers]: ...

@@ -20,9 +20,6 @@ from ..errors import ImpossibleReply, ProtocolError, RangeError
 
 READ_REQUEST = b"\xff"
 
-
-STOP_BYTE = 0x80
-
 #: Command code -> name, filled by the table (``commands``) as it is built, so a
 #: reply names itself in an error without this module importing the table.
 NAMES: dict[int, str] = {}

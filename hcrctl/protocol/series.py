@@ -142,11 +142,6 @@ def of_command(cmd: C.Command) -> tuple[Series, ...]:
     return tuple(s for s in all_series() if s.command is cmd)
 
 
-def flatten(cmd: C.Command, reply: C.Reply) -> dict[str, float | None]:
-    """Every series of one reply, by path: one CSV row's cells, or a plot's new points."""
-    return {s.path: s.value(reply) for s in of_command(cmd)}
-
-
 def message_fields(cmd: C.Command, reply: C.Reply) -> dict[str, Any]:
     """A reply as a topic message's fields: named items as keys, lists as arrays.
 
