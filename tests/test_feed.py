@@ -25,13 +25,16 @@ def test_a_feed_publishes_requests_replies_readings_and_counters() -> None:
                     feed.state.summary()["sweeps"] >= 5 and any(t == "/hcr/position" for t, _, _ in seen)
                 )
             )  # type: ignore[operator]
+            feed.publish_link()  # the counters after the 5 sweeps (run's first one comes before any)
     topics = Counter(t for t, _, _ in seen)
     assert topics["/hcr/compass"] >= 5 and topics["/hcr/wheels"] >= 5
     assert topics[T.LINK] >= 1 and topics["/hcr/position"] >= 1
     frames = [m for t, m, _ in seen if t == T.FRAMES]
     assert {m["direction"] for m in frames} == {"tx", "rx"}
-    link = next(m for t, m, _ in seen if t == T.LINK)
-    assert set(COUNTERS) <= set(link) and link["tx_frames"] >= 0
+    link = [m for t, m, _ in seen if t == T.LINK][-1]
+    assert set(COUNTERS) <= set(link)
+    # 5 sweeps of 2 reads: at least 10 requests sent and 10 replies back (broadcasts come on top).
+    assert link["tx_frames"] >= 10 and link["rx_frames"] >= 10
     assert feed.messages == len(seen)
     compass = next(m for t, m, _ in seen if t == "/hcr/compass")
     assert 0 <= compass["heading"] < 360 and compass["address"] == 1

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import re
+from typing import Any
 
 import pytest
+from jsonschema import Draft202012Validator
 
 from hcrctl.protocol import commands as C
 from hcrctl.protocol import series as S
@@ -13,35 +15,16 @@ from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import ChecksumRule, encode
 
 
-def _valid(value: object, schema: dict) -> bool:
-    """A small JSON-Schema check: types, ranges, item counts and required keys (what our schemas use)."""
-    kind = schema.get("type")
-    if kind == "object":
-        if not isinstance(value, dict) or any(k not in value for k in schema.get("required", [])):
-            return False
-        props = schema.get("properties", {})
-        return all(k not in props or _valid(v, props[k]) for k, v in value.items())
-    if kind == "array":
-        if not isinstance(value, list):
-            return False
-        if not schema.get("minItems", 0) <= len(value) <= schema.get("maxItems", len(value)):
-            return False
-        return all(_valid(v, schema["items"]) for v in value)
-    if kind == "boolean":
-        return isinstance(value, bool)
-    if kind in ("integer", "number"):
-        if isinstance(value, bool) or not isinstance(value, int if kind == "integer" else (int, float)):
-            return False
-        return schema.get("minimum", value) <= value <= schema.get("maximum", value)
-    if kind == "string":
-        return isinstance(value, str) and value in schema.get("enum", [value])
-    return True
+def _errors(message: dict[str, Any], schema: dict[str, Any]) -> list[str]:
+    """What a real JSON Schema validator finds wrong with the message (nothing: it fits)."""
+    Draft202012Validator.check_schema(schema)
+    return [error.message for error in Draft202012Validator(schema).iter_errors(message)]
 
 
 def test_every_read_and_broadcast_has_a_topic_and_nothing_else_does() -> None:
     names = [t.name for t in T.reading_topics()]
-    expected = [f"/hcr/{c.name}" for c in C.COMMANDS if c.kind in ("read", "broadcast")]
-    assert names == expected
+    reads = ["/hcr/bump", "/hcr/ir", "/hcr/sonar", "/hcr/compass", "/hcr/wheels", "/hcr/env"]
+    assert names == [*reads, "/hcr/position", "/hcr/map"]  # table order; no write (power, pid...) has one
     assert T.FRAMES in [t.name for t in T.all_topics()]
 
 
@@ -91,13 +74,26 @@ def test_a_received_reply_publishes_a_frame_and_a_reading_that_fit_their_schemas
     cmd = C.BY_CODE[code]
     assert set(published) == {T.FRAMES, f"/hcr/{cmd.name}"}
     for topic, message in published.items():
-        assert _valid(message, schemas[topic]), (topic, message)
+        errors = _errors(message, schemas[topic])
+        assert not errors, (topic, message, errors)
     reading = published[f"/hcr/{cmd.name}"]
     reply = cmd.reply.decode(content)
     for s in S.of_command(cmd):
         value = s.value(reply)
         if value is not None and s.index is None:
             assert float(reading[s.key]) == value
+
+
+def test_a_message_that_breaks_its_schema_is_caught() -> None:
+    """The schemas say enough for a validator to refuse a wrong message, not just accept anything."""
+    schemas = {t.name: t.schema for t in T.all_topics(["tx_frames"])}
+    fine = {"time": 1.5, "address": 1, "heading": 90.0}
+    assert not _errors(fine, schemas["/hcr/compass"])
+    for wrong in ({**fine, "heading": 360.5}, {**fine, "address": 256}, {"time": 1.5, "address": 1}):
+        assert _errors(wrong, schemas["/hcr/compass"]), wrong
+    assert _errors({"time": 1.0, "direction": "up", "hex": "00"}, schemas[T.FRAMES])
+    assert _errors({"time": 1.0, "tx_frames": -1}, schemas[T.LINK])
+    assert _errors({"time": 1.0, "address": 1, "sonar": [1.5]}, schemas["/hcr/sonar"])
 
 
 def test_a_request_a_bad_checksum_and_an_impossible_reply_publish_only_the_frame() -> None:
