@@ -3,12 +3,11 @@
 Subcommands live in their own modules and are imported only when invoked, so
 a one-shot ``hcrctl read compass`` never pays for prompt-toolkit or the hex
 tools. Errors of every layer are turned into exit codes and one-line messages
-here, and only here.
+here, worded by ``hcrctl.errors.describe``, which the shell uses too.
 """
 
 from __future__ import annotations
 
-import errno
 import importlib
 import os
 import sys
@@ -17,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from .. import __version__
-from ..errors import HcrError, printable
+from ..errors import describe, printable
 from ..link.signals import Terminated, stop_signals_raise
 from ..protocol import commands as C
 from .settings import GLOBAL_OPTIONS, Settings, config_keys
@@ -226,29 +225,14 @@ def exit_code_for(exc: BaseException, args: list[str] | None = None) -> int:
         return exc.exit_code
     if isinstance(exc, click.UsageError):
         return _usage_error(exc, args)
-    if isinstance(exc, click.ClickException):
-        say_error(f"hcrctl: error: {exc.format_message()}")
-        return exc.exit_code
     if isinstance(exc, (click.Abort, KeyboardInterrupt)):
         say_error("hcrctl: interrupted")
         return 130
-    if isinstance(exc, HcrError):
-        say_error(f"hcrctl: error: {exc.one_line()}")
-        return exc.exit_code
     if not isinstance(exc, Exception):
         raise exc
-    if isinstance(exc, OSError) and exc.errno in _FULL:  # stdout (or a file) on a full disk: not our bug
-        where = exc.filename or "the output"
-        say_error(
-            f"hcrctl: error: cannot write {where}: {exc.strerror} (hint: free some space, or write elsewhere)"
-        )
-        return 1
-    say_error(f"hcrctl: internal error: {exc!r} (run with --debug for the traceback)")
-    return 1
-
-
-#: Write errors that mean the disk (or the quota, or the file's size limit) is full.
-_FULL = frozenset((errno.ENOSPC, errno.EDQUOT, errno.EFBIG))
+    described = describe(exc)  # shared with the shell, so both say the same
+    say_error(f"hcrctl: {described.line('run with --debug for the traceback')}")
+    return described.exit_code
 
 
 def say_error(line: str) -> None:

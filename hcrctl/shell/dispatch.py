@@ -21,7 +21,7 @@ from typing import Any
 import click
 
 from ..cli.embed import global_options
-from ..errors import HcrError, printable
+from ..errors import describe, printable
 from .builtins import SETTABLE, builtins
 from .grammar import ShellCommands, root_context, split
 from .session import Session
@@ -167,15 +167,12 @@ def _failure_line(session: Session, exc: Exception) -> tuple[str | None, int]:
     """The message (None for Ctrl-C) and exit code of a failed shell command."""
     if isinstance(exc, click.UsageError):
         return usage_line(exc), exc.exit_code
-    if isinstance(exc, click.ClickException):
-        return f"error: {exc.format_message()}", exc.exit_code
-    if isinstance(exc, HcrError):
-        return f"error: {exc.one_line()}", exc.exit_code
     if isinstance(exc, click.Abort):
         return None, INTERRUPTED
-    if session.settings.debug:
+    described = describe(exc)  # shared with the one-shot CLI, so both say the same
+    if described.internal and session.settings.debug:
         traceback.print_exc()
-    return f"internal error: {exc!r} (run hcrctl --debug shell for the traceback)", 1
+    return described.line("run hcrctl --debug shell for the traceback"), described.exit_code
 
 
 def usage_line(exc: click.UsageError) -> str:
