@@ -58,6 +58,7 @@ from .messages import (
     Ultrasonic,
     Velocity,
     WheelSpeed,
+    code_mismatch,
 )
 
 MAIN_CONTROLLER = 0x01
@@ -207,6 +208,10 @@ COMMANDS: tuple[Command, ...] = (
     ),
     _cmd(0xB0, "map", "local grid map", "broadcast", None, GridMap, "Sent by the robot unasked."),
 )
+
+for _row in COMMANDS:  # each row's code is said again by its classes' CODE: they must agree
+    if _wrong := code_mismatch(_row.code, _row.request, _row.reply):
+        raise ValueError(f"{_row.label}: {_wrong}")
 
 BY_CODE: dict[int, Command] = {c.code: c for c in COMMANDS}
 NAMES.update((c.code, c.name) for c in COMMANDS)

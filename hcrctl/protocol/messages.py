@@ -329,3 +329,20 @@ class GridMap(Reply):
 
     def fields(self) -> dict[str, Any]:
         return {"map": bytes(self.rows).hex()}
+
+
+def code_mismatch(code: int, request: object, reply: object) -> str | None:
+    """What is wrong when a table row's message classes carry another ``CODE`` than the row's own.
+
+    The row's code and each class's ``CODE`` (which names a bare reply) say the
+    same thing twice; a typo in either would frame requests under one code and
+    name their replies under another. Checked as the table is built and for
+    every row a plugin registers. ``ReadRequest`` serves every read: no code.
+    """
+    for role, cls in (("request", request), ("reply", reply)):
+        own = getattr(cls, "CODE", None) if cls is not ReadRequest else None
+        if own is not None and own != code:
+            shown = f"0x{own:02X}" if isinstance(own, int) else repr(own)
+            name = getattr(cls, "__name__", repr(cls))
+            return f"its {role} class {name} has CODE {shown}, not the row's code 0x{code:02X}"
+    return None

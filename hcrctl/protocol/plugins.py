@@ -21,7 +21,7 @@ from typing import Any, TypeVar
 
 from ..errors import quoted
 from .fields import Reply, Request
-from .messages import ReadRequest
+from .messages import ReadRequest, code_mismatch
 
 #: A command's name: a CLI word and a field prefix (``battery.volts``), so no spaces and no dots.
 _NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,31}")
@@ -90,3 +90,6 @@ def check_row(cmd: Any, codes: Container[int], names: Container[str], kinds: tup
             raise ValueError(f"{name}: its {role} must be a {base.__name__} class or None")
     if cmd.kind == "read" and (cmd.request is not ReadRequest or cmd.reply is None):
         raise ValueError(f"{name}: a read takes ReadRequest and needs a reply class")
+    wrong = code_mismatch(code, cmd.request, cmd.reply)
+    if wrong:
+        raise ValueError(f"{name}: {wrong}")
