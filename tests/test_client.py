@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 import serial
+from helpers import wait_until
 from helpers_cli import clean_env, hcrctl_exe
 from helpers_cli import sim_pty as run_sim_pty
 from helpers_hex import device_pty
@@ -56,9 +57,10 @@ def test_reads_every_sensor_from_the_simulator(robot: Robot) -> None:
 def test_traffic_hook_sees_both_directions_with_timestamps(robot: Robot, traffic: list[Traffic]) -> None:
     before = time.time()
     robot.read("compass")
-    deadline = time.monotonic() + 30  # the hook runs on the reader thread: a loaded machine may lag
-    while not any(t.direction == "rx" and t.data[4] == 0x14 for t in traffic) and time.monotonic() < deadline:
-        time.sleep(0.01)
+    # the hook runs on the reader thread: a loaded machine may lag
+    wait_until(
+        lambda: any(t.direction == "rx" and t.data[4] == 0x14 for t in traffic), what="the reply's hook"
+    )
     tx = [t for t in traffic if t.direction == "tx"]
     rx = [
         t for t in traffic if t.direction == "rx" and isinstance(t.event, Frame) and t.event.command == 0x14
@@ -103,9 +105,7 @@ def test_broadcasts_go_to_the_queue_without_disturbing_requests(robot: Robot) ->
 def test_unsolicited_callback(traffic: list[Traffic]) -> None:
     seen: list[Frame] = []
     with Robot("sim://?broadcast_hz=20", on_unsolicited=seen.append):
-        deadline = time.monotonic() + 30
-        while not seen and time.monotonic() < deadline:
-            time.sleep(0.02)
+        wait_until(lambda: seen, what="a broadcast")
     assert seen and seen[0].address >= C.FIRST_STATION and seen[0].command == 0xA0
 
 
@@ -181,6 +181,7 @@ def test_thread_safe_concurrent_reads(robot: Robot) -> None:
         t.start()
     for t in threads:
         t.join(timeout=20)
+    assert not [t for t in threads if t.is_alive()], "a reader never finished"
     assert not errors
 
 
@@ -190,6 +191,7 @@ def test_works_over_a_serial_object_and_ignores_its_own_echo() -> None:
         assert r.port.startswith("loop://")
         with pytest.raises(DeviceTimeout):
             r.read("compass")  # loop:// hands the request straight back; it is not a reply
+        wait_until(lambda: r.stats.echoes, what="the echo counted")  # by the reader thread
         assert r.stats.echoes == 1
         assert r.unsolicited.empty()
 

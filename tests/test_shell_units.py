@@ -7,10 +7,10 @@ import stat
 import subprocess
 import sys
 import threading
-import time
 
 import click
 import pytest
+from helpers import wait_until
 from prompt_toolkit import PromptSession
 from prompt_toolkit.input import create_pipe_input
 from prompt_toolkit.output import DummyOutput
@@ -40,12 +40,6 @@ def frame(address: int, code: int, content: bytes) -> Frame:
 
 def position(station: int, did: int) -> Frame:
     return frame(station, 0xA0, bytes((did, 120, 98, 200)))
-
-
-def wait_until(predicate, timeout: float = 30.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not predicate() and time.monotonic() < deadline:
-        time.sleep(0.01)
 
 
 class FakeClock:

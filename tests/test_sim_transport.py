@@ -20,6 +20,7 @@ from typing import Any
 import pytest
 import serial
 from click.testing import CliRunner
+from helpers import wait_until
 
 from hcrctl.cli.sim import parse_tcp, sim
 from hcrctl.link.transport_sim import HANDLER_PACKAGE, register
@@ -209,8 +210,9 @@ def test_read_with_timeout_0_returns_what_there_is(open_sim: Callable[..., Any])
 def test_a_reader_blocked_without_timeout_wakes_for_a_write(open_sim: Callable[..., Any]) -> None:
     port = open_sim(f"sim://?{QUIET}", timeout=None)
     thread, result = in_thread(lambda: port.read(REPLY_LEN))
-    time.sleep(0.1)
-    assert thread.is_alive()  # nothing to read yet, so it must still be waiting
+    # The reader has found nothing and waits on the port's condition (its waiter is queued there).
+    wait_until(lambda: port._cond._waiters, what="the reader to wait")
+    assert thread.is_alive() and result == []  # nothing to read yet, so it must still be waiting
     port.write(COMPASS)
     thread.join(JOIN_S)
     assert not thread.is_alive()
