@@ -8,6 +8,7 @@ reached the wire (or that none did).
 from __future__ import annotations
 
 import json
+import re
 import signal
 import subprocess
 import time
@@ -216,10 +217,22 @@ def test_encode_read_names_sensor_as_read_does() -> None:
     assert "Invalid value for 'SENSOR': 'comp' is not one of" in one_line_error(proc)
 
 
-def test_encode_styles_read_back_through_decode() -> None:
-    for style in ("compact", "c", "escaped"):
-        text = run("hex", "encode", "read", "sonar", "--style", style).stdout.strip()
-        assert run("hex", "decode", text).returncode == 0, (style, text)
+@pytest.mark.parametrize(
+    ("style", "expected"),
+    [
+        ("spaced", "55 AA 01 01 13 FF 13 0D 0A"),
+        ("compact", "55AA010113FF130D0A"),
+        ("c", "{0x55, 0xAA, 0x01, 0x01, 0x13, 0xFF, 0x13, 0x0D, 0x0A}"),
+        ("escaped", r"\x55\xAA\x01\x01\x13\xFF\x13\x0D\x0A"),
+    ],
+)
+def test_encode_styles_write_the_frame_so_and_read_back_through_decode(style: str, expected: str) -> None:
+    """The sonar read request (protocol.md: 55 AA, address, length, code, 0xFF, checksum, CR LF) in each style."""
+    text = run("hex", "encode", "read", "sonar", "--style", style).stdout.strip()
+    assert text == expected
+    decoded = run("hex", "decode", text)
+    assert decoded.returncode == 0, (style, text, decoded.stderr)
+    assert re.search(r"@01\s+sonar\s+FF\s+read request\s+checksum 13 ok", decoded.stdout), decoded.stdout
 
 
 def test_encode_json_is_the_decode_shape_plus_hex() -> None:
