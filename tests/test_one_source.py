@@ -1,15 +1,24 @@
-"""Facts said in two places are held together: a table row's code and its classes' ``CODE``.
+"""Facts said in two places are held together, so neither can drift from the table.
 
 Issue 25: each message class has a ``CODE`` and each table row a ``code``,
 unchecked; a typo in either would frame requests under one code and name
-their replies under another.
+their replies under another. The read names typing needs are written out as
+``Literal`` overloads (a type checker cannot read the table), so a test holds
+them to it.
 """
 
 from __future__ import annotations
 
+import inspect
+import sys
+import typing
+from typing import Any
+
 import pytest
 
+from hcrctl.link import reads
 from hcrctl.protocol import commands as C
+from hcrctl.protocol import messages
 from hcrctl.protocol.messages import code_mismatch
 
 
@@ -34,3 +43,47 @@ def test_a_plugin_row_whose_classes_carry_another_code_is_refused() -> None:
     ):
         C.register_command(C.Command(0x7E, "heading", "x", "read", C.ReadRequest, C.Compass, "x"))
     assert C.COMMANDS is before and 0x7E not in C.BY_CODE
+
+
+#: ``typing.get_overloads`` is Python 3.11's; 3.10 registers no overloads to read back.
+needs_get_overloads = pytest.mark.skipif(sys.version_info < (3, 11), reason="typing.get_overloads is 3.11+")
+
+
+def literal_overloads(func: Any, module: Any) -> dict[str, Any]:
+    """name -> the type promised by each ``Literal["name"]`` overload of ``func`` (``type[X]`` as X)."""
+    found: dict[str, Any] = {}
+    for overload in typing.get_overloads(func):
+        hints = typing.get_type_hints(overload, globalns=vars(module))
+        returned = hints.pop("return")
+        literal = hints[next(p for p in inspect.signature(overload).parameters if p != "self")]
+        if typing.get_origin(literal) is typing.Literal:
+            (name,) = typing.get_args(literal)
+            found[name] = typing.get_args(returned)[0] if typing.get_origin(returned) is type else returned
+    return found
+
+
+def built_in(kind: str | None = None) -> dict[str, type[C.Reply]]:
+    """name -> reply class of the table's own rows (not a plugin's: test_registry adds one at import)."""
+    return {
+        row.name: row.reply
+        for row in C.COMMANDS
+        if row.reply is not None and row.reply.__module__ == messages.__name__ and kind in (None, row.kind)
+    }
+
+
+@needs_get_overloads
+def test_robot_read_is_typed_for_every_read_of_the_table_as_the_table_says() -> None:
+    assert literal_overloads(reads.TypedReads.read, reads) == built_in("read")
+
+
+@needs_get_overloads
+def test_reply_of_is_typed_for_every_reply_of_the_table_as_the_table_says() -> None:
+    typed = literal_overloads(C.reply_of, C)
+    assert typed == built_in()
+    assert all(C.reply_of(name) is reply for name, reply in typed.items())
+
+
+def test_the_dashboards_priority_names_every_read_of_the_table() -> None:
+    from hcrctl.live.screens import WATCH_PRIORITY
+
+    assert sorted(WATCH_PRIORITY) == sorted(built_in("read"))

@@ -4,7 +4,9 @@ The table is data, so a lookup by name would return the base ``Reply`` and
 ``robot.read("compass").heading`` would be untyped; the overloads below give
 each of the table's reads its reply type. A read registered at run time
 (``commands.register_command``) is typed as ``Reply``. ``Robot`` inherits
-these and supplies ``sweep``, which does the talking.
+these and supplies ``sweep``, which does the talking. A type checker cannot
+read the table, so the names are written out here; tests/test_one_source.py
+holds them to the table (every read, each with its row's reply class).
 """
 
 from __future__ import annotations
