@@ -23,6 +23,7 @@ from typing import Any
 import pytest
 from helpers import TIMEOUT, hcrctl_exe, wait_until
 from helpers_shell import STOP_FRAME, PtyRobot, stop_after_motion
+from jsonschema import Draft202012Validator
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 
@@ -32,8 +33,17 @@ from hcrctl.protocol.topics import all_topics
 
 SUBPROTOCOL = "foxglove.sdk.v1"
 TOPICS = {t.name: t for t in all_topics(Feed.counters)}
+#: What a viewer is offered, written out: one topic per read and broadcast, the frames and the link.
+POLLED = ["/hcr/bump", "/hcr/ir", "/hcr/sonar", "/hcr/compass", "/hcr/wheels", "/hcr/env"]
+NAMES = {*POLLED, "/hcr/position", "/hcr/map", "/hcr/frames", "/hcr/link"}
 CMD_VEL = 5  # the client's channel id for /cmd_vel
 TWIST = {"linear": {"x": 0.2, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}
+
+
+def assert_fits(message: dict[str, Any], schema: dict[str, Any]) -> None:
+    """The message fits its JSON Schema, as a real validator judges it."""
+    errors = [e.message for e in Draft202012Validator(schema).iter_errors(message)]
+    assert not errors, (message, errors)
 
 
 class Bridge:
@@ -199,15 +209,17 @@ def test_a_viewer_gets_server_info_topics_with_schemas_and_readings(env: dict[st
     with bridge("sim://", env=env) as running, viewer(running.port) as client:
         assert client.info["capabilities"] == ["clientPublish"]
         assert client.info["supportedEncodings"] == ["json"]
+        assert set(client.channels) == NAMES
         for name, topic in TOPICS.items():
             channel = client.channels[name]
             assert (channel["encoding"], channel["schemaEncoding"]) == ("json", "jsonschema")
             assert (channel["schemaName"], json.loads(channel["schema"])) == (topic.schema_name, topic.schema)
         client.subscribe("/hcr/compass", 7)
         log_time, message = client.data(7)
-        schema = TOPICS["/hcr/compass"].schema
-        assert set(message) == set(schema["required"])
-        assert 0 <= message["heading"] <= schema["properties"]["heading"]["maximum"]
+        compass = client.channels["/hcr/compass"]
+        assert compass["schemaName"] == "hcr.compass"
+        assert_fits(message, json.loads(compass["schema"]))
+        assert set(message) == {"time", "address", "heading"} and 0 <= message["heading"] < 360
         assert log_time == pytest.approx(message["time"] * 1e9, abs=1e3)
         code, _ = running.finish()
     assert code == 128 + signal.SIGTERM
@@ -300,15 +312,17 @@ def test_the_bridge_records_what_it_serves_to_mcap(env: dict[str, str], tmp_path
         summary = reader.get_summary()
         assert summary is not None
         channels = {c.topic: c for c in summary.channels.values()}
-        polled = {f"/hcr/{name}" for name in C.SENSORS} | {"/hcr/frames", "/hcr/link"}
-        assert polled <= set(channels) <= set(TOPICS)  # a topic is written with its first message
+        polled = {*POLLED, "/hcr/frames", "/hcr/link"}
+        assert polled <= set(channels) <= NAMES  # a topic is written with its first message
         for name, channel in channels.items():
             schema = summary.schemas[channel.schema_id]
             assert (channel.message_encoding, schema.encoding) == ("json", "jsonschema")
             assert json.loads(schema.data) == TOPICS[name].schema
-        headings = [
-            json.loads(m.data)["heading"] for _, c, m in reader.iter_messages(topics=["/hcr/compass"])
-        ]
+        compass = json.loads(summary.schemas[channels["/hcr/compass"].schema_id].data)
+        headings = []
+        for _, _, m in reader.iter_messages(topics=["/hcr/compass"]):
+            assert_fits(json.loads(m.data), compass)
+            headings.append(json.loads(m.data)["heading"])
     assert headings and all(0 <= h < 360 for h in headings)
     if ending == "sigterm":
         assert served["heading"] in headings

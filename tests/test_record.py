@@ -26,8 +26,6 @@ from helpers_mcap import messages as flushed
 from mcap.reader import make_reader
 
 from hcrctl.feeds.record import FLUSH_EVERY
-from hcrctl.protocol import commands as C
-from hcrctl.protocol import series as S
 from hcrctl.protocol import topics as T
 
 
@@ -67,7 +65,8 @@ def test_a_stop_signal_leaves_a_finished_mcap_with_every_topic(
     summary, messages = whole(out)
     assert summary.statistics is not None and summary.statistics.message_count == len(messages)
     channels = {c.topic for c in summary.channels.values()}
-    assert channels == {t.name for t in T.all_topics()}
+    readings = ["/hcr/bump", "/hcr/ir", "/hcr/sonar", "/hcr/compass", "/hcr/wheels", "/hcr/env"]
+    assert channels == {*readings, "/hcr/position", "/hcr/map", "/hcr/frames", "/hcr/link"}
     topics = {topic for topic, _ in messages}
     assert {"/hcr/compass", "/hcr/sonar", "/hcr/wheels", T.FRAMES, T.LINK} <= topics
     said = f"hcrctl: record: {out}: {len(messages)} messages"
@@ -91,13 +90,17 @@ def test_sigterm_leaves_a_csv_of_whole_lines(robot: str, tmp_path: Path) -> None
     text = out.read_text()
     assert text.endswith("\n")
     rows = list(csv.reader(io.StringIO(text)))
-    sonars = ["sonar[0]", "sonar[1]", "sonar[2]"]  # the simulator's three; no IR was polled: no IR columns
-    columns = [p for p in S.paths() if not S.find(p).is_list_item or p in sonars]
+    # Every named reading, in table order; of the lists only the simulator's three sonars (no IR was
+    # polled: no IR columns).
+    columns = ["bump.left", "bump.front", "bump.right", "sonar[0]", "sonar[1]", "sonar[2]", "compass.heading"]
+    columns += ["wheels.left", "wheels.right", "env.humidity", "env.temperature"]
+    columns += ["position.did", "position.d1", "position.d2", "position.ts"]
     assert rows[0] == ["time", "t", "direction", "address", "command", "name", *columns]
     assert all(len(row) == len(rows[0]) for row in rows)
     names = {row[5] for row in rows[1:]}
     assert {"compass", "sonar"} <= names <= {"compass", "sonar", "position"}
-    assert all(int(row[4]) == C.BY_NAME[row[5]].code for row in rows[1:])
+    codes = {"compass": 0x14, "sonar": 0x13, "position": 0xA0}  # protocol.md's command codes
+    assert all(int(row[4]) == codes[row[5]] for row in rows[1:])
     heading = rows[0].index("compass.heading")
     assert all(0 <= float(row[heading]) < 360 for row in rows[1:] if row[5] == "compass")
 
@@ -176,7 +179,7 @@ def test_duration_json_summary_and_nothing_but_reads_sent(robot: str, tmp_path: 
     assert report["bytes"] == out.stat().st_size
     assert report["topics"][T.FRAMES] == sum(topic == T.FRAMES for topic, _ in messages)
     sent = [json.loads(line) for line in log.read_text().splitlines() if '"direction": "tx"' in line]
-    assert sent and {line["name"] for line in sent} <= set(C.SENSORS)
+    assert sent and {line["name"] for line in sent} <= {"bump", "ir", "sonar", "compass", "wheels", "env"}
     assert all(line["kind"] == "request" for line in sent)
 
 

@@ -15,11 +15,33 @@ from hcrctl.errors import PortError
 from hcrctl.link.client import Robot
 from hcrctl.link.context import Connection
 from hcrctl.live.watch import FPS, MIN_FPS, Reconnect, Redrawer, frame_rate, run_watch
-from hcrctl.render.readings import cardinal
 
 HEADING = re.compile(r"(\d{1,3}\.\d)° ([NESW]{1,3}) ")
 ALT_SCREEN_OFF = b"\x1b[?1049l"
 PANELS = ("bumpers", "IR", "ultrasonic", "compass", "wheels", "environment", "positioning", "map", "link")
+
+
+def sixteen_points(heading: float) -> str:
+    """The compass point of a heading, each of the 16 owning the 22.5° around it (N from 348.75° to 11.25°)."""
+    points = [
+        "N",
+        "NNE",
+        "NE",
+        "ENE",
+        "E",
+        "ESE",
+        "SE",
+        "SSE",
+        "S",
+        "SSW",
+        "SW",
+        "WSW",
+        "W",
+        "WNW",
+        "NW",
+        "NNW",
+    ]
+    return points[int((heading + 11.25) // 22.5) % 16]
 
 
 def test_values_appear_from_the_simulator_on_a_pty_and_q_quits() -> None:
@@ -34,7 +56,7 @@ def test_values_appear_from_the_simulator_on_a_pty_and_q_quits() -> None:
             )
         )
         heading, point = HEADING.search(screen).groups()
-        assert point == cardinal(float(heading))
+        assert point == sixteen_points(float(heading))
         assert "IR1" in screen and "left" in screen and "cm/s" in screen
         term.wait_for(r"status +ok")
         term.wait_for(r"0x50 +\d+ +\d+ +\d+")  # a positioning station's broadcast
