@@ -87,3 +87,22 @@ def test_the_dashboards_priority_names_every_read_of_the_table() -> None:
     from hcrctl.live.screens import WATCH_PRIORITY
 
     assert sorted(WATCH_PRIORITY) == sorted(built_in("read"))
+
+
+def test_the_link_defaults_are_said_once_and_used_by_the_client_the_context_and_the_cli() -> None:
+    import click
+
+    from hcrctl.cli import cli
+    from hcrctl.link import defaults
+    from hcrctl.link.client import Robot
+    from hcrctl.link.context import Connection
+    from hcrctl.link.transport import open_port
+
+    assert (defaults.BAUD, defaults.REPLY_TIMEOUT_S, defaults.RETRIES) == (115200, 0.5, 2)
+    robot = inspect.signature(Robot).parameters
+    connection = Connection()
+    options = {p.name: p.default for p in cli.params if isinstance(p, click.Option)}
+    assert robot["baud"].default == connection.baud == options["baud"] == defaults.BAUD
+    assert inspect.signature(open_port).parameters["baud"].default == defaults.BAUD
+    assert robot["timeout"].default == connection.timeout == options["timeout"] == defaults.REPLY_TIMEOUT_S
+    assert robot["retries"].default == connection.retries == options["retries"] == defaults.RETRIES

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import click
 
 from ..link.context import Connection
+from ..link.defaults import REPLY_TIMEOUT_S, RETRIES
 from ..link.stopwait import DEFAULT_WAIT_S
 from ..protocol.frames import ChecksumRule
 from ..protocol.profiles import DEFAULT, PROFILES
@@ -92,11 +93,11 @@ def global_options() -> list[click.Option]:
         _option(
             "--timeout",
             type=FloatRange(0.001, 60),
-            default=0.5,
+            default=REPLY_TIMEOUT_S,
             show_default=True,
             help="Reply timeout, s.",
         ),
-        _option("--retries", type=IntRange(0, 20), default=2, show_default=True, help="Read retries."),
+        _option("--retries", type=IntRange(0, 20), default=RETRIES, show_default=True, help="Read retries."),
         _option(
             "--checksum-from",
             "checksum",

@@ -36,6 +36,7 @@ from ..protocol.dialect import make_decoder
 from ..protocol.frames import MAX_FRAME, BadChecksum, ChecksumRule, Event, Frame, Malformed, Truncated
 from ..protocol.motionscan import MotionScan
 from ..protocol.profiles import DEFAULT, Profile, profile
+from .defaults import BAUD, REPLY_TIMEOUT_S, RETRIES
 from .dialects import Dialect, stop_frames
 from .reads import TypedReads
 from .stopwait import DEFAULT_WAIT_S as DEFAULT_WAIT_S
@@ -63,10 +64,10 @@ class Robot(TypedReads, Dialect):
         self,
         port: Any,
         *,
-        baud: int = 115200,
+        baud: int = BAUD,
         address: int = C.MAIN_CONTROLLER,
-        timeout: float = 0.5,
-        retries: int = 2,
+        timeout: float = REPLY_TIMEOUT_S,
+        retries: int = RETRIES,
         rule: ChecksumRule | str = ChecksumRule.HEADER,
         protocol: Profile | str = DEFAULT,
         on_unsolicited: FrameHook | None = None,

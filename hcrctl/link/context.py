@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import PortError
 from ..protocol.frames import ChecksumRule
+from .defaults import BAUD, REPLY_TIMEOUT_S, RETRIES
 from .stopwait import DEFAULT_WAIT_S
 
 if TYPE_CHECKING:
@@ -29,10 +30,10 @@ class Connection:
     """The port and link parameters, plus the robot a shell session shares."""
 
     port: str | None = None
-    baud: int = 115200
+    baud: int = BAUD
     address: int = 0x01
-    timeout: float = 0.5
-    retries: int = 2
+    timeout: float = REPLY_TIMEOUT_S
+    retries: int = RETRIES
     stop_wait: float = DEFAULT_WAIT_S
     checksum: ChecksumRule = ChecksumRule.HEADER
     #: The protocol profile's name (``protocol.profiles``): v0.15, or v0.11 for the published firmware.

@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING
 
 from ..errors import HcrError, LinkLostWhileMoving, PortError
 from ..protocol import commands as C
+from .defaults import BAUD
 from .dialects import frame_of, stop_frames
 from .signals import Terminated
 
@@ -177,7 +178,7 @@ def _same_port(robot: Robot) -> Callable[[], Robot]:
     """For a Robot opened without a Connection: the same port with the same parameters and hooks."""
     from .client import Robot as RobotClass
 
-    baud = getattr(robot.serial, "baudrate", 115200)
+    baud = getattr(robot.serial, "baudrate", BAUD)
 
     def reopen() -> Robot:
         again = RobotClass(

@@ -12,6 +12,7 @@ import os
 import serial
 
 from ..errors import BadPortUrl, PortError
+from .defaults import BAUD
 from .transport_sim import register as register_sim
 
 SIM_HINT = "use --port sim:// for the built-in simulator"
@@ -19,7 +20,7 @@ SIM_OPTIONS_HINT = "for example sim://?drop=0.1&seed=3; the README lists every o
 URL_HINT = "a device path, or a URL such as socket://HOST:PORT, rfc2217://HOST:PORT, loop:// or sim://"
 
 
-def open_port(url: str, baud: int = 115200, timeout: float | None = 0.1) -> serial.SerialBase:
+def open_port(url: str, baud: int = BAUD, timeout: float | None = 0.1) -> serial.SerialBase:
     """Open ``url`` for the client; raises PortError with a hint on any failure."""
     register_sim()
     is_device = "://" not in url

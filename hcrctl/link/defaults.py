@@ -1,0 +1,17 @@
+"""The link's defaults, said once: line rate, reply timeout and read retries.
+
+The client's keyword defaults, the connection context's fields and the CLI's
+option table each said 115200 / 0.5 / 2 on their own, free to drift apart. A
+module of its own, like ``stopwait``, so the option table can import them
+without importing the client. The baud rate is the default protocol
+profile's: the profile is where a firmware's line rate lives.
+"""
+
+from ..protocol.profiles import DEFAULT
+
+#: Serial line rate, bit/s, of the default protocol profile.
+BAUD: int = DEFAULT.baud
+#: Seconds to wait for a reply before a retry (``--timeout``).
+REPLY_TIMEOUT_S: float = 0.5
+#: Extra attempts of a read that got no reply (``--retries``).
+RETRIES: int = 2
