@@ -4,7 +4,9 @@ Issue 25: each message class has a ``CODE`` and each table row a ``code``,
 unchecked; a typo in either would frame requests under one code and name
 their replies under another. The read names typing needs are written out as
 ``Literal`` overloads (a type checker cannot read the table), so a test holds
-them to it.
+them to it. The link defaults are said once (``hcrctl.link.defaults``), and
+each subcommand's one-line help in ``SUBCOMMANDS`` is its own help's first
+paragraph.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from typing import Any
 
 import pytest
 
+from hcrctl.cli import SUBCOMMANDS, LazyGroup, cli
 from hcrctl.link import reads
 from hcrctl.protocol import commands as C
 from hcrctl.protocol import messages
@@ -106,3 +109,19 @@ def test_the_link_defaults_are_said_once_and_used_by_the_client_the_context_and_
     assert inspect.signature(open_port).parameters["baud"].default == defaults.BAUD
     assert robot["timeout"].default == connection.timeout == options["timeout"] == defaults.REPLY_TIMEOUT_S
     assert robot["retries"].default == connection.retries == options["retries"] == defaults.RETRIES
+
+
+@pytest.mark.parametrize("name", sorted(SUBCOMMANDS))
+def test_the_listings_short_help_is_the_first_paragraph_of_the_commands_own_help(name: str) -> None:
+    """``hcrctl --help``, completion and the shell list SUBCOMMANDS' text; ``COMMAND --help`` the command's.
+
+    SUBCOMMANDS keeps the text so a listing imports no command module; this
+    holds it to the command's own help, the one source (they once said
+    different things for watch and monitor).
+    """
+    import click
+
+    command = LazyGroup().get_command(click.Context(cli), name)
+    assert command is not None and command.help
+    first = " ".join(inspect.cleandoc(command.help).split("\n\n")[0].split())
+    assert SUBCOMMANDS[name][1] == first

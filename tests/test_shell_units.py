@@ -168,7 +168,7 @@ def test_top_level_offers_builtins_and_every_cli_command_but_shell(session):
     found = values(session, "")
     assert {"help", "exit", "set", "connect", "hex", "monitor", "read", "sim"} <= set(found)
     assert "shell" not in found
-    assert found["read"] == "Read sensors once and print them."
+    assert found["read"] == "Read each SENSOR once and print it; none means all of them."
 
 
 def test_sensor_names_come_with_the_tables_help(session):
@@ -194,7 +194,8 @@ def test_hint_names_the_argument_and_its_range_from_the_table(session):
 
 def test_hint_names_options_and_the_shells_own_forms(session):
     assert argument_hint(session, "turn 90 ") == "turn: Enter runs it; options --ccw --rate"
-    assert argument_hint(session, "ping") == "ping: Check the link with the cheapest read, like ping."
+    ping = "ping: Check the link: send the cheapest read, report each reply's round trip."
+    assert argument_hint(session, "ping") == ping
     assert argument_hint(session, "ping -c ").startswith("ping ▸ -c/--count  1..")
     monitor = argument_hint(session, "monitor ")
     assert "monitor on|changes|off: Unsolicited frames" in monitor

@@ -28,29 +28,70 @@ if TYPE_CHECKING:
 NoArgsIsHelpError = getattr(click.exceptions, "NoArgsIsHelpError", ())
 
 #: name -> ("module:attribute", one-line help). The help is here so that
-#: ``hcrctl --help`` lists everything without importing every module.
+#: ``hcrctl --help`` lists everything without importing every module; it is
+#: the first paragraph of the command's own help, word for word (a test holds
+#: them together, so the listing cannot drift from what ``COMMAND --help`` says).
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
-    "read": ("hcrctl.cli.read:read", "Read sensors once and print them."),
-    "drive": ("hcrctl.cli.drive:drive", "Drive both motors (power, speed, velocity); stop on exit."),
-    "turn": ("hcrctl.cli.turn:turn", "Turn in place by an angle, wait until done, then stop."),
+    "read": ("hcrctl.cli.read:read", "Read each SENSOR once and print it; none means all of them."),
+    "drive": ("hcrctl.cli.drive:drive", "Drive both motors: power or speed in percent, velocity in cm/s."),
+    "turn": ("hcrctl.cli.turn:turn", "Turn in place by an angle, then stop."),
     "stop": ("hcrctl.cli.drive:stop", "Stop both motors (motor power 0x80 0x80)."),
     "servo": ("hcrctl.cli.servo:servo", C.BY_NAME["servo"].help),
     "pid": ("hcrctl.cli.pid:pid", C.BY_NAME["pid"].help),
-    "ping": ("hcrctl.cli.ping:ping", "Check the link with the cheapest read, like ping."),
-    "ports": ("hcrctl.cli.ports:ports", "List the serial ports present."),
-    "sim": ("hcrctl.cli.sim:sim", "Serve the simulated robot on a pty or TCP port."),
-    "watch": ("hcrctl.cli.watch:watch", "Live full-screen dashboard of the sensors and the link."),
-    "plot": ("hcrctl.cli.plot:plot", "Live plot of any reading field (compass.heading, sonar[0]...)."),
-    "teleop": ("hcrctl.cli.teleop:teleop", "Drive the robot with the arrow keys or WASD (deadman stop)."),
-    "hex": ("hcrctl.cli.hex:hex_group", "Decode, encode and send raw frames (the hex debugger)."),
-    "monitor": ("hcrctl.cli.monitor:monitor", "Watch every frame on the line, decoded, with counters."),
-    "bridge": ("hcrctl.cli.bridge:bridge", "Serve the robot live to Foxglove; drive it from /cmd_vel."),
-    "replay": ("hcrctl.cli.replay:replay", "Re-send the requests of a --log file with their timing."),
-    "export": ("hcrctl.cli.export:export", "Convert a --log file to MCAP (Foxglove, PlotJuggler) or CSV."),
-    "record": ("hcrctl.cli.record:record", "Poll the sensors and record to MCAP or CSV (no motion sent)."),
-    "shell": ("hcrctl.shell.command:shell", "The interactive session: every command, one connection."),
-    "completion": ("hcrctl.cli.completion:completion", "Print the bash, zsh or fish completion script."),
-    "man": ("hcrctl.cli.man:man", "Print the manual page (roff): hcrctl man > .../man1/hcrctl.1"),
+    "ping": (
+        "hcrctl.cli.ping:ping",
+        "Check the link: send the cheapest read, report each reply's round trip.",
+    ),
+    "ports": (
+        "hcrctl.cli.ports:ports",
+        "List the serial ports present (device, description, hardware id, by-id link).",
+    ),
+    "sim": (
+        "hcrctl.cli.sim:sim",
+        "Serve the simulated robot on a pty or a TCP port until Ctrl-C or SIGTERM.",
+    ),
+    "watch": (
+        "hcrctl.cli.watch:watch",
+        "Live dashboard of SENSORS (bump, ir, sonar, compass, wheels, env); none means all.",
+    ),
+    "plot": (
+        "hcrctl.cli.plot:plot",
+        "Live time series of reading FIELDs, e.g. compass.heading 'sonar[0]' wheels.left.",
+    ),
+    "teleop": (
+        "hcrctl.cli.teleop:teleop",
+        "Drive with the arrow keys or WASD; space or k stops, +/- change the speed, q quits.",
+    ),
+    "hex": ("hcrctl.cli.hex:hex_group", "Decode, encode and send raw frames."),
+    "monitor": (
+        "hcrctl.cli.monitor:monitor",
+        "Decode every frame on the line, one line each, without sending anything.",
+    ),
+    "bridge": (
+        "hcrctl.cli.bridge:bridge",
+        "Serve the readings live on the Foxglove WebSocket protocol, and drive from /cmd_vel.",
+    ),
+    "replay": (
+        "hcrctl.cli.replay:replay",
+        "Re-send the tx frames of LOGFILE (written by --log) and print the replies decoded.",
+    ),
+    "export": (
+        "hcrctl.cli.export:export",
+        "Convert a traffic log (written by --log) into OUT, keeping the log's times.",
+    ),
+    "record": (
+        "hcrctl.cli.record:record",
+        "Poll SENSORS (bump, ir, sonar, compass, wheels, env; none means all) and record to OUT.",
+    ),
+    "shell": (
+        "hcrctl.shell.command:shell",
+        "An interactive session on one connection: every command, plus set, connect, hex mode.",
+    ),
+    "completion": (
+        "hcrctl.cli.completion:completion",
+        "Print the completion script for SHELL (bash, zsh or fish).",
+    ),
+    "man": ("hcrctl.cli.man:man", "Print the manual page, in roff, made from every command's help."),
 }
 
 #: Click's completion protocol variable for the program name "hcrctl".
