@@ -39,12 +39,15 @@ HOLD = 1.6
 RELEASE_TARGET_S = 0.050
 
 
-def stutters(pattern_name: str, holds: int, env: dict[str, str]) -> list[int]:
-    """Stops during each of ``holds`` holds of ``w`` (a hold whose schedule slipped is typed again)."""
+def stutters(pattern_name: str, holds: int, env: dict[str, str], option: str = "--deadman") -> list[int]:
+    """Stops during each of ``holds`` holds of ``w`` (a hold whose schedule slipped is typed again).
+
+    ``option``: the deadman's name in the code run (``--timeout`` before issue 24).
+    """
     pattern = PATTERNS[pattern_name]
     counts: list[int] = []
     with FakeRobot() as robot:
-        term = Terminal(["--port", robot.path, "teleop", "--deadman", "0.5"], env=env)
+        term = Terminal(["--port", robot.path, "teleop", option, "0.5"], env=env)
         try:
             term.wait_for("sending")
             while len(counts) < holds:
@@ -106,7 +109,7 @@ def main() -> int:
     ok = True
     with keep:
         for name in PATTERNS:
-            before = stutters(name, args.holds, old_env)
+            before = stutters(name, args.holds, old_env, "--timeout")
             after = stutters(name, args.holds, now_env)
             key = name.split(" (")[0].split(":")[0].replace(" ", "_").replace(",", "").lower()
             metrics[f"{key}_stops_per_hold_before"] = statistics.mean(before)
