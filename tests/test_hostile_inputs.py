@@ -368,7 +368,9 @@ PLUGINS = {
     "half_done": (
         "from hcrctl.protocol.commands import Command, ReadRequest, register_command\n"
         "from hcrctl.protocol.messages import Compass\n"
-        "register_command(Command(0x30, 'first', 'first', 'read', ReadRequest, Compass, 'x'))\n"
+        "class First(Compass):\n"
+        "    CODE = 0x30\n"
+        "register_command(Command(0x30, 'first', 'first', 'read', ReadRequest, First, 'x'))\n"
         "register_command(Command(0x14, 'second', 'second', 'read', ReadRequest, Compass, 'x'))\n"
     ),
     "loud": "raise ValueError('\\x1b[2J' + 'x' * 100_000)\n",
