@@ -1,31 +1,44 @@
-"""A faster way into ``mcap``'s writer for many small messages: one ``struct.pack`` a message.
+"""An MCAP writer for many small messages, made of the ``mcap`` package's public records.
 
 ``mcap.writer.Writer.add_message`` builds a ``Message`` object, packs it field
 by field and updates the file's statistics, about 6 µs a message in all: as
 much again as reading and decoding the traffic log it comes from. An export
-writes a message per frame, so that is what breaks its 2x budget. This keeps
-everything else of the ``mcap`` package (the file layout, chunk compression,
-CRCs, indexes, summary and footer are still the Writer's) and replaces only
-the chunk builder, with one whose ``add_raw`` packs a whole Message record
-header at once, and which adds its counts to the statistics once a chunk
-instead of once a message.
-
-It needs two of the Writer's private attributes (its chunk builder and its
-statistics); ``attach`` returns None when they are not there (another
-``mcap`` version), and the sink then uses ``add_message`` as documented.
+writes a message per frame, so that is what breaks its 2x budget. Its chunk
+builder cannot be swapped through a public API, so this writes the file
+itself, laid out as ``Writer`` lays it out (header, chunks each followed by
+their message indexes, data end, the summary with schemas, channels,
+statistics and indexes, summary offsets, footer), from the public
+``mcap.records`` classes, ``mcap.data_stream.RecordBuilder`` and
+``mcap.opcode``; only the Message records and their indexes are packed here,
+a whole record head at once, and the statistics are counted once a chunk.
+``mcap``'s own reader is what the tests read every file back with.
 """
 
 from __future__ import annotations
 
 import struct
-from typing import Any
+import zlib
+from collections import defaultdict
+from typing import IO, Any
 
-from mcap._chunk_builder import ChunkBuilder
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
-from mcap.records import Channel, McapRecord, Message, MessageIndex, Schema
-from mcap.writer import Writer
+from mcap.records import (
+    Channel,
+    Chunk,
+    ChunkIndex,
+    DataEnd,
+    Footer,
+    Header,
+    McapRecord,
+    Schema,
+    Statistics,
+    SummaryOffset,
+)
+from mcap.writer import CompressionType
 
+#: The file's first and last bytes (the MCAP spec's magic, version 0).
+MAGIC = b"\x89MCAP0\r\n"
 #: opcode, record length, channel id, sequence, log time, publish time: a Message record's head.
 MESSAGE_HEAD = struct.Struct("<BQHIQQ")
 #: The same head in two parts: what stays for a message (opcode, length, channel, sequence), and its times.
@@ -35,45 +48,93 @@ TIMES = struct.Struct("<QQ")
 MESSAGE_FIXED = 2 + 4 + 8 + 8
 
 
-class PackedIndex(MessageIndex):
-    """A MessageIndex written in one pack, not two per entry."""
+def _record(record: McapRecord) -> bytes:
+    out = RecordBuilder()
+    record.write(out)
+    return bytes(out.end())
 
-    def write(self, stream: Any) -> None:
-        flat = [value for entry in self.records for value in entry]
-        stream.write(
-            struct.pack("<BQHI", Opcode.MESSAGE_INDEX, 6 + 8 * len(flat), self.channel_id, 8 * len(flat))
+
+def _index(channel_id: int, records: list[tuple[int, int]]) -> bytes:
+    """A MessageIndex record in one pack, not two per entry."""
+    flat = [value for entry in records for value in entry]
+    head = struct.pack("<BQHI", Opcode.MESSAGE_INDEX, 6 + 8 * len(flat), channel_id, 8 * len(flat))
+    return head + struct.pack(f"<{len(flat)}Q", *flat)
+
+
+def _compressor(compression: CompressionType) -> tuple[str, Any]:
+    """The chunk's compression name and function, as ``Writer`` would choose them (ImportError if absent)."""
+    if compression is CompressionType.ZSTD:
+        import zstandard
+
+        return "zstd", zstandard.compress
+    if compression is CompressionType.LZ4:
+        import lz4.frame  # type: ignore[import-untyped, import-not-found, unused-ignore]
+
+        return "lz4", lz4.frame.compress
+    return "", None
+
+
+class ChunkWriter:
+    """A chunked, indexed MCAP file: ``add_raw``/``add_all`` messages (publish time = log time, sequence 0).
+
+    ``message_indices`` (the chunk in progress) and ``statistics`` (the chunks
+    written) are public for the sink's counts. ``flush`` finishes the chunk, as
+    ``Writer.flush`` does; a chunk with no message is not written, so the
+    schemas and channels go in the first chunk, ahead of its messages.
+    """
+
+    def __init__(self, stream: IO[bytes], chunk_size: int, compression: CompressionType) -> None:
+        self._stream = stream
+        self.chunk_size = chunk_size
+        self._compression, self._compress = _compressor(compression)
+        self._buf = bytearray()
+        self._schemas: list[Schema] = []
+        self._channels: list[Channel] = []
+        self._chunk_indices: list[ChunkIndex] = []
+        self.message_indices: dict[int, list[tuple[int, int]]] = {}
+        self.num_messages = 0
+        self.statistics = Statistics(
+            attachment_count=0,
+            channel_count=0,
+            channel_message_counts=defaultdict(int),
+            chunk_count=0,
+            message_count=0,
+            metadata_count=0,
+            message_start_time=0,
+            message_end_time=0,
+            schema_count=0,
         )
-        stream.write(struct.pack(f"<{len(flat)}Q", *flat))
 
+    def start(self, profile: str, library: str) -> None:
+        self._stream.write(MAGIC + _record(Header(profile=profile, library=library)))
 
-class RawChunkBuilder(ChunkBuilder):
-    """mcap's ChunkBuilder over a bytearray, with ``add_raw``; the statistics kept up once a chunk."""
-
-    def __init__(self, statistics: Any, registered: bytes = b"") -> None:
-        super().__init__()
-        self.statistics = statistics
-        self._buf = bytearray(registered)
-
-    @property
-    def count(self) -> int:
-        return len(self._buf)
-
-    def add_channel(self, channel: Channel) -> None:
-        self._buf += _record(channel)
-
-    def add_schema(self, schema: Schema) -> None:
+    def register_schema(self, name: str, encoding: str, data: bytes) -> int:
+        schema = Schema(id=len(self._schemas) + 1, name=name, encoding=encoding, data=data)
+        self._schemas.append(schema)
+        self.statistics.schema_count += 1
         self._buf += _record(schema)
+        return schema.id
 
-    def add_message(self, message: Message) -> None:
-        raise TypeError("RawChunkBuilder takes add_raw only (the statistics are counted per chunk)")
+    def register_channel(self, topic: str, message_encoding: str, schema_id: int) -> int:
+        channel = Channel(
+            id=len(self._channels) + 1,
+            topic=topic,
+            message_encoding=message_encoding,
+            schema_id=schema_id,
+            metadata={},
+        )
+        self._channels.append(channel)
+        self.statistics.channel_count += 1
+        self._buf += _record(channel)
+        return channel.id
 
     def add_raw(self, channel_id: int, log_time: int, data: bytes) -> int:
-        """Append one message (publish time = log time); the chunk's size so far."""
+        """Append one message; the chunk's size so far (the caller finishes it with ``flush``)."""
         buf = self._buf
         index = self.message_indices.get(channel_id)
         if index is None:
-            index = self.message_indices[channel_id] = PackedIndex(channel_id, [])
-        index.records.append((log_time, len(buf)))
+            index = self.message_indices[channel_id] = []
+        index.append((log_time, len(buf)))
         buf += MESSAGE_HEAD.pack(Opcode.MESSAGE, MESSAGE_FIXED + len(data), channel_id, 0, log_time, log_time)
         buf += data
         self.num_messages += 1
@@ -99,51 +160,93 @@ class RawChunkBuilder(ChunkBuilder):
                 item[3] = size
             index = indices.get(channel_id)
             if index is None:
-                index = indices[channel_id] = PackedIndex(channel_id, [])
-            index.records.append((log_time, len(buf)))
+                index = indices[channel_id] = []
+            index.append((log_time, len(buf)))
             buf += record_head
             buf += times
             buf += tail
         self.num_messages += len(items)
         return len(buf)
 
-    def end(self) -> bytes:
-        """The chunk's records, once its time span is known and its messages are counted in the statistics."""
-        if self.num_messages:  # min/max over the index, once, rather than two comparisons a message
-            self.message_start_time = min(min(i.records)[0] for i in self.message_indices.values())
-            self.message_end_time = max(max(i.records)[0] for i in self.message_indices.values())
-        self._count_in()
-        data, self._buf = bytes(self._buf), bytearray()
-        return data
+    def flush(self) -> None:
+        """Finish the chunk in progress (if it has a message) and hand the stream's buffer on."""
+        self._finish_chunk()
+        self._stream.flush()
 
-    def reset(self) -> None:
-        super().reset()
-        self._buf = bytearray()
+    def finish(self) -> None:
+        """The last chunk, the summary and the footer (the stream stays open)."""
+        self._finish_chunk()
+        stream, stats = self._stream, self.statistics
+        stream.write(_record(DataEnd(data_section_crc=0)))
+        start = stream.tell()
+        groups = [
+            (Opcode.SCHEMA, b"".join(map(_record, self._schemas))),
+            (Opcode.CHANNEL, b"".join(map(_record, self._channels))),
+            (Opcode.STATISTICS, _record(stats)),
+            (Opcode.CHUNK_INDEX, b"".join(map(_record, self._chunk_indices))),
+            (Opcode.ATTACHMENT_INDEX, b""),
+            (Opcode.METADATA_INDEX, b""),
+        ]
+        summary, offsets = bytearray(), bytearray()
+        for opcode, data in groups:
+            offsets += _record(
+                SummaryOffset(group_opcode=opcode, group_start=start + len(summary), group_length=len(data))
+            )
+            summary += data
+        offset_start = start + len(summary)
+        summary += offsets
+        footer_head = struct.pack("<BQQQ", Opcode.FOOTER, 8 + 8 + 4, start, offset_start)
+        crc = zlib.crc32(footer_head, zlib.crc32(summary))
+        stream.write(bytes(summary))
+        stream.write(_record(Footer(summary_start=start, summary_offset_start=offset_start, summary_crc=crc)))
+        stream.write(MAGIC)
 
-    def _count_in(self) -> None:
-        stats = self.statistics
+    def _finish_chunk(self) -> None:
         if not self.num_messages:
             return
-        if stats.message_count == 0 or self.message_start_time < stats.message_start_time:
-            stats.message_start_time = self.message_start_time
-        stats.message_end_time = max(stats.message_end_time, self.message_end_time)
-        stats.message_count += self.num_messages
-        for channel_id, index in self.message_indices.items():
-            stats.channel_message_counts[channel_id] += len(index.records)
+        indices, stats = self.message_indices, self.statistics
+        self.message_indices, self.num_messages, count = {}, 0, self.num_messages
+        # min/max over the index, once, rather than two comparisons a message
+        first = min(min(records)[0] for records in indices.values())
+        last = max(max(records)[0] for records in indices.values())
+        if stats.message_count == 0 or first < stats.message_start_time:
+            stats.message_start_time = first
+        stats.message_end_time = max(stats.message_end_time, last)
+        stats.message_count += count
+        for channel_id, records in indices.items():
+            stats.channel_message_counts[channel_id] += len(records)
+        stats.chunk_count += 1
 
-
-def _record(record: McapRecord) -> bytes:
-    out = RecordBuilder()
-    record.write(out)
-    return out.end()
-
-
-def attach(writer: Writer) -> RawChunkBuilder | None:
-    """Give ``writer`` a RawChunkBuilder (before any message); None if this mcap is laid out otherwise."""
-    old = getattr(writer, "_Writer__chunk_builder", None)
-    statistics = getattr(writer, "_Writer__statistics", None)
-    if not isinstance(old, ChunkBuilder) or statistics is None or old.num_messages:
-        return None
-    builder = RawChunkBuilder(statistics, old.end())  # schemas and channels registered so far stay
-    writer._Writer__chunk_builder = builder  # type: ignore[attr-defined]
-    return builder
+        data, self._buf = bytes(self._buf), bytearray()
+        compressed = self._compress(data) if self._compress else data
+        chunk = _record(
+            Chunk(
+                compression=self._compression,
+                data=compressed,
+                message_start_time=first,
+                message_end_time=last,
+                uncompressed_crc=zlib.crc32(data),
+                uncompressed_size=len(data),
+            )
+        )
+        stream = self._stream
+        chunk_start = stream.tell()
+        stream.write(chunk)
+        index_start, offsets, index_data = chunk_start + len(chunk), {}, bytearray()
+        for channel_id, records in indices.items():
+            offsets[channel_id] = index_start + len(index_data)
+            index_data += _index(channel_id, records)
+        stream.write(bytes(index_data))
+        self._chunk_indices.append(
+            ChunkIndex(
+                message_start_time=first,
+                message_end_time=last,
+                chunk_start_offset=chunk_start,
+                chunk_length=len(chunk),
+                message_index_offsets=offsets,
+                message_index_length=len(index_data),
+                compression=self._compression,
+                compressed_size=len(compressed),
+                uncompressed_size=len(data),
+            )
+        )

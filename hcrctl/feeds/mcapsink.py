@@ -1,4 +1,4 @@
-"""The MCAP sink: what Foxglove, Lichtblick and PlotJuggler open, written with the ``mcap`` package.
+"""The MCAP sink: what Foxglove, Lichtblick and PlotJuggler open, written with the ``mcap`` package's records.
 
 ``record``, ``export`` and the bridge's ``--mcap`` all write through it. The
 encoding is an entry of ``protocol.encodings``: ``json`` (the default: schema
@@ -29,12 +29,12 @@ from collections import Counter
 from collections.abc import Iterable, Sequence
 from typing import IO, Any, cast
 
-from mcap.writer import CompressionType, Writer
+from mcap.writer import CompressionType
 
 from .. import __version__
 from ..protocol.encodings import ENCODINGS, JSON, JSON_TEXT, Encode
 from ..protocol.topics import Topic
-from .mcapchunks import attach
+from .mcapchunks import ChunkWriter
 from .sinks import Prepared, Sink, seconds
 
 #: Uncompressed chunk size: big enough to compress well, small enough to lose little.
@@ -44,11 +44,11 @@ PROFILE = ""  # no ROS profile: plain JSON messages, or CDR described by ros2msg
 
 def compression() -> CompressionType:
     """zstd (the best ratio, and what Foxglove writes) when it can be had, else lz4, else none."""
-    from mcap import writer
+    import importlib.util
 
-    if getattr(writer, "zstandard", None) is not None:
+    if importlib.util.find_spec("zstandard") is not None:
         return CompressionType.ZSTD
-    if getattr(writer, "lz4", None) is not None:
+    if importlib.util.find_spec("lz4") is not None:
         return CompressionType.LZ4
     return CompressionType.NONE
 
@@ -78,7 +78,7 @@ class McapSink(Sink):
         kind = self.encoding = ENCODINGS[encoding]
         #: JSON gets each message's time spliced in (``json_tail``: the rest encoded once); others are whole.
         self._splice = kind is JSON
-        self._writer = Writer(
+        self._writer = ChunkWriter(
             cast(IO[bytes], self._open()),  # only write/tell/flush are used
             chunk_size=CHUNK_SIZE,
             compression=compression(),
@@ -97,18 +97,16 @@ class McapSink(Sink):
         self._writer.flush()  # a bad path or a full disk shows now, not at the first message
         assert self._file is not None
         self._file.flush()
-        self._chunks = attach(self._writer)
         self._topics = {channel: name for name, channel in self._channels.items()}
         self._time, self._ns, self._head = float("nan"), 0, b""
 
     @property
     def counts(self) -> Counter[str]:
-        """Messages by topic: the writer's statistics, plus the chunk in progress."""
-        if self._chunks is None:
-            return self._counts
+        """Messages by topic: the chunks written, plus the chunk in progress."""
+        writer = self._writer
         # dict() copies in one step: the progress line asks from another thread than the writer's
-        by_channel: Counter[int] = Counter(dict(self._chunks.statistics.channel_message_counts))
-        by_channel.update({c: len(i.records) for c, i in dict(self._chunks.message_indices).items()})
+        by_channel: Counter[int] = Counter(dict(writer.statistics.channel_message_counts))
+        by_channel.update({c: len(i) for c, i in dict(writer.message_indices).items()})
         return Counter({self._topics[c]: n for c, n in by_channel.items() if n})
 
     def write_prepared(self, items: Sequence[Prepared], log_time: float, stamp: str | None = None) -> None:
@@ -118,13 +116,7 @@ class McapSink(Sink):
             self._time, self._ns = log_time, us * 1000
             self._head = b'{"time":' + text.encode() if self._splice else b""
         encoded = [p.encoded or self._encoded(p) for p in items]
-        if self._chunks is not None:
-            size = self._chunks.add_all(encoded, self._ns, self._head)
-        else:
-            size = max(
-                (self._add_message(c, self._ns, self._head + tail) for c, tail, *_ in encoded), default=0
-            )
-        self._settle(size)
+        self._settle(self._writer.add_all(encoded, self._ns, self._head))
 
     def write_encoded(self, topic: str, data: bytes, log_time: float) -> None:
         """Record ``data`` as it is: ``topic``'s message already in this sink's encoding, at ``log_time`` (s).
@@ -133,11 +125,7 @@ class McapSink(Sink):
         alike, so nothing is encoded twice and the file holds the bytes served.
         """
         ns, channel = seconds(log_time)[0] * 1000, self._channels[topic]
-        if self._chunks is not None:
-            size = self._chunks.add_raw(channel, ns, data)
-        else:
-            size = self._add_message(channel, ns, data)
-        self._settle(size)
+        self._settle(self._writer.add_raw(channel, ns, data))
 
     def _settle(self, size: int) -> None:
         """Finish the chunk once it is full (``size``, uncompressed), and flush every ``flush_every`` s."""
@@ -148,11 +136,7 @@ class McapSink(Sink):
 
     def write_batch(self, batch: Sequence[tuple[Sequence[Prepared], float, str | None]]) -> None:
         """``write_prepared``'s work for many log lines in one loop, the time's text made as ``seconds`` makes it."""
-        chunks = self._chunks
-        if chunks is None:
-            super().write_batch(batch)
-            return
-        add, encoded_of, splice = chunks.add_all, self._encoded, self._splice
+        add, encoded_of, splice = self._writer.add_all, self._encoded, self._splice
         for items, log_time, _ in batch:
             us = round(log_time * 1_000_000)
             size = add(
@@ -177,12 +161,6 @@ class McapSink(Sink):
         if self._splice:
             return self._channels[prepared.topic], json_tail(prepared.message)
         return self._channels[prepared.topic], self._encoders[prepared.topic](prepared.message)
-
-    def _add_message(self, channel: int, ns: int, data: bytes) -> int:
-        """Without the raw chunk builder: the documented way (the writer sizes its chunks itself)."""
-        self._writer.add_message(channel, ns, data, ns)
-        self._counts[self._topics[channel]] += 1
-        return 0
 
     def flush(self) -> None:
         super().flush()

@@ -1,11 +1,11 @@
-"""JSON text from one C encoder made once: what every JSON line and MCAP message is written with.
+"""JSON text from one ``json.JSONEncoder`` made once: what every JSON line and MCAP message is written with.
 
-``json.JSONEncoder.encode`` builds a new C encoder (and a Python generator)
-on every call, which was a third of what a new frame's JSON line cost in
-``hex decode --json`` and half of an MCAP message's; the arguments here are
-those ``JSONEncoder.iterencode`` gives it, so the text is exactly
-``json.dumps``'s with the same options. Where the C encoder is missing (another
-Python), the documented way is used. Standard library only.
+``json.dumps`` with options builds a new ``JSONEncoder`` on every call; this
+builds it once, and its ``encode`` gives exactly ``json.dumps``'s text with
+the same options. (Its C encoder could be kept too, called as
+``JSONEncoder.iterencode`` calls it, but that is ``json``'s private
+signature.) Most of the volume does not come here at all: the flat dicts of
+a message's fields go through ``flat_dict_encoder``. Standard library only.
 """
 
 from __future__ import annotations
@@ -18,24 +18,7 @@ from typing import Any
 def json_encoder(*, compact: bool = False, ensure_ascii: bool = False) -> Callable[[Any], str]:
     """``json.dumps(value, ensure_ascii=..., separators=(",", ":") if compact)``, made once."""
     separators = (",", ":") if compact else (", ", ": ")
-    plain = json.JSONEncoder(ensure_ascii=ensure_ascii, separators=separators).encode
-    make = getattr(json.encoder, "c_make_encoder", None)
-    if make is None:
-        return plain
-    strings = json.encoder.encode_basestring_ascii if ensure_ascii else json.encoder.encode_basestring
-    try:  # markers, default, strings, indent, key separator, item separator, sort_keys, skipkeys, allow_nan
-        encoder = make(None, _refuse, strings, None, separators[1], separators[0], False, False, True)
-    except TypeError:  # another signature: the documented way
-        return plain
-
-    def encode(value: Any) -> str:
-        return "".join(encoder(value, 0)) if isinstance(value, (dict, list)) else plain(value)
-
-    return encode
-
-
-def _refuse(value: object) -> object:
-    raise TypeError(f"Object of type {type(value).__name__} is not JSON serializable")
+    return json.JSONEncoder(ensure_ascii=ensure_ascii, separators=separators).encode
 
 
 def flat_dict_encoder(encode: Callable[[Any], str]) -> Callable[[dict[str, Any]], str]:

@@ -1,0 +1,154 @@
+"""hcrctl uses other packages through their public APIs only (issue 25).
+
+A private name (``_chunk_builder``, ``_run_exitfuncs``, a name-mangled
+``_Writer__chunk_builder``) can change or vanish in any release, under a
+version bound that was tested with the old one; the speed work once leaned on
+three. This walks every module of the package and fails on any use of one, so
+a new one is a decision to argue for here, not an accident.
+"""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+import pytest
+
+import hcrctl
+
+PACKAGE = Path(hcrctl.__file__).parent
+#: ``_Class__attribute``: what ``self.__attribute`` is called outside its class.
+MANGLED = re.compile(r"^_[A-Za-z][A-Za-z0-9]*__[A-Za-z0-9_]*[A-Za-z0-9]$")
+#: Underscored but documented, public API despite the name.
+DOCUMENTED = {"os._exit", "sys._getframe"}
+#: Modules for the type checker only (typeshed's, under ``if TYPE_CHECKING``), never imported at run time.
+TYPING_ONLY = {"_typeshed"}
+#: Not underscored, but not documented either: a signature that may change in any release.
+UNDOCUMENTED = {"c_make_encoder"}
+
+
+def private(name: str) -> bool:
+    """``_x`` and ``__x`` are private; ``__x__`` (``__version__``, ``__future__``) is not."""
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+def modules() -> list[Path]:
+    return sorted(PACKAGE.rglob("*.py"))
+
+
+def own(module: str) -> bool:
+    """hcrctl's own modules, and the type checker's: their underscores are no other package's API."""
+    return module == "hcrctl" or module.startswith("hcrctl.") or module.split(".")[0] in TYPING_ONLY
+
+
+def dotted(node: ast.AST) -> list[str] | None:
+    """``a.b.c`` as ["a", "b", "c"]; None when the chain does not start at a name."""
+    parts: list[str] = []
+    while isinstance(node, ast.Attribute):
+        parts.append(node.attr)
+        node = node.value
+    if not isinstance(node, ast.Name):
+        return None
+    parts.append(node.id)
+    return parts[::-1]
+
+
+def uses_of_private_names(source: str) -> list[str]:
+    """Every private name of another package that ``source`` imports or reaches, as ``line: text``."""
+    tree = ast.parse(source)
+    found: list[str] = []
+    imported: dict[str, str] = {}  # a local name bound by an import of another package -> its module path
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                if own(alias.name):
+                    continue
+                if any(private(part) for part in alias.name.split(".")):
+                    found.append(f"{node.lineno}: import {alias.name}")
+                if alias.asname:
+                    imported[alias.asname] = alias.name
+                else:
+                    top = alias.name.split(".")[0]
+                    imported[top] = top
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module and not own(node.module):
+            if any(private(part) for part in node.module.split(".")):
+                found.append(f"{node.lineno}: from {node.module} import ...")
+            for alias in node.names:
+                if private(alias.name) or alias.name in UNDOCUMENTED:
+                    found.append(f"{node.lineno}: from {node.module} import {alias.name}")
+                imported[alias.asname or alias.name] = f"{node.module}.{alias.name}"
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute):
+            if MANGLED.match(node.attr):
+                found.append(f"{node.lineno}: .{node.attr} (name-mangled)")
+            chain = dotted(node)
+            if chain is None or chain[0] not in imported:
+                continue
+            path = ".".join([imported[chain[0]], *chain[1:]])
+            if path in DOCUMENTED or ".".join(chain) in DOCUMENTED:
+                continue
+            if private(node.attr) or node.attr in UNDOCUMENTED:
+                found.append(f"{node.lineno}: {'.'.join(chain)}")
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str) and MANGLED.match(node.value):
+            found.append(f"{node.lineno}: {node.value!r} (name-mangled, as a string)")
+        elif (
+            isinstance(node, ast.Call)
+            and isinstance(node.func, ast.Name)
+            and node.func.id in ("getattr", "setattr", "hasattr", "delattr")
+            and len(node.args) >= 2
+            and (dotted(node.args[0]) or [""])[0] in imported
+            and isinstance(node.args[1], ast.Constant)
+            and isinstance(node.args[1].value, str)
+            and (private(node.args[1].value) or node.args[1].value in UNDOCUMENTED)
+        ):
+            found.append(
+                f"{node.lineno}: {node.func.id}({ast.unparse(node.args[0])}, {node.args[1].value!r})"
+            )
+    return sorted(set(found), key=lambda text: int(text.split(":")[0]))
+
+
+@pytest.mark.parametrize("path", modules(), ids=lambda p: str(p.relative_to(PACKAGE.parent)))
+def test_no_private_api_of_another_package(path: Path) -> None:
+    assert uses_of_private_names(path.read_text(encoding="utf-8")) == []
+
+
+def test_the_package_is_all_there() -> None:
+    assert len(modules()) > 50  # walking an empty or wrong directory would pass everything
+
+
+@pytest.mark.parametrize(
+    "source",
+    [
+        "from mcap._chunk_builder import ChunkBuilder",
+        "import mcap._chunk_builder",
+        "import mcap._chunk_builder as cb",
+        "from mcap import _chunk_builder",
+        "import atexit\natexit._run_exitfuncs()",
+        "import atexit as a\na._run_exitfuncs()",
+        "from mcap import writer\nwriter._private",
+        "import json\njson.encoder.c_make_encoder(None)",
+        "from json import encoder\nencoder.c_make_encoder(None)",
+        "w = None\nw._Writer__chunk_builder = 1",
+        "w = None\ngetattr(w, '_Writer__statistics', None)",
+        "import atexit\ngetattr(atexit, '_run_exitfuncs')()",
+        "import json\ngetattr(json.encoder, 'c_make_encoder', None)",
+    ],
+)
+def test_each_kind_of_use_is_found(source: str) -> None:
+    assert uses_of_private_names(source), source
+
+
+@pytest.mark.parametrize(
+    "source",
+    [
+        "from __future__ import annotations",
+        "import os\nos._exit(0)",
+        "from . import _private\n_private._x",
+        "from hcrctl.feeds import sinks\nsinks._open",
+        "class A:\n    def f(self):\n        self._x = self.__y",
+        "from mcap import __version__",
+    ],
+)
+def test_what_is_not_another_packages_private_api_passes(source: str) -> None:
+    assert uses_of_private_names(source) == []
