@@ -1,7 +1,7 @@
 """Reading recordings as a user does, and a disk that fills up, for the ``record`` and ``bridge --mcap`` tests.
 
-``read_cut_short`` is not a copy of the README's recipe: it is taken out of
-README.md and run as it stands there, so the recipe users copy is the one the
+``read_cut_short`` is not a copy of the docs' recipe: it is taken out of
+docs/recordings.md and run as it stands there, so the recipe users copy is the one the
 kill -9 tests hold to its promise (every message written whole, no exception
 at the cut).
 """
@@ -20,8 +20,8 @@ from typing import Any
 import pytest
 from helpers import wait_until
 
-README = Path(__file__).resolve().parent.parent / "README.md"
-RECIPE = "### Reading a recording cut short"
+RECORDINGS = Path(__file__).resolve().parent.parent / "docs" / "recordings.md"
+RECIPE = "## Reading a recording cut short"
 #: ``record`` and the bridge finish a chunk at least every ``feeds.record.FLUSH_EVERY`` s, so a kill -9
 #: loses the messages of at most the last FLUSH_EVERY seconds, plus those of the flush under way at the
 #: kill: the first write after the deadline starts it (a few ms later at --rate 20), then one chunk is
@@ -31,14 +31,14 @@ LOSS_MARGIN = 0.5
 
 
 @functools.cache
-def readme_recipe() -> Callable[[str | Path], Iterator[tuple[str, Any]]]:
-    """The README's ``read_cut_short(path)``: the first python block under its heading, executed."""
-    text = README.read_text(encoding="utf-8")
+def docs_recipe() -> Callable[[str | Path], Iterator[tuple[str, Any]]]:
+    """docs/recordings.md's ``read_cut_short(path)``: the first python block under its heading, executed."""
+    text = RECORDINGS.read_text(encoding="utf-8")
     section = text[text.index(RECIPE) :]
     start = section.index("```python\n") + len("```python\n")
     code = section[start : section.index("```", start)]
-    namespace: dict[str, Any] = {"__name__": "readme_recipe"}
-    exec(compile(code, f"{README} ({RECIPE})", "exec"), namespace)
+    namespace: dict[str, Any] = {"__name__": "docs_recipe"}
+    exec(compile(code, f"{RECORDINGS} ({RECIPE})", "exec"), namespace)
     return namespace["read_cut_short"]  # type: ignore[no-any-return]
 
 
@@ -46,7 +46,7 @@ def messages(path: Path) -> list[tuple[str, Any]]:
     """(topic, mcap Message) for each message of ``path`` as it is now (none if it is not there yet)."""
     if not path.exists():
         return []
-    return list(readme_recipe()(path))
+    return list(docs_recipe()(path))
 
 
 def last_log_time(found: list[tuple[str, Any]]) -> float:

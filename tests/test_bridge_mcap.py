@@ -1,7 +1,7 @@
 """``hcrctl bridge --mcap``: the recording is ``record``'s, through the same writer, killed or starved of disk.
 
 The installed bridge records on ``sim://`` while a real WebSocket client
-watches; files are read back with the README's recipe for a recording cut
+watches; files are read back with docs/recordings.md's recipe for a recording cut
 short (``helpers_mcap``), the same one ``record``'s kill -9 test uses.
 """
 
@@ -32,7 +32,7 @@ def test_kill_9_loses_at_most_the_last_second_of_the_recording(
         killed_at = time.time()
         running.proc.kill()
         running.close()
-    found = messages(out)  # the README's recipe: every whole message, no exception at the cut
+    found = messages(out)  # docs/recordings.md's recipe: every whole message, no exception at the cut
     assert {"/hcr/compass", T.FRAMES, T.LINK} <= {topic for topic, _ in found}
     lost = killed_at - last_log_time(found)
     assert max(lag, lost) <= FLUSH_EVERY + LOSS_MARGIN, f"{lag:.2f} s behind while running, {lost:.2f} s lost"

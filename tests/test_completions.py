@@ -236,7 +236,7 @@ def test_another_shell_sourcing_the_bash_script_is_told_which_to_use(tmp_path, b
 
 @pytest.mark.skipif(not BASH_COMPLETION.exists(), reason="the bash-completion package is not installed")
 def test_bash_completion_loads_it_from_the_users_completions_directory(tmp_path, bash_script):
-    """The README's route: bash-completion loads ~/.local/share/bash-completion/completions/hcrctl
+    """docs/commands.md's route: bash-completion loads ~/.local/share/bash-completion/completions/hcrctl
     ($XDG_DATA_HOME) on the first Tab after hcrctl."""
     folder = tmp_path / "data" / "bash-completion" / "completions"
     folder.mkdir(parents=True)
@@ -308,7 +308,7 @@ def test_zsh_answers_escape_a_described_colon_and_keep_help_on_one_line():
 
 
 def test_zsh_loads_the_script_from_fpath_and_completes_on_every_tab(tmp_path):
-    """The README's route (a file _hcrctl on $fpath). Click's stock script completed only on every other
+    """docs/commands.md's route (a file _hcrctl on $fpath). Click's stock script completed only on every other
     Tab that way: each later Tab ran the file's body again, which re-registered instead of completing."""
     import pexpect
 
@@ -339,7 +339,7 @@ def test_zsh_loads_the_script_from_fpath_and_completes_on_every_tab(tmp_path):
 
 
 def test_fish_loads_the_script_from_its_completions_directory_and_keeps_whole_descriptions(tmp_path):
-    """The README's route (~/.config/fish/completions/hcrctl.fish). Click's stock script cut each
+    """docs/commands.md's route (~/.config/fish/completions/hcrctl.fish). Click's stock script cut each
     description at its first comma: "Drive both motors (power"."""
     from hcrctl.cli import SUBCOMMANDS
     from hcrctl.cli.settings import global_options

@@ -2,7 +2,7 @@
 
 A module's size is a reason to look in review, not a rule here: a hard line cap
 once split ``Robot`` into mixins that needed each other's private attributes
-(see the README, "How the code is organised").
+(see docs/development.md, "How the code is organised").
 
 Every module's imports are read with ``ast``, including the ones inside
 functions and under ``if TYPE_CHECKING:``, so a cycle cannot hide in a lazy

@@ -129,7 +129,7 @@ def test_help_blocks_keep_their_lines(page):
     assert "compass Read the compass heading." in [" ".join(line.split()) for line in lines]
 
 
-def test_man_shows_it_once_it_is_where_the_readme_puts_it(tmp_path, page):
+def test_man_shows_it_once_it_is_where_the_docs_put_it(tmp_path, page):
     """``hcrctl man > ~/.local/share/man/man1/hcrctl.1``, then ``man hcrctl`` (MANPATH stands in for
     the search path man derives from ~/.local/bin on PATH)."""
     if shutil.which("man") is None:

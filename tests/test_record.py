@@ -108,7 +108,7 @@ def test_sigterm_leaves_a_csv_of_whole_lines(robot: str, tmp_path: Path) -> None
 def test_kill_9_keeps_every_flushed_chunk_and_loses_at_most_the_last_second(
     robot: str, tmp_path: Path
 ) -> None:
-    """Read with the README's recipe, which must end without an exception at the cut."""
+    """Read with docs/recordings.md's recipe, which must end without an exception at the cut."""
     out = tmp_path / "killed.mcap"
     proc = recording(robot, out)
     try:
@@ -202,7 +202,7 @@ def test_a_disk_that_fills_up_mid_recording_is_one_line_and_the_file_keeps_what_
         out = where / "full.mcap"
         argv = ["--port", "sim://", "record", str(out), "--rate", "max", "--duration", "20"]
         done = run(argv, clean_env(tmp_path))  # 256 KiB: a fraction of a second at this rate
-        kept = flushed(out)  # the README's recipe: no exception at the damaged tail
+        kept = flushed(out)  # docs/recordings.md's recipe: no exception at the damaged tail
     assert done.returncode == 1, done.stderr
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and f"cannot write {out}" in lines[0] and "No space left" in lines[0], lines

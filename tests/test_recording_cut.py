@@ -1,4 +1,4 @@
-"""The README's recipe for a recording cut short, on a real recording cut at every kind of place.
+"""docs/recordings.md's recipe for a recording cut short, on a real recording cut at every kind of place.
 
 A kill -9 can stop the file between records, inside a record (a write the
 kill interrupted, a full disk), or, with writers other than hcrctl's, inside a

@@ -20,7 +20,7 @@ from .. import __version__
 from ..config import APP_DIR, FILE_NAME
 from ..protocol.commands import PLUGINS_ENV
 
-#: What the exit status means, for every command (README: "Exit codes").
+#: What the exit status means, for every command (docs/commands.md: "Exit codes").
 EXIT_STATUS = [
     ("0", "Success."),
     (

@@ -18,7 +18,7 @@ loses nothing flushed). Schemas and channels go in the first chunk, ahead of
 its messages. A file cut off mid-write therefore holds a header and every
 finished chunk: ``mcap.stream_reader.StreamReader`` reads it front to back
 without the summary that ``close()`` would have added, and raises
-``EndOfFile`` at the cut (the README's "reading a recording cut short" stops
+``EndOfFile`` at the cut (docs/recordings.md's "reading a recording cut short" stops
 there), losing at most the last ``flush_every`` seconds.
 """
 

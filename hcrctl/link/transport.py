@@ -16,7 +16,7 @@ from .defaults import BAUD
 from .transport_sim import register as register_sim
 
 SIM_HINT = "use --port sim:// for the built-in simulator"
-SIM_OPTIONS_HINT = "for example sim://?drop=0.1&seed=3; the README lists every option"
+SIM_OPTIONS_HINT = "for example sim://?drop=0.1&seed=3; docs/simulator.md lists every option"
 URL_HINT = "a device path, or a URL such as socket://HOST:PORT, rfc2217://HOST:PORT, loop:// or sim://"
 
 

@@ -2,7 +2,7 @@
 
 Why Braille: each cell holds eight dots, so a 60-column chart has 120 points
 across and four per line of height, with no library and no start-up cost
-(plotext was evaluated; see the README's "Live plots"). A cell remembers the
+(plotext was evaluated; see docs/live.md, "Live plots"). A cell remembers the
 series that last drew in it, so the chart can colour it and, in ASCII, mark
 it with that series' character (``*``, ``+``, ``o``...) where colour is absent.
 
