@@ -6,12 +6,16 @@ once split ``Robot`` into mixins that needed each other's private attributes
 
 Every module's imports are read with ``ast``, including the ones inside
 functions and under ``if TYPE_CHECKING:``, so a cycle cannot hide in a lazy
-import. A module may import its own layer or a lower one, never a higher one.
+import; and so are the strings that name a module for someone to import later
+(``"hcrctl.cli.read:read"`` in a lazy-load table, ``"hcrctl.urlhandler"`` handed
+to pyserial): an ``importlib.import_module`` of a name is an import all the same.
+A module may import its own layer or a lower one, never a higher one.
 """
 
 from __future__ import annotations
 
 import ast
+import re
 import sys
 from pathlib import Path
 
@@ -32,6 +36,9 @@ LAYERS: list[tuple[str, ...]] = [
 ]
 STDLIB_ONLY = ("hcrctl.protocol", "hcrctl.sim")
 MAX_TOP_LEVEL = 8
+
+#: A string naming a module of the package for a later import: "hcrctl.x.y" or "hcrctl.x.y:attr".
+MODULE_STRING = re.compile(r"(?P<module>hcrctl(?:\.\w+)+)(?P<attr>:\w+)?")
 
 
 def module_name(path: Path) -> str:
@@ -59,6 +66,12 @@ def imports(name: str) -> set[str]:
                 base = ".".join(parts[: len(parts) - node.level + 1] + ([node.module] if node.module else []))
             found.add(base)
             found.update(f"{base}.{alias.name}" for alias in node.names if f"{base}.{alias.name}" in MODULES)
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+            named = MODULE_STRING.fullmatch(node.value)
+            # "module:attr" is always an import (a stale one must fail); a bare dotted name only when
+            # it is a module (a logger's "hcrctl.bridge.websocket" is not)
+            if named and (named["attr"] or named["module"] in MODULES):
+                found.add(named["module"])
     return found
 
 
@@ -161,3 +174,11 @@ def test_the_checks_see_imports_inside_functions() -> None:
     """A lazy import counts: the CLI group imports its settings, and a subcommand imports live lazily."""
     assert "hcrctl.live.watch" in own("hcrctl.cli.watch")  # imported inside the command function
     assert layer_of("hcrctl.shell.prompt") > layer_of("hcrctl.cli") > layer_of("hcrctl.live.watch")
+
+
+def test_the_checks_see_modules_named_in_strings() -> None:
+    """A lazy-load table's "module:attr" is an import: the CLI's table once named the shell's command
+    by string while the shell imported the CLI, a cycle no import statement showed."""
+    assert "hcrctl.cli.read" in own("hcrctl.cli")  # "hcrctl.cli.read:read" in SUBCOMMANDS
+    assert "hcrctl.urlhandler" in own("hcrctl.link.transport_sim")  # handed to pyserial by name
+    assert not any(m.startswith("hcrctl.shell") for m in own("hcrctl.cli"))

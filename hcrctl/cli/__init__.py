@@ -32,6 +32,8 @@ NoArgsIsHelpError = getattr(click.exceptions, "NoArgsIsHelpError", ())
 #: ``hcrctl --help`` lists everything without importing every module; it is
 #: the first paragraph of the command's own help, word for word (a test holds
 #: them together, so the listing cannot drift from what ``COMMAND --help`` says).
+#: Only the CLI's own modules and lower layers: the shell, a layer above, adds its
+#: ``shell`` here itself (``hcrctl.shell.SUBCOMMANDS``, merged by ``hcrctl.__main__``).
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "read": ("hcrctl.cli.read:read", "Read each SENSOR once and print it; none means all of them."),
     "drive": ("hcrctl.cli.drive:drive", "Drive both motors: power or speed in percent, velocity in cm/s."),
@@ -83,10 +85,6 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "record": (
         "hcrctl.cli.record:record",
         "Poll SENSORS (bump, ir, sonar, compass, wheels, env; none means all) and record to OUT.",
-    ),
-    "shell": (
-        "hcrctl.shell.command:shell",
-        "An interactive session on one connection: every command, plus set, connect, hex mode.",
     ),
     "completion": (
         "hcrctl.cli.completion:completion",
@@ -178,7 +176,10 @@ def cli(ctx: click.Context, **options: Any) -> None:
 
 
 def entry() -> None:
-    """The console script: ``main()``, then an exit without the interpreter's teardown.
+    """The program's exit: ``main()``, then an exit without the interpreter's teardown.
+
+    The console script and ``python -m hcrctl`` run it through
+    ``hcrctl.__main__.entry``, which first adds the shell's subcommand.
 
     Freeing every module and object at exit takes about 12 ms, some 15 % of a
     one-shot command; mypy exits the same way. Output is flushed, threads are
@@ -230,10 +231,32 @@ def _exit_after_atexit() -> None:
 atexit.register(_exit_after_atexit)
 
 
+#: The plugin modules ``main`` loaded; None until it has, so a second ``main()`` loads none again.
+_plugins: list[str] | None = None
+
+
+def load_plugins_once() -> list[str]:
+    """The ``HCRCTL_PLUGINS`` modules, loaded on the first call only: the step each entry point takes.
+
+    Importing the command table loads nothing (a library gets the table as
+    written); the program asks, once, before anything builds Click choices
+    or completions from the table. A plugin that fails warns once, not per call.
+    """
+    global _plugins
+    if _plugins is None:
+        _plugins = C.load_plugins()
+    return _plugins
+
+
 def main(argv: list[str] | None = None) -> None:
-    """Console-script entry point: run the CLI and map every failure to an exit code."""
+    """Run the CLI and map every failure to an exit code; the plugins are loaded first, once.
+
+    This is the CLI without the shell (a layer above it): ``hcrctl.__main__.main``
+    is the whole program.
+    """
     args = sys.argv[1:] if argv is None else list(argv)
     defaults: dict[str, Any] = {}
+    load_plugins_once()  # before completion, config or a subcommand reads the table
     if COMPLETE_VAR in os.environ:  # a Tab, or _HCRCTL_COMPLETE=bash_source: our scripts, not Click's stock
         from .completion import register
 

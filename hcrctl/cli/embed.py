@@ -8,8 +8,10 @@ options and ``Settings`` (``set``, and the object every command receives),
 and the parameter types the shell's builtins share with the CLI.
 
 The dependency runs one way: the shell imports this, the CLI never imports
-the shell (its ``shell`` subcommand is found through ``SUBCOMMANDS`` by name,
-like every subcommand, and lives in ``hcrctl.shell.command``).
+the shell, not even by name (a "module:attr" in ``SUBCOMMANDS`` is an import
+too, and tests/test_layers.py counts it): the shell adds its ``shell``
+subcommand to ``SUBCOMMANDS`` from its own side (``hcrctl.shell.SUBCOMMANDS``),
+when ``hcrctl.__main__``, the program above both, puts them together.
 """
 
 from __future__ import annotations

@@ -10,8 +10,11 @@ specialised ones (a compass rose) only as optional overrides by name.
 
 A command can also be added from outside the package, at run time:
 ``register_command(Command(...))``, from a module named in the environment
-variable ``HCRCTL_PLUGINS`` (comma-separated), which this module imports as
-it finishes loading, before anything else reads the table.
+variable ``HCRCTL_PLUGINS`` (comma-separated). Importing this module loads no
+plugin: the program's entry points call ``load_plugins()`` once, before
+anything builds choices from the table (``hcrctl.cli.main``); a library user
+who wants them calls it too (``load_plugins()`` for the variable's modules,
+``load_plugins("mod_a,mod_b")`` for named ones), or ``register_command`` itself.
 
 Request values validate their ranges on construction, so an out-of-range value
 can never reach the wire. Reply values are built from whatever a device sends
@@ -347,8 +350,10 @@ def encode_request(
 def load_plugins(names: str | None = None) -> list[str]:
     """Import the modules named in ``HCRCTL_PLUGINS`` (or ``names``): each may register commands.
 
-    Runs as this module finishes loading, so a plugin's commands are in the
-    table before the CLI builds its choices from it. Whatever else a plugin
+    An explicit step, never a side effect of importing the table: the CLI
+    takes it once at start-up (``hcrctl.cli.load_plugins_once``), before it
+    builds its choices from the table; a library calls it if it wants
+    plugins. Each call imports the modules it is given. Whatever else a plugin
     does on import (raise, ``sys.exit``, KeyboardInterrupt, an impossible
     command) costs one warning line naming it, and the table as it was
     before it (``plugins.load``). Returns the names of the modules that loaded.
@@ -373,6 +378,3 @@ def _restore_table(state: tuple[Any, ...]) -> None:
     for table, saved in zip(tables, state[2:], strict=True):
         table.clear()
         table.update(saved)
-
-
-load_plugins()

@@ -1,7 +1,8 @@
 """Plugins (``HCRCTL_PLUGINS``): someone else's code, run inside every command, kept from harming it.
 
-A plugin module is imported as the command table finishes loading, so that
-the commands it registers are in the table before the CLI reads it. It is
+A plugin module is imported when an entry point asks (``load_plugins``, once
+at the CLI's start), so that the commands it registers are in the table
+before the CLI reads it; importing the table alone loads none. It is
 code hcrctl did not write and cannot vet, run before whatever the user asked
 for; so ``load`` holds it to doing that and nothing else: an exception of any
 kind on import (``sys.exit`` and KeyboardInterrupt included: they would end
