@@ -99,14 +99,24 @@ def test_watch_counts_an_endless_run_of_junk_as_monitor_does() -> None:
         )
     assert watch.returncode == 0 and monitor.returncode == 0, (watch.stderr, monitor.stderr)
     counted = json.loads(watch.stdout)["junk_bytes"]
-    assert counted > 4096, counted  # before: 0 (the run never ended, so it was never reported)
-    assert json.loads(monitor.stdout)["junk_bytes"] > 4096
+    assert counted > 0, counted  # before: 0 however long (the run never ended, so it was never reported)
+    assert json.loads(monitor.stdout)["junk_bytes"] > 0
 
 
 def test_under_v011_a_board_sending_0d_0a_frames_is_named_in_the_hint() -> None:
     """The mirror of "try --protocol v0.11": frames ending in 0D 0A mean the flag is wrong."""
     result = run(
-        "--protocol", "v0.11", "--port", "sim://", "--timeout", "0.2", "--retries", "0", "read", "bump"
+        # a timeout long enough for the (unreadable) reply to arrive on a loaded machine: it is what is heard
+        "--protocol",
+        "v0.11",
+        "--port",
+        "sim://",
+        "--timeout",
+        "3",
+        "--retries",
+        "0",
+        "read",
+        "bump",
     )
     assert result.returncode == 1
     (line,) = result.stderr.splitlines()
