@@ -10,16 +10,15 @@ leaves the directory exactly as it was.
 
 from __future__ import annotations
 
-import contextlib
 import errno
 import os
 import signal
 import subprocess
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from helpers_cli import clean_env, finish, hcrctl_exe, one_line, run, start, wait_until, wire
+from helpers_mcap import small_tmpfs
 
 SUFFIXES = [".mcap", ".csv"]
 OLD = b"an earlier recording, not to be lost\n"
@@ -241,28 +240,11 @@ def test_a_failed_export_to_a_new_out_leaves_no_file(log: Path, tmp_path: Path, 
     assert listing(tmp_path) == names
 
 
-@contextlib.contextmanager
-def small_disk(where: Path) -> Iterator[Path]:
-    """A 256 KiB tmpfs on ``where``: a disk that fills up (mounting needs root, else the test is skipped)."""
-    if os.geteuid() != 0:
-        pytest.skip("a full disk is a small tmpfs, and mounting one needs root")
-    where.mkdir()
-    mounted = subprocess.run(
-        ["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(where)], capture_output=True, text=True
-    )
-    if mounted.returncode != 0:
-        pytest.skip(f"mount -t tmpfs refused: {mounted.stderr.strip()}")
-    try:
-        yield where
-    finally:
-        subprocess.run(["umount", str(where)], check=True)
-
-
 def test_a_disk_that_fills_up_mid_export_keeps_the_old_out(log: Path, tmp_path: Path) -> None:
     """The error names OUT (not the temporary file), OUT is as it was, and the space is given back."""
     big = tmp_path / "big.jsonl"
     big.write_bytes(log.read_bytes() * 2000)  # its CSV is megabytes: far more than the disk holds
-    with small_disk(tmp_path / "small") as disk:
+    with small_tmpfs(tmp_path / "small") as disk:
         out = disk / "old.csv"
         before = existing(out)
         done = run(["export", str(big), str(out), "--force"], clean_env(tmp_path))
