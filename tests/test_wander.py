@@ -195,4 +195,6 @@ def test_a_wandering_pty_moves_for_every_reader_and_a_stop_from_another_process_
         )
         for _ in range(3):  # a few processes later it has not set off again
             again = _read(path, env, "compass", "wheels")
-            assert again["wheels"] == [0, 0] and math.isclose(again["heading"], still["heading"])
+            # the wheel controllers' lag lets the body creep a tenth of a degree after the readings show 0;
+            # setting off again would turn it by degrees
+            assert again["wheels"] == [0, 0] and math.isclose(again["heading"], still["heading"], abs_tol=1.0)
