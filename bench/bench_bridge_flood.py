@@ -3,7 +3,7 @@
     python bench/bench_bridge_flood.py [--rounds N]
 
 Everything is read on the robot's wire. The robot is a pty pair this script
-opens (``FakeRobot``): a thread decodes every frame the bridge writes,
+opens (the tests' ``FakeRobot``): a thread decodes every frame the bridge writes,
 timestamps it (``time.monotonic``, the clock the driver's sends are stamped
 with) and answers each sensor read at once, so the bridge polls as it would a
 real robot. ``hcrctl --port <pty> bridge --listen 127.0.0.1:0 --deadman 0.5``
@@ -67,26 +67,26 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import os
 import re
-import select
 import statistics
 import struct
 import subprocess
 import sys
 import threading
 import time
-import tty
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))  # the tests' FakeRobot
 
 from _common import record
 from _simpty import hcrctl_exe
+from helpers_live import FakeRobot, is_stop
 
 from hcrctl.motion.governor import RESEND
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.decoder import FrameDecoder
-from hcrctl.protocol.frames import Frame, encode
+from hcrctl.protocol.frames import Frame
 
 TARGET = 1.2
 ALLOWANCE_S = 0.010
@@ -119,98 +119,15 @@ ADVERTISE = json.dumps(
 )
 
 VELOCITY = C.BY_NAME["velocity"].code
-STOP_CONTENT = C.STOP.content()
-REPLIES: dict[str, C.Reply] = {
-    "bump": C.Bumpers((False, False, False)),
-    "ir": C.Infrared((10, 60, 120, 200, 250)),
-    "sonar": C.Ultrasonic((42, 150, 230)),
-    "compass": C.Compass(123.4),
-    "wheels": C.WheelSpeed((17, 19)),
-    "env": C.Environment(55, 21),
-}
 
 
 def is_velocity(frame: Frame) -> bool:
     return frame.command == VELOCITY
 
 
-def is_stop(frame: Frame) -> bool:
-    return frame.command == C.STOP.CODE and frame.content == STOP_CONTENT
-
-
-# -- the robot: a pty pair, every motion frame timestamped, every read answered --------------
-
-
-class FakeRobot:
-    """The robot's end of a pty pair: answers sensor reads at once, logs motion frames with their arrival."""
-
-    def __init__(self) -> None:
-        self.master, self.slave = os.openpty()
-        tty.setraw(self.master)
-        tty.setraw(self.slave)
-        self.path = os.ttyname(self.slave)
-        self.log: list[tuple[float, Frame]] = []
-        self.reads = 0
-        self._decoder = FrameDecoder()
-        self._changed = threading.Condition()
-        self._quit = threading.Event()
-        self._thread = threading.Thread(target=self._serve, name="fake-robot", daemon=True)
-
-    def __enter__(self) -> FakeRobot:
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self._quit.set()
-        self._thread.join(TIMEOUT)
-        for fd in (self.master, self.slave):
-            with contextlib.suppress(OSError):
-                os.close(fd)
-
-    def _serve(self) -> None:
-        while not self._quit.is_set():
-            ready, _, _ = select.select([self.master], [], [], 0.05)
-            if not ready:
-                continue
-            try:
-                data = os.read(self.master, 4096)
-            except OSError:
-                return
-            now = time.monotonic()
-            replies = b""
-            moved = []
-            for event in self._decoder.feed(data):
-                if not isinstance(event, Frame):
-                    continue
-                cmd = C.BY_CODE.get(event.command)
-                if cmd is not None and cmd.kind == "read" and cmd.name in REPLIES:
-                    replies += encode(event.address, event.command, REPLIES[cmd.name].content())
-                elif is_velocity(event) or is_stop(event):
-                    moved.append((now, event))
-            if replies:
-                with contextlib.suppress(OSError):
-                    os.write(self.master, replies)
-                self.reads += 1
-            if moved:
-                with self._changed:
-                    self.log += moved
-                    self._changed.notify_all()
-
-    def wait_frame(self, match: Callable[[Frame], bool], after: float) -> float:
-        """When the first frame matching ``match`` arrived at or after ``after``."""
-
-        def first() -> float | None:
-            return next((t for t, f in self.log if t >= after and match(f)), None)
-
-        with self._changed:
-            found = self._changed.wait_for(first, TIMEOUT)
-        if found is None:
-            raise RuntimeError(f"no matching frame on the pty within {TIMEOUT} s")
-        return found
-
-    def frames_between(self, start: float, end: float) -> list[Frame]:
-        with self._changed:
-            return [f for t, f in self.log if start <= t <= end]
+def frames_between(robot: FakeRobot, start: float, end: float) -> list[Frame]:
+    """The frames that reached the robot between ``start`` and ``end`` (monotonic)."""
+    return [f for t, f in robot.frames() if start <= t <= end]
 
 
 # -- the bridge under test ------------------------------------------------------------------
@@ -402,8 +319,8 @@ def one_round(kind: str, robot: FakeRobot, bridge: Bridge, driver: Driver) -> di
         moved = robot.wait_frame(is_velocity, after=first)
         stopped = robot.wait_frame(is_stop, after=last)
         time.sleep(SETTLE)
-        after_stop = [f for f in robot.frames_between(stopped + 1e-9, time.monotonic()) if is_velocity(f)]
-    repeats = sum(1 for f in robot.frames_between(last, stopped) if is_velocity(f))
+        after_stop = [f for f in frames_between(robot, stopped + 1e-9, time.monotonic()) if is_velocity(f)]
+    repeats = sum(1 for f in frames_between(robot, last, stopped) if is_velocity(f))
     return {
         "kind": kind,
         "motion_s": moved - first,
