@@ -28,9 +28,10 @@ LAYERS: list[tuple[str, ...]] = [
     ("hcrctl", "hcrctl.__init__", "hcrctl.errors", "hcrctl.inputs", "hcrctl.numtext", "hcrctl.config"),
     ("hcrctl.protocol",),
     ("hcrctl.sim",),
-    ("hcrctl.link", "hcrctl.urlhandler"),
+    # the fleet's key layout, session and remote link are links; its serving process is a feed.
+    ("hcrctl.link", "hcrctl.urlhandler", "hcrctl.fleet.keys", "hcrctl.fleet.session", "hcrctl.fleet.remote"),
     ("hcrctl.hex", "hcrctl.render", "hcrctl.ops", "hcrctl.motion"),
-    ("hcrctl.live", "hcrctl.feeds"),
+    ("hcrctl.live", "hcrctl.feeds", "hcrctl.fleet"),
     ("hcrctl.cli",),
     ("hcrctl.shell", "hcrctl.__main__"),
 ]

@@ -129,6 +129,19 @@ def global_options() -> list[click.Option]:
             help="Deadman of teleop and the bridge's /cmd_vel: motion stops S s after the last key or "
             "message (default 0.5; their own --deadman wins).",
         ),
+        _option(
+            "--zenoh",
+            metavar="ENDPOINT",
+            multiple=True,
+            help="Where the fleet is (zenoh://NAME ports, fleet commands), e.g. tcp/10.0.0.5:7447; repeatable. "
+            "Default: the router on tcp/127.0.0.1:7447.",
+        ),
+        _option(
+            "--zenoh-config",
+            type=click.Path(exists=True, dir_okay=False),
+            metavar="FILE",
+            help="Zenoh's own JSON5 configuration (TLS, user/password, access control); options win over it.",
+        ),
         _option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout."),
         _option("--log", type=click.Path(dir_okay=False), help="Append every frame to FILE."),
         _option("--debug", is_flag=True, help="Show tracebacks."),

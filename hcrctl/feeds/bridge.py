@@ -16,7 +16,6 @@ sweep rate with ``watch --json``'s.
 
 from __future__ import annotations
 
-import ipaddress
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -24,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..link.context import Connection, Reconnect
 from ..link.dialects import supported_sensors
+from ..link.loopback import is_loopback
 from ..link.rescue import warn
 from ..link.signals import Terminated, stop_signals_handled
 from ..live.teleop import bumper_hit
@@ -80,15 +80,6 @@ class Signalled:
 
     def __bool__(self) -> bool:
         return self.signum is not None
-
-
-def is_loopback(host: str) -> bool:
-    if host.lower() == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:
-        return False
 
 
 def url(host: str, port: int) -> str:

@@ -39,6 +39,9 @@ class Connection:
     #: The protocol profile's name (``protocol.profiles``): v0.15, or v0.11 for the published firmware.
     protocol: str = "v0.15"
     log: str | None = None
+    #: Where the fleet is (``--zenoh``, ``--zenoh-config``): for ``zenoh://NAME`` ports and fleet commands.
+    zenoh: tuple[str, ...] = ()
+    zenoh_config: str | None = None
     #: The shell's open robot: lent to every command of the session, never closed by one.
     shared_robot: Robot | None = None
     #: Called with every robot ``connect()`` opens (the shell wires its broadcasts and state).
