@@ -15,6 +15,7 @@ and a bad one is a usage error, not a Zenoh exception.
     hcr/<robot>/drive            queryable: claim or release the drive lease
     hcr/<robot>/cmd_vel          motion in (Twist or wheels); each message renews the driver's lease
     hcr/<robot>/stop             anyone may stop
+    hcr/<robot>/status           the robot's word to operators: a refusal, a deadman stop, who drives
     hcr/<robot>/op/<operator>    liveliness token of each operator that opened the robot
 
 Messages are JSON objects (readings may be CDR with ``--encoding cdr``); see
@@ -82,6 +83,10 @@ def cmd_vel(robot: str) -> str:
 
 def stop(robot: str) -> str:
     return f"{ROOT}/{robot}/stop"
+
+
+def status(robot: str) -> str:
+    return f"{ROOT}/{robot}/status"
 
 
 def operator(robot: str, op: str) -> str:
