@@ -206,7 +206,8 @@ def test_a_full_disk_is_said_at_once_on_one_line(log: Path, tmp_path: Path, suff
 def test_without_the_mcap_package_the_error_names_the_extra(log: Path, tmp_path: Path) -> None:
     fake = tmp_path / "fake" / "mcap"
     fake.mkdir(parents=True)
-    (fake / "__init__.py").write_text("raise ImportError('no mcap here')\n")
+    # what Python raises for a package that is not installed
+    (fake / "__init__.py").write_text("raise ModuleNotFoundError(\"No module named 'mcap'\", name='mcap')\n")
     env = clean_env(tmp_path, PYTHONPATH=str(fake.parent))
     done = run(["export", str(log), str(tmp_path / "out.mcap")], env)
     assert done.returncode == 1

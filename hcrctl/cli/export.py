@@ -1,4 +1,4 @@
-"""``hcrctl export LOG OUT.mcap|OUT.csv``: a traffic log as a file other tools open.
+"""``hcrctl export LOG OUT`` (OUT.mcap, OUT.csv: ``feeds.formats``): a traffic log as a file other tools open.
 
 The log is streamed (constant memory whatever its size) and decoded under the
 global ``--checksum-from``/``--protocol``, as ``monitor --from`` decodes it.
@@ -12,7 +12,7 @@ import sys
 
 import click
 
-from ..feeds.outfile import OutFile, force_option, formats_help
+from ..feeds.outfile import FormatsCommand, OutFile, encoding_option, force_option, refuse_encoding
 from .params import FloatRange
 from .settings import Settings, json_option
 
@@ -24,7 +24,8 @@ The suffix of OUT chooses the format:
 
 MCAP holds the topics the bridge serves: /hcr/frames (every frame, both ways,
 with its checksum verdict) and /hcr/<read> for every good reading, JSON with
-JSON Schemas; Foxglove, Lichtblick and PlotJuggler open it. CSV holds one row
+JSON Schemas, or with --encoding cdr ROS 2 messages (profile ros2) as the
+bridge serves them; Foxglove, Lichtblick and PlotJuggler open it. CSV holds one row
 per reading (time, t, direction, address, command (its number), name, then
 one column per field, named as plot names them, e.g. sonar[0], with as many
 list items as the readings have; empty where a reading has no such field); frames that carry no reading, such
@@ -41,25 +42,29 @@ hcrctl export session.jsonl session.mcap
 """
 
 
-@click.command(help=EXPORT_HELP.format(formats=formats_help()))
+@click.command(cls=FormatsCommand, help=EXPORT_HELP)
 @click.argument("logfile", type=click.Path(exists=True, dir_okay=False))
-@click.argument("out", type=OutFile(), metavar="OUT.mcap|OUT.csv")
+@click.argument("out", type=OutFile())
 @click.option(
     "--duration", type=FloatRange(0, 864_000), metavar="S", help="Only the first S seconds of the log."
 )
+@encoding_option()
 @force_option()
 @json_option
 @click.pass_obj
-def export(settings: Settings, logfile: str, out: str, duration: float | None, force: bool) -> None:
+def export(
+    settings: Settings, logfile: str, out: str, duration: float | None, encoding: str, force: bool
+) -> None:
     from ..feeds.export import export_log, export_topics
     from ..feeds.formats import open_sink
     from ..feeds.outputs import check_outputs, written_whole
     from ..feeds.progress import per_topic, size
     from ..protocol.profiles import profile
 
+    refuse_encoding(out, encoding)
     # --log is never written by export, but a command line naming one file twice is a mistake
     check_outputs([("OUT", out)], [("LOG", logfile)], appended=[("--log", settings.log)], force=force)
-    with written_whole(out, force=force) as path, open_sink(path, export_topics()) as sink:
+    with written_whole(out, force=force) as path, open_sink(path, export_topics(), encoding=encoding) as sink:
         summary = export_log(logfile, sink, settings.checksum, profile(settings.protocol), duration)
     report = summary.as_dict(sink) | {"output": out}  # the sink wrote the temporary name
     if settings.as_json:

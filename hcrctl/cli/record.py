@@ -1,4 +1,4 @@
-"""``hcrctl record OUT.mcap|OUT.csv [SENSOR]...``: poll the robot and record what crosses the link.
+"""``hcrctl record OUT [SENSOR]...`` (OUT.mcap, OUT.csv: ``feeds.formats``): poll the robot and record what crosses the link.
 
 The recording itself is ``feeds.record``'s; this is its command line. It
 sends no motion: only the reads ``watch`` sends.
@@ -11,7 +11,7 @@ import sys
 
 import click
 
-from ..feeds.outfile import OutFile, force_option, formats_help
+from ..feeds.outfile import FormatsCommand, OutFile, encoding_option, force_option, refuse_encoding
 from ..protocol import commands as C
 from .params import duration_option, rate_option
 from .settings import Settings, json_option
@@ -23,7 +23,8 @@ The suffix of OUT chooses the format:
 {formats}
 
 MCAP holds the bridge's topics: /hcr/<read> for every reading, /hcr/frames for
-every frame both ways, /hcr/link for the link's counters (once a second).
+every frame both ways, /hcr/link for the link's counters (once a second), as
+JSON with JSON Schemas, or with --encoding cdr as ROS 2 messages (profile ros2).
 CSV holds one row per reading, one column per field (as plot names them,
 e.g. sonar[0]; a list gets as many as the robot sends); frames that carry no
 reading (the requests) and the grid map (not a number) are not rows. A progress line (elapsed, messages,
@@ -38,8 +39,8 @@ hcrctl record sonar.csv sonar compass --rate 20
 """
 
 
-@click.command(help=RECORD_HELP.format(sensors=", ".join(C.SENSORS), formats=formats_help()))
-@click.argument("out", type=OutFile(), metavar="OUT.mcap|OUT.csv")
+@click.command(cls=FormatsCommand, help=RECORD_HELP.replace("{sensors}", ", ".join(C.SENSORS)))
+@click.argument("out", type=OutFile())
 @click.argument("sensors", nargs=-1, type=click.Choice(C.SENSORS), metavar="[SENSOR]...")
 @rate_option()
 @duration_option("Stop after S seconds (default: until Ctrl-C).")
@@ -49,6 +50,7 @@ hcrctl record sonar.csv sonar compass --rate 20
     show_default=True,
     help="Send a sweep's requests at once, as watch does.",
 )
+@encoding_option()
 @force_option()
 @json_option
 @click.pass_obj
@@ -59,16 +61,20 @@ def record(
     rate: float | None,
     duration: float | None,
     pipeline: bool,
+    encoding: str,
     force: bool,
 ) -> None:
     from ..feeds.outputs import check_outputs
     from ..feeds.progress import per_topic, size
     from ..feeds.record import reraise, run_record
 
+    refuse_encoding(out, encoding)
     # written under its own name as it goes (readable after a kill -9), so only the refusals apply
     check_outputs([("OUT", out)], appended=[("--log", settings.log)], force=force)
 
-    summary = run_record(settings, out, sensors, rate, duration, sys.stderr, pipeline=pipeline)
+    summary = run_record(
+        settings, out, sensors, rate, duration, sys.stderr, pipeline=pipeline, encoding=encoding
+    )
     if settings.as_json:
         click.echo(json.dumps(summary))
     else:

@@ -1,26 +1,115 @@
-"""Which file format a path asks for, and the sink that writes it: ``open_sink``.
+"""Every format a recording is written in: one table, ``WRITERS``, from a file's suffix to its writer.
 
-The suffix chooses (``.mcap`` or ``.csv``); the MCAP sink, and so the ``mcap``
-package, is imported only when a ``.mcap`` file is opened, and its absence is
-one line naming the extra to install.
+python-can's ``can/io`` is the model: a dict from suffix to writer class, so
+adding a format is one entry here (or one ``register()`` call from a module
+named in ``HCRCTL_PLUGINS``), and everything that names the formats reads this
+table: ``record``/``export``'s ``OUT.mcap|OUT.csv`` metavar and help, the
+error for a suffix no writer takes, and which formats take ``--encoding``.
+An entry names its class by module path, imported only when a file of that
+format is opened, so ``mcap`` is imported for ``.mcap`` and nothing else; a
+missing optional package is one line naming the extra to install.
+
+The table has two kinds of writer, keyed by what they are fed, because a
+recording is made of one of two things:
+
+- ``messages``: topic messages, the readings and ``/hcr/frames`` already
+  decoded (``topics.messages``), written by a ``sinks.Sink``: ``.mcap`` and
+  ``.csv``. ``record`` and ``export`` choose one by OUT's suffix; the
+  bridge's ``--mcap`` takes the ``.mcap`` entry whatever the file is called
+  (the option names the format).
+- ``traffic``: the bytes as they crossed the wire, with their time and
+  direction, written by ``link.trafficlog.TrafficLog``: ``.jsonl``, the
+  ``--log`` file, which ``export`` and ``monitor --from`` read back. It is
+  what the messages are decoded from, so it is not one of them. ``--log``
+  writes it whatever the file is called (a log is appended to, under the
+  name its user keeps), and is opened by the link layer, below this one, so
+  it names ``TrafficLog`` itself; the entry here is that class, and
+  ``tests/test_writer_registry.py`` holds the two together.
+
+Both kinds are the same small interface: open (the class, called with the
+path), ``write``, ``close``. A write that fails (a full disk) is said at
+once: a ``Sink`` raises ``SinkWriteError`` (exit 1); the traffic log, which
+writes from the link's reader thread and must not stop the robot's work,
+says it on stderr at once and makes the exit status 1.
 """
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal, cast
 
 from ..errors import HcrError
+from ..protocol.encodings import ENCODINGS
 from ..protocol.topics import Topic
 from .sinks import Sink
 
 if TYPE_CHECKING:
     from .mcapsink import McapSink
 
-#: The suffixes ``open_sink`` knows, and what each writes.
-SUFFIXES = {".mcap": "MCAP (Foxglove, Lichtblick, PlotJuggler)", ".csv": "CSV (one row per reading)"}
-MCAP_EXTRA = "pip install 'hcrctl[mcap]'"
+#: The encoding every messages writer takes; another (``--encoding cdr``) only where ``encodes`` says so.
+DEFAULT_ENCODING = "json"
+
+
+@dataclass(frozen=True)
+class Writer:
+    """One format: what its writer is fed, what it is, its class, and what it needs installed.
+
+    ``target`` is ``"module:Class"``, imported when a file is opened. ``needs``
+    is the top-level package that module imports which may be missing, and
+    ``extra`` the hcrctl extra that installs it. ``encodes``: the writer takes
+    every encoding of ``protocol.encodings`` (MCAP); the others write what
+    they write (CSV's cells), and ``--encoding`` other than json is refused.
+    """
+
+    kind: Literal["messages", "traffic"]
+    description: str
+    target: str
+    needs: str | None = None
+    extra: str | None = None
+    encodes: bool = False
+
+    def load(self, path: str) -> type:
+        """The writer class (imported now); MissingExtra if the package it needs is not installed."""
+        module, _, name = self.target.partition(":")
+        try:
+            return cast(type, getattr(importlib.import_module(module), name))
+        except ModuleNotFoundError as exc:
+            # only the package itself missing is this error: a failing import inside it is that failure
+            if self.needs is None or (exc.name or "").partition(".")[0] != self.needs:
+                raise
+            raise MissingExtra(
+                f"writing {path} needs the {self.needs} package", hint=f"pip install 'hcrctl[{self.extra}]'"
+            ) from None
+
+
+#: Every format, by suffix (lower case, with its dot).
+WRITERS: dict[str, Writer] = {
+    ".mcap": Writer(
+        "messages",
+        "MCAP (Foxglove, Lichtblick, PlotJuggler)",
+        "hcrctl.feeds.mcapsink:McapSink",
+        needs="mcap",
+        extra="mcap",
+        encodes=True,
+    ),
+    ".csv": Writer("messages", "CSV (one row per reading)", "hcrctl.feeds.csvsink:CsvSink"),
+    ".jsonl": Writer(
+        "traffic",
+        "traffic log (--log): every frame both ways, one JSON line each",
+        "hcrctl.link.trafficlog:TrafficLog",
+    ),
+}
+
+
+def register(suffix: str, writer: Writer) -> None:
+    """Add a format (a plugin's, from ``HCRCTL_PLUGINS``): ``suffix`` such as ``".tsv"``, not taken yet."""
+    key = suffix.lower()
+    if not key.startswith(".") or len(key) < 2 or key in WRITERS:
+        raise ValueError(f"suffix {suffix!r} must be a new one such as '.tsv' (taken: {', '.join(WRITERS)})")
+    WRITERS[key] = writer
 
 
 class BadSuffix(HcrError):
@@ -29,46 +118,80 @@ class BadSuffix(HcrError):
     exit_code = 2
 
 
+class BadEncoding(HcrError):
+    """An ``--encoding`` the output's format does not write: a usage error, nothing opened."""
+
+    exit_code = 2
+
+
 class MissingExtra(HcrError):
     """The optional package a format needs is not installed."""
 
 
-def sink_kind(path: str) -> str:
-    """The format of ``path`` by its suffix (``.mcap`` or ``.csv``); BadSuffix otherwise."""
-    suffix = Path(path).suffix.lower()
-    if suffix not in SUFFIXES:
-        allowed = " or ".join(SUFFIXES)
-        raise BadSuffix(f"OUT {path!r} must end in {allowed} (the suffix chooses the format)")
-    return suffix
+def suffixes(kind: str = "messages") -> tuple[str, ...]:
+    """The suffixes of ``kind``'s writers, in the table's order."""
+    return tuple(suffix for suffix, writer in WRITERS.items() if writer.kind == kind)
 
 
-def open_sink(path: str, topics: Iterable[Topic], *, flush_every: float | None = None) -> Sink:
-    """The sink for ``path``'s suffix, with every topic announced up front.
+def metavar(name: str = "OUT") -> str:
+    """``OUT.mcap|OUT.csv``: an output argument as usage lines show it."""
+    return "|".join(name + suffix for suffix in suffixes())
+
+
+def bad_suffix_text(path: str) -> str:
+    """Why ``path`` is no output of ``record``/``export``: the suffixes that are, by the table."""
+    allowed = " or ".join(suffixes())
+    return f"{path!r} must end in {allowed} (the suffix chooses the format)"
+
+
+def writer_for(path: str, suffix: str | None = None) -> Writer:
+    """The messages writer of ``path``'s suffix (or of ``suffix``); BadSuffix (naming OUT) otherwise."""
+    writer = WRITERS.get((suffix or Path(path).suffix).lower())
+    if writer is None or writer.kind != "messages":
+        raise BadSuffix(f"OUT {bad_suffix_text(path)}")
+    return writer
+
+
+def encoding_refusal(encoding: str) -> str:
+    """The one line refusing ``--encoding`` ``encoding`` for an output whose format does not take it."""
+    takers = " or ".join(s for s, w in WRITERS.items() if w.kind == "messages" and w.encodes)
+    return f"--encoding {encoding} needs an {takers} output"
+
+
+def check_encoding(writer: Writer, encoding: str) -> None:
+    """Refuse (BadEncoding, exit 2) an encoding ``writer`` does not write, before anything opens."""
+    if encoding not in ENCODINGS:
+        raise BadEncoding(f"--encoding {encoding!r} is not one of {', '.join(ENCODINGS)}")
+    if encoding != DEFAULT_ENCODING and not writer.encodes:
+        raise BadEncoding(encoding_refusal(encoding))
+
+
+def open_sink(
+    path: str,
+    topics: Iterable[Topic],
+    *,
+    flush_every: float | None = None,
+    encoding: str = DEFAULT_ENCODING,
+    suffix: str | None = None,
+) -> Sink:
+    """The sink for ``path``'s suffix (or for ``suffix``, whatever the path's), every topic announced up front.
 
     ``flush_every`` (seconds): make the file readable that often, for a live
-    recording that may be killed; an export needs none. The MCAP sink imports
-    the ``mcap`` package here and only here (MissingExtra names the extra).
+    recording that may be killed; an export needs none. ``encoding`` is an
+    entry of ``protocol.encodings``, for the formats that take one.
     """
-    kind = sink_kind(path)
-    if kind == ".csv":
-        from .csvsink import CsvSink
-
-        return CsvSink(path, topics, flush_every)
-    return open_mcap(path, topics, flush_every=flush_every)
+    writer = writer_for(path, suffix)
+    check_encoding(writer, encoding)
+    cls = writer.load(path)
+    if writer.encodes:
+        return cast(Sink, cls(path, topics, flush_every, encoding))
+    return cast(Sink, cls(path, topics, flush_every))
 
 
 def open_mcap(
-    path: str, topics: Iterable[Topic], *, flush_every: float | None = None, encoding: str = "json"
+    path: str, topics: Iterable[Topic], *, flush_every: float | None = None, encoding: str = DEFAULT_ENCODING
 ) -> McapSink:
-    """The MCAP sink for ``path`` whatever its suffix (the bridge's ``--mcap``), in ``encoding``.
-
-    The one place the ``mcap`` package is imported for writing: its absence
-    is MissingExtra, naming the extra to install.
-    """
-    try:
-        from .mcapsink import McapSink
-    except ImportError as exc:
-        if not (exc.name or "mcap").startswith("mcap"):
-            raise
-        raise MissingExtra(f"writing {path} needs the mcap package", hint=MCAP_EXTRA) from None
-    return McapSink(path, topics, flush_every, encoding)
+    """The ``.mcap`` entry's sink for ``path`` whatever its suffix (the bridge's ``--mcap``), in ``encoding``."""
+    return cast(
+        "McapSink", open_sink(path, topics, flush_every=flush_every, encoding=encoding, suffix=".mcap")
+    )

@@ -4,7 +4,8 @@
 encoding is an entry of ``protocol.encodings``: ``json`` (the default: schema
 encoding ``jsonschema``, the topic's JSON Schema from the command table,
 Foxglove's convention) or ``cdr`` (ROS 2 messages with ``ros2msg``
-definitions, what ``bridge --encoding cdr`` serves). One channel per topic,
+definitions in a file of profile ``ros2``, what ``bridge --encoding cdr``
+serves; ``record``/``export --encoding cdr`` write the same). One channel per topic,
 all announced when the file opens, so a viewer lists every topic even before
 it has data. The bridge hands over the bytes it already encoded for its
 clients (``write_encoded``), so the file holds exactly what was served.
@@ -39,7 +40,6 @@ from .sinks import Prepared, Sink, seconds
 
 #: Uncompressed chunk size: big enough to compress well, small enough to lose little.
 CHUNK_SIZE = 1 << 20
-PROFILE = ""  # no ROS profile: plain JSON messages, or CDR described by ros2msg definitions
 
 
 def compression() -> CompressionType:
@@ -83,7 +83,7 @@ class McapSink(Sink):
             chunk_size=CHUNK_SIZE,
             compression=compression(),
         )
-        self._writer.start(profile=PROFILE, library=f"hcrctl {__version__}")
+        self._writer.start(profile=kind.mcap_profile, library=f"hcrctl {__version__}")
         self._channels: dict[str, int] = {}
         self._encoders: dict[str, Encode] = {}
         for topic in self.topics.values():

@@ -4,6 +4,11 @@ Checked by Click before anything is opened, so a wrong suffix is a usage
 error (exit 2, naming the argument and the suffixes allowed) and the robot
 is never touched. ``force_option`` is the ``--force`` that lets a command
 overwrite an existing output; the policy it relaxes is ``outputs.py``'s.
+
+Every text here that names formats (the ``OUT.mcap|OUT.csv`` metavar, the
+help's list of formats, the bad-suffix error, ``--encoding``'s refusal) is
+made from ``formats.WRITERS`` when it is shown, not when the command is
+defined, so a format a plugin registers shows everywhere.
 """
 
 from __future__ import annotations
@@ -16,17 +21,20 @@ import click
 if TYPE_CHECKING:
     from click.shell_completion import CompletionItem
 
-from .formats import SUFFIXES, BadSuffix, sink_kind
+from ..protocol.encodings import ENCODINGS
+from . import formats
+from .formats import BadEncoding, BadSuffix, check_encoding, writer_for
 
 _F = TypeVar("_F", bound=Callable[..., Any])
 
 
 class OutFile(click.ParamType):
-    """A path ending in ``.mcap`` or ``.csv``."""
+    """A path ending in a suffix of ``formats.WRITERS``' messages writers (``.mcap``, ``.csv``)."""
 
-    name = "OUT.mcap|OUT.csv"
-    #: What the path may end in (the table of formats'), for whoever needs a valid example.
-    suffixes = tuple(SUFFIXES)
+    name = "OUT"
+
+    def get_metavar(self, param: click.Parameter, ctx: click.Context) -> str:
+        return formats.metavar()
 
     def shell_complete(
         self, ctx: click.Context, param: click.Parameter, incomplete: str
@@ -39,11 +47,23 @@ class OutFile(click.ParamType):
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> str:
         text = str(value)
         try:
-            sink_kind(text)
+            writer_for(text)
         except BadSuffix:
-            allowed = " or ".join(SUFFIXES)
-            self.fail(f"{text!r} must end in {allowed} (the suffix chooses the format)", param, ctx)
+            self.fail(formats.bad_suffix_text(text), param, ctx)
         return text
+
+
+class FormatsCommand(click.Command):
+    """A command whose help holds ``{formats}``: filled from the table each time the help is read."""
+
+    @property
+    def help(self) -> str | None:
+        template = self.__dict__.get("_help_template")
+        return None if template is None else template.replace("{formats}", formats_help())
+
+    @help.setter
+    def help(self, text: str | None) -> None:
+        self.__dict__["_help_template"] = text
 
 
 def force_option(what: str = "OUT") -> Callable[[_F], _F]:
@@ -55,6 +75,25 @@ def force_option(what: str = "OUT") -> Callable[[_F], _F]:
     )
 
 
+def encoding_option() -> Callable[[_F], _F]:
+    """``--encoding json|cdr`` of ``record`` and ``export``: the bridge's choices, for the formats that take one."""
+    return click.option(
+        "--encoding",
+        type=click.Choice(tuple(ENCODINGS)),
+        default=formats.DEFAULT_ENCODING,
+        show_default=True,
+        help="json (JSON Schema), or cdr (ROS 2 messages, profile ros2), as the bridge serves them.",
+    )
+
+
+def refuse_encoding(out: str, encoding: str) -> None:
+    """A usage error (exit 2, one line) for an ``--encoding`` OUT's format does not write."""
+    try:
+        check_encoding(writer_for(out), encoding)
+    except BadEncoding as exc:
+        raise click.UsageError(exc.message, click.get_current_context(silent=True)) from None
+
+
 def formats_help() -> str:
-    """One line per format, for the commands' help."""
-    return "\n".join(f"  {suffix:6} {what}" for suffix, what in SUFFIXES.items())
+    """One line per format ``record``/``export`` write, for the commands' help."""
+    return "\n".join(f"  {suffix:6} {formats.WRITERS[suffix].description}" for suffix in formats.suffixes())

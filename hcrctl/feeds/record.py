@@ -25,7 +25,7 @@ from ..link.context import Connection, Reconnect
 from ..link.dialects import supported_sensors
 from ..link.signals import Terminated, stop_signals_handled
 from ..protocol.topics import all_topics
-from .formats import open_sink
+from .formats import DEFAULT_ENCODING, open_sink
 from .progress import Progress, size
 from .sinks import Sink
 from .source import Feed
@@ -89,12 +89,16 @@ def run_record(
     stream: TextIO,
     *,
     pipeline: bool = True,
+    encoding: str = DEFAULT_ENCODING,
 ) -> dict[str, Any]:
-    """Record until ``duration`` ends or a signal comes; the summary (then the signal, re-raised)."""
+    """Record until ``duration`` ends or a signal comes; the summary (then the signal, re-raised).
+
+    ``encoding`` (``protocol.encodings``) is for the formats that take one (MCAP).
+    """
     names = supported_sensors(settings.protocol, list(dict.fromkeys(sensors)))
     stop = StopFlag()
     with stop.catching():
-        with open_sink(out, all_topics(Feed.counters), flush_every=FLUSH_EVERY) as sink:
+        with open_sink(out, all_topics(Feed.counters), flush_every=FLUSH_EVERY, encoding=encoding) as sink:
             progress = Progress(stream, progress_line(out, sink))
             try:
                 _poll(settings, names, rate, duration, sink, progress, stop, pipeline)

@@ -12,6 +12,11 @@ the file is opened for appending, so several sessions build one history.
 ``monitor --from`` and ``replay`` read it back with ``read_log``. The log
 is one of ``Robot``'s traffic hooks, beside a monitor and the shell's toolbar.
 
+``TrafficLog`` is the ``.jsonl`` entry of ``feeds.formats.WRITERS``, the
+writer of the ``traffic`` kind: opened with the path, ``write`` a piece of
+traffic, ``close``, as every recording's writer. ``Connection`` (this layer)
+opens it for ``--log`` whatever the file is called.
+
 A write that fails (a full disk) must neither stop the robot's work nor
 pass unnoticed: the log says so at once on one stderr line, stops writing,
 and ``incomplete()`` lets the CLI's error mapper make the exit status 1.
@@ -96,7 +101,7 @@ class TrafficLog:
     def rule(self) -> ChecksumRule:
         return self._rule() if callable(self._rule) else self._rule
 
-    def __call__(self, traffic: Traffic) -> None:
+    def write(self, traffic: Traffic) -> None:
         """Append one line; never raises, as it runs in the reader thread and before stop goes out."""
         data, rule = traffic.data, self.rule
         if len(data) <= RECORD_BYTES:
@@ -117,6 +122,9 @@ class TrafficLog:
                 self._file.flush()
             except OSError as exc:
                 self._give_up(exc)
+
+    #: The robot's traffic hook: a hook is called with each piece of traffic.
+    __call__ = write
 
     def close(self) -> None:
         with self._lock:

@@ -10,7 +10,8 @@ encoded once for its clients). Adding an encoding is one entry.
   reads best.
 - ``cdr``: the message as ROS 2 CDR, described by a ``ros2msg`` definition
   (``ros2msg``): the only kind PlotJuggler's Foxglove bridge client and its
-  MCAP loader read.
+  MCAP loader read. An MCAP file of it has the ``ros2`` profile, as the
+  MCAP spec asks of ROS 2 messages.
 
 Standard library only, like the rest of the protocol layer.
 """
@@ -40,6 +41,8 @@ class Encoding:
     schema_name: Callable[[Topic], str]
     schema: Callable[[Topic], str]
     encoder: Callable[[Topic], Encode]
+    #: The MCAP header's profile of a file in this encoding ("" is none: plain JSON).
+    mcap_profile: str = ""
 
 
 def json_bytes(message: dict[str, Any]) -> bytes:
@@ -61,6 +64,7 @@ CDR = Encoding(
     ros2msg.schema_name,
     ros2msg.definition,
     ros2msg.encoder,
+    "ros2",
 )
 #: Every encoding by its name (``bridge --encoding``'s choices, in this order).
 ENCODINGS: dict[str, Encoding] = {e.name: e for e in (JSON, CDR)}
