@@ -33,7 +33,7 @@ from typing import IO, Any, cast
 from mcap.writer import CompressionType
 
 from .. import __version__
-from ..protocol.encodings import ENCODINGS, JSON, JSON_TEXT, Encode
+from ..protocol.encodings import ENCODINGS, Encode
 from ..protocol.topics import Topic
 from .mcapchunks import ChunkWriter
 from .sinks import Prepared, Sink, seconds
@@ -53,21 +53,6 @@ def compression() -> CompressionType:
     return CompressionType.NONE
 
 
-def json_tail(message: dict[str, Any]) -> bytes:
-    """The message's JSON after its ``time`` (``,"address":1,...}``), to follow ``{"time":<t>``.
-
-    Every producer puts ``time`` first (``topics.messages``, the link counters), so the
-    encoding of the whole message is cut after it; anything else is encoded without it.
-    """
-    text = JSON_TEXT(message)
-    if text.startswith('{"time":') and "time" in message:
-        if len(message) == 1:
-            return b"}"
-        return text[text.index(",", 8) :].encode()
-    rest = JSON_TEXT({k: v for k, v in message.items() if k != "time"})
-    return ("," + rest[1:] if rest != "{}" else "}").encode()
-
-
 class McapSink(Sink):
     """Topic messages in an MCAP file (JSON, or ``encoding="cdr"``), log and publish times in nanoseconds."""
 
@@ -76,8 +61,8 @@ class McapSink(Sink):
     ) -> None:
         super().__init__(path, topics, flush_every)
         kind = self.encoding = ENCODINGS[encoding]
-        #: JSON gets each message's time spliced in (``json_tail``: the rest encoded once); others are whole.
-        self._splice = kind is JSON
+        #: Each message is its time's head (made once per moment) and the rest, encoded once per message.
+        self._time_head = kind.time_head
         self._writer = ChunkWriter(
             cast(IO[bytes], self._open()),  # only write/tell/flush are used
             chunk_size=CHUNK_SIZE,
@@ -85,15 +70,14 @@ class McapSink(Sink):
         )
         self._writer.start(profile=kind.mcap_profile, library=f"hcrctl {__version__}")
         self._channels: dict[str, int] = {}
-        self._encoders: dict[str, Encode] = {}
+        self._untimed: dict[str, Encode] = {}
         for topic in self.topics.values():
             schema = kind.schema(topic).encode()
             schema_id = self._writer.register_schema(kind.schema_name(topic), kind.schema_encoding, schema)
             self._channels[topic.name] = self._writer.register_channel(
                 topic.name, kind.message_encoding, schema_id
             )
-            if not self._splice:
-                self._encoders[topic.name] = kind.encoder(topic)
+            self._untimed[topic.name] = kind.untimed(topic)
         self._writer.flush()  # a bad path or a full disk shows now, not at the first message
         assert self._file is not None
         self._file.flush()
@@ -112,9 +96,9 @@ class McapSink(Sink):
     def write_prepared(self, items: Sequence[Prepared], log_time: float, stamp: str | None = None) -> None:
         """The base class's loop, inlined: an export spends most of its writing time here."""
         if log_time != self._time:  # a frame and its reading share it: work it out once
-            us, text = seconds(log_time)
+            us = seconds(log_time)[0]
             self._time, self._ns = log_time, us * 1000
-            self._head = b'{"time":' + text.encode() if self._splice else b""
+            self._head = self._time_head(us)
         encoded = [p.encoded or self._encoded(p) for p in items]
         self._settle(self._writer.add_all(encoded, self._ns, self._head))
 
@@ -135,15 +119,11 @@ class McapSink(Sink):
             self.flush()
 
     def write_batch(self, batch: Sequence[tuple[Sequence[Prepared], float, str | None]]) -> None:
-        """``write_prepared``'s work for many log lines in one loop, the time's text made as ``seconds`` makes it."""
-        add, encoded_of, splice = self._writer.add_all, self._encoded, self._splice
+        """``write_prepared``'s work for many log lines in one loop, the time rounded as ``seconds`` rounds it."""
+        add, encoded_of, time_head = self._writer.add_all, self._encoded, self._time_head
         for items, log_time, _ in batch:
             us = round(log_time * 1_000_000)
-            size = add(
-                [p.encoded or encoded_of(p) for p in items],
-                us * 1000,
-                b'{"time":%d.%06d' % divmod(us, 1_000_000) if splice else b"",
-            )
+            size = add([p.encoded or encoded_of(p) for p in items], us * 1000, time_head(us))
             if size > CHUNK_SIZE:
                 self._writer.flush()
         self._time = float("nan")
@@ -157,10 +137,8 @@ class McapSink(Sink):
         return encoded
 
     def _encode(self, prepared: Prepared) -> tuple[int, bytes]:
-        """The channel, and the JSON after ``{"time":`` (the time is spliced in per message) or the whole CDR."""
-        if self._splice:
-            return self._channels[prepared.topic], json_tail(prepared.message)
-        return self._channels[prepared.topic], self._encoders[prepared.topic](prepared.message)
+        """The channel, and the message's bytes after its time (the time's head is put before them per moment)."""
+        return self._channels[prepared.topic], self._untimed[prepared.topic](prepared.message)
 
     def flush(self) -> None:
         super().flush()

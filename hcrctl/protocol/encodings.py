@@ -33,7 +33,13 @@ JSON_TEXT = json_encoder(compact=True, ensure_ascii=True)
 
 @dataclass(frozen=True)
 class Encoding:
-    """The MCAP / Foxglove names of one encoding, and how a topic gets its schema and encoder."""
+    """The MCAP / Foxglove names of one encoding, and how a topic gets its schema and encoder.
+
+    A message is also ``time_head(us)`` followed by ``untimed(topic)(message)``:
+    the bytes after its time do not depend on it, so a writer that meets the
+    same message at many times (an export, a poll that reads the same value)
+    encodes that part once and only writes the time anew.
+    """
 
     name: str
     message_encoding: str
@@ -42,11 +48,35 @@ class Encoding:
     schema: Callable[[Topic], str]
     encoder: Callable[[Topic], Encode]
     #: The MCAP header's profile of a file in this encoding ("" is none: plain JSON).
-    mcap_profile: str = ""
+    mcap_profile: str
+    #: A message's bytes up to and with its ``time``, given in whole microseconds.
+    time_head: Callable[[int], bytes]
+    #: The topic's message -> its bytes after the time.
+    untimed: Callable[[Topic], Encode]
 
 
 def json_bytes(message: dict[str, Any]) -> bytes:
     return JSON_TEXT(message).encode()
+
+
+def json_time_head(us: int) -> bytes:
+    """``{"time":<seconds>`` with the six decimals of ``us``: the text the traffic log's time makes."""
+    return b'{"time":%d.%06d' % divmod(us, 1_000_000)
+
+
+def json_tail(message: dict[str, Any]) -> bytes:
+    """The message's JSON after its ``time`` (``,"address":1,...}``), to follow ``json_time_head``.
+
+    Every producer puts ``time`` first (``topics.messages``, the link counters), so the
+    encoding of the whole message is cut after it; anything else is encoded without it.
+    """
+    text = JSON_TEXT(message)
+    if text.startswith('{"time":') and "time" in message:
+        if len(message) == 1:
+            return b"}"
+        return text[text.index(",", 8) :].encode()
+    rest = JSON_TEXT({k: v for k, v in message.items() if k != "time"})
+    return ("," + rest[1:] if rest != "{}" else "}").encode()
 
 
 JSON = Encoding(
@@ -56,6 +86,9 @@ JSON = Encoding(
     lambda topic: topic.schema_name,
     lambda topic: JSON_TEXT(topic.schema),
     lambda topic: json_bytes,
+    "",
+    json_time_head,
+    lambda topic: json_tail,
 )
 CDR = Encoding(
     "cdr",
@@ -65,6 +98,8 @@ CDR = Encoding(
     ros2msg.definition,
     ros2msg.encoder,
     "ros2",
+    ros2msg.time_head,
+    ros2msg.untimed_encoder,
 )
 #: Every encoding by its name (``bridge --encoding``'s choices, in this order).
 ENCODINGS: dict[str, Encoding] = {e.name: e for e in (JSON, CDR)}

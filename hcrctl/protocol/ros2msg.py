@@ -247,3 +247,26 @@ def encoder(topic: Topic) -> Callable[[dict[str, Any]], bytes]:
         return bytes(buf)
 
     return encode
+
+
+#: A message's ``time``: its first field (``topics.COMMON``), a float64 right after the header.
+TIME = struct.Struct("<d")
+
+
+def time_head(us: int) -> bytes:
+    """The header and a ``time`` of ``us`` microseconds: what comes before ``untimed_encoder``'s bytes."""
+    return ENCAPSULATION + TIME.pack(us / 1_000_000)
+
+
+def untimed_encoder(topic: Topic) -> Callable[[dict[str, Any]], bytes]:
+    """The topic's CDR bytes after the header and the time: the same bytes whatever the time.
+
+    ``time`` takes the message's first eight bytes, and alignment counts from
+    there, so what follows never moves: a writer that meets the same message
+    at many times (an export) encodes it once and puts ``time_head`` before it.
+    """
+    first = topic_message(topic).fields[0]
+    if (first.name, first.kind, first.sequence) != ("time", "float64", False):
+        raise ValueError(f"{topic.name}: time is not its first field, so it cannot be written apart")
+    encode, cut = encoder(topic), len(ENCAPSULATION) + TIME.size
+    return lambda values: encode(values)[cut:]
