@@ -20,7 +20,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterable
-from typing import Any
+from typing import Any, TypeVar
 
 from ..errors import (
     DeviceRefused,
@@ -50,6 +50,7 @@ MAX_READ = 16
 MAX_HELD = 4096  # skipped bytes held before they are reported anyway: counters keep up, memory bounded
 #: How many recent requests an echo is compared with (a pipelined sweep's worth).
 ECHO_MEMORY = 16
+_Timeout = TypeVar("_Timeout", bound=DeviceTimeout)
 #: Stands for "some frame" among the keys of frames that passed only the other checksum rule.
 ON_THE_LINE = (-1, -1)
 
@@ -201,7 +202,14 @@ class Robot(TypedReads, Dialect):
         """Nothing at all has come back: asking the other sensors would only wait longer."""
         first, *rest = cmds
         attempts = 1 + max(self.retries, 0)
-        return DeviceSilent(first.name, addr, self.port, self.timeout, attempts, [c.name for c in rest])
+        return self._port_says(
+            DeviceSilent(first.name, addr, self.port, self.timeout, attempts, [c.name for c in rest])
+        )
+
+    def _port_says(self, error: _Timeout) -> _Timeout:
+        """A port that knows why no reply came (a fleet robot's own error) adds it to the timeout."""
+        why = getattr(self.serial, "why_no_reply", None)
+        return error if why is None else why(error)
 
     def _result(
         self, cmd: C.Command, addr: int, frame: Frame | None, silent: DeviceSilent | None = None
@@ -251,6 +259,8 @@ class Robot(TypedReads, Dialect):
                 )
             try:
                 self.serial.write(frame)
+            except HcrError:
+                raise  # the port's own word (a fleet robot driven by another): not a lost link
             except Exception as exc:
                 raise self._lost(exc) from exc
             self.stats.tx_frames += 1
@@ -267,7 +277,9 @@ class Robot(TypedReads, Dialect):
         attempts = 1 + max(self.retries, 0)
         seen = self._other_rule_keys
         if key not in seen and ON_THE_LINE not in seen:
-            return self.explain(DeviceTimeout(what, key[0], self.port, self.timeout, attempts))
+            return self._port_says(
+                self.explain(DeviceTimeout(what, key[0], self.port, self.timeout, attempts))
+            )
         return DeviceTimeout(
             what,
             key[0],

@@ -71,7 +71,7 @@ class Connection:
         from .client import Robot
 
         robot = Robot(
-            self.resolve_port(),
+            self._port(),
             baud=self.baud,
             address=self.address,
             timeout=self.timeout,
@@ -86,6 +86,19 @@ class Connection:
         for hook in self.robot_hooks:
             hook(robot)
         return robot
+
+    def _port(self) -> Any:
+        """The resolved port; a fleet robot's (``zenoh://NAME``) opened here, told where the fleet is."""
+        port = self.resolve_port()
+        if not port.lower().startswith("zenoh://"):
+            return port
+        from ..fleet.remote import Reach
+        from ..fleet.session import Where
+        from .client import READ_SLICE
+        from .transport import open_port
+
+        reach = Reach(Where(self.zenoh, (), self.zenoh_config), self.protocol, self.checksum)
+        return open_port(port, self.baud, timeout=READ_SLICE, reach=reach)
 
     def resolve_port(self) -> str:
         """The given port, or the one USB serial port present (said on stderr).

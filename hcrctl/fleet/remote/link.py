@@ -1,0 +1,345 @@
+"""``RemoteLink``: the frames a Robot writes, as fleet traffic to one robot; its replies back as frames.
+
+Opening it opens a Zenoh peer session, declares this operator's liveliness
+token (``hcr/R/op/OP``: the robot side stops at once if it goes while this
+operator drives), checks the robot's own token is there, asks its ``info``
+(protocol, deadman, the reads it serves) and listens to its ``frames`` (the
+broadcasts its wire hears), ``status`` and presence.
+
+Each frame written is one of:
+
+- a read request: a query of ``hcr/R/read/<sensor>``, answered on Zenoh's
+  thread, so a sweep's requests go out together as the Robot pipelines them;
+  the reply's frame goes to the read buffer. A refusal leaves nothing (the
+  Robot times out, as on a wire) but its text is kept for ``why_no_reply``;
+- motion (``commands.is_motion``): the drive lease (``lease``) and ``cmd_vel``;
+  a stop frame is the fleet's ``stop``;
+- any other write of the table (pid, servo...): the ``write`` query, waited
+  for, its refusal raised;
+- anything else (raw bytes from ``hex send``): refused, nothing sent.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from ...errors import BadPortUrl, DeviceRefused, DeviceTimeout, HcrError
+from ...protocol import commands as C
+from ...protocol.dialect import decode_all
+from ...protocol.frames import ChecksumRule, Frame
+from ...protocol.messages import READ_REQUEST
+from ...protocol.profiles import DEFAULT, Profile, profile
+from ..keys import DEFAULT_ENDPOINT, NAME_RULE, alive, check_name, operator, operator_id, status, topic
+from ..keys import info as info_key
+from ..keys import read as read_key
+from ..keys import write as write_key
+from ..session import FleetError, Where, import_zenoh, open_session
+from .lease import DriveLease
+from .reframe import reframe
+
+SCHEME = "zenoh://"
+#: How long the robot's presence, its info and a write may take to answer.
+ASK_TIMEOUT_S = 2.0
+#: The longest a read query waits for the robot side (which itself retries its serial read).
+READ_TIMEOUT_S = 5.0
+#: How long a timeout's explanation waits for a read query still under way to say why.
+GRACE_S = 1.0
+LIST_HINT = "hcrctl fleet list shows the robots present"
+STOP_CODE = C.command_for(C.STOP).code
+
+Deliver = Callable[[bytes], None]
+Lost = Callable[[str], None]
+
+
+class RawRefused(HcrError):
+    """Bytes that are not a request of the command table: never sent over the fleet (exit 1)."""
+
+
+@dataclass(frozen=True)
+class Reach:
+    """Where the fleet is and how the local Robot frames its requests (from the Connection)."""
+
+    where: Where = field(default_factory=Where)
+    protocol: str = DEFAULT.name
+    rule: ChecksumRule = ChecksumRule.HEADER
+
+
+def robot_name(url: str) -> str:
+    """NAME of ``zenoh://NAME``; BadPortUrl (exit 2) with the name rule otherwise."""
+    name = url[len(SCHEME) :] if url.lower().startswith(SCHEME) else ""
+    try:
+        return check_name(name)
+    except ValueError:
+        raise BadPortUrl(url, f"expected zenoh://NAME, NAME {NAME_RULE}", hint=LIST_HINT) from None
+
+
+class RemoteLink:
+    """One operator's link to one fleet robot; ``deliver`` gets reply bytes, ``lost`` why the link ended."""
+
+    def __init__(self, name: str, reach: Reach, deliver: Deliver, lost: Lost) -> None:
+        self.name = name
+        self.reach = reach
+        self.op = operator_id()
+        self.local: Profile = profile(reach.protocol)
+        self.remote: Profile = DEFAULT
+        self.info: dict[str, Any] = {}
+        self._deliver = deliver
+        self._lost = lost
+        self._session: Any = None
+        self._held: list[Any] = []  # the token and subscribers, undeclared on close
+        self.lease: DriveLease | None = None
+        self._here = threading.Event()
+        self._cond = threading.Condition()
+        self._asking: set[tuple[int, int]] = set()
+        self._said: dict[tuple[int, int], tuple[str, str | None]] = {}
+
+    # -- opening and closing -------------------------------------------------------------
+
+    def open(self) -> None:
+        """Session, token, presence, info, subscriptions; FleetError (exit 1) if the robot is not there."""
+        self._session = open_session("peer", self.reach.where)
+        try:
+            self._open_on(self._session)
+        except BaseException:
+            self.close()
+            raise
+
+    def _open_on(self, session: Any) -> None:
+        zenoh = import_zenoh()
+        live = session.liveliness()
+        self._held.append(live.declare_token(operator(self.name, self.op)))
+        # A subscriber with history, not a get: a session just opened may not have heard
+        # the router's tokens yet, and this waits for them as long as it takes, up to the limit.
+        self._held.append(
+            live.declare_subscriber(alive(self.name), zenoh.handlers.Callback(self._presence), history=True)
+        )
+        if not self._here.wait(ASK_TIMEOUT_S):
+            raise FleetError(f"no robot {self.name} in the fleet at {self._where()}", hint=LIST_HINT)
+        self.info = self._ask_info(session)
+        self.remote = _profile_of(self.info)
+        self.lease = DriveLease(session, self.name, self.op, _deadman(self.info))
+        self._held += [
+            session.declare_subscriber(topic(self.name, "frames"), zenoh.handlers.Callback(self._frame)),
+            session.declare_subscriber(status(self.name), zenoh.handlers.Callback(self._status)),
+        ]
+
+    def _where(self) -> str:
+        return ", ".join(self.reach.where.connect) or DEFAULT_ENDPOINT
+
+    def _ask_info(self, session: Any) -> dict[str, Any]:
+        for reply in session.get(info_key(self.name), timeout=ASK_TIMEOUT_S):
+            if reply.ok is not None:
+                answer = _json(reply.ok.payload.to_bytes())
+                if isinstance(answer, dict):
+                    return answer
+        raise FleetError(
+            f"{self.name} is in the fleet at {self._where()} but did not answer its info within "
+            f"{ASK_TIMEOUT_S:g} s",
+            hint="is its fleet serve busy or stuck? hcrctl fleet list shows its age",
+        )
+
+    def close(self) -> None:
+        """Give the lease back, undeclare everything, close the session; quietly, whatever state it is in."""
+        if self.lease is not None:
+            self.lease.close()
+        for held in reversed(self._held):
+            with contextlib.suppress(Exception):
+                held.undeclare()
+        self._held.clear()
+        if self._session is not None:
+            with contextlib.suppress(Exception):
+                self._session.close()
+            self._session = None
+
+    # -- what the robot side says unasked -------------------------------------------------
+
+    def _presence(self, sample: Any) -> None:
+        if str(sample.kind).endswith("DELETE"):
+            self._here.clear()
+            self._lost(f"{self.name} left the fleet")
+        else:
+            self._here.set()
+
+    def _frame(self, sample: Any) -> None:
+        """A broadcast the robot's wire heard (a positioning station, a map), to this operator's Robot."""
+        message = _json(sample.payload.to_bytes())
+        if not isinstance(message, dict) or message.get("direction") != "rx":
+            return
+        cmd = C.BY_CODE.get(message.get("command", -1))
+        if cmd is None or cmd.kind != "broadcast" or not message.get("checksum_ok", True):
+            return
+        self._give(message.get("hex"))
+
+    def _status(self, sample: Any) -> None:
+        """The robot side's word: when it names a driver other than us, or none, our lease is gone."""
+        message = _json(sample.payload.to_bytes())
+        if self.lease is None or not isinstance(message, dict):
+            return
+        if message.get("driver", message.get("op")) != self.op and self.lease.held:
+            driver = message.get("driver")
+            if "driver" in message or driver is None:
+                self.lease.lost()
+
+    # -- writes -------------------------------------------------------------------------------
+
+    def write(self, data: bytes) -> None:
+        """Each frame of ``data`` as fleet traffic; RawRefused, before anything is sent, for any other byte."""
+        events = decode_all(data, self.reach.rule, self.local)
+        frames = [e for e in events if isinstance(e, Frame)]
+        if len(frames) != len(events) or not frames:
+            raise self._raw(data)
+        requests = [(frame, C.BY_CODE.get(frame.command)) for frame in frames]
+        for frame, cmd in requests:
+            if (
+                cmd is None
+                or cmd.kind == "broadcast"
+                or (cmd.kind == "read" and frame.content != READ_REQUEST)
+            ):
+                raise self._raw(data)
+        for frame, cmd in requests:
+            assert cmd is not None  # checked above
+            self._request(frame, cmd)
+
+    def _raw(self, data: bytes) -> RawRefused:
+        shown = data[:16].hex(" ").upper() + (" ..." if len(data) > 16 else "")
+        return RawRefused(
+            f"{SCHEME}{self.name}: only requests of the command table go over the fleet, not raw bytes ({shown})",
+            hint="hex send writes raw frames only to a local port; use read, drive, turn, stop, pid, servo",
+        )
+
+    def _request(self, frame: Frame, cmd: C.Command) -> None:
+        if cmd.kind == "read":
+            self._read(frame.address, cmd)
+        elif cmd.motion:
+            assert self.lease is not None  # set by open()
+            if (frame.command, frame.content) == (STOP_CODE, C.STOP.content()):
+                self.lease.stop()
+            else:
+                self.lease.drive(frame)
+        else:
+            self._write(frame, cmd)
+
+    # -- reads ----------------------------------------------------------------------------------
+
+    def _read(self, address: int, cmd: C.Command) -> None:
+        """Ask, unless the same read is still being answered (the Robot's retry waits for that one)."""
+        key = (address, cmd.code)
+        with self._cond:
+            if key in self._asking:
+                return
+            self._asking.add(key)
+            self._said.pop(key, None)
+        zenoh = import_zenoh()
+        self._session.get(
+            read_key(self.name, cmd.name),
+            zenoh.handlers.Callback(lambda reply: self._answer(key, reply), lambda: self._answered(key)),
+            payload=json.dumps({"address": address}),
+            encoding=zenoh.Encoding.APPLICATION_JSON,
+            timeout=READ_TIMEOUT_S,
+        )
+
+    def _answer(self, key: tuple[int, int], reply: Any) -> None:
+        if reply.ok is not None:
+            answer = _json(reply.ok.payload.to_bytes())
+            self._give(answer.get("frame") if isinstance(answer, dict) else None)
+            return
+        said = _json(reply.err.payload.to_bytes())
+        if isinstance(said, dict) and isinstance(said.get("error"), str):
+            hint = said.get("hint")
+            with self._cond:
+                self._said[key] = (said["error"], hint if isinstance(hint, str) else None)
+
+    def _answered(self, key: tuple[int, int]) -> None:
+        with self._cond:
+            self._asking.discard(key)
+            self._cond.notify_all()
+
+    def _give(self, hex_text: object) -> None:
+        """A frame from the robot's wire (hex), laid out for the local Robot, into its read buffer."""
+        if not isinstance(hex_text, str):
+            return
+        try:
+            raw = bytes.fromhex(hex_text)
+        except ValueError:
+            return
+        frame = reframe(raw, self.remote, self.local, self.reach.rule)
+        if frame is not None:
+            self._deliver(frame)
+
+    def why_no_reply(self, error: DeviceTimeout) -> DeviceTimeout:
+        """A read that timed out, with what the robot side said about it (its own timeout, a refusal)."""
+        cmd = C.BY_NAME.get(error.command)
+        if cmd is None:
+            return error
+        key = (error.address, cmd.code)
+        deadline = time.monotonic() + GRACE_S
+        with self._cond:
+            while key in self._asking and (left := deadline - time.monotonic()) > 0:
+                self._cond.wait(left)
+            said = self._said.get(key)
+        served = self.info.get("sensors")
+        if said is not None:
+            error.message += f"; {self.name} said: {said[0]}"
+            error.hint = said[1] or error.hint
+        elif isinstance(served, list) and cmd.name not in served:
+            error.message += (
+                f"; {self.name} serves no {cmd.name} read (it serves {', '.join(map(str, served))})"
+            )
+            error.hint = f"--protocol {self.remote.name} on {self.name}'s side has no {cmd.name}"
+        return error
+
+    # -- other writes ------------------------------------------------------------------------
+
+    def _write(self, frame: Frame, cmd: C.Command) -> None:
+        """A non-motion write, through the robot side's table; waited for, so a refusal is this write's error."""
+        zenoh = import_zenoh()
+        payload = {
+            "op": self.op,
+            "address": frame.address,
+            "command": cmd.code,
+            "content": frame.content.hex(),
+        }
+        replies = self._session.get(
+            write_key(self.name),
+            payload=json.dumps(payload),
+            encoding=zenoh.Encoding.APPLICATION_JSON,
+            timeout=ASK_TIMEOUT_S,
+        )
+        for reply in replies:
+            if reply.ok is not None:
+                answer = _json(reply.ok.payload.to_bytes())
+                if isinstance(answer, dict):
+                    self._give(answer.get("reply"))
+                return
+            said = _json(reply.err.payload.to_bytes())
+            text = said.get("error") if isinstance(said, dict) else None
+            raise DeviceRefused(f"{self.name} refused {cmd.name}: {text or 'no reason given'}")
+        raise DeviceRefused(
+            f"{self.name} did not answer the {cmd.name} write within {ASK_TIMEOUT_S:g} s",
+            hint="hcrctl fleet list shows whether it is still there",
+        )
+
+
+def _json(data: bytes) -> object:
+    try:
+        return json.loads(data)
+    except ValueError:
+        return None
+
+
+def _profile_of(info: dict[str, Any]) -> Profile:
+    """The dialect the robot's firmware speaks, from its info; the default for one this hcrctl does not know."""
+    with contextlib.suppress(ValueError, TypeError):
+        return profile(str(info.get("protocol", DEFAULT.name)))
+    return DEFAULT
+
+
+def _deadman(info: dict[str, Any]) -> float:
+    value = info.get("deadman")
+    return float(value) if isinstance(value, (int, float)) and value > 0 else 0.5
