@@ -36,7 +36,7 @@ from .. import __version__
 from ..protocol.encodings import ENCODINGS, Encode
 from ..protocol.topics import Topic
 from .mcapchunks import ChunkWriter
-from .sinks import Prepared, Sink, seconds
+from .sinks import Prepared, Sink, microseconds, seconds
 
 #: Uncompressed chunk size: big enough to compress well, small enough to lose little.
 CHUNK_SIZE = 1 << 20
@@ -122,7 +122,7 @@ class McapSink(Sink):
         """``write_prepared``'s work for many log lines in one loop, the time rounded as ``seconds`` rounds it."""
         add, encoded_of, time_head = self._writer.add_all, self._encoded, self._time_head
         for items, log_time, _ in batch:
-            us = round(log_time * 1_000_000)
+            us = microseconds(log_time)
             size = add([p.encoded or encoded_of(p) for p in items], us * 1000, time_head(us))
             if size > CHUNK_SIZE:
                 self._writer.flush()

@@ -21,6 +21,7 @@ that fails (a full disk) raises ``SinkWriteError`` at once: exit 1, one line.
 from __future__ import annotations
 
 import contextlib
+import math
 import time
 from collections import Counter
 from collections.abc import Iterable, Sequence
@@ -54,13 +55,25 @@ class RecordingIncomplete(HcrError):
         self.path, self.why = path, why
 
 
+def microseconds(t: float) -> int:
+    """``t`` (seconds) in whole microseconds, rounded as ``datetime.fromtimestamp`` rounds it.
+
+    That is how the traffic log's ISO time is made (``trafficlog.iso_time``):
+    the fraction is scaled alone and rounded half to even. ``round(t * 1e6)``
+    would scale the whole value first and, at today's epoch seconds, round one
+    live time in eight the other way, a microsecond off the log's.
+    """
+    fraction, whole = math.modf(t)
+    return int(whole) * 1_000_000 + round(fraction * 1_000_000)
+
+
 def seconds(t: float) -> tuple[int, str]:
     """``t`` to the microsecond the traffic log keeps: as an integer, and as decimal seconds text.
 
     Both from one rounding, so a message's ``time`` and its MCAP log time
-    (or a CSV row's ``t``) never disagree in the last digit.
+    (or a CSV row's ``t``) never disagree in the last digit, nor with the log.
     """
-    us = round(t * 1_000_000)
+    us = microseconds(t)
     whole, part = divmod(us, 1_000_000)
     return us, f"{whole}.{part:06d}"
 

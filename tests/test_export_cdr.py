@@ -1,0 +1,178 @@
+"""``export --encoding cdr`` and ``record --encoding cdr``: ROS 2 MCAP files, read back by an independent decoder.
+
+The files are decoded by ``mcap_ros2`` (the MCAP project's ROS 2 definition
+parser and CDR reader), not by hcrctl, and what they hold is compared with
+the traffic log of the same frames (its ``fields``, ``hex`` and times), as
+the robot's replies were logged, never with hcrctl's own encoder.
+"""
+
+from __future__ import annotations
+
+import json
+from datetime import datetime, timedelta, timezone
+from pathlib import Path
+from typing import Any
+
+import pytest
+from helpers_cli import clean_env, one_line, run, wire
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+
+pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
+
+EPOCH = datetime(1970, 1, 1, tzinfo=timezone.utc)
+#: Every reading the simulator answers or broadcasts, by its log name.
+READINGS = ("bump", "ir", "sonar", "compass", "wheels", "env", "position", "map")
+
+
+def us_of(stamp: str) -> int:
+    """An ISO time of the log as integer microseconds since the epoch (exact: no float on the way)."""
+    return (datetime.fromisoformat(stamp) - EPOCH) // timedelta(microseconds=1)
+
+
+def plain(value: Any) -> Any:
+    """A decoded ROS message as JSON-like values (nested messages as dicts, byte arrays as lists)."""
+    if hasattr(value, "__slots__"):
+        return {name: plain(getattr(value, name)) for name in value.__slots__}
+    if isinstance(value, bytes | list | tuple):
+        return [plain(v) for v in value]
+    return value
+
+
+def flat(values: Any) -> list[Any]:
+    """Every value of a log line's ``fields`` (or of a decoded message), in order, lists and objects opened.
+
+    The log writes a byte block (the grid map) as hex; the ROS message holds its bytes.
+    """
+    if isinstance(values, dict):
+        return [v for value in values.values() for v in flat(value)]
+    if isinstance(values, list):
+        return [v for value in values for v in flat(value)]
+    if isinstance(values, str):
+        return list(bytes.fromhex(values))
+    return [values]
+
+
+def lines_of(log: Path) -> list[dict[str, Any]]:
+    return [json.loads(line) for line in log.read_text().splitlines() if line.strip()]
+
+
+def is_reading(line: dict[str, Any]) -> bool:
+    """A good reply or broadcast of a read, as the log line says."""
+    return (
+        line["direction"] == "rx"
+        and line.get("checksum_ok") is True
+        and "error" not in line
+        and line.get("kind") in ("reply", "broadcast")
+        and line.get("name") in READINGS
+    )
+
+
+def decoded(path: Path) -> tuple[Any, list[tuple[str, Any, Any]]]:
+    """The file's header, and (topic, mcap message, decoded ROS message) in file order, with its channels checked."""
+    with path.open("rb") as handle:
+        reader = make_reader(handle, decoder_factories=[DecoderFactory()])
+        header = reader.get_header()
+        summary = reader.get_summary()
+        assert summary is not None, "no summary: the file was not finished"
+        for channel in summary.channels.values():
+            schema = summary.schemas[channel.schema_id]
+            assert (channel.message_encoding, schema.encoding) == ("cdr", "ros2msg"), channel.topic
+        found = [(c.topic, m, d) for _, c, m, d in reader.iter_decoded_messages(log_time_order=False)]
+    return header, found
+
+
+def check_against_log(found: list[tuple[str, Any, Any]], lines: list[dict[str, Any]]) -> None:
+    """Every frame of the log is a /hcr/frames message, every reading a /hcr/<name> one, with its values and times."""
+    frames = [(m, d) for topic, m, d in found if topic == "/hcr/frames"]
+    assert [(d.direction, d.hex) for _, d in frames] == [(line["direction"], line["hex"]) for line in lines]
+    assert [m.log_time for m, _ in frames] == [us_of(line["time"]) * 1000 for line in lines]
+    wanted = [line for line in lines if is_reading(line)]
+    readings = [(topic, m, d) for topic, m, d in found if topic not in ("/hcr/frames", "/hcr/link")]
+    assert [f"/hcr/{line['name']}" for line in wanted] == [topic for topic, _, _ in readings]
+    for line, (topic, message, ros) in zip(wanted, readings, strict=True):
+        body = plain(ros)
+        assert body.pop("address") == line["address"], topic
+        assert round(body.pop("time") * 1e6) == us_of(line["time"]) == message.log_time // 1000, topic
+        assert flat(body) == flat(line["fields"]), topic
+    assert {"/hcr/compass", "/hcr/sonar", "/hcr/position"} <= {topic for topic, _, _ in readings}
+
+
+@pytest.fixture(scope="module")
+def log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A traffic log of a short watch and a read on the simulator (which also broadcasts)."""
+    home = tmp_path_factory.mktemp("export_cdr")
+    path = home / "session.jsonl"
+    env = clean_env(home)
+    watched = run(["--port", "sim://", "--log", str(path), "--json", "watch", "--duration", "1.5"], env)
+    assert watched.returncode == 0, watched.stderr
+    done = run(["--port", "sim://", "--log", str(path), "read"], env)
+    assert done.returncode == 0, done.stderr
+    return path
+
+
+def test_export_cdr_is_a_ros2_file_holding_the_logs_frames_and_readings(log: Path, tmp_path: Path) -> None:
+    out = tmp_path / "session.mcap"
+    done = run(["export", str(log), str(out), "--encoding", "cdr"], clean_env(tmp_path))
+    assert done.returncode == 0, done.stderr
+    header, found = decoded(out)
+    assert header.profile == "ros2"
+    check_against_log(found, lines_of(log))
+
+
+def test_record_cdr_holds_what_its_log_says_crossed_the_link(tmp_path: Path) -> None:
+    out, log = tmp_path / "run.mcap", tmp_path / "run.jsonl"
+    args = ["--port", "sim://", "--log", str(log), "record", str(out), "compass", "sonar", "env"]
+    # 2 s: the link counters are published at the start (all 0) and once a second after
+    done = run([*args, "--duration", "2", "--encoding", "cdr"], clean_env(tmp_path))
+    assert done.returncode == 0, done.stderr
+    header, found = decoded(out)
+    assert header.profile == "ros2"
+    check_against_log([item for item in found if item[0] != "/hcr/link"], lines_of(log))
+    link = [plain(d) for topic, _, d in found if topic == "/hcr/link"]
+    assert len(link) >= 2 and link[-1]["tx_frames"] > 0  # the counters are decoded too, and count
+
+
+@pytest.mark.parametrize("command", ["record", "export"])
+def test_cdr_into_a_csv_is_a_usage_error_before_anything_is_opened(
+    command: str, log: Path, tmp_path: Path
+) -> None:
+    out, own_log = tmp_path / "out.csv", tmp_path / "own.jsonl"
+    args = [str(out)] if command == "record" else [str(log), str(out)]
+    with wire() as tap:
+        done = run(
+            ["--port", tap.path, "--log", str(own_log), command, *args, "--encoding", "cdr"],
+            clean_env(tmp_path),
+        )
+        assert done.returncode == 2, done.stderr
+        assert one_line(done.stderr) == (
+            f"hcrctl {command}: error: --encoding cdr needs an .mcap output (see 'hcrctl {command} --help')"
+        )
+        assert tap.read(quiet=0.1) == b""  # the port was not even opened
+    assert not out.exists() and not own_log.exists()
+
+
+def test_json_stays_the_default_and_cdr_changes_only_the_encoding(log: Path, tmp_path: Path) -> None:
+    """The same log exported twice: the same channels, one in JSON (no profile), one in CDR (ros2)."""
+    topics = {}
+    for encoding in ("json", "cdr"):
+        out = tmp_path / f"{encoding}.mcap"
+        extra = [] if encoding == "json" else ["--encoding", "cdr"]
+        done = run(["export", str(log), str(out), *extra], clean_env(tmp_path))
+        assert done.returncode == 0, done.stderr
+        with out.open("rb") as handle:
+            reader = make_reader(handle)
+            summary = reader.get_summary()
+            assert summary is not None
+            profile = reader.get_header().profile
+        topics[encoding] = (profile, sorted((c.topic, c.message_encoding) for c in summary.channels.values()))
+    assert topics["json"][0] == "" and topics["cdr"][0] == "ros2"
+    assert [t for t, _ in topics["json"][1]] == [t for t, _ in topics["cdr"][1]]
+    assert {e for _, e in topics["json"][1]} == {"json"} and {e for _, e in topics["cdr"][1]} == {"cdr"}
+
+
+@pytest.mark.parametrize("command", ["record", "export"])
+def test_the_help_offers_the_bridges_encodings(command: str, tmp_path: Path) -> None:
+    done = run([command, "--help"], clean_env(tmp_path))
+    assert done.returncode == 0, done.stderr
+    assert "--encoding [json|cdr]" in done.stdout, done.stdout
