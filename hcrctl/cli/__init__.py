@@ -74,6 +74,10 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
         "hcrctl.cli.bridge:bridge",
         "Serve the readings live on the Foxglove WebSocket protocol, and drive from /cmd_vel.",
     ),
+    "fleet": (
+        "hcrctl.cli.fleet:fleet",
+        "Many robots and operators on Zenoh: a router, each robot served, the robots listed.",
+    ),
     "replay": (
         "hcrctl.cli.replay:replay",
         "Re-send the tx frames of LOGFILE (written by --log) and print the replies decoded.",

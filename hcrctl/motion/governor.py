@@ -1,8 +1,9 @@
 """The motion governor: the one owner of a link's continuous motion.
 
-Sources of motion (the bridge's ``/cmd_vel`` clients, and any other that asks
-for motion for as long as it keeps asking) never write a motion frame
-themselves. They ``offer`` wheel speeds, and the governor decides:
+Sources of motion (the bridge's ``/cmd_vel`` clients, the fleet's operators,
+and any other that asks for motion for as long as it keeps asking) never
+write a motion frame themselves. They ``offer`` wheel speeds, and the
+governor decides:
 
 - one driver at a time: the first source to offer motion holds the lease;
   another is refused, told who drives, until the lease is released, runs out
@@ -13,6 +14,14 @@ themselves. They ``offer`` wheel speeds, and the governor decides:
   no source can hold motion by being slow, silent, flooded or dead;
 - forward motion is refused while a bumper is pressed;
 - anyone may ``stop``.
+
+An offer is wheel speeds made into a frame by the governor's ``make`` (the
+bridge's velocity), or it carries its own ``request`` of the command table
+(the fleet's power, speed, velocity or turn): the wheels then only say which
+way it goes, for the bumpers and for "still". A ``once`` request (a turn) is
+written when it changes and held under the lease without being re-sent; a
+continuous one is re-sent every ``RESEND``. A driver may also ``claim`` the
+lease before it moves.
 
 The shape is ROS's twist_mux and ArduPilot's failsafe: many inputs, one
 arbiter with timeouts. Offers are applied under a lock by the caller's thread
@@ -48,6 +57,8 @@ STILL = (0, 0)
 MAX_LEASE = 10.0
 
 Wheels = tuple[int, int]
+#: What was last written: wheels and the request that carried them (None: ``make``'s).
+Sent = tuple[Wheels, "C.Request | None"]
 #: What each wheel pair becomes on the wire (velocity in cm/s, motor speed in %...).
 MakeMotion = Callable[[int, int], "C.Request"]
 #: (source that drove, why motion stopped): told when motion stops for any reason but a new offer.
@@ -78,6 +89,9 @@ class Lease:
         #: What the deadman's stop says was missing ("no key", "no /cmd_vel").
         self.silence = silence
         self.wheels: Wheels = STILL
+        #: The request to write for ``wheels`` (None: the governor's ``make``), and whether it is written once.
+        self.request: C.Request | None = None
+        self.once = False
         self.driver: Hashable | None = None
         self.last = -math.inf
         #: When the lease runs out (monotonic): the last offer's time plus its lease.
@@ -87,16 +101,31 @@ class Lease:
         self.version = 0
 
     def offer(
-        self, source: Hashable, wheels: Wheels, now: float, bumped: bool, lease: float | None = None
+        self,
+        source: Hashable,
+        wheels: Wheels,
+        now: float,
+        bumped: bool,
+        lease: float | None = None,
+        request: C.Request | None = None,
+        once: bool = False,
     ) -> Verdict:
+        verdict = self.claim(source, now, lease)
+        if not verdict:
+            return verdict
+        if forward(wheels) and bumped:
+            self._set(STILL, "bumper hit: forward blocked")
+            return Verdict(False, "refused: a bumper is pressed (forward blocked)")
+        moving = wheels != STILL
+        self._set(wheels, "" if moving else "asked for zero", request=request if moving else None, once=once)
+        return Verdict(True)
+
+    def claim(self, source: Hashable, now: float, lease: float | None = None) -> Verdict:
+        """``source`` holds the lease (renewed) without changing the motion; refused if another drives."""
         if self.driver not in (None, source):
             return Verdict(False, f"refused: {self.driver} drives the robot")
         self.driver, self.last = source, now
         self.until = now + (self.deadman if lease is None else min(lease, MAX_LEASE))
-        if forward(wheels) and bumped:
-            self._set(STILL, "bumper hit: forward blocked")
-            return Verdict(False, "refused: a bumper is pressed (forward blocked)")
-        self._set(wheels, "" if wheels != STILL else "asked for zero")
         return Verdict(True)
 
     def check(self, now: float, bumped: bool) -> None:
@@ -118,10 +147,18 @@ class Lease:
         self.driver, driver = None, self.driver
         self._set(STILL, why, driver)
 
-    def _set(self, wheels: Wheels, why: str, source: Hashable | None = None) -> None:
-        if (wheels, why) != (self.wheels, self.why_stopped):
+    def _set(
+        self,
+        wheels: Wheels,
+        why: str,
+        source: Hashable | None = None,
+        request: C.Request | None = None,
+        once: bool = False,
+    ) -> None:
+        if (wheels, why, request, once) != (self.wheels, self.why_stopped, self.request, self.once):
             self.stopped_driver = source if wheels == STILL else None
             self.wheels, self.why_stopped = wheels, why
+            self.request, self.once = request, once
             self.version += 1
 
 
@@ -151,7 +188,7 @@ class Governor:
         self._lock = threading.Lock()
         self._wake = threading.Event()
         self._done = threading.Event()
-        self._sent: Wheels | None = None
+        self._sent: Sent | None = None
         self._sent_at = 0.0
         self._stop_asked = False
         self._seen = 0
@@ -160,15 +197,33 @@ class Governor:
     # -- the sources' side: any thread, never waits on the wire --------------------------
 
     def offer(
-        self, source: Hashable, wheels: Wheels, now: float | None = None, lease: float | None = None
+        self,
+        source: Hashable,
+        wheels: Wheels,
+        now: float | None = None,
+        lease: float | None = None,
+        *,
+        request: C.Request | None = None,
+        once: bool = False,
     ) -> Verdict:
         """``source`` asks for ``wheels`` (cm/s, %... as ``make`` reads them) for ``lease`` seconds (default:
-        the deadman); its lease renewed if taken."""
+        the deadman); its lease renewed if taken.
+
+        With ``request`` that request is written instead of ``make(*wheels)``
+        (``wheels`` then only tell its direction); ``once``: written when it
+        changes, never re-sent (a turn, which the robot carries out by itself).
+        """
         now = time.monotonic() if now is None else now
         with self._lock:
-            verdict = self.lease.offer(source, wheels, now, self._bump(), lease)
+            verdict = self.lease.offer(source, wheels, now, self._bump(), lease, request, once)
         self._wake.set()
         return verdict
+
+    def claim(self, source: Hashable, now: float | None = None, lease: float | None = None) -> Verdict:
+        """``source`` takes (or renews) the lease without moving: refused, with who drives, if another does."""
+        now = time.monotonic() if now is None else now
+        with self._lock:
+            return self.lease.claim(source, now, lease)
 
     def release(self, source: Hashable, why: str) -> None:
         """``source`` is gone (disconnected, unadvertised): if it drove, stop."""
@@ -186,6 +241,10 @@ class Governor:
     @property
     def driver(self) -> Hashable | None:
         return self.lease.driver
+
+    @property
+    def _moving(self) -> bool:
+        return self._sent is not None and self._sent[0] != STILL
 
     @property
     def sent_at(self) -> float | None:
@@ -206,7 +265,7 @@ class Governor:
         self._done.set()
         self._wake.set()
         self._thread.join()
-        if self._sent not in (None, STILL):
+        if self._moving:
             self._write(STILL)  # best effort: the caller's final stop sends it again and reports
 
     def _run(self) -> None:
@@ -223,6 +282,7 @@ class Governor:
         with self._lock:
             self.lease.check(now, self._bump())
             wheels, version = self.lease.wheels, self.lease.version
+            request, once = self.lease.request, self.lease.once
             stopped = (self.lease.stopped_driver, self.lease.why_stopped)
             asked, self._stop_asked = self._stop_asked, False
         if version != self._seen:
@@ -230,10 +290,10 @@ class Governor:
             if wheels == STILL and stopped[1]:
                 self.on_stop(*stopped)
         if wheels == STILL:
-            if asked or self._sent not in (None, STILL):
+            if asked or self._moving:
                 self._write(STILL, now)
-        elif wheels != self._sent or now - self._sent_at >= RESEND:
-            self._write(wheels, now)
+        elif (wheels, request) != self._sent or (not once and now - self._sent_at >= RESEND):
+            self._write(wheels, now, request)
 
     def _failed(self, exc: Exception) -> None:
         with contextlib.suppress(Exception), self._lock:
@@ -249,8 +309,9 @@ class Governor:
         except Exception:
             return False
 
-    def _write(self, wheels: Wheels, now: float | None = None) -> None:
-        """Motion, or stop for none; a failure other than a lost link ends the run (``error``)."""
+    def _write(self, wheels: Wheels, now: float | None = None, request: C.Request | None = None) -> None:
+        """Motion (``request``, or ``make``'s frame for the wheels), or stop for none; a failure other
+        than a lost link ends the run (``error``)."""
         robot = self._robot()
         if robot is None:
             return  # the port is gone: the poller reconnects; the final stop rescues a robot left moving
@@ -258,7 +319,7 @@ class Governor:
             if wheels == STILL:
                 robot.stop()
             else:
-                robot.send(self._make(*wheels))
+                robot.send(self._make(*wheels) if request is None else request)
         except PortError:
             return  # the link just dropped: as above
         except HcrError as exc:
@@ -267,4 +328,4 @@ class Governor:
         finally:
             self.driven = robot
         self.frames += 1
-        self._sent, self._sent_at = wheels, time.monotonic() if now is None else now
+        self._sent, self._sent_at = (wheels, request), time.monotonic() if now is None else now

@@ -1,0 +1,215 @@
+"""``hcrctl fleet router|serve|list``: many robots and many operators on Zenoh (docs/fleet.md).
+
+Zenoh is an extra (``pip install 'hcrctl[zenoh]'``), imported only when one of
+these runs; its absence is one line naming the extra. Where the fleet is
+comes from the global ``--zenoh``/``--zenoh-config``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+from typing import Any
+
+import click
+
+from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
+from ..protocol.encodings import ENCODINGS
+from .params import deadman_option, rate_option
+from .settings import Settings, json_option, stdout_is_terminal
+
+
+class Endpoint(click.ParamType):
+    """A Zenoh endpoint: PROTOCOL/ADDRESS, such as tcp/127.0.0.1:7447 or tls/robot.lab:7447."""
+
+    name = "ENDPOINT"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        text = str(value).strip()
+        proto, sep, rest = text.partition("/")
+        if not sep or not proto.isalnum() or not rest:
+            self.fail(f"{value!r} is not a Zenoh endpoint such as tcp/127.0.0.1:7447", param, ctx)
+        return text
+
+
+class HostPort(click.ParamType):
+    """HOST:PORT ([v6 address]:PORT) for --foxglove, as bridge --listen reads it; port 0 picks a free one."""
+
+    name = "HOST:PORT"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        host, sep, port = str(value).rpartition(":")
+        host = host[1:-1] if host.startswith("[") and host.endswith("]") else host
+        if not sep or not host or not port.isdigit() or int(port) > 65535:
+            self.fail(f"{value!r} is not HOST:PORT with a port in 0..65535 (e.g. 127.0.0.1:8765)", param, ctx)
+        return host, int(port)
+
+
+def _name(ctx: click.Context, param: click.Parameter, value: str) -> str:
+    from ..fleet.keys import check_name
+
+    try:
+        return check_name(value)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), ctx, param) from exc
+
+
+@click.group()
+def fleet() -> None:
+    """Many robots and operators on Zenoh: a router, each robot served, the robots listed.
+
+    A lab runs one router (hcrctl fleet router), one hcrctl --port PORT fleet
+    serve NAME on each robot's computer, and reaches any robot from a laptop
+    with --port zenoh://NAME (read, watch, teleop, drive...). Everyone says
+    where the router is with the global --zenoh ENDPOINT (default
+    tcp/127.0.0.1:7447), and --zenoh-config FILE for TLS or user/password.
+    Needs the zenoh extra (pip install 'hcrctl[zenoh]'). See docs/fleet.md.
+    """
+
+
+@fleet.command()
+@click.option(
+    "--listen",
+    type=Endpoint(),
+    multiple=True,
+    help="Where to listen; repeatable. Default: the global --zenoh endpoints, else tcp/127.0.0.1:7447.",
+)
+@click.pass_obj
+def router(settings: Settings, listen: tuple[str, ...]) -> None:
+    """Run a Zenoh router for the fleet until Ctrl-C, SIGTERM or SIGHUP.
+
+    Its first line on stdout says where it listens. Listening beyond loopback
+    warns: anyone who reaches it joins the fleet (use --zenoh-config for TLS
+    and user/password).
+    """
+    from ..fleet.router import listen_endpoints, run_router
+    from ..fleet.session import import_zenoh
+
+    import_zenoh()
+    run_router(listen_endpoints(listen, settings.zenoh), settings.zenoh_config)
+
+
+@fleet.command()
+@click.argument("name", callback=_name)
+@click.option("--connect", type=Endpoint(), multiple=True, help="Also connect here; repeatable.")
+@click.option(
+    "--listen",
+    type=Endpoint(),
+    multiple=True,
+    help="Listen here (default: loopback, a free port); beyond loopback warns. Repeatable.",
+)
+@rate_option()
+@click.option(
+    "--encoding",
+    type=click.Choice(tuple(ENCODINGS)),
+    default="json",
+    show_default=True,
+    help="The readings' encoding: json, or cdr (ROS 2 CDR, the bridge's).",
+)
+@deadman_option(DEFAULT_TIMEOUT_S, "Deadman: stop when the driver sends nothing for S seconds.")
+@click.option(
+    "--foxglove",
+    type=HostPort(),
+    metavar="HOST:PORT",
+    help="Also serve the Foxglove bridge here, from the same link and governor (needs the foxglove extra).",
+)
+@click.pass_obj
+def serve(
+    settings: Settings,
+    name: str,
+    connect: tuple[str, ...],
+    listen: tuple[str, ...],
+    rate: float | None,
+    encoding: str,
+    deadman: float | None,
+    foxglove: tuple[str, int] | None,
+) -> None:
+    """Publish this robot (--port) to the fleet as NAME, and let one operator at a time drive it.
+
+    Every reading goes out as hcr/NAME/<topic> (the bridge's topics), with a
+    one-shot read per sensor (hcr/NAME/read/<sensor>), info, and cmd_vel in.
+    Motion goes through the motion governor: one driver at a time, stopped
+    when its messages stop for --deadman, when its operator's session goes,
+    on a stop from anyone, and when this command ends. NAME is 1-64 letters,
+    digits, '_', '.' or '-'. With --json a summary is printed at the end.
+    """
+    from ..fleet.serve import Options, run_serve, summary_line
+
+    options = Options(
+        name,
+        connect,
+        listen,
+        rate,
+        encoding,
+        settings.deadman_or(deadman, DEFAULT_TIMEOUT_S),
+        foxglove,
+    )
+    if settings.as_json:
+        report = lambda summary: click.echo(json.dumps(summary))  # noqa: E731
+    else:
+        report = lambda summary: click.echo(f"hcrctl: {summary_line(summary)}", err=True)  # noqa: E731
+    run_serve(settings, options, report=report)
+
+
+@fleet.command(name="list")
+@click.option("--watch", is_flag=True, help="Print a line per robot joining or leaving, until Ctrl-C.")
+@click.option(
+    "--timeout",
+    type=click.FloatRange(0.1, 60),
+    default=2.0,
+    show_default=True,
+    metavar="S",
+    help="How long to wait for the robots' answers.",
+)
+@json_option
+@click.pass_obj
+def list_robots(settings: Settings, watch: bool, timeout: float) -> None:
+    """List the robots in the fleet: name, port, protocol, who drives, age.
+
+    With --json a list of objects (each robot's info); with --watch one line
+    (with --json one JSON object) per robot joining or leaving, until Ctrl-C.
+    """
+    from ..fleet.session import Where
+
+    where = Where(settings.zenoh, (), settings.zenoh_config)
+    if watch:
+        _watch(settings, where, timeout)
+        return
+    from ..fleet.listing import robots
+
+    found = robots(where, timeout)
+    if settings.as_json:
+        click.echo(json.dumps(found))
+        return
+    if not found:
+        click.echo(
+            "hcrctl: no robots in the fleet (start one with: hcrctl --port PORT fleet serve NAME)", err=True
+        )
+        return
+    from rich.console import Console
+
+    from ..render.fleet import fleet_table
+
+    Console(highlight=False, emoji=False, markup=False).print(
+        fleet_table(found, borders=stdout_is_terminal())
+    )
+
+
+def _watch(settings: Settings, where: Any, timeout: float) -> None:
+    import threading
+
+    from ..fleet.listing import watch
+    from ..link.signals import stop_signals_handled
+    from ..render.fleet import fleet_row
+
+    def shown(event: str, info: dict[str, Any]) -> None:
+        if settings.as_json:
+            click.echo(json.dumps({"event": event, **info}))
+        elif event == "joined":
+            click.echo("+ " + "  ".join(fleet_row(info)))
+        else:
+            click.echo(f"- {info['name']} left")
+
+    done = threading.Event()
+    with stop_signals_handled(lambda signum, frame: done.set()), contextlib.suppress(KeyboardInterrupt):
+        watch(where, shown, timeout, done.is_set)

@@ -1,0 +1,103 @@
+"""``hcrctl fleet list``: the robots present, from their liveliness tokens and their ``info``.
+
+A robot is present while its ``fleet serve`` holds ``hcr/<robot>/alive``; a
+killed one is gone as soon as Zenoh notices (its TCP closed: milliseconds; a
+frozen host: the 1 s link lease). What each one is (port, protocol, who
+drives, since when) is its ``info`` queryable, asked of all of them at once.
+
+The session is a Zenoh client: it opens only if a router (or a peer) at the
+endpoints answers, so "nobody there" is told apart from "no robots".
+``--watch`` prints a line per robot joining and leaving, as they do; the
+Zenoh callbacks only queue the change, and the main thread asks for the
+newcomer's ``info`` (a query from inside a callback could wait on itself).
+"""
+
+from __future__ import annotations
+
+import json
+import queue
+import time
+from collections.abc import Callable, Iterable
+from typing import Any
+
+from . import keys
+from .session import FleetError, Where, import_zenoh, open_session
+
+#: How long ``list`` waits for tokens and for each robot's ``info``.
+DEFAULT_TIMEOUT_S = 2.0
+Event = tuple[str, str]
+
+
+def connect(where: Where) -> Any:
+    """A client session; FleetError naming where it looked (and what to start) when nobody answers."""
+    try:
+        return open_session("client", where)
+    except FleetError as exc:
+        looked = ", ".join(where.connect) or keys.DEFAULT_ENDPOINT
+        raise FleetError(
+            f"cannot reach the fleet at {looked}",
+            hint="start a router with 'hcrctl fleet router', or say where the fleet is with --zenoh ENDPOINT "
+            "(and --zenoh-config for TLS or a password)",
+        ) from exc
+
+
+def names(session: Any, timeout: float) -> list[str]:
+    """The robots whose serve's token is present."""
+    found = set()
+    for reply in session.liveliness().get(keys.ALL_ALIVE, timeout=timeout):
+        if reply.ok is not None and (name := keys.robot_of(str(reply.ok.key_expr))) is not None:
+            found.add(name)
+    return sorted(found)
+
+
+def infos(session: Any, robots: Iterable[str], timeout: float) -> list[dict[str, Any]]:
+    """Each robot's ``info``, asked of all at once; one that does not answer is listed by name only."""
+    asked = [(name, session.get(keys.info(name), timeout=timeout)) for name in robots]
+    return [_info(name, replies) for name, replies in asked]
+
+
+def _info(name: str, replies: Any) -> dict[str, Any]:
+    found: dict[str, Any] = {"name": name}
+    for reply in replies:
+        if reply.ok is not None:
+            try:
+                body = json.loads(bytes(reply.ok.payload))
+            except ValueError:
+                continue
+            if isinstance(body, dict):
+                found.update(body, name=name)
+    started = found.get("started")
+    if isinstance(started, (int, float)):
+        found["age"] = round(max(0.0, time.time() - started), 1)
+    return found
+
+
+def robots(where: Where, timeout: float = DEFAULT_TIMEOUT_S) -> list[dict[str, Any]]:
+    with connect(where) as session:
+        return infos(session, names(session, timeout), timeout)
+
+
+def watch(
+    where: Where, shown: Callable[[str, dict[str, Any]], None], timeout: float, done: Callable[[], bool]
+) -> None:
+    """``shown("joined"|"left", info)`` per robot joining and leaving, until ``done()``."""
+    changes: queue.SimpleQueue[Event] = queue.SimpleQueue()
+    gone = import_zenoh().SampleKind.DELETE
+
+    def changed(sample: Any) -> None:
+        name = keys.robot_of(str(sample.key_expr))
+        if name is not None:
+            changes.put(("left" if sample.kind == gone else "joined", name))
+
+    with connect(where) as session:
+        subscriber = session.liveliness().declare_subscriber(keys.ALL_ALIVE, changed, history=True)
+        try:
+            while not done():
+                try:
+                    event, name = changes.get(timeout=0.2)
+                except queue.Empty:
+                    continue
+                info = infos(session, [name], timeout)[0] if event == "joined" else {"name": name}
+                shown(event, info)
+        finally:
+            subscriber.undeclare()

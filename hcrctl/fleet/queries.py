@@ -1,0 +1,162 @@
+"""The robot's queryables: a one-shot ``read/<sensor>``, a non-motion ``write``, and ``info``.
+
+A read or write goes through the same serial link the feed polls (the
+``Robot`` is shared: its transaction lock lets one exchange at a time, so a
+query waits for at most the sweep in progress). Zenoh calls a queryable on
+its own threads, which must not wait on a serial line, so each query is
+answered from a small pool (``Answers``); more than ``MAX_PENDING`` waiting
+is a busy robot, said at once. Every answer is JSON: the reply frame's hex
+exactly as it came off the wire and the reading as its topic carries it, or
+an error with the one-line text hcrctl would print and its hint.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+from ..errors import HcrError, ProtocolError, describe
+from ..link.client import Robot
+from ..protocol import commands as C
+from ..protocol import topics as T
+from ..protocol.frames import Frame
+
+#: Queries answered at once; the serial link takes one at a time anyway.
+WORKERS = 2
+#: Queries waiting beyond which a new one is told the robot is busy.
+MAX_PENDING = 32
+MAX_QUERY = 4096
+
+Answer = tuple[bool, dict[str, Any]]
+Work = Callable[[dict[str, Any]], dict[str, Any]]
+
+
+class QueryError(HcrError):
+    """A query that cannot be answered as asked (bad payload, unknown command): its reply_err."""
+
+
+def error_body(exc: BaseException) -> dict[str, Any]:
+    if isinstance(exc, Exception):
+        said = describe(exc)
+        return {"error": said.message, "hint": said.hint}
+    return {"error": str(exc), "hint": None}
+
+
+def query_object(payload: bytes | None) -> dict[str, Any]:
+    """A query's JSON object; an empty payload is ``{}``."""
+    if not payload:
+        return {}
+    if len(payload) > MAX_QUERY:
+        raise QueryError(f"a query of {len(payload):,} bytes: at most {MAX_QUERY:,}")
+    try:
+        found = json.loads(payload)
+    except (ValueError, RecursionError) as exc:
+        raise QueryError("the query's payload is not JSON") from exc
+    if not isinstance(found, dict):
+        raise QueryError("the query's payload is not a JSON object")
+    return found
+
+
+def address_of(message: dict[str, Any], robot: Robot) -> int:
+    address = message.get("address", robot.address)
+    if not isinstance(address, int) or isinstance(address, bool) or not 0 <= address <= 255:
+        raise QueryError(f"address {address!r} is not 0..255")
+    return address
+
+
+def read(robot: Robot, sensor: str, message: dict[str, Any]) -> dict[str, Any]:
+    """One read of ``sensor`` on the wire: the reply frame's hex and its reading."""
+    cmd = robot.check_supported(C.BY_NAME[sensor])
+    address = address_of(message, robot)
+    reply = robot.transact(robot.frame_for(cmd, address), (address, cmd.code), cmd.name)
+    data = robot.wire_bytes(reply)
+    return {"frame": data.hex(), "reading": reading(robot, cmd, reply, data)}
+
+
+def reading(robot: Robot, cmd: C.Command, reply: Frame, data: bytes) -> dict[str, Any]:
+    """The reply as its topic's message (what ``hcr/<robot>/<sensor>`` carries); an impossible one raises."""
+    for topic, body in T.messages(time.time(), "rx", data, reply, robot.rule, robot.profile):
+        if topic == T.topic_name(cmd):
+            return body
+    assert cmd.reply is not None
+    cmd.reply.decode(robot.profile.to_document(cmd.code, reply.content))  # raises why it is no reading
+    raise ProtocolError(f"{cmd.name}: the reply from 0x{reply.address:02X} on {robot.port} is no reading")
+
+
+def write(robot: Robot, message: dict[str, Any]) -> dict[str, Any]:
+    """A non-motion request of the table, decoded (ranges checked) and re-encoded: never raw bytes."""
+    code, content = message.get("command"), message.get("content", "")
+    if not isinstance(code, int) or isinstance(code, bool) or not isinstance(content, str):
+        raise QueryError('write takes {"op", "address", "command": CODE, "content": HEX}')
+    cmd = C.BY_CODE.get(code)
+    if cmd is None or cmd.kind != "write" or cmd.request is None:
+        raise QueryError(f"0x{code:02X} is not a write of the command table")
+    if cmd.motion:
+        raise QueryError(f"{cmd.name} is motion: it goes through cmd_vel, under the lease")
+    try:
+        request = cmd.request.from_content(bytes.fromhex(content))
+    except (ValueError, ProtocolError) as exc:
+        raise QueryError(f"{cmd.name}: {exc}") from exc
+    address = address_of(message, robot)
+    frame = robot.frame_for(request, address)
+    answer = robot.send(request, address=address)
+    body: dict[str, Any] = {"frame": frame.hex()}
+    if answer is not None:
+        body["reply"] = answer.fields()
+    return body
+
+
+class Answers:
+    """Queries answered off Zenoh's threads, at most ``MAX_PENDING`` waiting; counted."""
+
+    def __init__(self) -> None:
+        self.pool = ThreadPoolExecutor(WORKERS, thread_name_prefix="hcrctl-fleet-query")
+        self.answered = 0
+        self.failed = 0
+        self.busy = 0
+        self._pending = threading.BoundedSemaphore(MAX_PENDING)
+
+    def submit(self, query: Any, key: str, work: Work) -> None:
+        """Answer ``query`` on ``key`` with ``work(its payload)`` on the pool; an error becomes its ``reply_err``."""
+        if not self._pending.acquire(blocking=False):
+            self.busy += 1
+            busy = {"error": "the robot is busy with other queries", "hint": "ask again"}
+            send_reply(query, key, (False, busy))
+            return
+        try:
+            self.pool.submit(self._answer, query, key, work)
+        except RuntimeError:  # shutting down
+            self._pending.release()
+
+    def _answer(self, query: Any, key: str, work: Work) -> None:
+        try:
+            payload = query.payload
+            answer: Answer = (True, work(query_object(bytes(payload) if payload is not None else None)))
+            self.answered += 1
+        except Exception as exc:  # every failure is the operator's answer, never a dead worker
+            answer = (False, error_body(exc))
+            self.failed += 1
+        finally:
+            self._pending.release()
+        send_reply(query, key, answer)
+
+    def close(self) -> None:
+        self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+def send_reply(query: Any, key: str, answer: Answer) -> None:
+    ok, body = answer
+    data = json.dumps(body).encode()
+    try:
+        if ok:
+            query.reply(key, data, encoding="application/json")
+        else:
+            query.reply_err(data, encoding="application/json")
+    except Exception:  # the querier gave up (timed out) or the session is closing: nobody to tell
+        pass
+    finally:
+        query.drop()

@@ -1,0 +1,44 @@
+"""``hcrctl fleet router``: Zenoh's own router mode, in this process, until Ctrl-C, SIGTERM or SIGHUP.
+
+``zenohd`` is not on PyPI; ``zenoh.open`` in mode ``router`` is a router.
+It listens where it is told (``--listen``, else the global ``--zenoh``
+endpoints, which is where everyone else will connect, else
+``tcp/127.0.0.1:7447``) and says so on its first line of stdout, flushed, so
+a script can wait for it. It connects to nobody unless a ``--zenoh-config``
+says so.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+from collections.abc import Sequence
+
+from ..link.rescue import warn
+from ..link.signals import stop_signals_handled
+from .keys import DEFAULT_ENDPOINT
+from .session import Where, beyond_loopback, open_session
+
+
+def listen_endpoints(listen: Sequence[str], zenoh: Sequence[str]) -> tuple[str, ...]:
+    return tuple(listen) or tuple(zenoh) or (DEFAULT_ENDPOINT,)
+
+
+def run_router(listen: Sequence[str], config_file: str | None) -> None:
+    """Route until a stop signal (or Ctrl-C); then close and return (exit status 0)."""
+    endpoints = tuple(listen)
+    for endpoint in beyond_loopback(endpoints):
+        warn(f"listening on {endpoint}: anyone on the network who can reach it joins the fleet")
+    done = threading.Event()
+    with stop_signals_handled(lambda signum, frame: done.set()):
+        session = open_session("router", Where((), endpoints, config_file))
+        try:
+            sys.stdout.write(f"listening on {' '.join(endpoints)}\n")
+            sys.stdout.flush()
+            try:
+                while not done.wait(0.5):
+                    pass
+            except KeyboardInterrupt:
+                pass
+        finally:
+            session.close()

@@ -1,0 +1,388 @@
+"""``hcrctl fleet serve NAME``: this robot on the fleet, polled, readable, drivable under the governor.
+
+One serial link, polled like ``watch`` and ``bridge`` (``Feed``); every message
+it yields goes to Zenoh as its topic (``Publishers``) and, with ``--foxglove``,
+to the Foxglove bridge of the same process. The robot's queryables (``read/*``,
+``write``, ``info``, ``drive``) answer through that same link. Motion from
+the fleet (``cmd_vel``) and from a Foxglove client (``/cmd_vel``) are both
+offers to one motion governor: one driver at a time, the deadman on the
+robot's own clock, stop when the driver's liveliness token goes.
+
+How it ends: Ctrl-C, SIGTERM or SIGHUP (a flag the loop reads, so the
+subscribers go first, then the governor, then the final stop), or a failure
+(a lost port it cannot reopen). Stop goes out however it ends, to the robot
+driven then (``stopping_driven``), and a one-line summary is printed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import sys
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, TextIO
+
+from .. import __version__
+from ..errors import HcrError
+from ..feeds.bridge import Signalled
+from ..feeds.bridge_stop import stopping_driven
+from ..feeds.source import Feed
+from ..link.context import Connection, Reconnect
+from ..link.dialects import supported_sensors
+from ..link.rescue import DEADMAN_S, warn
+from ..link.signals import Terminated, stop_signals_handled
+from ..live.teleop import bumper_hit
+from ..live.watch import quick_handoff
+from ..motion.governor import Governor
+from ..protocol import commands as C
+from ..protocol.topics import all_topics
+from . import keys, queries
+from .drive import BadMotion, FleetDrive
+from .publish import Publishers
+from .session import FleetError, Where, beyond_loopback, import_zenoh, open_session
+
+if TYPE_CHECKING:
+    from ..feeds.bridge_server import Server
+    from ..link.client import Robot
+
+Report = Callable[[dict[str, Any]], None]
+PREFIX = "hcrctl: fleet: "
+#: How long to look for another process serving the same name before declaring ours.
+NAME_CHECK_S = 1.0
+
+
+@dataclass
+class Options:
+    """What ``hcrctl fleet serve`` was asked for (validated by the CLI)."""
+
+    name: str
+    connect: tuple[str, ...] = ()
+    listen: tuple[str, ...] = ()
+    rate: float | None = 10.0
+    encoding: str = "json"
+    deadman: float = DEADMAN_S
+    #: Also serve the Foxglove bridge here (host, port).
+    foxglove: tuple[str, int] | None = None
+
+
+class Notes:
+    """The serve's stderr: one line per event, from any thread."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self.stream = stream
+        self._lock = threading.Lock()
+
+    def note(self, text: str) -> None:
+        with self._lock:
+            try:
+                self.stream.write(f"{PREFIX}{text}\n")
+                self.stream.flush()
+            except (OSError, ValueError):
+                pass  # stderr gone: serving goes on
+
+
+def where_of(settings: Connection, options: Options) -> Where:
+    return Where(settings.zenoh, (), settings.zenoh_config).joined(options.connect, options.listen)
+
+
+def run_serve(settings: Connection, options: Options, *, report: Report | None = None) -> dict[str, Any]:
+    """Serve until a signal or a failure; the summary (also given to ``report``, however it ends)."""
+    zenoh = import_zenoh()
+    where = where_of(settings, options)
+    for endpoint in beyond_loopback(where.listen):
+        warn(f"listening on {endpoint}: anyone on the network who can reach it can drive the robot")
+    if options.foxglove is not None:
+        _foxglove_extra()
+    signalled = Signalled()
+    notes = Notes(sys.stderr)
+    governor = Governor(C.Velocity, deadman=options.deadman, silence="no cmd_vel")
+    with stop_signals_handled(signalled):
+        session = open_session("peer", where)
+        try:
+            _refuse_taken(session, options.name)
+            summary = _serve(zenoh, session, settings, options, governor, notes, signalled, report)
+        finally:
+            session.close()
+    if signalled.signum is not None:
+        raise Terminated(signalled.signum)
+    return summary
+
+
+def _refuse_taken(session: Any, name: str) -> None:
+    """Two processes serving one name would split its operators: the second is refused."""
+    for reply in session.liveliness().get(keys.alive(name), timeout=NAME_CHECK_S):
+        if reply.ok is not None:
+            raise FleetError(
+                f"a robot named {name} is already in the fleet",
+                hint="give this one another name, or stop the other fleet serve",
+            )
+
+
+def _foxglove_extra() -> None:
+    """``--foxglove`` needs the bridge's server (websockets): without it, one line naming the extra."""
+    try:
+        import websockets  # noqa: F401
+    except ModuleNotFoundError as exc:
+        if exc.name != "websockets":
+            raise
+        raise HcrError(
+            "fleet serve --foxglove needs websockets, which is not installed",
+            hint="pip install 'hcrctl[foxglove]'",
+        ) from exc
+
+
+class Serving:
+    """What one serve holds while it runs: the feed, the governor, the drive source and the answers."""
+
+    def __init__(
+        self, name: str, session: Any, governor: Governor, notes: Notes, feed: Feed, options: Options
+    ) -> None:
+        self.name = name
+        self.session = session
+        self.governor = governor
+        self.notes = notes
+        self.feed = feed
+        self.options = options
+        self.started = time.time()
+        self.answers = queries.Answers()
+        self.drive = FleetDrive(name, governor, self.say, self._profile)
+        self.declared: list[Any] = []
+
+    def _profile(self) -> tuple[Any, int]:
+        robot = self.robot
+        return robot.profile, robot.address
+
+    @property
+    def robot(self) -> Robot:
+        return self.feed.current or self.feed.robot
+
+    def say(self, op: str | None, text: str) -> None:
+        """A word to the operators (``status``) and a line on stderr."""
+        self.notes.note(text)
+        try:
+            body = json.dumps({"op": op, "text": text}).encode()
+            self.session.put(keys.status(self.name), body, encoding="application/json")
+        except Exception:  # the session is closing: stderr said it
+            pass
+
+    def told_stop(self, source: object, why: str) -> None:
+        """A stop for any reason but a new message (deadman, operator gone, stop, bumper)."""
+        self.say(source if isinstance(source, str) else None, f"stopped: {why}")
+
+    # -- declarations -------------------------------------------------------------
+
+    def declare(self, sensors: list[str]) -> None:
+        s, name = self.session, self.name
+        for sensor in sensors:
+            key = keys.read(name, sensor)
+            self.declared.append(s.declare_queryable(key, self._query(key, self._read(sensor))))
+        self.declared.append(
+            s.declare_queryable(keys.write(name), self._query(keys.write(name), self._write))
+        )
+        self.declared.append(s.declare_queryable(keys.info(name), self._query(keys.info(name), self._info)))
+        self.declared.append(s.declare_queryable(keys.drive(name), self._guarded(self._drive)))
+        self.declared.append(s.declare_subscriber(keys.cmd_vel(name), self._guarded(self._cmd_vel)))
+        self.declared.append(s.declare_subscriber(keys.stop(name), self._guarded(self._stop)))
+        liveliness = s.liveliness()
+        self.declared.append(
+            liveliness.declare_subscriber(keys.operators(name), self._guarded(self._operator), history=True)
+        )
+        self.declared.append(liveliness.declare_token(keys.alive(name)))
+
+    def undeclare(self) -> None:
+        """Subscribers and queryables first (no new offer after this), the token last."""
+        for thing in self.declared:
+            with contextlib.suppress(Exception):
+                thing.undeclare()
+        self.declared.clear()
+        self.answers.close()
+
+    def _guarded(self, callback: Callable[[Any], None]) -> Callable[[Any], None]:
+        """A Zenoh callback that cannot raise into Zenoh: a failure is a note (and costs no safety)."""
+
+        def call(item: Any) -> None:
+            try:
+                callback(item)
+            except Exception as exc:
+                self.notes.note(f"error in a fleet callback (ignored): {exc!r}")
+
+        return call
+
+    def _query(self, key: str, work: queries.Work) -> Callable[[Any], None]:
+        return self._guarded(lambda query: self.answers.submit(query, key, work))
+
+    # -- the handlers ----------------------------------------------------------------
+
+    def _read(self, sensor: str) -> queries.Work:
+        return lambda message: queries.read(self.robot, sensor, message)
+
+    def _write(self, message: dict[str, Any]) -> dict[str, Any]:
+        return queries.write(self.robot, message)
+
+    def _info(self, message: dict[str, Any]) -> dict[str, Any]:
+        robot, options = self.robot, self.options
+        counters: dict[str, Any] = {name: getattr(robot.stats, name) for name in Feed.counters}
+        drive = self.drive.counters
+        counters.update(
+            sweeps=self.feed.state.summary().get("sweeps", 0),
+            messages=self.feed.messages,
+            cmd_vel=drive.cmd_vel,
+            ignored=drive.ignored,
+            refused=drive.refused,
+            stops=drive.stops,
+            drive_frames=self.governor.frames,
+            queries=self.answers.answered,
+            queries_failed=self.answers.failed,
+        )
+        return {
+            "name": self.name,
+            "port": robot.port,
+            "protocol": robot.profile.name,
+            "baud": getattr(robot.serial, "baudrate", None),
+            "address": robot.address,
+            "driver": self.governor.driver,
+            "deadman": self.governor.lease.deadman,
+            "encoding": options.encoding,
+            "rate": options.rate,
+            "sensors": list(self.feed.state.sensors),
+            "started": self.started,
+            "hcrctl": __version__,
+            "counters": counters,
+        }
+
+    def _drive(self, query: Any) -> None:
+        payload = query.payload
+        try:
+            ok, body = self.drive.drive(bytes(payload) if payload is not None else b"")
+        except BadMotion as exc:
+            ok, body = False, {"error": str(exc), "driver": self.governor.driver}
+        queries.send_reply(query, keys.drive(self.name), (ok, body))
+
+    def _cmd_vel(self, sample: Any) -> None:
+        self.drive.cmd_vel(_bytes(sample.attachment), bytes(sample.payload))
+
+    def _stop(self, sample: Any) -> None:
+        self.drive.stop(_bytes(sample.attachment))
+
+    def _operator(self, sample: Any) -> None:
+        if sample.kind == import_zenoh().SampleKind.DELETE:
+            self.drive.operator_gone(str(sample.key_expr))
+
+
+def _bytes(data: Any) -> bytes | None:
+    return bytes(data) if data is not None else None
+
+
+def _serve(
+    zenoh: Any,
+    session: Any,
+    settings: Connection,
+    options: Options,
+    governor: Governor,
+    notes: Notes,
+    signalled: Signalled,
+    report: Report | None,
+) -> dict[str, Any]:
+    """Poll and publish, answer and drive, until the end; stop goes out however it ends."""
+    names = supported_sensors(settings.protocol, [])
+    topics = all_topics(Feed.counters)
+    with settings.robot() as robot, quick_handoff():
+        publishers = Publishers(zenoh, session, options.name, topics, options.encoding)
+        server = _foxglove_server(options, governor, notes, topics)
+        publish = publishers.publish if server is None else _both(publishers.publish, server.publish)
+        feed = Feed(robot, names, options.rate, publish, reconnect=Reconnect(settings, robot))
+        serving = Serving(options.name, session, governor, notes, feed, options)
+        governor.attach(lambda: feed.current)
+        governor.bumped = lambda: bumper_hit(feed.state)
+        governor.on_stop = serving.told_stop
+        try:
+            with _entered(server), feed, stopping_driven(feed, robot, lambda: governor.driven), governor:
+                serving.declare(names)
+                notes.note(_serving_line(serving, robot, server))
+                try:
+                    feed.run(None, lambda: bool(signalled) or governor.error is not None)
+                finally:
+                    signalled.closing = True
+                    serving.undeclare()
+                if governor.error is not None:
+                    raise governor.error
+        finally:
+            serving.undeclare()
+            publishers.close()
+            summary = _summary(serving, publishers.sent)
+            if report is not None:
+                report(summary)
+    return summary
+
+
+def _serving_line(serving: Serving, robot: Robot, server: Server | None) -> str:
+    extra = f"; Foxglove on ws://{server.host}:{server.bound_port}" if server is not None else ""
+    return f"serving {serving.name} ({robot.port}) as {keys.ROOT}/{serving.name}/...{extra}; Ctrl-C ends it"
+
+
+def _both(
+    first: Callable[..., None], second: Callable[..., None]
+) -> Callable[[str, dict[str, Any], float], None]:
+    def publish(topic: str, message: dict[str, Any], at: float) -> None:
+        first(topic, message, at)
+        second(topic, message, at)
+
+    return publish
+
+
+class _Nothing:
+    def __enter__(self) -> None:
+        return None
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+
+def _entered(server: Server | None) -> Any:
+    return server if server is not None else _Nothing()
+
+
+def _foxglove_server(options: Options, governor: Governor, notes: Notes, topics: Any) -> Server | None:
+    """The bridge's server on the same feed and governor (its ``/cmd_vel`` is one more source)."""
+    if options.foxglove is None:
+        return None
+    from ..feeds.bridge_drive import CmdVelSource
+    from ..feeds.bridge_server import Server
+
+    host, port = options.foxglove
+    if host not in ("127.0.0.1", "::1", "localhost"):
+        warn(f"Foxglove on {host}: anyone on the network who can reach it can drive the robot")
+    cmd_vel = CmdVelSource(governor, notes.note)
+    return Server(topics, host, port, None, cmd_vel, notes.note, options.encoding)
+
+
+def _summary(serving: Serving, sent: int) -> dict[str, Any]:
+    summary = dict(serving.feed.state.summary())
+    drive = serving.drive.counters
+    summary.update(
+        name=serving.name,
+        messages=serving.feed.messages,
+        published=sent,
+        queries=serving.answers.answered,
+        queries_failed=serving.answers.failed,
+        cmd_vel=drive.cmd_vel,
+        ignored=drive.ignored,
+        refused=drive.refused,
+        stops=drive.stops,
+        drive_frames=serving.governor.frames,
+    )
+    return summary
+
+
+def summary_line(summary: dict[str, Any]) -> str:
+    rate = summary.get("sweeps_per_s")
+    shown = f"{rate:g} sweeps/s" if rate else "no sweep rate"
+    return (
+        f"fleet serve {summary['name']}: {summary.get('sweeps', 0)} sweeps in {summary.get('seconds', 0):g} s "
+        f"({shown}), {summary['published']} messages published, {summary['queries']} queries answered, "
+        f"{summary['cmd_vel']} cmd_vel ({summary['ignored']} ignored, {summary['refused']} refused), "
+        f"{summary['drive_frames']} drive frame(s)"
+    )

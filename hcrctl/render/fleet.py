@@ -1,0 +1,41 @@
+"""The fleet's robots as a rich table (``hcrctl fleet list`` on a terminal or a pipe)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+COLUMNS = ("robot", "port", "protocol", "driver", "age")
+
+
+def age_text(seconds: Any) -> str:
+    """``42 s``, ``3 min``, ``2.5 h``: how long the robot has been served."""
+    if not isinstance(seconds, (int, float)):
+        return "-"
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
+
+
+def fleet_row(info: dict[str, Any]) -> tuple[str, ...]:
+    return (
+        str(info.get("name", "?")),
+        str(info.get("port") or "-"),
+        str(info.get("protocol") or "-"),
+        str(info.get("driver") or "-"),
+        age_text(info.get("age")),
+    )
+
+
+def fleet_table(robots: list[dict[str, Any]], *, borders: bool = True) -> object:
+    """A rich table of robots; borderless for pipes."""
+    from rich import box
+    from rich.table import Table
+
+    table = Table(box=box.ROUNDED if borders else None, show_header=True, pad_edge=borders)
+    for column in COLUMNS:
+        table.add_column(column, style="bold cyan" if column == "robot" else None)
+    for info in robots:
+        table.add_row(*fleet_row(info))
+    return table
