@@ -1,4 +1,4 @@
-"""Issue 13's export target: ``export LOG OUT`` in under 2x the time of merely reading and decoding LOG.
+"""Issue 13's export target: ``export LOG OUT`` in under 2x the time of merely reading and decoding LOG (CDR too: issue 25).
 
 Run from the repository root: ``python bench/bench_export.py``. It writes traffic logs with
 the project's own log writer (``TrafficLog``, as ``--log`` does) holding a polling session's
@@ -8,8 +8,9 @@ at each size, it times in turns (best of N, so load hits all alike):
 
 - baseline: ``log_fields`` (the reader export uses) + ``decode_all`` per record, nothing written (what ``monitor --from
   --summary`` must do at least);
-- ``export LOG OUT.mcap`` and ``export LOG OUT.csv``: ``feeds.export.export_log`` into the sink
-  ``open_sink`` gives, closed (the command's own code, without Click's start-up).
+- ``export LOG OUT.mcap``, ``export LOG OUT.mcap --encoding cdr`` and ``export LOG OUT.csv``:
+  ``feeds.export.export_log`` into the sink ``open_sink`` gives, closed (the command's own code,
+  without Click's start-up).
 
 It prints the ratios, writes ``bench/results/export.json`` and exits 1 if a ratio is >= 2.0.
 
@@ -103,8 +104,8 @@ def baseline(log: Path) -> int:
     return count
 
 
-def export(log: Path, out: Path) -> int:
-    with open_sink(str(out), export_topics()) as sink:
+def export(log: Path, out: Path, encoding: str = "json") -> int:
+    with open_sink(str(out), export_topics(), encoding=encoding) as sink:
         export_log(str(log), sink, RULE, DEFAULT)
     return sink.bytes_written
 
@@ -114,6 +115,7 @@ def measure(log: Path, out: Path, repeat: int) -> dict[str, float]:
     runs = {
         "baseline": lambda: baseline(log),
         "mcap": lambda: export(log, out.with_suffix(".mcap")),
+        "cdr": lambda: export(log, out.with_suffix(".mcap"), "cdr"),
         "csv": lambda: export(log, out.with_suffix(".csv")),
     }
     return best_of_each(runs, repeat)
@@ -132,11 +134,11 @@ def main() -> int:
             lines = write_log(log, size)
             best = measure(log, Path(tmp) / "out", args.repeat)
             print(f"{lines:,} records ({log.stat().st_size / 1e6:.1f} MB):")
-            for kind in ("mcap", "csv"):
+            for kind, what in (("mcap", ".mcap"), ("cdr", ".mcap --encoding cdr"), ("csv", ".csv")):
                 ratio = best[kind] / best["baseline"]
                 verdict = "ok  " if ratio < TARGET else "MISS"
                 print(
-                    f"  {verdict} export .{kind}: {best[kind]:.2f} s vs baseline {best['baseline']:.2f} s: "
+                    f"  {verdict} export {what}: {best[kind]:.2f} s vs baseline {best['baseline']:.2f} s: "
                     f"{ratio:.2f}x (target < {TARGET})"
                 )
                 ok = ok and ratio < TARGET
