@@ -177,14 +177,16 @@ class RemoteLink:
         self._give(message.get("hex"))
 
     def _status(self, sample: Any) -> None:
-        """The robot side's word: when it names a driver other than us, or none, our lease is gone."""
+        """The robot side's word about this operator: anything but "OP drives R" means it no longer does.
+
+        A stop (anyone's, the deadman's), a refusal of one of its messages: the
+        lease stops being renewed, and the next motion claims it afresh.
+        """
         message = _json(sample.payload.to_bytes())
-        if self.lease is None or not isinstance(message, dict):
+        if self.lease is None or not isinstance(message, dict) or message.get("op") != self.op:
             return
-        if message.get("driver", message.get("op")) != self.op and self.lease.held:
-            driver = message.get("driver")
-            if "driver" in message or driver is None:
-                self.lease.lost()
+        if message.get("text") != f"{self.op} drives {self.name}":
+            self.lease.lost()
 
     # -- writes -------------------------------------------------------------------------------
 
@@ -314,8 +316,8 @@ class RemoteLink:
         for reply in replies:
             if reply.ok is not None:
                 answer = _json(reply.ok.payload.to_bytes())
-                if isinstance(answer, dict):
-                    self._give(answer.get("reply"))
+                if isinstance(answer, dict) and isinstance(answer.get("reply"), dict):
+                    self._reply_of(frame, cmd, answer["reply"])
                 return
             said = _json(reply.err.payload.to_bytes())
             text = said.get("error") if isinstance(said, dict) else None
@@ -323,6 +325,20 @@ class RemoteLink:
         raise DeviceRefused(
             f"{self.name} did not answer the {cmd.name} write within {ASK_TIMEOUT_S:g} s",
             hint="hcrctl fleet list shows whether it is still there",
+        )
+
+    def _reply_of(self, frame: Frame, cmd: C.Command, fields: dict[str, Any]) -> None:
+        """A write's reply (pid's acknowledgement), sent back as its fields: the frame the Robot waits for."""
+        if cmd.reply is None:
+            return
+        try:
+            content = cmd.reply(**fields).content()
+        except (TypeError, ValueError, HcrError):
+            return  # nothing the Robot can read: it times out, as on a wire
+        self._deliver(
+            self.local.encode(
+                frame.address, cmd.code, self.local.from_document(cmd.code, content), self.reach.rule
+            )
         )
 
 

@@ -1,0 +1,163 @@
+"""A fleet on loopback for ``--port zenoh://NAME`` tests: a router, robots served, operators, the robot's wire.
+
+Every process is the installed ``hcrctl`` in a session of its own (killed as
+a group when the test ends, whatever happened), with its output in files, so
+no pipe fills while a test looks elsewhere. A robot is served with ``--log``:
+its traffic log is the robot's wire, read independently of the operator's
+code, so "stop reached the robot" is a frame on that wire.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import signal
+import socket
+import subprocess
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+from helpers import TIMEOUT, clean_env, hcrctl_exe, wait_until
+
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.frames import Frame
+
+#: Motor power 0x80 0x80: what stop puts on the wire.
+STOP_CONTENT = C.STOP.content()
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def is_stop(frame: Frame) -> bool:
+    return frame.command == C.BY_NAME["power"].code and frame.content == STOP_CONTENT
+
+
+def is_motion(frame: Frame) -> bool:
+    return C.is_motion(frame.command) and not is_stop(frame)
+
+
+@dataclass
+class Served:
+    """A robot served to the fleet: its process, its wire (the traffic log) and what it said on stderr."""
+
+    name: str
+    proc: subprocess.Popen[bytes]
+    log: Path
+    err: Path
+
+    def sent(self) -> list[Frame]:
+        """The frames the robot side has written to its serial wire so far, in order."""
+        frames: list[Frame] = []
+        if not self.log.exists():
+            return frames
+        for line in self.log.read_text().splitlines(keepends=True):
+            if not line.endswith("\n"):
+                break  # a line still being written
+            record = json.loads(line)
+            if record.get("direction") == "tx" and "hex" in record:
+                frames += [e for e in decode_all(bytes.fromhex(record["hex"])) if isinstance(e, Frame)]
+        return frames
+
+    def wait_sent(self, check: object, after: int = 0, what: str = "a frame") -> int:
+        """The index of the first frame at or after ``after`` that passes ``check``, waiting for it."""
+
+        def found() -> int | None:
+            frames = self.sent()
+            return next((i + 1 for i in range(after, len(frames)) if check(frames[i])), None)  # type: ignore[operator]
+
+        return int(wait_until(found, what=f"{what} on {self.name}'s wire")) - 1
+
+    def said(self) -> str:
+        return self.err.read_text() if self.err.exists() else ""
+
+    def wait_said(self, text: str) -> str:
+        return str(
+            wait_until(lambda: text in self.said() and self.said(), what=f"{self.name} saying {text!r}")
+        )
+
+
+class Fleet:
+    """A router on a free loopback port, and everything started against it."""
+
+    def __init__(self, tmp: Path) -> None:
+        self.tmp = tmp
+        self.env = clean_env(tmp)
+        self.endpoint = f"tcp/127.0.0.1:{free_port()}"
+        self.procs: list[subprocess.Popen[bytes]] = []
+        #: The robots served, by name.
+        self.served: dict[str, Served] = {}
+        self._count = 0
+
+    def spawn(self, args: list[str], label: str) -> tuple[subprocess.Popen[bytes], Path, Path]:
+        """``hcrctl ARGS`` in a new session, stdout and stderr to files named for ``label``."""
+        self._count += 1
+        out = self.tmp / f"{self._count}-{label}.out"
+        err = self.tmp / f"{self._count}-{label}.err"
+        with out.open("wb") as stdout, err.open("wb") as stderr:
+            proc = subprocess.Popen(
+                [hcrctl_exe(), *args],
+                env=self.env,
+                stdin=subprocess.DEVNULL,
+                stdout=stdout,
+                stderr=stderr,
+                start_new_session=True,
+            )
+        self.procs.append(proc)
+        return proc, out, err
+
+    def router(self) -> None:
+        _, out, _ = self.spawn(["fleet", "router", "--listen", self.endpoint], "router")
+        wait_until(lambda: out.read_text().strip(), what="the router's first line")
+
+    def serve(self, name: str, port: str = "sim://", *options: str) -> Served:
+        log = self.tmp / f"{name}-wire.jsonl"
+        args = ["--zenoh", self.endpoint, "--port", port, "--log", str(log), "fleet", "serve", name, *options]
+        proc, _, err = self.spawn(args, f"serve-{name}")
+        served = Served(name, proc, log, err)
+        served.wait_said(f"serving {name}")
+        self.served[name] = served
+        return served
+
+    def operator(self, robot: str, *args: str) -> list[str]:
+        """The argument list of ``hcrctl`` as an operator of ``robot``."""
+        return ["--zenoh", self.endpoint, "--port", f"zenoh://{robot}", *args]
+
+    def run(self, robot: str, *args: str, timeout: float = TIMEOUT) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
+            [hcrctl_exe(), *self.operator(robot, *args)],
+            env=self.env,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            stdin=subprocess.DEVNULL,
+            start_new_session=True,
+        )
+
+    def start(self, robot: str, *args: str) -> tuple[subprocess.Popen[bytes], Path, Path]:
+        return self.spawn(self.operator(robot, *args), f"op-{args[0]}")
+
+    def close(self) -> None:
+        for proc in self.procs:
+            if proc.poll() is None:
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(proc.pid, signal.SIGKILL)  # a stopped one too
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                proc.wait(timeout=10)
+
+
+@contextlib.contextmanager
+def fleet(tmp: Path) -> Iterator[Fleet]:
+    """A fleet with its router up; every process it started killed at the end."""
+    running = Fleet(tmp)
+    try:
+        running.router()
+        yield running
+    finally:
+        running.close()

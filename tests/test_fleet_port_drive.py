@@ -1,0 +1,131 @@
+"""Motion through ``--port zenoh://NAME``: the lease, one driver, anyone's stop, and what stops a lost operator.
+
+The robot's wire is the serve's traffic log. Safety is asserted by cause and
+order, never by time: a killed operator's stop is the robot side's "operator
+gone" (its deadman is 10 s, so it is not the deadman's), a frozen one's comes
+while it is still frozen; how soon each comes is bench/bench_fleet.py's.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip install 'hcrctl[zenoh]')")
+
+from helpers import terminal, terminal_env
+from helpers_fleet_port import Fleet, fleet, is_motion, is_stop
+
+from hcrctl.protocol import commands as C
+
+
+def power(left: int, right: int) -> object:
+    content = C.MotorPower(left, right).content()
+    return lambda f: f.command == C.BY_NAME["power"].code and f.content == content
+
+
+@pytest.fixture
+def robot(tmp_path: Path) -> Iterator[Fleet]:
+    """A router and ``r1`` on ``sim://`` with a 10 s deadman: a stop before it is never the deadman's."""
+    with fleet(tmp_path) as running:
+        running.serve("r1", "sim://", "--deadman", "10")
+        yield running
+
+
+def test_drive_for_moves_the_robot_then_stops_it(robot: Fleet) -> None:
+    done = robot.run("r1", "drive", "power", "40", "40", "--for", "0.5")
+    assert done.returncode == 0, done.stderr
+    wire = robot.served["r1"]
+    moved = wire.wait_sent(power(40, 40), what="power 40 40")
+    wire.wait_sent(is_stop, after=moved, what="stop after the drive")
+    assert "stopped after 0.5 s" in done.stderr
+
+
+def test_turn_is_written_once_and_stopped_when_the_compass_shows_it_done(robot: Fleet) -> None:
+    done = robot.run("r1", "turn", "45")
+    assert done.returncode == 0, done.stderr
+    assert re.search(r"turned 4\d\.\d° clockwise", done.stdout), done.stdout
+    sent = robot.served["r1"].sent()
+    turns = [i for i, f in enumerate(sent) if f.command == C.BY_NAME["turn"].code]
+    assert len(turns) == 1, sent
+    assert any(is_stop(f) for f in sent[turns[0] :])
+
+
+def test_teleop_keys_move_the_robot_and_q_stops_it(robot: Fleet) -> None:
+    env = terminal_env() | {"XDG_CONFIG_HOME": str(robot.tmp)}
+    with terminal(robot.operator("r1", "teleop", "--deadman", "5"), env=env) as term:
+        term.wait_for("sending")
+        term.send("w")
+        wire = robot.served["r1"]
+        moved = wire.wait_sent(is_motion, what="teleop's forward")
+        term.send("q")
+        assert term.finish() == 0
+        wire.wait_sent(is_stop, after=moved, what="stop after q")
+
+
+def test_a_second_operator_is_refused_naming_the_driver_and_a_third_stops_it(robot: Fleet) -> None:
+    first, _, _ = robot.start("r1", "drive", "power", "30", "30")
+    wire = robot.served["r1"]
+    moved = wire.wait_sent(power(30, 30), what="the first operator's motion")
+    second = robot.run("r1", "drive", "power", "20", "20", "--for", "1")
+    assert second.returncode == 1
+    line = second.stderr.strip()
+    assert "\n" not in line, second.stderr
+    assert re.fullmatch(rf"hcrctl: error: refused: \S+\.{first.pid} drives r1 \(hint: .*\)", line), line
+    third = robot.run("r1", "stop")
+    assert third.returncode == 0, third.stderr
+    stopped = wire.wait_sent(is_stop, after=moved, what="the third operator's stop")
+    robot.served["r1"].wait_said("stopped: stop from")
+    # The first operator still holds its drive open and keeps renewing: that must not set it going again.
+    again = robot.run("r1", "read", "compass")  # a round trip through the robot side after the stop
+    assert again.returncode == 0, again.stderr
+    first.send_signal(signal.SIGTERM)
+    first.wait(timeout=30)
+    sent = wire.sent()
+    assert not [f for f in sent[stopped:] if power(30, 30)(f) or power(20, 20)(f)], sent[stopped:]
+    assert not [f for f in sent[:stopped] if power(20, 20)(f)]  # the refused one never moved it
+
+
+def test_a_killed_operator_is_stopped_by_its_token_going_not_by_the_deadman(robot: Fleet) -> None:
+    driver, _, _ = robot.start("r1", "drive", "power", "30", "30")
+    wire = robot.served["r1"]
+    moved = wire.wait_sent(power(30, 30), what="motion")
+    os.kill(driver.pid, signal.SIGKILL)
+    driver.wait(timeout=30)
+    wire.wait_sent(is_stop, after=moved, what="stop after kill -9")
+    said = robot.served["r1"].wait_said("stopped:")
+    assert re.search(rf"stopped: operator \S+\.{driver.pid} gone", said), said
+    assert "deadman" not in said
+
+
+def test_a_frozen_operator_is_stopped_by_the_deadman_while_still_frozen(tmp_path: Path) -> None:
+    with fleet(tmp_path) as running:
+        running.serve("r1", "sim://", "--deadman", "0.3")
+        driver, _, _ = running.start("r1", "drive", "power", "30", "30")
+        wire = running.served["r1"]
+        moved = wire.wait_sent(power(30, 30), what="motion")
+        os.kill(driver.pid, signal.SIGSTOP)
+        try:
+            stopped = wire.wait_sent(is_stop, after=moved, what="stop while frozen")
+            assert driver.poll() is None and _state(driver.pid) == "T"  # still frozen when the stop came
+            said = running.served["r1"].wait_said("stopped:")
+            assert "deadman" in said or "gone" in said, said  # the lease, or the link's (1 s) after it
+        finally:
+            os.kill(driver.pid, signal.SIGCONT)
+        # Thawed, it renews its claim but sends no motion again: only a new command moves the robot.
+        again = running.run("r1", "read", "compass")
+        assert again.returncode == 0, again.stderr
+        driver.send_signal(signal.SIGTERM)
+        driver.wait(timeout=30)
+        assert not [f for f in wire.sent()[stopped:] if is_motion(f)]
+
+
+def _state(pid: int) -> str:
+    """A process's state letter (T: stopped), from /proc."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return fields[0]
