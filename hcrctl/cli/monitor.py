@@ -168,8 +168,7 @@ def _listen(settings: Settings, printer: TrafficPrinter | SummaryPrinter, durati
     robot = None
     start = time.monotonic()
     try:
-        with settings.robot() as robot:
-            robot.add_traffic_hook(listener)
+        with settings.robot(on_traffic=listener) as robot:
             start = time.monotonic()  # the duration counts from an open port, however slow opening was
             until = f"for {duration:g} s" if duration is not None else "until Ctrl-C"
             click.echo(f"hcrctl: monitoring {robot.port} {until}", err=True)

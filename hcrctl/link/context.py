@@ -23,6 +23,7 @@ from .stopwait import DEFAULT_WAIT_S
 
 if TYPE_CHECKING:
     from .client import Robot
+    from .traffic import TrafficHook
 
 
 @dataclass
@@ -48,13 +49,20 @@ class Connection:
     robot_hooks: list[Callable[[Robot], None]] = field(default_factory=list)
 
     @contextlib.contextmanager
-    def robot(self) -> Iterator[Robot]:
-        """The shared robot, or a fresh one closed (with stop) on exit."""
+    def robot(self, on_traffic: TrafficHook | None = None) -> Iterator[Robot]:
+        """The shared robot, or a fresh one closed (with stop) on exit.
+
+        ``on_traffic`` watches the link; a fresh robot's from its first byte (a
+        board's boot banner arrives as the port opens, before a hook added after
+        opening would hear it).
+        """
         if self.shared_robot is not None:
             self._lifeline(self.shared_robot)
+            if on_traffic is not None:
+                self.shared_robot.add_traffic_hook(on_traffic)
             yield self.shared_robot
             return
-        robot = self.connect()
+        robot = self.connect(on_traffic)
         self._lifeline(robot)
         try:
             yield robot
@@ -66,8 +74,8 @@ class Connection:
         if getattr(robot, "connected", False):
             robot.reopen, robot.stop_wait = Reconnect(self, robot), self.stop_wait
 
-    def connect(self) -> Robot:
-        """A new robot on the resolved port, with the traffic log and hooks attached."""
+    def connect(self, on_traffic: TrafficHook | None = None) -> Robot:
+        """A new robot on the resolved port, with the traffic log and hooks attached (``on_traffic`` first)."""
         from .client import Robot
 
         robot = Robot(
@@ -78,6 +86,7 @@ class Connection:
             retries=self.retries,
             rule=self.checksum,
             protocol=self.protocol,
+            on_traffic=on_traffic,
         )
         if self.log:
             from .trafficlog import attach
