@@ -51,7 +51,11 @@ if TYPE_CHECKING:
 Report = Callable[[dict[str, Any]], None]
 PREFIX = "hcrctl: fleet: "
 #: How long to look for another process serving the same name before declaring ours.
-NAME_CHECK_S = 1.0
+NAME_CHECK_S = 2.0
+#: How many times it is asked (a reply can miss a session connected a moment ago).
+NAME_ASKS = 3
+#: How long a token may take to show up after each ask.
+NAME_SETTLE_S = 0.1
 
 
 @dataclass
@@ -112,13 +116,27 @@ def run_serve(settings: Connection, options: Options, *, report: Report | None =
 
 
 def _refuse_taken(session: Any, name: str) -> None:
-    """Two processes serving one name would split its operators: the second is refused."""
-    for reply in session.liveliness().get(keys.alive(name), timeout=NAME_CHECK_S):
-        if reply.ok is not None:
-            raise FleetError(
-                f"a robot named {name} is already in the fleet",
-                hint="give this one another name, or stop the other fleet serve",
-            )
+    """Two processes serving one name would split its operators: the second is refused.
+
+    Asked once this session reaches a router or peer (its tokens are only
+    known there), or after ``NAME_CHECK_S`` if none is up yet: a robot may be
+    served before its router starts.
+    """
+    info, deadline = session.info, time.monotonic() + NAME_CHECK_S
+    while not (info.routers_zid() or info.peers_zid()) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    seen = threading.Event()
+    watch = session.liveliness().declare_subscriber(keys.alive(name), lambda sample: seen.set(), history=True)
+    try:
+        for _ in range(NAME_ASKS):  # the routes of a session just connected take a moment to settle
+            replies = session.liveliness().get(keys.alive(name), timeout=NAME_CHECK_S)
+            if seen.is_set() or any(reply.ok is not None for reply in replies) or seen.wait(NAME_SETTLE_S):
+                raise FleetError(
+                    f"a robot named {name} is already in the fleet",
+                    hint="give this one another name, or stop the other fleet serve",
+                )
+    finally:
+        watch.undeclare()
 
 
 def _foxglove_extra() -> None:

@@ -1,0 +1,100 @@
+"""``hcrctl fleet list``: two robots served on ``hcrctl sim --pty`` behind a router, and a kill -9.
+
+Each test has its own router on a free loopback port; every process is the
+installed ``hcrctl``. A killed robot must leave the list: the test polls the
+list until it does (with a generous timeout), and asserts no time.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip install 'hcrctl[zenoh]')")
+
+from helpers import TIMEOUT, clean_env, wait_until
+from helpers_fleet_robot import Fleet, fleet, operator, readline, twist
+
+
+@pytest.fixture
+def env(tmp_path: Path) -> dict[str, str]:
+    return clean_env(tmp_path)
+
+
+@pytest.fixture
+def lab(env: dict[str, str]) -> Any:
+    with fleet(env) as group:
+        group.router()
+        yield group
+
+
+def test_two_robots_are_listed_and_a_killed_one_leaves(lab: Fleet) -> None:
+    ports = {"alpha": lab.sim(), "beta": lab.sim()}
+    serves = {name: lab.serve(name, port) for name, port in ports.items()}
+    robots = wait_until(lambda: (r := lab.listed()) and len(r) == 2 and r, what="both robots listed")
+    by_name = {r["name"]: r for r in robots}
+    assert set(by_name) == {"alpha", "beta"}
+    for name, port in ports.items():
+        assert by_name[name]["port"] == port
+        assert by_name[name]["protocol"] == "v0.15"
+        assert by_name[name]["driver"] is None
+        assert by_name[name]["age"] >= 0
+    os.killpg(serves["alpha"].proc.pid, signal.SIGKILL)
+    wait_until(lambda: lab.names() == {"beta"}, what="alpha gone from the list")
+
+
+def test_the_table_names_who_drives(lab: Fleet) -> None:
+    serve = lab.serve("gamma", lab.sim(), "--deadman", "5")
+    with operator(lab.endpoint, "gamma", "op7") as op:
+        op.open()
+        op.cmd_vel(twist(0.1))
+        wait_until(lambda: op.said("op7 drives gamma"), what="op7 driving")
+        done = lab.run([*lab.zenoh, "fleet", "list"])
+    assert done.returncode == 0, done.stderr
+    header, row = done.stdout.splitlines()[:2]
+    assert header.split() == ["robot", "port", "protocol", "driver", "age"]
+    assert row.split()[:4] == ["gamma", serve.proc.args[2], "v0.15", "op7"]  # type: ignore[index]
+
+
+def test_watch_prints_robots_joining_and_leaving(lab: Fleet) -> None:
+    watcher = lab.start([*lab.zenoh, "--json", "fleet", "list", "--watch"])
+    first = lab.serve("delta", lab.sim())
+    joined = json.loads(readline(watcher))
+    assert joined["event"] == "joined" and joined["name"] == "delta" and joined["port"]
+    os.killpg(first.proc.pid, signal.SIGKILL)
+    left = json.loads(readline(watcher))
+    assert left == {"event": "left", "name": "delta"}
+    watcher.send_signal(signal.SIGTERM)
+    assert watcher.wait(timeout=TIMEOUT) == 0
+
+
+def test_no_robots_is_said_and_is_no_error(lab: Fleet) -> None:
+    done = lab.run([*lab.zenoh, "fleet", "list"])
+    assert done.returncode == 0
+    assert done.stdout == ""
+    assert done.stderr.startswith("hcrctl: no robots in the fleet")
+    assert lab.listed() == []
+
+
+def test_no_router_says_where_it_looked_and_what_to_start(env: dict[str, str]) -> None:
+    with fleet(env) as group:  # nobody listens on its endpoint
+        done = group.run([*group.zenoh, "fleet", "list"])
+    assert done.returncode == 1
+    (line,) = done.stderr.splitlines()
+    assert f"cannot reach the fleet at {group.endpoint}" in line
+    assert "hcrctl fleet router" in line and "--zenoh" in line
+
+
+def test_a_second_serve_of_one_name_is_refused(lab: Fleet) -> None:
+    lab.serve("twin", lab.sim())
+    second = lab.start(["--port", lab.sim(), *lab.zenoh, "fleet", "serve", "twin"])
+    assert second.wait(timeout=TIMEOUT) == 1
+    assert second.stderr is not None
+    err = second.stderr.read().decode()
+    assert "a robot named twin is already in the fleet" in err
+    assert lab.names() == {"twin"}

@@ -1,0 +1,236 @@
+"""``hcrctl fleet serve``: a robot on the fleet, driven through the contract by a hand-made Zenoh operator.
+
+Each test runs a router on a free loopback port, ``hcrctl sim --pty`` and the
+installed ``hcrctl fleet serve`` on it, and checks on the robot's wire (the
+serve's ``--log``) what arrived: motion, and the stop that follows when the
+driver's token goes, when it falls silent, or when a third operator stops it.
+The cause of each stop is the serve's own word (stderr and ``status``), and a
+deadman long enough that only the cause under test can explain the stop; no
+test asserts a time.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip install 'hcrctl[zenoh]')")
+
+from helpers import TIMEOUT, clean_env, wait_until
+from helpers_fleet_robot import (
+    MOTION,
+    TURN,
+    VELOCITY,
+    Fleet,
+    fleet,
+    is_stop,
+    operator,
+    twist,
+)
+
+from hcrctl.fleet import keys
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.frames import Frame
+
+
+@pytest.fixture
+def env(tmp_path: Path) -> dict[str, str]:
+    return clean_env(tmp_path)
+
+
+@pytest.fixture
+def lab(env: dict[str, str]) -> Any:
+    with fleet(env) as group:
+        group.router()
+        yield group
+
+
+def served(lab: Fleet, tmp_path: Path, *options: str, name: str = "r1") -> Any:
+    return lab.serve(name, lab.sim(), *options, log=tmp_path / f"{name}.jsonl")
+
+
+def motion_then_stop(serve: Any) -> tuple[list[Frame], Frame]:
+    """The motion frames sent, and the stop after the last of them (None until it is there)."""
+    frames = serve.sent_codes(MOTION)
+    moving = [i for i, f in enumerate(frames) if not is_stop(f)]
+    if not moving:
+        return [], None  # type: ignore[return-value]
+    after = [f for f in frames[moving[-1] + 1 :] if is_stop(f)]
+    return [frames[i] for i in moving], (after[0] if after else None)  # type: ignore[return-value]
+
+
+def test_motion_arrives_and_stops_when_the_drivers_token_goes(lab: Fleet, tmp_path: Path) -> None:
+    serve = served(lab, tmp_path, "--deadman", "5")
+    with operator(lab.endpoint, "r1", "op1") as op:
+        op.open()
+        taken, body = op.claim()
+        assert taken and body == {"driver": "op1"}
+        op.cmd_vel(twist(0.2))
+        frames = wait_until(lambda: serve.sent_codes({VELOCITY}), what="velocity on the wire")
+        assert C.BY_CODE[VELOCITY].request.from_content(frames[0].content) == C.Velocity(20, 20)  # type: ignore[union-attr]
+        op.gone()
+        text = serve.wait_err("operator op1 gone")
+        wait_until(lambda: motion_then_stop(serve)[1], what="stop after the motion")
+    assert "stopped: operator op1 gone" in text
+    assert "deadman" not in text  # a 5 s deadman: the token's going is what stopped it
+
+
+def test_a_silent_driver_is_stopped_by_the_deadman(lab: Fleet, tmp_path: Path) -> None:
+    serve = served(lab, tmp_path, "--deadman", "0.3")
+    with operator(lab.endpoint, "r1", "op1") as op:
+        op.open()  # the token stays: only the silence can stop it
+        op.cmd_vel(twist(0.3))
+        wait_until(lambda: serve.sent_codes({VELOCITY}), what="velocity on the wire")
+        said = op.wait_said("deadman")
+        wait_until(lambda: motion_then_stop(serve)[1], what="stop after the motion")
+    assert said["text"] == "stopped: deadman: no cmd_vel for 0.3 s"
+    assert "stopped: deadman: no cmd_vel" in serve.wait_err("deadman")
+
+
+def test_a_second_operator_is_refused_and_a_third_may_stop(lab: Fleet, tmp_path: Path) -> None:
+    serve = served(lab, tmp_path, "--deadman", "5")
+    with (
+        operator(lab.endpoint, "r1", "op1") as op1,
+        operator(lab.endpoint, "r1", "op2") as op2,
+        operator(lab.endpoint, "r1", "op3") as op3,
+    ):
+        op1.open()
+        op1.cmd_vel(twist(0.2))
+        wait_until(lambda: serve.sent_codes({VELOCITY}), what="op1's velocity on the wire")
+        taken, body = op2.claim()
+        assert not taken and body == {"error": "refused: op1 drives r1", "driver": "op1"}
+        op2.cmd_vel(twist(-0.5))
+        assert op2.wait_said("refused")["text"] == "refused: op1 drives r1"
+        op3.stop()
+        said = op1.wait_said("stop from op3")
+        wait_until(lambda: motion_then_stop(serve)[1], what="stop after the motion")
+    assert said == {"op": "op1", "text": "stopped: stop from op3"}
+    backwards = [f for f in serve.sent_codes({VELOCITY}) if f.content[0]]
+    assert not backwards, "op2's reverse reached the wire"
+
+
+def test_a_turn_is_written_once_and_held_under_the_lease(lab: Fleet, tmp_path: Path) -> None:
+    serve = served(lab, tmp_path, "--deadman", "5")
+    turn = {"address": 1, "command": TURN, "content": C.Turn(90).content().hex()}
+    with operator(lab.endpoint, "r1", "op1") as op:
+        op.open()
+        for _ in range(5):
+            op.cmd_vel(turn)
+        wait_until(lambda: op.said("op1 drives r1"), what="op1 driving")
+        wait_until(lambda: serve.sent_codes({TURN}), what="the turn on the wire")
+        info = wait_until(
+            lambda: _info(op, lambda i: i["counters"]["cmd_vel"] >= 5), what="5 cmd_vel counted"
+        )
+        assert info["driver"] == "op1"
+        assert len(serve.sent_codes({TURN})) == 1
+        bad = dict(turn, content="0001")  # too short for a turn
+        op.cmd_vel(bad)
+        assert "turn" in op.wait_said("cmd_vel refused")["text"]
+
+
+def _info(op: Any, check: Any) -> dict[str, Any] | None:
+    ok, body = op.query(keys.info("r1"))
+    return body if ok and check(body) else None
+
+
+def test_a_message_without_its_operator_is_ignored(lab: Fleet, tmp_path: Path) -> None:
+    serve = served(lab, tmp_path)
+    with operator(lab.endpoint, "r1", "op1") as op:
+        op.session.put(keys.cmd_vel("r1"), json.dumps(twist(0.3)).encode())  # no attachment
+        op.session.put(keys.cmd_vel("r1"), json.dumps(twist(0.3)).encode(), attachment=b"op1 x")
+        info = wait_until(lambda: _info(op, lambda i: i["counters"]["ignored"] >= 2), what="2 ignored")
+    assert info["counters"]["cmd_vel"] == 0 and info["driver"] is None
+    assert not serve.sent_codes({VELOCITY})
+
+
+def test_a_read_through_the_queryable_is_the_frame_on_the_wire(lab: Fleet, tmp_path: Path) -> None:
+    serve = served(lab, tmp_path)
+    with operator(lab.endpoint, "r1", "op1") as op:
+        ok, body = op.query(keys.read("r1", "compass"))
+        assert ok, body
+        bad_ok, bad = op.query(keys.read("r1", "compass"), {"address": 300})
+    frame = bytes.fromhex(body["frame"])
+    (event,) = decode_all(frame)
+    assert isinstance(event, Frame) and event.command == 0x14
+    heading = int.from_bytes(event.content, "big") / 10
+    assert body["reading"]["heading"] == pytest.approx(heading)
+    assert body["reading"]["address"] == 1
+    logged = [json.loads(line) for line in serve.log.read_text().splitlines()]
+    received = {bytes.fromhex(r["hex"]) for r in logged if r.get("direction") == "rx"}
+    assert frame in received
+    assert not bad_ok and bad["error"] == "address 300 is not 0..255"
+
+
+def test_a_write_is_decoded_through_the_table_and_motion_is_refused(lab: Fleet, tmp_path: Path) -> None:
+    serve = served(lab, tmp_path)
+    with operator(lab.endpoint, "r1", "op1") as op:
+        ok, body = op.query(keys.write("r1"), {"op": "op1", "address": 1, "command": 0x41, "content": "1020"})
+        refused, why = op.query(
+            keys.write("r1"), {"op": "op1", "address": 1, "command": 1, "content": "9090"}
+        )
+    assert (
+        ok
+        and wait_until(lambda: serve.sent_codes({0x41}), what="servo on the wire")[0].content == b"\x10\x20"
+    )
+    assert bytes.fromhex(body["frame"]) == C.encode_request(C.Servo(0x10, 0x20))
+    assert not refused and "cmd_vel" in why["error"]
+    assert not serve.sent_codes({0x01})
+
+
+def test_cdr_topics_at_the_asked_rate(lab: Fleet, tmp_path: Path) -> None:
+    served(lab, tmp_path, "--encoding", "cdr", "--rate", "5")
+    got: list[Any] = []
+    with operator(lab.endpoint, "r1", "op1") as op:
+        op.session.declare_subscriber(keys.topic("r1", "compass"), got.append)
+        wait_until(lambda: len(got) >= 2, what="two compass readings")
+        ok, info = op.query(keys.info("r1"))
+    assert ok, info
+    sample = got[0]
+    assert str(sample.encoding).startswith("application/cdr;")
+    assert bytes(sample.payload)[:2] == b"\x00\x01"  # CDR, little-endian encapsulation
+    assert info["encoding"] == "cdr" and info["rate"] == 5.0
+
+
+def test_sigterm_stops_the_robot_and_prints_a_summary(lab: Fleet, tmp_path: Path) -> None:
+    serve = served(lab, tmp_path, "--deadman", "5")
+    with operator(lab.endpoint, "r1", "op1") as op:
+        op.open()
+        op.cmd_vel(twist(0.2))
+        wait_until(lambda: serve.sent_codes({VELOCITY}), what="velocity on the wire")
+        serve.proc.send_signal(signal.SIGTERM)
+        assert serve.proc.wait(timeout=TIMEOUT) == 128 + signal.SIGTERM
+    assert motion_then_stop(serve)[1] is not None
+    err = serve.wait_err("drive frame(s)")
+    assert "hcrctl: fleet serve r1: " in err and "1 cmd_vel" in err
+
+
+def test_the_foxglove_bridge_from_the_same_process(lab: Fleet, tmp_path: Path) -> None:
+    pytest.importorskip("websockets", reason="--foxglove needs the foxglove extra")
+    from websockets.sync.client import connect
+
+    port = __import__("helpers_fleet_robot").free_port()
+    serve = served(lab, tmp_path, "--foxglove", f"127.0.0.1:{port}")
+    assert f"Foxglove on ws://127.0.0.1:{port}" in serve.err.decode()
+    with connect(
+        f"ws://127.0.0.1:{port}", subprotocols=["foxglove.websocket.v1"], open_timeout=TIMEOUT
+    ) as ws:  # type: ignore[list-item]
+        topics: set[str] = set()
+        while "/hcr/compass" not in topics:
+            message = json.loads(ws.recv(timeout=TIMEOUT))
+            if message.get("op") == "advertise":
+                topics.update(c["topic"] for c in message["channels"])
+    assert {"/hcr/compass", "/hcr/frames", "/hcr/link"} <= topics
+
+
+@pytest.mark.parametrize("name", ["a b", ".lead", "x/y", "*"])
+def test_a_bad_name_is_a_usage_error_naming_the_rule(env: dict[str, str], name: str) -> None:
+    with fleet(env) as group:
+        done = group.run(["--port", "sim://", *group.zenoh, "fleet", "serve", name])
+    assert done.returncode == 2
+    assert "NAME" in done.stderr and keys.NAME_RULE in done.stderr
+    assert "Traceback" not in done.stderr
