@@ -120,8 +120,8 @@ class Fleet:
 
 
 @contextlib.contextmanager
-def fleet(env: dict[str, str]) -> Iterator[Fleet]:
-    group = Fleet(env)
+def fleet(env: dict[str, str], endpoint: str | None = None) -> Iterator[Fleet]:
+    group = Fleet(env, endpoint)
     try:
         yield group
     finally:
