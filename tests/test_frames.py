@@ -317,16 +317,14 @@ def test_every_input_byte_is_accounted_for_exactly_once(
     assert position == len(wire)
 
 
-@pytest.mark.parametrize("max_split", [1, 3, runs.MAX_SPLIT])
-def test_a_long_busy_stream_decodes_alike_in_any_read_size(
-    max_split: int, monkeypatch: pytest.MonkeyPatch
-) -> None:
+@pytest.mark.parametrize("window", [64, 1000, runs.COUNT_WINDOW])
+def test_a_long_busy_stream_decodes_alike_in_any_read_size(window: int, monkeypatch: pytest.MonkeyPatch) -> None:
     """Hundreds of frames, full-size ones among them, with wrecks and false headers in between.
 
-    Long enough for the fast path's rounds of splitting (shrunk here, so that every boundary case
-    occurs) to hand over to the careful path and back many times.
+    Long enough for the fast path's windows (shrunk here, so that every boundary case occurs, a
+    window shorter than a frame among them) to hand over to the careful path and back many times.
     """
-    monkeypatch.setattr(runs, "MAX_SPLIT", max_split)
+    monkeypatch.setattr(runs, "COUNT_WINDOW", window)
     rng = random.Random(5)
     wire, expected = bytearray(), []
     for i in range(600):

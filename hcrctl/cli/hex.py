@@ -86,15 +86,13 @@ def _encoded(settings: Settings, request: C.Request | C.Command) -> bytes:
 def _summarise(ctx: click.Context, settings: Settings, chunks: Iterator[bytes]) -> None:
     """``--summary``: the counts, as text or one JSON object; exit as decode would."""
     from ..hex.summary import Summary
-    from ..protocol.dialect import ProfileDecoder, make_decoder
+    from ..protocol.dialect import make_decoder
 
     counts = Summary(settings.checksum)
     decoder = make_decoder(profile(settings.protocol), settings.checksum)
     for chunk in chunks:
         counts.bytes += len(chunk)
-        counts.add(
-            decoder.feed(chunk) if isinstance(decoder, ProfileDecoder) else decoder.count(chunk, counts.heads)
-        )
+        counts.add(decoder.count(chunk, counts.heads))
     counts.add(decoder.flush())
     click.echo(_json(counts.as_dict()) if settings.as_json else counts.text())
     ctx.exit(0 if counts.all_good else 1)

@@ -1,4 +1,4 @@
-"""The sans-IO frame decoder: fed bytes, it hands back frames and diagnostics.
+"""The sans-IO frame decoder: fed bytes, it hands back frames and diagnostics, under any profile.
 
 It never reads a port, never sleeps and never raises: junk is skipped and
 reported, a bad checksum carries the value expected under each rule, a length
@@ -7,6 +7,20 @@ Frames are delimited by the length field, never by the terminator, because
 binary content can hold ``0D 0A`` (a compass heading of 333.8 degrees does).
 Everything above it (the client, the monitor, ``hex decode``, the simulator)
 reuses it. Standard library only.
+
+One decoder for every dialect, parametrised by the ``Profile``: its terminator
+(v0.11's lone 0A), its checksum verdict (v0.11's per-command rules) and, for a
+firmware that reads any frame, ``lenient``. There used to be a second,
+simpler decoder for v0.11; it restated the header search, the length rule,
+the text lines and the tail, and explained damage less well (a bad length was
+two bytes of header, then junk). One scanner is one set of rules to read and
+test, and v0.11 now gets v0.15's diagnostics; a dialect is data, not code.
+
+The scanner (``_scan``, one header at a time, the checksum by
+``frames.checksum``) is the reference. Its one fast path,
+``runs.bulk_runs``, takes long runs of valid v0.15 frames a window at a time;
+``FrameDecoder(fast=False)`` is the scanner alone, and
+``tests/test_rules_differential.py`` holds the two equal.
 """
 
 from __future__ import annotations
@@ -17,8 +31,6 @@ from typing import Any
 from .frames import (
     HEADER,
     MAX_KEPT,
-    OVERHEAD,
-    TERMINATOR,
     BadChecksum,
     ChecksumRule,
     Event,
@@ -29,7 +41,8 @@ from .frames import (
     _new_frame,
     checksum,
 )
-from .runs import SMALL, FrameRun, TakeParts, bulk_runs, counter_of, small_run, valid_run
+from .profiles import DEFAULT, Profile
+from .runs import SMALL, FrameRun, TakeParts, bulk_runs, counter_of, events_to
 from .textlines import split_skipped
 
 
@@ -57,9 +70,27 @@ class FrameDecoder:
     Memory is bounded: the buffer never holds more than one incomplete frame
     (at most ``MAX_FRAME`` bytes) between calls, and skipped bytes are kept only
     up to ``MAX_KEPT`` per diagnostic.
+
+    ``profile`` is the dialect (v0.15 by default); ``lenient`` takes any
+    checksum, and a host's 0D 0A where a lone 0A ends the frame, as a firmware
+    that ignores them does (the simulated v0.11 board). ``fast=False`` turns
+    off the fast path, leaving the reference scanner alone (for the tests).
     """
 
-    def __init__(self, rule: ChecksumRule = ChecksumRule.HEADER) -> None:
+    def __init__(
+        self,
+        rule: ChecksumRule = ChecksumRule.HEADER,
+        profile: Profile = DEFAULT,
+        *,
+        lenient: bool = False,
+        fast: bool = True,
+    ) -> None:
+        self.profile = profile
+        self.lenient = lenient
+        self._term = profile.terminator
+        self._overhead = profile.overhead
+        #: The fast path knows v0.15 frames under one rule only: any other dialect is scanned.
+        self._fast = fast and profile is DEFAULT and not lenient
         self.rule = ChecksumRule(rule)
         self._buf = b""  # bytes, not bytearray: scanned and sliced as is, with no snapshot copy
         self._base = 0  # stream offset of _buf[0]
@@ -74,8 +105,6 @@ class FrameDecoder:
     @rule.setter
     def rule(self, rule: ChecksumRule) -> None:
         self._rule = ChecksumRule(rule)
-        #: What the rule adds to the sum from the header: the one place the fast paths learn the rule.
-        self._bias = 0 if self._rule is ChecksumRule.HEADER else 1
 
     @property
     def buffered(self) -> int:
@@ -86,27 +115,29 @@ class FrameDecoder:
     def wanted(self) -> int:
         """Bytes still missing from the frame in progress (at least 1): what a reader asks its port for,
         instead of waking once per byte while a frame trickles in at line speed."""
-        buf = self._buf
+        buf, overhead = self._buf, self._overhead
         if len(buf) >= 4 and buf[:2] == HEADER:
-            return max(1, buf[3] + OVERHEAD - len(buf))
-        return max(1, OVERHEAD - len(buf))
+            return max(1, buf[3] + overhead - len(buf))
+        return max(1, overhead - len(buf))
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[Event]:
         """Decode what ``data`` completes. Never raises on any input."""
-        return self._feed(data, [])
+        out: list[Event] = []
+        if data:
+            self._buf += data
+            self._scan(out)
+        return out
 
     def _feed(self, data: bytes | bytearray | memoryview, out: list[Event]) -> list[Event]:
         if data:
             self._buf += data
-            if self._pending is None and len(self._buf) <= SMALL:
-                self._small(out)
-            else:
-                self._scan(out)
+            self._scan(out)
         return out
 
     def count(self, data: bytes, heads: Counter[bytes]) -> list[Event]:
         """``feed`` for a summary: each frame of a run of valid frames is counted in ``heads`` (by its
-        address, length and command bytes, ``frame[2:5]``), not returned; other events are returned."""
+        address, length and command bytes, ``frame[2:5]``), not returned; other events are returned
+        (every frame, under a profile the fast path does not know)."""
         return self._bulk(data, counter_of(heads), [])
 
     def feed_runs(self, data: bytes) -> list[Event | FrameRun]:
@@ -127,13 +158,6 @@ class FrameDecoder:
         finally:
             self._runs = None
 
-    def _small(self, out: list[Event]) -> None:
-        """The live path: a few bytes, usually whole frames then part of one; anything else goes to ``_scan``."""
-        pos, clean = small_run(self._buf, self._bias, self._base, out.append)
-        self._compact(pos)
-        if not clean:
-            self._scan(out)
-
     def flush(self) -> list[Event]:
         """End of input: report whatever is still held back, and reset."""
         out: list[Event] = []
@@ -143,7 +167,7 @@ class FrameDecoder:
             buf = b""
         self._close_pending(out)
         if buf:
-            size = buf[3] + OVERHEAD if len(buf) >= 4 else OVERHEAD
+            size = buf[3] + self._overhead if len(buf) >= 4 else self._overhead
             out.append(Truncated(self._base, bytes(buf), size - len(buf)))
         self._base += len(self._buf)
         self._buf = b""
@@ -175,20 +199,26 @@ class FrameDecoder:
     # -- the scanner ------------------------------------------------------
 
     def _scan(self, out: list[Event]) -> None:
-        """One pass over the buffer, one header at a time.
+        """One pass over the buffer, one header at a time: the reference.
 
-        Runs of valid frames go to ``_valid_run`` (the hot path); whatever it
-        cannot take is examined here and explained. It scans an immutable
-        snapshot, so that slices come out as ``bytes`` in a single copy.
+        A long run of valid frames goes to the fast path (``runs.bulk_runs``)
+        first; whatever it cannot take is examined here and explained. It scans
+        an immutable snapshot, so that slices come out as ``bytes`` in a single
+        copy.
         """
         buf = raw = self._buf
         n = len(buf)
         pos = 0
-        bias = self._bias
+        overhead, term, tail, lenient = self._overhead, self._term, len(self._term) + 1, self.lenient
+        base = self._base
+        # under v0.15 the rule is the verdict: checked here, with no call to ``_checks_out`` per frame
+        rule, checks_out = self._rule, None if self.profile is DEFAULT and not lenient else self._checks_out
         find = buf.find
         h = find(HEADER)
         while True:
             if h != pos:
+                if h < 0 and pos == n:  # the buffer ended with a frame: the common case, nothing left
+                    break
                 if h < 0:
                     keep = max(pos, n - 1 if buf[n - 1 :] == b"\x55" else n)
                     self._skip(out, pos, keep)
@@ -197,29 +227,38 @@ class FrameDecoder:
                     pos = keep
                     break
                 self._skip(out, pos, h)
-            if n - h < OVERHEAD:
+            if n - h < overhead:
                 pos = h
                 break
-            if self._pending is None:
-                if self._runs is None:
-                    pos, h = valid_run(buf, h, bias, self._base, out.append)
-                else:
-                    pos, h = bulk_runs(buf, h, bias, self._runs)
-                if h != pos or n - h < OVERHEAD:
+            if n - h > SMALL and self._fast and self._pending is None:
+                pos, h = bulk_runs(buf, h, self._rule, self._runs or events_to(out.extend, self._base))
+                if h != pos or n - h < overhead:
                     continue
-            end = h + buf[h + 3] + OVERHEAD
-            if end > n:
-                resync = self._complete_frame_after(h, n)
+            ck = h + buf[h + 3] + 5
+            end = ck + tail
+            if end > n:  # wait for the rest, unless a later header starts a frame that is whole already
+                resync = -1 if find(HEADER, h + 1) < 0 else self._complete_frame_after(h, n)
                 if resync < 0:
                     pos = h
                     break
                 self._skip(out, h, resync, abandon=True)
                 pos = h = resync
                 continue
-            ck = end - 3
-            if buf[end - 2] == 0x0D and buf[end - 1] == 0x0A:
-                if (sum(buf[h:ck]) + bias) & 0xFF == buf[ck]:
-                    pos, h = self._take(out, buf, h, end)
+            if lenient and buf[end - 1] == 0x0D:  # a host's 0D 0A: the firmware reads on to the 0A
+                if end == n:
+                    pos = h
+                    break
+                end += buf[end] == 0x0A
+            if buf.endswith(term, h, end):
+                if checksum(buf[h:ck], rule) == buf[ck] if checks_out is None else checks_out(buf, h, ck):
+                    nxt = find(HEADER, h + 2)
+                    if (nxt < 0 or nxt >= end) and self._pending is None:  # ``_take``'s plainest case, inline
+                        out.append(
+                            _new_frame(Frame, (buf[h + 2], buf[h + 4], buf[h + 5 : ck], buf[ck], base + h))
+                        )
+                        pos, h = end, nxt
+                        continue
+                    pos, h = self._take(out, buf, h, ck, end)
                     continue
                 pending = self._open_bad_checksum(out, h, ck)
             else:
@@ -229,8 +268,24 @@ class FrameDecoder:
             h = find(HEADER, pos)
         self._compact(pos)
 
-    def _take(self, out: list[Event], buf: bytes, h: int, end: int) -> tuple[int, int]:
-        """Emit the valid frame ``buf[h:end]``; return where to go on, and the next header.
+    def _checks_out(self, buf: bytes, h: int, ck: int) -> bool:
+        """Whether the checksum at ``ck`` passes for ``buf[h:ck]``: by the rule, or by the profile's verdict."""
+        if self.lenient:
+            return True
+        if self.profile is DEFAULT:
+            return checksum(buf[h:ck], self._rule) == buf[ck]
+        return self.profile.verdict(buf[h:ck], buf[ck], self._rule).ok
+
+    def _expected(self, body: bytes) -> tuple[int, int]:
+        """What the checksum of ``body`` should have been, and under the other rule (-1: the profile
+        judges by its firmware's own rules, with no other one to offer)."""
+        if self.profile is DEFAULT:
+            return checksum(body, self._rule), checksum(body, self._rule.other)
+        expected = self.profile.verdict(body, -1, self._rule).expected
+        return (-1 if expected is None else expected), -1
+
+    def _take(self, out: list[Event], buf: bytes, h: int, ck: int, end: int) -> tuple[int, int]:
+        """Emit the valid frame ``buf[h:end]`` (checksum at ``ck``); return where to go on, and the next header.
 
         A header inside its content may start a valid frame that ends first. A
         byte-at-a-time reader would meet that one whole first and yield to it,
@@ -238,13 +293,13 @@ class FrameDecoder:
         """
         nxt = buf.find(HEADER, h + 2)
         if 0 <= nxt < end:
-            inner = self._complete_frame_after(h, end - 1) if nxt < end - OVERHEAD else -1
+            inner = self._complete_frame_after(h, end - 1) if nxt < end - self._overhead else -1
             if inner >= 0:
                 self._skip(out, h, inner, abandon=True)
                 return inner, inner
             nxt = buf.find(HEADER, end)
-        self._close_pending(out)
-        ck = end - 3
+        if self._pending is not None:
+            self._close_pending(out)
         out.append(_new_frame(Frame, (buf[h + 2], buf[h + 4], buf[h + 5 : ck], buf[ck], self._base + h)))
         return end, nxt
 
@@ -295,7 +350,7 @@ class FrameDecoder:
         p = self._pending
         if p is not None and p.kind == "malformed":
             kept = p.kept
-            if kept.find(TERMINATOR, p.mark + 6) < 0:
+            if kept.find(self._term, p.mark + 6) < 0:
                 p.mark = len(kept)  # past MAX_KEPT nothing more is kept, and the run just grows
                 return p
         return self._open(out, "malformed", h, (declared,))
@@ -303,14 +358,7 @@ class FrameDecoder:
     def _open_bad_checksum(self, out: list[Event], h: int, ck: int) -> _Pending:
         buf = self._buf
         body = bytes(buf[h:ck])
-        extra = (
-            buf[h + 2],
-            buf[h + 4],
-            body[5:],
-            buf[ck],
-            checksum(body, self.rule),
-            checksum(body, self.rule.other),
-        )
+        extra = (buf[h + 2], buf[h + 4], body[5:], buf[ck], *self._expected(body))
         return self._open(out, "checksum", h, extra)
 
     def _close_pending(self, out: list[Event]) -> None:
@@ -324,7 +372,7 @@ class FrameDecoder:
             return
         if p.kind == "checksum":
             address, command, content, received, expected, other = p.extra
-            used = min(len(content) + OVERHEAD, p.size)
+            used = min(len(content) + self._overhead, p.size)
             out.append(
                 BadChecksum(
                     p.offset, address, command, content, received, expected, other, self.rule, data[:used]
@@ -344,7 +392,7 @@ class FrameDecoder:
         (declared,) = p.extra
         mark = p.mark
         if mark:
-            if mark >= len(data) - 6 or data.find(TERMINATOR, mark + 6) < 0:
+            if mark >= len(data) - 6 or data.find(self._term, mark + 6) < 0:
                 out.append(Malformed(p.offset, declared, data, p.size))
                 return p.size
             out.append(Malformed(p.offset, declared, data[:mark], mark))
@@ -357,19 +405,20 @@ class FrameDecoder:
 
     def _malformed(self, offset: int, declared: int, data: bytes, size: int) -> Malformed:
         """One malformed frame (or run of them), re-read with the length its terminator suggests."""
-        term = data.find(TERMINATOR, 6)
+        term = data.find(self._term, 6)
         if term < 0:
             return Malformed(offset, declared, data, size)
-        body = data[: term - 1]
+        body, end = data[: term - 1], term + len(self._term)
+        expected, other = self._expected(body)
         return Malformed(
             offset,
             declared,
-            data[: term + 2],
-            term + 2,
+            data[:end],
+            end,
             suggested_length=term - 6,
             received=data[term - 1],
-            expected=checksum(body, self.rule),
-            other=checksum(body, self.rule.other),
+            expected=expected,
+            other=other,
         )
 
     def _complete_frame_after(self, h: int, limit: int) -> int:
@@ -382,13 +431,13 @@ class FrameDecoder:
         applying the same choice to a complete frame holding another one keeps
         the frames found independent of how the input was chunked.
         """
-        buf = self._buf
+        buf, overhead = self._buf, self._overhead
         best, best_end = -1, limit + 1
         at = buf.find(HEADER, h + 1)
-        while at >= 0 and at + OVERHEAD < best_end:
-            end = at + buf[at + 3] + OVERHEAD
-            whole = end < best_end and buf[end - 2 : end] == TERMINATOR
-            if whole and checksum(buf[at : end - 3], self.rule) == buf[end - 3]:
+        while at >= 0 and at + overhead < best_end:
+            ck = at + buf[at + 3] + 5
+            end = ck + 1 + len(self._term)
+            if end < best_end and buf.endswith(self._term, at, end) and self._checks_out(buf, at, ck):
                 best, best_end = at, end
             at = buf.find(HEADER, at + 1)
         return best

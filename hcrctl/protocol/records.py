@@ -25,6 +25,7 @@ from .frames import (
     Malformed,
     TextLine,
     Truncated,
+    checksum,
 )
 from .jsontext import flat_dict_encoder
 from .profiles import DEFAULT, LONE_LF_HINT, V011, Profile, lone_lf_frame
@@ -46,7 +47,9 @@ def event_dict(
         body = HEADER + bytes((event.address, len(event.content), event.command)) + event.content
         return {"offset": event.offset, **frame_dict(body, received, rule, direction, profile)}
     if isinstance(event, Malformed):
-        return _lone_lf(_malformed_dict(event, rule, direction), event.data, rule, direction, profile)
+        return _lone_lf(
+            _malformed_dict(event, rule, direction, profile), event.data, rule, direction, profile
+        )
     if isinstance(event, Junk):
         if profile.raw_byte(event.data):  # named as the summaries count it: a raw bumper byte, not junk
             note = f"the byte {profile.name} firmware streams before each IR frame"
@@ -105,10 +108,7 @@ def frame_dict(
     if profile is not DEFAULT:
         return _profile_frame_dict(body, received, rule, direction, profile)
     address, command, content = body[2], body[4], body[5:]
-    by_address = sum(body[2:])  # the address rule's sum; the text rule's adds the header
-    by_header = (by_address + body[0] + body[1]) & 0xFF
-    by_address &= 0xFF
-    expected, other = (by_header, by_address) if rule == ChecksumRule.HEADER else (by_address, by_header)
+    expected, other = checksum(body, rule), checksum(body, rule.other)
     cmd = C.BY_CODE.get(command)
     out: dict[str, Any] = {
         "address": address,
@@ -140,10 +140,12 @@ def frame_json(
     """``encode(frame_dict(...))`` of a frame, without its opening brace, and whether the row has no
     ``error``; made without the dict, for ``hex decode --json``'s frames not seen lately.
 
-    Only under the default profile, for a frame whose checksum passes under
-    ``rule`` (None otherwise: the ordinary path explains it). The keys and
-    values are ``frame_dict``'s, in its order, so the text is the same;
-    ``tests/test_hex_fastpaths.py`` holds the two to it, frame by frame.
+    The fast path of a frame's JSON; its reference is ``frame_dict`` (and
+    ``event_dict``), encoded. Only under the default profile, for a frame
+    whose checksum passes under ``rule`` (None otherwise: the ordinary path
+    explains it). The keys and values are ``frame_dict``'s, in its order, so
+    the text is the same; ``tests/test_rules_differential.py`` and
+    ``tests/test_hex_fastpaths.py`` hold the two to it, frame by frame.
     """
     return frame_part_json(rule, frame, json_of_parts(encode))
 
@@ -162,7 +164,12 @@ PartText = Callable[[ChecksumRule, bytes], tuple[str, bool]]
 
 def json_of_parts(encode: Callable[[Any], str]) -> PartText:
     """``frame_json`` of frames known to be valid, from their bytes after the header (``FrameRun``'s
-    parts), with ``encode`` bound: a view calls it once per new frame, and a closure is the cheapest call."""
+    parts), with ``encode`` bound: a view calls it once per new frame, and a closure is the cheapest call.
+
+    The fast path of ``frame_dict`` (its reference) for ``hex decode --json``:
+    what depends only on the command, the side and the rule is made once
+    (``_json_head``), and the verdict for each checksum byte once
+    (``_verdicts``, from ``frames.checksum``)."""
 
     def part_text(rule: ChecksumRule, part: bytes) -> tuple[str, bool]:
         command, content = part[2], part[3:-3]
@@ -192,15 +199,22 @@ def json_of_parts(encode: Callable[[Any], str]) -> PartText:
 def _verdicts(rule: ChecksumRule) -> tuple[str, ...]:
     """For each checksum byte, a valid frame's JSON from the payload's closing quote to ``"fields": ``.
 
-    The other rule's sum differs by the header's 55 + AA (0xFF more under the
-    address rule, so 1 less), never by a multiple of 256: it never matches too.
+    What the other rule gives a frame that passes with a checksum byte c is
+    the same for every such frame (the rules differ by the header's share, a
+    constant), so it is read off one frame per byte, made by ``frames.checksum``
+    itself: the rule is stated there only.
     """
+    others = {}
+    for address in range(256):
+        body = HEADER + bytes((address, 0, 0))
+        others[checksum(body, rule)] = checksum(body, rule.other)
     texts = []
     for received in range(256):
-        other = (received + 1 if rule is ChecksumRule.HEADER else received + 0xFF) & 0xFF
+        other = others[received]
         texts.append(
             f'", "checksum": {received}, "checksum_ok": true, "expected": {received}, '
-            f'"rule": "{rule.value}", "other": {other}, "other_ok": false, "fields": '
+            f'"rule": "{rule.value}", "other": {other}, "other_ok": {"true" if other == received else "false"}, '
+            '"fields": '
         )
     return tuple(texts)
 
@@ -282,7 +296,9 @@ def _kind(cmd: C.Command | None, code: int, content: bytes, direction: str | Non
     return "broadcast" if cmd.kind == "broadcast" else "reply"
 
 
-def _malformed_dict(event: Malformed, rule: ChecksumRule, direction: str | None) -> dict[str, Any]:
+def _malformed_dict(
+    event: Malformed, rule: ChecksumRule, direction: str | None, profile: Profile = DEFAULT
+) -> dict[str, Any]:
     """A wrong length field; when a terminator stands further on, the frame read as if it were right."""
     out: dict[str, Any] = {
         "offset": event.offset,
@@ -294,7 +310,7 @@ def _malformed_dict(event: Malformed, rule: ChecksumRule, direction: str | None)
     }
     if event.suggested_length is not None:
         body = event.data[: 5 + event.suggested_length]
-        out.update(frame_dict(body, event.data[len(body)], rule, direction))
+        out.update(frame_dict(body, event.data[len(body)], rule, direction, profile))
         out["suggested_length"] = event.suggested_length
     return out
 
