@@ -1,8 +1,11 @@
 """The robot's queryables: a one-shot ``read/<sensor>``, a non-motion ``write``, and ``info``.
 
 A read or write goes through the same serial link the feed polls (the
-``Robot`` is shared: its transaction lock lets one exchange at a time, so a
-query waits for at most the sweep in progress). Zenoh calls a queryable on
+``Robot`` is shared: its transaction lock lets one exchange at a time). That
+lock is not fair: a poller sweeping as fast as replies come could take it
+again and again ahead of a query, so a query holds the poller back while it
+waits (``Turnstile``, the poller's own pause, seen between sweeps) and waits
+for at most the sweep in flight. Zenoh calls a queryable on
 its own threads, which must not wait on a serial line, so each query is
 answered from a small pool (``Answers``); more than ``MAX_PENDING`` waiting
 is a busy robot, said at once. Every answer is JSON: the reply frame's hex
@@ -12,10 +15,11 @@ an error with the one-line text hcrctl would print and its hint.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
@@ -108,6 +112,28 @@ def write(robot: Robot, message: dict[str, Any]) -> dict[str, Any]:
     if answer is not None:
         body["reply"] = answer.fields()
     return body
+
+
+class Turnstile:
+    """Queries before sweeps: while any query is in, the poller's pause is set (it sits out its next sweep)."""
+
+    def __init__(self, paused: threading.Event) -> None:
+        self._paused = paused
+        self._lock = threading.Lock()
+        self._inside = 0
+
+    @contextlib.contextmanager
+    def __call__(self) -> Iterator[None]:
+        with self._lock:
+            self._inside += 1
+            self._paused.set()
+        try:
+            yield
+        finally:
+            with self._lock:
+                self._inside -= 1
+                if not self._inside:
+                    self._paused.clear()
 
 
 class Answers:

@@ -166,6 +166,7 @@ class Serving:
         self.options = options
         self.started = time.time()
         self.answers = queries.Answers()
+        self.turnstile = queries.Turnstile(feed.poller.paused)
         self.drive = FleetDrive(name, governor, self.say, self._profile)
         self.declared: list[Any] = []
 
@@ -235,10 +236,15 @@ class Serving:
     # -- the handlers ----------------------------------------------------------------
 
     def _read(self, sensor: str) -> queries.Work:
-        return lambda message: queries.read(self.robot, sensor, message)
+        def read(message: dict[str, Any]) -> dict[str, Any]:
+            with self.turnstile():
+                return queries.read(self.robot, sensor, message)
+
+        return read
 
     def _write(self, message: dict[str, Any]) -> dict[str, Any]:
-        return queries.write(self.robot, message)
+        with self.turnstile():
+            return queries.write(self.robot, message)
 
     def _info(self, message: dict[str, Any]) -> dict[str, Any]:
         robot, options = self.robot, self.options
