@@ -1,0 +1,326 @@
+"""A fleet on Zenoh: readings' latency and each robot's cost as robots are added; zenoh:// reads; safety stops.
+
+Run from the repository root: ``python bench/bench_fleet.py [--robots 1,5,20] [--seconds 10] [--rounds 7]``.
+
+1. For each N: a router on a free loopback port and N ``hcrctl fleet serve rK``
+   on ``sim://``, each polling at 10 Hz, and one operator (this process, a
+   Zenoh peer) subscribed to every robot's readings (``hcr/*/compass``, ...).
+   Latency is from the message's ``time`` (when the robot side decoded the
+   reply, wall clock, same host) to the operator's callback: median and p99.
+   Each serve's CPU (utime + stime over the window, % of one core) and memory
+   (VmRSS at the end) are read from /proc; the operator's own CPU too. How
+   each grows with N is its ratio to N = 1.
+2. ``hcrctl read compass`` through ``--port zenoh://r1`` against the same
+   one-shot on a local pty (``hcrctl sim --pty``), alternating, ``--rounds``
+   of each; the figure is the ratio of the medians. Target <= 1.5x.
+3. Safety on the robot's wire (the serve's ``--log``): an operator driving
+   (``drive power 30 30``) killed with ``kill -9``, to the stop frame (target
+   0.5 s; the serve's deadman is 10 s, so the stop is the token's); frozen
+   with SIGSTOP, to the stop frame (target the deadman, 0.5 s, + 0.2 s).
+   ``--rounds`` of each; the worst is held to the target.
+
+It prints the figures, writes ``bench/results/bench_fleet.json`` and exits 1
+if a target is missed. Needs the zenoh extra.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import os
+import signal
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Iterator
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+from _common import record
+from _simpty import hcrctl_exe, sim_pty
+
+from hcrctl.fleet.session import Where, open_session
+from hcrctl.protocol import commands as C
+
+READ_RATIO = 1.5
+KILL_STOP_S = 0.5
+DEADMAN_S = 0.5
+FREEZE_STOP_S = DEADMAN_S + 0.2
+TICK = os.sysconf("SC_CLK_TCK")
+STOP = C.encode_request(C.STOP)
+POWER = C.encode_request(C.MotorPower(30, 30))
+
+
+def free_endpoint() -> str:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return f"tcp/127.0.0.1:{sock.getsockname()[1]}"
+
+
+class Procs:
+    """Children in sessions of their own, output to files; every one killed on exit."""
+
+    def __init__(self, tmp: Path) -> None:
+        self.tmp, self.all, self._n = tmp, [], 0
+
+    def start(self, *args: str) -> tuple[subprocess.Popen[bytes], Path]:
+        self._n += 1
+        err = self.tmp / f"{self._n}.err"
+        with err.open("wb") as stderr:
+            proc = subprocess.Popen(
+                [hcrctl_exe(), *args],
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=stderr,
+                start_new_session=True,
+            )
+        self.all.append(proc)
+        return proc, err
+
+    def close(self) -> None:
+        for proc in self.all:
+            if proc.poll() is None:
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
+def wait_for(check: Any, timeout: float = 60.0, what: str = "condition") -> Any:
+    deadline = time.monotonic() + timeout
+    while not (value := check()):
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"timed out waiting for {what}")
+        time.sleep(0.005)
+    return value
+
+
+@contextlib.contextmanager
+def fleet(tmp: Path) -> Iterator[tuple[Procs, str]]:
+    procs = Procs(tmp)
+    endpoint = free_endpoint()
+    try:
+        procs.start("fleet", "router", "--listen", endpoint)
+        yield procs, endpoint
+    finally:
+        procs.close()
+
+
+def serve(
+    procs: Procs, endpoint: str, name: str, *options: str, log: Path | None = None
+) -> subprocess.Popen[bytes]:
+    logging = ["--log", str(log)] if log else []
+    proc, err = procs.start(
+        "--zenoh", endpoint, "--port", "sim://", *logging, "fleet", "serve", name, *options
+    )
+    wait_for(lambda: f"serving {name}" in err.read_text(), what=f"fleet serve {name}")
+    return proc
+
+
+# -- 1. many robots, one operator ---------------------------------------------------------------
+
+
+def cpu_ticks(pid: int) -> int:
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return int(fields[11]) + int(fields[12])  # utime, stime (fields 14 and 15 of stat)
+
+
+def rss_mb(pid: int) -> float:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+def percentile(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
+
+
+def many(n: int, seconds: float, tmp: Path) -> dict[str, Any]:
+    with fleet(tmp) as (procs, endpoint):
+        serves = [serve(procs, endpoint, f"r{k}") for k in range(n)]
+        latencies: list[float] = []
+        seen: set[str] = set()
+        lock = threading.Lock()
+
+        def heard(sample: Any) -> None:
+            now = time.time()
+            message = json.loads(sample.payload.to_bytes())
+            with lock:
+                latencies.append(now - message["time"])
+                seen.add(str(sample.key_expr).split("/")[1])
+
+        session = open_session("peer", Where((endpoint,), ()))
+        subs = [session.declare_subscriber(f"hcr/*/{sensor}", heard) for sensor in C.SENSORS]
+        wait_for(lambda: len(seen) == n, what=f"readings from all {n} robots")
+        with lock:
+            latencies.clear()
+        before = {p.pid: cpu_ticks(p.pid) for p in serves}
+        own, start = time.process_time(), time.monotonic()
+        time.sleep(seconds)
+        wall = time.monotonic() - start
+        own = time.process_time() - own
+        cpu = [(cpu_ticks(p.pid) - before[p.pid]) / TICK / wall * 100 for p in serves]
+        rss = [rss_mb(p.pid) for p in serves]
+        with lock:
+            got = list(latencies)
+        for sub in subs:
+            sub.undeclare()
+        session.close()
+    expected = n * len(C.SENSORS) * 10 * wall
+    return {
+        "robots": n,
+        "messages": len(got),
+        "delivered": round(len(got) / expected, 3),
+        "latency_median_ms": round(statistics.median(got) * 1e3, 3),
+        "latency_p99_ms": round(percentile(got, 0.99) * 1e3, 3),
+        "cpu_per_robot_pct": round(statistics.mean(cpu), 2),
+        "rss_per_robot_mb": round(statistics.mean(rss), 1),
+        "operator_cpu_pct": round(own / wall * 100, 2),
+    }
+
+
+# -- 2. a one-shot read through the fleet against a local pty -----------------------------------
+
+
+def one_shot(*args: str) -> float:
+    start = time.perf_counter()
+    subprocess.run([hcrctl_exe(), *args, "read", "compass"], check=True, capture_output=True, timeout=60)
+    return time.perf_counter() - start
+
+
+def reads(rounds: int, tmp: Path) -> dict[str, Any]:
+    with fleet(tmp) as (procs, endpoint), sim_pty() as pty:
+        serve(procs, endpoint, "r1")
+        fleet_s, local_s = [], []
+        one_shot("--zenoh", endpoint, "--port", "zenoh://r1")  # warm the caches alike
+        one_shot("--port", pty)
+        for _ in range(rounds):
+            fleet_s.append(one_shot("--zenoh", endpoint, "--port", "zenoh://r1"))
+            local_s.append(one_shot("--port", pty))
+    zenoh, local = statistics.median(fleet_s), statistics.median(local_s)
+    return {
+        "fleet_read_ms": round(zenoh * 1e3, 1),
+        "pty_read_ms": round(local * 1e3, 1),
+        "ratio": round(zenoh / local, 3),
+    }
+
+
+# -- 3. a lost operator, to stop on the robot's wire ----------------------------------------------
+
+
+def wire(log: Path) -> list[tuple[float, bytes]]:
+    """(wall time, bytes) of each frame the robot side wrote, from its traffic log."""
+    out = []
+    if log.exists():
+        for line in log.read_text().splitlines(keepends=True):
+            if line.endswith("\n"):
+                item = json.loads(line)
+                if item.get("direction") == "tx":
+                    out.append((datetime.fromisoformat(item["time"]).timestamp(), bytes.fromhex(item["hex"])))
+    return out
+
+
+def moving_since(log: Path, start: int) -> int | None:
+    """The index after the first motion frame at or after ``start``, if one was written."""
+    frames = wire(log)
+    return next((i + 1 for i in range(start, len(frames)) if frames[i][1] == POWER), None)
+
+
+def stop_since(log: Path, start: int) -> float | None:
+    """When the first stop at or after ``start`` was written, if one was."""
+    return next((t for t, data in wire(log)[start:] if data == STOP), None)
+
+
+def lost_operator(sig: signal.Signals, deadman: str, rounds: int, tmp: Path) -> list[float]:
+    """Seconds from ``sig`` to the stop on the wire, per round."""
+    figures = []
+    with fleet(tmp) as (procs, endpoint):
+        log = tmp / f"wire-{sig.name}.jsonl"
+        serve(procs, endpoint, "r1", "--deadman", deadman, log=log)
+        for _ in range(rounds):
+            op, _ = procs.start("--zenoh", endpoint, "--port", "zenoh://r1", "drive", "power", "30", "30")
+            start = len(wire(log))
+            moved = wait_for(lambda start=start: moving_since(log, start), what="motion")
+            at = time.time()
+            os.kill(op.pid, sig)
+            stop = wait_for(lambda moved=moved: stop_since(log, moved), what="stop")
+            figures.append(stop - at)
+            os.killpg(op.pid, signal.SIGKILL)
+            op.wait()
+    return figures
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--robots", default="1,5,20", help="comma-separated robot counts")
+    parser.add_argument("--seconds", type=float, default=10.0, help="measuring window per robot count")
+    parser.add_argument("--rounds", type=int, default=7)
+    args = parser.parse_args()
+    metrics: dict[str, Any] = {}
+    ok = True
+    with tempfile.TemporaryDirectory(prefix="bench_fleet_") as tmp_dir:
+        tmp = Path(tmp_dir)
+        scaling = []
+        for n in (int(x) for x in args.robots.split(",")):
+            row = many(n, args.seconds, tmp)
+            scaling.append(row)
+            print(
+                f"  {n:3} robots: {row['messages']} readings ({row['delivered']:.0%} of 10 Hz x {len(C.SENSORS)}), "
+                f"latency median {row['latency_median_ms']:.2f} ms, p99 {row['latency_p99_ms']:.2f} ms; "
+                f"per robot {row['cpu_per_robot_pct']:.1f} % CPU, {row['rss_per_robot_mb']:.1f} MB; "
+                f"operator {row['operator_cpu_pct']:.1f} % CPU"
+            )
+        base = scaling[0]
+        for row in scaling:
+            row["latency_growth"] = round(row["latency_median_ms"] / base["latency_median_ms"], 2)
+            row["cpu_growth"] = round(row["cpu_per_robot_pct"] / base["cpu_per_robot_pct"], 2)
+            row["rss_growth"] = round(row["rss_per_robot_mb"] / base["rss_per_robot_mb"], 2)
+        print(
+            "  growth against 1 robot: "
+            + "; ".join(
+                f"{r['robots']}: latency {r['latency_growth']}x, CPU/robot {r['cpu_growth']}x, RSS/robot {r['rss_growth']}x"
+                for r in scaling
+            )
+        )
+        metrics["scaling"] = scaling
+        read = reads(args.rounds, tmp)
+        metrics["read_compass"] = read
+        good = read["ratio"] <= READ_RATIO
+        ok &= good
+        print(
+            f"  {'ok  ' if good else 'MISS'} read compass via zenoh:// {read['fleet_read_ms']} ms, "
+            f"local pty {read['pty_read_ms']} ms: {read['ratio']}x (target <= {READ_RATIO})"
+        )
+        for label, sig, deadman, target in (
+            ("kill -9", signal.SIGKILL, "10", KILL_STOP_S),
+            ("SIGSTOP", signal.SIGSTOP, str(DEADMAN_S), FREEZE_STOP_S),
+        ):
+            figures = lost_operator(sig, deadman, args.rounds, tmp)
+            worst = max(figures)
+            good = worst <= target
+            ok &= good
+            key = "kill_stop" if sig is signal.SIGKILL else "freeze_stop"
+            metrics[key] = {
+                "median_ms": round(statistics.median(figures) * 1e3, 1),
+                "max_ms": round(worst * 1e3, 1),
+                "deadman_s": float(deadman),
+                "target_ms": target * 1e3,
+            }
+            print(
+                f"  {'ok  ' if good else 'MISS'} {label} to stop on the wire: median "
+                f"{statistics.median(figures) * 1e3:.1f} ms, max {worst * 1e3:.1f} ms (target <= {target * 1e3:.0f} ms)"
+            )
+    metrics["load"] = round(os.getloadavg()[0], 2)
+    record("bench_fleet", metrics)
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
