@@ -98,3 +98,33 @@ def test_a_second_serve_of_one_name_is_refused(lab: Fleet) -> None:
     err = second.stderr.read().decode()
     assert "a robot named twin is already in the fleet" in err
     assert lab.names() == {"twin"}
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP])
+def test_the_router_says_where_it_listens_and_ends_cleanly_on_a_signal(env: dict[str, str], sig: int) -> None:
+    with fleet(env) as group:
+        router = group.start([*group.zenoh, "fleet", "router"])
+        assert readline(router) == f"listening on {group.endpoint}"
+        wait_until(lambda: group.listed() == [], what="the router answering")
+        router.send_signal(sig)
+        assert router.wait(timeout=TIMEOUT) == 0
+
+
+@pytest.mark.parametrize(
+    "args",
+    [["fleet", "router"], ["--json", "fleet", "list"], ["--port", "sim://", "fleet", "serve", "r1"]],
+    ids=["router", "list", "serve"],
+)
+def test_without_zenoh_one_line_names_the_extra(tmp_path: Path, args: list[str]) -> None:
+    """A ``zenoh`` that cannot be found (a package that says so on import) stands for the extra missing."""
+    shadow = tmp_path / "shadow" / "zenoh"
+    shadow.mkdir(parents=True)
+    (shadow / "__init__.py").write_text(
+        "raise ModuleNotFoundError(\"No module named 'zenoh'\", name='zenoh')\n"
+    )
+    env = clean_env(tmp_path, PYTHONPATH=str(shadow.parent))
+    with fleet(env) as group:
+        done = group.run(args)
+    assert done.returncode == 1 and done.stdout == ""
+    (line,) = done.stderr.splitlines()
+    assert "pip install 'hcrctl[zenoh]'" in line

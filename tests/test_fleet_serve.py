@@ -234,3 +234,12 @@ def test_a_bad_name_is_a_usage_error_naming_the_rule(env: dict[str, str], name: 
     assert done.returncode == 2
     assert "NAME" in done.stderr and keys.NAME_RULE in done.stderr
     assert "Traceback" not in done.stderr
+
+
+def test_a_port_that_will_not_open_is_one_line_and_no_robot(lab: Fleet, tmp_path: Path) -> None:
+    missing = str(tmp_path / "no-such-tty")
+    done = lab.run(["--port", missing, *lab.zenoh, "fleet", "serve", "ghost"])
+    assert done.returncode == 1
+    (line,) = done.stderr.splitlines()
+    assert missing in line and "Traceback" not in line
+    assert lab.listed() == []

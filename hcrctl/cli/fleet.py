@@ -72,7 +72,8 @@ def fleet() -> None:
     "--listen",
     type=Endpoint(),
     multiple=True,
-    help="Where to listen; repeatable. Default: the global --zenoh endpoints, else tcp/127.0.0.1:7447.",
+    help="Where to listen; repeatable. Default: the global --zenoh endpoints, else the --zenoh-config "
+    "file's, else tcp/127.0.0.1:7447.",
 )
 @click.pass_obj
 def router(settings: Settings, listen: tuple[str, ...]) -> None:
@@ -82,11 +83,11 @@ def router(settings: Settings, listen: tuple[str, ...]) -> None:
     warns: anyone who reaches it joins the fleet (use --zenoh-config for TLS
     and user/password).
     """
-    from ..fleet.router import listen_endpoints, run_router
+    from ..fleet.router import run_router, where
     from ..fleet.session import import_zenoh
 
     import_zenoh()
-    run_router(listen_endpoints(listen, settings.zenoh), settings.zenoh_config)
+    run_router(where(listen, settings.zenoh, settings.zenoh_config))
 
 
 @fleet.command()

@@ -2,14 +2,15 @@
 
 ``zenohd`` is not on PyPI; ``zenoh.open`` in mode ``router`` is a router.
 It listens where it is told (``--listen``, else the global ``--zenoh``
-endpoints, which is where everyone else will connect, else
-``tcp/127.0.0.1:7447``) and says so on its first line of stdout, flushed, so
+endpoints, which is where everyone else will connect, else a
+``--zenoh-config`` file's, else ``tcp/127.0.0.1:7447``) and says so on its first line of stdout, flushed, so
 a script can wait for it. It connects to nobody unless a ``--zenoh-config``
 says so.
 """
 
 from __future__ import annotations
 
+import json
 import sys
 import threading
 from collections.abc import Sequence
@@ -17,21 +18,28 @@ from collections.abc import Sequence
 from ..link.rescue import warn
 from ..link.signals import stop_signals_handled
 from .keys import DEFAULT_ENDPOINT
-from .session import Where, beyond_loopback, open_session
+from .session import Where, beyond_loopback, config, open_session
 
 
-def listen_endpoints(listen: Sequence[str], zenoh: Sequence[str]) -> tuple[str, ...]:
-    return tuple(listen) or tuple(zenoh) or (DEFAULT_ENDPOINT,)
+def where(listen: Sequence[str], zenoh: Sequence[str], config_file: str | None) -> Where:
+    """``--listen``, else the ``--zenoh`` endpoints, else (in ``session``) the file's, else the default."""
+    return Where((), tuple(listen) or tuple(zenoh), config_file)
 
 
-def run_router(listen: Sequence[str], config_file: str | None) -> None:
+def listening(at: Where) -> list[str]:
+    """Where a router at ``at`` listens, as its configuration says once every source is applied."""
+    found = json.loads(config("router", at).get_json("listen/endpoints"))
+    return [str(e) for e in found] if isinstance(found, list) else [DEFAULT_ENDPOINT]
+
+
+def run_router(at: Where) -> None:
     """Route until a stop signal (or Ctrl-C); then close and return (exit status 0)."""
-    endpoints = tuple(listen)
+    endpoints = listening(at)
     for endpoint in beyond_loopback(endpoints):
         warn(f"listening on {endpoint}: anyone on the network who can reach it joins the fleet")
     done = threading.Event()
     with stop_signals_handled(lambda signum, frame: done.set()):
-        session = open_session("router", Where((), endpoints, config_file))
+        session = open_session("router", at)
         try:
             sys.stdout.write(f"listening on {' '.join(endpoints)}\n")
             sys.stdout.flush()

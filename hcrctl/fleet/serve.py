@@ -32,6 +32,7 @@ from ..feeds.bridge_stop import stopping_driven
 from ..feeds.source import Feed
 from ..link.context import Connection, Reconnect
 from ..link.dialects import supported_sensors
+from ..link.loopback import is_loopback
 from ..link.rescue import DEADMAN_S, warn
 from ..link.signals import Terminated, stop_signals_handled
 from ..live.teleop import bumper_hit
@@ -377,7 +378,7 @@ def _foxglove_server(options: Options, governor: Governor, notes: Notes, topics:
     from ..feeds.bridge_server import Server
 
     host, port = options.foxglove
-    if host not in ("127.0.0.1", "::1", "localhost"):
+    if not is_loopback(host):
         warn(f"Foxglove on {host}: anyone on the network who can reach it can drive the robot")
     cmd_vel = CmdVelSource(governor, notes.note)
     return Server(topics, host, port, None, cmd_vel, notes.note, options.encoding)
