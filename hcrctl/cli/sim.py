@@ -2,7 +2,8 @@
 
 The first stdout line is what a client opens (the device path, or the
 ``socket://`` URL), flushed at once, so scripts and tests can start the server
-and read one line; how to stop goes to stderr.
+and read one line; how to stop goes to stderr. ``--firmware`` serves a real
+firmware on an emulated chip instead (``sim.firmware``), on a pty.
 """
 
 from __future__ import annotations
@@ -16,13 +17,17 @@ import click
 from ..errors import HcrError, printable
 from ..numtext import NumberError, parse_int
 from ..protocol.profiles import PROFILES
+from ..sim.firmware.pins import MCUS
 from ..sim.options import MAX_BAUD, MAX_SEED, MIN_BAUD, SimOptions
 from .params import IntRange
 
 if TYPE_CHECKING:
+    from ..sim.firmware.serve import FirmwareOptions
     from ..sim.serve import Stopper
 
 DEFAULT_HOST = "127.0.0.1"
+#: The clocks an AVR of these families runs at (Hz).
+MIN_CLOCK, MAX_CLOCK = 1_000_000, 20_000_000
 
 
 @click.command()
@@ -60,6 +65,26 @@ DEFAULT_HOST = "127.0.0.1"
     help="The robot drives about the room by itself, avoiding what its sensors see, until a client "
     "sends any motion command (stop included): from then on it does only what it is told.",
 )
+@click.option(
+    "--firmware",
+    type=click.Path(dir_okay=False),
+    help="Run this firmware on an emulated chip instead (simavr): an Arduino sketch (.pde, .ino; built "
+    "with avr-gcc and cached) or a built .elf/.hex. UART0 is served on a pty; the motor, bumper, IR and "
+    "light pins are the simulated robot's. Implies --pty. See docs/firmware.md.",
+)
+@click.option("--mcu", type=click.Choice(MCUS), help="The chip, with --firmware.  [default: atmega328p]")
+@click.option(
+    "--clock",
+    type=IntRange(MIN_CLOCK, MAX_CLOCK),
+    help="The chip's clock in Hz, with --firmware.  [default: 16000000]",
+)
+@click.option(
+    "--pins",
+    metavar="MAP",
+    help="With --firmware, the sketch's wiring as name=pin,...: motor1, motor2 (PWM pins), light, "
+    "bump_left, bump_centre, bump_right (digital 2..13), ir1..ir7 (A0..A7).  "
+    "[default: the published firmware's: motor1=5,motor2=6,light=2,bump_left=10,bump_centre=11,bump_right=12,ir1=A0..ir7=A6]",
+)
 def sim(
     use_pty: bool,
     tcp: str | None,
@@ -69,8 +94,21 @@ def sim(
     protocol: str | None,
     seed: int | None,
     wander: bool,
+    firmware: str | None,
+    mcu: str | None,
+    clock: int | None,
+    pins: str | None,
 ) -> None:
     """Serve the simulated robot on a pty or a TCP port until Ctrl-C or SIGTERM."""
+    if firmware is not None:
+        _refuse_with_firmware(
+            tcp=tcp, pace=pace, baud=baud, options=query, protocol=protocol, seed=seed, wander=wander
+        )
+        _serve_firmware(_firmware_options(firmware, mcu, clock, pins))
+        return
+    for name, value in (("--mcu", mcu), ("--clock", clock), ("--pins", pins)):
+        if value is not None:
+            raise click.UsageError(f"{name} goes with --firmware (it sets up the emulated chip)")
     if use_pty == (tcp is not None):
         raise click.UsageError("give exactly one of --pty and --tcp")
     options = _options(query, pace, baud, seed)
@@ -88,6 +126,53 @@ def sim(
             _serve(options, address, stopper)
     except OSError as exc:
         raise serve_error(exc, tcp) from None
+
+
+def _refuse_with_firmware(**given: object) -> None:
+    """The model's options mean nothing to a real firmware, which sets its own baud and protocol."""
+    named = [f"--{name}" for name, value in given.items() if value not in (None, False, "")]
+    if named:
+        raise click.UsageError(
+            f"{', '.join(named)} cannot go with --firmware: the firmware itself decides its baud rate, protocol "
+            "and behaviour; with --firmware give only --mcu, --clock and --pins"
+        )
+
+
+def _firmware_options(path: str, mcu: str | None, clock: int | None, pins: str | None) -> FirmwareOptions:
+    from pathlib import Path
+
+    from ..sim.firmware.build import BUILT_SUFFIXES, SKETCH_SUFFIXES
+    from ..sim.firmware.pins import PinMap, PinMapError
+    from ..sim.firmware.serve import FirmwareOptions
+
+    suffixes = (*SKETCH_SUFFIXES, *BUILT_SUFFIXES)
+    if Path(path).suffix.lower() not in suffixes:
+        raise click.BadParameter(
+            f"expected a sketch or a built firmware ({', '.join(suffixes)}), got {printable(path)!r}",
+            param_hint="'--firmware'",
+        )
+    try:
+        pin_map = PinMap.parse(pins)
+    except PinMapError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--pins'") from None
+    return FirmwareOptions(Path(path), mcu or MCUS[0], clock or 16_000_000, pin_map)
+
+
+def _serve_firmware(options: FirmwareOptions) -> None:
+    from ..sim import serve as simserve
+    from ..sim.firmware.serve import serve_firmware
+
+    try:
+        with simserve.Stopper() as stopper:
+            last = serve_firmware(options, stopper, _announce, _note)
+    except OSError as exc:
+        raise serve_error(exc, None) from None
+    if last is not None:
+        ratio = last.chip / last.wall if last.wall else 1.0
+        _note(
+            f"the chip ran {last.chip:.2f} s in {last.wall:.2f} s of wall time (ratio {ratio:.3f}; "
+            f"{last.slip:.2f} s given up while the host could not keep up)"
+        )
 
 
 def serve_error(exc: OSError, tcp: str | None) -> HcrError:

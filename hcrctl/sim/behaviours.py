@@ -139,10 +139,17 @@ def read_bumpers(sim: Simulator) -> Bumpers:
     return Bumpers(sim.body.bumpers())
 
 
+def ir_angles(count: int | None) -> tuple[float, ...]:
+    """Where the IR sensors look, relative to the heading: ``count`` spread evenly from -90 to 90 degrees
+    (the default five when the profile does not say); the firmware simulator places its seven the same way."""
+    if count is None:
+        return IR_ANGLES
+    return tuple(-90.0 + 180.0 * i / (count - 1) for i in range(count))
+
+
 @reads("ir")
 def read_ir(sim: Simulator) -> Infrared:
-    count = sim.options.profile.ir_count
-    angles = IR_ANGLES if count is None else tuple(-90.0 + 180.0 * i / (count - 1) for i in range(count))
+    angles = ir_angles(sim.options.profile.ir_count)
     return Infrared(tuple(ir_raw(sim.body.range_at(a)) for a in angles))
 
 
