@@ -114,3 +114,45 @@ def test_a_device_error_ends_the_run_through_error() -> None:
     gov.turn(0.0)
     assert isinstance(gov.error, DeviceTimeout) and gov.frames == 0
     assert gov.lease.wheels != STILL  # the caller ends the run, and its final stop goes out
+
+
+def test_an_offer_carrying_its_request_writes_that_request_and_a_continuous_one_is_resent() -> None:
+    wire = Wire()
+    gov = governor(wire)
+    assert gov.offer("a", (30, 30), now=0.0, request=C.MotorSpeed(30, 30))
+    gov.turn(0.0)
+    gov.turn(0.05)  # within RESEND: nothing again
+    gov.turn(0.11)
+    assert wire.sent == [C.MotorSpeed(30, 30), C.MotorSpeed(30, 30)]
+
+
+def test_a_once_request_is_written_once_held_under_the_lease_and_stopped_by_the_deadman() -> None:
+    wire = Wire()
+    gov = governor(wire)
+    for i in range(5):  # the same turn again only renews the lease
+        assert gov.offer("a", (1, -1), now=0.1 * i, request=C.Turn(90), once=True)
+        gov.turn(0.1 * i)
+    assert wire.sent == [C.Turn(90)]
+    gov.offer("a", (-1, 1), now=0.5, request=C.Turn(45, ccw=True), once=True)  # a new one is written
+    gov.turn(0.5)
+    assert wire.sent == [C.Turn(90), C.Turn(45, ccw=True)]
+    gov.turn(0.81)
+    assert wire.last() == "stop" and gov.driver is None
+
+
+def test_a_claim_renews_the_lease_without_touching_the_motion_and_is_refused_to_another() -> None:
+    wire = Wire()
+    gov = governor(wire)
+    assert gov.claim("a", now=0.0)
+    gov.turn(0.0)
+    assert wire.sent == [] and gov.driver == "a"
+    gov.offer("a", (20, 20), now=0.1)
+    gov.turn(0.1)
+    for t in (0.3, 0.5, 0.7):  # claims alone hold the motion past the 0.3 s deadman
+        assert gov.claim("a", now=t)
+        gov.turn(t)
+    assert "stop" not in wire.sent and wire.last() == C.Velocity(20, 20)
+    verdict = gov.claim("b", now=0.75)
+    assert not verdict and verdict.why == "refused: a drives the robot"
+    gov.turn(1.01)
+    assert wire.last() == "stop" and gov.driver is None
