@@ -169,6 +169,7 @@ def _listen(settings: Settings, printer: TrafficPrinter | SummaryPrinter, durati
     start = time.monotonic()
     try:
         with settings.robot(on_traffic=listener) as robot:
+            robot.follow_dialect = _protocol_not_given()
             start = time.monotonic()  # the duration counts from an open port, however slow opening was
             until = f"for {duration:g} s" if duration is not None else "until Ctrl-C"
             click.echo(f"hcrctl: monitoring {robot.port} {until}", err=True)
@@ -178,6 +179,23 @@ def _listen(settings: Settings, printer: TrafficPrinter | SummaryPrinter, durati
             robot.remove_traffic_hook(listener)
             _print_rest(inbox, printer, robot.rule, robot.profile)
             click.echo(f"hcrctl: monitor: {printer.counters(time.monotonic() - start)}", err=True)
+
+
+def _protocol_not_given() -> bool:
+    """No --protocol (nor its variable): monitor then decodes what it hears, v0.11 frames included."""
+    ctx = click.get_current_context(silent=True)
+    if ctx is None:
+        return False
+    source = ctx.find_root().get_parameter_source("protocol")
+    return source in (None, click.core.ParameterSource.DEFAULT)
+
+
+def _followed(prof: Profile) -> str:
+    """The note when monitor switched to the dialect it heard."""
+    return (
+        f"the device sends frames ending in a lone 0A (protocol {prof.name}): decoding them as {prof.name} "
+        f"from here on (give --protocol {prof.name} to start so)"
+    )
 
 
 def _print_rest(
@@ -199,10 +217,14 @@ def _drain_until(
     """Print traffic until the deadline; Ctrl-C is the normal end of an open-ended monitor."""
     import queue
 
+    heard_as = robot.profile
     try:
         while deadline is None or time.monotonic() < deadline:
             if robot.error is not None:
                 raise robot.error
+            if robot.profile is not heard_as:
+                heard_as = robot.profile
+                click.echo(f"hcrctl: monitor: {_followed(robot.profile)}", err=True)
             wait = POLL_S if deadline is None else max(0.0, min(POLL_S, deadline - time.monotonic()))
             try:
                 traffic = inbox.get(timeout=wait)

@@ -62,8 +62,10 @@ def report(settings: Settings, stats: PingStats, probe: C.Command, timeout: floa
     else:
         click.echo("\n".join(stats.summary_lines()))
     if stats.sent and not stats.received:
+        from ..link.dialects import explained
+
         evidence = stats.other_rule
-        raise DeviceTimeout(
+        error = DeviceTimeout(
             f"ping ({probe.name})",
             stats.address,
             stats.port,
@@ -72,6 +74,7 @@ def report(settings: Settings, stats: PingStats, probe: C.Command, timeout: floa
             other_rule=evidence.other_rule if evidence else None,
             seen=evidence.seen if evidence else "replies",
         )
+        raise error if evidence else explained(error, stats.dialect_hint)
 
 
 def _line(settings: Settings, text: str) -> None:

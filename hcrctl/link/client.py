@@ -37,7 +37,7 @@ from ..protocol.frames import MAX_FRAME, BadChecksum, ChecksumRule, Event, Frame
 from ..protocol.motionscan import MotionScan
 from ..protocol.profiles import DEFAULT, Profile, profile
 from .defaults import BAUD, REPLY_TIMEOUT_S, RETRIES
-from .dialects import Dialect, stop_frames
+from .dialects import HEAR_FIRST, Dialect, stop_frames
 from .reads import TypedReads
 from .stopwait import DEFAULT_WAIT_S as DEFAULT_WAIT_S
 from .traffic import FrameHook, LinkStats, Traffic, TrafficHook, Watchers, decode_sent
@@ -339,7 +339,7 @@ class Robot(TypedReads, Dialect):
                 return
             if data:
                 self.rx_bytes += len(data)
-                if self.dialect_hint is None and self.profile.terminator != b"\r\n":
+                if self.dialect_hint is None and (self.profile is not DEFAULT or self.rx_bytes <= HEAR_FIRST):
                     self._heard = (self._heard + data)[-MAX_FRAME:]
                     self.hear(self._heard)
                 self._dispatch(self._decoder.feed(data))

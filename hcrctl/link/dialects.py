@@ -3,24 +3,43 @@
 A mixin of ``Robot``: the frames it sends carry the profile's terminator,
 replies are read as the profile lays them out, and a command the firmware
 does not have is refused before a byte is sent.
+
+It also listens for the other dialect: a v0.11 board streams frames ending in
+a lone 0A with no gap between them at its real pace (the published firmware
+on an emulated chip showed it), so a v0.15 reader never sees a quiet moment
+in which its decoder gives up on them; the first bytes heard are therefore
+searched for whole v0.11 frames as they arrive, and a timeout names v0.11 in
+its hint. ``monitor`` (with no ``--protocol``) goes further and decodes as
+v0.11 from the moment it hears one (``follow_dialect``).
 """
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 from ..errors import DeviceTimeout, HcrError, NotInProtocol
 from ..protocol import commands as C
+from ..protocol.dialect import make_decoder
 from ..protocol.frames import TERMINATOR, ChecksumRule, Frame
 from ..protocol.profiles import (
     CRLF_HINT,
     DEFAULT,
     LONE_LF_HINT,
+    V011,
     Profile,
     crlf_frame_in,
     lone_lf_frame,
     profile,
 )
+
+if TYPE_CHECKING:
+    from ..protocol.decoder import FrameDecoder
+    from ..protocol.frames import Event
+
+#: The first bytes of a v0.15 link searched for whole v0.11 frames: a streaming v0.11 board fills
+#: them many times over; past them the search stops, so a v0.15 link pays nothing for it.
+HEAR_FIRST = 4096
 
 
 class Dialect:
@@ -30,7 +49,11 @@ class Dialect:
     profile: Profile
     #: Frames of the other dialect heard (a lone 0A under v0.15, 0D 0A under v0.11): said in timeouts.
     dialect_hint: str | None
+    #: Decode as v0.11 once v0.11 frames are heard on a v0.15 link (``monitor`` with no --protocol).
+    follow_dialect: bool = False
     _rule: ChecksumRule
+    _decoder: FrameDecoder
+    _dispatch: Callable[[list[Event]], None]
 
     def _address(self, address: int | None) -> int:
         raise NotImplementedError
@@ -41,20 +64,28 @@ class Dialect:
 
     def hear(self, data: bytes) -> None:
         """Bytes the decoder could not read: remember if they are frames of the other dialect."""
-        if self.dialect_hint is not None:
-            return
-        if self.profile is DEFAULT and lone_lf_frame(data):
-            self.dialect_hint = LONE_LF_HINT
-        elif self.profile.terminator != TERMINATOR and crlf_frame_in(data):
-            self.dialect_hint = CRLF_HINT
+        if self.dialect_hint is None:
+            if self.profile is DEFAULT and lone_lf_frame_in(data):
+                self.dialect_hint = LONE_LF_HINT
+            elif self.profile.terminator != TERMINATOR and crlf_frame_in(data):
+                self.dialect_hint = CRLF_HINT
+        if self.follow_dialect and self.dialect_hint == LONE_LF_HINT and self.profile is DEFAULT:
+            self._adopt(V011)
+
+    def _adopt(self, prof: Profile) -> None:
+        """Decode as ``prof`` from now on (in the reader thread, where the decoder is fed).
+
+        What the old decoder still holds is reported as it stands (a row of
+        junk at most): the frames from here on decode whole.
+        """
+        held = self._decoder.idle()
+        self.profile = prof
+        self._decoder = make_decoder(prof, self._rule)
+        self._dispatch(held)
 
     def explain(self, error: DeviceTimeout) -> DeviceTimeout:
         """A timeout, with the cause when the device was heard speaking the other dialect meanwhile."""
-        if self.dialect_hint is not None:
-            seen, fix = self.dialect_hint.split(": ")
-            error.message += f"; the device sends {seen}"
-            error.hint = fix
-        return error
+        return explained(error, self.dialect_hint)
 
     def wire_bytes(self, frame: Frame) -> bytes:
         """A decoded frame exactly as it stood on the wire, with this profile's terminator."""
@@ -75,6 +106,26 @@ class Dialect:
             return cmd.reply.decode(self.profile.to_document(cmd.code, frame.content))
         except HcrError:
             return None
+
+
+def explained(error: DeviceTimeout, dialect_hint: str | None) -> DeviceTimeout:
+    """``error`` naming what was heard and the fix, when the device spoke the other dialect."""
+    if dialect_hint is not None:
+        seen, fix = dialect_hint.split(": ")
+        error.message += f"; the device sends {seen}"
+        error.hint = fix
+    return error
+
+
+def lone_lf_frame_in(data: bytes) -> bool:
+    """Whether a whole frame ending in a lone 0A stands anywhere in ``data`` (a v0.15 frame never
+    ends so: its 0D is where the 0A would be)."""
+    at = data.find(b"\x55\xaa")
+    while at != -1:
+        if lone_lf_frame(data[at:]):
+            return True
+        at = data.find(b"\x55\xaa", at + 1)
+    return False
 
 
 def _offered(prof: Profile) -> list[str]:

@@ -63,6 +63,8 @@ class PingStats:
     junk_bytes: int = 0
     #: The last lost probe's evidence that the other checksum rule is the fix (see DeviceTimeout).
     other_rule: DeviceTimeout | None = None
+    #: What the device was heard speaking when it is the other dialect (``Dialect.dialect_hint``).
+    dialect_hint: str | None = None
 
     @property
     def received(self) -> int:
@@ -133,6 +135,9 @@ def probe_loop(
             why = ""
             if lost and lost[0].other_rule is not None:
                 stats.other_rule = lost[0]
+                why = f" ({lost[0].hint})"
+            elif lost and robot.dialect_hint is not None:  # the device speaks the other dialect
+                stats.dialect_hint = robot.dialect_hint
                 why = f" ({lost[0].hint})"
             say(f"no reply from {where}: seq={seq} timeout={robot.timeout:g} s{why}")
         else:

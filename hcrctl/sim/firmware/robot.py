@@ -73,6 +73,7 @@ class FirmwareRobot:
         self.status = Status()
         self._chip_time = 0.0
         self._adc: dict[int, int] = {}
+        self._motors_changed = False
         self._motor_pins = tuple(pins[m] for m in MOTORS)
         for role in (*MOTORS, "light"):
             chip.watch(pins[role], digital(pins[role]))
@@ -87,7 +88,7 @@ class FirmwareRobot:
             motors[self._motor_pins.index(number)] = value
             self.status.motors = (motors[0], motors[1])
             self.body.drive(*(wheel_speed(v) for v in self.status.motors))
-            self.say(f"motors: PWM {self._pwm_text()} at {self._where()}")
+            self._motors_changed = True  # said at the next tick: the two pins change a few us apart
         elif number == self.pins["light"]:
             light = value == 0
             if light != self.status.light:
@@ -99,6 +100,9 @@ class FirmwareRobot:
         if tick.chip > self._chip_time:
             self.body.advance(tick.chip - self._chip_time)
             self._chip_time = tick.chip
+        if self._motors_changed:
+            self._motors_changed = False
+            self.say(f"motors: PWM {self._pwm_text()} at {self._where()}")
         self._sense()
 
     def _sense(self, initial: bool = False) -> None:
