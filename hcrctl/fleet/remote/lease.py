@@ -29,6 +29,7 @@ from ...protocol.frames import Frame
 from ..keys import attachment, cmd_vel
 from ..keys import drive as drive_key
 from ..keys import stop as stop_key
+from ..session import FleetError
 
 #: The longest wait for the robot side's answer to a claim or release.
 CLAIM_TIMEOUT_S = 2.0
@@ -54,9 +55,9 @@ class DriveLease:
         #: The last motion was refused: the stop a refused command sends on its way out
         #: must not stop the operator it was refused for.
         self.refused = False
-        self._wake = threading.Event()
         self._done = threading.Event()
         self._thread: threading.Thread | None = None
+        #: Whether a claim was ever granted: only then is there a lease to give back on close.
         self.claimed_ever = False
 
     # -- motion ---------------------------------------------------------------------
@@ -94,7 +95,6 @@ class DriveLease:
     def close(self) -> None:
         """Stop renewing and give the lease back (best effort: the robot side frees it when we go anyway)."""
         self._done.set()
-        self._wake.set()
         if self._thread is not None:
             self._thread.join(timeout=1.0)
         if self.claimed_ever:
@@ -111,8 +111,12 @@ class DriveLease:
 
     def _renew(self) -> None:
         while not self._done.wait(self.interval):
-            if self.held:
-                with contextlib.suppress(Exception):  # the session closing under us: the loop ends next turn
+            # Under the lock that ``stop`` takes: a renewal is never sent after the stop that ended the lease.
+            with (
+                self._lock,
+                contextlib.suppress(Exception),
+            ):  # a session closing under us: the loop ends next turn
+                if self.held:
                     self._claim_later()
 
     def _claim_later(self) -> None:
@@ -133,7 +137,7 @@ class DriveLease:
     # -- the wire -------------------------------------------------------------------------
 
     def _ask(self, do: str) -> str | None:
-        """A ``drive`` query; None when granted, the robot side's refusal text otherwise."""
+        """A ``drive`` query; None when granted, the robot side's refusal text otherwise (FleetError: no answer)."""
         zenoh = _zenoh()
         replies = self._session.get(
             drive_key(self._robot),
@@ -145,7 +149,10 @@ class DriveLease:
             if reply.ok is not None:
                 return None
             return _refusal(reply.err.payload.to_bytes(), self._robot)
-        return f"{self._robot} did not answer the drive {do} within {CLAIM_TIMEOUT_S:g} s"
+        raise FleetError(
+            f"{self._robot} did not answer the drive {do} within {CLAIM_TIMEOUT_S:g} s: nothing was sent",
+            hint="hcrctl fleet list shows whether it is still there",
+        )
 
     def _put(self, key: str, payload: dict[str, Any]) -> None:
         zenoh = _zenoh()

@@ -114,7 +114,7 @@ class RemoteLink:
 
     @staticmethod
     def _fast(where: Where) -> Where:
-        """``where``, with the session handed back before its router link is up (often 500 ms sooner).
+        """``where``, with the session handed back before its router link is up (at times 500 ms sooner).
 
         Nothing is lost by it: the robot's token is then waited for (``_open_on``),
         which is the wait for the link that matters, bounded by ``ASK_TIMEOUT_S``.
@@ -171,7 +171,7 @@ class RemoteLink:
     # -- what the robot side says unasked -------------------------------------------------
 
     def _presence(self, sample: Any) -> None:
-        if str(sample.kind).endswith("DELETE"):
+        if sample.kind == import_zenoh().SampleKind.DELETE:
             self._here.clear()
             self._lost(f"{self.name} left the fleet")
         else:
@@ -182,7 +182,8 @@ class RemoteLink:
         message = _json(sample.payload.to_bytes())
         if not isinstance(message, dict) or message.get("direction") != "rx":
             return
-        cmd = C.BY_CODE.get(message.get("command", -1))
+        code = message.get("command")
+        cmd = C.BY_CODE.get(code) if isinstance(code, int) else None
         if cmd is None or cmd.kind != "broadcast" or not message.get("checksum_ok", True):
             return
         self._give(message.get("hex"))
