@@ -42,7 +42,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Literal, cast
 
 from ..errors import HcrError
-from ..protocol.encodings import ENCODINGS
+from ..protocol.encodings import ENCODINGS, JSON
 from ..protocol.topics import Topic
 from .sinks import Sink
 
@@ -50,7 +50,7 @@ if TYPE_CHECKING:
     from .mcapsink import McapSink
 
 #: The encoding every messages writer takes; another (``--encoding cdr``) only where ``encodes`` says so.
-DEFAULT_ENCODING = "json"
+DEFAULT_ENCODING = JSON.name
 
 
 @dataclass(frozen=True)

@@ -120,9 +120,9 @@ class McapSink(Sink):
 
     def write_batch(self, batch: Sequence[tuple[Sequence[Prepared], float, str | None]]) -> None:
         """``write_prepared``'s work for many log lines in one loop, the time rounded as ``seconds`` rounds it."""
-        add, encoded_of, time_head = self._writer.add_all, self._encoded, self._time_head
+        add, encoded_of, time_head, us_of = self._writer.add_all, self._encoded, self._time_head, microseconds
         for items, log_time, _ in batch:
-            us = microseconds(log_time)
+            us = us_of(log_time)
             size = add([p.encoded or encoded_of(p) for p in items], us * 1000, time_head(us))
             if size > CHUNK_SIZE:
                 self._writer.flush()
