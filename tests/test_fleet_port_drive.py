@@ -103,6 +103,20 @@ def test_a_killed_operator_is_stopped_by_its_token_going_not_by_the_deadman(robo
     assert "deadman" not in said
 
 
+def test_a_killed_teleop_is_stopped_by_its_token_going(robot: Fleet) -> None:
+    """teleop's own deadman (5 s here) would stop it later, and the robot side's is 10 s: the stop is the token's."""
+    env = terminal_env() | {"XDG_CONFIG_HOME": str(robot.tmp)}
+    with terminal(robot.operator("r1", "teleop", "--deadman", "5"), env=env) as term:
+        term.wait_for("sending")
+        term.send("w")
+        wire = robot.served["r1"]
+        moved = wire.wait_sent(is_motion, what="teleop's forward")
+        os.kill(term.child.pid, signal.SIGKILL)
+        wire.wait_sent(is_stop, after=moved, what="stop after kill -9")
+        said = wire.wait_said("stopped:")
+        assert re.search(rf"stopped: operator \S+\.{term.child.pid} gone", said), said
+
+
 def test_a_frozen_operator_is_stopped_by_the_deadman_while_still_frozen(tmp_path: Path) -> None:
     with fleet(tmp_path) as running:
         running.serve("r1", "sim://", "--deadman", "0.3")
