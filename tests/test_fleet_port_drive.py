@@ -91,6 +91,25 @@ def test_a_second_operator_is_refused_naming_the_driver_and_a_third_stops_it(rob
     assert not [f for f in sent[:stopped] if power(20, 20)(f)]  # the refused one never moved it
 
 
+def test_teleop_of_a_second_operator_ends_with_one_line_naming_the_driver(robot: Fleet) -> None:
+    first, _, _ = robot.start("r1", "drive", "power", "30", "30")
+    wire = robot.served["r1"]
+    moved = wire.wait_sent(power(30, 30), what="the first operator's motion")
+    env = terminal_env() | {"XDG_CONFIG_HOME": str(robot.tmp)}
+    with terminal(robot.operator("r1", "teleop"), env=env) as term:
+        term.wait_for("sending")
+        term.send("w")
+        assert term.finish() == 1
+        assert re.search(rf"hcrctl: error: refused: \S+\.{first.pid} drives r1 \(hint: ", term.output())
+    speed = C.BY_NAME["speed"].code
+    assert not [f for f in wire.sent() if f.command == speed], "the refused teleop moved the robot"
+    # teleop's own stop on its way out is not sent over the fleet: it would stop the driver it was refused for
+    again = robot.run("r1", "read", "compass")  # a round trip through the robot side after it
+    assert again.returncode == 0, again.stderr
+    assert not [f for f in wire.sent()[moved:] if is_stop(f)] and "stop from" not in wire.said()
+    assert first.poll() is None  # the driver drives on
+
+
 def test_a_killed_operator_is_stopped_by_its_token_going_not_by_the_deadman(robot: Fleet) -> None:
     driver, _, _ = robot.start("r1", "drive", "power", "30", "30")
     wire = robot.served["r1"]
