@@ -63,6 +63,8 @@ TakeParts = Callable[[list[bytes], int], None]
 def bulk_runs(buf: bytes, h: int, rule: ChecksumRule, take: TakeParts) -> tuple[int, int]:
     """Take the valid frames standing back to back from the header at ``h``, a window at a time.
 
+    The decoder's fast path; its reference is the scanner, ``FrameDecoder._scan``
+    (``FrameDecoder(fast=False)``), which would take the same frames one by one.
     Each window's frames go to ``take`` (``valid_parts``). Returns ``(pos, h)``:
     where taking stopped, and the header at it (-1 when the frames ran to the
     end of the buffer). The first frame the run cannot take is left to the
@@ -116,7 +118,9 @@ def valid_parts(buf: bytes, rule: ChecksumRule) -> tuple[list[bytes], int]:
     exactly when its size agrees with its length byte (no header inside it, so
     no nested frame can end first, and no junk after it), it ends in 0D 0A and
     its checksum passes. All parts are checked at once by C-level maps, with no
-    event built: a night's capture costs little more than splitting it.
+    event built: a night's capture costs little more than splitting it. The
+    checksum check is the fast path of ``frames.checksum`` (its reference, from
+    which ``_wanted`` is derived).
     """
     parts = buf.split(HEADER)
     del parts[0]  # the empty part before the first header
