@@ -49,6 +49,15 @@ def send_frame(robot: Robot, frame: bytes) -> dict[str, Any] | None:
                 flush=True,
             )
         return None
+    if not robot.profile.has(cmd.code):  # v0.11's 0x14 is no compass read: it switches a light on
+        robot.write(frame)
+        what = robot.profile.repurposed.get(cmd.code, "is no command of that firmware")
+        print(
+            f"hcrctl: not waiting for a reply: under {robot.profile.name} 0x{cmd.code:02X} {what}",
+            file=sys.stderr,
+            flush=True,
+        )
+        return None
     reply = robot.transact(frame, (request.address, request.command), f"{cmd.name} (hex send)")
     wire = robot.wire_bytes(reply)
     return traffic_row(wire, robot.rule, "rx", robot.profile) | {"hex": hexs(wire)}
