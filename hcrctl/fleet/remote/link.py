@@ -54,6 +54,8 @@ LIST_HINT = "hcrctl fleet list shows the robots present"
 #: Zenoh's option to wait, in ``open``, until the links to the endpoints are up.
 OPEN_AT_ONCE = "open/return_conditions/connect_scouted"
 STOP_CODE = C.command_for(C.STOP).code
+#: What a frame message of a broadcast says it is (``"kind": "broadcast"``; the message is checked whole after).
+BROADCAST = b'"broadcast"'
 
 Deliver = Callable[[bytes], None]
 Lost = Callable[[str], None]
@@ -179,7 +181,10 @@ class RemoteLink:
 
     def _frame(self, sample: Any) -> None:
         """A broadcast the robot's wire heard (a positioning station, a map), to this operator's Robot."""
-        message = _json(sample.payload.to_bytes())
+        data = sample.payload.to_bytes()
+        if BROADCAST not in data:  # most frames are the serve's polls: not parsed only to be dropped
+            return
+        message = _json(data)
         if not isinstance(message, dict) or message.get("direction") != "rx":
             return
         code = message.get("command")
