@@ -17,7 +17,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..serve import Stopper
-from .build import firmware_image
+from . import toolchain
+from .build import SKETCH_SUFFIXES, firmware_image
 from .harness import Chip, Tick
 from .pins import PinMap
 from .robot import FirmwareRobot
@@ -44,6 +45,8 @@ def serve_firmware(
     robot's changes. Returns the last time report (chip and wall time), or
     None when stopped before the first.
     """
+    sketch = options.path.suffix.lower() in SKETCH_SUFFIXES
+    toolchain.require((*toolchain.RUN_NEEDS, *(toolchain.BUILD_NEEDS if sketch else ())))  # all at once
     image = firmware_image(options.path, options.mcu, options.clock)
     chip = Chip(image, options.mcu, options.clock)
     master, slave = os.openpty()

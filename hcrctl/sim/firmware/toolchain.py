@@ -53,13 +53,13 @@ def _lib_dirs() -> Iterable[str]:
 #: What running any firmware needs: simavr's library and headers, and a host C compiler for the harness.
 RUN_NEEDS = (
     Need("simavr's headers", "libsimavr-dev", lambda: (SIMAVR_INCLUDE / "sim_avr.h").exists()),
-    Need("simavr's library", "libsimavr-dev", _lib_simavr),
-    Need("a C compiler (cc)", "gcc", lambda: shutil.which("cc") is not None),
+    Need("libsimavr.so", "libsimavr-dev", _lib_simavr),
+    Need("cc", "gcc", lambda: shutil.which("cc") is not None),
 )
 #: What building a sketch needs on top.
 BUILD_NEEDS = (
-    Need("the AVR compiler (avr-g++)", "gcc-avr", lambda: shutil.which("avr-g++") is not None),
-    Need("the AVR C library", "avr-libc", lambda: (AVR_LIBC_INCLUDE / "avr" / "io.h").exists()),
+    Need("avr-g++", "gcc-avr", lambda: shutil.which("avr-g++") is not None),
+    Need("avr/io.h", "avr-libc", lambda: (AVR_LIBC_INCLUDE / "avr" / "io.h").exists()),
     Need("the Arduino core", "arduino-core-avr", lambda: (ARDUINO_AVR / "cores" / "arduino").is_dir()),
 )
 
@@ -69,12 +69,13 @@ def require(needs: Iterable[Need]) -> None:
     missing = [need for need in needs if not need.present()]
     if not missing:
         return
-    packages = ", ".join(dict.fromkeys(need.package for need in missing))
+    packages = list(dict.fromkeys(need.package for need in missing))
     what = ", ".join(need.what for need in missing)
-    plural = "s" if "," in packages else ""
+    extra = "".join(f" {p}" for p in packages if p not in PACKAGES)  # the host's C compiler
     raise HcrError(
-        f"hcrctl sim --firmware needs the Debian package{plural} {packages} ({what} not found)",
-        hint=f"install them with: {INSTALL}",
+        f"hcrctl sim --firmware needs the Debian package{'s' * (len(packages) > 1)} {', '.join(packages)} "
+        f"({what} not found)",
+        hint=f"install them with: {INSTALL}{extra}",
     )
 
 
