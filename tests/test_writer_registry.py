@@ -104,6 +104,18 @@ def test_a_wrong_suffix_is_refused_naming_every_format(
     assert "'OUT.mcap|OUT.csv|OUT.tsv'" in line and "must end in .mcap or .csv or .tsv" in line, line
 
 
+def test_a_traffic_log_suffix_is_named_for_what_it_is(tmp_path: Path) -> None:
+    log = tmp_path / "any.jsonl"
+    log.write_text("")
+    done = run(["export", str(log), str(tmp_path / "out.jsonl")], clean_env(tmp_path))
+    assert done.returncode == 2
+    line = one_line(done.stderr)
+    assert line.endswith(
+        "must end in .mcap or .csv (the suffix chooses the format); .jsonl is the traffic log (--log): "
+        "every frame both ways, one JSON line each (see 'hcrctl export --help')"
+    ), line
+
+
 def test_export_writes_the_new_format_from_the_log(env: dict[str, str], tmp_path: Path) -> None:
     log, out = tmp_path / "s.jsonl", tmp_path / "s.tsv"
     done = run(["--port", "sim://", "--log", str(log), "read", "compass", "sonar"], env)

@@ -139,9 +139,17 @@ def metavar(name: str = "OUT") -> str:
 
 
 def bad_suffix_text(path: str) -> str:
-    """Why ``path`` is no output of ``record``/``export``: the suffixes that are, by the table."""
+    """Why ``path`` is no output of ``record``/``export``: the suffixes that are, by the table.
+
+    A suffix of the other kind (``.jsonl``) is named for what it is: that file is ``--log``'s.
+    """
     allowed = " or ".join(suffixes())
-    return f"{path!r} must end in {allowed} (the suffix chooses the format)"
+    text = f"{path!r} must end in {allowed} (the suffix chooses the format)"
+    suffix = Path(path).suffix.lower()
+    other = WRITERS.get(suffix)
+    return (
+        text if other is None or other.kind == "messages" else f"{text}; {suffix} is the {other.description}"
+    )
 
 
 def writer_for(path: str, suffix: str | None = None) -> Writer:
