@@ -132,6 +132,35 @@ static void flush_uart_out(void)
 	}
 }
 
+/*
+ * simavr 1.6 times every UART byte as 1 start + data + 1 parity + stop bits, parity or not
+ * (avr_uart_baud_write), so an 8N1 line carried 11 bit times a byte: 874 bytes/s at 9600 baud instead
+ * of a real chip's 960, and a firmware paced by its own output ran 9 % slow. Without parity (UPM0 = 0)
+ * the byte time is put right here, whenever simavr has set it anew.
+ */
+static avr_uart_t *uart0;
+static avr_cycle_count_t uart0_fixed;
+
+static void fix_uart_timing(void)
+{
+	static const int databits[] = { 5, 6, 7, 8, 8, 8, 8, 9 };
+	if (!uart0 || uart0->cycles_per_byte == uart0_fixed)
+		return;
+	if ((avr->data[uart0->r_ucsrc] >> 4) & 3)
+		return; /* parity on: simavr's count is right */
+	int db = databits[avr_regbit_get(avr, uart0->ucsz) | (avr_regbit_get(avr, uart0->ucsz2) << 2)];
+	int word = 1 + db + 1 + 1 + avr_regbit_get(avr, uart0->usbs); /* as simavr counts it */
+	uart0_fixed = uart0->cycles_per_byte * (avr_cycle_count_t)(word - 1) / (avr_cycle_count_t)word;
+	uart0->cycles_per_byte = uart0_fixed;
+}
+
+static void find_uart0(void)
+{
+	for (avr_io_t *io = avr->io_port; io; io = io->next)
+		if (io->kind && strcmp(io->kind, "uart") == 0 && ((avr_uart_t *)io)->name == '0')
+			uart0 = (avr_uart_t *)io;
+}
+
 /* -- pins ------------------------------------------------------------------------------------ */
 
 static int pin_value(const watch_t *w)
@@ -272,6 +301,7 @@ static void load(const char *mcu, uint32_t clock, const char *file)
 	avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT), on_uart_out, NULL);
 	avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUT_XON), on_xon, NULL);
 	avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUT_XOFF), on_xoff, NULL);
+	find_uart0();
 }
 
 int main(int argc, char **argv)
@@ -305,6 +335,7 @@ int main(int argc, char **argv)
 				fail("the firmware %s at %.3f s", state == cpu_Done ? "stopped" : "crashed",
 				     (double)avr->cycle / clock);
 		}
+		fix_uart_timing();
 		scan_pins();
 		flush_uart_out();
 		n++;
