@@ -116,9 +116,22 @@ class Fleet:
         _, out, _ = self.spawn(["fleet", "router", "--listen", self.endpoint], "router")
         wait_until(lambda: out.read_text().strip(), what="the router's first line")
 
-    def serve(self, name: str, port: str = "sim://", *options: str) -> Served:
+    def serve(self, name: str, port: str = "sim://", *options: str, first: tuple[str, ...] = ()) -> Served:
+        """``fleet serve NAME OPTIONS`` on ``port``; ``first``: global options (``--protocol v0.11``)."""
         log = self.tmp / f"{name}-wire.jsonl"
-        args = ["--zenoh", self.endpoint, "--port", port, "--log", str(log), "fleet", "serve", name, *options]
+        args = [
+            *first,
+            "--zenoh",
+            self.endpoint,
+            "--port",
+            port,
+            "--log",
+            str(log),
+            "fleet",
+            "serve",
+            name,
+            *options,
+        ]
         proc, _, err = self.spawn(args, f"serve-{name}")
         served = Served(name, proc, log, err)
         served.wait_said(f"serving {name}")

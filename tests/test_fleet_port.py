@@ -49,6 +49,27 @@ def test_read_through_the_fleet_equals_the_local_read_of_the_same_simulator(tmp_
         assert set(json.loads(remote.stdout)) >= {"heading", "sonar", "bump", "wheels"}
 
 
+def test_a_v011_robots_reads_come_through_for_a_default_operator_and_what_it_lacks_is_named(
+    tmp_path: Path,
+) -> None:
+    """The robot side speaks v0.11 on its wire; the operator's Robot, on the default profile, reads the same values."""
+    v011 = ["--protocol", "v0.11", "--port", "sim://?protocol=v0.11"]
+    with fleet(tmp_path) as running:
+        running.serve("r1", "sim://?protocol=v0.11", first=("--protocol", "v0.11"))
+        remote = running.run("r1", "--json", "read", "bump", "ir")
+        local = run([*v011, "--json", "read", "bump", "ir"], running.env)
+        assert remote.returncode == 0 and local.returncode == 0, remote.stderr + local.stderr
+        assert json.loads(remote.stdout) == json.loads(local.stdout)
+        assert len(json.loads(remote.stdout)["ir"]) == 7  # the v0.33 board's seven sensors
+        compass = running.run("r1", "read", "compass")
+        assert compass.returncode == 1
+        assert (
+            "zenoh://r1" in compass.stderr
+            and "r1 serves no compass read (it serves bump, ir)" in compass.stderr
+        )
+        assert compass.stderr.count("\n") == 1
+
+
 def test_text_read_ping_and_a_pid_write(robot: Fleet) -> None:
     read = robot.run("r1", "read", "compass")
     assert read.returncode == 0, read.stderr
