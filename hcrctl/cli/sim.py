@@ -83,7 +83,8 @@ MIN_CLOCK, MAX_CLOCK = 1_000_000, 20_000_000
     metavar="MAP",
     help="With --firmware, the sketch's wiring as name=pin,...: motor1, motor2 (PWM pins), light, "
     "bump_left, bump_centre, bump_right (digital 2..13), ir1..ir7 (A0..A7).  "
-    "[default: the published firmware's: motor1=5,motor2=6,light=2,bump_left=10,bump_centre=11,bump_right=12,ir1=A0..ir7=A6]",
+    "[default: the published firmware's wiring: motor1=5 motor2=6 light=2 bump_left=10 bump_centre=11 "
+    "bump_right=12 ir1..ir7=A0..A6]",
 )
 def sim(
     use_pty: bool,
