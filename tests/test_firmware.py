@@ -53,9 +53,9 @@ MOTORS = re.compile(r"motors: PWM 5=(\w+) 6=(\w+) at x (-?\d+) cm, y (-?\d+) cm,
 class FirmwareSim:
     """``hcrctl sim --firmware``: its pty path, and its stderr lines as they come (read by a thread)."""
 
-    def __init__(self, env: dict[str, str], *options: str) -> None:
+    def __init__(self, env: dict[str, str], *options: str, firmware: Path = FIRMWARE) -> None:
         self.proc = subprocess.Popen(
-            [hcrctl_exe(), "sim", "--firmware", str(FIRMWARE), *options],
+            [hcrctl_exe(), "sim", "--firmware", str(firmware), *options],
             env=env,
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
@@ -281,3 +281,17 @@ def test_without_protocol_monitor_decodes_the_frames_it_hears(sim: FirmwareSim) 
     assert {row["name"] for row in frames} == {"bump", "ir"}, rows[:6]
     assert sum(row.get("problem") == "malformed" for row in rows) <= 1, rows
     assert "decoding them as v0.11" in result.stderr, result.stderr
+
+
+def test_a_built_hex_runs_as_the_sketch_does(firmware_env: dict[str, str], tmp_path: Path) -> None:
+    """The .hex an Arduino IDE exports (here made from the cached build) runs without building anything."""
+    elf = next(Path(firmware_env["XDG_CACHE_HOME"], "hcrctl", "firmware").glob("*/firmware.elf"))
+    hex_file = tmp_path / "HCR_romeo.hex"
+    subprocess.run(["avr-objcopy", "-O", "ihex", "-R", ".eeprom", str(elf), str(hex_file)], check=True)
+    chip = FirmwareSim(firmware_env, "--mcu", "atmega328p", "--clock", "16000000", firmware=hex_file)
+    try:
+        bump = hcrctl(chip, *V011, "--json", "read", "bump")
+        assert bump.returncode == 0, bump.stderr
+        assert json.loads(bump.stdout) == {"bump": [False, False, False]}
+    finally:
+        chip.close()
