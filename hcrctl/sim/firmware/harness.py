@@ -78,7 +78,7 @@ class Chip:
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=subprocess.DEVNULL,
-            preexec_fn=_own_group,
+            preexec_fn=_default_sigterm,
         )
         assert self.proc.stdin is not None and self.proc.stdout is not None
         self._in, self._out = self.proc.stdin, self.proc.stdout
@@ -151,8 +151,9 @@ class Chip:
             self._out.close()
 
 
-def _own_group() -> None:
-    """The harness ignores Ctrl-C (hcrctl ends it by closing its stdin); SIGTERM stays default."""
+def _default_sigterm() -> None:
+    """SIGTERM ends the harness even when hcrctl was started ignoring it; Ctrl-C it ignores itself
+    (hcrctl ends it by closing its stdin, after saying how long the chip ran)."""
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
