@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 from helpers import TIMEOUT, hcrctl_exe
 
+from hcrctl.sim.firmware.build import prototypes, sketch_source
 from hcrctl.sim.firmware.pins import DEFAULTS, PinMap, PinMapError
 from hcrctl.sim.firmware.toolchain import INSTALL, missing_reason
 
@@ -102,3 +103,32 @@ def test_a_sketch_that_does_not_compile_is_its_first_error_and_the_log(tmp_path:
 def test_a_firmware_file_that_is_not_there_is_one_line(tmp_path: Path) -> None:
     err = one_line(sim("--firmware", str(tmp_path / "gone.elf")), 1)
     assert "cannot read the firmware" in err and "gone.elf" in err, err
+
+
+def test_a_sketch_gets_a_prototype_for_each_function_it_defines() -> None:
+    sketch = b"""#define N 3 // a comment with f(int x) {
+byte header[2]={0x55,0xaa};
+const char *s = "void g() {";
+void setup()
+{
+  Serial.begin(9600);
+}
+/* int hidden(int) { */
+boolean Check(byte cmd[],int length)
+{
+  if (length) { return true; }
+  return false;
+}
+unsigned int *where(int pin, float k) { return 0; }
+struct Pose { int x; };
+void loop() { Check(header, 2); }
+"""
+    assert prototypes(sketch) == [
+        b"void setup()",
+        b"boolean Check(byte cmd[],int length)",
+        b"unsigned int *where(int pin, float k)",
+        b"void loop()",
+    ]
+    source = sketch_source(sketch, "x.ino")
+    assert source.startswith(b"#include <Arduino.h>\nvoid setup();\n") and source.endswith(sketch)
+    assert b'#line 1 "x.ino"\n' + sketch in source
