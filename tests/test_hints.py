@@ -13,6 +13,7 @@ import socket
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
+from pathlib import Path
 
 import click
 import pytest
@@ -152,6 +153,8 @@ SAMPLES = {
     "--protocol": "v0.15",
     "--stop-wait": "5",
     "--deadman": "0.8",
+    "--zenoh": "tcp/127.0.0.1:7447",
+    "--zenoh-config": "ZENOHCONFIG",
 }
 FRAME = encode(0x01, 0x14, b"\x04\xd2").hex(" ").split()
 
@@ -167,7 +170,10 @@ def test_every_global_option_that_takes_a_value_has_a_sample() -> None:
 
 @pytest.mark.parametrize("option", [p.opts[0] for p in global_options()])
 def test_a_global_option_after_the_subcommand_says_where_it_goes(option: str, tmp_path: object) -> None:
-    value = [SAMPLES[option].replace("LOGFILE", f"{tmp_path}/log.jsonl")] if option in SAMPLES else []
+    zenoh_config = Path(str(tmp_path), "zenoh.json5")
+    zenoh_config.write_text("{}\n")
+    sample = SAMPLES.get(option, "").replace("LOGFILE", f"{tmp_path}/log.jsonl")
+    value = [sample.replace("ZENOHCONFIG", str(zenoh_config))] if option in SAMPLES else []
     proc = run("read", "compass", option, *value)
     assert proc.returncode == 2 and proc.stdout == ""
     line = one_line(proc.stderr)
