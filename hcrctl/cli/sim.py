@@ -100,7 +100,10 @@ def sim(
     clock: int | None,
     pins: str | None,
 ) -> None:
-    """Serve the simulated robot on a pty or a TCP port until Ctrl-C or SIGTERM."""
+    """Serve the simulated robot on a pty or a TCP port until Ctrl-C or SIGTERM.
+
+    With --firmware, the robot is driven by a real firmware on an emulated chip instead (docs/firmware.md).
+    """
     if firmware is not None:
         _refuse_with_firmware(
             tcp=tcp, pace=pace, baud=baud, options=query, protocol=protocol, seed=seed, wander=wander

@@ -15,11 +15,15 @@ import hashlib
 import os
 import shutil
 import tempfile
+import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
 from ...errors import HcrError
+
+#: A scratch directory this old is a failed build's, not one under way.
+STALE_S = 3600.0
 
 PACKAGES = ("simavr", "libsimavr-dev", "gcc-avr", "avr-libc", "arduino-core-avr")
 INSTALL = f"sudo apt-get install {' '.join(PACKAGES)}"
@@ -109,12 +113,16 @@ def cached(kind: str, key: str, product: str, make: Callable[[Path], None]) -> P
     ``make`` builds into a fresh scratch directory that then becomes the
     entry by one rename; when another process got there first, its entry is
     kept and the scratch is dropped. A failed build leaves no entry (its log
-    is kept in the scratch directory the error names).
+    is kept in the scratch directory the error names, until the next try).
     """
     entry = cache_root() / kind / key
     if (entry / product).exists():
         return entry / product
     entry.parent.mkdir(parents=True, exist_ok=True)
+    for failed in entry.parent.glob(f"{key}.*"):  # an earlier failed build's, kept for its log till now
+        with contextlib.suppress(OSError):
+            if time.time() - failed.stat().st_mtime > STALE_S:  # (a younger one may be a build under way)
+                shutil.rmtree(failed, ignore_errors=True)
     scratch = Path(tempfile.mkdtemp(prefix=f"{key}.", dir=entry.parent))
     make(scratch)
     try:
