@@ -169,7 +169,8 @@ def _listen(settings: Settings, printer: TrafficPrinter | SummaryPrinter, durati
     start = time.monotonic()
     try:
         with settings.robot(on_traffic=listener) as robot:
-            robot.follow_dialect = _protocol_not_given()
+            # a robot of its own only: the shell's shared one keeps the session's --protocol
+            robot.follow_dialect = settings.shared_robot is None and _protocol_not_given()
             start = time.monotonic()  # the duration counts from an open port, however slow opening was
             until = f"for {duration:g} s" if duration is not None else "until Ctrl-C"
             click.echo(f"hcrctl: monitoring {robot.port} {until}", err=True)
