@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import re
 import subprocess
+from collections.abc import Callable
 from pathlib import Path
 
 from ...errors import HcrError
@@ -35,8 +36,11 @@ _C = ("-std=gnu11",)
 _LOG = "build.log"
 
 
-def firmware_image(path: Path, mcu: str, clock: int) -> Path:
-    """What the harness loads for ``path``: an ELF (built and cached for a sketch) or a raw ``.bin``."""
+def firmware_image(path: Path, mcu: str, clock: int, say: Callable[[str], None] = lambda _line: None) -> Path:
+    """What the harness loads for ``path``: an ELF (built and cached for a sketch) or a raw ``.bin``.
+
+    ``say`` hears a line before a build that is not cached yet (it takes a few seconds).
+    """
     suffix = path.suffix.lower()
     try:
         data = path.read_bytes()
@@ -49,7 +53,12 @@ def firmware_image(path: Path, mcu: str, clock: int) -> Path:
         return toolchain.cached("firmware", key, "firmware.bin", lambda d: _hex_to_bin(path, data, d))
     toolchain.require(toolchain.BUILD_NEEDS)
     key = toolchain.digest(RECIPE, data, path.name, mcu, str(clock), _compiler_version())
-    return toolchain.cached("firmware", key, "firmware.elf", lambda d: _build(path, data, mcu, clock, d))
+
+    def build(out: Path) -> None:
+        say(f"building {path.name} for {mcu} at {clock} Hz (cached for the next start)")
+        _build(path, data, mcu, clock, out)
+
+    return toolchain.cached("firmware", key, "firmware.elf", build)
 
 
 def _compiler_version() -> str:

@@ -47,7 +47,7 @@ def serve_firmware(
     """
     sketch = options.path.suffix.lower() in SKETCH_SUFFIXES
     toolchain.require((*toolchain.RUN_NEEDS, *(toolchain.BUILD_NEEDS if sketch else ())))  # all at once
-    image = firmware_image(options.path, options.mcu, options.clock)
+    image = firmware_image(options.path, options.mcu, options.clock, say)
     chip = Chip(image, options.mcu, options.clock)
     master, slave = os.openpty()
     try:
