@@ -94,7 +94,13 @@ def test_a_sketch_that_does_not_compile_is_its_first_error_and_the_log(tmp_path:
     sketch = tmp_path / "broken.ino"
     sketch.write_text("void setup() {\n  undeclared_thing(1);\n}\nvoid loop() {}\n")
     env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path / "cache")}
-    err = one_line(sim("--firmware", str(sketch), env=env), 1)
+    result = sim("--firmware", str(sketch), env=env)
+    assert result.returncode == 1 and result.stdout == "", result.stderr
+    building, err = result.stderr.splitlines()  # what it is doing, then the one error line
+    assert (
+        building
+        == "hcrctl sim: building broken.ino for atmega328p at 16000000 Hz (cached for the next start)"
+    )
     assert "cannot build broken.ino: broken.ino:2" in err and "undeclared_thing" in err, err
     log = Path(err.rsplit("the full log is ", 1)[1].rstrip(")\n"))
     assert "undeclared_thing" in log.read_text()
