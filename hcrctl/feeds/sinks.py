@@ -1,7 +1,9 @@
-"""Where ``record`` and ``export`` write topic messages: an MCAP or a CSV file, chosen by suffix.
+"""The writer of topic messages: the ``messages`` kind of ``formats.WRITERS`` (MCAP, CSV), chosen by suffix.
 
-The interface is deliberately small, so the bridge's ``--mcap`` (or anyone)
-can write the same files: ``formats.open_sink(path, topics)`` gives a ``Sink``;
+The interface is deliberately small, so ``record``, ``export``, the bridge's
+``--mcap`` (or anyone) write the same files, and a new format is a subclass
+(``_encode``, ``_emit``, ``_finish``) and one entry in that table:
+``formats.open_sink(path, topics)`` gives a ``Sink``;
 ``write(topic, message, log_time)`` takes what ``topics.messages()`` and
 ``Feed``'s ``publish`` produce; ``close()`` finishes the file (always call it:
 it is what makes an MCAP file whole). A sink is not thread-safe: one writer
