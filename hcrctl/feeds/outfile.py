@@ -33,7 +33,8 @@ class OutFile(click.ParamType):
 
     name = "OUT"
 
-    def get_metavar(self, param: click.Parameter, ctx: click.Context) -> str:
+    def get_metavar(self, param: click.Parameter, ctx: click.Context | None = None) -> str:
+        """``OUT.mcap|OUT.csv``, from the table when shown (``ctx`` is Click 8.2's; 8.1 passes none)."""
         return formats.metavar()
 
     def shell_complete(
