@@ -49,7 +49,7 @@ def test_two_robots_are_listed_and_a_killed_one_leaves(lab: Fleet) -> None:
 
 
 def test_the_table_names_who_drives(lab: Fleet) -> None:
-    serve = lab.serve("gamma", lab.sim(), "--deadman", "5")
+    serve = lab.serve("gamma", lab.sim(), "--deadman", "10")
     with operator(lab.endpoint, "gamma", "op7") as op:
         op.open()
         op.cmd_vel(twist(0.1))

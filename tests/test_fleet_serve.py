@@ -65,7 +65,7 @@ def motion_then_stop(serve: Any) -> tuple[list[Frame], Frame]:
 
 
 def test_motion_arrives_and_stops_when_the_drivers_token_goes(lab: Fleet, tmp_path: Path) -> None:
-    serve = served(lab, tmp_path, "--deadman", "5")
+    serve = served(lab, tmp_path, "--deadman", "10")
     with operator(lab.endpoint, "r1", "op1") as op:
         op.open()
         taken, body = op.claim()
@@ -77,7 +77,7 @@ def test_motion_arrives_and_stops_when_the_drivers_token_goes(lab: Fleet, tmp_pa
         text = serve.wait_err("operator op1 gone")
         wait_until(lambda: motion_then_stop(serve)[1], what="stop after the motion")
     assert "stopped: operator op1 gone" in text
-    assert "deadman" not in text  # a 5 s deadman: the token's going is what stopped it
+    assert "deadman" not in text  # a 10 s deadman: the token's going is what stopped it
 
 
 def test_a_silent_driver_is_stopped_by_the_deadman(lab: Fleet, tmp_path: Path) -> None:
@@ -93,7 +93,7 @@ def test_a_silent_driver_is_stopped_by_the_deadman(lab: Fleet, tmp_path: Path) -
 
 
 def test_a_second_operator_is_refused_and_a_third_may_stop(lab: Fleet, tmp_path: Path) -> None:
-    serve = served(lab, tmp_path, "--deadman", "5")
+    serve = served(lab, tmp_path, "--deadman", "10")
     with (
         operator(lab.endpoint, "r1", "op1") as op1,
         operator(lab.endpoint, "r1", "op2") as op2,
@@ -115,7 +115,7 @@ def test_a_second_operator_is_refused_and_a_third_may_stop(lab: Fleet, tmp_path:
 
 
 def test_a_turn_is_written_once_and_held_under_the_lease(lab: Fleet, tmp_path: Path) -> None:
-    serve = served(lab, tmp_path, "--deadman", "5")
+    serve = served(lab, tmp_path, "--deadman", "10")
     turn = {"address": 1, "command": TURN, "content": C.Turn(90).content().hex()}
     with operator(lab.endpoint, "r1", "op1") as op:
         op.open()
@@ -197,7 +197,7 @@ def test_cdr_topics_at_the_asked_rate(lab: Fleet, tmp_path: Path) -> None:
 
 
 def test_sigterm_stops_the_robot_and_prints_a_summary(lab: Fleet, tmp_path: Path) -> None:
-    serve = served(lab, tmp_path, "--deadman", "5")
+    serve = served(lab, tmp_path, "--deadman", "10")
     with operator(lab.endpoint, "r1", "op1") as op:
         op.open()
         op.cmd_vel(twist(0.2))
