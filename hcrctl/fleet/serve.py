@@ -39,6 +39,7 @@ from ..live.teleop import bumper_hit
 from ..live.watch import quick_handoff
 from ..motion.governor import Governor
 from ..protocol import commands as C
+from ..protocol.profiles import profile
 from ..protocol.topics import all_topics
 from . import keys, queries
 from .drive import BadMotion, FleetDrive
@@ -316,7 +317,7 @@ def _serve(
     topics = all_topics(Feed.counters)
     with settings.robot() as robot, quick_handoff():
         publishers = Publishers(zenoh, session, options.name, topics, options.encoding)
-        server = _foxglove_server(options, governor, notes, topics)
+        server = _foxglove_server(options, governor, notes, topics, settings.protocol)
         publish = publishers.publish if server is None else _both(publishers.publish, server.publish)
         feed = Feed(robot, names, options.rate, publish, reconnect=Reconnect(settings, robot))
         serving = Serving(options.name, session, governor, notes, feed, options)
@@ -358,20 +359,15 @@ def _both(
     return publish
 
 
-class _Nothing:
-    def __enter__(self) -> None:
-        return None
-
-    def __exit__(self, *exc: object) -> None:
-        return None
+def _entered(server: Server | None) -> contextlib.AbstractContextManager[Any]:
+    return server if server is not None else contextlib.nullcontext()
 
 
-def _entered(server: Server | None) -> Any:
-    return server if server is not None else _Nothing()
-
-
-def _foxglove_server(options: Options, governor: Governor, notes: Notes, topics: Any) -> Server | None:
-    """The bridge's server on the same feed and governor (its ``/cmd_vel`` is one more source)."""
+def _foxglove_server(
+    options: Options, governor: Governor, notes: Notes, topics: Any, protocol: str
+) -> Server | None:
+    """The bridge's server on the same feed and governor (its ``/cmd_vel`` is one more source, when the
+    firmware has the velocity command a Twist becomes)."""
     if options.foxglove is None:
         return None
     from ..feeds.bridge_drive import CmdVelSource
@@ -380,7 +376,8 @@ def _foxglove_server(options: Options, governor: Governor, notes: Notes, topics:
     host, port = options.foxglove
     if not is_loopback(host):
         warn(f"Foxglove on {host}: anyone on the network who can reach it can drive the robot")
-    cmd_vel = CmdVelSource(governor, notes.note)
+    drives = profile(protocol).has(C.BY_NAME["velocity"].code)
+    cmd_vel = CmdVelSource(governor, notes.note) if drives else None
     return Server(topics, host, port, None, cmd_vel, notes.note, options.encoding)
 
 
