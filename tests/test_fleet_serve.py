@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import signal
+import struct
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +28,7 @@ from helpers_fleet_robot import (
     VELOCITY,
     Fleet,
     fleet,
+    free_port,
     is_stop,
     operator,
     twist,
@@ -209,22 +211,31 @@ def test_sigterm_stops_the_robot_and_prints_a_summary(lab: Fleet, tmp_path: Path
     assert "hcrctl: fleet serve r1: " in err and "1 cmd_vel" in err
 
 
-def test_the_foxglove_bridge_from_the_same_process(lab: Fleet, tmp_path: Path) -> None:
+def test_the_foxglove_bridge_from_the_same_process_and_governor(lab: Fleet, tmp_path: Path) -> None:
+    """Foxglove's channels are served, and its /cmd_vel drives under the same governor: a fleet operator is refused."""
     pytest.importorskip("websockets", reason="--foxglove needs the foxglove extra")
     from websockets.sync.client import connect
 
-    port = __import__("helpers_fleet_robot").free_port()
-    serve = served(lab, tmp_path, "--foxglove", f"127.0.0.1:{port}")
+    port = free_port()
+    serve = served(lab, tmp_path, "--foxglove", f"127.0.0.1:{port}", "--deadman", "10")
     assert f"Foxglove on ws://127.0.0.1:{port}" in serve.err.decode()
-    with connect(
-        f"ws://127.0.0.1:{port}", subprotocols=["foxglove.websocket.v1"], open_timeout=TIMEOUT
-    ) as ws:  # type: ignore[list-item]
+    url = f"ws://127.0.0.1:{port}"
+    with (
+        connect(url, subprotocols=["foxglove.websocket.v1"], open_timeout=TIMEOUT) as ws,  # type: ignore[list-item]
+        operator(lab.endpoint, "r1", "op1") as op,
+    ):
         topics: set[str] = set()
         while "/hcr/compass" not in topics:
             message = json.loads(ws.recv(timeout=TIMEOUT))
             if message.get("op") == "advertise":
                 topics.update(c["topic"] for c in message["channels"])
+        cmd_vel = {"id": 1, "topic": "/cmd_vel", "encoding": "json", "schemaName": "geometry_msgs/Twist"}
+        ws.send(json.dumps({"op": "advertise", "channels": [cmd_vel]}))
+        ws.send(b"\x01" + struct.pack("<I", 1) + json.dumps(twist(0.1)).encode())
+        wait_until(lambda: serve.sent_codes({VELOCITY}), what="the Foxglove client's velocity on the wire")
+        taken, body = op.claim()
     assert {"/hcr/compass", "/hcr/frames", "/hcr/link"} <= topics
+    assert not taken and body["driver"].startswith("client ")
 
 
 @pytest.mark.parametrize("name", ["a b", ".lead", "x/y", "*"])
