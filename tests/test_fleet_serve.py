@@ -254,3 +254,46 @@ def test_a_port_that_will_not_open_is_one_line_and_no_robot(lab: Fleet, tmp_path
     (line,) = done.stderr.splitlines()
     assert missing in line and "Traceback" not in line
     assert lab.listed() == []
+
+
+@pytest.mark.parametrize(
+    ("message", "why"),
+    [
+        (b"x" * 5000, "at most 4,096"),
+        (b"[" * 20 + b"]" * 20, "more than 16"),
+        (b"{not json", "not JSON"),
+        (b"[1, 2]", "not a JSON object"),
+        (b'{"address": 2, "command": 3, "content": "001414"}', "own address 0x01"),
+        (b'{"command": 65, "content": "1020"}', "not a motion command"),
+        (b'{"command": 3, "content": "FF1414"}', "velocity DIR 0xFF"),  # bits beyond the two directions
+        (b'{"command": 4, "content": "00"}', "turn"),
+        (b'{"command": "3", "content": "001414"}', "is {address, command: CODE"),
+    ],
+)
+def test_a_motion_message_that_is_no_motion_request_is_refused(message: bytes, why: str) -> None:
+    from hcrctl.fleet.drive import BadMotion, motion_request, parse_motion
+    from hcrctl.protocol.profiles import profile
+
+    with pytest.raises(BadMotion) as caught:
+        motion_request(parse_motion(message), profile("v0.15"), 1)
+    assert why in str(caught.value)
+
+
+@pytest.mark.parametrize(
+    ("request_", "wheels", "once"),
+    [
+        (C.MotorPower(-40, 60), (-40, 60), False),
+        (C.MotorSpeed(10, 10), (10, 10), False),
+        (C.Velocity(-30, 30), (-30, 30), False),
+        (C.Turn(90), (1, -1), True),
+        (C.Turn(45, ccw=True), (-1, 1), True),
+    ],
+)
+def test_a_motion_request_is_decoded_through_the_table(
+    request_: Any, wheels: tuple[int, int], once: bool
+) -> None:
+    from hcrctl.fleet.drive import motion_request
+    from hcrctl.protocol.profiles import profile
+
+    message = {"address": 1, "command": type(request_).CODE, "content": request_.content().hex()}
+    assert motion_request(message, profile("v0.15"), 1) == (wheels, request_, once)

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import ProtocolError
-from ..feeds.cmdvel import BadTwist, parse_twist, twist_wheels
+from ..feeds.cmdvel import MAX_NESTING, BadTwist, parse_twist, twist_wheels
 from ..motion.governor import Governor, Wheels
 from ..protocol import commands as C
 from ..protocol.profiles import Profile
@@ -76,8 +76,11 @@ def motion_request(message: dict[str, Any], profile: Profile, address: int) -> t
 
 
 def parse_motion(data: bytes) -> dict[str, Any]:
+    """A message's JSON object, read on the Twist's budget (size and nesting checked before parsing)."""
     if len(data) > MAX_MESSAGE:
         raise BadMotion(f"{len(data):,} bytes: a motion message is at most {MAX_MESSAGE:,}")
+    if data.count(b"{") + data.count(b"[") > MAX_NESTING:
+        raise BadMotion(f"more than {MAX_NESTING} objects or arrays")
     try:
         message = json.loads(data)
     except (ValueError, RecursionError) as exc:
