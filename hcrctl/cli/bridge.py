@@ -11,25 +11,10 @@ from ..errors import HcrError
 from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
 from ..feeds.outfile import force_option
 from ..protocol.encodings import ENCODINGS
-from .params import deadman_option, duration_option, rate_option
+from .params import HostPort, deadman_option, duration_option, rate_option
 from .settings import Settings
 
 EXTRA = "pip install 'hcrctl[foxglove]'"
-
-
-class Listen(click.ParamType):
-    """HOST:PORT ([v6 address]:PORT); port 0 asks the system for a free one."""
-
-    name = "HOST:PORT"
-
-    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
-        if isinstance(value, tuple):
-            return value
-        host, sep, port = str(value).rpartition(":")
-        host = host[1:-1] if host.startswith("[") and host.endswith("]") else host
-        if not sep or not host or not port.isdigit() or int(port) > 65535:
-            self.fail(f"{value!r} is not HOST:PORT with a port in 0..65535 (e.g. 127.0.0.1:8765)", param, ctx)
-        return host, int(port)
 
 
 class Origin(click.ParamType):
@@ -49,7 +34,7 @@ class Origin(click.ParamType):
 @click.command()
 @click.option(
     "--listen",
-    type=Listen(),
+    type=HostPort(),
     default="127.0.0.1:8765",
     show_default=True,
     help="Where to serve; loopback unless told (anyone who reaches it can drive). Port 0 picks a free one.",

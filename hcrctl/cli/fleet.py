@@ -15,34 +15,8 @@ import click
 
 from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
 from ..protocol.encodings import ENCODINGS
-from .params import deadman_option, rate_option
+from .params import Endpoint, HostPort, deadman_option, rate_option
 from .settings import Settings, json_option, stdout_is_terminal
-
-
-class Endpoint(click.ParamType):
-    """A Zenoh endpoint: PROTOCOL/ADDRESS, such as tcp/127.0.0.1:7447 or tls/robot.lab:7447."""
-
-    name = "ENDPOINT"
-
-    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
-        text = str(value).strip()
-        proto, sep, rest = text.partition("/")
-        if not sep or not proto.isalnum() or not rest:
-            self.fail(f"{value!r} is not a Zenoh endpoint such as tcp/127.0.0.1:7447", param, ctx)
-        return text
-
-
-class HostPort(click.ParamType):
-    """HOST:PORT ([v6 address]:PORT) for --foxglove, as bridge --listen reads it; port 0 picks a free one."""
-
-    name = "HOST:PORT"
-
-    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
-        host, sep, port = str(value).rpartition(":")
-        host = host[1:-1] if host.startswith("[") and host.endswith("]") else host
-        if not sep or not host or not port.isdigit() or int(port) > 65535:
-            self.fail(f"{value!r} is not HOST:PORT with a port in 0..65535 (e.g. 127.0.0.1:8765)", param, ctx)
-        return host, int(port)
 
 
 def _name(ctx: click.Context, param: click.Parameter, value: str) -> str:

@@ -330,3 +330,34 @@ def complete_field(ctx: click.Context | None, param: click.Parameter | None, inc
         for s in series.all_series()
         if s.path.startswith(incomplete)
     ]
+
+
+class HostPort(click.ParamType):
+    """HOST:PORT ([v6 address]:PORT), where a server listens (bridge --listen, fleet serve --foxglove).
+
+    Port 0 asks the system for a free one.
+    """
+
+    name = "HOST:PORT"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if isinstance(value, tuple):
+            return value
+        host, sep, port = str(value).rpartition(":")
+        host = host[1:-1] if host.startswith("[") and host.endswith("]") else host
+        if not sep or not host or not port.isdigit() or int(port) > 65535:
+            self.fail(f"{value!r} is not HOST:PORT with a port in 0..65535 (e.g. 127.0.0.1:8765)", param, ctx)
+        return host, int(port)
+
+
+class Endpoint(click.ParamType):
+    """A Zenoh endpoint: PROTOCOL/ADDRESS, such as tcp/127.0.0.1:7447 or tls/robot.lab:7447."""
+
+    name = "ENDPOINT"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        text = str(value).strip()
+        proto, sep, rest = text.partition("/")
+        if not sep or not proto.isalnum() or not rest:
+            self.fail(f"{value!r} is not a Zenoh endpoint such as tcp/127.0.0.1:7447", param, ctx)
+        return text

@@ -25,7 +25,7 @@ from ..link.defaults import REPLY_TIMEOUT_S, RETRIES
 from ..link.stopwait import DEFAULT_WAIT_S
 from ..protocol.frames import ChecksumRule
 from ..protocol.profiles import DEFAULT, PROFILES
-from .params import ByteNumber, FloatRange, IntRange
+from .params import ByteNumber, Endpoint, FloatRange, IntRange
 
 if TYPE_CHECKING:
     from click.shell_completion import CompletionItem
@@ -131,7 +131,7 @@ def global_options() -> list[click.Option]:
         ),
         _option(
             "--zenoh",
-            metavar="ENDPOINT",
+            type=Endpoint(),
             multiple=True,
             help="Where the fleet is (zenoh://NAME ports, fleet commands), e.g. tcp/10.0.0.5:7447; repeatable. "
             "Default: the router on tcp/127.0.0.1:7447.",
