@@ -99,7 +99,9 @@ def test_monitor_decodes_the_frames_instead_of_a_malformed_row_a_second() -> Non
     frames = [row for row in rows if row.get("checksum_ok")]
     assert {row["name"] for row in frames} == {"bump", "ir"} and len(frames) > 20, rows[:5]
     assert all(row["protocol"] == "v0.11" for row in frames)
-    assert not any(row.get("problem") == "malformed" for row in rows), rows
+    # what the v0.15 decoder held when monitor switched is one row at most, before the first frame
+    malformed = [i for i, row in enumerate(rows) if row.get("problem") == "malformed"]
+    assert len(malformed) <= 1 and all(i < rows.index(frames[0]) for i in malformed), rows[:5]
     assert "decoding them as v0.11" in result.stderr, result.stderr
 
 

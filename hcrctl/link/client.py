@@ -339,7 +339,8 @@ class Robot(TypedReads, Dialect):
                 return
             if data:
                 self.rx_bytes += len(data)
-                if self.dialect_hint is None and (self.profile is not DEFAULT or self.rx_bytes <= HEAR_FIRST):
+                listening = self.dialect_hint is None or self.follow_dialect
+                if listening and (self.profile is not DEFAULT or self.rx_bytes <= HEAR_FIRST):
                     self._heard = (self._heard + data)[-MAX_FRAME:]
                     self.hear(self._heard)
                 self._dispatch(self._decoder.feed(data))

@@ -40,6 +40,8 @@ if TYPE_CHECKING:
 #: The first bytes of a v0.15 link searched for whole v0.11 frames: a streaming v0.11 board fills
 #: them many times over; past them the search stops, so a v0.15 link pays nothing for it.
 HEAR_FIRST = 4096
+#: Whole v0.11 frames heard at once before ``follow_dialect`` decodes as v0.11.
+FOLLOW_FRAMES = 2
 
 
 class Dialect:
@@ -49,7 +51,8 @@ class Dialect:
     profile: Profile
     #: Frames of the other dialect heard (a lone 0A under v0.15, 0D 0A under v0.11): said in timeouts.
     dialect_hint: str | None
-    #: Decode as v0.11 once v0.11 frames are heard on a v0.15 link (``monitor`` with no --protocol).
+    #: Decode as v0.11 once v0.11 frames are heard on a v0.15 link (``monitor`` with no --protocol);
+    #: the reader keeps listening for them while this is set (and within ``HEAR_FIRST``).
     follow_dialect: bool = False
     _rule: ChecksumRule
     _decoder: FrameDecoder
@@ -65,11 +68,13 @@ class Dialect:
     def hear(self, data: bytes) -> None:
         """Bytes the decoder could not read: remember if they are frames of the other dialect."""
         if self.dialect_hint is None:
-            if self.profile is DEFAULT and lone_lf_frame_in(data):
+            if self.profile is DEFAULT and lone_lf_frames(data):
                 self.dialect_hint = LONE_LF_HINT
             elif self.profile.terminator != TERMINATOR and crlf_frame_in(data):
                 self.dialect_hint = CRLF_HINT
-        if self.follow_dialect and self.dialect_hint == LONE_LF_HINT and self.profile is DEFAULT:
+        # Decoding differently wants more than a hint does: two whole frames (one could be chance)
+        if self.follow_dialect and self.profile is DEFAULT and lone_lf_frames(data) >= FOLLOW_FRAMES:
+            self.follow_dialect = False
             self._adopt(V011)
 
     def _adopt(self, prof: Profile) -> None:
@@ -117,15 +122,16 @@ def explained(error: DeviceTimeout, dialect_hint: str | None) -> DeviceTimeout:
     return error
 
 
-def lone_lf_frame_in(data: bytes) -> bool:
-    """Whether a whole frame ending in a lone 0A stands anywhere in ``data`` (a v0.15 frame never
-    ends so: its 0D is where the 0A would be)."""
-    at = data.find(b"\x55\xaa")
+def lone_lf_frames(data: bytes) -> int:
+    """How many whole frames ending in a lone 0A stand in ``data``, one after another or apart (a v0.15
+    frame never ends so: its 0D is where the 0A would be)."""
+    found, at = 0, data.find(b"\x55\xaa")
     while at != -1:
         if lone_lf_frame(data[at:]):
-            return True
+            found += 1
+            at += data[at + 3] + V011.overhead - 1  # on from its end
         at = data.find(b"\x55\xaa", at + 1)
-    return False
+    return found
 
 
 def _offered(prof: Profile) -> list[str]:
