@@ -111,10 +111,7 @@ class FirmwareRobot:
             for role, pressed in zip(BUMPERS, bumpers, strict=True):
                 self.chip.drive(digital(self.pins[role]), not pressed)  # active low
             if not initial:
-                names = [r.removeprefix("bump_") for r, p in zip(BUMPERS, bumpers, strict=True) if p] or [
-                    "none"
-                ]
-                self.say(f"bumpers: {', '.join(names)} pressed at {self._where()}")
+                self.say(f"bumpers: {_pressed(bumpers)} pressed at {self._where()}")
             self.status.bumpers = bumpers
         for role, angle in zip(IRS, ir_angles(len(IRS)), strict=True):
             channel, count = self.pins[role], ir_count(self.body.range_at(angle))
@@ -131,3 +128,8 @@ class FirmwareRobot:
     def _where(self) -> str:
         b = self.body
         return f"x {b.x:.0f} cm, y {b.y:.0f} cm, heading {b.heading:.0f}°"
+
+
+def _pressed(bumpers: tuple[bool, bool, bool]) -> str:
+    """``centre``, ``left, centre``, or ``none``."""
+    return ", ".join(r.removeprefix("bump_") for r, p in zip(BUMPERS, bumpers, strict=True) if p) or "none"

@@ -49,7 +49,11 @@ def serve_firmware(
     toolchain.require((*toolchain.RUN_NEEDS, *(toolchain.BUILD_NEEDS if sketch else ())))  # all at once
     image = firmware_image(options.path, options.mcu, options.clock, say)
     chip = Chip(image, options.mcu, options.clock)
-    master, slave = os.openpty()
+    try:
+        master, slave = os.openpty()
+    except OSError:
+        chip.close()
+        raise
     try:
         chip.wait_ready()
         robot = FirmwareRobot(chip, options.pins, say)
