@@ -42,10 +42,7 @@ def firmware_image(path: Path, mcu: str, clock: int, say: Callable[[str], None] 
     ``say`` hears a line before a build that is not cached yet (it takes a few seconds).
     """
     suffix = path.suffix.lower()
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise HcrError(f"cannot read the firmware {path}: {exc.strerror or exc}") from None
+    data = read_firmware(path)
     if suffix == ".elf":
         return path.resolve()
     if suffix == ".hex":
@@ -59,6 +56,14 @@ def firmware_image(path: Path, mcu: str, clock: int, say: Callable[[str], None] 
         _build(path, data, mcu, clock, out)
 
     return toolchain.cached("firmware", key, "firmware.elf", build)
+
+
+def read_firmware(path: Path) -> bytes:
+    """The file's bytes, or the one line saying why it cannot be read."""
+    try:
+        return path.read_bytes()
+    except OSError as exc:
+        raise HcrError(f"cannot read the firmware {path}: {exc.strerror or exc}") from None
 
 
 def _compiler_version() -> str:

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from ..serve import Stopper
 from . import toolchain
-from .build import SKETCH_SUFFIXES, firmware_image
+from .build import SKETCH_SUFFIXES, firmware_image, read_firmware
 from .harness import Chip, Tick
 from .pins import PinMap
 from .robot import FirmwareRobot
@@ -45,6 +45,7 @@ def serve_firmware(
     robot's changes. Returns the last time report (chip and wall time), or
     None when stopped before the first.
     """
+    read_firmware(options.path)  # a mistyped path is said first, whatever else is missing
     sketch = options.path.suffix.lower() in SKETCH_SUFFIXES
     toolchain.require((*toolchain.RUN_NEEDS, *(toolchain.BUILD_NEEDS if sketch else ())))  # all at once
     image = firmware_image(options.path, options.mcu, options.clock, say)
