@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import re
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -138,3 +140,61 @@ void loop() { Check(header, 2); }
     source = sketch_source(sketch, "x.ino")
     assert source.startswith(b"#include <Arduino.h>\nvoid setup();\n") and source.endswith(sketch)
     assert b'#line 1 "x.ino"\n' + sketch in source
+
+
+#: Another robot's sketch: motors on timer 1 (pins 9, 10), its front bumper on pin 4 lights pin 13.
+OTHER_WIRING = """
+void setup() {
+  Serial.begin(9600);
+  pinMode(4, INPUT);
+  pinMode(13, OUTPUT);
+  digitalWrite(13, HIGH);
+  forward(250);
+}
+void loop() {
+  digitalWrite(13, digitalRead(4));  // a pressed bumper reads low: the light (active low) comes on
+}
+void forward(int pwm) {  // defined after its first use: the build adds the prototype
+  analogWrite(9, pwm);
+  analogWrite(10, pwm);
+}
+"""
+
+
+#: Pin 10 is the published firmware's left bumper: that one moves too, or the map is refused.
+PINS = "motor1=9,motor2=10,bump_left=7,bump_centre=4,light=13"
+
+
+@pytest.mark.skipif(missing_reason() is not None, reason=missing_reason() or "")
+def test_pins_wire_another_sketch_into_the_world(tmp_path: Path) -> None:
+    sketch = tmp_path / "other.ino"
+    sketch.write_text(OTHER_WIRING)
+    env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path / "cache")}
+    proc = subprocess.Popen(
+        [
+            hcrctl_exe(),
+            "sim",
+            "--firmware",
+            str(sketch),
+            "--pins",
+            PINS,
+        ],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        text=True,
+    )
+    assert proc.stderr is not None
+    said: list[str] = []
+    try:
+        for line in proc.stderr:  # the robot drives east into the wall, and its bumper lights the light
+            said.append(line.strip())
+            if "light on (pin 13 low)" in line:
+                break
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        proc.communicate(timeout=TIMEOUT)
+    assert any(re.search(r"motors: PWM 9=250 10=250 at x 60 cm", s) for s in said), said
+    assert any("bumpers: centre pressed at x 285 cm" in s for s in said), said
+    assert said[-1].endswith("light on (pin 13 low)"), said
