@@ -1,8 +1,10 @@
 """A valid frame's plain line made straight from its bytes: ``hex decode``'s cost for a frame not seen lately.
 
-``view.plain_line(event_dict(frame))`` says the same (``tests/test_hex_fastpaths.py``
-holds the two to the same text, frame by frame), but building the row dict and
-its columns was most of a large capture's cost. Here, everything that depends
+The fast path of a frame's plain line; its reference is
+``view.plain_line(event_dict(frame))``, which says the same
+(``tests/test_rules_differential.py`` and ``tests/test_hex_fastpaths.py`` hold
+the two to the same text, frame by frame), but building the row dict and its
+columns was most of a large capture's cost. Here, everything that depends
 only on the command and the side (its padded name, how to parse the content,
 each field's label and unit) is prepared once from the command table, and a
 frame costs its parse and one format.

@@ -128,12 +128,6 @@ class FrameDecoder:
             self._scan(out)
         return out
 
-    def _feed(self, data: bytes | bytearray | memoryview, out: list[Event]) -> list[Event]:
-        if data:
-            self._buf += data
-            self._scan(out)
-        return out
-
     def count(self, data: bytes, heads: Counter[bytes]) -> list[Event]:
         """``feed`` for a summary: each frame of a run of valid frames is counted in ``heads`` (by its
         address, length and command bytes, ``frame[2:5]``), not returned; other events are returned
@@ -154,7 +148,10 @@ class FrameDecoder:
     def _bulk(self, data: bytes, take: TakeParts, out: list[Any]) -> list[Any]:
         self._runs = take
         try:
-            return self._feed(data, out)
+            if data:
+                self._buf += data
+                self._scan(out)
+            return out
         finally:
             self._runs = None
 
