@@ -13,7 +13,7 @@ against the same 960 bytes/s: it checks the emulated UART's timing, which the bo
 
     python bench/bench_firmware.py [--seconds 60] [--firmware PATH]
 
-The firmware is ``--firmware``, else ``$HCRCTL_FIRMWARE``, else ``../shared/firmware/HCR_romeo.pde``
+The firmware is ``--firmware``, else ``$HCRCTL_FIRMWARE``, else ``tests/data/firmware/HCR_romeo.pde``
 beside the repository (test data, not part of the package). Needs the Debian packages of
 ``hcrctl sim --firmware`` (docs/firmware.md).
 """
@@ -105,11 +105,11 @@ def main() -> int:
     )
     parser.add_argument("--seconds", type=float, default=60.0, help="length of the watch run (default 60)")
     parser.add_argument(
-        "--firmware", type=Path, help="the sketch (default: ../shared/firmware/HCR_romeo.pde)"
+        "--firmware", type=Path, help="the sketch (default: tests/data/firmware/HCR_romeo.pde)"
     )
     args = parser.parse_args()
     firmware = args.firmware or Path(
-        os.environ.get("HCRCTL_FIRMWARE") or ROOT.parent / "shared" / "firmware" / "HCR_romeo.pde"
+        os.environ.get("HCRCTL_FIRMWARE") or ROOT / "tests" / "data" / "firmware" / "HCR_romeo.pde"
     )
     if not firmware.is_file():
         raise SystemExit(f"no firmware at {firmware} (give --firmware or set HCRCTL_FIRMWARE)")

@@ -9,8 +9,8 @@ times.
 
 They skip, with one line saying why, when a Debian package is missing (the
 line ``hcrctl sim --firmware`` itself prints) or when the firmware is not
-found: ``$HCRCTL_FIRMWARE``, else ``../shared/firmware/HCR_romeo.pde`` beside
-the project (test data, not part of the package).
+found: ``$HCRCTL_FIRMWARE``, else ``tests/data/firmware/HCR_romeo.pde`` (test
+data kept in the repository, not part of the package; see its README).
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from hcrctl.sim.body import Body
 from hcrctl.sim.firmware.toolchain import missing_reason
 
 ROOT = Path(__file__).resolve().parent.parent
-FIRMWARE = Path(os.environ.get("HCRCTL_FIRMWARE") or ROOT.parent / "shared" / "firmware" / "HCR_romeo.pde")
+FIRMWARE = Path(os.environ.get("HCRCTL_FIRMWARE") or ROOT / "tests" / "data" / "firmware" / "HCR_romeo.pde")
 V011 = ["--protocol", "v0.11"]
 BANNER = b"HCR Start\r\n"
 
