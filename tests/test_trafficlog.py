@@ -11,6 +11,7 @@ from datetime import datetime
 from pathlib import Path
 
 import pytest
+from helpers import wait_until
 from helpers_hex import hcrctl_exe, run, sim_pty
 
 from hcrctl.errors import LogFormatError
@@ -157,7 +158,12 @@ def test_global_log_records_a_drive_and_its_stop(tmp_path: Path) -> None:
 
 
 def test_the_log_survives_kill_9(tmp_path: Path) -> None:
-    """Flushed line by line: SIGKILL (no cleanup at all) loses nothing already logged."""
+    """Flushed line by line: SIGKILL (no cleanup at all) loses nothing already logged.
+
+    The lines are waited for in the file itself (a log that held them in a
+    buffer would never show them); the monitor's own lines may come first, as
+    its listener is the link's first.
+    """
     path = tmp_path / "killed.jsonl"
     with sim_pty() as port:
         proc = subprocess.Popen(
@@ -168,6 +174,7 @@ def test_the_log_survives_kill_9(tmp_path: Path) -> None:
         )
         try:
             printed = [proc.stdout.readline() for _ in range(3)]
+            wait_until(lambda: path.exists() and path.read_text().count("\n") >= 3, what="3 lines in the log")
             proc.send_signal(signal.SIGKILL)
             proc.wait(timeout=10)
         finally:
