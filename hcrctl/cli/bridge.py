@@ -115,7 +115,10 @@ def require_extra(mcap: bool) -> None:
     """The server (websockets) and the MCAP writer (mcap) are an extra: without them, one line
     naming it, before anything is opened. Only the package missing is this error: a failing import
     inside an installed one is that failure, with its own message."""
-    needed = [("websockets", "websockets")] + ([("mcap", "mcap")] if mcap else [])
+    from ..feeds.formats import WRITERS
+
+    mcap_needs = WRITERS[".mcap"].needs  # what the table's MCAP writer imports
+    needed = [("websockets", "websockets")] + ([(mcap_needs, mcap_needs)] if mcap and mcap_needs else [])
     for module, package in needed:
         try:
             __import__(module)
