@@ -207,6 +207,7 @@ class FrameDecoder:
         n = len(buf)
         pos = 0
         overhead, term, tail, lenient = self._overhead, self._term, len(self._term) + 1, self.lenient
+        last = term[-1]  # the terminator's last byte, looked at first: false headers mostly fail there
         base = self._base
         # under v0.15 the rule is the verdict: checked here, with no call to ``_checks_out`` per frame
         rule, checks_out = self._rule, None if self.profile is DEFAULT and not lenient else self._checks_out
@@ -246,7 +247,7 @@ class FrameDecoder:
                     pos = h
                     break
                 end += buf[end] == 0x0A
-            if buf.endswith(term, h, end):
+            if buf[end - 1] == last and buf.endswith(term, h, end):
                 if checksum(buf[h:ck], rule) == buf[ck] if checks_out is None else checks_out(buf, h, ck):
                     nxt = find(HEADER, h + 2)
                     if (nxt < 0 or nxt >= end) and self._pending is None:  # ``_take``'s plainest case, inline
