@@ -36,6 +36,8 @@ from hcrctl.cli.settings import ENV_PREFIX, config_keys
 from hcrctl.cli.sim import parse_tcp
 from hcrctl.config import option_defaults
 from hcrctl.errors import ConfigError
+from hcrctl.feeds.formats import suffixes
+from hcrctl.feeds.outfile import OutFile
 from hcrctl.protocol import commands as C
 from hcrctl.shell.builtins import builtins
 from hcrctl.sim.options import SimOptions
@@ -165,9 +167,8 @@ def _valid(param: click.Parameter, tmp: Path) -> str:
         log = tmp / "empty.jsonl"
         log.touch()
         return str(log)
-    suffixes = getattr(kind, "suffixes", None)  # an output whose suffix chooses its format (record, export)
-    if suffixes:
-        return str(tmp / f"out{suffixes[0]}")
+    if isinstance(kind, OutFile):  # an output whose suffix chooses its format (record, export)
+        return str(tmp / f"out{suffixes()[0]}")
     if isinstance(kind, P.FloatRange) and kind.min is not None and kind.max is not None:
         return repr((kind.min + kind.max) / 2)
     if isinstance(kind, P.IntRange) and kind.min is not None:

@@ -15,7 +15,7 @@ import click
 
 from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
 from ..protocol.encodings import ENCODINGS
-from .params import Endpoint, HostPort, deadman_option, rate_option
+from .params import Endpoint, FloatRange, HostPort, deadman_option, rate_option
 from .settings import Settings, json_option, stdout_is_terminal
 
 
@@ -130,7 +130,7 @@ def serve(
 @click.option("--watch", is_flag=True, help="Print a line per robot joining or leaving, until Ctrl-C.")
 @click.option(
     "--timeout",
-    type=click.FloatRange(0.1, 60),
+    type=FloatRange(0.1, 60),
     default=2.0,
     show_default=True,
     metavar="S",
