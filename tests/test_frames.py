@@ -318,7 +318,9 @@ def test_every_input_byte_is_accounted_for_exactly_once(
 
 
 @pytest.mark.parametrize("window", [64, 1000, runs.COUNT_WINDOW])
-def test_a_long_busy_stream_decodes_alike_in_any_read_size(window: int, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_long_busy_stream_decodes_alike_in_any_read_size(
+    window: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Hundreds of frames, full-size ones among them, with wrecks and false headers in between.
 
     Long enough for the fast path's windows (shrunk here, so that every boundary case occurs, a
