@@ -166,12 +166,24 @@ def test_a_v015_read_of_a_v011_board_says_try_protocol_v011(board: str, env: dic
 
 
 def test_a_v015_monitor_of_a_v011_board_says_try_protocol_v011(board: str) -> None:
-    with terminal(["--port", board, "monitor"], size=WIDE) as term:
+    """Given --protocol v0.15 (the user's word), monitor keeps it and explains each v0.11 frame."""
+    with terminal(["--protocol", "v0.15", "--port", board, "monitor"], size=WIDE) as term:
         screen = term.wait_for(lambda t: "as v0.11 bump" in t)
         assert LONE_LF in screen
         term.send("\x03")
         term.finish()
         assert f"(hint: {LONE_LF})" in term.output()
+
+
+def test_a_monitor_left_on_the_default_follows_a_v011_board(board: str) -> None:
+    """Without --protocol, monitor says it heard v0.11 and decodes the stream as v0.11 from there."""
+    with terminal(["--port", board, "monitor"], size=WIDE) as term:
+        term.wait_for(lambda t: "last IR byte rule" in t and "bump=[" in t)
+        term.send("\x03")
+        term.finish()
+        output = term.output()
+        assert "decoding them as v0.11 from here on (give --protocol v0.11 to start so)" in output
+        assert "as v0.11 bump" not in output.split("decoding them as v0.11", 1)[1]
 
 
 @pytest.mark.parametrize("protocol", ["v0.15", "v0.11"])
