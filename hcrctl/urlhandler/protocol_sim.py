@@ -19,12 +19,14 @@ import time
 import urllib.parse
 from typing import TYPE_CHECKING, Any
 
-# types-pyserial leaves out serialutil.to_bytes, which pyserial 3.5 has and its own handlers use.
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes  # type: ignore[attr-defined]
 
 from ..sim.options import SimOptions
 from ..sim.simulator import Simulator
 from ..sim.uart import SimLine, open_link
+
+# types-pyserial leaves out serialutil.to_bytes, which pyserial 3.5 has and its own handlers use.
+from .cable import HealthyCable
 
 if TYPE_CHECKING:
     from _typeshed import ReadableBuffer
@@ -33,7 +35,7 @@ if TYPE_CHECKING:
 _MIN_WAIT_S = 1e-4
 
 
-class Serial(SerialBase):
+class Serial(HealthyCable, SerialBase):
     """A serial port whose other end is the simulated robot."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
@@ -178,30 +180,3 @@ class Serial(SerialBase):
 
     def cancel_write(self) -> None:
         """Writes never block, so there is nothing to cancel."""
-
-    # -- modem lines: a simulator has none, so report a healthy cable -------
-
-    def _update_break_state(self) -> None:
-        pass
-
-    def _update_rts_state(self) -> None:
-        pass
-
-    def _update_dtr_state(self) -> None:
-        pass
-
-    @property
-    def cts(self) -> bool:
-        return True
-
-    @property
-    def dsr(self) -> bool:
-        return True
-
-    @property
-    def ri(self) -> bool:
-        return False
-
-    @property
-    def cd(self) -> bool:
-        return True

@@ -15,17 +15,19 @@ import threading
 import time
 from typing import TYPE_CHECKING, Any
 
-# types-pyserial leaves out serialutil.to_bytes, which pyserial 3.5 has and its own handlers use.
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes  # type: ignore[attr-defined]
 
 from ..fleet.remote import Reach, RemoteLink
 from ..fleet.remote.link import robot_name
 
+# types-pyserial leaves out serialutil.to_bytes, which pyserial 3.5 has and its own handlers use.
+from .cable import HealthyCable
+
 if TYPE_CHECKING:
     from _typeshed import ReadableBuffer
 
 
-class Serial(SerialBase):
+class Serial(HealthyCable, SerialBase):
     """A serial port whose other end is a robot served to the fleet (``hcrctl fleet serve``)."""
 
     def __init__(self, *args: Any, reach: Reach | None = None, **kwargs: Any) -> None:
@@ -132,30 +134,3 @@ class Serial(SerialBase):
     def why_no_reply(self, error: Any) -> Any:
         """A timeout of the Robot's, with what the robot side said (see ``RemoteLink.why_no_reply``)."""
         return error if self.link is None else self.link.why_no_reply(error)
-
-    # -- modem lines: none; report a healthy cable -----------------------------------------
-
-    def _update_break_state(self) -> None:
-        pass
-
-    def _update_rts_state(self) -> None:
-        pass
-
-    def _update_dtr_state(self) -> None:
-        pass
-
-    @property
-    def cts(self) -> bool:
-        return True
-
-    @property
-    def dsr(self) -> bool:
-        return True
-
-    @property
-    def ri(self) -> bool:
-        return False
-
-    @property
-    def cd(self) -> bool:
-        return True
