@@ -6,10 +6,21 @@ and so are the encodings (``protocol.encodings``): JSON with Zenoh's
 type's name as its schema. A put never blocks the serial reader that calls
 it: readings are dropped under congestion (Zenoh's default for a put), and
 the next one is a tenth of a second away.
+
+``publish`` runs on whichever thread saw the traffic (the link's reader, the
+poller, a query's worker, the governor) and ``close`` on the main thread.
+A Zenoh publisher must never be undeclared while another thread is inside
+its ``put``: ``put`` holds a borrow of the Python object with the GIL released,
+``undeclare`` needs it alone, and the bindings refuse with ``RuntimeError('Already
+borrowed')``. A robot's reader can still be inside ``put`` for a reply that came
+in after the feed let go of the link (it calls a snapshot of the hooks). So one
+lock covers every ``put`` and the undeclaring, and once closed ``publish`` drops
+what comes: no put can start after, nor be running during, ``close``.
 """
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterable
 from typing import Any
 
@@ -42,16 +53,36 @@ class Publishers:
             )
             self._served[topic.name] = (publisher, kind.encoder(topic))
         self.sent = 0
+        #: Held around every put and around close: a publisher is never undeclared mid-put.
+        self._lock = threading.Lock()
+        self.closed = False
 
     def publish(self, topic: str, message: dict[str, Any], at: float) -> None:
         served = self._served.get(topic)
         if served is None:
             return
         publisher, encode = served
-        publisher.put(encode(message))
-        self.sent += 1
+        data = encode(message)
+        with self._lock:
+            if self.closed:
+                return  # a late reply from the link, after the end: nobody is served any more
+            publisher.put(data)
+            self.sent += 1
 
     def close(self) -> None:
-        for publisher, _ in self._served.values():
-            publisher.undeclare()
-        self._served.clear()
+        """Undeclare every publisher once no put is running; later ``publish`` calls are dropped.
+
+        Every publisher is undeclared even if one fails; the first failure is raised after.
+        """
+        failed: Exception | None = None
+        with self._lock:
+            self.closed = True
+            served = list(self._served.values())
+            self._served.clear()
+            for publisher, _ in served:
+                try:
+                    publisher.undeclare()
+                except Exception as exc:  # a session closing under it (ZError): the others still go
+                    failed = failed or exc
+        if failed is not None:
+            raise failed

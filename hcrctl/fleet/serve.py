@@ -11,7 +11,12 @@ robot's own clock, stop when the driver's liveliness token goes.
 How it ends: Ctrl-C, SIGTERM or SIGHUP (a flag the loop reads, so the
 subscribers go first, then the governor, then the final stop), or a failure
 (a lost port it cannot reopen). Stop goes out however it ends, to the robot
-driven then (``stopping_driven``), and a one-line summary is printed.
+driven then (``stopping_driven``), and a one-line summary is printed. What
+fails in the closing after that (undeclaring, the session) is a note on
+stderr: the robot is stopped by then, and the exit status says how it ended.
+Zenoh objects used from several threads are guarded where they are owned:
+the publishers by ``Publishers``' lock (the link's reader may still be
+publishing a late reply while the main thread undeclares them).
 """
 
 from __future__ import annotations
@@ -111,7 +116,7 @@ def run_serve(settings: Connection, options: Options, *, report: Report | None =
             _refuse_taken(session, options.name)
             summary = _serve(zenoh, session, settings, options, governor, notes, signalled, report)
         finally:
-            session.close()
+            _quietly(notes, "closing the Zenoh session", session.close)
     if signalled.signum is not None:
         raise Terminated(signalled.signum)
     return summary
@@ -336,12 +341,22 @@ def _serve(
                 if governor.error is not None:
                     raise governor.error
         finally:
-            serving.undeclare()
-            publishers.close()
-            summary = _summary(serving, publishers.sent)
-            if report is not None:
-                report(summary)
+            try:
+                _quietly(notes, "undeclaring the robot's queryables and subscribers", serving.undeclare)
+                _quietly(notes, "undeclaring the publishers", publishers.close)
+            finally:  # the summary however it ends, even at a second signal during the closing
+                summary = _summary(serving, publishers.sent)
+                if report is not None:
+                    report(summary)
     return summary
+
+
+def _quietly(notes: Notes, what: str, step: Callable[[], None]) -> None:
+    """A step of the closing: by now stop has gone out, so a failure is a note, not the serve's error."""
+    try:
+        step()
+    except Exception as exc:
+        notes.note(f"{what} failed while closing (ignored): {exc!r}")
 
 
 def _serving_line(serving: Serving, robot: Robot, server: Server | None) -> str:
