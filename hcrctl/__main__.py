@@ -10,25 +10,47 @@ the shell, for tests and library users that want one-shot commands.
 
 from __future__ import annotations
 
-from . import cli
-from .shell import SUBCOMMANDS as SHELL_SUBCOMMANDS
+import os
+import sys
+from typing import NoReturn
 
 
 def compose() -> None:
     """Add the shell's subcommand to the CLI's table (by name: nothing is imported until it runs)."""
+    from . import cli
+    from .shell import SUBCOMMANDS as SHELL_SUBCOMMANDS
+
     cli.SUBCOMMANDS.update(SHELL_SUBCOMMANDS)
 
 
 def main(argv: list[str] | None = None) -> None:
     """``hcrctl.cli.main`` with the shell: SystemExit as usual, for a caller that goes on afterwards."""
+    from . import cli
+
     compose()
     cli.main(argv)
 
 
 def entry() -> None:
-    """The console script: ``hcrctl.cli.entry`` (a fast exit) with the shell."""
-    compose()
+    """The console script: ``hcrctl.cli.entry`` (a fast exit) with the shell.
+
+    The CLI is imported here, not at the top, so a Ctrl-C while its modules
+    load (easy to hit on a loaded machine) is the usual one line and status
+    130, not Python's traceback from inside an import.
+    """
+    try:
+        from . import cli
+
+        compose()
+    except KeyboardInterrupt:
+        _interrupted()
     cli.entry()
+
+
+def _interrupted() -> NoReturn:
+    sys.stderr.write("hcrctl: interrupted\n")
+    sys.stderr.flush()
+    os._exit(130)
 
 
 if __name__ == "__main__":

@@ -314,3 +314,32 @@ def test_one_shot_lines_and_errors_are_ascii_in_an_ascii_locale() -> None:
         data.decode("ascii")  # no byte above 0x7F
     assert b"turned 10.0 deg clockwise: 90.0 deg E" in done.stdout
     assert b"turning: 10 deg clockwise" in done.stderr
+
+
+def test_ctrl_c_with_debug_is_an_interruption_not_a_traceback() -> None:
+    """--debug shows the tracebacks of bugs; Ctrl-C (Click's Abort, a RuntimeError) is not one."""
+    proc = _no_terminal("--debug", "--port", "sim://", "watch", "compass")
+    try:
+        _line_from(proc)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and err.strip().splitlines()[-1] == "hcrctl: interrupted"
+
+
+def test_ctrl_c_while_the_modules_load_is_one_line(tmp_path: Path) -> None:
+    """A Ctrl-C during start-up (here: a stand-in for click that is interrupted as it is imported)."""
+    (tmp_path / "click").mkdir()
+    (tmp_path / "click" / "__init__.py").write_text("raise KeyboardInterrupt\n")
+    proc = subprocess.run(
+        [hcrctl_exe(), "--port", "sim://", "read", "compass"],
+        env={**os.environ, "PYTHONPATH": str(tmp_path)},
+        stdin=subprocess.DEVNULL,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        preexec_fn=_default_sigint,
+    )
+    assert (proc.returncode, proc.stdout, proc.stderr) == (130, "", "hcrctl: interrupted\n")

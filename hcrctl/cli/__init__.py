@@ -194,6 +194,9 @@ def entry() -> None:
         main()
     except SystemExit as exc:
         code = exc.code
+    except KeyboardInterrupt:  # before main's own handler is in place (start-up, completion)
+        say_error("hcrctl: interrupted")
+        code = 130
     if not isinstance(code, int):
         if code is not None:
             click.echo(code, err=True)
@@ -273,7 +276,8 @@ def main(argv: list[str] | None = None) -> None:
         raise
     except BaseException as exc:  # the one place errors become exit codes
         debug = _debug(args) or defaults.get("debug") is True
-        if debug and isinstance(exc, Exception) and not isinstance(exc, click.ClickException):
+        # click.Abort (Ctrl-C at a prompt or in a command) is a RuntimeError: an interruption, never a bug
+        if debug and isinstance(exc, Exception) and not isinstance(exc, (click.ClickException, click.Abort)):
             raise
         code = exit_code_for(exc, args)
     sys.exit(with_log_status(code if isinstance(code, int) else 0))
