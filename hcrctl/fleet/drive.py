@@ -30,6 +30,7 @@ from ..motion.governor import Governor, Wheels
 from ..protocol import commands as C
 from ..protocol.profiles import Profile
 from . import keys
+from .queries import code_text
 
 #: What a motion message may weigh: a Twist or a table request is under 200 bytes.
 MAX_MESSAGE = 4096
@@ -64,7 +65,7 @@ def motion_request(message: dict[str, Any], profile: Profile, address: int) -> t
         raise BadMotion(f"motion goes to this robot's own address 0x{address:02X} only")
     cmd = C.BY_CODE.get(code)
     if cmd is None or not cmd.motion or cmd.request is None or not profile.has(code):
-        raise BadMotion(f"0x{code:02X} is not a motion command of this firmware ({profile.name})")
+        raise BadMotion(f"{code_text(code)} is not a motion command of this firmware ({profile.name})")
     try:
         request = cmd.request.from_content(bytes.fromhex(content))
     except (ValueError, ProtocolError) as exc:

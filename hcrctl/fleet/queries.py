@@ -24,6 +24,7 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 from ..errors import HcrError, ProtocolError, describe
+from ..feeds.untrusted import shown
 from ..link.client import Robot
 from ..protocol import commands as C
 from ..protocol import topics as T
@@ -65,10 +66,15 @@ def query_object(payload: bytes | None) -> dict[str, Any]:
     return found
 
 
+def code_text(code: int) -> str:
+    """A command code from the network as text: 0xNN when it is a byte, else cut short (a 4,000-digit int)."""
+    return f"0x{code:02X}" if 0 <= code <= 0xFF else shown(code)
+
+
 def address_of(message: dict[str, Any], robot: Robot) -> int:
     address = message.get("address", robot.address)
     if not isinstance(address, int) or isinstance(address, bool) or not 0 <= address <= 255:
-        raise QueryError(f"address {address!r} is not 0..255")
+        raise QueryError(f"address {shown(repr(address))} is not 0..255")
     return address
 
 
@@ -98,7 +104,7 @@ def write(robot: Robot, message: dict[str, Any]) -> dict[str, Any]:
         raise QueryError('write takes {"op", "address", "command": CODE, "content": HEX}')
     cmd = C.BY_CODE.get(code)
     if cmd is None or cmd.kind != "write" or cmd.request is None:
-        raise QueryError(f"0x{code:02X} is not a write of the command table")
+        raise QueryError(f"{code_text(code)} is not a write of the command table")
     if cmd.motion:
         raise QueryError(f"{cmd.name} is motion: it goes through cmd_vel, under the lease")
     try:
