@@ -31,6 +31,7 @@ from helpers_fleet_robot import (
     free_port,
     is_stop,
     operator,
+    readline,
     twist,
 )
 
@@ -297,3 +298,19 @@ def test_a_motion_request_is_decoded_through_the_table(
 
     message = {"address": 1, "command": type(request_).CODE, "content": request_.content().hex()}
     assert motion_request(message, profile("v0.15"), 1) == (wheels, request_, once)
+
+
+def test_a_lost_serial_link_is_said_and_ends_the_drive(lab: Fleet, tmp_path: Path) -> None:
+    """The port gone mid-drive: a warning on stderr, and the driver told its drive ended (not resumed later)."""
+    sim = lab.start(["sim", "--pty"])
+    port = readline(sim)
+    serve = lab.serve("r1", port, "--deadman", "10")
+    with operator(lab.endpoint, "r1", "op1") as op:
+        op.open()
+        op.cmd_vel(twist(0.2))
+        op.wait_said("op1 drives r1")
+        sim.kill()
+        text = serve.wait_err("lost the link")
+        said = op.wait_said("was lost")
+    assert f"warning: lost the link on {port}: the drive lease is ended" in text
+    assert said["text"] == f"stopped: the link on {port} was lost"
