@@ -103,3 +103,26 @@ def test_sigterm_with_the_new_port_gone_again_rescues_the_stop_on_the_next(
     assert code == 1, err  # the rescue's outcome is the news, as for every command
     assert DELIVERED in err.splitlines()[-1], err
     assert not moving(third.received())
+
+
+def test_a_port_gone_mid_drive_is_said_and_the_robot_plugged_back_is_not_driven_on(
+    env: dict[str, str], tmp_path: Path
+) -> None:
+    """Losing the port ends the drive (the driver is told): the device back at the path stays still."""
+    link = tmp_path / "robot"
+    with (
+        robots(link) as plugged,
+        bridge(str(link), "--deadman", "10", env=env) as running,
+        viewer(running.port) as client,
+    ):
+        drive_until_moving(client, plugged[0])
+        plugged[0].close()
+        line = running.wait_line("went away")
+        running.wait_line(f"stop: {link} went away")
+        again = PtyRobot(link)
+        plugged.append(again)
+        frames = again.wait_for(
+            lambda frames: len(frames) >= 20
+        )  # swept a few times, 10 s inside the deadman
+    assert line.endswith(f"warning: {link} went away: the drive lease is ended; re-opening it")
+    assert not moving(frames)

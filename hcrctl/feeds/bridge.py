@@ -36,6 +36,7 @@ from .bridge_drive import CmdVelSource
 from .bridge_status import Status
 from .bridge_stop import stopping_driven
 from .cmdvel import DEFAULT_TIMEOUT_S, TOPIC
+from .linkwatch import LinkWatch
 from .source import Feed
 from .untrusted import shown
 
@@ -155,8 +156,14 @@ def _serve(
         try:
             status.watch(server, feed, governor)
             with feed, stopping_driven(feed, robot, lambda: governor.driven), governor:
+                watch = LinkWatch(feed, governor, status.note, robot.port)
+
+                def ended() -> bool:
+                    watch.check()
+                    return bool(signalled) or governor.error is not None
+
                 try:
-                    feed.run(options.duration, lambda: bool(signalled) or governor.error is not None)
+                    feed.run(options.duration, ended)
                 finally:
                     signalled.closing = True
                 if governor.error is not None:

@@ -34,6 +34,7 @@ from .. import __version__
 from ..errors import HcrError
 from ..feeds.bridge import Signalled
 from ..feeds.bridge_stop import stopping_driven
+from ..feeds.linkwatch import LinkWatch
 from ..feeds.source import Feed
 from ..link.context import Connection, Reconnect
 from ..link.dialects import supported_sensors
@@ -77,32 +78,6 @@ class Options:
     deadman: float = DEADMAN_S
     #: Also serve the Foxglove bridge here (host, port).
     foxglove: tuple[str, int] | None = None
-
-
-class LinkWatch:
-    """Says when the serial link is lost and back, and stops the motion when it is lost.
-
-    The feed re-opens a lost port by itself; while it is gone the governor has
-    no robot to write to, so without this the serve would go silent, and when
-    the port came back a driver still renewing its lease would be driven on.
-    Losing the link is a stop, as it is for a local drive (``link.rescue``):
-    the driver is told (which ends its renewals) and must drive again.
-    Checked from the serve's main loop, between its steps.
-    """
-
-    def __init__(self, feed: Feed, governor: Governor, notes: Notes, port: str) -> None:
-        self.feed, self.governor, self.notes, self.port = feed, governor, notes, port
-        self.lost = False
-
-    def check(self) -> None:
-        status = self.feed.state.status
-        if status == "disconnected" and not self.lost:
-            self.lost = True
-            self.notes.note(f"warning: lost the link on {self.port}: the drive lease is ended; re-opening the port")
-            self.governor.stop(f"the link on {self.port} was lost")
-        elif self.lost and status == "ok":
-            self.lost = False
-            self.notes.note(f"the link on {self.port} is back")
 
 
 class Notes:
@@ -360,7 +335,7 @@ def _serve(
                 serving.declare(names)
                 notes.note(_serving_line(serving, robot, server))
                 try:
-                    watch = LinkWatch(feed, governor, notes, robot.port)
+                    watch = LinkWatch(feed, governor, notes.note, robot.port)
 
                     def ended() -> bool:
                         watch.check()
