@@ -286,10 +286,14 @@ def _limit_descriptors(limit: int) -> Callable[[], None]:
 def test_at_the_descriptor_limit_new_clients_wait_and_are_served_once_descriptors_free(
     env: dict[str, str],
 ) -> None:
-    """300 sockets that never handshake, against a bridge allowed 256 descriptors; closed, then a real client."""
+    """300 sockets that never handshake, against a bridge allowed 96 descriptors; closed, then a real client.
+
+    96, not more: the listen backlog and the 3 s handshake timeout bound how many of the 300 are open at
+    once on a loaded machine, and the limit must be reached well within that (256 was not, once, in CI).
+    """
     with (
         FakeRobot() as robot,
-        bridge(robot.path, "--deadman", str(DEADMAN), env=env, preexec_fn=_limit_descriptors(256)) as running,
+        bridge(robot.path, "--deadman", str(DEADMAN), env=env, preexec_fn=_limit_descriptors(96)) as running,
     ):
         held = []
         try:
