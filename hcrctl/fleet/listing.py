@@ -21,7 +21,7 @@ from collections.abc import Callable, Iterable
 from typing import Any
 
 from . import keys
-from .session import FleetError, Where, import_zenoh, open_session
+from .session import Where, import_zenoh, join
 
 #: How long ``list`` waits for tokens and for each robot's ``info``.
 DEFAULT_TIMEOUT_S = 2.0
@@ -30,15 +30,7 @@ Event = tuple[str, str]
 
 def connect(where: Where) -> Any:
     """A client session; FleetError naming where it looked (and what to start) when nobody answers."""
-    try:
-        return open_session("client", where)
-    except FleetError as exc:
-        looked = ", ".join(where.connect) or keys.DEFAULT_ENDPOINT
-        raise FleetError(
-            f"cannot reach the fleet at {looked}",
-            hint="start a router with 'hcrctl fleet router', or say where the fleet is with --zenoh ENDPOINT "
-            "(and --zenoh-config for TLS or a password)",
-        ) from exc
+    return join(where)
 
 
 def names(session: Any, timeout: float) -> list[str]:

@@ -50,7 +50,7 @@ from ..protocol.topics import all_topics
 from . import keys, queries
 from .drive import BadMotion, FleetDrive
 from .publish import Publishers
-from .session import FleetError, Where, beyond_loopback, import_zenoh, open_session
+from .session import FleetError, Where, beyond_loopback, import_zenoh, open_member
 
 if TYPE_CHECKING:
     from ..feeds.bridge_server import Server
@@ -112,7 +112,9 @@ def run_serve(settings: Connection, options: Options, *, report: Report | None =
     notes = Notes(sys.stderr)
     governor = Governor(C.Velocity, deadman=options.deadman, silence="no cmd_vel")
     with stop_signals_handled(signalled):
-        session = open_session("peer", where)
+        session = open_member(where, lambda: bool(signalled), notes.note)
+        if session is None:
+            raise Terminated(signalled.signum or 0)
         try:
             _refuse_taken(session, options.name)
             summary = _serve(zenoh, session, settings, options, governor, notes, signalled, report)

@@ -1,15 +1,27 @@
 """Opening a Zenoh session the way every fleet command must: explicit endpoints, no scouting, short lease.
 
 Zenoh's defaults suit a LAN of trusted peers: a peer listens on every
-interface and finds others by multicast. A robot console must not: every
-session here sets its listen endpoints (loopback unless told), multicast
-scouting is off, and everyone connects to the router at ``DEFAULT_ENDPOINT``
-unless ``--zenoh`` says where the fleet is. The link lease is 1 s (Zenoh's is
-10 s), so a frozen laptop or a cut cable is noticed in under a second; the
-robot's own deadman still stops it sooner, as it holds even when the network
-does not. A ``--zenoh-config`` file (Zenoh's JSON5: TLS, user/password,
-access control) is read first; the command line wins over it, and the file
-wins over the defaults.
+interface, finds others by multicast and, told by a router where other
+peers listen (gossip), connects to them directly. A robot console must not:
+the router is the only session that listens (``tcp/127.0.0.1:7447`` unless
+told), and everything else is a *client* of it (``member``): a client
+listens nowhere and connects only to the endpoints it is given, and the
+router routes everything between clients. So a fleet reaches across hosts
+through its router alone, and a locator learnt from afar (another host's
+``127.0.0.1``) is never dialled on this one, where it would join whatever
+else listens on this machine's loopback to the fleet. A ``fleet serve`` told
+``--listen`` is a peer listening there (a robot reachable directly), still
+with multicast scouting and gossip off: it connects only where it is told.
+
+The link lease is 1 s (Zenoh's is 10 s), so a frozen laptop or a cut cable
+is noticed in under a second; the robot's own deadman still stops it
+sooner, as it holds even when the network does not. A client whose router
+goes away connects again by itself and declares again what it had declared
+(its tokens, subscribers, queryables), so a router restarted, or a cable
+plugged back in, finds its robots and operators as they were. A
+``--zenoh-config`` file (Zenoh's JSON5: TLS, user/password, access control)
+is read first; the command line wins over it, and the file wins over the
+defaults; the mode, the lease and scouting (off) are always this module's.
 
 Zenoh itself is imported only here, on the first fleet command, and its
 absence is one line naming the extra.
@@ -18,7 +30,8 @@ absence is one line naming the extra.
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from types import ModuleType
 from typing import Any
@@ -32,6 +45,17 @@ ZENOH_EXTRA = "pip install 'hcrctl[zenoh]'"
 LEASE_MS = 1000
 #: What a peer listens on when not told: loopback, a free port.
 LOOPBACK_ANY = "tcp/127.0.0.1:0"
+ROUTER, PEER, CLIENT = "router", "peer", "client"
+#: How often a robot served before its router (or while it restarts) asks for it again, s.
+RETRY_S = 0.5
+#: What no fleet session does, whatever a ``--zenoh-config`` file says: find or dial what was not named.
+QUIET = {"scouting/multicast/enabled": False, "scouting/gossip/enabled": False}
+
+
+JOIN_HINT = (
+    "start a router with 'hcrctl fleet router', or say where the fleet is with --zenoh ENDPOINT "
+    "(and --zenoh-config for TLS or a password)"
+)
 
 
 class MissingZenoh(HcrError):
@@ -86,19 +110,25 @@ def config(mode: str, where: Where) -> Any:
     zenoh = import_zenoh()
     cfg = _base(zenoh, where.config_file)
     _set(cfg, "mode", mode)
-    _set(cfg, "scouting/multicast/enabled", False)
+    for key, value in QUIET.items():
+        _set(cfg, key, value)
     _set(cfg, "transport/link/tx/lease", LEASE_MS)
     listen = list(where.listen) or _file_value(cfg, "listen/endpoints", where.config_file) or _listen(mode)
-    _set(cfg, "listen/endpoints", listen)
+    _set(cfg, "listen/endpoints", [] if mode == CLIENT else listen)
     connect = list(where.connect) or _file_value(cfg, "connect/endpoints", where.config_file)
-    _set(cfg, "connect/endpoints", connect or ([] if mode == "router" else [DEFAULT_ENDPOINT]))
+    _set(cfg, "connect/endpoints", connect or ([] if mode == ROUTER else [DEFAULT_ENDPOINT]))
     for key, value in where.extra.items():
         _set(cfg, key, value)
     return cfg
 
 
+def member(where: Where) -> str:
+    """The mode of a session that is not the router: a client, or a peer where it is told to listen."""
+    return PEER if where.listen else CLIENT
+
+
 def _listen(mode: str) -> list[str]:
-    return {"router": [DEFAULT_ENDPOINT], "peer": [LOOPBACK_ANY]}.get(mode, [])
+    return {ROUTER: [DEFAULT_ENDPOINT], PEER: [LOOPBACK_ANY]}.get(mode, [])
 
 
 def _base(zenoh: ModuleType, path: str | None) -> Any:
@@ -137,3 +167,39 @@ def open_session(mode: str, where: Where) -> Any:
             f"cannot open a Zenoh session ({mode}) at {endpoints}: {exc}",
             hint="check --zenoh/--listen endpoints (tcp/HOST:PORT) and --zenoh-config",
         ) from exc
+
+
+def join(where: Where) -> Any:
+    """A client session of the fleet at ``where``; FleetError naming where it looked (and what to start)."""
+    try:
+        return open_session(CLIENT, where)
+    except FleetError as exc:
+        raise FleetError(f"cannot reach the fleet at {looked_at(where)}", hint=JOIN_HINT) from exc
+
+
+def looked_at(where: Where) -> str:
+    """Where a session at ``where`` looks for the fleet, as said to the user."""
+    return ", ".join(where.connect) or DEFAULT_ENDPOINT
+
+
+def open_member(where: Where, stopped: Callable[[], bool], note: Callable[[str], None]) -> Any | None:
+    """The session of a robot's serve (``member``); None if ``stopped()`` before it opened.
+
+    A robot may be served before its router starts: a client asks for the
+    router every ``RETRY_S`` until it answers, saying once on ``note`` what it
+    waits for and what Zenoh said (a router down, or one refusing this
+    session's TLS or password). A peer opens at once and connects when it can.
+    """
+    mode = member(where)
+    if mode != CLIENT:
+        return open_session(mode, where)
+    told = False
+    while not stopped():
+        try:
+            return open_session(CLIENT, where)
+        except FleetError as exc:
+            if not told:
+                note(f"waiting for the fleet's router at {looked_at(where)} ({exc.__cause__})")
+                told = True
+            time.sleep(RETRY_S)
+    return None

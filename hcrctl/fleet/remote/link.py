@@ -1,6 +1,6 @@
 """``RemoteLink``: the frames a Robot writes, as fleet traffic to one robot; its replies back as frames.
 
-Opening it opens a Zenoh peer session, declares this operator's liveliness
+Opening it opens a Zenoh client session of the fleet's router, declares this operator's liveliness
 token (``hcr/R/op/OP``: the robot side stops at once if it goes while this
 operator drives), checks the robot's own token is there, asks its ``info``
 (protocol, deadman, the reads it serves) and listens to its ``frames`` (the
@@ -26,7 +26,7 @@ import json
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 from ...errors import BadPortUrl, DeviceRefused, DeviceTimeout, HcrError
@@ -35,11 +35,11 @@ from ...protocol.dialect import decode_all
 from ...protocol.frames import ChecksumRule, Frame
 from ...protocol.messages import READ_REQUEST
 from ...protocol.profiles import DEFAULT, Profile, profile
-from ..keys import DEFAULT_ENDPOINT, NAME_RULE, alive, check_name, operator, operator_id, status, topic
+from ..keys import NAME_RULE, alive, check_name, operator, operator_id, status, topic
 from ..keys import info as info_key
 from ..keys import read as read_key
 from ..keys import write as write_key
-from ..session import FleetError, Where, import_zenoh, open_session
+from ..session import FleetError, Where, import_zenoh, join, looked_at
 from .lease import DriveLease
 from .reframe import reframe
 
@@ -51,8 +51,6 @@ READ_TIMEOUT_S = 5.0
 #: How long a timeout's explanation waits for a read query still under way to say why.
 GRACE_S = 1.0
 LIST_HINT = "hcrctl fleet list shows the robots present"
-#: Zenoh's option to wait, in ``open``, until the links to the endpoints are up.
-OPEN_AT_ONCE = "open/return_conditions/connect_scouted"
 STOP_CODE = C.command_for(C.STOP).code
 #: What a frame message of a broadcast says it is (``"kind": "broadcast"``; the message is checked whole after).
 BROADCAST = b'"broadcast"'
@@ -107,21 +105,12 @@ class RemoteLink:
 
     def open(self) -> None:
         """Session, token, presence, info, subscriptions; FleetError (exit 1) if the robot is not there."""
-        self._session = open_session("peer", self._fast(self.reach.where))
+        self._session = join(self.reach.where)
         try:
             self._open_on(self._session)
         except BaseException:
             self.close()
             raise
-
-    @staticmethod
-    def _fast(where: Where) -> Where:
-        """``where``, with the session handed back before its router link is up (at times 500 ms sooner).
-
-        Nothing is lost by it: the robot's token is then waited for (``_open_on``),
-        which is the wait for the link that matters, bounded by ``ASK_TIMEOUT_S``.
-        """
-        return replace(where, extra={OPEN_AT_ONCE: False, **where.extra})
 
     def _open_on(self, session: Any) -> None:
         zenoh = import_zenoh()
@@ -143,7 +132,7 @@ class RemoteLink:
         ]
 
     def _where(self) -> str:
-        return ", ".join(self.reach.where.connect) or DEFAULT_ENDPOINT
+        return looked_at(self.reach.where)
 
     def _ask_info(self, session: Any) -> dict[str, Any]:
         for reply in session.get(info_key(self.name), timeout=ASK_TIMEOUT_S):
