@@ -13,6 +13,7 @@ import warnings
 from collections.abc import Generator, Iterator
 from pathlib import Path
 
+import helpers_netns
 import pytest
 from helpers import DevicePty, clean_env, hcrctl_exe
 from helpers_cli import sim_pty
@@ -96,3 +97,13 @@ def pty_robot() -> Iterator[PtyRobot]:
         yield robot
     finally:
         robot.close()
+
+
+@pytest.fixture(params=["loopback", "hosts"])
+def topology(request: pytest.FixtureRequest) -> Iterator[helpers_netns.Topology]:
+    """A fleet's roles all on this machine, then the router, the robot and the operator on hosts of their own.
+
+    The hosts are network namespaces this test makes and deletes (root only: skipped elsewhere, saying why).
+    """
+    with helpers_netns.topology(request.param) as chosen:
+        yield chosen

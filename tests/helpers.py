@@ -36,7 +36,7 @@ import termios
 import threading
 import time
 import tty
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -225,7 +225,8 @@ class Terminal:
     device attributes request. With ``kitty`` it also speaks the kitty keyboard
     protocol's query (``kitty_flags`` is the stack of flags pushed). With
     ``alt_screen`` the main screen is saved and restored around the alternate
-    one, which pyte lacks. ``wait_for`` takes a regex or a predicate on the text.
+    one, which pyte lacks. ``on`` runs it elsewhere (``ip netns exec NS``: another host).
+    ``wait_for`` takes a regex or a predicate on the text.
     """
 
     def __init__(
@@ -239,6 +240,7 @@ class Terminal:
         alt_screen: bool = False,
         strip: bool = False,
         kitty: bool = False,
+        on: Sequence[str] = (),
     ) -> None:
         cols, rows = size
         self.kitty = kitty
@@ -253,7 +255,9 @@ class Terminal:
         self._quit = threading.Event()
         self._reading = threading.Event()  # cleared while the test plays a stalled terminal
         self._reading.set()
-        if shell_suffix is None:
+        if shell_suffix is None and on:  # on another host: ``ip netns exec NS hcrctl ARGS``
+            program, argv = on[0], [*on[1:], hcrctl_exe(), *args]
+        elif shell_suffix is None:
             program, argv = hcrctl_exe(), args
         else:  # run a shell command after hcrctl in the same terminal (stty -a, echo $?)
             program = "/bin/sh"

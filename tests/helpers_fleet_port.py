@@ -1,4 +1,7 @@
-"""A fleet on loopback for ``--port zenoh://NAME`` tests: a router, robots served, operators, the robot's wire.
+"""A fleet for ``--port zenoh://NAME`` tests: a router, robots served, operators, the robot's wire.
+
+On loopback, or with the router, the robots and the operators on hosts of
+their own (a ``Topology`` from helpers_netns), the same tests either way.
 
 Every process is the installed ``hcrctl`` in a session of its own (killed as
 a group when the test ends, whatever happened), with its output in files, so
@@ -13,13 +16,13 @@ import contextlib
 import json
 import os
 import signal
-import socket
 import subprocess
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 from helpers import TIMEOUT, clean_env, hcrctl_exe, wait_until
+from helpers_netns import OPERATOR_HOST, ROBOT_HOST, ROUTER_HOST, Topology
 
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.decoder import decode_all
@@ -27,12 +30,6 @@ from hcrctl.protocol.frames import Frame
 
 #: Motor power 0x80 0x80: what stop puts on the wire.
 STOP_CONTENT = C.STOP.content()
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
 
 
 def is_stop(frame: Frame) -> bool:
@@ -84,25 +81,28 @@ class Served:
 
 
 class Fleet:
-    """A router on a free loopback port, and everything started against it."""
+    """A router, and everything started against it, each role where ``topology`` puts it."""
 
-    def __init__(self, tmp: Path) -> None:
+    def __init__(self, tmp: Path, topology: Topology | None = None) -> None:
         self.tmp = tmp
         self.env = clean_env(tmp)
-        self.endpoint = f"tcp/127.0.0.1:{free_port()}"
+        self.topology = topology or Topology(None)
+        self.endpoint = self.topology.endpoint()
         self.procs: list[subprocess.Popen[bytes]] = []
         #: The robots served, by name.
         self.served: dict[str, Served] = {}
         self._count = 0
 
-    def spawn(self, args: list[str], label: str) -> tuple[subprocess.Popen[bytes], Path, Path]:
-        """``hcrctl ARGS`` in a new session, stdout and stderr to files named for ``label``."""
+    def spawn(
+        self, args: list[str], label: str, host: str = OPERATOR_HOST
+    ) -> tuple[subprocess.Popen[bytes], Path, Path]:
+        """``hcrctl ARGS`` on ``host``, in a new session, stdout and stderr to files named for ``label``."""
         self._count += 1
         out = self.tmp / f"{self._count}-{label}.out"
         err = self.tmp / f"{self._count}-{label}.err"
         with out.open("wb") as stdout, err.open("wb") as stderr:
             proc = subprocess.Popen(
-                [hcrctl_exe(), *args],
+                [*self.topology.on(host), hcrctl_exe(), *args],
                 env=self.env,
                 stdin=subprocess.DEVNULL,
                 stdout=stdout,
@@ -113,7 +113,7 @@ class Fleet:
         return proc, out, err
 
     def router(self) -> None:
-        _, out, _ = self.spawn(["fleet", "router", "--listen", self.endpoint], "router")
+        _, out, _ = self.spawn(["fleet", "router", "--listen", self.endpoint], "router", ROUTER_HOST)
         wait_until(lambda: out.read_text().strip(), what="the router's first line")
 
     def serve(self, name: str, port: str = "sim://", *options: str, first: tuple[str, ...] = ()) -> Served:
@@ -132,19 +132,31 @@ class Fleet:
             name,
             *options,
         ]
-        proc, _, err = self.spawn(args, f"serve-{name}")
+        proc, _, err = self.spawn(args, f"serve-{name}", ROBOT_HOST)
         served = Served(name, proc, log, err)
         served.wait_said(f"serving {name}")
         self.served[name] = served
         return served
+
+    @property
+    def at_operator(self) -> list[str]:
+        """The prefix that runs a command on the operator's host (for ``terminal(..., on=)``)."""
+        return self.topology.on(OPERATOR_HOST)
 
     def operator(self, robot: str, *args: str) -> list[str]:
         """The argument list of ``hcrctl`` as an operator of ``robot``."""
         return ["--zenoh", self.endpoint, "--port", f"zenoh://{robot}", *args]
 
     def run(self, robot: str, *args: str, timeout: float = TIMEOUT) -> subprocess.CompletedProcess[str]:
+        """``hcrctl`` as an operator of ``robot``, on the operator's host, to its end."""
+        return self.run_on(OPERATOR_HOST, self.operator(robot, *args), timeout=timeout)
+
+    def run_on(
+        self, host: str, args: list[str], timeout: float = TIMEOUT
+    ) -> subprocess.CompletedProcess[str]:
+        """``hcrctl ARGS`` on ``host``, to its end."""
         return subprocess.run(
-            [hcrctl_exe(), *self.operator(robot, *args)],
+            [*self.topology.on(host), hcrctl_exe(), *args],
             env=self.env,
             capture_output=True,
             text=True,
@@ -152,6 +164,11 @@ class Fleet:
             stdin=subprocess.DEVNULL,
             start_new_session=True,
         )
+
+    def sim_tcp(self, *options: str) -> str:
+        """``hcrctl sim --tcp 0`` on the robot's host (any number of clients share it): its ``socket://`` URL."""
+        _, out, _ = self.spawn(["sim", "--tcp", "0", *options], "sim", ROBOT_HOST)
+        return str(wait_until(lambda: _first_line(out), what="the simulator's URL"))
 
     def start(self, robot: str, *args: str) -> tuple[subprocess.Popen[bytes], Path, Path]:
         return self.spawn(self.operator(robot, *args), f"op-{args[0]}")
@@ -165,10 +182,15 @@ class Fleet:
                 proc.wait(timeout=10)
 
 
+def _first_line(path: Path) -> str | None:
+    text = path.read_text() if path.exists() else ""
+    return text.split("\n", 1)[0] if "\n" in text else None
+
+
 @contextlib.contextmanager
-def fleet(tmp: Path) -> Iterator[Fleet]:
-    """A fleet with its router up; every process it started killed at the end."""
-    running = Fleet(tmp)
+def fleet(tmp: Path, topology: Topology | None = None) -> Iterator[Fleet]:
+    """A fleet with its router up (on loopback unless ``topology`` says); every process it started killed at the end."""
+    running = Fleet(tmp, topology)
     try:
         running.router()
         yield running

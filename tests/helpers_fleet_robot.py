@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from helpers import TIMEOUT, hcrctl_exe, wait_until
+from helpers_netns import OPERATOR_HOST, ROBOT_HOST, ROUTER_HOST, Topology
 
 from hcrctl.protocol.decoder import decode_all
 from hcrctl.protocol.frames import Frame
@@ -43,20 +44,25 @@ def _default_sigint() -> None:
 
 
 class Fleet:
-    """Processes of one test on one router endpoint; ``close`` kills every one of them."""
+    """Processes of one test on one router endpoint, each role where ``topology`` puts it; ``close`` kills
+    every one of them."""
 
-    def __init__(self, env: dict[str, str], endpoint: str | None = None) -> None:
+    def __init__(
+        self, env: dict[str, str], endpoint: str | None = None, topology: Topology | None = None
+    ) -> None:
         self.env = env
-        self.endpoint = endpoint or f"tcp/127.0.0.1:{free_port()}"
+        self.topology = topology or Topology(None)
+        self.endpoint = endpoint or self.topology.endpoint()
         self.procs: list[subprocess.Popen[bytes]] = []
 
     @property
     def zenoh(self) -> list[str]:
         return ["--zenoh", self.endpoint]
 
-    def start(self, args: list[str]) -> subprocess.Popen[bytes]:
+    def start(self, args: list[str], host: str = OPERATOR_HOST) -> subprocess.Popen[bytes]:
+        """``hcrctl ARGS`` on ``host``, its output read through pipes."""
         proc = subprocess.Popen(
-            [hcrctl_exe(), *args],
+            [*self.topology.on(host), hcrctl_exe(), *args],
             env=self.env,
             stdin=subprocess.DEVNULL,
             stdout=subprocess.PIPE,
@@ -68,28 +74,32 @@ class Fleet:
         return proc
 
     def router(self, *options: str) -> subprocess.Popen[bytes]:
-        proc = self.start([*self.zenoh, "fleet", "router", *options])
+        proc = self.start([*self.zenoh, "fleet", "router", *options], ROUTER_HOST)
         line = readline(proc)
         assert line.startswith("listening on "), line
         return proc
 
     def sim(self) -> str:
         """``hcrctl sim --pty``: its device path."""
-        proc = self.start(["sim", "--pty"])
+        proc = self.start(["sim", "--pty"], ROBOT_HOST)
         path = readline(proc)
         assert path.startswith("/dev/"), path
         return path
 
     def serve(self, name: str, port: str, *options: str, log: Path | None = None) -> Serve:
         logged = ["--log", str(log)] if log is not None else []
-        proc = self.start(["--port", port, *logged, *self.zenoh, "fleet", "serve", name, *options])
+        proc = self.start(
+            ["--port", port, *logged, *self.zenoh, "fleet", "serve", name, *options], ROBOT_HOST
+        )
         serve = Serve(proc, name, log)
         serve.wait_err(f"serving {name} ")
         return serve
 
-    def run(self, args: list[str], timeout: float = TIMEOUT) -> subprocess.CompletedProcess[str]:
+    def run(
+        self, args: list[str], timeout: float = TIMEOUT, host: str = OPERATOR_HOST
+    ) -> subprocess.CompletedProcess[str]:
         return subprocess.run(
-            [hcrctl_exe(), *args],
+            [*self.topology.on(host), hcrctl_exe(), *args],
             env=self.env,
             capture_output=True,
             text=True,
@@ -120,8 +130,10 @@ class Fleet:
 
 
 @contextlib.contextmanager
-def fleet(env: dict[str, str], endpoint: str | None = None) -> Iterator[Fleet]:
-    group = Fleet(env, endpoint)
+def fleet(
+    env: dict[str, str], endpoint: str | None = None, topology: Topology | None = None
+) -> Iterator[Fleet]:
+    group = Fleet(env, endpoint, topology)
     try:
         yield group
     finally:

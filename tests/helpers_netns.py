@@ -19,9 +19,11 @@ says in one line why not, for the tests' skip.
 from __future__ import annotations
 
 import contextlib
+import functools
 import itertools
 import os
 import shutil
+import socket
 import subprocess
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -146,3 +148,59 @@ def hosts(*names: str) -> Iterator[Hosts]:
         yield made
     finally:
         made.close()
+
+
+#: The roles of a fleet and the host each runs on when they run apart.
+ROUTER_HOST, ROBOT_HOST, OPERATOR_HOST = "lab", "bot", "op"
+#: The router's port on its host (each test's hosts are a network of their own: no port clashes).
+ROUTER_PORT = 7447
+
+
+class Topology:
+    """Where a fleet's roles run: all on this machine over loopback, or the router, the robot and the
+    operator each on a host of its own (``lab``, ``bot``, ``op``), with only the router's address shared."""
+
+    def __init__(self, made: Hosts | None) -> None:
+        self.hosts = made
+
+    @property
+    def name(self) -> str:
+        return "hosts" if self.hosts is not None else "loopback"
+
+    def on(self, host: str) -> list[str]:
+        """The prefix that runs a command on ``host`` (nothing over loopback)."""
+        return self.hosts[host].exec() if self.hosts is not None else []
+
+    def endpoint(self, scheme: str = "tcp") -> str:
+        """Where the router listens and everyone connects: the lab's address, or a free loopback port."""
+        if self.hosts is not None:
+            return f"{scheme}/{self.hosts[ROUTER_HOST].address}:{ROUTER_PORT}"
+        with socket.socket() as sock:
+            sock.bind(("127.0.0.1", 0))
+            return f"{scheme}/127.0.0.1:{sock.getsockname()[1]}"
+
+    def apart(self) -> Hosts:
+        """The hosts, for a test that cuts their cables (only meaningful on hosts)."""
+        assert self.hosts is not None, "this test needs hosts"
+        return self.hosts
+
+
+@functools.cache
+def why_not() -> str | None:
+    """``unavailable()``, asked once per process."""
+    return unavailable()
+
+
+@contextlib.contextmanager
+def topology(kind: str) -> Iterator[Topology]:
+    """A ``Topology`` of ``kind`` (``loopback`` or ``hosts``); on hosts, skipped with why when they cannot be made."""
+    if kind == "loopback":
+        yield Topology(None)
+        return
+    why = why_not()
+    if why is not None:
+        import pytest
+
+        pytest.skip(why)
+    with hosts(ROUTER_HOST, OPERATOR_HOST, ROBOT_HOST) as made:
+        yield Topology(made)

@@ -1,7 +1,8 @@
 """``--port zenoh://NAME``: every command against a fleet robot as against a local one (issue 26).
 
-Loopback only, several processes: a router on a free port, ``hcrctl fleet
-serve`` on a simulator, operators as the installed ``hcrctl``. What reaches
+Several processes: a router, ``hcrctl fleet serve`` on a simulator, operators
+as the installed ``hcrctl``; on loopback, and again with the router, the
+robot and the operator on hosts of their own (the ``topology`` fixture). What reaches
 the robot is read from the serve's traffic log (its serial wire), not from
 the operator's own code. Motion and its safety are in test_fleet_port_drive.py.
 """
@@ -20,7 +21,7 @@ pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip instal
 from helpers import terminal, terminal_env
 from helpers_cli import run
 from helpers_fleet_port import Fleet, fleet, is_motion, is_stop
-from helpers_live import sim_server
+from helpers_netns import ROBOT_HOST, Topology
 
 from hcrctl.protocol import commands as C
 
@@ -30,19 +31,23 @@ BRAILLE = re.compile("[\u2801-\u28ff]")
 
 
 @pytest.fixture
-def robot(tmp_path: Path) -> Iterator[Fleet]:
-    """A router and one robot, ``r1``, served on ``sim://``."""
-    with fleet(tmp_path) as running:
+def robot(tmp_path: Path, topology: Topology) -> Iterator[Fleet]:
+    """A router and one robot, ``r1``, served on ``sim://``, on loopback and on hosts of their own."""
+    with fleet(tmp_path, topology) as running:
         running.serve("r1")
         yield running
 
 
-def test_read_through_the_fleet_equals_the_local_read_of_the_same_simulator(tmp_path: Path) -> None:
-    with sim_server("--tcp", "0") as (_, url), fleet(tmp_path) as running:
+def test_read_through_the_fleet_equals_the_local_read_of_the_same_simulator(
+    tmp_path: Path, topology: Topology
+) -> None:
+    """From the operator's host through the router, and on the robot's own host straight from its port."""
+    with fleet(tmp_path, topology) as running:
+        url = running.sim_tcp()
         assert url.startswith("socket://"), url
         running.serve("r1", url)
         remote = running.run("r1", "--json", "read", *STILL_SENSORS)
-        local = run(["--port", url, "--json", "read", *STILL_SENSORS], running.env)
+        local = running.run_on(ROBOT_HOST, ["--port", url, "--json", "read", *STILL_SENSORS])
         assert remote.returncode == 0, remote.stderr
         assert local.returncode == 0, local.stderr
         assert json.loads(remote.stdout) == json.loads(local.stdout)
@@ -50,11 +55,11 @@ def test_read_through_the_fleet_equals_the_local_read_of_the_same_simulator(tmp_
 
 
 def test_a_v011_robots_reads_come_through_for_a_default_operator_and_what_it_lacks_is_named(
-    tmp_path: Path,
+    tmp_path: Path, topology: Topology
 ) -> None:
     """The robot side speaks v0.11 on its wire; the operator's Robot, on the default profile, reads the same values."""
     v011 = ["--protocol", "v0.11", "--port", "sim://?protocol=v0.11"]
-    with fleet(tmp_path) as running:
+    with fleet(tmp_path, topology) as running:
         running.serve("r1", "sim://?protocol=v0.11", first=("--protocol", "v0.11"))
         remote = running.run("r1", "--json", "read", "bump", "ir")
         local = run([*v011, "--json", "read", "bump", "ir"], running.env)
@@ -115,7 +120,7 @@ def test_monitor_shows_the_broadcasts_the_robots_wire_hears(robot: Fleet) -> Non
 def test_plot_draws_the_robots_heading(robot: Fleet) -> None:
     args = robot.operator("r1", "plot", "compass.heading")
     env = terminal_env(100, 30) | {"XDG_CONFIG_HOME": str(robot.tmp)}
-    with terminal(args, size=(100, 30), env=env) as term:
+    with terminal(args, size=(100, 30), env=env, on=robot.at_operator) as term:
         screen = term.wait_for(
             lambda t: re.search(r"compass\.heading \d", t) and len(BRAILLE.findall(t)) >= 4
         )
@@ -144,8 +149,10 @@ def test_raw_bytes_are_refused_and_nothing_is_sent(robot: Fleet) -> None:
     assert not [f for f in robot.served["r1"].sent()[before:] if f.command == 0x99]
 
 
-def test_an_absent_robot_is_one_line_naming_where_and_a_bad_name_is_a_usage_error(tmp_path: Path) -> None:
-    with fleet(tmp_path) as running:
+def test_an_absent_robot_is_one_line_naming_where_and_a_bad_name_is_a_usage_error(
+    tmp_path: Path, topology: Topology
+) -> None:
+    with fleet(tmp_path, topology) as running:
         absent = running.run("r9", "read", "compass")
         assert absent.returncode == 1
         assert absent.stderr.strip() == (

@@ -20,6 +20,7 @@ pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip instal
 
 from helpers import terminal, terminal_env
 from helpers_fleet_port import Fleet, fleet, is_motion, is_stop
+from helpers_netns import Topology
 
 from hcrctl.protocol import commands as C
 
@@ -30,9 +31,12 @@ def power(left: int, right: int) -> object:
 
 
 @pytest.fixture
-def robot(tmp_path: Path) -> Iterator[Fleet]:
-    """A router and ``r1`` on ``sim://`` with a 10 s deadman: a stop before it is never the deadman's."""
-    with fleet(tmp_path) as running:
+def robot(tmp_path: Path, topology: Topology) -> Iterator[Fleet]:
+    """A router and ``r1`` on ``sim://`` with a 10 s deadman: a stop before it is never the deadman's.
+
+    On loopback, and with the router, the robot and the operators on hosts of their own.
+    """
+    with fleet(tmp_path, topology) as running:
         running.serve("r1", "sim://", "--deadman", "10")
         yield running
 
@@ -58,7 +62,7 @@ def test_turn_is_written_once_and_stopped_when_the_compass_shows_it_done(robot: 
 
 def test_teleop_keys_move_the_robot_and_q_stops_it(robot: Fleet) -> None:
     env = terminal_env() | {"XDG_CONFIG_HOME": str(robot.tmp)}
-    with terminal(robot.operator("r1", "teleop", "--deadman", "5"), env=env) as term:
+    with terminal(robot.operator("r1", "teleop", "--deadman", "5"), env=env, on=robot.at_operator) as term:
         term.wait_for("sending")
         term.send("w")
         wire = robot.served["r1"]
@@ -96,7 +100,7 @@ def test_teleop_of_a_second_operator_ends_with_one_line_naming_the_driver(robot:
     wire = robot.served["r1"]
     moved = wire.wait_sent(power(30, 30), what="the first operator's motion")
     env = terminal_env() | {"XDG_CONFIG_HOME": str(robot.tmp)}
-    with terminal(robot.operator("r1", "teleop"), env=env) as term:
+    with terminal(robot.operator("r1", "teleop"), env=env, on=robot.at_operator) as term:
         term.wait_for("sending")
         term.send("w")
         assert term.finish() == 1
@@ -125,7 +129,7 @@ def test_a_killed_operator_is_stopped_by_its_token_going_not_by_the_deadman(robo
 def test_a_killed_teleop_is_stopped_by_its_token_going(robot: Fleet) -> None:
     """teleop's own deadman (5 s here) would stop it later, and the robot side's is 10 s: the stop is the token's."""
     env = terminal_env() | {"XDG_CONFIG_HOME": str(robot.tmp)}
-    with terminal(robot.operator("r1", "teleop", "--deadman", "5"), env=env) as term:
+    with terminal(robot.operator("r1", "teleop", "--deadman", "5"), env=env, on=robot.at_operator) as term:
         term.wait_for("sending")
         term.send("w")
         wire = robot.served["r1"]
@@ -136,8 +140,10 @@ def test_a_killed_teleop_is_stopped_by_its_token_going(robot: Fleet) -> None:
         assert re.search(rf"stopped: operator \S+\.{term.child.pid} gone", said), said
 
 
-def test_a_frozen_operator_is_stopped_by_the_deadman_while_still_frozen(tmp_path: Path) -> None:
-    with fleet(tmp_path) as running:
+def test_a_frozen_operator_is_stopped_by_the_deadman_while_still_frozen(
+    tmp_path: Path, topology: Topology
+) -> None:
+    with fleet(tmp_path, topology) as running:
         running.serve("r1", "sim://", "--deadman", "0.3")
         driver, _, _ = running.start("r1", "drive", "power", "30", "30")
         wire = running.served["r1"]

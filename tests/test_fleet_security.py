@@ -1,14 +1,15 @@
 """TLS and user/password on the fleet, through ``--zenoh-config``: who has the CA and a password gets in.
 
 The test makes its own certificate authority and a server certificate for
-127.0.0.1 with the ``openssl`` command, and a user/password dictionary. The
-router listens on ``tls/127.0.0.1:PORT`` with Zenoh's own configuration keys
+the router's address with the ``openssl`` command, and a user/password
+dictionary. On loopback and on hosts of their own (``topology``), the
+router listens on ``tls/ADDRESS:PORT`` with Zenoh's own configuration keys
 (``transport/link/tls/listen_certificate`` ..., ``transport/auth/usrpwd``, as
 in Zenoh 1.x's DEFAULT_CONFIG.json5); a robot and a laptop with the CA and
 their password reach each other, and a client without the password, without
 the CA, with a wrong password or in plain TCP cannot connect: ``fleet list``
 says it cannot reach the fleet, and a robot served without credentials is
-never listed.
+never listed (its serve says it waits for the router).
 """
 
 from __future__ import annotations
@@ -28,15 +29,16 @@ if shutil.which("openssl") is None:
     )
 
 from helpers import clean_env, wait_until
-from helpers_fleet_robot import Fleet, Serve, fleet, free_port, readline
+from helpers_fleet_robot import Fleet, Serve, fleet, readline
+from helpers_netns import ROBOT_HOST, ROUTER_HOST, Topology
 
 
 def openssl(*args: str, cwd: Path) -> None:
     subprocess.run(["openssl", *args], cwd=cwd, check=True, capture_output=True, timeout=60)
 
 
-def certificates(where: Path) -> dict[str, Path]:
-    """A CA, and a server key and certificate it signed for 127.0.0.1 and localhost."""
+def certificates(where: Path, address: str) -> dict[str, Path]:
+    """A CA, and a server key and certificate it signed for ``address`` and localhost."""
     ec = ("-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes")
     openssl(
         "req",
@@ -54,7 +56,7 @@ def certificates(where: Path) -> dict[str, Path]:
     )
     openssl("req", *ec, "-keyout", "server.key", "-out", "server.csr", "-subj", "/CN=localhost", cwd=where)
     (where / "ext.cnf").write_text(
-        "subjectAltName=IP:127.0.0.1,DNS:localhost\nbasicConstraints=CA:FALSE\n"
+        f"subjectAltName=IP:{address},DNS:localhost\nbasicConstraints=CA:FALSE\n"
         "keyUsage=digitalSignature\nextendedKeyUsage=serverAuth\n"
     )
     openssl(
@@ -76,9 +78,13 @@ def config(path: Path, tls: dict[str, Any] | None = None, usrpwd: dict[str, Any]
 
 
 @pytest.fixture
-def secured(tmp_path: Path) -> Any:
-    """A router on TLS with a password dictionary; the configurations a robot and laptops may hold."""
-    files = certificates(tmp_path)
+def secured(tmp_path: Path, topology: Topology) -> Any:
+    """A router on TLS with a password dictionary; the configurations a robot and laptops may hold.
+
+    On loopback, and with the router, the robots and the laptop on hosts of their own.
+    """
+    endpoint = topology.endpoint("tls")
+    files = certificates(tmp_path, endpoint.split("/", 1)[1].rsplit(":", 1)[0])
     (tmp_path / "users.txt").write_text("robot:r0b0t-secret\nlaptop:l4pt0p-secret\n")
     ca = {"root_ca_certificate": files["ca"]}
     configs = {
@@ -93,8 +99,10 @@ def secured(tmp_path: Path) -> Any:
         "wrong password": config(tmp_path / "wrong.json5", ca, {"user": "laptop", "password": "guess"}),
         "no CA": config(tmp_path / "noca.json5", None, {"user": "laptop", "password": "l4pt0p-secret"}),
     }
-    with fleet(clean_env(tmp_path), f"tls/127.0.0.1:{free_port()}") as group:
-        router = group.start(["--zenoh-config", configs["router"], *group.zenoh, "fleet", "router"])
+    with fleet(clean_env(tmp_path), endpoint, topology) as group:
+        router = group.start(
+            ["--zenoh-config", configs["router"], *group.zenoh, "fleet", "router"], ROUTER_HOST
+        )
         assert readline(router) == f"listening on {group.endpoint}"
         yield group, configs
 
@@ -104,11 +112,12 @@ def listed(group: Fleet, config_file: str) -> tuple[int, str, str]:
     return done.returncode, done.stdout, done.stderr
 
 
-def serve(group: Fleet, name: str, config_file: str | None) -> Any:
+def serve(group: Fleet, name: str, config_file: str | None, said: str = "serving {name} ") -> Any:
+    """``fleet serve NAME`` with this configuration, once it has said ``said``."""
     extra = ["--zenoh-config", config_file] if config_file else []
-    proc = group.start(["--port", group.sim(), *extra, *group.zenoh, "fleet", "serve", name])
+    proc = group.start(["--port", group.sim(), *extra, *group.zenoh, "fleet", "serve", name], ROBOT_HOST)
     served = Serve(proc, name, None)
-    served.wait_err(f"serving {name} ")
+    served.wait_err(said.format(name=name))
     return served
 
 
@@ -148,9 +157,12 @@ def test_plain_tcp_to_the_tls_port_is_not_the_fleet(secured: Any) -> None:
 
 def test_a_robot_without_the_password_is_never_listed(secured: Any) -> None:
     group, configs = secured
-    serve(group, "intruder", configs["no password"])  # its session is open and its token declared...
+    intruder = serve(group, "intruder", configs["no password"], "waiting for the fleet's router at ")
     serve(group, "locked", configs["robot"])
     wait_until(
         lambda: names(group, configs["laptop"]) == {"locked"}, what="the robot with the password listed"
     )
-    assert names(group, configs["laptop"]) == {"locked"}  # ...but the router never let it in
+    assert names(group, configs["laptop"]) == {"locked"}  # the router never lets it in...
+    assert (
+        intruder.proc.poll() is None and "serving intruder" not in intruder.err.decode()
+    )  # ...it still waits

@@ -164,7 +164,7 @@ def open_session(mode: str, where: Where) -> Any:
     except Exception as exc:  # ZError: an endpoint that cannot be bound or parsed, bad TLS files...
         endpoints = ", ".join(where.listen or where.connect) or DEFAULT_ENDPOINT
         raise FleetError(
-            f"cannot open a Zenoh session ({mode}) at {endpoints}: {exc}",
+            f"cannot open a Zenoh session ({mode}) at {endpoints}: {said(exc)}",
             hint="check --zenoh/--listen endpoints (tcp/HOST:PORT) and --zenoh-config",
         ) from exc
 
@@ -199,7 +199,12 @@ def open_member(where: Where, stopped: Callable[[], bool], note: Callable[[str],
             return open_session(CLIENT, where)
         except FleetError as exc:
             if not told:
-                note(f"waiting for the fleet's router at {looked_at(where)} ({exc.__cause__})")
+                note(f"waiting for the fleet's router at {looked_at(where)} (zenoh: {said(exc.__cause__)})")
                 told = True
             time.sleep(RETRY_S)
     return None
+
+
+def said(exc: BaseException | None) -> str:
+    """What Zenoh said, without the place in its Rust source it appends (`` at /root/.cargo/...rs:447.``)."""
+    return str(exc).split(" at /", 1)[0].strip()
