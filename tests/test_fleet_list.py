@@ -1,7 +1,7 @@
 """``hcrctl fleet list``: two robots served on ``hcrctl sim --pty`` behind a router, and a kill -9.
 
-Each test has its own router on a free loopback port; every process is the
-installed ``hcrctl``. A killed robot must leave the list: the test polls the
+Each test has its own router, on a free loopback port or on a host of its
+own (``topology``); every process is the installed ``hcrctl``. A killed robot must leave the list: the test polls the
 list until it does (with a generous timeout), and asserts no time.
 """
 
@@ -19,6 +19,7 @@ pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip instal
 
 from helpers import TIMEOUT, clean_env, wait_until
 from helpers_fleet_robot import Fleet, fleet, operator, readline, twist
+from helpers_netns import ROUTER_HOST, Topology
 
 
 @pytest.fixture
@@ -27,7 +28,16 @@ def env(tmp_path: Path) -> dict[str, str]:
 
 
 @pytest.fixture
-def lab(env: dict[str, str]) -> Any:
+def lab(env: dict[str, str], topology: Topology) -> Any:
+    """A router, on loopback, and on a host of its own (robots and the list on hosts of theirs)."""
+    with fleet(env, topology=topology) as group:
+        group.router()
+        yield group
+
+
+@pytest.fixture
+def lab_here(env: dict[str, str]) -> Any:
+    """A router on loopback, for a test that plays an operator from this process."""
     with fleet(env) as group:
         group.router()
         yield group
@@ -48,7 +58,8 @@ def test_two_robots_are_listed_and_a_killed_one_leaves(lab: Fleet) -> None:
     wait_until(lambda: lab.names() == {"beta"}, what="alpha gone from the list")
 
 
-def test_the_table_names_who_drives(lab: Fleet) -> None:
+def test_the_table_names_who_drives(lab_here: Fleet) -> None:
+    lab = lab_here
     serve = lab.serve("gamma", lab.sim(), "--deadman", "10")
     with operator(lab.endpoint, "gamma", "op7") as op:
         op.open()
@@ -81,8 +92,8 @@ def test_no_robots_is_said_and_is_no_error(lab: Fleet) -> None:
     assert lab.listed() == []
 
 
-def test_no_router_says_where_it_looked_and_what_to_start(env: dict[str, str]) -> None:
-    with fleet(env) as group:  # nobody listens on its endpoint
+def test_no_router_says_where_it_looked_and_what_to_start(env: dict[str, str], topology: Topology) -> None:
+    with fleet(env, topology=topology) as group:  # nobody listens on its endpoint
         done = group.run([*group.zenoh, "fleet", "list"])
     assert done.returncode == 1
     (line,) = done.stderr.splitlines()
@@ -101,9 +112,11 @@ def test_a_second_serve_of_one_name_is_refused(lab: Fleet) -> None:
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP])
-def test_the_router_says_where_it_listens_and_ends_cleanly_on_a_signal(env: dict[str, str], sig: int) -> None:
-    with fleet(env) as group:
-        router = group.start([*group.zenoh, "fleet", "router"])
+def test_the_router_says_where_it_listens_and_ends_cleanly_on_a_signal(
+    env: dict[str, str], sig: int, topology: Topology
+) -> None:
+    with fleet(env, topology=topology) as group:
+        router = group.start([*group.zenoh, "fleet", "router"], ROUTER_HOST)
         assert readline(router) == f"listening on {group.endpoint}"
         wait_until(lambda: group.listed() == [], what="the router answering")
         router.send_signal(sig)
