@@ -22,7 +22,7 @@ pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip instal
 
 from helpers import TIMEOUT, wait_until
 from helpers_fleet_port import Fleet, fleet, is_motion, is_stop
-from helpers_netns import OPERATOR_HOST, ROBOT_HOST, ROUTER_HOST, Hosts, Topology, topology
+from helpers_netns import OPERATOR_HOST, ROBOT_HOST, ROUTER_PORT, Hosts, topology
 
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.frames import Frame
@@ -119,3 +119,30 @@ def test_a_router_restarted_is_found_again_by_the_robot_and_its_operators(apart:
     wait_until(lambda: line_after(out, " ok ", gone), what="watch reading again after the restart")
     assert watcher.poll() is None
     assert running.served["r1"].proc.poll() is None
+
+
+def test_a_laptops_own_test_fleet_and_the_labs_stay_apart(tmp_path: Path) -> None:
+    """The laptop runs a fleet of its own on its loopback; its operator, sent to the lab, never joins the two.
+
+    The lab's robot and the laptop's robot are served as peers told to listen on
+    the same loopback port, each on its own host: a locator learnt from the lab
+    (``127.0.0.1:PORT``) names, on the laptop, the laptop's own robot.
+    """
+    with topology("hosts") as hosts, fleet(tmp_path, hosts) as lab:
+        both = ("--listen", f"tcp/127.0.0.1:{ROUTER_PORT + 1}")
+        lab.serve("r1", "sim://", *both)
+        laptop = f"tcp/127.0.0.1:{ROUTER_PORT}"
+        _, out, _ = lab.spawn(["fleet", "router", "--listen", laptop], "laptop-router", OPERATOR_HOST)
+        wait_until(lambda: out.read_text().strip(), what="the laptop's router")
+        _, _, err = lab.spawn(
+            ["--zenoh", laptop, "--port", "sim://", "fleet", "serve", "t1", *both],
+            "laptop-serve",
+            OPERATOR_HOST,
+        )
+        wait_until(lambda: "serving t1" in err.read_text(), what="the laptop's own robot served")
+        strays = lab.run("t1", "read", "compass")
+        assert strays.returncode == 1 and "no robot t1 in the fleet" in strays.stderr, strays.stderr
+        assert lab.run("r1", "read", "compass").returncode == 0
+        assert listed(lab) == {"r1"}
+        local = lab.run_on(OPERATOR_HOST, ["--zenoh", laptop, "--json", "fleet", "list"])
+        assert {robot["name"] for robot in json.loads(local.stdout)} == {"t1"}, local.stderr
