@@ -4,7 +4,7 @@ Run from the repository root: ``python bench/bench_fleet.py [--robots 1,5,20] [-
 
 1. For each N: a router on a free loopback port and N ``hcrctl fleet serve rK``
    on ``sim://``, each polling at 10 Hz, and one operator (this process, a
-   Zenoh peer) subscribed to every robot's readings (``hcr/*/compass``, ...).
+   Zenoh client) subscribed to every robot's readings (``hcr/*/compass``, ...).
    Latency is from the message's ``time`` (when the robot side decoded the
    reply, wall clock, same host) to the operator's callback: median and p99.
    Each serve's CPU (utime + stime over the window, % of one core) and memory
@@ -18,6 +18,13 @@ Run from the repository root: ``python bench/bench_fleet.py [--robots 1,5,20] [-
    0.5 s; the serve's deadman is 10 s, so the stop is the token's); frozen
    with SIGSTOP, to the stop frame (target the deadman, 0.5 s, + 0.2 s).
    ``--rounds`` of each; the worst is held to the target.
+4. On hosts of their own (network namespaces, as the tests make them; root
+   only, else skipped saying why): the router on ``lab``, ``r1`` served on
+   ``bot``, the operator on ``op``. 2. again from ``op`` against a local read
+   on ``bot`` (both through ``ip netns exec``), and 3. again plus a cable cut
+   (``op``'s port on the switch set down while it drives, deadman 0.5 s: the
+   stop is the deadman's; target the deadman + 0.2 s), beside the loopback
+   figures.
 
 It prints the figures, writes ``bench/results/bench_fleet.json`` and exits 1
 if a target is missed. Needs the zenoh extra.
@@ -42,8 +49,12 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from _common import record
+from _common import ROOT, record
 from _simpty import hcrctl_exe, sim_pty
+
+# The tests' hosts (network namespaces): one way to make them, for the tests and for this.
+sys.path.insert(0, str(ROOT / "tests"))
+import helpers_netns
 
 from hcrctl.fleet.session import Where, open_session
 from hcrctl.protocol import commands as C
@@ -69,12 +80,13 @@ class Procs:
     def __init__(self, tmp: Path) -> None:
         self.tmp, self.all, self._n = tmp, [], 0
 
-    def start(self, *args: str) -> tuple[subprocess.Popen[bytes], Path]:
+    def start(self, *args: str, on: list[str] | None = None) -> tuple[subprocess.Popen[bytes], Path]:
+        """``hcrctl ARGS``, on another host when ``on`` is its ``ip netns exec`` prefix."""
         self._n += 1
         err = self.tmp / f"{self._n}.err"
         with err.open("wb") as stderr:
             proc = subprocess.Popen(
-                [hcrctl_exe(), *args],
+                [*(on or []), hcrctl_exe(), *args],
                 stdin=subprocess.DEVNULL,
                 stdout=subprocess.DEVNULL,
                 stderr=stderr,
@@ -101,22 +113,42 @@ def wait_for(check: Any, timeout: float = 60.0, what: str = "condition") -> Any:
 
 
 @contextlib.contextmanager
-def fleet(tmp: Path) -> Iterator[tuple[Procs, str]]:
+def fleet(tmp: Path, where: helpers_netns.Topology | None = None) -> Iterator[tuple[Procs, str]]:
+    """A router on loopback, or on ``where``'s lab host."""
     procs = Procs(tmp)
-    endpoint = free_endpoint()
+    endpoint = where.endpoint() if where else free_endpoint()
     try:
-        procs.start("fleet", "router", "--listen", endpoint)
+        procs.start("fleet", "router", "--listen", endpoint, on=on(where, helpers_netns.ROUTER_HOST))
         yield procs, endpoint
     finally:
         procs.close()
 
 
+def on(where: helpers_netns.Topology | None, host: str) -> list[str]:
+    """The prefix that runs a command on ``host`` of ``where`` (nothing on loopback)."""
+    return where.on(host) if where else []
+
+
 def serve(
-    procs: Procs, endpoint: str, name: str, *options: str, log: Path | None = None
+    procs: Procs,
+    endpoint: str,
+    name: str,
+    *options: str,
+    log: Path | None = None,
+    where: helpers_netns.Topology | None = None,
 ) -> subprocess.Popen[bytes]:
     logging = ["--log", str(log)] if log else []
     proc, err = procs.start(
-        "--zenoh", endpoint, "--port", "sim://", *logging, "fleet", "serve", name, *options
+        "--zenoh",
+        endpoint,
+        "--port",
+        "sim://",
+        *logging,
+        "fleet",
+        "serve",
+        name,
+        *options,
+        on=on(where, helpers_netns.ROBOT_HOST),
     )
     wait_for(lambda: f"serving {name}" in err.read_text(), what=f"fleet serve {name}")
     return proc
@@ -156,7 +188,7 @@ def many(n: int, seconds: float, tmp: Path) -> dict[str, Any]:
                 latencies.append(now - message["time"])
                 seen.add(str(sample.key_expr).split("/")[1])
 
-        session = open_session("peer", Where((endpoint,), ()))
+        session = open_session("client", Where((endpoint,), ()))
         subs = [session.declare_subscriber(f"hcr/*/{sensor}", heard) for sensor in C.SENSORS]
         wait_for(lambda: len(seen) == n, what=f"readings from all {n} robots")
         with lock:
@@ -189,21 +221,24 @@ def many(n: int, seconds: float, tmp: Path) -> dict[str, Any]:
 # -- 2. a one-shot read through the fleet against a local pty -----------------------------------
 
 
-def one_shot(*args: str) -> float:
+def one_shot(*args: str, on: list[str] | None = None) -> float:
     start = time.perf_counter()
-    subprocess.run([hcrctl_exe(), *args, "read", "compass"], check=True, capture_output=True, timeout=60)
+    command = [*(on or []), hcrctl_exe(), *args, "read", "compass"]
+    subprocess.run(command, check=True, capture_output=True, timeout=60)
     return time.perf_counter() - start
 
 
-def reads(rounds: int, tmp: Path) -> dict[str, Any]:
-    with fleet(tmp) as (procs, endpoint), sim_pty() as pty:
-        serve(procs, endpoint, "r1")
+def reads(rounds: int, tmp: Path, where: helpers_netns.Topology | None = None) -> dict[str, Any]:
+    """From the operator's host through the fleet, and a local pty read on the robot's host."""
+    at_op, at_bot = on(where, helpers_netns.OPERATOR_HOST), on(where, helpers_netns.ROBOT_HOST)
+    with fleet(tmp, where) as (procs, endpoint), sim_pty() as pty:
+        serve(procs, endpoint, "r1", where=where)
         fleet_s, local_s = [], []
-        one_shot("--zenoh", endpoint, "--port", "zenoh://r1")  # warm the caches alike
-        one_shot("--port", pty)
+        one_shot("--zenoh", endpoint, "--port", "zenoh://r1", on=at_op)  # warm the caches alike
+        one_shot("--port", pty, on=at_bot)
         for _ in range(rounds):
-            fleet_s.append(one_shot("--zenoh", endpoint, "--port", "zenoh://r1"))
-            local_s.append(one_shot("--port", pty))
+            fleet_s.append(one_shot("--zenoh", endpoint, "--port", "zenoh://r1", on=at_op))
+            local_s.append(one_shot("--port", pty, on=at_bot))
     zenoh, local = statistics.median(fleet_s), statistics.median(local_s)
     return {
         "fleet_read_ms": round(zenoh * 1e3, 1),
@@ -238,23 +273,88 @@ def stop_since(log: Path, start: int) -> float | None:
     return next((t for t, data in wire(log)[start:] if data == STOP), None)
 
 
-def lost_operator(sig: signal.Signals, deadman: str, rounds: int, tmp: Path) -> list[float]:
-    """Seconds from ``sig`` to the stop on the wire, per round."""
+#: Not a signal: the operator's cable pulled out of the switch (hosts only).
+CUT = "cut"
+
+
+def lost_operator(
+    sig: signal.Signals | str,
+    deadman: str,
+    rounds: int,
+    tmp: Path,
+    where: helpers_netns.Topology | None = None,
+) -> list[float]:
+    """Seconds from ``sig`` (or the cable cut) to the stop on the wire, per round."""
     figures = []
-    with fleet(tmp) as (procs, endpoint):
-        log = tmp / f"wire-{sig.name}.jsonl"
-        serve(procs, endpoint, "r1", "--deadman", deadman, log=log)
+    name = sig if isinstance(sig, str) else sig.name
+    with fleet(tmp, where) as (procs, endpoint):
+        log = tmp / f"wire-{name}-{where.name if where else 'loopback'}.jsonl"
+        serve(procs, endpoint, "r1", "--deadman", deadman, log=log, where=where)
         for _ in range(rounds):
-            op, _ = procs.start("--zenoh", endpoint, "--port", "zenoh://r1", "drive", "power", "30", "30")
+            op, _ = procs.start(
+                "--zenoh",
+                endpoint,
+                "--port",
+                "zenoh://r1",
+                "drive",
+                "power",
+                "30",
+                "30",
+                on=on(where, helpers_netns.OPERATOR_HOST),
+            )
             start = len(wire(log))
             moved = wait_for(lambda start=start: moving_since(log, start), what="motion")
             at = time.time()
-            os.kill(op.pid, sig)
+            if isinstance(sig, str):
+                assert where is not None, "a cable is cut on hosts only"
+                where.apart().cut(helpers_netns.OPERATOR_HOST)
+            else:
+                os.kill(op.pid, sig)
             stop = wait_for(lambda moved=moved: stop_since(log, moved), what="stop")
             figures.append(stop - at)
+            if isinstance(sig, str) and where is not None:
+                where.apart().mend(helpers_netns.OPERATOR_HOST)
             os.killpg(op.pid, signal.SIGKILL)
             op.wait()
     return figures
+
+
+# -- 4. the same on hosts of their own -------------------------------------------------------------
+
+
+def on_hosts(rounds: int, tmp: Path, metrics: dict[str, Any]) -> bool:
+    """2. and 3. with the router, the robot and the operator on hosts of their own, plus a cable cut."""
+    ok = True
+    with helpers_netns.topology("hosts") as where:
+        read = reads(rounds, tmp, where)
+    metrics["hosts_read_compass"] = read
+    good = read["ratio"] <= READ_RATIO
+    ok &= good
+    print(
+        f"  {'ok  ' if good else 'MISS'} hosts: read compass via zenoh:// from op {read['fleet_read_ms']} ms, "
+        f"local pty on bot {read['pty_read_ms']} ms: {read['ratio']}x (target <= {READ_RATIO})"
+    )
+    for label, sig, deadman, target in (
+        ("kill -9", signal.SIGKILL, "10", KILL_STOP_S),
+        ("SIGSTOP", signal.SIGSTOP, str(DEADMAN_S), FREEZE_STOP_S),
+        ("cable cut", CUT, str(DEADMAN_S), FREEZE_STOP_S),
+    ):
+        with helpers_netns.topology("hosts") as where:
+            figures = lost_operator(sig, deadman, rounds, tmp, where)
+        worst = max(figures)
+        good = worst <= target
+        ok &= good
+        metrics[f"hosts_{label.replace(' ', '_').replace('-', '').lower()}_stop"] = {
+            "median_ms": round(statistics.median(figures) * 1e3, 1),
+            "max_ms": round(worst * 1e3, 1),
+            "deadman_s": float(deadman),
+            "target_ms": target * 1e3,
+        }
+        print(
+            f"  {'ok  ' if good else 'MISS'} hosts: {label} to stop on the wire: median "
+            f"{statistics.median(figures) * 1e3:.1f} ms, max {worst * 1e3:.1f} ms (target <= {target * 1e3:.0f} ms)"
+        )
+    return ok
 
 
 def main() -> int:
@@ -317,6 +417,11 @@ def main() -> int:
                 f"  {'ok  ' if good else 'MISS'} {label} to stop on the wire: median "
                 f"{statistics.median(figures) * 1e3:.1f} ms, max {worst * 1e3:.1f} ms (target <= {target * 1e3:.0f} ms)"
             )
+        why = helpers_netns.why_not()
+        if why is None:
+            ok &= on_hosts(args.rounds, tmp, metrics)
+        else:
+            print(f"  hosts: skipped: {why}")
     metrics["load"] = round(os.getloadavg()[0], 2)
     record("bench_fleet", metrics)
     return 0 if ok else 1
