@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import signal
+import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -20,6 +21,7 @@ import pytest
 
 pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip install 'hcrctl[zenoh]')")
 
+import helpers_netns
 from helpers import TIMEOUT, wait_until
 from helpers_fleet_port import Fleet, fleet, is_motion, is_stop
 from helpers_netns import OPERATOR_HOST, ROBOT_HOST, ROUTER_PORT, Hosts, topology
@@ -146,3 +148,36 @@ def test_a_laptops_own_test_fleet_and_the_labs_stay_apart(tmp_path: Path) -> Non
         assert listed(lab) == {"r1"}
         local = lab.run_on(OPERATOR_HOST, ["--zenoh", laptop, "--json", "fleet", "list"])
         assert {robot["name"] for robot in json.loads(local.stdout)} == {"t1"}, local.stderr
+
+
+def test_without_root_or_ip_the_hosts_are_skipped_saying_why_in_one_line(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setattr(helpers_netns.os, "geteuid", lambda: 1000)
+    assert helpers_netns.unavailable() == "hosts as network namespaces need root (CI runs as root)"
+    monkeypatch.setattr(helpers_netns.os, "geteuid", lambda: 0)
+    monkeypatch.setattr(helpers_netns.shutil, "which", lambda name: None)
+    assert helpers_netns.unavailable() == "hosts as network namespaces need the ip command (iproute2)"
+
+
+def namespaces() -> set[str]:
+    listed = subprocess.run(["ip", "netns", "list"], capture_output=True, text=True, check=True).stdout
+    return {line.split(" ", 1)[0] for line in listed.splitlines()}
+
+
+def test_hosts_go_when_their_block_ends_and_a_dead_runs_are_cleaned() -> None:
+    if (why := helpers_netns.why_not()) is not None:
+        pytest.skip(why)
+    gone = subprocess.Popen(["true"])
+    gone.wait()  # a test run that ended without its finalizers: its pid runs no more
+    stale = f"{helpers_netns.PREFIX}{gone.pid}-1-sw"
+    helpers_netns.ip("netns", "add", stale)
+    try:
+        with pytest.raises(RuntimeError, match="a test failing"), topology("hosts") as made:
+            hosts = made.apart()
+            ours = {hosts.switch, *(host.netns for host in hosts.hosts.values())}
+            assert ours <= namespaces() and stale not in namespaces()
+            raise RuntimeError("a test failing")
+        assert not ours & namespaces()
+    finally:
+        subprocess.run(["ip", "netns", "del", stale], capture_output=True)

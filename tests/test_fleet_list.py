@@ -18,8 +18,8 @@ import pytest
 pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip install 'hcrctl[zenoh]')")
 
 from helpers import TIMEOUT, clean_env, wait_until
-from helpers_fleet_robot import Fleet, fleet, operator, readline, twist
-from helpers_netns import ROUTER_HOST, Topology
+from helpers_fleet_robot import Fleet, Serve, fleet, operator, readline, twist
+from helpers_netns import ROBOT_HOST, ROUTER_HOST, Topology
 
 
 @pytest.fixture
@@ -141,3 +141,28 @@ def test_without_zenoh_one_line_names_the_extra(tmp_path: Path, args: list[str])
     assert done.returncode == 1 and done.stdout == ""
     (line,) = done.stderr.splitlines()
     assert "pip install 'hcrctl[zenoh]'" in line
+
+
+def test_a_robot_served_before_its_router_waits_for_it_and_joins_when_it_comes(
+    env: dict[str, str], topology: Topology
+) -> None:
+    with fleet(env, topology=topology) as group:
+        waiting = f"waiting for the fleet's router at {group.endpoint} "
+        never = Serve(
+            group.start(["--port", group.sim(), *group.zenoh, "fleet", "serve", "never"], ROBOT_HOST),
+            "never",
+            None,
+        )
+        never.wait_err(waiting)
+        never.proc.send_signal(signal.SIGTERM)  # a signal ends the wait
+        assert never.proc.wait(timeout=TIMEOUT) == 128 + signal.SIGTERM
+        early = Serve(
+            group.start(["--port", group.sim(), *group.zenoh, "fleet", "serve", "early"], ROBOT_HOST),
+            "early",
+            None,
+        )
+        early.wait_err(waiting)
+        group.router()
+        early.wait_err("serving early ")
+        assert early.err.decode().count("waiting for the fleet's router") == 1  # said once
+        wait_until(lambda: group.names() == {"early"}, what="the early robot listed")
