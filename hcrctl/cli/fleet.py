@@ -71,7 +71,8 @@ def router(settings: Settings, listen: tuple[str, ...]) -> None:
     "--listen",
     type=Endpoint(),
     multiple=True,
-    help="Listen here (default: loopback, a free port); beyond loopback warns. Repeatable.",
+    help="Listen here, as a Zenoh peer (default: listen nowhere, a client of the router); beyond loopback "
+    "warns. Repeatable.",
 )
 @rate_option()
 @click.option(

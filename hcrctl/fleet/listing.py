@@ -28,11 +28,6 @@ DEFAULT_TIMEOUT_S = 2.0
 Event = tuple[str, str]
 
 
-def connect(where: Where) -> Any:
-    """A client session; FleetError naming where it looked (and what to start) when nobody answers."""
-    return join(where)
-
-
 def names(session: Any, timeout: float) -> list[str]:
     """The robots whose serve's token is present."""
     found = set()
@@ -65,7 +60,7 @@ def _info(name: str, replies: Any) -> dict[str, Any]:
 
 
 def robots(where: Where, timeout: float = DEFAULT_TIMEOUT_S) -> list[dict[str, Any]]:
-    with connect(where) as session:
+    with join(where) as session:
         return infos(session, names(session, timeout), timeout)
 
 
@@ -81,7 +76,7 @@ def watch(
         if name is not None:
             changes.put(("left" if sample.kind == gone else "joined", name))
 
-    with connect(where) as session:
+    with join(where) as session:
         subscriber = session.liveliness().declare_subscriber(keys.ALL_ALIVE, changed, history=True)
         try:
             while not done():
