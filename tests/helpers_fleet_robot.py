@@ -3,10 +3,12 @@
 Every process is the installed ``hcrctl``, in a process group of its own with
 SIGINT at its default, and ``Fleet`` kills every group it started, however
 the test ends. A test picks a free loopback port for its router and passes
-``--zenoh tcp/127.0.0.1:PORT`` to everyone. ``Operator`` is a small Zenoh
-client speaking the contract directly (its liveliness token, claims,
-``cmd_vel`` with attachments), so the robot side is tested without the
-operator side's code. What reached the robot is read from the serve's global
+``--zenoh tcp/127.0.0.1:PORT`` to everyone, or, given a ``Topology`` on
+hosts, runs the router, the robots and the operators on hosts of their own
+(helpers_netns). ``Operator`` is a small Zenoh client in this process
+speaking the contract directly (its liveliness token, claims, ``cmd_vel``
+with attachments), so the robot side is tested without the operator side's
+code; it reaches a router on loopback only. What reached the robot is read from the serve's global
 ``--log`` (JSON lines: time, direction, hex), a record hcrctl writes as the
 bytes go out, decoded here with the codec, not with the fleet's code.
 """
