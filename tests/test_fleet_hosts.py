@@ -109,7 +109,7 @@ def test_a_router_restarted_is_found_again_by_the_robot_and_its_operators(apart:
     running, _ = apart
     watcher, out, _ = running.start("r1", "watch", "compass")  # to a file: a plain line a second
     wait_until(lambda: out.read_text().count("\n") >= 2, what="watch's first lines")
-    router = running.procs[0]
+    router = running.procs[0]  # fleet() starts the router first
     router.send_signal(signal.SIGKILL)
     router.wait(timeout=TIMEOUT)
     running.router()
