@@ -24,7 +24,7 @@ pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip instal
 import helpers_netns
 from helpers import TIMEOUT, wait_until
 from helpers_fleet_port import Fleet, fleet, is_motion, is_stop
-from helpers_netns import OPERATOR_HOST, ROBOT_HOST, ROUTER_PORT, Hosts, topology
+from helpers_netns import OPERATOR_HOST, ROBOT_HOST, ROUTER_HOST, ROUTER_PORT, Hosts, topology
 
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.frames import Frame
@@ -67,6 +67,25 @@ def test_from_the_operators_host_the_robot_is_listed_read_and_driven(apart: tupl
     wire = running.served["r1"]
     moved = wire.wait_sent(velocity_20, what="velocity 20 20")
     wire.wait_sent(is_stop, after=moved, what="stop after the drive")
+
+
+def listening(host: list[str]) -> list[str]:
+    """The TCP ports listening on a host (``/proc/net/tcp*`` read inside its namespace), as ``ADDR:PORT`` hex."""
+    found = []
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        text = subprocess.run([*host, "cat", table], capture_output=True, text=True, check=True).stdout
+        found += [row.split()[1] for row in text.splitlines()[1:] if row.split()[3] == "0A"]  # 0A: LISTEN
+    return found
+
+
+def test_only_the_router_listens_robot_and_operator_hosts_listen_nowhere(apart: tuple[Fleet, Hosts]) -> None:
+    running, hosts = apart
+    watcher, out, _ = running.start("r1", "watch", "compass")
+    wait_until(lambda: line_after(out, " ok "), what="the operator reading r1")
+    assert listening(hosts[ROBOT_HOST].exec()) == []
+    assert listening(hosts[OPERATOR_HOST].exec()) == []
+    assert listening(hosts[ROUTER_HOST].exec()) == ["0100FA0A:1D17"]  # 10.250.0.1:7447
+    assert watcher.poll() is None
 
 
 def test_an_operators_cable_cut_mid_drive_stops_the_robot_and_tells_the_operator(
