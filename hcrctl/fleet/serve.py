@@ -41,7 +41,7 @@ from ..link.dialects import supported_sensors
 from ..link.loopback import is_loopback
 from ..link.rescue import DEADMAN_S, warn
 from ..link.signals import Terminated, stop_signals_handled
-from ..live.teleop import bumper_hit
+from ..live.bumpers import bumper_rule
 from ..live.watch import quick_handoff
 from ..motion.governor import Governor
 from ..protocol import commands as C
@@ -328,10 +328,11 @@ def _serve(
         feed = Feed(robot, names, options.rate, publish, reconnect=Reconnect(settings, robot))
         serving = Serving(options.name, session, governor, notes, feed, options)
         governor.attach(lambda: feed.current)
-        governor.bumped = lambda: bumper_hit(feed.state)
+        governor.bumpers = bumper_rule(feed.state, options.rate)
         governor.on_stop = serving.told_stop
         try:
             with _entered(server), feed, stopping_driven(feed, robot, lambda: governor.driven), governor:
+                feed.poller.first_sweep()  # the bumper rule has a reading before the robot is in the fleet
                 serving.declare(names)
                 notes.note(_serving_line(serving, robot, server))
                 try:
