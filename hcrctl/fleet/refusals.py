@@ -3,10 +3,11 @@
 Every refusal is counted (``DriveCounters.refused``), but only so many are
 said (on ``status`` and stderr): the same refusal as the one just said is not
 said again, and at most ``MAX_LINES`` lines go out per ``WINDOW`` seconds.
-What the budget held back is said as one line when its window ends
-(``... and N more refusals in the last 1.0 s``), from the next refusal or the
-serve's loop (``tick``), so a flood of alternating operator names costs a few
-lines a second, not one per message.
+What was held back is said as one line when its window ends (``... and N
+more refusals in the last 1.0 s``), from the next refusal or the serve's
+loop (``tick``), so a flood of alternating operator names costs a few lines
+a second, not one per message, and a refused operator that keeps sending
+one line a second with the count.
 """
 
 from __future__ import annotations
@@ -45,7 +46,7 @@ class Refusals:
         self._last: tuple[str | None, str] | None = None
 
     def refused(self, op: str | None, text: str) -> None:
-        """One refusal of ``op``'s message: said, unless just said or over this window's budget."""
+        """One refusal of ``op``'s message: said, unless just said or over this window's budget (then counted)."""
         with self._lock:
             summary = self._roll(self._clock())
             told = (op, text)
@@ -53,7 +54,7 @@ class Refusals:
             if say:
                 self._said += 1
                 self._last = told
-            elif told != self._last:
+            else:
                 self._held += 1
         if summary:
             self._say(None, summary)
