@@ -74,9 +74,9 @@ class Fleet:
         assert line.startswith("listening on "), line
         return proc
 
-    def sim(self) -> str:
-        """``hcrctl sim --pty``: its device path."""
-        proc = self.start(["sim", "--pty"])
+    def sim(self, *options: str) -> str:
+        """``hcrctl sim --pty OPTIONS``: its device path."""
+        proc = self.start(["sim", "--pty", *options])
         path = readline(proc)
         assert path.startswith("/dev/"), path
         return path

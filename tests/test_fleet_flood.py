@@ -31,6 +31,8 @@ BUMP = C.BY_NAME["bump"].code
 SERVO = C.BY_NAME["servo"].code
 #: The serve's poll rate in these tests (its default), and so the bumper rule's bound.
 RATE = 10.0
+#: Queries a second from the attacker: far more than the paced line could answer one by one.
+FLOOD_RATE = 1000.0
 
 
 @pytest.fixture
@@ -41,7 +43,10 @@ def lab(tmp_path: Path) -> Any:
 
 
 def served(lab: Fleet, tmp_path: Path, *options: str) -> Any:
-    return lab.serve("r1", lab.sim(), "--rate", f"{RATE:g}", *options, log=tmp_path / "r1.jsonl")
+    """``fleet serve r1`` on a simulator paced as a 9600-baud line: a read on it costs ~20 ms of the
+    line, so a flood of reads answered on the line would leave the poller no turn."""
+    sim = lab.sim("--pace", "--baud", "9600")
+    return lab.serve("r1", sim, "--rate", f"{RATE:g}", *options, log=tmp_path / "r1.jsonl")
 
 
 def pressed(frame: Frame) -> bool:
@@ -60,7 +65,7 @@ def test_a_read_flood_while_driving_forward_cannot_blind_the_bumpers(lab: Fleet,
     serve = served(lab, tmp_path, "--deadman", "10")
     with operator(lab.endpoint, "r1", "op1") as op, attacker(lab.endpoint) as peer:
         op.open()
-        peer.reads([(keys.read("r1", "compass"), None)], rate=1000)
+        peer.reads([(keys.read("r1", "compass"), None)], rate=FLOOD_RATE)
         wait_until(lambda: peer.sent >= 200, what="the flood under way")
 
         def driven_into_the_wall() -> bool:
@@ -99,7 +104,7 @@ def test_ten_third_party_stops_go_through_a_read_flood(lab: Fleet, tmp_path: Pat
         op.open()
         op.cmd_vel(twist(0.2))
         wait_until(lambda: serve.sent_codes({VELOCITY}), what="velocity on the wire")
-        peer.reads(flood, rate=1000)
+        peer.reads(flood, rate=FLOOD_RATE)
         wait_until(lambda: peer.sent >= 200, what="the flood under way")
         outcomes = []
         for _ in range(10):
@@ -186,7 +191,11 @@ def test_a_bumper_reading_older_than_the_bound_stops_forward_motion(lab: Fleet, 
     serve = lab.serve("r1", port, "--deadman", "10", log=tmp_path / "r1.jsonl")
     with operator(lab.endpoint, "r1", "op1") as op:
         op.open()
-        op.cmd_vel(twist(0.3))
-        said = op.wait_said("forward blocked")
+
+        def refused() -> Any:
+            op.cmd_vel(twist(0.3))
+            return op.said("forward blocked")
+
+        said = wait_until(refused, what=f"forward refused (status {op.status})")
     assert re.search(r"refused: (no bumper reading yet|bumper reading [\d.]+ s old)", said["text"]), said
     assert not [f for f in serve.sent_codes({VELOCITY}) if forward(f)]
