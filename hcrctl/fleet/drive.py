@@ -23,7 +23,7 @@ import json
 from collections import OrderedDict
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, SupportsBytes
 
 from ..errors import ProtocolError
 from ..feeds.cmdvel import MAX_NESTING, BadTwist, parse_twist, twist_wheels
@@ -125,7 +125,10 @@ class FleetDrive:
             seen.popitem(last=False)
         return op
 
-    def cmd_vel(self, attachment: bytes | None, payload: bytes) -> None:
+    def cmd_vel(self, attachment: bytes | None, payload: SupportsBytes) -> None:
+        """One motion message; ``payload`` is made bytes only once it is read (Zenoh's ZBytes copies)."""
+        if self._not_the_drivers(attachment):
+            return
         op = self.fresh(attachment)
         if op is None:
             return
@@ -135,7 +138,7 @@ class FleetDrive:
             self.refused(op, self.refusal(driver))
             return
         try:
-            verdict = self._offer(op, payload)
+            verdict = self._offer(op, bytes(payload))
         except (BadMotion, BadTwist) as exc:
             self.refused(op, f"cmd_vel refused: {exc}")
             return
@@ -143,6 +146,18 @@ class FleetDrive:
             self.refused(op, f"cmd_vel {verdict.why}")
         elif driver != op:
             self._say(op, f"{op} drives {self.robot}")
+
+    def _not_the_drivers(self, attachment: bytes | None) -> bool:
+        """While one drives, a message whose attachment does not start with the driver's name is refused
+        at once: its sequence number and payload are never read, nor its attachment unless the refusal
+        is said, so a flood of other names (or of garbage) costs the driver's own messages little."""
+        driver = self.governor.driver
+        if driver is None or attachment is None or attachment.startswith(f"{driver} ".encode()):
+            return False
+        self.counters.cmd_vel += 1
+        parsed = keys.parse_attachment(attachment) if self.refusals.may_say() else None
+        self.refused(parsed[0] if parsed else None, self.refusal(driver))
+        return True
 
     def _offer(self, op: str, payload: bytes) -> Any:
         message = parse_motion(payload)

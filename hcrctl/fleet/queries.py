@@ -7,7 +7,9 @@ number of peers reading cost the poller nothing. Anything else that needs
 the serial link (a read of another address, one whose reply is too old, a
 write) takes its turn (``Turnstile``): one query at a time, each only after
 the poller has swept since the previous one left (at most ``TURN_WAIT_S``),
-with the poller's pause held only while that one query is on the link.
+with the poller's pause held only while that one query is on the link, and a
+read's reply waited for ``QUERY_REPLY_S`` at most: a read of a silent address
+keeps the bumper reading from ageing past its bound.
 Zenoh calls a queryable on its own threads, which must not wait on a serial
 line, so those queries are answered from a small pool (``Answers``); more
 than ``MAX_PENDING`` waiting is a busy robot, said at once. ``info``, a
@@ -38,6 +40,9 @@ from ..protocol.frames import Frame
 
 #: Queries answered at once; the serial link takes one at a time anyway.
 WORKERS = 2
+#: The longest a peer's read holds the serial line waiting for its reply: a sweep waits for it,
+#: so this, with a sweep period, must stay well inside the bumper rule's bound (``live.bumpers``).
+QUERY_REPLY_S = 0.15
 #: The longest a serial query waits for the poller's sweep before it takes the link anyway.
 TURN_WAIT_S = 0.5
 #: How often a waiting query looks for that sweep.
@@ -98,7 +103,9 @@ def read(robot: Robot, sensor: str, message: dict[str, Any]) -> dict[str, Any]:
     """One read of ``sensor`` on the wire: the reply frame's hex and its reading."""
     cmd = robot.check_supported(C.BY_NAME[sensor])
     address = address_of(message, robot)
-    reply = robot.transact(robot.frame_for(cmd, address), (address, cmd.code), cmd.name)
+    reply = robot.transact(
+        robot.frame_for(cmd, address), (address, cmd.code), cmd.name, timeout=QUERY_REPLY_S
+    )
     data = robot.wire_bytes(reply)
     return {"frame": data.hex(), "reading": reading(robot, cmd, reply, data)}
 

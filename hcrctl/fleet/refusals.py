@@ -61,6 +61,10 @@ class Refusals:
         if say:
             self._say(op, text)
 
+    def may_say(self) -> bool:
+        """Whether a refusal now could still be said (so its text is worth making)."""
+        return self._said < self._max or self._clock() - self._start >= self._window
+
     def tick(self) -> None:
         """Close the window if it is over: what it held back is said now, not at the next refusal."""
         with self._lock:

@@ -341,7 +341,7 @@ class Serving:
         queries.send_reply(query, keys.drive(self.name), (ok, body))
 
     def _cmd_vel(self, sample: Any) -> None:
-        self.drive.cmd_vel(_bytes(sample.attachment), bytes(sample.payload))
+        self.drive.cmd_vel(_bytes(sample.attachment), sample.payload)
 
     def _stop(self, sample: Any) -> None:
         self.drive.stop(_bytes(sample.attachment))
