@@ -4,7 +4,9 @@ The polling is watch's (``Poller``: the same sweeps, retries, broadcasts and
 reconnection), and the messages come from the link's traffic hook, so every
 frame both ways is published exactly as ``--log`` would write it, and every
 good reply also as a reading on its own topic (``protocol.topics``). The link
-counters are published every ``link_every`` seconds by ``run``'s loop.
+counters are published every ``link_every`` seconds by ``run``'s loop. The
+last reply heard per (address, command) is kept (``heard``), so a peer's
+read can be answered from the sweep instead of on the line.
 
 ``publish`` is called from the link's reader and writer threads and from
 ``run``'s; the feed holds a lock around it, so a sink never sees two calls at
