@@ -118,6 +118,34 @@ def test_ten_third_party_stops_go_through_a_read_flood(lab: Fleet, tmp_path: Pat
     serve.wait_err("stopped: stop from")
 
 
+def test_a_new_driver_drives_through_a_read_flood(lab: Fleet, tmp_path: Path) -> None:
+    """``drive`` over ``zenoh://`` asks ``info`` and claims: neither waits behind the flood's reads."""
+    serve = served(lab, tmp_path, "--deadman", "10")
+    silent = json.dumps({"address": 7}).encode()
+    with attacker(lab.endpoint) as peer:
+        peer.reads([(keys.read("r1", "compass"), None), (keys.read("r1", "bump"), silent)], rate=FLOOD_RATE)
+        wait_until(lambda: peer.sent >= 200, what="the flood under way")
+        done = lab.run(
+            [
+                "--zenoh",
+                lab.endpoint,
+                "--port",
+                "zenoh://r1",
+                "drive",
+                "velocity",
+                "-10",
+                "-10",
+                "--for",
+                "0.3",
+            ]
+        )
+    assert done.returncode == 0, done.stderr
+    moved = [
+        f for f in serve.sent_codes({VELOCITY}) if C.Velocity.from_content(f.content) == C.Velocity(-10, -10)
+    ]
+    assert moved and _stops(serve) > 0
+
+
 def _stops(serve: Any) -> int:
     return sum(1 for f in serve.sent_codes({C.BY_NAME["power"].code}) if is_stop(f))
 
