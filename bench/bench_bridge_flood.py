@@ -32,7 +32,15 @@ floods from a second client that never drives, run in a process of its own
 - ``big``: 1 MiB messages (a Twist padded with one long string) as fast as
   possible; the server closes the connection at the frame header (over
   ``MAX_MESSAGE``, close 1009) and the flooder reconnects each time, so it
-  is mostly a handshake flood.
+  is mostly a handshake flood;
+- ``clients``: the refusals of alternating names, the bridge's way:
+  ``CLIENTS`` connections, each a client id of its own, sending the
+  ``small`` message in turn, ~1 kHz in all (each refused: another drives,
+  or a Twist beyond any range);
+- ``reads``: the bridge's reads are subscriptions: one client subscribing to
+  every channel and unsubscribing again, ~1 kHz of each, draining what the
+  server sends. (A servo flood has no bridge counterpart: the bridge
+  takes no writes but ``/cmd_vel``.)
 
 The bridge's RSS (``/proc/<pid>/status``) is sampled every ``RSS_EVERY`` s
 during each round: the growth reported is the peak during a round less the
@@ -99,7 +107,9 @@ FLOOD_LEAD = 0.3
 SETTLE = 0.3
 RSS_EVERY = 0.05
 TIMEOUT = 10.0
-KINDS = ("baseline", "small", "big")
+KINDS = ("baseline", "small", "big", "clients", "reads")
+#: Connections of the ``clients`` flood.
+CLIENTS = 20
 
 SUBPROTOCOL = "foxglove.sdk.v1"
 CMD_VEL = 5
@@ -108,7 +118,7 @@ FLOOD_PAYLOADS = {
     "small": b'{"linear": {"x": 1e308, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}',
     "big": b'{"linear": {"x": 0.1}, "pad": "' + b"x" * (1 << 20) + b'"}',
 }
-FLOOD_PAUSE = {"small": 0.001, "big": 0.0}
+FLOOD_PAUSE = {"small": 0.001, "big": 0.0, "clients": 0.001, "reads": 0.001}
 ADVERTISE = json.dumps(
     {
         "op": "advertise",
@@ -258,6 +268,79 @@ def flood(kind: str, port: int) -> Iterator[dict[str, Any]]:
             proc.wait()
 
 
+class Paced:
+    """Waits out a schedule of one message per ``pause`` s (catching up at most 10 ms)."""
+
+    def __init__(self, pause: float) -> None:
+        self.pause = pause
+        self.due = time.monotonic()
+
+    def wait(self) -> None:
+        self.due = max(self.due + self.pause, time.monotonic() - 0.01)
+        if (left := self.due - time.monotonic()) > 0:
+            time.sleep(left)
+
+
+def many_clients_main(port: int, done: threading.Event) -> dict[str, Any]:
+    """``CLIENTS`` connections sending the small refused Twist in turn until ``done``."""
+    from websockets.sync.client import connect
+
+    url = f"ws://127.0.0.1:{port}"
+    with contextlib.ExitStack() as stack:
+        clients = [
+            stack.enter_context(connect(url, subprotocols=[SUBPROTOCOL], open_timeout=TIMEOUT))  # type: ignore[list-item]
+            for _ in range(CLIENTS)
+        ]
+        return _round_robin(clients, done)
+
+
+def _round_robin(clients: list[Any], done: threading.Event) -> dict[str, Any]:
+    message = b"\x01" + struct.pack("<I", CMD_VEL) + FLOOD_PAYLOADS["small"]
+    sent = 0
+    for ws in clients:
+        ws.send(ADVERTISE)
+    print("flooding", flush=True)
+    paced = Paced(FLOOD_PAUSE["clients"])
+    while not done.is_set():
+        with contextlib.suppress(Exception):
+            clients[sent % CLIENTS].send(message)
+            with contextlib.suppress(TimeoutError):
+                clients[sent % CLIENTS].recv(timeout=0)  # its status: read, so no queue grows
+        sent += 1
+        paced.wait()
+    return {"sent": sent, "connections": CLIENTS, "refused": 0}
+
+
+def subscriptions_main(port: int, done: threading.Event) -> dict[str, Any]:
+    """One client subscribing to every channel and unsubscribing again until ``done``."""
+    from websockets.sync.client import connect
+
+    with connect(f"ws://127.0.0.1:{port}", subprotocols=[SUBPROTOCOL], open_timeout=TIMEOUT) as ws:  # type: ignore[list-item]
+        return _subscribing(ws, done)
+
+
+def _subscribing(ws: Any, done: threading.Event) -> dict[str, Any]:
+    channels: list[int] = []
+    while not channels:
+        message = ws.recv(timeout=TIMEOUT)
+        if isinstance(message, str) and (decoded := json.loads(message)).get("op") == "advertise":
+            channels = [c["id"] for c in decoded["channels"]]
+    print("flooding", flush=True)
+    sent = 0
+    paced = Paced(FLOOD_PAUSE["reads"])
+    while not done.is_set():
+        ids = list(range(sent * len(channels), (sent + 1) * len(channels)))
+        subscribe = [{"id": i, "channelId": c} for i, c in zip(ids, channels, strict=True)]
+        ws.send(json.dumps({"op": "subscribe", "subscriptions": subscribe}))
+        ws.send(json.dumps({"op": "unsubscribe", "subscriptionIds": ids}))
+        with contextlib.suppress(TimeoutError):
+            while True:
+                ws.recv(timeout=0)
+        sent += 1
+        paced.wait()
+    return {"sent": sent, "connections": 1, "refused": 0}
+
+
 def flood_main(kind: str, port: int) -> int:
     """The flood process: sends until its stdin closes; prints 'flooding' once under way, its counts at the end."""
     from websockets.exceptions import ConnectionClosed, InvalidHandshake
@@ -265,6 +348,11 @@ def flood_main(kind: str, port: int) -> int:
 
     done = threading.Event()
     threading.Thread(target=lambda: (sys.stdin.read(), done.set()), daemon=True).start()
+    if kind in ("clients", "reads"):
+        start = time.monotonic()
+        counts = (many_clients_main if kind == "clients" else subscriptions_main)(port, done)
+        print(json.dumps({**counts, "seconds": time.monotonic() - start}))
+        return 0
     message = b"\x01" + struct.pack("<I", CMD_VEL) + FLOOD_PAYLOADS[kind]
     pause = FLOOD_PAUSE[kind]
     sent = connections = refused = 0
@@ -366,7 +454,7 @@ def at_most(label: str, value: float, target: float, shown: str = "") -> bool:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=10, help="rounds of each kind (default 10)")
-    parser.add_argument("--flood", choices=("small", "big"), help=argparse.SUPPRESS)
+    parser.add_argument("--flood", choices=KINDS[1:], help=argparse.SUPPRESS)
     parser.add_argument("--ws-port", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.flood:
@@ -381,7 +469,7 @@ def main() -> int:
                 one_round("baseline", robot, bridge, driver)  # warm-up, not counted
                 rss_start = bridge.rss_kib()
                 for i in range(args.rounds):
-                    for kind in KINDS[i % 3 :] + KINDS[: i % 3]:
+                    for kind in KINDS[i % len(KINDS) :] + KINDS[: i % len(KINDS)]:
                         result = one_round(kind, robot, bridge, driver)
                         results.append(result)
                         extra = ""
@@ -411,7 +499,7 @@ def main() -> int:
     ok = alive
     if not alive:
         print("  MISS the bridge ended during the bench")
-    for kind in ("small", "big"):
+    for kind in KINDS[1:]:
         figure = figures[kind]
         stop_ratio = figure["stop_ms_median"] / base["stop_ms_median"]
         motion_ratio = figure["motion_ms_median"] / base["motion_ms_median"]

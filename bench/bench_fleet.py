@@ -25,6 +25,11 @@ Run from the repository root: ``python bench/bench_fleet.py [--robots 1,5,20] [-
    (``op``'s port on the switch set down while it drives, deadman 0.5 s: the
    stop is the deadman's; target the deadman + 0.2 s), beside the loopback
    figures.
+5. Floods from a raw Zenoh peer (``_fleet_floods``: reads, alternating-name
+   refusals, servo writes, garbage ``cmd_vel``) while a driver drives: the
+   deadman stop on the wire under each, as a ratio to the stop without a
+   flood in the same run. Target <= 1.2x. ``--flood-rounds`` rounds of each
+   (0 skips it).
 
 It prints the figures, writes ``bench/results/bench_fleet.json`` and exits 1
 if a target is missed. Needs the zenoh extra.
@@ -355,6 +360,19 @@ def on_hosts(rounds: int, tmp: Path, metrics: dict[str, Any]) -> bool:
             f"{statistics.median(figures) * 1e3:.1f} ms, max {worst * 1e3:.1f} ms (target <= {target * 1e3:.0f} ms)"
         )
     return ok
+# -- 5. floods from a peer, to the deadman stop on the robot's wire ---------------------------------
+
+
+def floods(rounds: int, tmp: Path) -> tuple[dict[str, Any], bool]:
+    from _fleet_floods import DEADMAN, deadman_under_floods
+
+    with fleet(tmp) as (procs, endpoint):
+        return deadman_under_floods(
+            rounds,
+            endpoint,
+            lambda log: serve(procs, endpoint, "r1", "--deadman", str(DEADMAN), log=log),
+            tmp / "wire-floods.jsonl",
+        )
 
 
 def main() -> int:
@@ -362,6 +380,7 @@ def main() -> int:
     parser.add_argument("--robots", default="1,5,20", help="comma-separated robot counts")
     parser.add_argument("--seconds", type=float, default=10.0, help="measuring window per robot count")
     parser.add_argument("--rounds", type=int, default=7)
+    parser.add_argument("--flood-rounds", type=int, default=5, help="rounds of each flood kind (0: none)")
     args = parser.parse_args()
     metrics: dict[str, Any] = {}
     ok = True
@@ -422,6 +441,10 @@ def main() -> int:
             ok &= on_hosts(args.rounds, tmp, metrics)
         else:
             print(f"  hosts: skipped: {why}")
+        if args.flood_rounds:
+            flooded, good = floods(args.flood_rounds, tmp)
+            metrics["floods"] = flooded
+            ok &= good
     metrics["load"] = round(os.getloadavg()[0], 2)
     record("bench_fleet", metrics)
     return 0 if ok else 1

@@ -22,6 +22,7 @@ import select
 import signal
 import socket
 import subprocess
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -81,9 +82,9 @@ class Fleet:
         assert line.startswith("listening on "), line
         return proc
 
-    def sim(self) -> str:
-        """``hcrctl sim --pty``: its device path."""
-        proc = self.start(["sim", "--pty"], ROBOT_HOST)
+    def sim(self, *options: str) -> str:
+        """``hcrctl sim --pty OPTIONS`` on the robot's host: its device path."""
+        proc = self.start(["sim", "--pty", *options], ROBOT_HOST)
         path = readline(proc)
         assert path.startswith("/dev/"), path
         return path
@@ -182,8 +183,24 @@ class Serve:
             self.err += chunk
         return self.err.decode()
 
+    def said(self) -> str:
+        """Stderr so far: everything there is to read now, added to ``err``."""
+        assert self.proc.stderr is not None
+        fd = self.proc.stderr.fileno()
+        while select.select([fd], [], [], 0)[0] and (chunk := os.read(fd, 65536)):
+            self.err += chunk
+        return self.err.decode()
+
     def sent(self) -> list[tuple[float, Frame]]:
         """Every frame the serve put on the wire, in order, with its log time (epoch seconds)."""
+        return self.logged("tx")
+
+    def heard(self) -> list[tuple[float, Frame]]:
+        """Every frame the serve heard from the robot, in order, with its log time (epoch seconds)."""
+        return self.logged("rx")
+
+    def logged(self, direction: str) -> list[tuple[float, Frame]]:
+        """The frames of ``direction`` (tx, rx) in the serve's ``--log``, in order, with their times."""
         assert self.log is not None
         if not self.log.exists():
             return []
@@ -193,7 +210,7 @@ class Serve:
                 record = json.loads(line)
             except ValueError:
                 continue  # the last line, being written
-            if record.get("direction") != "tx":
+            if record.get("direction") != direction or "hex" not in record:
                 continue
             for event in decode_all(bytes.fromhex(record["hex"])):
                 if isinstance(event, Frame):
@@ -297,3 +314,78 @@ def operator(endpoint: str, robot: str, op: str, config: str | None = None) -> I
 
 def twist(x: float = 0.2, z: float = 0.0) -> dict[str, Any]:
     return {"linear": {"x": x}, "angular": {"z": z}}
+
+
+class Attacker:
+    """A raw Zenoh client (not hcrctl's code) that floods a robot's keys, bounded in time and rate.
+
+    Each flood runs on a thread of its own until ``stop`` or ``MAX_FLOOD_S``,
+    at most ``rate`` messages a second, and counts what it sent; a query's
+    answers are dropped as they come (a callback that keeps nothing).
+    """
+
+    #: No flood outlives this, whatever the test does.
+    MAX_FLOOD_S = TIMEOUT
+
+    def __init__(self, endpoint: str) -> None:
+        import zenoh
+
+        self.zenoh = zenoh
+        cfg = zenoh.Config()
+        cfg.insert_json5("mode", '"client"')
+        cfg.insert_json5("connect/endpoints", json.dumps([endpoint]))
+        cfg.insert_json5("scouting/multicast/enabled", "false")
+        self.session = zenoh.open(cfg)
+        self.sent = 0
+        self._done = threading.Event()
+        self._threads: list[threading.Thread] = []
+
+    def _paced(self, rate: float, send: Any) -> None:
+        start, every = time.monotonic(), 1.0 / rate
+        while not self._done.is_set() and time.monotonic() - start < self.MAX_FLOOD_S:
+            with contextlib.suppress(Exception):
+                send(self.sent)
+            self.sent += 1
+            wait = start + self.sent * every - time.monotonic()
+            if wait > 0:
+                self._done.wait(wait)
+
+    def _start(self, rate: float, send: Any) -> None:
+        thread = threading.Thread(target=self._paced, args=(rate, send), daemon=True)
+        thread.start()
+        self._threads.append(thread)
+
+    def reads(self, keys_payloads: list[tuple[str, bytes | None]], rate: float = 1000.0) -> None:
+        """Queries on these keys in turn, never waiting for an answer."""
+
+        def send(n: int) -> None:
+            key, payload = keys_payloads[n % len(keys_payloads)]
+            self.session.get(
+                key, self.zenoh.handlers.Callback(lambda reply: None), payload=payload, timeout=2.0
+            )
+
+        self._start(rate, send)
+
+    def puts(self, key: str, payload: bytes, attachment: Any, rate: float = 1000.0) -> None:
+        """Puts on ``key``; ``attachment(n)`` is the n-th message's attachment."""
+        self._start(rate, lambda n: self.session.put(key, payload, attachment=attachment(n)))
+
+    def stop(self) -> None:
+        self._done.set()
+        for thread in self._threads:
+            thread.join(timeout=TIMEOUT)
+        self._threads.clear()
+
+    def close(self) -> None:
+        self.stop()
+        with contextlib.suppress(Exception):
+            self.session.close()
+
+
+@contextlib.contextmanager
+def attacker(endpoint: str) -> Iterator[Attacker]:
+    peer = Attacker(endpoint)
+    try:
+        yield peer
+    finally:
+        peer.close()

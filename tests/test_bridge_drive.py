@@ -69,43 +69,43 @@ def test_a_partial_twist_counts_the_missing_parts_as_zero() -> None:
 
 def test_the_deadman_stops_when_messages_stop() -> None:
     rules = Lease(deadman=0.5)
-    assert rules.offer((1, 5), (20, 20), now=10.0, bumped=False)
-    rules.check(10.4, bumped=False)
+    assert rules.offer((1, 5), (20, 20), now=10.0, blocked="")
+    rules.check(10.4, blocked="")
     assert rules.wheels == (20, 20)
-    rules.check(10.6, bumped=False)
+    rules.check(10.6, blocked="")
     assert rules.wheels == (0, 0) and rules.why_stopped.startswith("deadman")
 
 
 def test_a_bumper_blocks_forward_but_not_backing_off_or_turning() -> None:
     rules = Lease(deadman=0.5)
-    rules.offer((1, 5), (20, 20), now=0.0, bumped=False)
-    rules.check(0.1, bumped=True)
+    rules.offer((1, 5), (20, 20), now=0.0, blocked="")
+    rules.check(0.1, blocked="bumper hit")
     assert rules.wheels == (0, 0) and rules.why_stopped == "bumper hit"
-    rules.offer((1, 5), (20, 20), now=0.2, bumped=True)
+    rules.offer((1, 5), (20, 20), now=0.2, blocked="bumper hit")
     assert rules.wheels == (0, 0) and "forward blocked" in rules.why_stopped
-    rules.offer((1, 5), (-20, -20), now=0.3, bumped=True)
+    rules.offer((1, 5), (-20, -20), now=0.3, blocked="bumper hit")
     assert rules.wheels == (-20, -20)
-    rules.offer((1, 5), (-12, 12), now=0.4, bumped=True)
+    rules.offer((1, 5), (-12, 12), now=0.4, blocked="bumper hit")
     assert rules.wheels == (-12, 12)
 
 
 def test_one_client_drives_at_a_time_until_it_leaves() -> None:
     rules = Lease(deadman=0.5)
-    assert rules.offer((1, 5), (20, 20), now=0.0, bumped=False)
-    assert not rules.offer((2, 1), (-20, -20), now=0.1, bumped=False)
+    assert rules.offer((1, 5), (20, 20), now=0.0, blocked="")
+    assert not rules.offer((2, 1), (-20, -20), now=0.1, blocked="")
     assert rules.wheels == (20, 20)
     rules.release((2, 1), "client 2 left")
     assert rules.wheels == (20, 20)
     rules.release((1, 5), "client 1 left")
     assert rules.wheels == (0, 0) and rules.driver is None
-    assert rules.offer((2, 1), (-20, -20), now=0.2, bumped=False)
+    assert rules.offer((2, 1), (-20, -20), now=0.2, blocked="")
 
 
 def test_a_silent_driver_gives_the_robot_up() -> None:
     rules = Lease(deadman=0.5)
-    rules.offer((1, 5), (0, 0), now=0.0, bumped=False)
-    rules.check(1.0, bumped=False)
-    assert rules.driver is None and rules.offer((2, 1), (10, 10), now=1.1, bumped=False)
+    rules.offer((1, 5), (0, 0), now=0.0, blocked="")
+    rules.check(1.0, blocked="")
+    assert rules.driver is None and rules.offer((2, 1), (10, 10), now=1.1, blocked="")
     assert math.isfinite(rules.last)
 
 

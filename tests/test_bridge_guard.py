@@ -32,6 +32,7 @@ from websockets.sync.client import connect
 
 from hcrctl.feeds.foxglove_ws import MAX_MESSAGE
 from hcrctl.motion.governor import RESEND
+from hcrctl.protocol import commands as C
 
 DEADMAN = 0.5
 #: The most repeats of a held motion between the driver's last good message and the stop.
@@ -185,6 +186,33 @@ def test_a_flood_from_another_client_neither_holds_motion_nor_grows_memory(
             assert grown < 64 * 1024, f"the bridge grew by {grown} KiB under the flood"
             drive(driver, robot, after=stop)
         assert running.proc.poll() is None
+
+
+def test_under_a_flood_a_pressed_or_silent_bumper_stops_forward_motion(env: dict[str, str]) -> None:
+    """The bridge's bumper rule under a 1 kHz flood from another client, the driver still driving:
+    a pressed bumper stops forward motion, and so does a bumper that stops answering (its reading ages)."""
+    with running_bridge(env, "--deadman", "10") as (robot, running), viewer(running.port) as driver:
+        drive(driver, robot)
+        with flooding(running.port, json.dumps(TWIST).encode(), 0.001):
+            robot.values["bump"] = C.Bumpers((False, True, False))
+            pressed = _driven_until_stopped(driver, robot, 0.0)
+            running.wait_line("stop: bumper hit")
+            robot.values["bump"] = C.Bumpers((False, False, False))
+            moved = drive(driver, robot, after=pressed)
+            robot.mute = True
+            _driven_until_stopped(driver, robot, moved)
+            running.wait_line("stop: bumper reading")
+        assert running.proc.poll() is None
+
+
+def _driven_until_stopped(driver: object, robot: FakeRobot, after: float) -> float:
+    """The driver keeps publishing forward until a stop reaches the wire after ``after``: when it did."""
+
+    def stopped() -> float | None:
+        driver.publish(TWIST)  # type: ignore[attr-defined]
+        return next((t for t, f in robot.frames() if t >= after and is_stop(f)), None)
+
+    return float(wait_until(stopped, what="a stop while the driver still drives"))
 
 
 # -- origins -------------------------------------------------------------------------------------

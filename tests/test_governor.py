@@ -83,26 +83,34 @@ def test_anyone_may_stop_and_stop_goes_out_even_when_still() -> None:
     assert wire.sent == ["stop", C.Velocity(10, 10), "stop"] and told[-1] == ("a", "someone else")
 
 
-@pytest.mark.parametrize("where", ["bumped", "on_stop", "make"])
+@pytest.mark.parametrize("where", ["bumpers", "on_stop", "make"])
 def test_a_failure_anywhere_costs_a_stop_never_the_loop(where: str) -> None:
-    """The thread runs for real: the failure is injected, then the governor must still stop and drive."""
+    """The thread runs for real: the failure is injected, then the governor must still stop and drive.
+
+    A bumper rule that fails cannot say the way is clear: forward is blocked, backing off still drives.
+    """
     wire = Wire()
 
-    def boom(*_: object) -> bool:
+    def boom(*_: object) -> str:
         raise RuntimeError(f"{where} failed")
 
-    options = {"bumped": boom} if where == "bumped" else {"on_stop": boom} if where == "on_stop" else {}
+    options = {"bumpers": boom} if where == "bumpers" else {"on_stop": boom} if where == "on_stop" else {}
     gov = governor(wire, **options)
     if where == "make":
         wire.fail = ValueError("cannot encode")
+    way = (-1, -1) if where == "bumpers" else (1, 1)
     with gov:
-        gov.offer("a", (20, 20))
+        gov.offer("a", (20 * way[0], 20 * way[1]))
         wait_until(
-            lambda: wire.last() == ("stop" if where == "make" else C.Velocity(20, 20)), what="the first turn"
+            lambda: wire.last() == ("stop" if where == "make" else C.Velocity(*(20 * w for w in way))),
+            what="the first turn",
         )
         wait_until(lambda: wire.last() == "stop", what="the deadman's stop")
-        gov.offer("c", (5, 5))  # still alive, and the lease is free
-        wait_until(lambda: wire.last() == C.Velocity(5, 5), what="motion after the failure")
+        gov.offer("c", (5 * way[0], 5 * way[1]))  # still alive, and the lease is free
+        wait_until(lambda: wire.last() == C.Velocity(5 * way[0], 5 * way[1]), what="motion after the failure")
+        if where == "bumpers":
+            refused = gov.offer("c", (5, 5))
+            assert not refused and "the bumper rule failed" in refused.why
     assert wire.last() == "stop"  # leaving sends stop when moving
 
 

@@ -15,8 +15,9 @@ from helpers_live import FakeRobot, Terminal, is_stop, speed_of, terminal, termi
 
 from hcrctl.link.client import Robot
 from hcrctl.link.context import Connection
+from hcrctl.live.bumpers import freshness_bound
 from hcrctl.live.state import LiveState
-from hcrctl.live.teleop import HOLD_GRACE, Drive, press, run_teleop, teleop_governor
+from hcrctl.live.teleop import HOLD_GRACE, POLL_HZ, Drive, press, run_teleop, teleop_governor
 from hcrctl.motion.governor import Governor
 from hcrctl.protocol import commands as C
 
@@ -183,9 +184,15 @@ class _Wire:
         self.sent.append(value)
 
 
-def _rig(timeout: float = 0.5) -> tuple[Drive, Governor, LiveState, _Wire]:
-    """Teleop's governor, its thread not started: each test turns its clock by hand."""
-    wire, drive, state = _Wire(), Drive(50, 30, timeout), LiveState(["bump", "wheels"])
+def _rig(timeout: float = 0.5, clock: list[float] | None = None) -> tuple[Drive, Governor, LiveState, _Wire]:
+    """Teleop's governor, its thread not started: each test turns its clock by hand.
+
+    The state's clock is ``clock[0]`` (the bumper reading's age), and a clear bumper reading is in.
+    """
+    clock = clock if clock is not None else [0.0]
+    wire, drive = _Wire(), Drive(50, 30, timeout)
+    state = LiveState(["bump", "wheels"], clock=lambda: clock[0])
+    state.record("bump", C.Bumpers((False, False, False)), 0.001)
     governor = teleop_governor(drive, state)
     governor.attach(lambda: wire)  # type: ignore[arg-type, return-value]
     return drive, governor, state, wire
@@ -251,12 +258,30 @@ def test_step_bumper_blocks_forward_only() -> None:
     assert wire.sent == [C.MotorSpeed(-50, -50)]
 
 
-def test_step_stale_bumper_reading_does_not_block() -> None:
+def test_step_a_failed_read_keeps_a_pressed_bumper_pressed() -> None:
     drive, governor, state, wire = _rig()
     state.record("bump", C.Bumpers((True, False, False)), 0.001)
     state.fail("bump", "no reply")
     step(drive, governor, "w", now=1.0)
+    assert wire.sent == [] and drive.why_stopped == "bumper hit: forward blocked"
+
+
+def test_step_a_bumper_reading_too_old_stops_forward_and_allows_reverse() -> None:
+    """Freshness is part of safety: a clear reading older than the bound no longer allows forward."""
+    clock = [0.0]
+    drive, governor, state, wire = _rig(timeout=5, clock=clock)
+    step(drive, governor, "w", now=1.0)
     assert wire.sent == [C.MotorSpeed(50, 50)]
+    clock[0] = freshness_bound(POLL_HZ) + 0.01  # no sweep since: the poller is starved
+    step(drive, governor, None, now=1.1)
+    assert wire.sent[-1] == "stop" and drive.why_stopped.startswith("bumper reading 0.51 s old (over 0.5 s)")
+    step(drive, governor, "w", now=1.2)
+    assert wire.sent[-1] == "stop" and "forward blocked" in drive.why_stopped
+    step(drive, governor, "s", now=1.3)
+    assert wire.sent[-1] == C.MotorSpeed(-50, -50)
+    state.record("bump", C.Bumpers((False, False, False)), 0.001)  # a fresh sweep: forward again
+    step(drive, governor, "w", now=1.4)
+    assert wire.sent[-1] == C.MotorSpeed(50, 50)
 
 
 def test_a_stop_key_sends_stop_even_when_still() -> None:

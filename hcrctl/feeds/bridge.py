@@ -26,7 +26,7 @@ from ..link.dialects import supported_sensors
 from ..link.loopback import is_loopback
 from ..link.rescue import warn
 from ..link.signals import Terminated, stop_signals_handled
-from ..live.teleop import bumper_hit
+from ..live.bumpers import bumper_rule
 from ..live.watch import quick_handoff
 from ..motion.governor import Governor
 from ..protocol import commands as C
@@ -147,15 +147,18 @@ def _serve(
 ) -> dict[str, Any]:
     """Poll and publish, and drive when asked, until the end; stop goes out however it ends."""
     with settings.robot() as robot, quick_handoff():
-        status.start(url(options.host, server.bound_port))
-        if not server.driving:
-            status.note(f"this firmware ({robot.profile.name}) has no velocity command: {TOPIC} is off")
         feed = Feed(robot, names, options.rate, server.publish, reconnect=Reconnect(settings, robot))
         governor.attach(lambda: feed.current)
-        governor.bumped = lambda: bumper_hit(feed.state)
+        governor.bumpers = bumper_rule(feed.state, options.rate)
         try:
-            status.watch(server, feed, governor)
             with feed, stopping_driven(feed, robot, lambda: governor.driven), governor:
+                feed.poller.first_sweep()  # the bumper rule has a reading before anyone is told where to drive
+                status.start(url(options.host, server.bound_port))
+                if not server.driving:
+                    status.note(
+                        f"this firmware ({robot.profile.name}) has no velocity command: {TOPIC} is off"
+                    )
+                status.watch(server, feed, governor)
                 watch = LinkWatch(feed, governor, status.note, robot.port)
 
                 def ended() -> bool:

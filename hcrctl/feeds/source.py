@@ -4,7 +4,9 @@ The polling is watch's (``Poller``: the same sweeps, retries, broadcasts and
 reconnection), and the messages come from the link's traffic hook, so every
 frame both ways is published exactly as ``--log`` would write it, and every
 good reply also as a reading on its own topic (``protocol.topics``). The link
-counters are published every ``link_every`` seconds by ``run``'s loop.
+counters are published every ``link_every`` seconds by ``run``'s loop. The
+last reply heard per (address, command) is kept (``heard``), so a peer's
+read can be answered from the sweep instead of on the line.
 
 ``publish`` is called from the link's reader and writer threads and from
 ``run``'s; the feed holds a lock around it, so a sink never sees two calls at
@@ -26,12 +28,17 @@ from ..link.traffic import LinkStats, Traffic, decode_sent
 from ..live.poller import Poller
 from ..live.state import LiveState
 from ..protocol import topics as T
+from ..protocol.frames import Frame
 
 Publish = Callable[[str, dict[str, Any], float], None]
 #: The link counters published on ``/hcr/link``.
 COUNTERS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(LinkStats))
 #: How often ``run`` looks at its deadline, ``should_stop`` and the poller.
 STEP = 0.05
+#: Distinct requests remembered to tell a reply from an echo (a poll sends the same few again and again).
+MAX_ASKED = 64
+#: (when heard, monotonic; the frame's wire bytes; the frame).
+Heard = tuple[float, bytes, Frame]
 
 
 class Feed:
@@ -57,6 +64,8 @@ class Feed:
         self.messages = 0
         self.error: BaseException | None = None
         self._lock = threading.Lock()
+        self._heard: dict[tuple[int, int], Heard] = {}
+        self._asked: set[bytes] = set()
         self._reconnect = reconnect
         wrapped = self._watched(reconnect) if reconnect is not None else None
         self.poller = Poller(robot, self.state, tuple(sensors), rate, reconnect=wrapped, pipeline=pipeline)
@@ -108,7 +117,25 @@ class Feed:
         message.update((name, getattr(robot.stats, name)) for name in self.counters)
         self._send(T.LINK, message, now)
 
+    def heard(self, address: int, command: int) -> Heard | None:
+        """The last reply heard from ``address`` to ``command``: (when, monotonic; its wire bytes; the frame)."""
+        return self._heard.get((address, command))
+
+    def _remember(self, traffic: Traffic) -> None:
+        """The last frame heard per (address, command), so a peer's read can be answered from the sweep.
+
+        A copy of one of our own requests (a half-duplex adapter's echo) is no reply: never remembered.
+        """
+        if traffic.direction == "tx":
+            if len(self._asked) >= MAX_ASKED:
+                self._asked.clear()
+            self._asked.add(traffic.data)
+        elif isinstance(traffic.event, Frame) and traffic.data not in self._asked:
+            frame = traffic.event
+            self._heard[(frame.address, frame.command)] = (time.monotonic(), traffic.data, frame)
+
     def _on_traffic(self, traffic: Traffic) -> None:
+        self._remember(traffic)
         robot = self.poller.robot or self.robot
         event = traffic.event
         if event is None:

@@ -8,7 +8,8 @@ older than the last seen from that operator (replayed or reordered), is
 ignored and counted. A message from anyone but the driver is refused before
 its payload is read, so a second operator cannot make the driver's messages
 cost more. What the operators must know (a refusal, who drives now, a stop
-and why) is put on ``hcr/<robot>/status`` by ``say``.
+and why) is put on ``hcr/<robot>/status`` by ``say``; refusals on a budget
+(``refusals``), so alternating names cannot fill stderr and every status.
 
 A motion message is either a Twist (the bridge's ``/cmd_vel``, turned into
 wheel velocities) or a request of the command table (power, speed, velocity,
@@ -22,7 +23,7 @@ import json
 from collections import OrderedDict
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, SupportsBytes
 
 from ..errors import ProtocolError
 from ..feeds.cmdvel import MAX_NESTING, BadTwist, parse_twist, twist_wheels
@@ -31,6 +32,7 @@ from ..protocol import commands as C
 from ..protocol.profiles import Profile
 from . import keys
 from .queries import code_text
+from .refusals import Refusals
 
 #: What a motion message may weigh: a Twist or a table request is under 200 bytes.
 MAX_MESSAGE = 4096
@@ -102,7 +104,7 @@ class FleetDrive:
         self.counters = DriveCounters()
         self._say = say
         self._profile = profile
-        self._told: tuple[str, Hashable] | None = None
+        self.refusals = Refusals(say)
 
     # -- messages ---------------------------------------------------------------
 
@@ -123,24 +125,39 @@ class FleetDrive:
             seen.popitem(last=False)
         return op
 
-    def cmd_vel(self, attachment: bytes | None, payload: bytes) -> None:
+    def cmd_vel(self, attachment: bytes | None, payload: SupportsBytes) -> None:
+        """One motion message; ``payload`` is made bytes only once it is read (Zenoh's ZBytes copies)."""
+        if self._not_the_drivers(attachment):
+            return
         op = self.fresh(attachment)
         if op is None:
             return
         self.counters.cmd_vel += 1
         driver = self.governor.driver
         if driver not in (None, op):
-            self._refused(op, self.refusal(driver))
+            self.refused(op, self.refusal(driver))
             return
         try:
-            verdict = self._offer(op, payload)
+            verdict = self._offer(op, bytes(payload))
         except (BadMotion, BadTwist) as exc:
-            self._refused(op, f"cmd_vel refused: {exc}")
+            self.refused(op, f"cmd_vel refused: {exc}")
             return
         if not verdict:
-            self._refused(op, f"cmd_vel {verdict.why}")
+            self.refused(op, f"cmd_vel {verdict.why}")
         elif driver != op:
             self._say(op, f"{op} drives {self.robot}")
+
+    def _not_the_drivers(self, attachment: bytes | None) -> bool:
+        """While one drives, a message whose attachment does not start with the driver's name is refused
+        at once: its sequence number and payload are never read, nor its attachment unless the refusal
+        is said, so a flood of other names (or of garbage) costs the driver's own messages little."""
+        driver = self.governor.driver
+        if driver is None or attachment is None or attachment.startswith(f"{driver} ".encode()):
+            return False
+        self.counters.cmd_vel += 1
+        parsed = keys.parse_attachment(attachment) if self.refusals.may_say() else None
+        self.refused(parsed[0] if parsed else None, self.refusal(driver))
+        return True
 
     def _offer(self, op: str, payload: bytes) -> Any:
         message = parse_motion(payload)
@@ -184,10 +201,7 @@ class FleetDrive:
     def refusal(self, driver: Hashable | None) -> str:
         return f"refused: {driver} drives {self.robot}"
 
-    def _refused(self, op: str, text: str) -> None:
-        """Counted every time, said once per operator and driver (a flood of refusals is one status)."""
+    def refused(self, op: str | None, text: str) -> None:
+        """Counted every time, said on a budget (``refusals``: a flood of refusals is a few lines a second)."""
         self.counters.refused += 1
-        told = (op, text)
-        if told != self._told:
-            self._told = told
-            self._say(op, text)
+        self.refusals.refused(op, text)

@@ -1,22 +1,29 @@
 """The robot's queryables: a one-shot ``read/<sensor>``, a non-motion ``write``, and ``info``.
 
-A read or write goes through the same serial link the feed polls (the
-``Robot`` is shared: its transaction lock lets one exchange at a time). That
-lock is not fair: a poller sweeping as fast as replies come could take it
-again and again ahead of a query, so a query holds the poller back while it
-waits (``Turnstile``, the poller's own pause, seen between sweeps) and waits
-for at most the sweep in flight. Zenoh calls a queryable on
-its own threads, which must not wait on a serial line, so each query is
-answered from a small pool (``Answers``); more than ``MAX_PENDING`` waiting
-is a busy robot, said at once. Every answer is JSON: the reply frame's hex
-exactly as it came off the wire and the reading as its topic carries it, or
-an error with the one-line text hcrctl would print and its hint.
+The robot's own sweep comes first, whatever its peers ask. A read of a
+sensor the poller sweeps is answered from its last reply (``swept``), heard
+at most the freshness bound ago (``live.bumpers``): no serial traffic, so any
+number of peers reading cost the poller nothing. Anything else that needs
+the serial link (a read of another address, one whose reply is too old, a
+write) takes its turn (``Turnstile``): one query at a time, each only after
+the poller has swept since the previous one left (at most ``TURN_WAIT_S``),
+with the poller's pause held only while that one query is on the link, and a
+read's reply waited for ``QUERY_REPLY_S`` at most: a read of a silent address
+keeps the bumper reading from ageing past its bound.
+Zenoh calls a queryable on its own threads, which must not wait on a serial
+line, so those queries are answered from a small pool (``Answers``); more
+than ``MAX_PENDING`` waiting is a busy robot, said at once. ``info``, a
+claim and a stop never wait behind them: answered on Zenoh's thread, they
+need no serial line. Every answer is JSON: the reply frame's hex exactly as
+it came off the wire and the reading as its topic carries it, or an error
+with the one-line text hcrctl would print and its hint.
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
+import math
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -24,6 +31,7 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 from ..errors import HcrError, ProtocolError, describe
+from ..feeds.source import Heard
 from ..feeds.untrusted import shown
 from ..link.client import Robot
 from ..protocol import commands as C
@@ -32,6 +40,13 @@ from ..protocol.frames import Frame
 
 #: Queries answered at once; the serial link takes one at a time anyway.
 WORKERS = 2
+#: The longest a peer's read holds the serial line waiting for its reply: a sweep waits for it,
+#: so this, with a sweep period, must stay well inside the bumper rule's bound (``live.bumpers``).
+QUERY_REPLY_S = 0.15
+#: The longest a serial query waits for the poller's sweep before it takes the link anyway.
+TURN_WAIT_S = 0.5
+#: How often a waiting query looks for that sweep.
+SWEEP_POLL_S = 0.005
 #: Queries waiting beyond which a new one is told the robot is busy.
 MAX_PENDING = 32
 MAX_QUERY = 4096
@@ -66,6 +81,12 @@ def query_object(payload: bytes | None) -> dict[str, Any]:
     return found
 
 
+def payload_object(query: Any) -> dict[str, Any]:
+    """A Zenoh query's payload as its JSON object (``query_object``)."""
+    payload = query.payload
+    return query_object(bytes(payload) if payload is not None else None)
+
+
 def code_text(code: int) -> str:
     """A command code from the network as text: 0xNN when it is a byte, else cut short (a 4,000-digit int)."""
     return f"0x{code:02X}" if 0 <= code <= 0xFF else shown(code)
@@ -82,7 +103,9 @@ def read(robot: Robot, sensor: str, message: dict[str, Any]) -> dict[str, Any]:
     """One read of ``sensor`` on the wire: the reply frame's hex and its reading."""
     cmd = robot.check_supported(C.BY_NAME[sensor])
     address = address_of(message, robot)
-    reply = robot.transact(robot.frame_for(cmd, address), (address, cmd.code), cmd.name)
+    reply = robot.transact(
+        robot.frame_for(cmd, address), (address, cmd.code), cmd.name, timeout=QUERY_REPLY_S
+    )
     data = robot.wire_bytes(reply)
     return {"frame": data.hex(), "reading": reading(robot, cmd, reply, data)}
 
@@ -95,6 +118,21 @@ def reading(robot: Robot, cmd: C.Command, reply: Frame, data: bytes) -> dict[str
     assert cmd.reply is not None
     cmd.reply.decode(robot.profile.to_document(cmd.code, reply.content))  # raises why it is no reading
     raise ProtocolError(f"{cmd.name}: the reply from 0x{reply.address:02X} on {robot.port} is no reading")
+
+
+def swept(robot: Robot, cmd: C.Command, heard: Heard | None, within: float) -> dict[str, Any] | None:
+    """A read answered from the poller's last reply (``heard``) if it is at most ``within`` s old; else None.
+
+    The same answer as a read on the wire (the frame's hex as it came, its
+    reading), and ``age``: how long ago the reply came, in seconds.
+    """
+    if heard is None:
+        return None
+    at, data, frame = heard
+    age = time.monotonic() - at
+    if age > within:
+        return None
+    return {"frame": data.hex(), "reading": reading(robot, cmd, frame, data), "age": round(age, 3)}
 
 
 def write(robot: Robot, message: dict[str, Any]) -> dict[str, Any]:
@@ -121,25 +159,37 @@ def write(robot: Robot, message: dict[str, Any]) -> dict[str, Any]:
 
 
 class Turnstile:
-    """Queries before sweeps: while any query is in, the poller's pause is set (it sits out its next sweep)."""
+    """Serial queries after sweeps: one at a time, each once the poller has swept since the last one left.
 
-    def __init__(self, paused: threading.Event) -> None:
+    ``swept()`` is when the poller's last sweep ended (None before the first).
+    A query waits for a sweep newer than the previous query's end, at most
+    ``wait`` (a poller that cannot sweep, reconnecting, must not hold queries
+    for ever), then sets the poller's pause while it is on the link.
+    """
+
+    def __init__(
+        self, paused: threading.Event, swept: Callable[[], float | None], wait: float = TURN_WAIT_S
+    ) -> None:
         self._paused = paused
-        self._lock = threading.Lock()
-        self._inside = 0
+        self._swept = swept
+        self._wait = wait
+        self._turn = threading.Lock()
+        self._left = -math.inf
 
     @contextlib.contextmanager
     def __call__(self) -> Iterator[None]:
-        with self._lock:
-            self._inside += 1
+        with self._turn:
+            deadline = time.monotonic() + self._wait
+            while (swept := self._swept()) is None or swept <= self._left:
+                if time.monotonic() >= deadline:
+                    break
+                time.sleep(SWEEP_POLL_S)
             self._paused.set()
-        try:
-            yield
-        finally:
-            with self._lock:
-                self._inside -= 1
-                if not self._inside:
-                    self._paused.clear()
+            try:
+                yield
+            finally:
+                self._paused.clear()
+                self._left = time.monotonic()
 
 
 class Answers:
@@ -166,8 +216,7 @@ class Answers:
 
     def _answer(self, query: Any, key: str, work: Work) -> None:
         try:
-            payload = query.payload
-            answer: Answer = (True, work(query_object(bytes(payload) if payload is not None else None)))
+            answer: Answer = (True, work(payload_object(query)))
             self.answered += 1
         except Exception as exc:  # every failure is the operator's answer, never a dead worker
             answer = (False, error_body(exc))

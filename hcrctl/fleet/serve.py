@@ -41,7 +41,7 @@ from ..link.dialects import supported_sensors
 from ..link.loopback import is_loopback
 from ..link.rescue import DEADMAN_S, warn
 from ..link.signals import Terminated, stop_signals_handled
-from ..live.teleop import bumper_hit
+from ..live.bumpers import bumper_rule, freshness_bound
 from ..live.watch import quick_handoff
 from ..motion.governor import Governor
 from ..protocol import commands as C
@@ -176,7 +176,9 @@ class Serving:
         self.options = options
         self.started = time.time()
         self.answers = queries.Answers()
-        self.turnstile = queries.Turnstile(feed.poller.paused)
+        self.turnstile = queries.Turnstile(feed.poller.paused, lambda: feed.state.last_sweep)
+        #: A read is answered from the sweep when its reply is at most this old (the bumper rule's bound).
+        self.fresh = freshness_bound(options.rate)
         self.drive = FleetDrive(name, governor, self.say, self._profile)
         self.declared: list[Any] = []
 
@@ -207,11 +209,9 @@ class Serving:
         s, name = self.session, self.name
         for sensor in sensors:
             key = keys.read(name, sensor)
-            self.declared.append(s.declare_queryable(key, self._query(key, self._read(sensor))))
-        self.declared.append(
-            s.declare_queryable(keys.write(name), self._query(keys.write(name), self._write))
-        )
-        self.declared.append(s.declare_queryable(keys.info(name), self._query(keys.info(name), self._info)))
+            self.declared.append(s.declare_queryable(key, self._guarded(self._read_query(key, sensor))))
+        self.declared.append(s.declare_queryable(keys.write(name), self._guarded(self._write_query)))
+        self.declared.append(s.declare_queryable(keys.info(name), self._guarded(self._info_query)))
         self.declared.append(s.declare_queryable(keys.drive(name), self._guarded(self._drive)))
         self.declared.append(s.declare_subscriber(keys.cmd_vel(name), self._guarded(self._cmd_vel)))
         self.declared.append(s.declare_subscriber(keys.stop(name), self._guarded(self._stop)))
@@ -240,10 +240,27 @@ class Serving:
 
         return call
 
-    def _query(self, key: str, work: queries.Work) -> Callable[[Any], None]:
-        return self._guarded(lambda query: self.answers.submit(query, key, work))
-
     # -- the handlers ----------------------------------------------------------------
+
+    def _read_query(self, key: str, sensor: str) -> Callable[[Any], None]:
+        """A read: from the last sweep at once, on Zenoh's thread; on the serial link, in turn, otherwise."""
+        cmd = C.BY_NAME[sensor]
+
+        def answer(query: Any) -> None:
+            try:
+                message = queries.payload_object(query)
+                robot = self.robot
+                address = queries.address_of(message, robot)
+                body = queries.swept(robot, cmd, self.feed.heard(address, cmd.code), self.fresh)
+            except Exception as exc:  # a bad payload, an impossible reply: the querier's answer
+                queries.send_reply(query, key, (False, queries.error_body(exc)))
+                return
+            if body is not None:
+                queries.send_reply(query, key, (True, body))
+            else:
+                self.answers.submit(query, key, self._read(sensor))
+
+        return answer
 
     def _read(self, sensor: str) -> queries.Work:
         def read(message: dict[str, Any]) -> dict[str, Any]:
@@ -252,9 +269,39 @@ class Serving:
 
         return read
 
+    def _write_query(self, query: Any) -> None:
+        """A write (servo, pid): refused at once, on Zenoh's thread, to anyone but the driver while one drives."""
+        key = keys.write(self.name)
+        try:
+            self._may_write(queries.payload_object(query))
+        except Exception as exc:
+            queries.send_reply(query, key, (False, queries.error_body(exc)))
+            return
+        self.answers.submit(query, key, self._write)
+
+    def _may_write(self, message: dict[str, Any]) -> None:
+        """A write moves an actuator or changes its control: while someone drives, only the driver may."""
+        driver, op = self.governor.driver, message.get("op")
+        if driver is None or op == driver:
+            return
+        who = op if isinstance(op, str) and keys.NAME.fullmatch(op) else None
+        text = f"write refused: {driver} drives {self.name} (servo and pid need the drive lease)"
+        self.drive.refused(who, text)
+        raise queries.QueryError(text)
+
     def _write(self, message: dict[str, Any]) -> dict[str, Any]:
+        self._may_write(message)  # the driver may have changed while it waited
         with self.turnstile():
             return queries.write(self.robot, message)
+
+    def _info_query(self, query: Any) -> None:
+        """``info`` needs no serial line: answered at once, so a flood of reads never keeps it waiting."""
+        key = keys.info(self.name)
+        try:
+            answer: queries.Answer = (True, self._info(queries.payload_object(query)))
+        except Exception as exc:
+            answer = (False, queries.error_body(exc))
+        queries.send_reply(query, key, answer)
 
     def _info(self, message: dict[str, Any]) -> dict[str, Any]:
         robot, options = self.robot, self.options
@@ -296,7 +343,7 @@ class Serving:
         queries.send_reply(query, keys.drive(self.name), (ok, body))
 
     def _cmd_vel(self, sample: Any) -> None:
-        self.drive.cmd_vel(_bytes(sample.attachment), bytes(sample.payload))
+        self.drive.cmd_vel(_bytes(sample.attachment), sample.payload)
 
     def _stop(self, sample: Any) -> None:
         self.drive.stop(_bytes(sample.attachment))
@@ -330,10 +377,11 @@ def _serve(
         feed = Feed(robot, names, options.rate, publish, reconnect=Reconnect(settings, robot))
         serving = Serving(options.name, session, governor, notes, feed, options)
         governor.attach(lambda: feed.current)
-        governor.bumped = lambda: bumper_hit(feed.state)
+        governor.bumpers = bumper_rule(feed.state, options.rate)
         governor.on_stop = serving.told_stop
         try:
             with _entered(server), feed, stopping_driven(feed, robot, lambda: governor.driven), governor:
+                feed.poller.first_sweep()  # the bumper rule has a reading before the robot is in the fleet
                 serving.declare(names)
                 notes.note(_serving_line(serving, robot, server))
                 try:
@@ -341,6 +389,7 @@ def _serve(
 
                     def ended() -> bool:
                         watch.check()
+                        serving.drive.refusals.tick()
                         return bool(signalled) or governor.error is not None
 
                     feed.run(None, ended)

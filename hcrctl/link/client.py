@@ -265,33 +265,42 @@ class Robot(TypedReads, Dialect):
                 raise self._lost(exc) from exc
             self.stats.tx_frames += 1
 
-    def transact(self, frame: bytes, expect: tuple[int, int], what: str = "request") -> Frame:
-        """Write ``frame`` and return the frame answering it, retrying on timeout."""
-        reply = self._exchange({expect: (frame, what)}).get(expect)
+    def transact(
+        self, frame: bytes, expect: tuple[int, int], what: str = "request", *, timeout: float | None = None
+    ) -> Frame:
+        """Write ``frame`` and return the frame answering it, retrying on timeout.
+
+        ``timeout``: this exchange's wait for each reply, when shorter than the link's (a query that
+        must not hold the line long); None: the link's ``timeout``.
+        """
+        wait = self.timeout if timeout is None else min(timeout, self.timeout)
+        reply = self._exchange({expect: (frame, what)}, wait).get(expect)
         if reply is None:
-            raise self._no_reply(what, expect)
+            raise self._no_reply(what, expect, wait)
         return reply
 
-    def _no_reply(self, what: str, key: tuple[int, int]) -> DeviceTimeout:
+    def _no_reply(self, what: str, key: tuple[int, int], timeout: float | None = None) -> DeviceTimeout:
         """The timeout error; when the reply came but failed the rule and passes the other, it says so."""
         attempts = 1 + max(self.retries, 0)
+        waited = self.timeout if timeout is None else timeout
         seen = self._other_rule_keys
         if key not in seen and ON_THE_LINE not in seen:
-            return self._port_says(
-                self.explain(DeviceTimeout(what, key[0], self.port, self.timeout, attempts))
-            )
+            return self._port_says(self.explain(DeviceTimeout(what, key[0], self.port, waited, attempts)))
         return DeviceTimeout(
             what,
             key[0],
             self.port,
-            self.timeout,
+            waited,
             attempts,
             other_rule=self._rule.other.value,
             seen="replies" if key in seen else "frames on the line",
         )
 
-    def _exchange(self, batch: dict[tuple[int, int], tuple[bytes, str]]) -> dict[tuple[int, int], Frame]:
-        """Send every frame of ``batch``; collect replies by key, retrying the missing."""
+    def _exchange(
+        self, batch: dict[tuple[int, int], tuple[bytes, str]], timeout: float | None = None
+    ) -> dict[tuple[int, int], Frame]:
+        """Send every frame of ``batch``; collect replies by key (each waited for ``timeout``, default the
+        link's), retrying the missing."""
         got: dict[tuple[int, int], Frame] = {}
         with self._io:
             self._other_rule_keys.difference_update((*batch, ON_THE_LINE))  # only this exchange counts
@@ -301,11 +310,11 @@ class Robot(TypedReads, Dialect):
                     break
                 if attempt:
                     self.stats.retries += len(missing)
-                got.update(self._attempt(missing))
+                got.update(self._attempt(missing, self.timeout if timeout is None else timeout))
             self.stats.timeouts += len(batch) - len(got)
         return got
 
-    def _attempt(self, frames: dict[tuple[int, int], bytes]) -> dict[tuple[int, int], Frame]:
+    def _attempt(self, frames: dict[tuple[int, int], bytes], timeout: float) -> dict[tuple[int, int], Frame]:
         """One try: replies until all are in or none came for ``timeout``."""
         while not self._replies.empty():  # a late reply to an earlier attempt
             self._replies.get_nowait()
@@ -315,7 +324,7 @@ class Robot(TypedReads, Dialect):
             for frame in frames.values():
                 self.write(frame)
             while len(got) < len(frames):
-                reply = self._replies.get(timeout=self.timeout)
+                reply = self._replies.get(timeout=timeout)
                 got[(reply.address, reply.command)] = reply
         except queue.Empty:
             self._check_link()

@@ -34,6 +34,8 @@ from .state import LiveState
 RETRY_EVERY = 1.0
 #: Longest single wait, so stop() and pause are noticed promptly.
 SLICE = 0.05
+#: The longest ``first_sweep`` waits: a sweep of a silent robot costs a reply timeout.
+FIRST_SWEEP_S = 2.0
 
 
 class Poller(threading.Thread):
@@ -86,6 +88,14 @@ class Poller(threading.Thread):
             self.paused.set()
             self.state.set_status("paused")
         return self.paused.is_set()
+
+    def first_sweep(self, timeout: float = FIRST_SWEEP_S) -> bool:
+        """Wait until the first sweep is in (at most ``timeout``): a front end that drives takes
+        motion only then, so no offer meets the bumper rule before there is any reading."""
+        deadline = time.monotonic() + timeout
+        while self.state.last_sweep is None and self.is_alive() and time.monotonic() < deadline:
+            time.sleep(SLICE / 10)
+        return self.state.last_sweep is not None
 
     @property
     def stopping(self) -> bool:

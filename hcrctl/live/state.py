@@ -268,6 +268,12 @@ class LiveState:
     def status(self) -> str:
         return self._status
 
+    @property
+    def last_sweep(self) -> float | None:
+        """When (the state's clock) the last sweep ended; None before the first."""
+        with self._lock:
+            return self._sweep_ends[-1] if self._sweep_ends else None
+
     def reading(self, name: str) -> Reading:
         with self._lock:
             return self._readings.get(name, Reading())

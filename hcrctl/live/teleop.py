@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING
 from ..link.rescue import stopping
 from ..motion.governor import Governor
 from ..protocol import commands as C
+from .bumpers import bumper_rule
 from .keys import KeyReader
 from .painter import Painter, Redrawer, can_redraw, full_screen
 from .poller import Poller
@@ -167,7 +168,7 @@ def teleop_governor(drive: Drive, state: LiveState) -> Governor:
         deadman=drive.timeout,
         silence="no key",
         on_stop=lambda source, why: drive.halt(why),
-        bumped=lambda: bumper_hit(state),
+        bumpers=bumper_rule(state, POLL_HZ),
     )
 
 
@@ -198,6 +199,7 @@ def run_teleop(
                 painting(console, redraw) as painter,
             ):
                 poller.start()
+                poller.first_sweep()  # keys drive only once the bumper rule has a reading
                 try:
                     with governor:
                         _teleop_loop(drive, governor, poller, keys, painter, redraw)
@@ -257,12 +259,6 @@ def kitty_probed(keys: KeyReader, console: Console) -> Iterator[None]:
         out = -1
     keys.use_kitty(out)
     yield
-
-
-def bumper_hit(state: LiveState) -> bool:
-    """A fresh bumper reading with any bumper pressed."""
-    reading = state.reading("bump")
-    return isinstance(reading.value, C.Bumpers) and not reading.stale and any(reading.value.bump)
 
 
 def _screen(drive: Drive, governor: Governor, state: LiveState) -> Callable[[float], RenderableType]:

@@ -12,7 +12,9 @@ governor decides:
   offer's own, shorter or longer ``lease``: a key's first press waits out
   the terminal's repeat delay): the governor's own thread runs the clock, so
   no source can hold motion by being slow, silent, flooded or dead;
-- forward motion is refused while a bumper is pressed;
+- forward motion is refused, and stopped, while ``bumpers`` says why not
+  (a bumper pressed, or no reading fresh enough to tell: ``live.bumpers``);
+  a rule that fails blocks forward motion too;
 - anyone may ``stop``.
 
 An offer is wheel speeds made into a frame by the governor's ``make`` (the
@@ -63,6 +65,8 @@ Sent = tuple[Wheels, "C.Request | None"]
 MakeMotion = Callable[[int, int], "C.Request"]
 #: (source that drove, why motion stopped): told when motion stops for any reason but a new offer.
 OnStop = Callable[[Hashable | None, str], None]
+#: Why forward motion is blocked now ("" when it is not): the bumper rule (``live.bumpers``).
+Bumpers = Callable[[], str]
 
 
 @dataclass(frozen=True)
@@ -105,7 +109,7 @@ class Lease:
         source: Hashable,
         wheels: Wheels,
         now: float,
-        bumped: bool,
+        blocked: str,
         lease: float | None = None,
         request: C.Request | None = None,
         once: bool = False,
@@ -113,9 +117,9 @@ class Lease:
         verdict = self.claim(source, now, lease)
         if not verdict:
             return verdict
-        if forward(wheels) and bumped:
-            self._set(STILL, "bumper hit: forward blocked")
-            return Verdict(False, "refused: a bumper is pressed (forward blocked)")
+        if forward(wheels) and blocked:
+            self._set(STILL, f"{blocked}: forward blocked")
+            return Verdict(False, f"refused: {blocked} (forward blocked)")
         moving = wheels != STILL
         self._set(wheels, "" if moving else "asked for zero", request=request if moving else None, once=once)
         return Verdict(True)
@@ -128,15 +132,15 @@ class Lease:
         self.until = now + (self.deadman if lease is None else min(lease, MAX_LEASE))
         return Verdict(True)
 
-    def check(self, now: float, bumped: bool) -> None:
-        """The deadman and the bumpers: once per turn of the governor's clock."""
+    def check(self, now: float, blocked: str) -> None:
+        """The deadman and the bumpers (``blocked``: why forward is not allowed): once per turn of the clock."""
         if self.driver is not None and now > self.until:
             if self.wheels != STILL:
                 self.release(self.driver, f"deadman: {self.silence} for {self.until - self.last:g} s")
             else:
                 self.driver = None  # a silent driver gives the robot up to the next source
-        if forward(self.wheels) and bumped:
-            self._set(STILL, "bumper hit")
+        if forward(self.wheels) and blocked:
+            self._set(STILL, blocked)
 
     def release(self, source: Hashable, why: str) -> None:
         if self.driver == source:
@@ -172,7 +176,7 @@ class Governor:
         deadman: float = DEADMAN_S,
         silence: str = "nothing from the driver",
         on_stop: OnStop | None = None,
-        bumped: Callable[[], bool] = lambda: False,
+        bumpers: Bumpers = lambda: "",
     ) -> None:
         self.lease = Lease(deadman, silence)
         self.frames = 0
@@ -182,8 +186,8 @@ class Governor:
         self._make = make
         #: Told, on the governor's thread, when motion stops for any reason but a new offer.
         self.on_stop: OnStop = on_stop or (lambda source, why: None)
-        #: Whether a fresh reading shows a bumper pressed (forward motion is then refused).
-        self.bumped = bumped
+        #: Why forward motion is blocked now, "" when it is not (the bumper rule).
+        self.bumpers = bumpers
         self._robot: Callable[[], Robot | None] = lambda: None
         self._lock = threading.Lock()
         self._wake = threading.Event()
@@ -215,7 +219,7 @@ class Governor:
         """
         now = time.monotonic() if now is None else now
         with self._lock:
-            verdict = self.lease.offer(source, wheels, now, self._bump(), lease, request, once)
+            verdict = self.lease.offer(source, wheels, now, self._blocked(), lease, request, once)
         self._wake.set()
         return verdict
 
@@ -280,7 +284,7 @@ class Governor:
     def turn(self, now: float) -> None:
         """The clock first (deadman, bumpers), then the wire: a change at once, a repeat every RESEND."""
         with self._lock:
-            self.lease.check(now, self._bump())
+            self.lease.check(now, self._blocked())
             wheels, version = self.lease.wheels, self.lease.version
             request, once = self.lease.request, self.lease.once
             stopped = (self.lease.stopped_driver, self.lease.why_stopped)
@@ -303,11 +307,12 @@ class Governor:
         with contextlib.suppress(Exception):
             self.on_stop(None, f"internal error in the governor: {exc!r}")
 
-    def _bump(self) -> bool:
+    def _blocked(self) -> str:
+        """The bumper rule's word; a rule that fails blocks forward motion (it cannot say the way is clear)."""
         try:
-            return bool(self.bumped())
-        except Exception:
-            return False
+            return str(self.bumpers())
+        except Exception as exc:
+            return f"the bumper rule failed ({exc!r})"
 
     def _write(self, wheels: Wheels, now: float | None = None, request: C.Request | None = None) -> None:
         """Motion (``request``, or ``make``'s frame for the wheels), or stop for none; a failure other

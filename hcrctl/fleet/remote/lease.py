@@ -48,7 +48,8 @@ class DriveLease:
         self._session = session
         self._robot = robot
         self._op = op
-        self.interval = min(RENEW_S, max(deadman, 0.01) / 4)
+        self.interval = RENEW_S
+        self.pace(deadman)
         self._seq = 0
         self._lock = threading.Lock()
         self.held = False
@@ -59,6 +60,10 @@ class DriveLease:
         self._thread: threading.Thread | None = None
         #: Whether a claim was ever granted: only then is there a lease to give back on close.
         self.claimed_ever = False
+
+    def pace(self, deadman: float) -> None:
+        """Renew often enough for a robot side whose deadman is ``deadman`` s (four renewals to one)."""
+        self.interval = min(RENEW_S, max(deadman, 0.01) / 4)
 
     # -- motion ---------------------------------------------------------------------
 

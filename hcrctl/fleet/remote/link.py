@@ -2,9 +2,11 @@
 
 Opening it opens a Zenoh client session of the fleet's router, declares this operator's liveliness
 token (``hcr/R/op/OP``: the robot side stops at once if it goes while this
-operator drives), checks the robot's own token is there, asks its ``info``
-(protocol, deadman, the reads it serves) and listens to its ``frames`` (the
-broadcasts its wire hears), ``status`` and presence.
+operator drives), checks the robot's own token is there and listens to its
+``frames`` (the broadcasts its wire hears), ``status`` and presence. Its
+``info`` (protocol, deadman, the reads it serves) is asked before the first
+frame that needs it, never for a stop: a stop needs nothing but itself, so
+no robot side too busy to answer anything else can keep it from going out.
 
 Each frame written is one of:
 
@@ -91,6 +93,8 @@ class RemoteLink:
         self.local: Profile = profile(reach.protocol)
         self.remote: Profile = DEFAULT
         self.info: dict[str, Any] = {}
+        self._informed = threading.Lock()
+        self._asked_info = False
         self._deliver = deliver
         self._lost = lost
         self._session: Any = None
@@ -123,8 +127,6 @@ class RemoteLink:
         )
         if not self._here.wait(ASK_TIMEOUT_S):
             raise FleetError(f"no robot {self.name} in the fleet at {self._where()}", hint=LIST_HINT)
-        self.info = self._ask_info(session)
-        self.remote = _profile_of(self.info)
         self.lease = DriveLease(session, self.name, self.op, _deadman(self.info))
         self._held += [
             session.declare_subscriber(topic(self.name, "frames"), zenoh.handlers.Callback(self._frame)),
@@ -133,6 +135,17 @@ class RemoteLink:
 
     def _where(self) -> str:
         return looked_at(self.reach.where)
+
+    def _informed_of(self) -> None:
+        """The robot's info, asked once, before the first frame that needs it (FleetError if unanswered)."""
+        with self._informed:
+            if self._asked_info:
+                return
+            self.info = self._ask_info(self._session)
+            self.remote = _profile_of(self.info)
+            assert self.lease is not None  # set by open()
+            self.lease.pace(_deadman(self.info))
+            self._asked_info = True
 
     def _ask_info(self, session: Any) -> dict[str, Any]:
         for reply in session.get(info_key(self.name), timeout=ASK_TIMEOUT_S):
@@ -222,11 +235,14 @@ class RemoteLink:
         )
 
     def _request(self, frame: Frame, cmd: C.Command) -> None:
+        stop = (frame.command, frame.content) == (STOP_CODE, C.STOP.content())
+        if not stop:
+            self._informed_of()
         if cmd.kind == "read":
             self._read(frame.address, cmd)
         elif cmd.motion:
             assert self.lease is not None  # set by open()
-            if (frame.command, frame.content) == (STOP_CODE, C.STOP.content()):
+            if stop:
                 self.lease.stop()
             else:
                 self.lease.drive(frame)

@@ -1,0 +1,245 @@
+"""The fleet under floods from a raw Zenoh peer: the deadman stop on the robot's wire, flood against none.
+
+Used by ``bench_fleet.py`` (``--flood-rounds``); run alone as
+``python bench/_fleet_floods.py KIND ENDPOINT`` it is the flood process: a raw
+Zenoh client (not hcrctl's code) sending as fast as it can until its stdin
+closes, printing ``flooding`` once under way and its counts at the end.
+
+The kinds (``KINDS``), each against ``fleet serve r1`` while a driver drives:
+
+- ``reads``: queries of ``read/compass`` (answered from the sweep) and of
+  ``read/bump`` at a silent address 7 (which need the serial line), in turn;
+- ``refusals``: ``cmd_vel`` from ever new operator names (``evilN``), each
+  refused (another drives, or a Twist beyond any range: the flood never
+  takes the lease between rounds);
+- ``servo``: ``write`` queries of a servo position from a non-driver, each
+  refused while the driver drives;
+- ``garbage``: ``cmd_vel`` with garbage attachments, ignored before their
+  payload is read.
+
+In each round the driver (this process: a Zenoh peer with its liveliness
+token) puts ``PUBLISHES`` Twists ``PERIOD`` apart, then falls silent; the
+figure is the time from its last put (wall clock) to the stop frame on the
+robot's wire (the serve's ``--log``, wall clock): the deadman, 0.5 s. Kinds
+take turns, the order rotating every round; the target is each flood's median
+at most ``TARGET`` times the no-flood median of the same run.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import statistics
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+from _common import ROOT  # noqa: F401 - puts the checkout on sys.path for hcrctl
+
+from hcrctl.protocol import commands as C
+
+KINDS = ("baseline", "reads", "refusals", "servo", "garbage")
+TARGET = 1.2
+DEADMAN = 0.5
+PUBLISHES = 6
+PERIOD = 0.05
+#: The flood runs this long before the driver's first message.
+FLOOD_LEAD = 0.3
+SETTLE = 0.3
+#: The driver's speed, m/s (forward and back in turn).
+SPEED = 0.2
+STOP = C.encode_request(C.STOP)
+
+
+def flood_main(kind: str, endpoint: str) -> int:
+    """The flood process: as fast as one Python loop goes, until stdin closes."""
+    import zenoh
+
+    cfg = zenoh.Config()
+    cfg.insert_json5("mode", '"client"')
+    cfg.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    cfg.insert_json5("scouting/multicast/enabled", "false")
+    session = zenoh.open(cfg)
+    done = threading.Event()
+    threading.Thread(target=lambda: (sys.stdin.read(), done.set()), daemon=True).start()
+    send = _sender(kind, session, zenoh)
+    sent, start = 0, time.monotonic()
+    while not done.is_set():
+        with contextlib.suppress(Exception):  # a flood goes on whatever one message meets
+            send(sent)
+        sent += 1
+        if sent == 200:
+            print("flooding", flush=True)
+    seconds = time.monotonic() - start
+    print(json.dumps({"sent": sent, "seconds": seconds}), flush=True)
+    session.close()
+    return 0
+
+
+def _sender(kind: str, session: Any, zenoh: Any) -> Callable[[int], None]:
+    drop = zenoh.handlers.Callback(lambda reply: None)
+    # A Twist beyond any range: refused whoever drives, so the flood never takes the lease between rounds.
+    beyond = json.dumps({"linear": {"x": 1e308}}).encode()
+    if kind == "reads":
+        silent = json.dumps({"address": 7}).encode()
+        asks = [("hcr/r1/read/compass", None), ("hcr/r1/read/bump", silent)]
+
+        def read(n: int) -> None:
+            key, payload = asks[n % 2]
+            session.get(key, zenoh.handlers.Callback(lambda reply: None), payload=payload, timeout=2.0)
+
+        return read
+    if kind == "refusals":
+        return lambda n: session.put("hcr/r1/cmd_vel", beyond, attachment=f"evil{n % 5000} {n}".encode())
+    if kind == "servo":
+        servo = json.dumps({"op": "evil", "address": 1, "command": 0x41, "content": "015A"}).encode()
+        return lambda n: session.get("hcr/r1/write", drop, payload=servo, timeout=2.0)
+    if kind == "garbage":
+        return lambda n: session.put("hcr/r1/cmd_vel", b"\xff" * 8, attachment=b"\xfe\xff garbage")
+    raise ValueError(kind)
+
+
+class Flood:
+    """This module as a flood process of ``kind`` while the block runs (nothing for the baseline)."""
+
+    def __init__(self, kind: str, endpoint: str) -> None:
+        self.kind, self.endpoint = kind, endpoint
+        self.proc: subprocess.Popen[str] | None = None
+        self.stats: dict[str, Any] = {}
+
+    def __enter__(self) -> Flood:
+        if self.kind != "baseline":
+            args = [sys.executable, __file__, self.kind, self.endpoint]
+            self.proc = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+            assert self.proc.stdout is not None
+            if self.proc.stdout.readline().strip() != "flooding":
+                raise RuntimeError(f"the {self.kind} flood did not start")
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.proc is None:
+            return
+        try:
+            out, _ = self.proc.communicate(timeout=10)
+            self.stats = json.loads(out.strip().splitlines()[-1])
+        except (subprocess.TimeoutExpired, ValueError, IndexError):
+            self.proc.kill()
+            self.proc.wait()
+
+
+class Driver:
+    """A Zenoh peer driving r1 by the contract: its token, ``cmd_vel`` with attachments."""
+
+    def __init__(self, endpoint: str) -> None:
+        from hcrctl.fleet import keys
+        from hcrctl.fleet.session import Where, open_session
+
+        self.keys = keys
+        self.session = open_session("peer", Where((endpoint,), ()))
+        self.token = self.session.liveliness().declare_token(keys.operator("r1", "driver"))
+        self.seq = 0
+
+    def publish(self, way: int) -> float:
+        """One Twist, forward (``way`` 1) or back (-1); when it was put (wall clock, taken just before)."""
+        self.seq += 1
+        twist = {"linear": {"x": SPEED * way}, "angular": {"z": 0.0}}
+        at = time.time()
+        self.session.put(
+            self.keys.cmd_vel("r1"),
+            json.dumps(twist).encode(),
+            attachment=self.keys.attachment("driver", self.seq),
+        )
+        return at
+
+    def close(self) -> None:
+        self.token.undeclare()
+        self.session.close()
+
+
+def stop_after(log: Path, after: float) -> float | None:
+    """When (wall clock) the first stop frame at or after ``after`` reached the robot's wire, if one did."""
+    if not log.exists():
+        return None
+    for line in log.read_text().splitlines(keepends=True):
+        if not line.endswith("\n") or '"tx"' not in line:
+            continue
+        record = json.loads(line)
+        at = datetime.fromisoformat(record["time"]).timestamp()
+        if at >= after and bytes.fromhex(record.get("hex", "")) == STOP:
+            return at
+    return None
+
+
+def one_round(kind: str, endpoint: str, driver: Driver, log: Path, way: int) -> dict[str, Any]:
+    """One round; ``way``: forward or back (rounds alternate, so the robot never reaches a wall)."""
+    with Flood(kind, endpoint) as flood:
+        time.sleep(FLOOD_LEAD if kind != "baseline" else 0.0)
+        last = driver.publish(way)
+        for _ in range(PUBLISHES - 1):
+            time.sleep(PERIOD)
+            last = driver.publish(way)
+        deadline = time.monotonic() + 10 * DEADMAN + 10
+        while (stop := stop_after(log, last)) is None:
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"no stop on the wire after the {kind} round")
+            time.sleep(0.01)
+        time.sleep(SETTLE)
+    return {"kind": kind, "stop_s": stop - last, **{f"flood_{k}": v for k, v in flood.stats.items()}}
+
+
+def deadman_under_floods(
+    rounds: int, endpoint: str, serve: Callable[..., Any], log: Path
+) -> tuple[dict[str, Any], bool]:
+    """Each kind ``rounds`` times, rotating; the figures and whether every flood met the target."""
+    serve(log)
+    driver = Driver(endpoint)
+    results: list[dict[str, Any]] = []
+    try:
+        way = 1
+        one_round("baseline", endpoint, driver, log, way)  # warm-up, not counted
+        for i in range(rounds):
+            for kind in KINDS[i % len(KINDS) :] + KINDS[: i % len(KINDS)]:
+                way = -way
+                row = one_round(kind, endpoint, driver, log, way)
+                results.append(row)
+                rate = row.get("flood_sent", 0) / row["flood_seconds"] if row.get("flood_seconds") else 0
+                print(
+                    f"  round {i + 1} {kind:9s} deadman stop {row['stop_s'] * 1e3:6.1f} ms, flood {rate:,.0f} msg/s"
+                )
+    finally:
+        driver.close()
+    base = statistics.median(r["stop_s"] for r in results if r["kind"] == "baseline")
+    figures: dict[str, Any] = {
+        "deadman_s": DEADMAN,
+        "rounds": rounds,
+        "baseline_stop_ms": round(base * 1e3, 1),
+    }
+    ok = True
+    for kind in KINDS[1:]:
+        mine = [r for r in results if r["kind"] == kind]
+        median = statistics.median(r["stop_s"] for r in mine)
+        seconds = sum(r.get("flood_seconds", 0.0) for r in mine)
+        rate = sum(r.get("flood_sent", 0) for r in mine) / seconds if seconds else 0.0
+        ratio = median / base
+        good = ratio <= TARGET
+        ok &= good
+        figures[kind] = {
+            "stop_ms_median": round(median * 1e3, 1),
+            "stop_ms_max": round(max(r["stop_s"] for r in mine) * 1e3, 1),
+            "ratio": round(ratio, 3),
+            "flood_msgs_per_s": round(rate),
+        }
+        print(
+            f"  {'ok  ' if good else 'MISS'} {kind} flood ({rate:,.0f} msg/s): deadman stop median "
+            f"{median * 1e3:.1f} ms, {ratio:.2f}x the {base * 1e3:.1f} ms without a flood (target <= {TARGET})"
+        )
+    return figures, ok
+
+
+if __name__ == "__main__":
+    sys.exit(flood_main(sys.argv[1], sys.argv[2]))

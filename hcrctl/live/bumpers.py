@@ -1,0 +1,60 @@
+"""The bumper rule every front end that drives shares: forward motion only on a fresh "no bumper pressed".
+
+Freshness is part of safety. A bumper reading has an age (since the last
+good reply), and a reading older than ``bound`` says nothing about the
+bumpers now: whatever kept the poller from sweeping (a flood of queries, a
+lost reply, a stalled thread), forward motion is then refused, and stopped
+if it runs, exactly as when a bumper is pressed. The bound is ``FRESH_SWEEPS``
+sweeps of the poll rate, never less than ``MIN_FRESH_S`` (one reply timeout,
+so a single late sweep on a healthy link is not a stop): 0.5 s at 10 or 20 Hz,
+1.5 s at 2 Hz. A reading whose last try failed keeps its last good value
+until then: a pressed bumper stays pressed.
+
+``forward_blocked`` answers with why forward motion is blocked ("" when it is
+not); the motion governor asks it on every offer and every turn of its clock.
+"""
+
+from __future__ import annotations
+
+from ..protocol import commands as C
+from .state import LiveState
+
+#: A bumper reading older than this many sweeps no longer allows forward motion...
+FRESH_SWEEPS = 3
+#: ...nor one older than this, whatever the rate (one reply timeout, ``REPLY_TIMEOUT_S``).
+MIN_FRESH_S = 0.5
+BUMP = "bump"
+
+
+def freshness_bound(rate: float | None) -> float:
+    """How old (s) a bumper reading may be for forward motion, polled at ``rate`` Hz (None: as fast as it goes)."""
+    return max(FRESH_SWEEPS / rate, MIN_FRESH_S) if rate else MIN_FRESH_S
+
+
+def forward_blocked(state: LiveState, bound: float) -> str:
+    """Why forward motion is not allowed now ("" when it is): a bumper pressed, or no fresh reading."""
+    reading = state.reading(BUMP)
+    age = reading.age(state.clock())
+    if age is None:
+        return "no bumper reading yet"
+    if age > bound:
+        return f"bumper reading {age:.2f} s old (over {bound:g} s)"
+    if isinstance(reading.value, C.Bumpers) and any(reading.value.bump):
+        return "bumper hit"
+    return ""
+
+
+def bumper_rule(state: LiveState, rate: float | None) -> BumperRule:
+    """The rule for a front end polling ``state`` at ``rate``: what its governor's ``bumpers`` calls."""
+    return BumperRule(state, freshness_bound(rate))
+
+
+class BumperRule:
+    """``forward_blocked`` of one state at one bound, as a callable (the governor's ``bumpers``)."""
+
+    def __init__(self, state: LiveState, bound: float) -> None:
+        self.state = state
+        self.bound = bound
+
+    def __call__(self) -> str:
+        return forward_blocked(self.state, self.bound)

@@ -1,0 +1,56 @@
+"""The refusal budget and the serial queries' turns, with the test's own clock (no time asserted)."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+from hcrctl.fleet.queries import Turnstile
+from hcrctl.fleet.refusals import MAX_LINES, Refusals
+
+
+def test_refusals_beyond_the_budget_are_one_line_with_their_count() -> None:
+    clock, said = [0.0], []
+    refusals = Refusals(lambda op, text: said.append((op, text)), clock=lambda: clock[0])
+    for n in range(100):  # alternating names: each one new
+        refusals.refused(f"evil{n}", "refused: op1 drives r1")
+    assert said == [(f"evil{n}", "refused: op1 drives r1") for n in range(MAX_LINES)]
+    refusals.tick()
+    assert len(said) == MAX_LINES  # the window is not over yet
+    clock[0] = 1.5
+    refusals.tick()
+    assert said[-1] == (None, f"... and {100 - MAX_LINES} more refusals in the last 1.5 s")
+    refusals.refused("evil7", "refused: op1 drives r1")  # a new window: said again
+    assert said[-1] == ("evil7", "refused: op1 drives r1")
+
+
+def test_the_same_refusal_again_is_not_said_again_but_counted() -> None:
+    clock, said = [0.0], []
+    refusals = Refusals(lambda op, text: said.append((op, text)), clock=lambda: clock[0])
+    for _ in range(10):
+        refusals.refused("op2", "refused: op1 drives r1")
+    assert said == [("op2", "refused: op1 drives r1")]
+    clock[0] = 1.0
+    refusals.tick()
+    assert said[-1] == (None, "... and 9 more refusals in the last 1.0 s")
+
+
+def test_a_serial_query_waits_for_a_sweep_after_the_last_one_left() -> None:
+    """Queries take turns with the poller: the second waits until a sweep ends after the first left."""
+    paused, swept = threading.Event(), [0.0]
+    turns = Turnstile(paused, lambda: swept[0], wait=30.0)
+    with turns():
+        assert paused.is_set()
+    assert not paused.is_set()
+    entered = threading.Event()
+
+    def second() -> None:
+        with turns():
+            entered.set()
+
+    thread = threading.Thread(target=second)
+    thread.start()
+    assert not entered.wait(0.2)  # no sweep since the first query left
+    swept[0] = time.monotonic()  # the poller's sweep
+    assert entered.wait(30.0)
+    thread.join()
