@@ -360,6 +360,8 @@ def on_hosts(rounds: int, tmp: Path, metrics: dict[str, Any]) -> bool:
             f"{statistics.median(figures) * 1e3:.1f} ms, max {worst * 1e3:.1f} ms (target <= {target * 1e3:.0f} ms)"
         )
     return ok
+
+
 # -- 5. floods from a peer, to the deadman stop on the robot's wire ---------------------------------
 
 
