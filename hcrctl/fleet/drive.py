@@ -3,12 +3,31 @@
 This is a *source* of motion, as the bridge's ``/cmd_vel`` is: it reads each
 message on a budget and offers it to the motion governor, which alone
 decides, writes and stops. Who sent a message is its attachment
-(``keys.parse_attachment``); a message without one, or with a sequence number
-older than the last seen from that operator (replayed or reordered), is
-ignored and counted. A message from anyone but the driver is refused before
-its payload is read, so a second operator cannot make the driver's messages
-cost more. What the operators must know (a refusal, who drives now, a stop
-and why) is put on ``hcr/<robot>/status`` by ``say``.
+(``keys.parse_attachment``): an operator *session* (a name and a random id).
+A message from anyone but the driver is refused before its payload is read,
+so a second operator cannot make the driver's messages cost more.
+
+Who may drive, and which messages count:
+
+- only a session whose liveliness token (``hcr/R/op/OP/SESSION``) is present
+  may claim or drive: a replay of a departed operator's messages names a
+  session that is gone. The sessions present are remembered (at most
+  ``MAX_OPERATORS``; a token beyond that is not admitted, and none is ever
+  forgotten while its token stays, the driver's least of all);
+- the first claim granted to a session answers it a key; every motion of that
+  session must be signed with it (``keys.signature``) and carry a sequence
+  number higher than the last one taken. An exact copy of a message is older;
+  a message under the session that the key did not sign is a second sender
+  under one name: when that session drives, the robot stops, the lease ends
+  and the status says why;
+- every message ignored or refused is said on ``status`` to its sender
+  (``Quota``: at most one word per sender and reason a second, and
+  ``BURST`` in all), and the last one dropped of a session is kept for its
+  next claim's answer, so the sender learns which of its commands did not
+  count.
+
+What the operators must know (a refusal, who drives now, a stop and why) is
+put on ``hcr/<robot>/status`` by ``say``.
 
 A motion message is either a Twist (the bridge's ``/cmd_vel``, turned into
 wheel velocities) or a request of the command table (power, speed, velocity,
@@ -19,9 +38,10 @@ never written through. A turn is written once and held under the lease.
 from __future__ import annotations
 
 import json
-from collections import OrderedDict
+import threading
+import time
 from collections.abc import Callable, Hashable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from ..errors import ProtocolError
@@ -34,10 +54,10 @@ from .queries import code_text
 
 #: What a motion message may weigh: a Twist or a table request is under 200 bytes.
 MAX_MESSAGE = 4096
-#: Operators whose last sequence number is remembered (the oldest forgotten first).
+#: Operator sessions present at once (their tokens); a token beyond this is not admitted.
 MAX_OPERATORS = 256
-#: Say = (operator the word is for or about, text): a put on ``status``.
-Say = Callable[[str | None, str], None]
+#: Say = (operator the word is for or about, text, the sequence number it is about): a put on ``status``.
+Say = Callable[[Hashable | None, str, int | None], None]
 
 
 class BadMotion(ValueError):
@@ -52,7 +72,48 @@ class DriveCounters:
     ignored: int = 0
     refused: int = 0
     stops: int = 0
-    seen: OrderedDict[str, int] = field(default_factory=OrderedDict)
+    #: Operator tokens not admitted: ``MAX_OPERATORS`` sessions were present already.
+    unadmitted: int = 0
+
+
+@dataclass
+class Present:
+    """An operator session whose token is present: its key once granted, its last sequence, its last drop."""
+
+    key: bytes | None = None
+    seq: int = 0
+    dropped: tuple[int, str] | None = None
+
+
+class Quota:
+    """Words about dropped messages, rate-limited: one per (whom, what) each ``interval``, ``burst`` in all.
+
+    A flood of bad messages must not become a flood of status puts (or of
+    stderr lines): the first of each kind is said, the rest are counted.
+    """
+
+    BURST = 20
+    #: Senders and reasons remembered at most; past it the memory starts again.
+    REMEMBERED = 4096
+
+    def __init__(self, interval: float = 1.0, burst: int = BURST) -> None:
+        self.interval, self.burst = interval, burst
+        self._last: dict[Hashable, float] = {}
+        self._window, self._count = -float("inf"), 0
+        self._lock = threading.Lock()
+
+    def allow(self, what: Hashable, now: float | None = None) -> bool:
+        now = time.monotonic() if now is None else now
+        with self._lock:
+            if now - self._window >= self.interval:
+                self._window, self._count = now, 0
+            if self._count >= self.burst or now - self._last.get(what, -float("inf")) < self.interval:
+                return False
+            if len(self._last) >= self.REMEMBERED:
+                self._last.clear()
+            self._last[what] = now
+            self._count += 1
+            return True
 
 
 def motion_request(message: dict[str, Any], profile: Profile, address: int) -> tuple[Wheels, C.Request, bool]:
@@ -102,47 +163,75 @@ class FleetDrive:
         self.counters = DriveCounters()
         self._say = say
         self._profile = profile
-        self._told: tuple[str, Hashable] | None = None
+        self._present: dict[keys.Who, Present] = {}
+        self._lock = threading.Lock()
+        self._quota = Quota()
 
     # -- messages ---------------------------------------------------------------
 
-    def fresh(self, attachment: bytes | None) -> str | None:
-        """The operator of a message if its attachment is good and its sequence not older than the last."""
+    def cmd_vel(self, attachment: bytes | None, payload: bytes) -> None:
         parsed = keys.parse_attachment(attachment)
         if parsed is None:
             self.counters.ignored += 1
-            return None
-        op, seq = parsed
-        seen = self.counters.seen
-        if seq < seen.get(op, -1):
-            self.counters.ignored += 1
-            return None
-        seen[op] = seq
-        seen.move_to_end(op)
-        while len(seen) > MAX_OPERATORS:
-            seen.popitem(last=False)
-        return op
-
-    def cmd_vel(self, attachment: bytes | None, payload: bytes) -> None:
-        op = self.fresh(attachment)
-        if op is None:
+            self._tell(
+                None, "ignored a cmd_vel without a valid attachment (OP SESSION SEQ SIGNATURE)", kind="bad"
+            )
             return
+        op, seq = parsed.who, parsed.seq
         self.counters.cmd_vel += 1
         driver = self.governor.driver
         if driver not in (None, op):
-            self._refused(op, self.refusal(driver))
+            self.counters.refused += 1
+            self._tell(op, self.refusal(driver), seq)
+            return
+        why = self._admitted(parsed, payload, driver == op)
+        if why is not None:
+            self.counters.ignored += 1
+            self._tell(op, why, seq, kind="ignored")
             return
         try:
             verdict = self._offer(op, payload)
         except (BadMotion, BadTwist) as exc:
-            self._refused(op, f"cmd_vel refused: {exc}")
+            self._dropped(op, seq, f"cmd_vel refused: {exc}")
             return
         if not verdict:
-            self._refused(op, f"cmd_vel {verdict.why}")
+            self._dropped(op, seq, f"cmd_vel {verdict.why}")
         elif driver != op:
-            self._say(op, f"{op} drives {self.robot}")
+            self._say(op, f"{op} drives {self.robot}", None)
 
-    def _offer(self, op: str, payload: bytes) -> Any:
+    def _admitted(self, parsed: keys.Attachment, payload: bytes, drives: bool) -> str | None:
+        """None if the message counts (its sequence then taken); otherwise why it is ignored."""
+        op, seq = parsed.who, parsed.seq
+        with self._lock:
+            present = self._present.get(op)
+            if present is None:
+                return self._no_token(op)
+            if present.key is None:
+                return f"ignored cmd_vel #{seq} from {op}: its session has no granted claim (claim the drive first)"
+            if not keys.signed(present.key, self.robot, op, seq, payload, parsed.signature):
+                forged = True
+            elif seq <= present.seq:
+                return f"ignored cmd_vel #{seq} from {op}: replayed or out of order (the last taken was #{present.seq})"
+            else:
+                present.seq, forged = seq, False
+        if forged:
+            return self._second_sender(op, f"cmd_vel #{seq}", drives)
+        return None
+
+    def _second_sender(self, op: keys.Who, what: str, drives: bool) -> str:
+        """A message under ``op``'s session not signed with its key: if it drives, stop and end the lease."""
+        why = f"a second sender under {op}'s session: {what} was not signed with its key"
+        if drives:
+            self.governor.release(op, f"{why}; the lease is ended")
+        return f"ignored: {why}"
+
+    def _no_token(self, op: keys.Who) -> str:
+        return (
+            f"refused: {op} has no liveliness token on {self.robot} "
+            f"(an operator declares {keys.operator(self.robot, op.name, op.session)} first)"
+        )
+
+    def _offer(self, op: keys.Who, payload: bytes) -> Any:
         message = parse_motion(payload)
         profile, address = self._profile()
         if "command" in message:
@@ -155,39 +244,104 @@ class FleetDrive:
     def stop(self, attachment: bytes | None) -> None:
         """Anyone may stop; the lease is freed. A bad attachment still stops (it only names nobody)."""
         parsed = keys.parse_attachment(attachment)
-        who = parsed[0] if parsed else "an operator"
+        who = parsed.who.name if parsed else "an operator"
         self.counters.stops += 1
         self.governor.stop(f"stop from {who}")
 
     def drive(self, payload: bytes) -> tuple[bool, dict[str, Any]]:
         """A claim or release: (taken, the reply's object)."""
         message = parse_motion(payload)
-        op, do = message.get("op"), message.get("do")
-        if not isinstance(op, str) or not keys.NAME.fullmatch(op) or do not in ("claim", "release"):
-            raise BadMotion('drive takes {"op": OPERATOR, "do": "claim" or "release"}')
+        op, do = keys.who(message.get("op"), message.get("session")), message.get("do")
+        if op is None or do not in ("claim", "release"):
+            raise BadMotion('drive takes {"op": OPERATOR, "session": SESSION, "do": "claim" or "release"}')
         if do == "release":
             self.governor.release(op, f"{op} released {self.robot}")
-            return True, {"driver": self.governor.driver}
+            return True, {"driver": named(self.governor.driver)}
+        return self._claim(op, message)
+
+    def _claim(self, op: keys.Who, message: dict[str, Any]) -> tuple[bool, dict[str, Any]]:
+        """A claim: granted to a present session, signed once it has a key; the answer says what it must know."""
         driver = self.governor.driver
+        if driver not in (None, op):
+            return False, {"error": self.refusal(driver), "driver": named(driver)}
+        seq, given = message.get("seq"), message.get("signature")
+        with self._lock:
+            present = self._present.get(op)
+            if present is None:
+                return False, {"error": self._no_token(op), "driver": named(driver), "token": False}
+            key = present.key
+            good = (
+                isinstance(seq, int)
+                and isinstance(given, str)
+                and keys.signed(key, self.robot, op, seq, keys.CLAIM, given)
+            )
+        if key is not None and not good:
+            why = self._second_sender(op, "a claim", driver == op)
+            return False, {"error": why, "driver": named(self.governor.driver)}
         if not self.governor.claim(op):
-            return False, {"error": self.refusal(self.governor.driver), "driver": self.governor.driver}
+            return False, {
+                "error": self.refusal(self.governor.driver),
+                "driver": named(self.governor.driver),
+            }
+        answer: dict[str, Any] = {"driver": op.name}
+        with self._lock:
+            if present.key is None:
+                present.key = keys.new_key()
+                answer["key"] = present.key.hex()
+            answer["seen"] = present.seq
+            asked = message.get("confirm")
+            if present.dropped is not None and present.dropped[0] == asked:
+                answer["dropped"] = present.dropped[1]
         if driver != op:
-            self._say(op, f"{op} drives {self.robot}")
-        return True, {"driver": op}
+            self._say(op, f"{op} drives {self.robot}", None)
+        return True, answer
+
+    def operator_here(self, key: str) -> None:
+        """An operator's token appeared: its session may claim (if fewer than MAX_OPERATORS are present)."""
+        op = keys.operator_of(key)
+        if op is None:
+            return
+        with self._lock:
+            if op in self._present:
+                return
+            if len(self._present) >= MAX_OPERATORS:
+                self.counters.unadmitted += 1
+                admitted = False
+            else:
+                self._present[op] = Present()
+                admitted = True
+        if not admitted:
+            self._tell(op, f"refused: {MAX_OPERATORS} operator sessions are present on {self.robot} already")
 
     def operator_gone(self, key: str) -> None:
-        """An operator's token went (a killed laptop, a closed session): if it drove, stop at once."""
+        """An operator's token went (a killed laptop, a closed session): forgotten; if it drove, stop at once."""
         op = keys.operator_of(key)
-        if op is not None and op == self.governor.driver:
+        if op is None:
+            return
+        with self._lock:
+            self._present.pop(op, None)
+        if op == self.governor.driver:
             self.governor.release(op, f"operator {op} gone")
 
     def refusal(self, driver: Hashable | None) -> str:
         return f"refused: {driver} drives {self.robot}"
 
-    def _refused(self, op: str, text: str) -> None:
-        """Counted every time, said once per operator and driver (a flood of refusals is one status)."""
+    def _dropped(self, op: keys.Who, seq: int, text: str) -> None:
+        """A message taken from its sender but not made motion: kept for its claim, counted and said."""
         self.counters.refused += 1
-        told = (op, text)
-        if told != self._told:
-            self._told = told
-            self._say(op, text)
+        with self._lock:
+            present = self._present.get(op)
+            if present is not None:
+                present.dropped = (seq, text)
+        self._tell(op, text, seq)
+
+    def _tell(self, op: keys.Who | None, text: str, seq: int | None = None, kind: str | None = None) -> None:
+        """A word about a dropped message to its sender, within the ``Quota`` (per sender and ``kind``,
+        by default the text itself)."""
+        if self._quota.allow((op, kind or text)):
+            self._say(op, text, seq)
+
+
+def named(driver: Hashable | None) -> str | None:
+    """Who drives, as the JSON of a reply says it: the operator's name, a Foxglove client's, or null."""
+    return None if driver is None else str(driver)

@@ -35,7 +35,18 @@ from ...protocol.dialect import decode_all
 from ...protocol.frames import ChecksumRule, Frame
 from ...protocol.messages import READ_REQUEST
 from ...protocol.profiles import DEFAULT, Profile, profile
-from ..keys import DEFAULT_ENDPOINT, NAME_RULE, alive, check_name, operator, operator_id, status, topic
+from ..keys import (
+    DEFAULT_ENDPOINT,
+    NAME_RULE,
+    Who,
+    alive,
+    check_name,
+    new_session,
+    operator,
+    operator_id,
+    status,
+    topic,
+)
 from ..keys import info as info_key
 from ..keys import read as read_key
 from ..keys import write as write_key
@@ -89,7 +100,8 @@ class RemoteLink:
     def __init__(self, name: str, reach: Reach, deliver: Deliver, lost: Lost) -> None:
         self.name = name
         self.reach = reach
-        self.op = operator_id()
+        #: This operator: its name, and a session id of its own (a name used again later is another operator).
+        self.op = Who(operator_id(), new_session())
         self.local: Profile = profile(reach.protocol)
         self.remote: Profile = DEFAULT
         self.info: dict[str, Any] = {}
@@ -126,7 +138,7 @@ class RemoteLink:
     def _open_on(self, session: Any) -> None:
         zenoh = import_zenoh()
         live = session.liveliness()
-        self._held.append(live.declare_token(operator(self.name, self.op)))
+        self._held.append(live.declare_token(operator(self.name, self.op.name, self.op.session)))
         # A subscriber with history, not a get: a session just opened may not have heard
         # the router's tokens yet, and this waits for them as long as it takes, up to the limit.
         self._held.append(
@@ -200,7 +212,7 @@ class RemoteLink:
         lease stops being renewed, and the next motion claims it afresh.
         """
         message = _json(sample.payload.to_bytes())
-        if self.lease is None or not isinstance(message, dict) or message.get("op") != self.op:
+        if self.lease is None or not isinstance(message, dict) or message.get("session") != self.op.session:
             return
         if message.get("text") != f"{self.op} drives {self.name}":
             self.lease.lost()
@@ -319,7 +331,7 @@ class RemoteLink:
         """A non-motion write, through the robot side's table; waited for, so a refusal is this write's error."""
         zenoh = import_zenoh()
         payload = {
-            "op": self.op,
+            "op": self.op.name,
             "address": frame.address,
             "command": cmd.code,
             "content": frame.content.hex(),
