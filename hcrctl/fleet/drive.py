@@ -38,6 +38,7 @@ never written through. A turn is written once and held under the lease.
 from __future__ import annotations
 
 import json
+import re
 import threading
 import time
 from collections.abc import Callable, Hashable
@@ -54,6 +55,7 @@ from .queries import code_text
 
 #: What a motion message may weigh: a Twist or a table request is under 200 bytes.
 MAX_MESSAGE = 4096
+_DIGITS = re.compile(r"\d+")
 #: Operator sessions present at once (their tokens); a token beyond this is not admitted.
 MAX_OPERATORS = 256
 #: Say = (operator the word is for or about, text, the sequence number it is about): a put on ``status``.
@@ -187,7 +189,7 @@ class FleetDrive:
         why = self._admitted(parsed, payload, driver == op)
         if why is not None:
             self.counters.ignored += 1
-            self._tell(op, why, seq, kind="ignored")
+            self._tell(op, why, seq)
             return
         try:
             verdict = self._offer(op, payload)
@@ -336,9 +338,9 @@ class FleetDrive:
         self._tell(op, text, seq)
 
     def _tell(self, op: keys.Who | None, text: str, seq: int | None = None, kind: str | None = None) -> None:
-        """A word about a dropped message to its sender, within the ``Quota`` (per sender and ``kind``,
-        by default the text itself)."""
-        if self._quota.allow((op, kind or text)):
+        """A word about a dropped message to its sender, within the ``Quota``: per sender and ``kind``, by
+        default the text with its numbers taken out (one word for a run of replays, whatever their numbers)."""
+        if self._quota.allow((op, kind or _DIGITS.sub("#", text))):
             self._say(op, text, seq)
 
 
