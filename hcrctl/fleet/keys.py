@@ -34,11 +34,13 @@ from __future__ import annotations
 import getpass
 import hashlib
 import hmac
+import json
+import math
 import os
 import re
 import secrets
 import socket
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 ROOT = "hcr"
 #: A robot's or an operator's name: one key chunk, no Zenoh wildcard or separator, not "@"-led.
@@ -218,3 +220,64 @@ def signature(key: bytes, robot: str, op: Who, seq: int, payload: bytes) -> str:
 def signed(key: bytes | None, robot: str, op: Who, seq: int, payload: bytes, given: str) -> bool:
     """Whether ``given`` is the signature ``key`` makes (compared in constant time)."""
     return key is not None and hmac.compare_digest(given, signature(key, robot, op, seq, payload))
+
+
+# -- what a peer says: parsed and checked before anything uses or shows it ----------------------
+
+#: The longest text field of an ``info`` taken (a port, a protocol, an operator's name...).
+MAX_INFO_TEXT = 256
+#: The ranges of an ``info``'s numbers (a robot's time, seconds, hertz...): anything else is refused.
+INFO_NUMBERS: dict[str, tuple[float, float]] = {
+    "started": (0.0, 1e11),  # seconds since the epoch, before the year 5000
+    "deadman": (0.01, 3600.0),
+    "rate": (0.0, 100_000.0),
+    "baud": (0.0, 100_000_000.0),
+    "address": (0.0, 255.0),
+}
+INFO_TEXTS = ("name", "port", "protocol", "driver", "encoding", "hcrctl")
+
+
+class BadInfo(ValueError):
+    """An ``info`` that is not what a robot serves: a number out of its range, a text that is not one."""
+
+
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not JSON")
+
+
+def loads(data: bytes) -> object:
+    """A peer's JSON, or None when it is none: ``NaN`` and ``Infinity`` are refused, as JSON does."""
+    try:
+        return json.loads(data, parse_constant=_no_constant)
+    except (ValueError, RecursionError):
+        return None
+
+
+def number_in(value: object, low: float, high: float) -> bool:
+    """Whether ``value`` is a number (not a bool) in ``low..high``: compared without ever making it a float,
+    so a 400-digit integer is out of range, not an OverflowError."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    return not (isinstance(value, float) and math.isnan(value)) and low <= value <= high
+
+
+def check_info(info: dict[str, Any]) -> dict[str, Any]:
+    """``info`` if its numbers are in range and its texts are short texts; BadInfo naming the field otherwise.
+
+    The field is named, never quoted whole: what the peer sent may be a
+    400-digit number or a megabyte of escape sequences.
+    """
+    for field, (low, high) in INFO_NUMBERS.items():
+        value = info.get(field)
+        if value is not None and not number_in(value, low, high):
+            raise BadInfo(f"its {field} is not a number in {low:g}..{high:g}")
+    for field in INFO_TEXTS:
+        value = info.get(field)
+        if value is not None and (not isinstance(value, str) or len(value) > MAX_INFO_TEXT):
+            raise BadInfo(f"its {field} is not a text of at most {MAX_INFO_TEXT} characters")
+    sensors = info.get("sensors")
+    if sensors is not None and (
+        not isinstance(sensors, list) or not all(isinstance(s, str) and NAME.fullmatch(s) for s in sensors)
+    ):
+        raise BadInfo("its sensors are not a list of names")
+    return info

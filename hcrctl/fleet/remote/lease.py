@@ -32,10 +32,9 @@ import threading
 import time
 from typing import Any
 
-from ...errors import HcrError
-from ...feeds.untrusted import shown
+from ...errors import HcrError, quoted
 from ...protocol.frames import Frame
-from ..keys import CLAIM, Who, attachment, cmd_vel, signature
+from ..keys import CLAIM, Who, attachment, cmd_vel, loads, signature
 from ..keys import drive as drive_key
 from ..keys import stop as stop_key
 from ..session import FleetError
@@ -98,7 +97,7 @@ class DriveLease:
             answer = self.claim(confirm=seq)
         dropped = answer.get("dropped")
         if dropped is not None:
-            raise DriveRefused(f"{self._robot} dropped the command: {shown(dropped, SAID_CHARS)}")
+            raise DriveRefused(f"{self._robot} dropped the command: {quoted(dropped, SAID_CHARS)}")
 
     def stop(self) -> None:
         """The fleet's stop (anyone's), unless this stop only closes a motion that was refused."""
@@ -244,10 +243,7 @@ class DriveLease:
 
 
 def _object(data: bytes) -> dict[str, Any]:
-    try:
-        found = json.loads(data)
-    except ValueError:
-        return {}
+    found = loads(data)
     return found if isinstance(found, dict) else {}
 
 
@@ -255,7 +251,7 @@ def _refusal(answer: dict[str, Any], robot: str) -> str:
     """The robot side's words for a refused claim (``refused: OP drives R``), cut short; or a plain fallback."""
     error = answer.get("error")
     if isinstance(error, str):
-        return shown(error, SAID_CHARS)
+        return quoted(error, SAID_CHARS)
     return f"refused: {robot} would not give the drive lease"
 
 

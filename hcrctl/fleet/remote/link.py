@@ -29,7 +29,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from ...errors import BadPortUrl, DeviceRefused, DeviceTimeout, HcrError
+from ...errors import BadPortUrl, DeviceRefused, DeviceTimeout, HcrError, quoted
 from ...protocol import commands as C
 from ...protocol.dialect import decode_all
 from ...protocol.frames import ChecksumRule, Frame
@@ -38,9 +38,12 @@ from ...protocol.profiles import DEFAULT, Profile, profile
 from ..keys import (
     DEFAULT_ENDPOINT,
     NAME_RULE,
+    BadInfo,
     Who,
     alive,
+    check_info,
     check_name,
+    loads,
     new_session,
     operator,
     operator_id,
@@ -65,6 +68,8 @@ LIST_HINT = "hcrctl fleet list shows the robots present"
 #: Zenoh's option to wait, in ``open``, until the links to the endpoints are up.
 OPEN_AT_ONCE = "open/return_conditions/connect_scouted"
 STOP_CODE = C.command_for(C.STOP).code
+#: The longest the robot side's words (an error, a hint) are quoted in a command's error.
+SAID_CHARS = 200
 #: What a frame message of a broadcast says it is (``"kind": "broadcast"``; the message is checked whole after).
 BROADCAST = b'"broadcast"'
 
@@ -158,11 +163,18 @@ class RemoteLink:
         return ", ".join(self.reach.where.connect) or DEFAULT_ENDPOINT
 
     def _ask_info(self, session: Any) -> dict[str, Any]:
+        """The robot's info, its numbers in range (``keys.check_info``); FleetError naming it otherwise."""
         for reply in session.get(info_key(self.name), timeout=ASK_TIMEOUT_S):
             if reply.ok is not None:
                 answer = _json(reply.ok.payload.to_bytes())
-                if isinstance(answer, dict):
-                    return answer
+                if not isinstance(answer, dict):
+                    raise FleetError(
+                        f"{self.name}'s info is not a JSON object of finite numbers", hint=LIST_HINT
+                    )
+                try:
+                    return check_info(answer)
+                except BadInfo as exc:
+                    raise FleetError(f"{self.name}'s info is refused: {exc}", hint=LIST_HINT) from None
         raise FleetError(
             f"{self.name} is in the fleet at {self._where()} but did not answer its info within "
             f"{ASK_TIMEOUT_S:g} s",
@@ -284,7 +296,10 @@ class RemoteLink:
         if isinstance(said, dict) and isinstance(said.get("error"), str):
             hint = said.get("hint")
             with self._cond:
-                self._said[key] = (said["error"], hint if isinstance(hint, str) else None)
+                self._said[key] = (
+                    quoted(said["error"], SAID_CHARS),
+                    quoted(hint, SAID_CHARS) if isinstance(hint, str) else None,
+                )
 
     def _answered(self, key: tuple[int, int]) -> None:
         with self._cond:
@@ -350,7 +365,8 @@ class RemoteLink:
                 return
             said = _json(reply.err.payload.to_bytes())
             text = said.get("error") if isinstance(said, dict) else None
-            raise DeviceRefused(f"{self.name} refused {cmd.name}: {text or 'no reason given'}")
+            shown = quoted(text, SAID_CHARS) if isinstance(text, str) and text else "no reason given"
+            raise DeviceRefused(f"{self.name} refused {cmd.name}: {shown}")
         raise DeviceRefused(
             f"{self.name} did not answer the {cmd.name} write within {ASK_TIMEOUT_S:g} s",
             hint="hcrctl fleet list shows whether it is still there",
@@ -372,10 +388,8 @@ class RemoteLink:
 
 
 def _json(data: bytes) -> object:
-    try:
-        return json.loads(data)
-    except ValueError:
-        return None
+    """What the robot side sent, as JSON (NaN and Infinity refused), or None."""
+    return loads(data)
 
 
 def _profile_of(info: dict[str, Any]) -> Profile:
@@ -386,5 +400,6 @@ def _profile_of(info: dict[str, Any]) -> Profile:
 
 
 def _deadman(info: dict[str, Any]) -> float:
+    """The robot side's deadman (checked in range by ``check_info``), 0.5 s when it does not say."""
     value = info.get("deadman")
-    return float(value) if isinstance(value, (int, float)) and value > 0 else 0.5
+    return float(value) if value is not None else 0.5
