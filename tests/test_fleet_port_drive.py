@@ -43,7 +43,7 @@ def test_drive_for_moves_the_robot_then_stops_it(robot: Fleet) -> None:
     wire = robot.served["r1"]
     moved = wire.wait_sent(power(40, 40), what="power 40 40")
     wire.wait_sent(is_stop, after=moved, what="stop after the drive")
-    assert "stopped after 0.5 s" in done.stderr
+    assert re.search(r"stopped after 0\.5\d* s", done.stderr), done.stderr  # a loaded machine oversleeps
 
 
 def test_turn_is_written_once_and_stopped_when_the_compass_shows_it_done(robot: Fleet) -> None:

@@ -1,10 +1,14 @@
 """``RemoteLink``: the frames a Robot writes, as fleet traffic to one robot; its replies back as frames.
 
-Opening it opens a Zenoh peer session, declares this operator's liveliness
-token (``hcr/R/op/OP``: the robot side stops at once if it goes while this
+Opening it opens a Zenoh client session (everything it says goes through the
+router, where the lab's access control decides who may drive: a peer could
+reach a robot around it), declares this operator session's liveliness token
+(``hcr/R/op/OP/SESSION``: the robot side stops at once if it goes while this
 operator drives), checks the robot's own token is there, asks its ``info``
-(protocol, deadman, the reads it serves) and listens to its ``frames`` (the
-broadcasts its wire hears), ``status`` and presence.
+(protocol, deadman, the reads it serves; its numbers range-checked, since any
+peer may answer as a robot) and listens to its ``frames`` (the broadcasts its
+wire hears), ``status`` and presence. What the robot side says (an error, a
+refusal) is quoted escaped and cut short in this side's errors.
 
 Each frame written is one of:
 
@@ -124,7 +128,7 @@ class RemoteLink:
 
     def open(self) -> None:
         """Session, token, presence, info, subscriptions; FleetError (exit 1) if the robot is not there."""
-        self._session = open_session("peer", self._fast(self.reach.where))
+        self._session = open_session("client", self._fast(self.reach.where))
         try:
             self._open_on(self._session)
         except BaseException:
