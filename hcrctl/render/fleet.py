@@ -11,7 +11,7 @@ from typing import Any
 from ..errors import quoted
 
 #: The most characters of a cell.
-CELL_CHARS = 40
+CELL_CHARS = 80
 
 COLUMNS = ("robot", "port", "protocol", "driver", "age")
 
