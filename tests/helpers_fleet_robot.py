@@ -256,18 +256,22 @@ class Operator:
         """A claim (signed once a key is held), asked again while the robot side has not seen the token yet."""
         deadline = time.monotonic() + TIMEOUT
         while True:
-            asked: dict[str, Any] = {"op": self.op.name, "session": self.op.session, "do": "claim"}
-            if self.key is not None:
-                self.seq += 1
-                signed = self.keys.signature(self.key, self.robot, self.op, self.seq, self.keys.CLAIM)
-                asked.update(seq=self.seq, signature=signed)
-            taken, body = self.query(self.keys.drive(self.robot), asked)
+            taken, body = self.query(self.keys.drive(self.robot), self.asking())
             if taken or body.get("token") is not False or self.token is None or time.monotonic() > deadline:
                 break
             time.sleep(0.05)
         if taken and "key" in body:
             self.key = bytes.fromhex(body["key"])
         return taken, body
+
+    def asking(self) -> dict[str, Any]:
+        """A claim's payload: numbered and signed once this session holds a key."""
+        asked: dict[str, Any] = {"op": self.op.name, "session": self.op.session, "do": "claim"}
+        if self.key is not None:
+            self.seq += 1
+            signed = self.keys.signature(self.key, self.robot, self.op, self.seq, self.keys.CLAIM)
+            asked.update(seq=self.seq, signature=signed)
+        return asked
 
     def cmd_vel(self, message: dict[str, Any]) -> None:
         if self.key is None:

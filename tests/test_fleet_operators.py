@@ -147,6 +147,20 @@ def test_a_forged_higher_sequence_under_the_drivers_session_moves_nothing_and_en
     assert stop < powered(serve, 20, -20)[0]
 
 
+def test_a_replayed_claim_does_not_hold_a_silent_drivers_lease(lab: Fleet, tmp_path: Path) -> None:
+    """The driver falls silent (its token stays); copies of its last signed claim do not outlast the deadman."""
+    serve = lab.serve("r1", lab.sim(), "--deadman", "1", log=tmp_path / "r1.jsonl")
+    with operator(lab.endpoint, "r1", "op1") as op1, operator(lab.endpoint, "r1", "eve") as eve:
+        op1.open()
+        op1.cmd_vel(power(35, 35))
+        wait_until(lambda: powered(serve, 35, 35), what="op1's power 35 35")
+        signed = op1.asking()
+        assert op1.query(keys.drive("r1"), signed)[0]  # the original renews
+        said = until_said(op1, "stopped: deadman", lambda: eve.query(keys.drive("r1"), signed) and None)
+    assert said["session"] == op1.op.session
+    stopped_after(serve, powered(serve, 35, 35)[-1])
+
+
 def test_300_fresh_names_evict_nobody_and_readmit_no_old_message(lab: Fleet, tmp_path: Path) -> None:
     serve = served(lab, tmp_path)
     with operator(lab.endpoint, "r1", "op1") as op1, operator(lab.endpoint, "r1", "eve") as eve:

@@ -83,7 +83,9 @@ class Present:
     """An operator session whose token is present: its key once granted, its last sequence, its last drop."""
 
     key: bytes | None = None
+    #: The last sequence number taken: of a motion, and of a claim.
     seq: int = 0
+    claimed: int = 0
     dropped: tuple[int, str] | None = None
 
 
@@ -262,11 +264,17 @@ class FleetDrive:
         return self._claim(op, message)
 
     def _claim(self, op: keys.Who, message: dict[str, Any]) -> tuple[bool, dict[str, Any]]:
-        """A claim: granted to a present session, signed once it has a key; the answer says what it must know."""
+        """A claim: granted to a present session, signed once it has a key; the answer says what it must know.
+
+        A signed claim numbered no higher than the session's last claim (a copy
+        of one, or one overtaken on the way) renews nothing: a replayed claim
+        cannot keep a frozen driver's lease alive past its deadman.
+        """
         driver = self.governor.driver
         if driver not in (None, op):
             return False, {"error": self.refusal(driver), "driver": named(driver)}
-        seq, given = message.get("seq"), message.get("signature")
+        given = message.get("signature")
+        seq = _seq_of(message)
         with self._lock:
             present = self._present.get(op)
             if present is None:
@@ -277,10 +285,13 @@ class FleetDrive:
                 and isinstance(given, str)
                 and keys.signed(key, self.robot, op, seq, keys.CLAIM, given)
             )
+            fresh = not good or seq > present.claimed
+            if good and fresh:
+                present.claimed = seq
         if key is not None and not good:
             why = self._second_sender(op, "a claim", driver == op)
             return False, {"error": why, "driver": named(self.governor.driver)}
-        if not self.governor.claim(op):
+        if fresh and not self.governor.claim(op):
             return False, {
                 "error": self.refusal(self.governor.driver),
                 "driver": named(self.governor.driver),
@@ -294,7 +305,7 @@ class FleetDrive:
             asked = message.get("confirm")
             if present.dropped is not None and present.dropped[0] == asked:
                 answer["dropped"] = present.dropped[1]
-        if driver != op:
+        if driver != op and fresh:
             self._say(op, f"{op} drives {self.robot}", None)
         return True, answer
 
@@ -342,6 +353,12 @@ class FleetDrive:
         default the text with its numbers taken out (one word for a run of replays, whatever their numbers)."""
         if self._quota.allow((op, kind or _DIGITS.sub("#", text))):
             self._say(op, text, seq)
+
+
+def _seq_of(message: dict[str, Any]) -> int:
+    """A claim's sequence number, 0 when it has none in range (0 is never signed: numbers start at 1)."""
+    seq = message.get("seq")
+    return seq if isinstance(seq, int) and keys.number_in(seq, 1, keys.MAX_SEQ) else 0
 
 
 def named(driver: Hashable | None) -> str | None:

@@ -56,6 +56,7 @@ MAX_ATTACHMENT = 160
 CLAIM = b"claim"
 #: The longest sequence number: 19 digits stay below 2**63.
 MAX_SEQ_DIGITS = 19
+MAX_SEQ = 10**MAX_SEQ_DIGITS - 1
 #: Where `fleet router` listens, and where everyone connects, unless told otherwise.
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 

@@ -30,7 +30,7 @@ import json
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 from ...errors import BadPortUrl, DeviceRefused, DeviceTimeout, HcrError, quoted
@@ -69,8 +69,6 @@ READ_TIMEOUT_S = 5.0
 #: How long a timeout's explanation waits for a read query still under way to say why.
 GRACE_S = 1.0
 LIST_HINT = "hcrctl fleet list shows the robots present"
-#: Zenoh's option to wait, in ``open``, until the links to the endpoints are up.
-OPEN_AT_ONCE = "open/return_conditions/connect_scouted"
 STOP_CODE = C.command_for(C.STOP).code
 #: The longest the robot side's words (an error, a hint) are quoted in a command's error.
 SAID_CHARS = 200
@@ -128,21 +126,12 @@ class RemoteLink:
 
     def open(self) -> None:
         """Session, token, presence, info, subscriptions; FleetError (exit 1) if the robot is not there."""
-        self._session = open_session("client", self._fast(self.reach.where))
+        self._session = open_session("client", self.reach.where)
         try:
             self._open_on(self._session)
         except BaseException:
             self.close()
             raise
-
-    @staticmethod
-    def _fast(where: Where) -> Where:
-        """``where``, with the session handed back before its router link is up (at times 500 ms sooner).
-
-        Nothing is lost by it: the robot's token is then waited for (``_open_on``),
-        which is the wait for the link that matters, bounded by ``ASK_TIMEOUT_S``.
-        """
-        return replace(where, extra={OPEN_AT_ONCE: False, **where.extra})
 
     def _open_on(self, session: Any) -> None:
         zenoh = import_zenoh()
