@@ -23,7 +23,7 @@ import pytest
 
 pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip install 'hcrctl[zenoh]')")
 
-from helpers import clean_env, wait_until
+from helpers import clean_env, terminal, terminal_env, wait_until
 from helpers_fleet_robot import Fleet, fleet, readline
 
 from hcrctl.fleet import keys
@@ -118,6 +118,23 @@ def test_fleet_list_shows_the_fake_escaped_and_refused_and_the_real_robot_still(
         assert by_name["evil"]["error"].startswith("evil's info ")
         (warning,) = table.stderr.splitlines()
         assert warning.startswith("hcrctl: warning: evil's info ") and len(warning) < 200, warning
+
+
+def test_the_bordered_table_on_a_terminal_shows_the_fake_escaped(lab: Fleet) -> None:
+    """On a terminal (a pty, rendered by pyte) the table has borders: the fake's cells are text in it."""
+    with fake_robot(lab.endpoint, escaped_info()):
+        wait_until(lambda: len(lab.listed()) == 2, what="both robots listed")
+        env = dict(
+            terminal_env(), **{k: v for k, v in lab.env.items() if k.startswith(("HOME", "XDG", "HCRCTL"))}
+        )
+        with terminal([*lab.zenoh, "fleet", "list"], env=env) as term:
+            screen = term.wait_for(r"good")
+            assert term.finish() == 0
+            raw = term.output()
+    for sequence in ("\x1b[2J", "\x1b]0;", "\x1b]2;", "\x07"):  # rich's own colours are its own
+        assert sequence not in raw, f"{sequence!r} reached the terminal"
+    assert "╭" in screen and "\\x1b[2J" in screen and "pwned" in screen, screen  # shown as text, not obeyed
+    assert term.screen.title in ("", None), term.screen.title
 
 
 def test_json_fleet_list_always_parses(lab: Fleet) -> None:
