@@ -43,8 +43,10 @@ from ..session import FleetError
 CLAIM_TIMEOUT_S = 2.0
 #: Renewals are at most this far apart, and at least four to a deadman.
 RENEW_S = 0.1
-#: How often a claim refused for want of this session's token is asked again (the token on its way).
+#: How often a claim refused for want of this session's token is asked again (the token on its way),
+#: and for how long: the token was declared before the robot's info was asked, so it is only late.
 TOKEN_RETRY_S = 0.05
+TOKEN_WAIT_S = 5.0
 #: How many times a motion's confirmation is asked again while the robot side has not seen it yet.
 CONFIRM_ASKS = 10
 #: The longest a robot side's text is quoted in a command's error.
@@ -113,7 +115,7 @@ class DriveLease:
         DriveRefused, naming the driver or the reason, if it is not granted.
         """
         ok, answer = self._ask("claim", confirm)
-        deadline = time.monotonic() + CLAIM_TIMEOUT_S
+        deadline = time.monotonic() + TOKEN_WAIT_S
         while not ok and answer.get("token") is False and time.monotonic() < deadline:
             time.sleep(TOKEN_RETRY_S)  # this session's token has not reached the robot side yet
             ok, answer = self._ask("claim", confirm)
