@@ -44,13 +44,20 @@ QUOTE_CHARS = 100
 
 
 def quoted(text: object, limit: int = QUOTE_CHARS) -> str:
-    """``text`` as an error may quote it: control characters escaped, at most ``limit`` characters.
+    """``text`` as a terminal may show it: control characters escaped, at most ``limit`` characters.
 
-    A file's content may be a 50 MB value; an error that quoted it whole
-    would be 50 MB of stderr. Only the head is escaped: escaping the whole
-    value would cost as much as the value, to be cut anyway.
+    The one rule for every text from outside hcrctl that reaches a terminal
+    or a table: a file's content, a value typed, what a peer on the network
+    says (a robot's info, its error texts, a client's topic name). A file's
+    content may be a 50 MB value, a peer's error a megabyte of escape
+    sequences; an error that quoted it whole would be that much stderr. Only
+    the head is escaped: escaping the whole value would cost as much as the
+    value, to be cut anyway.
     """
-    head = str(text)[: limit + 1]
+    try:
+        head = str(text)[: limit + 1]
+    except ValueError:  # an integer past Python's digits limit for str()
+        head = "a number too long to show"
     shown = printable(head)
     if len(shown) > limit or len(head) > limit:
         return shown[: limit - 1] + "…"

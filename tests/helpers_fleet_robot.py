@@ -239,7 +239,12 @@ def is_stop(frame: Frame) -> bool:
 
 
 class Operator:
-    """A Zenoh client speaking the fleet contract by hand: its token, claims, cmd_vel, stop, status."""
+    """A Zenoh client speaking the fleet contract by hand: its token, claims, signed cmd_vel, stop, status.
+
+    ``cmd_vel`` claims first when this session has no key yet (the key the
+    robot side answers a first granted claim), and signs with it; a refused
+    claim leaves the message unsigned, so the robot side says why it is refused.
+    """
 
     def __init__(self, endpoint: str, robot: str, op: str, config: str | None = None) -> None:
         import zenoh
@@ -248,7 +253,9 @@ class Operator:
         from hcrctl.fleet.session import Where, open_session
 
         self.zenoh, self.keys = zenoh, keys
-        self.robot, self.op, self.seq = robot, op, 0
+        self.robot, self.seq = robot, 0
+        self.op = keys.Who(op, keys.new_session())
+        self.key: bytes | None = None
         self.session = open_session("client", Where((endpoint,), (), config))
         self.status: list[dict[str, Any]] = []
         self._status = self.session.declare_subscriber(keys.status(robot), self._heard)
@@ -259,7 +266,9 @@ class Operator:
 
     def open(self) -> None:
         """Declare this operator's liveliness token on the robot, as an operator session does."""
-        self.token = self.session.liveliness().declare_token(self.keys.operator(self.robot, self.op))
+        self.token = self.session.liveliness().declare_token(
+            self.keys.operator(self.robot, self.op.name, self.op.session)
+        )
 
     def gone(self) -> None:
         self.token.undeclare()
@@ -275,19 +284,41 @@ class Operator:
         return False, json.loads(bytes(reply.err.payload))
 
     def claim(self) -> tuple[bool, dict[str, Any]]:
-        return self.query(self.keys.drive(self.robot), {"op": self.op, "do": "claim"})
+        """A claim (signed once a key is held), asked again while the robot side has not seen the token yet."""
+        deadline = time.monotonic() + TIMEOUT
+        while True:
+            taken, body = self.query(self.keys.drive(self.robot), self.asking())
+            if taken or body.get("token") is not False or self.token is None or time.monotonic() > deadline:
+                break
+            time.sleep(0.05)
+        if taken and "key" in body:
+            self.key = bytes.fromhex(body["key"])
+        return taken, body
+
+    def asking(self) -> dict[str, Any]:
+        """A claim's payload: numbered and signed once this session holds a key."""
+        asked: dict[str, Any] = {"op": self.op.name, "session": self.op.session, "do": "claim"}
+        if self.key is not None:
+            self.seq += 1
+            signed = self.keys.signature(self.key, self.robot, self.op, self.seq, self.keys.CLAIM)
+            asked.update(seq=self.seq, signature=signed)
+        return asked
 
     def cmd_vel(self, message: dict[str, Any]) -> None:
+        if self.key is None:
+            self.claim()
+        self.put(self.keys.cmd_vel(self.robot), json.dumps(message).encode())
+
+    def put(self, key: str, data: bytes) -> bytes:
+        """``data`` put on ``key`` with this session's next attachment (signed when a key is held); the attachment."""
         self.seq += 1
-        self.session.put(
-            self.keys.cmd_vel(self.robot),
-            json.dumps(message).encode(),
-            attachment=self.keys.attachment(self.op, self.seq),
-        )
+        signed = self.keys.signature(self.key, self.robot, self.op, self.seq, data) if self.key else ""
+        attachment: bytes = self.keys.attachment(self.op, self.seq, signed)
+        self.session.put(key, data, attachment=attachment)
+        return attachment
 
     def stop(self) -> None:
-        self.seq += 1
-        self.session.put(self.keys.stop(self.robot), b"", attachment=self.keys.attachment(self.op, self.seq))
+        self.put(self.keys.stop(self.robot), b"")
 
     def said(self, text: str) -> dict[str, Any] | None:
         return next((s for s in list(self.status) if text in s.get("text", "")), None)

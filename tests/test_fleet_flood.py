@@ -159,7 +159,8 @@ def test_a_servo_write_needs_the_lease_while_someone_drives(lab: Fleet, tmp_path
         wait_until(lambda: serve.sent_codes({VELOCITY}), what="op1 driving")
         done = lab.run(servo)
         refused, body = other.query(
-            keys.write("r1"), {"op": "op2", "address": 1, "command": SERVO, "content": "015A"}
+            keys.write("r1"),
+            {"op": "op2", "session": other.op.session, "address": 1, "command": SERVO, "content": "015A"},
         )
         said = wait_until(
             lambda: next((s for s in list(other.status) if s.get("op") == "op2"), None), what="op2 told"
@@ -171,7 +172,7 @@ def test_a_servo_write_needs_the_lease_while_someone_drives(lab: Fleet, tmp_path
     (line,) = done.stderr.splitlines()
     assert "r1 refused servo: write refused: op1 drives r1" in line
     assert not refused and body["error"].startswith("write refused: op1 drives r1")
-    assert said == {"op": "op2", "text": body["error"]}
+    assert (said["op"], said["session"], said["text"]) == ("op2", other.op.session, body["error"])
     assert after.returncode == 0, after.stderr  # nobody drives: anyone may write again
     assert wait_until(lambda: serve.sent_codes({SERVO}), what="the servo frame once nobody drives")
 

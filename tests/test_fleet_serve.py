@@ -72,7 +72,7 @@ def test_motion_arrives_and_stops_when_the_drivers_token_goes(lab: Fleet, tmp_pa
     with operator(lab.endpoint, "r1", "op1") as op:
         op.open()
         taken, body = op.claim()
-        assert taken and body == {"driver": "op1"}
+        assert taken and body["driver"] == "op1" and len(body["key"]) == 32
         op.cmd_vel(twist(0.2))
         frames = wait_until(lambda: serve.sent_codes({VELOCITY}), what="velocity on the wire")
         assert C.BY_CODE[VELOCITY].request.from_content(frames[0].content) == C.Velocity(20, 20)  # type: ignore[union-attr]
@@ -112,7 +112,7 @@ def test_a_second_operator_is_refused_and_a_third_may_stop(lab: Fleet, tmp_path:
         op3.stop()
         said = op1.wait_said("stop from op3")
         wait_until(lambda: motion_then_stop(serve)[1], what="stop after the motion")
-    assert said == {"op": "op1", "text": "stopped: stop from op3"}
+    assert said == {"op": "op1", "session": op1.op.session, "text": "stopped: stop from op3"}
     backwards = [f for f in serve.sent_codes({VELOCITY}) if f.content[0]]
     assert not backwards, "op2's reverse reached the wire"
 

@@ -11,7 +11,7 @@ from hcrctl.fleet.refusals import MAX_LINES, Refusals
 
 def test_refusals_beyond_the_budget_are_one_line_with_their_count() -> None:
     clock, said = [0.0], []
-    refusals = Refusals(lambda op, text: said.append((op, text)), clock=lambda: clock[0])
+    refusals = Refusals(lambda op, text, seq: said.append((op, text)), clock=lambda: clock[0])
     for n in range(100):  # alternating names: each one new
         refusals.refused(f"evil{n}", "refused: op1 drives r1")
     assert said == [(f"evil{n}", "refused: op1 drives r1") for n in range(MAX_LINES)]
@@ -26,7 +26,7 @@ def test_refusals_beyond_the_budget_are_one_line_with_their_count() -> None:
 
 def test_the_same_refusal_again_is_not_said_again_but_counted() -> None:
     clock, said = [0.0], []
-    refusals = Refusals(lambda op, text: said.append((op, text)), clock=lambda: clock[0])
+    refusals = Refusals(lambda op, text, seq: said.append((op, text)), clock=lambda: clock[0])
     for _ in range(10):
         refusals.refused("op2", "refused: op1 drives r1")
     assert said == [("op2", "refused: op1 drives r1")]

@@ -169,6 +169,14 @@ def list_robots(settings: Settings, watch: bool, timeout: float) -> None:
     Console(highlight=False, emoji=False, markup=False).print(
         fleet_table(found, borders=stdout_is_terminal())
     )
+    for robot in found:
+        _refused(robot)
+
+
+def _refused(robot: dict[str, Any]) -> None:
+    """A robot whose info was refused (a number out of range...): one warning line naming it, on stderr."""
+    if "error" in robot:
+        click.echo(f"hcrctl: warning: {robot['error']}", err=True)
 
 
 def _watch(settings: Settings, where: Any, timeout: float) -> None:
@@ -183,6 +191,7 @@ def _watch(settings: Settings, where: Any, timeout: float) -> None:
             click.echo(json.dumps({"event": event, **info}))
         elif event == "joined":
             click.echo("+ " + "  ".join(fleet_row(info)))
+            _refused(info)
         else:
             click.echo(f"- {info['name']} left")
 

@@ -3,13 +3,36 @@
 This is a *source* of motion, as the bridge's ``/cmd_vel`` is: it reads each
 message on a budget and offers it to the motion governor, which alone
 decides, writes and stops. Who sent a message is its attachment
-(``keys.parse_attachment``); a message without one, or with a sequence number
-older than the last seen from that operator (replayed or reordered), is
-ignored and counted. A message from anyone but the driver is refused before
-its payload is read, so a second operator cannot make the driver's messages
-cost more. What the operators must know (a refusal, who drives now, a stop
-and why) is put on ``hcr/<robot>/status`` by ``say``; refusals on a budget
-(``refusals``), so alternating names cannot fill stderr and every status.
+(``keys.parse_attachment``): an operator *session* (a name and a random id).
+A message from anyone but the driver is refused before its payload is read,
+so a second operator cannot make the driver's messages cost more.
+
+Who may drive, and which messages count:
+
+- only a session whose liveliness token (``hcr/R/op/OP/SESSION``) is present
+  may claim or drive: a replay of a departed operator's messages names a
+  session that is gone. The sessions present are remembered (at most
+  ``MAX_OPERATORS``; a token beyond that is not admitted, and none is ever
+  forgotten while its token stays, the driver's least of all);
+- the first claim granted to a session answers it a key; every motion of that
+  session must be signed with it (``keys.signature``) and carry a sequence
+  number higher than the last one taken. An exact copy of a message is older;
+  a message under the session that the key did not sign is a second sender
+  under one name: when that session drives, the robot stops, the lease ends
+  and the status says why;
+- every message ignored or refused is said on ``status`` to its sender, on
+  a budget (``refusals``: one word per sender and reason a window, a few
+  lines a second in all, and a count of what was held back), and the last one dropped of a session is kept for its
+  next claim's answer, so the sender learns which of its commands did not
+  count.
+
+What the operators must know (a refusal, who drives now, a stop and why) is
+put on ``hcr/<robot>/status`` by ``say``.
+
+While one drives, a message whose attachment does not name the driver's
+session is refused before its signature, sequence number or payload is read,
+so a flood of other names (or of garbage) costs the driver's own messages
+little.
 
 A motion message is either a Twist (the bridge's ``/cmd_vel``, turned into
 wheel velocities) or a request of the command table (power, speed, velocity,
@@ -20,9 +43,10 @@ never written through. A turn is written once and held under the lease.
 from __future__ import annotations
 
 import json
-from collections import OrderedDict
+import re
+import threading
 from collections.abc import Callable, Hashable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, SupportsBytes
 
 from ..errors import ProtocolError
@@ -36,10 +60,11 @@ from .refusals import Refusals
 
 #: What a motion message may weigh: a Twist or a table request is under 200 bytes.
 MAX_MESSAGE = 4096
-#: Operators whose last sequence number is remembered (the oldest forgotten first).
+_DIGITS = re.compile(r"\d+")
+#: Operator sessions present at once (their tokens); a token beyond this is not admitted.
 MAX_OPERATORS = 256
-#: Say = (operator the word is for or about, text): a put on ``status``.
-Say = Callable[[str | None, str], None]
+#: Say = (operator the word is for or about, text, the sequence number it is about): a put on ``status``.
+Say = Callable[[Hashable | None, str, int | None], None]
 
 
 class BadMotion(ValueError):
@@ -54,7 +79,19 @@ class DriveCounters:
     ignored: int = 0
     refused: int = 0
     stops: int = 0
-    seen: OrderedDict[str, int] = field(default_factory=OrderedDict)
+    #: Operator tokens not admitted: ``MAX_OPERATORS`` sessions were present already.
+    unadmitted: int = 0
+
+
+@dataclass
+class Present:
+    """An operator session whose token is present: its key once granted, its last sequence, its last drop."""
+
+    key: bytes | None = None
+    #: The last sequence number taken: of a motion, and of a claim.
+    seq: int = 0
+    claimed: int = 0
+    dropped: tuple[int, str] | None = None
 
 
 def motion_request(message: dict[str, Any], profile: Profile, address: int) -> tuple[Wheels, C.Request, bool]:
@@ -105,61 +142,91 @@ class FleetDrive:
         self._say = say
         self._profile = profile
         self.refusals = Refusals(say)
+        self._present: dict[keys.Who, Present] = {}
+        self._lock = threading.Lock()
 
     # -- messages ---------------------------------------------------------------
-
-    def fresh(self, attachment: bytes | None) -> str | None:
-        """The operator of a message if its attachment is good and its sequence not older than the last."""
-        parsed = keys.parse_attachment(attachment)
-        if parsed is None:
-            self.counters.ignored += 1
-            return None
-        op, seq = parsed
-        seen = self.counters.seen
-        if seq < seen.get(op, -1):
-            self.counters.ignored += 1
-            return None
-        seen[op] = seq
-        seen.move_to_end(op)
-        while len(seen) > MAX_OPERATORS:
-            seen.popitem(last=False)
-        return op
 
     def cmd_vel(self, attachment: bytes | None, payload: SupportsBytes) -> None:
         """One motion message; ``payload`` is made bytes only once it is read (Zenoh's ZBytes copies)."""
         if self._not_the_drivers(attachment):
             return
-        op = self.fresh(attachment)
-        if op is None:
+        parsed = keys.parse_attachment(attachment)
+        if parsed is None:
+            self.counters.ignored += 1
+            self._tell(
+                None, "ignored a cmd_vel without a valid attachment (OP SESSION SEQ SIGNATURE)", kind="bad"
+            )
             return
+        op, seq = parsed.who, parsed.seq
         self.counters.cmd_vel += 1
         driver = self.governor.driver
         if driver not in (None, op):
-            self.refused(op, self.refusal(driver))
+            self.refused(op, self.refusal(driver), seq)
+            return
+        data = bytes(payload)
+        why = self._admitted(parsed, data, driver == op)
+        if why is not None:
+            self.counters.ignored += 1
+            self._tell(op, why, seq)
             return
         try:
-            verdict = self._offer(op, bytes(payload))
+            verdict = self._offer(op, data)
         except (BadMotion, BadTwist) as exc:
-            self.refused(op, f"cmd_vel refused: {exc}")
+            self._dropped(op, seq, f"cmd_vel refused: {exc}")
             return
         if not verdict:
-            self.refused(op, f"cmd_vel {verdict.why}")
+            self._dropped(op, seq, f"cmd_vel {verdict.why}")
         elif driver != op:
-            self._say(op, f"{op} drives {self.robot}")
+            self._say(op, f"{op} drives {self.robot}", None)
 
     def _not_the_drivers(self, attachment: bytes | None) -> bool:
-        """While one drives, a message whose attachment does not start with the driver's name is refused
-        at once: its sequence number and payload are never read, nor its attachment unless the refusal
-        is said, so a flood of other names (or of garbage) costs the driver's own messages little."""
+        """While one drives, a message whose attachment does not start with the driver's session is refused
+        at once: its signature, sequence number and payload are never read, nor its attachment unless the
+        refusal is said, so a flood of other names (or of garbage) costs the driver's own messages little."""
         driver = self.governor.driver
-        if driver is None or attachment is None or attachment.startswith(f"{driver} ".encode()):
+        if not isinstance(driver, keys.Who) or attachment is None:
+            return False
+        if attachment.startswith(f"{driver.name} {driver.session} ".encode()):
             return False
         self.counters.cmd_vel += 1
         parsed = keys.parse_attachment(attachment) if self.refusals.may_say() else None
-        self.refused(parsed[0] if parsed else None, self.refusal(driver))
+        self.refused(parsed.who if parsed else None, self.refusal(driver), parsed.seq if parsed else None)
         return True
 
-    def _offer(self, op: str, payload: bytes) -> Any:
+    def _admitted(self, parsed: keys.Attachment, payload: bytes, drives: bool) -> str | None:
+        """None if the message counts (its sequence then taken); otherwise why it is ignored."""
+        op, seq = parsed.who, parsed.seq
+        with self._lock:
+            present = self._present.get(op)
+            if present is None:
+                return self._no_token(op)
+            if present.key is None:
+                return f"ignored cmd_vel #{seq} from {op}: its session has no granted claim (claim the drive first)"
+            if not keys.signed(present.key, self.robot, op, seq, payload, parsed.signature):
+                forged = True
+            elif seq <= present.seq:
+                return f"ignored cmd_vel #{seq} from {op}: replayed or out of order (the last taken was #{present.seq})"
+            else:
+                present.seq, forged = seq, False
+        if forged:
+            return self._second_sender(op, f"cmd_vel #{seq}", drives)
+        return None
+
+    def _second_sender(self, op: keys.Who, what: str, drives: bool) -> str:
+        """A message under ``op``'s session not signed with its key: if it drives, stop and end the lease."""
+        why = f"a second sender under {op}'s session: {what} was not signed with its key"
+        if drives:
+            self.governor.release(op, f"{why}; the lease is ended")
+        return f"ignored: {why}"
+
+    def _no_token(self, op: keys.Who) -> str:
+        return (
+            f"refused: {op} has no liveliness token on {self.robot} "
+            f"(an operator declares {keys.operator(self.robot, op.name, op.session)} first)"
+        )
+
+    def _offer(self, op: keys.Who, payload: bytes) -> Any:
         message = parse_motion(payload)
         profile, address = self._profile()
         if "command" in message:
@@ -172,36 +239,122 @@ class FleetDrive:
     def stop(self, attachment: bytes | None) -> None:
         """Anyone may stop; the lease is freed. A bad attachment still stops (it only names nobody)."""
         parsed = keys.parse_attachment(attachment)
-        who = parsed[0] if parsed else "an operator"
+        who = parsed.who.name if parsed else "an operator"
         self.counters.stops += 1
         self.governor.stop(f"stop from {who}")
 
     def drive(self, payload: bytes) -> tuple[bool, dict[str, Any]]:
         """A claim or release: (taken, the reply's object)."""
         message = parse_motion(payload)
-        op, do = message.get("op"), message.get("do")
-        if not isinstance(op, str) or not keys.NAME.fullmatch(op) or do not in ("claim", "release"):
-            raise BadMotion('drive takes {"op": OPERATOR, "do": "claim" or "release"}')
+        op, do = keys.who(message.get("op"), message.get("session")), message.get("do")
+        if op is None or do not in ("claim", "release"):
+            raise BadMotion('drive takes {"op": OPERATOR, "session": SESSION, "do": "claim" or "release"}')
         if do == "release":
             self.governor.release(op, f"{op} released {self.robot}")
-            return True, {"driver": self.governor.driver}
+            return True, {"driver": named(self.governor.driver)}
+        return self._claim(op, message)
+
+    def _claim(self, op: keys.Who, message: dict[str, Any]) -> tuple[bool, dict[str, Any]]:
+        """A claim: granted to a present session, signed once it has a key; the answer says what it must know.
+
+        A signed claim numbered no higher than the session's last claim (a copy
+        of one, or one overtaken on the way) renews nothing: a replayed claim
+        cannot keep a frozen driver's lease alive past its deadman.
+        """
         driver = self.governor.driver
-        if not self.governor.claim(op):
-            return False, {"error": self.refusal(self.governor.driver), "driver": self.governor.driver}
-        if driver != op:
-            self._say(op, f"{op} drives {self.robot}")
-        return True, {"driver": op}
+        if driver not in (None, op):
+            return False, {"error": self.refusal(driver), "driver": named(driver)}
+        given = message.get("signature")
+        seq = _seq_of(message)
+        with self._lock:
+            present = self._present.get(op)
+            if present is None:
+                return False, {"error": self._no_token(op), "driver": named(driver), "token": False}
+            key = present.key
+            good = (
+                isinstance(seq, int)
+                and isinstance(given, str)
+                and keys.signed(key, self.robot, op, seq, keys.CLAIM, given)
+            )
+            fresh = not good or seq > present.claimed
+            if good and fresh:
+                present.claimed = seq
+        if key is not None and not good:
+            why = self._second_sender(op, "a claim", driver == op)
+            return False, {"error": why, "driver": named(self.governor.driver)}
+        if fresh and not self.governor.claim(op):
+            return False, {
+                "error": self.refusal(self.governor.driver),
+                "driver": named(self.governor.driver),
+            }
+        answer: dict[str, Any] = {"driver": op.name}
+        with self._lock:
+            if present.key is None:
+                present.key = keys.new_key()
+                answer["key"] = present.key.hex()
+            answer["seen"] = present.seq
+            asked = message.get("confirm")
+            if present.dropped is not None and present.dropped[0] == asked:
+                answer["dropped"] = present.dropped[1]
+        if driver != op and fresh:
+            self._say(op, f"{op} drives {self.robot}", None)
+        return True, answer
+
+    def operator_here(self, key: str) -> None:
+        """An operator's token appeared: its session may claim (if fewer than MAX_OPERATORS are present)."""
+        op = keys.operator_of(key)
+        if op is None:
+            return
+        with self._lock:
+            if op in self._present:
+                return
+            if len(self._present) >= MAX_OPERATORS:
+                self.counters.unadmitted += 1
+                admitted = False
+            else:
+                self._present[op] = Present()
+                admitted = True
+        if not admitted:
+            self._tell(op, f"refused: {MAX_OPERATORS} operator sessions are present on {self.robot} already")
 
     def operator_gone(self, key: str) -> None:
-        """An operator's token went (a killed laptop, a closed session): if it drove, stop at once."""
+        """An operator's token went (a killed laptop, a closed session): forgotten; if it drove, stop at once."""
         op = keys.operator_of(key)
-        if op is not None and op == self.governor.driver:
+        if op is None:
+            return
+        with self._lock:
+            self._present.pop(op, None)
+        if op == self.governor.driver:
             self.governor.release(op, f"operator {op} gone")
 
     def refusal(self, driver: Hashable | None) -> str:
         return f"refused: {driver} drives {self.robot}"
 
-    def refused(self, op: str | None, text: str) -> None:
-        """Counted every time, said on a budget (``refusals``: a flood of refusals is a few lines a second)."""
+    def refused(self, op: keys.Who | None, text: str, seq: int | None = None) -> None:
+        """Counted every time, said on the budget (``refusals``: a flood of refusals is a few lines a second)."""
         self.counters.refused += 1
-        self.refusals.refused(op, text)
+        self._tell(op, text, seq)
+
+    def _dropped(self, op: keys.Who, seq: int, text: str) -> None:
+        """A message taken from its sender but not made motion: kept for its claim, counted and said."""
+        self.counters.refused += 1
+        with self._lock:
+            present = self._present.get(op)
+            if present is not None:
+                present.dropped = (seq, text)
+        self._tell(op, text, seq)
+
+    def _tell(self, op: keys.Who | None, text: str, seq: int | None = None, kind: str | None = None) -> None:
+        """A word about a dropped message to its sender, on the budget (``refusals``)."""
+        self.refusals.refused(op, text, seq, kind)
+
+
+def _seq_of(message: dict[str, Any]) -> int:
+    """A claim's sequence number, 0 when it has none in range (0 is never signed: numbers start at 1)."""
+    seq = message.get("seq")
+    return seq if isinstance(seq, int) and keys.number_in(seq, 1, keys.MAX_SEQ) else 0
+
+
+def named(driver: Hashable | None) -> str | None:
+    """Who drives, as the JSON of a reply says it: the operator's name, a Foxglove client's, or null."""
+    return None if driver is None else str(driver)

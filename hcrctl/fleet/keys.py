@@ -16,27 +16,47 @@ and a bad one is a usage error, not a Zenoh exception.
     hcr/<robot>/cmd_vel          motion in (Twist or wheels); each message renews the driver's lease
     hcr/<robot>/stop             anyone may stop
     hcr/<robot>/status           the robot's word to operators: a refusal, a deadman stop, who drives
-    hcr/<robot>/op/<operator>    liveliness token of each operator that opened the robot
+    hcr/<robot>/op/<operator>/<session>  liveliness token of each operator session that opened the robot
 
 Messages are JSON objects (readings may be CDR with ``--encoding cdr``); see
 ``docs/fleet.md`` for each one's fields. Who sent a ``cmd_vel`` or ``stop`` is
 in its attachment (``attachment``/``parse_attachment``): Zenoh's own
-``source_info`` is unstable, and a robot must know its driver.
+``source_info`` is unstable, and a robot must know its driver. An operator is
+a name *and a session* (a random id each time hcrctl opens a robot), so a
+name used again later is a new operator with its own sequence numbers; and
+once a claim is granted, the robot side has given that session a key
+(``signature``): a message under the session's name that the key did not
+sign is someone else's.
 """
 
 from __future__ import annotations
 
 import getpass
+import hashlib
+import hmac
+import json
+import math
 import os
 import re
+import secrets
 import socket
+from typing import Any, NamedTuple
 
 ROOT = "hcr"
 #: A robot's or an operator's name: one key chunk, no Zenoh wildcard or separator, not "@"-led.
 NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}")
 NAME_RULE = "1-64 letters, digits, '_', '.' or '-', not starting with '.' or '-'"
-#: The longest attachment read: an operator name, a space and a sequence number.
-MAX_ATTACHMENT = 96
+#: An operator session's id: 16 lowercase hex digits, drawn at random each time a robot is opened.
+SESSION = re.compile(r"[0-9a-f]{16}")
+#: A signature: the first 32 hex digits of an HMAC-SHA256 under the key the robot side gave the session.
+SIGNATURE = re.compile(r"[0-9a-f]{32}")
+#: The longest attachment read: name, session, sequence number and signature, spaces between.
+MAX_ATTACHMENT = 160
+#: What a claim is signed over, in place of a motion's payload.
+CLAIM = b"claim"
+#: The longest sequence number: 19 digits stay below 2**63.
+MAX_SEQ_DIGITS = 19
+MAX_SEQ = 10**MAX_SEQ_DIGITS - 1
 #: Where `fleet router` listens, and where everyone connects, unless told otherwise.
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 
@@ -89,13 +109,13 @@ def status(robot: str) -> str:
     return f"{ROOT}/{robot}/status"
 
 
-def operator(robot: str, op: str) -> str:
-    return f"{ROOT}/{robot}/op/{op}"
+def operator(robot: str, op: str, session: str) -> str:
+    return f"{ROOT}/{robot}/op/{op}/{session}"
 
 
 def operators(robot: str) -> str:
     """Every operator token of ``robot``: what its server watches to stop when a driver vanishes."""
-    return f"{ROOT}/{robot}/op/*"
+    return f"{ROOT}/{robot}/op/*/*"
 
 
 def robot_of(key: str) -> str | None:
@@ -104,12 +124,39 @@ def robot_of(key: str) -> str | None:
     return parts[1] if len(parts) >= 3 and parts[0] == ROOT and NAME.fullmatch(parts[1]) else None
 
 
-def operator_of(key: str) -> str | None:
-    """The operator of an ``hcr/<robot>/op/<operator>`` key, or None."""
+class Who(NamedTuple):
+    """An operator session: its name and the session's id. Shown as the name alone."""
+
+    name: str
+    session: str
+
+    def __str__(self) -> str:
+        return self.name
+
+
+def operator_of(key: str) -> Who | None:
+    """The operator session of an ``hcr/<robot>/op/<operator>/<session>`` key, or None."""
     parts = key.split("/")
-    if len(parts) == 4 and parts[0] == ROOT and parts[2] == "op" and NAME.fullmatch(parts[3]):
-        return parts[3]
+    if len(parts) == 5 and parts[0] == ROOT and parts[2] == "op":
+        return who(parts[3], parts[4])
     return None
+
+
+def who(name: object, session: object) -> Who | None:
+    """``Who(name, session)`` if both are what the layout allows, None otherwise."""
+    if (
+        isinstance(name, str)
+        and isinstance(session, str)
+        and NAME.fullmatch(name)
+        and SESSION.fullmatch(session)
+    ):
+        return Who(name, session)
+    return None
+
+
+def new_session() -> str:
+    """A fresh session id: 64 random bits, so no two openings of a robot share one."""
+    return secrets.token_hex(8)
 
 
 def operator_id() -> str:
@@ -123,19 +170,115 @@ def operator_id() -> str:
     return name if NAME.fullmatch(name) else f"op_{os.getpid()}"
 
 
-def attachment(op: str, seq: int) -> bytes:
-    """Who sent a motion or stop message, and its sequence number (a replayed or reordered one is older)."""
-    return f"{op} {seq}".encode("ascii")
+class Attachment(NamedTuple):
+    """Who sent a message, its sequence number in that session, and its signature ("" before a key)."""
+
+    who: Who
+    seq: int
+    signature: str = ""
 
 
-def parse_attachment(data: bytes | None) -> tuple[str, int] | None:
-    """``(operator, seq)`` from an attachment, or None for anything else (too long, not two fields...)."""
+def attachment(op: Who, seq: int, signature: str = "") -> bytes:
+    """``OP SESSION SEQ [SIGNATURE]``: who sent a motion or stop message, in which order, signed how."""
+    return " ".join(filter(None, (op.name, op.session, str(seq), signature))).encode("ascii")
+
+
+def parse_attachment(data: bytes | None) -> Attachment | None:
+    """The attachment's fields, or None for anything else (too long, a field that is not its kind...)."""
     if not data or len(data) > MAX_ATTACHMENT:
         return None
     try:
-        op, seq = data.decode("ascii").split(" ")
-    except (UnicodeDecodeError, ValueError):
+        fields = data.decode("ascii").split(" ")
+    except UnicodeDecodeError:
         return None
-    if not NAME.fullmatch(op) or not seq.isdigit() or len(seq) > 19:
+    if len(fields) not in (3, 4):
         return None
-    return op, int(seq)
+    op = who(fields[0], fields[1])
+    seq, signature = fields[2], (fields[3] if len(fields) == 4 else "")
+    if op is None or not seq.isdigit() or len(seq) > MAX_SEQ_DIGITS:
+        return None
+    if signature and not SIGNATURE.fullmatch(signature):
+        return None
+    return Attachment(op, int(seq), signature)
+
+
+def new_key() -> bytes:
+    """A session's signing key, drawn by the robot side when it first grants that session the drive."""
+    return secrets.token_bytes(16)
+
+
+def signature(key: bytes, robot: str, op: Who, seq: int, payload: bytes) -> str:
+    """What signs one message: the robot, the session, the sequence number and the payload, under ``key``.
+
+    Anyone on the fleet can read an attachment and copy it; only the session
+    that was answered the key (a query's reply goes to the querier alone) can
+    sign a new message, so a forged or replayed one is told from the driver's.
+    """
+    head = f"{robot}\n{op.name}\n{op.session}\n{seq}\n".encode("ascii")
+    return hmac.new(key, head + payload, hashlib.sha256).hexdigest()[:32]
+
+
+def signed(key: bytes | None, robot: str, op: Who, seq: int, payload: bytes, given: str) -> bool:
+    """Whether ``given`` is the signature ``key`` makes (compared in constant time)."""
+    return key is not None and hmac.compare_digest(given, signature(key, robot, op, seq, payload))
+
+
+# -- what a peer says: parsed and checked before anything uses or shows it ----------------------
+
+#: The longest text field of an ``info`` taken (a port, a protocol, an operator's name...).
+MAX_INFO_TEXT = 256
+#: The ranges of an ``info``'s numbers (a robot's time, seconds, hertz...): anything else is refused.
+INFO_NUMBERS: dict[str, tuple[float, float]] = {
+    "started": (0.0, 1e11),  # seconds since the epoch, before the year 5000
+    "deadman": (0.01, 3600.0),
+    "rate": (0.0, 100_000.0),
+    "baud": (0.0, 100_000_000.0),
+    "address": (0.0, 255.0),
+}
+INFO_TEXTS = ("name", "port", "protocol", "driver", "encoding", "hcrctl")
+
+
+class BadInfo(ValueError):
+    """An ``info`` that is not what a robot serves: a number out of its range, a text that is not one."""
+
+
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not JSON")
+
+
+def loads(data: bytes) -> object:
+    """A peer's JSON, or None when it is none: ``NaN`` and ``Infinity`` are refused, as JSON does."""
+    try:
+        return json.loads(data, parse_constant=_no_constant)
+    except (ValueError, RecursionError):
+        return None
+
+
+def number_in(value: object, low: float, high: float) -> bool:
+    """Whether ``value`` is a number (not a bool) in ``low..high``: compared without ever making it a float,
+    so a 400-digit integer is out of range, not an OverflowError."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    return not (isinstance(value, float) and math.isnan(value)) and low <= value <= high
+
+
+def check_info(info: dict[str, Any]) -> dict[str, Any]:
+    """``info`` if its numbers are in range and its texts are short texts; BadInfo naming the field otherwise.
+
+    The field is named, never quoted whole: what the peer sent may be a
+    400-digit number or a megabyte of escape sequences.
+    """
+    for field, (low, high) in INFO_NUMBERS.items():
+        value = info.get(field)
+        if value is not None and not number_in(value, low, high):
+            raise BadInfo(f"its {field} is not a number in {low:g}..{high:g}")
+    for field in INFO_TEXTS:
+        value = info.get(field)
+        if value is not None and (not isinstance(value, str) or len(value) > MAX_INFO_TEXT):
+            raise BadInfo(f"its {field} is not a text of at most {MAX_INFO_TEXT} characters")
+    sensors = info.get("sensors")
+    if sensors is not None and (
+        not isinstance(sensors, list) or not all(isinstance(s, str) and NAME.fullmatch(s) for s in sensors)
+    ):
+        raise BadInfo("its sensors are not a list of names")
+    return info

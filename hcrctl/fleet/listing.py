@@ -10,11 +10,15 @@ endpoints answers, so "nobody there" is told apart from "no robots".
 ``--watch`` prints a line per robot joining and leaving, as they do; the
 Zenoh callbacks only queue the change, and the main thread asks for the
 newcomer's ``info`` (a query from inside a callback could wait on itself).
+
+Any peer may declare a robot's token and answer its ``info``: an answer that
+is not JSON, holds NaN, or has a number out of its range (``keys.check_info``)
+is refused for that robot alone, which is then listed by name with an
+``error``; the other robots are listed as ever.
 """
 
 from __future__ import annotations
 
-import json
 import queue
 import time
 from collections.abc import Callable, Iterable
@@ -44,17 +48,20 @@ def infos(session: Any, robots: Iterable[str], timeout: float) -> list[dict[str,
 
 
 def _info(name: str, replies: Any) -> dict[str, Any]:
+    """The robot's info (``age`` added), or its name and why its answer was refused (``error``)."""
     found: dict[str, Any] = {"name": name}
     for reply in replies:
-        if reply.ok is not None:
-            try:
-                body = json.loads(bytes(reply.ok.payload))
-            except ValueError:
-                continue
-            if isinstance(body, dict):
-                found.update(body, name=name)
+        if reply.ok is None:
+            continue
+        body = keys.loads(bytes(reply.ok.payload))
+        if not isinstance(body, dict):
+            return {"name": name, "error": f"{name}'s info is not a JSON object of finite numbers"}
+        try:
+            found.update(keys.check_info(body), name=name)
+        except keys.BadInfo as exc:
+            return {"name": name, "error": f"{name}'s info is refused: {exc}"}
     started = found.get("started")
-    if isinstance(started, (int, float)):
+    if started is not None:
         found["age"] = round(max(0.0, time.time() - started), 1)
     return found
 

@@ -139,7 +139,7 @@ def write(robot: Robot, message: dict[str, Any]) -> dict[str, Any]:
     """A non-motion request of the table, decoded (ranges checked) and re-encoded: never raw bytes."""
     code, content = message.get("command"), message.get("content", "")
     if not isinstance(code, int) or isinstance(code, bool) or not isinstance(content, str):
-        raise QueryError('write takes {"op", "address", "command": CODE, "content": HEX}')
+        raise QueryError('write takes {"op", "session", "address", "command": CODE, "content": HEX}')
     cmd = C.BY_CODE.get(code)
     if cmd is None or cmd.kind != "write" or cmd.request is None:
         raise QueryError(f"{code_text(code)} is not a write of the command table")

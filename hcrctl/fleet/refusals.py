@@ -1,31 +1,37 @@
-"""Refusal lines on a budget: what the robot side says when it refuses, however many peers are refused.
+"""Words about dropped messages on a budget: what the robot side says when it refuses or ignores a message,
+however many peers send.
 
-Every refusal is counted (``DriveCounters.refused``), but only so many are
-said (on ``status`` and stderr): the same refusal as the one just said is not
-said again, and at most ``MAX_LINES`` lines go out per ``WINDOW`` seconds.
-What was held back is said as one line when its window ends (``... and N
-more refusals in the last 1.0 s``), from the next refusal or the serve's
-loop (``tick``), so a flood of alternating operator names costs a few lines
-a second, not one per message, and a refused operator that keeps sending
-one line a second with the count.
+Every refusal is counted (``DriveCounters``), but only so many are said (on
+``status`` to its sender, and on stderr): a word is said once per window for
+each sender and kind (by default its text with the numbers taken out, so a
+run of replays is one word whatever their sequence numbers), and at most
+``MAX_LINES`` words go out per ``WINDOW`` seconds in all. What was held back
+is said as one line when its window ends (``... and N more refusals in the
+last 1.0 s``), from the next word or the serve's loop (``tick``), so a flood
+of alternating operator names costs a few lines a second, not one per
+message. The words remembered are those said in the window, so memory stays
+bounded by ``MAX_LINES`` whatever the flood.
 """
 
 from __future__ import annotations
 
+import re
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
 
-#: Refusal lines said per window, at most.
+#: Words said per window, at most.
 MAX_LINES = 5
 #: The window, in seconds.
 WINDOW = 1.0
-#: (operator the word is for, text): a put on ``status`` and a line on stderr.
-Say = Callable[[str | None, str], None]
+#: (operator the word is for, text, the sequence number it answers): a put on ``status`` and a line on stderr.
+Say = Callable[[Hashable | None, str, "int | None"], None]
+
+_DIGITS = re.compile(r"\d+")
 
 
 class Refusals:
-    """Says refusals through ``say``, at most ``max_lines`` per ``window`` s, and how many it held back."""
+    """Says words through ``say``: each (sender, kind) once per ``window`` s, ``max_lines`` in all per window."""
 
     def __init__(
         self,
@@ -41,41 +47,41 @@ class Refusals:
         self._clock = clock
         self._lock = threading.Lock()
         self._start = clock()
-        self._said = 0
+        self._said: set[tuple[Hashable | None, str]] = set()
         self._held = 0
-        self._last: tuple[str | None, str] | None = None
 
-    def refused(self, op: str | None, text: str) -> None:
-        """One refusal of ``op``'s message: said, unless just said or over this window's budget (then counted)."""
+    def refused(
+        self, op: Hashable | None, text: str, seq: int | None = None, kind: str | None = None
+    ) -> None:
+        """One word for ``op``: said unless already said to it this window or over the budget (then counted)."""
+        told = (op, kind or _DIGITS.sub("#", text))
         with self._lock:
             summary = self._roll(self._clock())
-            told = (op, text)
-            say = told != self._last and self._said < self._max
+            say = told not in self._said and len(self._said) < self._max
             if say:
-                self._said += 1
-                self._last = told
+                self._said.add(told)
             else:
                 self._held += 1
         if summary:
-            self._say(None, summary)
+            self._say(None, summary, None)
         if say:
-            self._say(op, text)
+            self._say(op, text, seq)
 
     def may_say(self) -> bool:
-        """Whether a refusal now could still be said (so its text is worth making)."""
-        return self._said < self._max or self._clock() - self._start >= self._window
+        """Whether a word now could still be said (so its text is worth making)."""
+        return len(self._said) < self._max or self._clock() - self._start >= self._window
 
     def tick(self) -> None:
-        """Close the window if it is over: what it held back is said now, not at the next refusal."""
+        """Close the window if it is over: what it held back is said now, not at the next word."""
         with self._lock:
             summary = self._roll(self._clock())
         if summary:
-            self._say(None, summary)
+            self._say(None, summary, None)
 
     def _roll(self, now: float) -> str:
         """A new window if this one is over; the line for what the old one held back ("" if nothing)."""
         if now - self._start < self._window:
             return ""
         held, took = self._held, now - self._start
-        self._start, self._said, self._held = now, 0, 0
+        self._start, self._said, self._held = now, set(), 0
         return f"... and {held} more refusals in the last {took:.1f} s" if held else ""

@@ -26,7 +26,7 @@ import json
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TextIO
 
@@ -48,7 +48,7 @@ from ..protocol import commands as C
 from ..protocol.profiles import profile
 from ..protocol.topics import all_topics
 from . import keys, queries
-from .drive import BadMotion, FleetDrive
+from .drive import BadMotion, FleetDrive, named
 from .publish import Publishers
 from .session import FleetError, Where, beyond_loopback, import_zenoh, open_member
 
@@ -190,18 +190,25 @@ class Serving:
     def robot(self) -> Robot:
         return self.feed.current or self.feed.robot
 
-    def say(self, op: str | None, text: str) -> None:
-        """A word to the operators (``status``) and a line on stderr."""
+    def say(self, op: Hashable | None, text: str, seq: int | None = None) -> None:
+        """A word to the operators (``status``) and a line on stderr.
+
+        ``op`` is the operator it is for or about: a fleet session (its name and
+        session id go in the message, so a name used by two sessions is told
+        apart), a Foxglove client, or nobody; ``seq`` the message it is about.
+        """
         self.notes.note(text)
-        try:
-            body = json.dumps({"op": op, "text": text}).encode()
-            self.session.put(keys.status(self.name), body, encoding="application/json")
-        except Exception:  # the session is closing: stderr said it
-            pass
+        said: dict[str, Any] = {"op": None if op is None else str(op), "text": text}
+        if isinstance(op, keys.Who):
+            said["session"] = op.session
+        if seq is not None:
+            said["seq"] = seq
+        with contextlib.suppress(Exception):  # the session is closing: stderr said it
+            self.session.put(keys.status(self.name), json.dumps(said).encode(), encoding="application/json")
 
     def told_stop(self, source: object, why: str) -> None:
         """A stop for any reason but a new message (deadman, operator gone, stop, bumper)."""
-        self.say(source if isinstance(source, str) else None, f"stopped: {why}")
+        self.say(source if isinstance(source, (str, keys.Who)) else None, f"stopped: {why}")
 
     # -- declarations -------------------------------------------------------------
 
@@ -281,10 +288,9 @@ class Serving:
 
     def _may_write(self, message: dict[str, Any]) -> None:
         """A write moves an actuator or changes its control: while someone drives, only the driver may."""
-        driver, op = self.governor.driver, message.get("op")
-        if driver is None or op == driver:
+        driver, who = self.governor.driver, keys.who(message.get("op"), message.get("session"))
+        if driver is None or who == driver:
             return
-        who = op if isinstance(op, str) and keys.NAME.fullmatch(op) else None
         text = f"write refused: {driver} drives {self.name} (servo and pid need the drive lease)"
         self.drive.refused(who, text)
         raise queries.QueryError(text)
@@ -314,6 +320,7 @@ class Serving:
             ignored=drive.ignored,
             refused=drive.refused,
             stops=drive.stops,
+            unadmitted=drive.unadmitted,
             drive_frames=self.governor.frames,
             queries=self.answers.answered,
             queries_failed=self.answers.failed,
@@ -324,7 +331,7 @@ class Serving:
             "protocol": robot.profile.name,
             "baud": getattr(robot.serial, "baudrate", None),
             "address": robot.address,
-            "driver": self.governor.driver,
+            "driver": named(self.governor.driver),
             "deadman": self.governor.lease.deadman,
             "encoding": options.encoding,
             "rate": options.rate,
@@ -339,7 +346,7 @@ class Serving:
         try:
             ok, body = self.drive.drive(bytes(payload) if payload is not None else b"")
         except BadMotion as exc:
-            ok, body = False, {"error": str(exc), "driver": self.governor.driver}
+            ok, body = False, {"error": str(exc), "driver": named(self.governor.driver)}
         queries.send_reply(query, keys.drive(self.name), (ok, body))
 
     def _cmd_vel(self, sample: Any) -> None:
@@ -351,6 +358,8 @@ class Serving:
     def _operator(self, sample: Any) -> None:
         if sample.kind == import_zenoh().SampleKind.DELETE:
             self.drive.operator_gone(str(sample.key_expr))
+        else:
+            self.drive.operator_here(str(sample.key_expr))
 
 
 def _bytes(data: Any) -> bytes | None:

@@ -1,8 +1,17 @@
-"""The fleet's robots as a rich table (``hcrctl fleet list`` on a terminal or a pipe)."""
+"""The fleet's robots as a rich table (``hcrctl fleet list`` on a terminal or a pipe).
+
+Every cell is what a peer on the network said: each is escaped and cut
+short (``errors.quoted``) before the table or a line shows it.
+"""
 
 from __future__ import annotations
 
 from typing import Any
+
+from ..errors import quoted
+
+#: The most characters of a cell.
+CELL_CHARS = 80
 
 COLUMNS = ("robot", "port", "protocol", "driver", "age")
 
@@ -19,13 +28,8 @@ def age_text(seconds: Any) -> str:
 
 
 def fleet_row(info: dict[str, Any]) -> tuple[str, ...]:
-    return (
-        str(info.get("name", "?")),
-        str(info.get("port") or "-"),
-        str(info.get("protocol") or "-"),
-        str(info.get("driver") or "-"),
-        age_text(info.get("age")),
-    )
+    cells = (info.get("name", "?"), info.get("port"), info.get("protocol"), info.get("driver"))
+    return (*(quoted(cell or "-", CELL_CHARS) for cell in cells), age_text(info.get("age")))
 
 
 def fleet_table(robots: list[dict[str, Any]], *, borders: bool = True) -> object:

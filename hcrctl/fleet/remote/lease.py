@@ -6,8 +6,15 @@ laptop stops the robot), the robot stopped at once when the driver's
 liveliness token goes (a killed one). This side only asks and keeps asking:
 
 - before the first motion, ``claim`` (a query, answered at once): refused
-  means the command fails saying who drives, and nothing moves;
-- each motion is a ``cmd_vel`` put with ``attachment(op, seq)``;
+  means the command fails saying who drives, and nothing moves. The first
+  claim granted answers this session its key; every later message (motion,
+  stop, claim) is signed with it (``keys.signature``), so nobody else on the
+  fleet can send as this operator;
+- each motion is a ``cmd_vel`` put with ``attachment(op, seq, signature)``,
+  then confirmed by a claim naming its sequence number: when the robot side
+  dropped it (another drives, a bumper is pressed, its firmware lacks the
+  command), the command fails with the robot side's reason, so nothing says
+  "sent" of a command that moved nothing;
 - while the lease is held, a thread claims it again every
   ``min(0.1 s, deadman / 4)``, so a one-shot ``drive --for 2`` holds it for
   2 s. It renews with ``claim``, never by re-sending the motion: once the
@@ -22,11 +29,12 @@ from __future__ import annotations
 import contextlib
 import json
 import threading
+import time
 from typing import Any
 
-from ...errors import HcrError
+from ...errors import HcrError, quoted
 from ...protocol.frames import Frame
-from ..keys import attachment, cmd_vel
+from ..keys import CLAIM, Who, attachment, cmd_vel, loads, signature
 from ..keys import drive as drive_key
 from ..keys import stop as stop_key
 from ..session import FleetError
@@ -35,6 +43,14 @@ from ..session import FleetError
 CLAIM_TIMEOUT_S = 2.0
 #: Renewals are at most this far apart, and at least four to a deadman.
 RENEW_S = 0.1
+#: How often a claim refused for want of this session's token is asked again (the token on its way),
+#: and for how long: the token was declared before the robot's info was asked, so it is only late.
+TOKEN_RETRY_S = 0.05
+TOKEN_WAIT_S = 5.0
+#: How many times a motion's confirmation is asked again while the robot side has not seen it yet.
+CONFIRM_ASKS = 10
+#: The longest a robot side's text is quoted in a command's error.
+SAID_CHARS = 200
 
 
 class DriveRefused(HcrError):
@@ -44,14 +60,17 @@ class DriveRefused(HcrError):
 class DriveLease:
     """This operator's claim on one robot's motion, over a Zenoh session."""
 
-    def __init__(self, session: Any, robot: str, op: str, deadman: float) -> None:
+    def __init__(self, session: Any, robot: str, op: Who, deadman: float) -> None:
         self._session = session
         self._robot = robot
         self._op = op
         self.interval = RENEW_S
         self.pace(deadman)
         self._seq = 0
-        self._lock = threading.Lock()
+        #: The key the robot side answered this session's first granted claim (None before).
+        self._key: bytes | None = None
+        # Reentrant: a renewal, under it, numbers and signs its claim under it too.
+        self._lock = threading.RLock()
         self.held = False
         #: The last motion was refused: the stop a refused command sends on its way out
         #: must not stop the operator it was refused for.
@@ -68,11 +87,24 @@ class DriveLease:
     # -- motion ---------------------------------------------------------------------
 
     def drive(self, frame: Frame) -> None:
-        """Claim if not held (DriveRefused names who drives), then put the motion as ``cmd_vel``."""
+        """Claim if not held, put the motion as ``cmd_vel``, and confirm the robot side took it.
+
+        DriveRefused names who drives, or why the robot side dropped the motion.
+        """
         if not self.held:
             self.claim()
         payload = {"address": frame.address, "command": frame.command, "content": frame.content.hex()}
-        self._put(cmd_vel(self._robot), payload)
+        seq = self._put(cmd_vel(self._robot), payload)
+        answer = self.claim(confirm=seq)
+        for _ in range(CONFIRM_ASKS):  # the motion still on its way when the claim was answered
+            seen = answer.get("seen")
+            if not isinstance(seen, int) or seen >= seq:
+                break
+            time.sleep(TOKEN_RETRY_S)
+            answer = self.claim(confirm=seq)
+        dropped = answer.get("dropped")
+        if dropped is not None:
+            raise DriveRefused(f"{self._robot} dropped the command: {quoted(dropped, SAID_CHARS)}")
 
     def stop(self) -> None:
         """The fleet's stop (anyone's), unless this stop only closes a motion that was refused."""
@@ -80,17 +112,42 @@ class DriveLease:
             return
         with self._lock:
             self.held = False
-        self._put(stop_key(self._robot), {})
+            self._put(stop_key(self._robot), {})
 
-    def claim(self) -> None:
-        """Take the lease now; DriveRefused, naming the driver, if another operator holds it."""
-        answer = self._ask("claim")
-        if isinstance(answer, str):
+    def claim(self, confirm: int | None = None) -> dict[str, Any]:
+        """Take the lease now (``confirm``: and say whether that motion was taken); the robot side's answer.
+
+        DriveRefused, naming the driver or the reason, if it is not granted.
+        """
+        ok, answer = self._ask("claim", confirm)
+        deadline = time.monotonic() + TOKEN_WAIT_S
+        while not ok and answer.get("token") is False and time.monotonic() < deadline:
+            time.sleep(TOKEN_RETRY_S)  # this session's token has not reached the robot side yet
+            ok, answer = self._ask("claim", confirm)
+        if not ok:
             self.refused = True
-            raise DriveRefused(answer, hint="wait until they stop, or anyone may: hcrctl stop")
+            with self._lock:
+                self.held = False
+            raise DriveRefused(
+                _refusal(answer, self._robot), hint="wait until they stop, or anyone may: hcrctl stop"
+            )
+        self._keep(answer)
         with self._lock:
             self.held, self.refused, self.claimed_ever = True, False, True
         self._start()
+        return answer
+
+    def _keep(self, answer: dict[str, Any]) -> None:
+        """The key of a first grant; a grant without one to a session that has none was someone else's."""
+        key = answer.get("key")
+        if self._key is None and isinstance(key, str):
+            with contextlib.suppress(ValueError):
+                self._key = bytes.fromhex(key)
+        if self._key is None:
+            raise DriveRefused(
+                f"{self._robot} gave this session's key to another sender under the name {self._op}: nothing was sent",
+                hint="someone on the fleet sends as you; restrict who may drive with Zenoh's access control",
+            )
 
     def lost(self) -> None:
         """The robot side no longer counts this operator as its driver: stop renewing."""
@@ -130,7 +187,7 @@ class DriveLease:
         self._session.get(
             drive_key(self._robot),
             zenoh.handlers.Callback(self._renewed),
-            payload=json.dumps({"op": self._op, "do": "claim"}),
+            payload=json.dumps(self._asking("claim")),
             encoding=zenoh.Encoding.APPLICATION_JSON,
             timeout=CLAIM_TIMEOUT_S,
         )
@@ -141,47 +198,67 @@ class DriveLease:
 
     # -- the wire -------------------------------------------------------------------------
 
-    def _ask(self, do: str) -> str | None:
-        """A ``drive`` query; None when granted, the robot side's refusal text otherwise (FleetError: no answer)."""
+    def _asking(self, do: str, confirm: int | None = None) -> dict[str, Any]:
+        """A ``drive`` query's payload: who asks, signed once this session has its key."""
+        asked: dict[str, Any] = {"op": self._op.name, "session": self._op.session, "do": do}
+        if confirm is not None:
+            asked["confirm"] = confirm
+        with self._lock:
+            if self._key is not None:
+                seq = self._next()
+                asked.update(seq=seq, signature=signature(self._key, self._robot, self._op, seq, CLAIM))
+        return asked
+
+    def _ask(self, do: str, confirm: int | None = None) -> tuple[bool, dict[str, Any]]:
+        """A ``drive`` query: (granted, the robot side's answer); FleetError when nobody answers."""
         zenoh = _zenoh()
         replies = self._session.get(
             drive_key(self._robot),
-            payload=json.dumps({"op": self._op, "do": do}),
+            payload=json.dumps(self._asking(do, confirm)),
             encoding=zenoh.Encoding.APPLICATION_JSON,
             timeout=CLAIM_TIMEOUT_S,
         )
         for reply in replies:
-            if reply.ok is not None:
-                return None
-            return _refusal(reply.err.payload.to_bytes(), self._robot)
+            granted = reply.ok is not None
+            answer = _object((reply.ok if granted else reply.err).payload.to_bytes())
+            return granted, answer
         raise FleetError(
             f"{self._robot} did not answer the drive {do} within {CLAIM_TIMEOUT_S:g} s: nothing was sent",
             hint="hcrctl fleet list shows whether it is still there",
         )
 
-    def _put(self, key: str, payload: dict[str, Any]) -> None:
+    def _next(self) -> int:
+        self._seq += 1
+        return self._seq
+
+    def _put(self, key: str, payload: dict[str, Any]) -> int:
+        """Put ``payload`` numbered and signed; its sequence number. Under the lock: put in numbering order."""
         zenoh = _zenoh()
+        data = json.dumps(payload).encode()
         with self._lock:
-            self._seq += 1
-            seq = self._seq
-        self._session.put(
-            key,
-            json.dumps(payload),
-            encoding=zenoh.Encoding.APPLICATION_JSON,
-            attachment=attachment(self._op, seq),
-            congestion_control=zenoh.CongestionControl.BLOCK,
-            express=True,
-        )
+            seq = self._next()
+            signed = signature(self._key, self._robot, self._op, seq, data) if self._key is not None else ""
+            self._session.put(
+                key,
+                data,
+                encoding=zenoh.Encoding.APPLICATION_JSON,
+                attachment=attachment(self._op, seq, signed),
+                congestion_control=zenoh.CongestionControl.BLOCK,
+                express=True,
+            )
+        return seq
 
 
-def _refusal(data: bytes, robot: str) -> str:
-    """The robot side's words for a refused claim (``refused: OP drives R``), or a plain fallback."""
-    try:
-        answer = json.loads(data)
-    except ValueError:
-        answer = None
-    if isinstance(answer, dict) and isinstance(answer.get("error"), str):
-        return str(answer["error"])
+def _object(data: bytes) -> dict[str, Any]:
+    found = loads(data)
+    return found if isinstance(found, dict) else {}
+
+
+def _refusal(answer: dict[str, Any], robot: str) -> str:
+    """The robot side's words for a refused claim (``refused: OP drives R``), cut short; or a plain fallback."""
+    error = answer.get("error")
+    if isinstance(error, str):
+        return quoted(error, SAID_CHARS)
     return f"refused: {robot} would not give the drive lease"
 
 

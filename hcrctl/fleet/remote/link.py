@@ -1,12 +1,17 @@
 """``RemoteLink``: the frames a Robot writes, as fleet traffic to one robot; its replies back as frames.
 
-Opening it opens a Zenoh client session of the fleet's router, declares this operator's liveliness
-token (``hcr/R/op/OP``: the robot side stops at once if it goes while this
-operator drives), checks the robot's own token is there and listens to its
-``frames`` (the broadcasts its wire hears), ``status`` and presence. Its
-``info`` (protocol, deadman, the reads it serves) is asked before the first
-frame that needs it, never for a stop: a stop needs nothing but itself, so
-no robot side too busy to answer anything else can keep it from going out.
+Opening it opens a Zenoh client session of the fleet's router (everything it
+says goes through the router, where the lab's access control decides who may
+drive: a peer could reach a robot around it), declares this operator
+session's liveliness token (``hcr/R/op/OP/SESSION``: the robot side stops at
+once if it goes while this operator drives), checks the robot's own token is
+there and listens to its ``frames`` (the broadcasts its wire hears),
+``status`` and presence. Its ``info`` (protocol, deadman, the reads it
+serves; its numbers range-checked, since any peer may answer as a robot) is
+asked before the first frame that needs it, never for a stop: a stop needs
+nothing but itself, so no robot side too busy to answer anything else can
+keep it from going out. What the robot side says (an error, a refusal) is
+quoted escaped and cut short in this side's errors.
 
 Each frame written is one of:
 
@@ -31,13 +36,26 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from ...errors import BadPortUrl, DeviceRefused, DeviceTimeout, HcrError
+from ...errors import BadPortUrl, DeviceRefused, DeviceTimeout, HcrError, quoted
 from ...protocol import commands as C
 from ...protocol.dialect import decode_all
 from ...protocol.frames import ChecksumRule, Frame
 from ...protocol.messages import READ_REQUEST
 from ...protocol.profiles import DEFAULT, Profile, profile
-from ..keys import NAME_RULE, alive, check_name, operator, operator_id, status, topic
+from ..keys import (
+    NAME_RULE,
+    BadInfo,
+    Who,
+    alive,
+    check_info,
+    check_name,
+    loads,
+    new_session,
+    operator,
+    operator_id,
+    status,
+    topic,
+)
 from ..keys import info as info_key
 from ..keys import read as read_key
 from ..keys import write as write_key
@@ -54,6 +72,8 @@ READ_TIMEOUT_S = 5.0
 GRACE_S = 1.0
 LIST_HINT = "hcrctl fleet list shows the robots present"
 STOP_CODE = C.command_for(C.STOP).code
+#: The longest the robot side's words (an error, a hint) are quoted in a command's error.
+SAID_CHARS = 200
 #: What a frame message of a broadcast says it is (``"kind": "broadcast"``; the message is checked whole after).
 BROADCAST = b'"broadcast"'
 
@@ -89,7 +109,8 @@ class RemoteLink:
     def __init__(self, name: str, reach: Reach, deliver: Deliver, lost: Lost) -> None:
         self.name = name
         self.reach = reach
-        self.op = operator_id()
+        #: This operator: its name, and a session id of its own (a name used again later is another operator).
+        self.op = Who(operator_id(), new_session())
         self.local: Profile = profile(reach.protocol)
         self.remote: Profile = DEFAULT
         self.info: dict[str, Any] = {}
@@ -119,7 +140,7 @@ class RemoteLink:
     def _open_on(self, session: Any) -> None:
         zenoh = import_zenoh()
         live = session.liveliness()
-        self._held.append(live.declare_token(operator(self.name, self.op)))
+        self._held.append(live.declare_token(operator(self.name, self.op.name, self.op.session)))
         # A subscriber with history, not a get: a session just opened may not have heard
         # the router's tokens yet, and this waits for them as long as it takes, up to the limit.
         self._held.append(
@@ -148,11 +169,18 @@ class RemoteLink:
             self._asked_info = True
 
     def _ask_info(self, session: Any) -> dict[str, Any]:
+        """The robot's info, its numbers in range (``keys.check_info``); FleetError naming it otherwise."""
         for reply in session.get(info_key(self.name), timeout=ASK_TIMEOUT_S):
             if reply.ok is not None:
                 answer = _json(reply.ok.payload.to_bytes())
-                if isinstance(answer, dict):
-                    return answer
+                if not isinstance(answer, dict):
+                    raise FleetError(
+                        f"{self.name}'s info is not a JSON object of finite numbers", hint=LIST_HINT
+                    )
+                try:
+                    return check_info(answer)
+                except BadInfo as exc:
+                    raise FleetError(f"{self.name}'s info is refused: {exc}", hint=LIST_HINT) from None
         raise FleetError(
             f"{self.name} is in the fleet at {self._where()} but did not answer its info within "
             f"{ASK_TIMEOUT_S:g} s",
@@ -202,7 +230,7 @@ class RemoteLink:
         lease stops being renewed, and the next motion claims it afresh.
         """
         message = _json(sample.payload.to_bytes())
-        if self.lease is None or not isinstance(message, dict) or message.get("op") != self.op:
+        if self.lease is None or not isinstance(message, dict) or message.get("session") != self.op.session:
             return
         if message.get("text") != f"{self.op} drives {self.name}":
             self.lease.lost()
@@ -277,7 +305,10 @@ class RemoteLink:
         if isinstance(said, dict) and isinstance(said.get("error"), str):
             hint = said.get("hint")
             with self._cond:
-                self._said[key] = (said["error"], hint if isinstance(hint, str) else None)
+                self._said[key] = (
+                    quoted(said["error"], SAID_CHARS),
+                    quoted(hint, SAID_CHARS) if isinstance(hint, str) else None,
+                )
 
     def _answered(self, key: tuple[int, int]) -> None:
         with self._cond:
@@ -324,7 +355,8 @@ class RemoteLink:
         """A non-motion write, through the robot side's table; waited for, so a refusal is this write's error."""
         zenoh = import_zenoh()
         payload = {
-            "op": self.op,
+            "op": self.op.name,
+            "session": self.op.session,
             "address": frame.address,
             "command": cmd.code,
             "content": frame.content.hex(),
@@ -343,7 +375,8 @@ class RemoteLink:
                 return
             said = _json(reply.err.payload.to_bytes())
             text = said.get("error") if isinstance(said, dict) else None
-            raise DeviceRefused(f"{self.name} refused {cmd.name}: {text or 'no reason given'}")
+            shown = quoted(text, SAID_CHARS) if isinstance(text, str) and text else "no reason given"
+            raise DeviceRefused(f"{self.name} refused {cmd.name}: {shown}")
         raise DeviceRefused(
             f"{self.name} did not answer the {cmd.name} write within {ASK_TIMEOUT_S:g} s",
             hint="hcrctl fleet list shows whether it is still there",
@@ -365,10 +398,8 @@ class RemoteLink:
 
 
 def _json(data: bytes) -> object:
-    try:
-        return json.loads(data)
-    except ValueError:
-        return None
+    """What the robot side sent, as JSON (NaN and Infinity refused), or None."""
+    return loads(data)
 
 
 def _profile_of(info: dict[str, Any]) -> Profile:
@@ -379,5 +410,6 @@ def _profile_of(info: dict[str, Any]) -> Profile:
 
 
 def _deadman(info: dict[str, Any]) -> float:
+    """The robot side's deadman (checked in range by ``check_info``), 0.5 s when it does not say."""
     value = info.get("deadman")
-    return float(value) if isinstance(value, (int, float)) and value > 0 else 0.5
+    return float(value) if value is not None else 0.5

@@ -1,0 +1,247 @@
+"""Who may drive a fleet robot: a session with its token, its key and rising sequence numbers; nobody else.
+
+The attacker is a raw Zenoh session (``Operator`` with its token or without
+it, or ``session.put`` with a copied attachment), never hcrctl's operator
+code; the robot is the installed ``fleet serve`` on ``hcrctl sim --pty``, and
+what moved it is read from its wire (the serve's ``--log``). "Moves nothing"
+is checked after the robot side has said, on ``status``, what it did with the
+attacker's message: the word comes after the decision, so no test waits a
+fixed time.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip install 'hcrctl[zenoh]')")
+
+from helpers import TIMEOUT, clean_env, wait_until
+from helpers_fleet_robot import POWER, Fleet, Operator, Serve, fleet, is_stop, operator
+from zenoh import CongestionControl
+
+from hcrctl.fleet import keys
+from hcrctl.protocol import commands as C
+
+
+@pytest.fixture
+def lab(tmp_path: Path) -> Any:
+    with fleet(clean_env(tmp_path)) as group:
+        group.router()
+        yield group
+
+
+BLOCK = CongestionControl.BLOCK
+
+
+def served(lab: Fleet, tmp_path: Path, name: str = "r1") -> Serve:
+    return lab.serve(name, lab.sim(), "--deadman", "10", log=tmp_path / f"{name}.jsonl")
+
+
+def power(left: int, right: int) -> dict[str, Any]:
+    return {"address": 1, "command": POWER, "content": C.MotorPower(left, right).content().hex()}
+
+
+def powered(serve: Serve, left: int, right: int) -> list[int]:
+    """The indexes, among the motion frames on the wire, of ``power left right``."""
+    content = C.MotorPower(left, right).content()
+    frames = serve.sent_codes({POWER})
+    return [i for i, f in enumerate(frames) if f.content == content]
+
+
+def stopped_after(serve: Serve, index: int) -> int:
+    """The index of the first stop after the motion frame ``index`` (waited for)."""
+    return int(
+        wait_until(
+            lambda: next(
+                (i for i, f in enumerate(serve.sent_codes({POWER})) if i > index and is_stop(f)), None
+            ),
+            what="a stop on the wire",
+        )
+    )
+
+
+def until_said(op: Operator, text: str, send: Callable[[], None]) -> dict[str, Any]:
+    """``send`` again each turn until ``op`` hears ``text`` on status (the words are rate-limited: the first
+    of a kind each second)."""
+
+    def said() -> dict[str, Any] | None:
+        send()
+        return op.said(text)
+
+    found: dict[str, Any] = wait_until(said, what=f"status {text!r}")
+    return found
+
+
+def info(op: Operator, robot: str = "r1") -> dict[str, Any]:
+    ok, body = op.query(keys.info(robot))
+    assert ok, body
+    return body
+
+
+def test_a_claim_without_a_liveliness_token_is_refused_and_its_cmd_vel_moves_nothing(
+    lab: Fleet, tmp_path: Path
+) -> None:
+    serve = served(lab, tmp_path)
+    with operator(lab.endpoint, "r1", "ghost") as ghost:
+        taken, body = ghost.claim()  # never declared its token
+        ghost.cmd_vel(power(60, 60))  # unsigned: no claim was granted
+        said = ghost.wait_said("no liveliness token")
+        assert info(ghost)["driver"] is None
+    assert not taken and "refused: ghost has no liveliness token on r1" in body["error"]
+    assert said["op"] == "ghost" and said["session"] == ghost.op.session and said["seq"] == 1
+    assert not powered(serve, 60, 60)
+
+
+def test_an_exact_replay_moves_nothing_while_the_driver_is_there_or_after_it_left(
+    lab: Fleet, tmp_path: Path
+) -> None:
+    serve = served(lab, tmp_path)
+    with operator(lab.endpoint, "r1", "op1") as op1, operator(lab.endpoint, "r1", "eve") as eve:
+        op1.open()
+        op1.claim()
+        data = json.dumps(power(40, 40)).encode()
+        copied = op1.put(keys.cmd_vel("r1"), data)  # what anyone subscribed to cmd_vel sees
+        wait_until(lambda: powered(serve, 40, 40), what="op1's power 40 40")
+        op1.stop()
+        first_stop = stopped_after(serve, powered(serve, 40, 40)[-1])
+        eve.session.put(keys.cmd_vel("r1"), data, attachment=copied)  # op1 still there
+        said = until_said(
+            eve,
+            "replayed or out of order",
+            lambda: eve.session.put(keys.cmd_vel("r1"), data, attachment=copied),
+        )
+        op1.gone()
+        until_said(
+            eve, "no liveliness token", lambda: eve.session.put(keys.cmd_vel("r1"), data, attachment=copied)
+        )
+        assert info(eve)["driver"] is None
+    assert said["op"] == "op1" and said["text"].startswith("ignored cmd_vel #1 from op1")
+    assert not [i for i in powered(serve, 40, 40) if i > first_stop], "a replay moved the robot"
+
+
+def test_a_forged_higher_sequence_under_the_drivers_session_moves_nothing_and_ends_the_lease(
+    lab: Fleet, tmp_path: Path
+) -> None:
+    serve = served(lab, tmp_path)
+    with operator(lab.endpoint, "r1", "op1") as op1, operator(lab.endpoint, "r1", "eve") as eve:
+        op1.open()
+        op1.cmd_vel(power(10, -10))
+        wait_until(lambda: powered(serve, 10, -10), what="op1's power 10 -10")
+        spin = json.dumps(power(100, -100)).encode()
+        for signature in ("", "0" * 32):  # no signature, and one that is not the key's
+            forged = keys.attachment(op1.op, op1.seq + 1000, signature)
+            eve.session.put(keys.cmd_vel("r1"), spin, attachment=forged)
+        said = op1.wait_said("stopped: a second sender under op1's session")
+        stop = stopped_after(serve, powered(serve, 10, -10)[-1])
+        assert info(eve)["driver"] is None
+        op1.cmd_vel(power(20, -20))  # the real driver's next command is its own: it drives again
+        wait_until(lambda: powered(serve, 20, -20), what="op1's next command")
+    assert said["session"] == op1.op.session and said["text"].endswith("the lease is ended")
+    assert not powered(serve, 100, -100), "the forged spin reached the wire"
+    assert stop < powered(serve, 20, -20)[0]
+
+
+def test_a_replayed_claim_does_not_hold_a_silent_drivers_lease(lab: Fleet, tmp_path: Path) -> None:
+    """The driver falls silent (its token stays); copies of its last signed claim do not outlast the deadman."""
+    serve = lab.serve("r1", lab.sim(), "--deadman", "1", log=tmp_path / "r1.jsonl")
+    with operator(lab.endpoint, "r1", "op1") as op1, operator(lab.endpoint, "r1", "eve") as eve:
+        op1.open()
+        op1.cmd_vel(power(35, 35))
+        wait_until(lambda: powered(serve, 35, 35), what="op1's power 35 35")
+        signed = op1.asking()
+        assert op1.query(keys.drive("r1"), signed)[0]  # the original renews
+        said = until_said(op1, "stopped: deadman", lambda: eve.query(keys.drive("r1"), signed) and None)
+    assert said["session"] == op1.op.session
+    stopped_after(serve, powered(serve, 35, 35)[-1])
+
+
+def test_300_fresh_names_evict_nobody_and_readmit_no_old_message(lab: Fleet, tmp_path: Path) -> None:
+    serve = served(lab, tmp_path)
+    with operator(lab.endpoint, "r1", "op1") as op1, operator(lab.endpoint, "r1", "eve") as eve:
+        op1.open()
+        op1.claim()
+        old = json.dumps(power(30, 30)).encode()
+        copied = op1.put(keys.cmd_vel("r1"), old)
+        wait_until(lambda: powered(serve, 30, 30), what="op1's power 30 30")
+        op1.cmd_vel(power(15, 15))
+        wait_until(lambda: powered(serve, 15, 15), what="op1's power 15 15")
+        tokens = []
+        for n in range(300):
+            fresh = keys.Who(f"fresh{n}", keys.new_session())
+            tokens.append(
+                eve.session.liveliness().declare_token(keys.operator("r1", fresh.name, fresh.session))
+            )
+            eve.session.put(keys.cmd_vel("r1"), old, attachment=keys.attachment(fresh, 1))
+        wait_until(
+            lambda: info(eve)["counters"]["unadmitted"] >= 300 - 255, what="the tokens past 256 refused"
+        )
+        said = until_said(
+            op1,
+            "replayed or out of order",
+            lambda: eve.session.put(keys.cmd_vel("r1"), old, attachment=copied),
+        )
+        body = info(eve)
+    assert body["driver"] == "op1"  # the driver's record and lease were never evicted
+    assert said["text"].startswith("ignored cmd_vel #1 from op1")
+    last_15 = powered(serve, 15, 15)[-1]
+    assert not [i for i in powered(serve, 30, 30) if i > last_15], "the old message moved the robot again"
+    assert len(tokens) == 300
+
+
+def test_two_operators_of_one_name_one_after_the_other_both_drive(lab: Fleet, tmp_path: Path) -> None:
+    serve = served(lab, tmp_path)
+    for turn, speed in enumerate((25, 35)):
+        with operator(lab.endpoint, "r1", "same") as op:
+            op.open()
+            taken, body = op.claim()
+            assert taken, (turn, body)
+            op.cmd_vel(power(speed, speed))  # sequence number 1 again, from a new session
+            wait_until(lambda: powered(serve, speed, speed), what=f"session {turn}'s power {speed}")  # noqa: B023
+            op.gone()
+            op.wait_said("operator same gone")
+    assert powered(serve, 25, 25)[-1] < powered(serve, 35, 35)[0]
+
+
+def test_a_flood_of_bad_messages_is_counted_and_said_a_few_times(lab: Fleet, tmp_path: Path) -> None:
+    serve = served(lab, tmp_path)
+    with operator(lab.endpoint, "r1", "eve") as eve, operator(lab.endpoint, "r1", "op1") as listener:
+        data = json.dumps(power(50, 50)).encode()
+        for n in range(2000):
+            eve.session.put(
+                keys.cmd_vel("r1"), data, attachment=f"eve{n % 2} {n}".encode(), congestion_control=BLOCK
+            )
+        wait_until(lambda: info(eve)["counters"]["ignored"] >= 2000, what="2000 ignored")
+        heard = len(listener.status)
+    assert 1 <= heard <= 40, heard
+    assert not powered(serve, 50, 50)
+
+
+def test_the_driver_is_told_when_its_command_was_dropped(lab: Fleet, tmp_path: Path) -> None:
+    """A v0.11 robot has no velocity command: the one-shot fails with the robot side's reason, the script says it."""
+    log = tmp_path / "old.jsonl"
+    old = ["--protocol", "v0.11", "--port", "sim://?protocol=v0.11", "--log", str(log), *lab.zenoh]
+    proc = lab.start([*old, "fleet", "serve", "old", "--deadman", "10"])
+    serve = Serve(proc, "old", log)
+    serve.wait_err("serving old ")
+    remote = [*lab.zenoh, "--port", "zenoh://old"]
+    done = lab.run([*remote, "drive", "velocity", "20", "20", "--for", "0.5"])
+    assert done.returncode == 1, done.stderr
+    (line,) = done.stderr.splitlines()
+    assert re.fullmatch(
+        r"hcrctl: error: old dropped the command: cmd_vel refused: 0x03 is not a motion command of this "
+        r"firmware \(v0\.11\)",
+        line,
+    ), line
+    assert "sent" not in done.stdout
+    script = tmp_path / "drive.hcr"
+    script.write_text("drive velocity 20 20\n")
+    shell = lab.run([*remote, "shell", "--script", str(script)], timeout=TIMEOUT)
+    assert "sent velocity" not in shell.stdout, shell.stdout
+    assert "old dropped the command" in shell.stderr, shell.stderr
+    assert not serve.sent_codes({0x03})
