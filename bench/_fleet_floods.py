@@ -39,7 +39,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from _common import ROOT  # noqa: F401 - puts the checkout on sys.path for hcrctl
+from _common import ROOT  # puts the checkout on sys.path for hcrctl
 
 from hcrctl.protocol import commands as C
 
@@ -95,7 +95,9 @@ def _sender(kind: str, session: Any, zenoh: Any) -> Callable[[int], None]:
 
         return read
     if kind == "refusals":
-        return lambda n: session.put("hcr/r1/cmd_vel", beyond, attachment=f"evil{n % 5000} {n}".encode())
+        return lambda n: session.put(
+            "hcr/r1/cmd_vel", beyond, attachment=f"evil{n % 5000} {n:016x} {n}".encode()
+        )
     if kind == "servo":
         servo = json.dumps({"op": "evil", "address": 1, "command": 0x41, "content": "015A"}).encode()
         return lambda n: session.get("hcr/r1/write", drop, payload=servo, timeout=2.0)
@@ -133,32 +135,27 @@ class Flood:
 
 
 class Driver:
-    """A Zenoh peer driving r1 by the contract: its token, ``cmd_vel`` with attachments."""
+    """The driver, speaking the contract as the tests' ``Operator`` does: its token, a claim, signed cmd_vel."""
 
     def __init__(self, endpoint: str) -> None:
-        from hcrctl.fleet import keys
-        from hcrctl.fleet.session import Where, open_session
+        sys.path.insert(0, str(ROOT / "tests"))
+        from helpers_fleet_robot import Operator
 
-        self.keys = keys
-        self.session = open_session("peer", Where((endpoint,), ()))
-        self.token = self.session.liveliness().declare_token(keys.operator("r1", "driver"))
-        self.seq = 0
+        self.op = Operator(endpoint, "r1", "driver")
+        self.op.open()
 
     def publish(self, way: int) -> float:
         """One Twist, forward (``way`` 1) or back (-1); when it was put (wall clock, taken just before)."""
-        self.seq += 1
         twist = {"linear": {"x": SPEED * way}, "angular": {"z": 0.0}}
+        if self.op.key is None:
+            self.op.claim()
         at = time.time()
-        self.session.put(
-            self.keys.cmd_vel("r1"),
-            json.dumps(twist).encode(),
-            attachment=self.keys.attachment("driver", self.seq),
-        )
+        self.op.cmd_vel(twist)
         return at
 
     def close(self) -> None:
-        self.token.undeclare()
-        self.session.close()
+        self.op.gone()
+        self.op.session.close()
 
 
 def stop_after(log: Path, after: float) -> float | None:

@@ -185,7 +185,12 @@ def test_refusals_of_alternating_names_are_said_on_a_budget(lab: Fleet, tmp_path
         op.cmd_vel(twist(0.2))
         op.wait_said("op1 drives r1")
         payload = json.dumps(twist(-0.5)).encode()
-        peer.puts(keys.cmd_vel("r1"), payload, lambda n: keys.attachment(f"evil{n % 500}", n), rate=2000)
+        peer.puts(
+            keys.cmd_vel("r1"),
+            payload,
+            lambda n: keys.attachment(keys.Who(f"evil{n % 500}", f"{n:016x}"), n),
+            rate=2000,
+        )
         wait_until(lambda: peer.sent >= 3000, what="3000 refused messages sent")
         peer.stop()
         sent = peer.sent
