@@ -20,7 +20,7 @@ from contextlib import contextmanager, suppress
 from pathlib import Path
 
 import pytest
-from helpers import Terminal
+from helpers import DevicePty, Terminal
 from helpers_cli import TIMEOUT, clean_env, hcrctl_exe, run
 from helpers_live import terminal
 from helpers_shell import STOP_FRAME, PtyRobot
@@ -28,6 +28,7 @@ from helpers_shell import STOP_FRAME, PtyRobot
 WARNING = "while the robot was moving: stop could NOT be delivered"
 DELIVERED = "while the robot was moving: stop delivered after"
 NOT_DELIVERED = "stop NOT delivered: the robot may still be moving"
+UNANSWERED = "but nothing answered: the robot may still be moving"
 
 
 @pytest.fixture
@@ -141,6 +142,58 @@ def test_stop_is_delivered_when_the_by_id_link_comes_back(what, env, tmp_path):
         try:
             again = pull_and_replug(hcr, plugged, link)
             assert_stop_delivered(hcr, again)
+        finally:
+            hcr.kill()
+
+
+def stranger_at(link: Path) -> DevicePty:
+    """Another device takes the robot's path: a pty that records what it gets and never answers."""
+    return DevicePty(link).serve()
+
+
+def test_a_stranger_on_the_robots_path_is_not_called_the_robot(env, tmp_path):
+    """The path now leads to a device that never answers: stop is written to it, but not called delivered."""
+    link = tmp_path / "usb-HCR_robot-if00-port0"
+    with robots(link) as plugged:
+        plugged.append(PtyRobot(link))
+        hcr = Hcrctl(["--port", str(link), "--stop-wait", "2", "drive", "power", "40", "40"], env)
+        try:
+            plugged[0].wait_for(moving, timeout=TIMEOUT)
+            plugged[0].close()
+            stranger = stranger_at(link)
+            try:
+                status, out, err = hcr.finish()
+                got = stranger.wait_for(STOP_FRAME)
+            finally:
+                stranger.close()
+        finally:
+            hcr.kill()
+    assert STOP_FRAME in got  # it was written to: whatever the device is, it was told to stop
+    assert status == 1 and out == "", err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("hcrctl: error: lost the link") and "delivered after" not in err, err
+    assert f"stop written to {link}, {UNANSWERED}" in last, err
+    assert "nothing at" in last and "answered as the robot does within 2 s" in last, err
+
+
+def test_the_robot_back_after_a_stranger_is_called_delivered(env, tmp_path):
+    """A silent device at the path first, then the robot: the rescue keeps trying and the robot answers."""
+    link = tmp_path / "robot"
+    with robots(link) as plugged:
+        plugged.append(PtyRobot(link))
+        hcr = Hcrctl(["--port", str(link), "--stop-wait", "600", "drive", "power", "40", "40"], env)
+        try:
+            plugged[0].wait_for(moving, timeout=TIMEOUT)
+            plugged[0].close()
+            stranger = stranger_at(link)
+            try:
+                stranger.wait_for(STOP_FRAME)
+                assert hcr.proc.poll() is None, hcr.finish()  # not taken for the robot: still waiting
+                again = PtyRobot(link)
+                plugged.append(again)
+                assert_stop_delivered(hcr, again)
+            finally:
+                stranger.close()
         finally:
             hcr.kill()
 
@@ -298,7 +351,9 @@ def test_socket_url_reconnects_and_gets_stop(env, tmp_path):
     assert status == 1 and DELIVERED in err.strip().splitlines()[-1], err
     sent = [json.loads(line) for line in log.read_text().splitlines()]
     tx = [rec["hex"] for rec in sent if rec["direction"] == "tx"]
-    assert tx[-1] == STOP_FRAME.hex(" ").upper() and len(tx) >= 2
+    # stop first, then the read that asks whether the robot is there: nothing that moves after the stop
+    after = tx[tx.index(STOP_FRAME.hex(" ").upper()) :]
+    assert len(tx) >= 2 and not moving([bytes.fromhex(h) for h in after])
 
 
 def test_a_held_drive_in_the_shell_reports_the_stop_its_session_delivered(tmp_path):
