@@ -386,3 +386,87 @@ def _served(port: int) -> bool:
             return True
     except InvalidStatus:
         return False
+
+
+# -- amplification and bursts ---------------------------------------------------------------------
+
+
+class NeverReads:
+    """A WebSocket client that sends and never reads after its handshake (websockets' sans-I/O protocol
+    on a socket with a small receive buffer, so what the server sends it backs up at once)."""
+
+    def __init__(self, port: int) -> None:
+        from websockets.client import ClientProtocol
+        from websockets.uri import parse_uri
+
+        self.sock = socket.socket()
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        self.sock.settimeout(TIMEOUT)
+        self.sock.connect(("127.0.0.1", port))
+        self.protocol = ClientProtocol(parse_uri(f"ws://127.0.0.1:{port}/"), subprotocols=["foxglove.sdk.v1"])  # type: ignore[list-item]
+        self.protocol.send_request(self.protocol.connect())
+        self._flush()
+        while self.protocol.handshake_exc is None and not self.protocol.events_received():
+            self.protocol.receive_data(self.sock.recv(1))  # the response alone, a byte at a time
+        assert self.protocol.handshake_exc is None, self.protocol.handshake_exc
+
+    def send(self, message: dict[str, object]) -> None:
+        self.protocol.send_text(json.dumps(message).encode())
+        self._flush()
+
+    def _flush(self) -> None:
+        for data in self.protocol.data_to_send():
+            self.sock.sendall(data)
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+def test_fifty_thousand_subscriptions_from_a_client_that_never_reads_leave_the_bridge_serving(
+    env: dict[str, str],
+) -> None:
+    """Each frame would be sent once per subscription: the bound keeps it to a few, the fan-out yields."""
+    with running_bridge(env) as (robot, running), viewer(running.port) as driver:
+        frames_id = driver.channels["/hcr/frames"]["id"]
+        before = rss_kib(running.proc.pid)
+        attacker = NeverReads(running.port)
+        try:
+            for first in range(0, 50_000, 2_000):  # 25 messages of 2,000, each under MAX_MESSAGE
+                subs = [{"id": i, "channelId": frames_id} for i in range(first, first + 2_000)]
+                attacker.send({"op": "subscribe", "subscriptions": subs})
+            with viewer(running.port) as second:  # a new client is served, and gets readings
+                second.subscribe("/hcr/compass", 1)
+                assert "heading" in second.data(1)[1]
+                last = drive(second, robot)
+                repeats, _ = repeats_then_stop(robot, last)  # the deadman still stops
+                assert repeats <= MAX_REPEATS
+            grown = rss_kib(running.proc.pid) - before
+            assert grown < 64 * 1024, f"the bridge grew by {grown} KiB"
+        finally:
+            attacker.close()
+        assert running.proc.poll() is None
+    assert "Traceback" not in "\n".join(running.lines)
+
+
+def test_a_burst_of_advertises_is_one_stderr_line_and_its_count(env: dict[str, str]) -> None:
+    """10,000 advertises of /cmd_vel in cbor: the first said at once, the rest counted, not a line each."""
+    sent = 0
+    with running_bridge(env) as (_, running), viewer(running.port) as client:
+        for first in range(0, 10_000, 500):
+            channels = [
+                {"id": i, "topic": "/cmd_vel", "encoding": "cbor", "schemaName": "x"}
+                for i in range(first, first + 500)
+            ]
+            client.ws.send(json.dumps({"op": "advertise", "channels": channels}))
+            sent += len(channels)
+        said = re.compile(r"advertised /cmd_vel in cbor: only json is accepted$")
+        counted = re.compile(r"/cmd_vel advertised in an encoding other than json: ([\d,]+) more in 1 s$")
+
+        def accounted() -> int:
+            firsts = sum(1 for line in running.lines if said.search(line))
+            more = sum(int(m.group(1).replace(",", "")) for x in running.lines if (m := counted.search(x)))
+            return firsts + more
+
+        wait_until(lambda: accounted() == sent, what=f"all {sent} advertises said or counted")
+    lines = [x for x in running.lines if "cbor" in x or "other than json" in x]
+    assert len(lines) <= 2 * 10, lines  # two lines a burst; a burst lasts a second

@@ -13,7 +13,13 @@ channel id, payload); ``status`` tells a client what became of what it sent.
 Every limit is explicit: a handshake must finish within ``OPEN_TIMEOUT``, at
 most ``MAX_CLIENTS`` at once, a message is at most ``MAX_MESSAGE`` bytes and
 at most ``INBOX`` of them wait per client (websockets stops reading the socket
-beyond that), a slow reader loses its oldest data (``OUTBOX``). At the
+beyond that), a slow reader loses its oldest data (``OUTBOX``). A client
+holds at most ``MAX_SUBSCRIPTIONS`` subscriptions, ``MAX_PER_CHANNEL`` of them
+on one channel, since every message is sent once per subscription: the work
+of one message is bounded whatever the clients ask. The fan-out sends
+``FAN_OUT_BATCH`` messages a turn of the event loop and then lets it serve
+everything else (handshakes, the driver's messages) before the rest, and at
+most ``PENDING`` messages wait for it (the oldest are dropped). At the
 descriptor limit the event loop stops accepting for a second and tries again,
 so the listener serves again once descriptors free up. The event loop runs on
 a thread of its own; ``publish`` is called from the poll loop and never waits.
@@ -49,6 +55,13 @@ OPEN_TIMEOUT = 3.0
 MAX_CLIENTS = 32
 MAX_MESSAGE = 64 * 1024
 INBOX = 16
+#: Subscriptions one client may hold, and on one channel: a viewer needs one per channel.
+MAX_SUBSCRIPTIONS = 64
+MAX_PER_CHANNEL = 4
+#: Messages fanned out per turn of the event loop before it serves its other work again.
+FAN_OUT_BATCH = 32
+#: Messages waiting for the fan-out; beyond it the oldest are dropped (the loop could not keep up).
+PENDING = 4096
 
 Note = Callable[[str], None]
 
@@ -74,8 +87,9 @@ class FoxgloveServer:
         self.most = 0
         self.refused = 0
         self._numbers = 0
-        self._outbox: deque[tuple[Channel, bytes]] = deque()
+        self._outbox: deque[tuple[Channel, bytes]] = deque(maxlen=PENDING)
         self._kicked = False
+        self._kick = threading.Lock()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._server: WsServer | None = None
         self._thread: threading.Thread | None = None
@@ -113,18 +127,33 @@ class FoxgloveServer:
     def publish(self, channel: Channel, payload: bytes, at_ns: int) -> None:
         """Queue one payload for the channel's subscribers; the event loop sends it (never waits here)."""
         self._outbox.append((channel, struct.pack("<Q", at_ns) + payload))
-        if not self._kicked and self._loop is not None:
+        loop = self._loop
+        with self._kick:
+            if self._kicked or loop is None:
+                return
             self._kicked = True
-            with contextlib.suppress(RuntimeError):  # the loop is closing
-                self._loop.call_soon_threadsafe(self._fan_out)
+        with contextlib.suppress(RuntimeError):  # the loop is closing
+            loop.call_soon_threadsafe(self._fan_out)
 
     def _fan_out(self) -> None:
-        self._kicked = False
-        while self._outbox:
+        """Up to ``FAN_OUT_BATCH`` messages to their subscribers; the rest on a later turn of the loop.
+
+        One call is scheduled at a time (``_kicked``): the poll loop schedules it
+        when none is, and it schedules itself again while messages wait.
+        """
+        for _ in range(FAN_OUT_BATCH):
+            if not self._outbox:
+                break
             channel, body = self._outbox.popleft()
             for session, subs in list(channel.subscribers.items()):
                 for sub in subs:
                     session.push(b"\x01" + struct.pack("<I", sub) + body)
+        with self._kick:
+            if not self._outbox:
+                self._kicked = False
+                return
+        if self._loop is not None:
+            self._loop.call_soon(self._fan_out)
 
     # -- lifecycle -----------------------------------------------------------------------
 
@@ -164,6 +193,8 @@ class FoxgloveServer:
         with contextlib.suppress(RuntimeError):
             self._loop.call_soon_threadsafe(self._server.close)
         self._thread.join(5.0)
+        if self.cmd_vel is not None:
+            self.cmd_vel.flush()
 
     async def _serve(self) -> WsServer:
         return await serve(
@@ -288,14 +319,32 @@ class FoxgloveServer:
         handler(session, message)
 
     def _subscribe(self, session: Session, message: dict[str, Any]) -> None:
+        """Each subscription taken unless it is wrong or over a bound; what was refused in one status."""
         by_id = {c.id: c for c in self.channels.values()}
-        for item in _items(message, "subscriptions"):
+        items = _items(message, "subscriptions")
+        wrong = over = 0
+        for at, item in enumerate(items):
+            if len(session.subscriptions) >= MAX_SUBSCRIPTIONS:
+                over += len(items) - at  # the rest is not even looked at
+                break
             sub, channel = item.get("id"), by_id.get(item.get("channelId"))  # type: ignore[arg-type]
             if not isinstance(sub, int) or channel is None or sub in session.subscriptions:
-                session.status(WARNING, f"subscription {shown(sub)} refused: no such channel, or in use")
+                wrong += 1
+                continue
+            subs = channel.subscribers.setdefault(session, set())
+            if len(subs) >= MAX_PER_CHANNEL:
+                over += 1
                 continue
             session.subscriptions[sub] = channel
-            channel.subscribers.setdefault(session, set()).add(sub)
+            subs.add(sub)
+        if wrong:
+            session.status(WARNING, f"{wrong} subscription(s) refused: no such channel, or the id is in use")
+        if over:
+            session.status(
+                WARNING,
+                f"{over} subscription(s) refused: at most {MAX_SUBSCRIPTIONS} per client, "
+                f"{MAX_PER_CHANNEL} on one channel",
+            )
 
     def _unsubscribe(self, session: Session, message: dict[str, Any]) -> None:
         ids = message.get("subscriptionIds")
