@@ -46,6 +46,7 @@ from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
 from .bridge_drive import CmdVelSource
+from .bursts import BurstNotes
 from .untrusted import origin_allowed, shown
 from .wssession import ERROR, WARNING, Channel, Session
 
@@ -81,6 +82,7 @@ class FoxgloveServer:
         self.name, self.host, self.port = name, host, port
         self.cmd_vel = cmd_vel
         self.note = note
+        self._bursts = BurstNotes(note)
         self.allowed = tuple(allowed_origins)
         self.channels: dict[str, Channel] = {}
         self.sessions: set[Session] = set()
@@ -193,6 +195,7 @@ class FoxgloveServer:
         with contextlib.suppress(RuntimeError):
             self._loop.call_soon_threadsafe(self._server.close)
         self._thread.join(5.0)
+        self._bursts.flush()
         if self.cmd_vel is not None:
             self.cmd_vel.flush()
 
@@ -229,8 +232,9 @@ class FoxgloveServer:
             origin = "(several)"
         if not origin_allowed(origin, self.allowed):
             self.refused += 1
-            self.note(
-                f"refused a client from {shown(origin)}: only loopback pages, Foxglove and --allow-origin"
+            self._bursts.say(
+                "clients refused for their origin",
+                f"refused a client from {shown(origin)}: only loopback pages, Foxglove and --allow-origin",
             )
             return connection.respond(
                 HTTPStatus.FORBIDDEN, f"origin {origin} is not allowed (hcrctl bridge --allow-origin)\n"
