@@ -32,7 +32,16 @@ floods from a second client that never drives, run in a process of its own
 - ``big``: 1 MiB messages (a Twist padded with one long string) as fast as
   possible; the server closes the connection at the frame header (over
   ``MAX_MESSAGE``, close 1009) and the flooder reconnects each time, so it
-  is mostly a handshake flood.
+  is mostly a handshake flood;
+- ``subs``: subscription amplification: a client that never reads after its
+  handshake (websockets' sans-I/O protocol on a socket with a 4 KiB receive
+  buffer) subscribes 50,000 ids to ``/hcr/frames`` (25 messages of 2,000),
+  and a new such client comes every ``SUBS_EVERY`` s, ``SUBS_OPEN`` of them
+  held open at once: unbounded, every frame would be sent 50,000 times per
+  client;
+- ``adverts``: an advertise burst: 500 ``/cmd_vel`` channels in cbor per
+  message, as fast as possible (each is refused, and was once a stderr line);
+  the bridge's stderr lines during the round are counted.
 
 The bridge's RSS (``/proc/<pid>/status``) is sampled every ``RSS_EVERY`` s
 during each round: the growth reported is the peak during a round less the
@@ -83,6 +92,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))  # the
 from _common import record
 from _simpty import hcrctl_exe
 from helpers_live import FakeRobot, is_stop
+from helpers_ws import NeverReads, subscribe_all
 
 from hcrctl.motion.governor import RESEND
 from hcrctl.protocol import commands as C
@@ -99,7 +109,11 @@ FLOOD_LEAD = 0.3
 SETTLE = 0.3
 RSS_EVERY = 0.05
 TIMEOUT = 10.0
-KINDS = ("baseline", "small", "big")
+KINDS = ("baseline", "small", "big", "subs", "adverts")
+#: The kinds that are floods, and the ones sent by ``flood_main``'s /cmd_vel loop.
+FLOODS = KINDS[1:]
+SUBS_EVERY = 0.1
+SUBS_OPEN = 8
 
 SUBPROTOCOL = "foxglove.sdk.v1"
 CMD_VEL = 5
@@ -265,6 +279,10 @@ def flood_main(kind: str, port: int) -> int:
 
     done = threading.Event()
     threading.Thread(target=lambda: (sys.stdin.read(), done.set()), daemon=True).start()
+    if kind == "subs":
+        return subs_main(port, done)
+    if kind == "adverts":
+        return adverts_main(port, done)
     message = b"\x01" + struct.pack("<I", CMD_VEL) + FLOOD_PAYLOADS[kind]
     pause = FLOOD_PAUSE[kind]
     sent = connections = refused = 0
@@ -305,11 +323,76 @@ def flood_main(kind: str, port: int) -> int:
     return 0
 
 
+def frames_channel() -> int:
+    """The bridge's channel id of /hcr/frames: channels are numbered from 1 in the topics' order."""
+    from hcrctl.feeds.source import Feed
+    from hcrctl.protocol.topics import all_topics
+
+    return 1 + [t.name for t in all_topics(Feed.counters)].index("/hcr/frames")
+
+
+def subs_main(port: int, done: threading.Event) -> int:
+    """``subs``: never-reading clients, each subscribing 50,000 ids to /hcr/frames, SUBS_OPEN held open."""
+    from websockets.exceptions import InvalidHandshake
+
+    channel = frames_channel()
+    held: list[NeverReads] = []
+    sent = connections = refused = 0
+    start = time.monotonic()
+    while not done.is_set():
+        try:
+            client = NeverReads(port)
+        except (OSError, InvalidHandshake):
+            refused += 1
+            done.wait(SUBS_EVERY)
+            continue
+        connections += 1
+        held.append(client)
+        with contextlib.suppress(OSError):
+            sent += subscribe_all(client, channel)
+        if connections == 1:
+            print("flooding", flush=True)
+        if len(held) > SUBS_OPEN:
+            held.pop(0).close()
+        done.wait(SUBS_EVERY)
+    for client in held:
+        client.close()
+    seconds = time.monotonic() - start
+    print(json.dumps({"sent": sent, "connections": connections, "refused": refused, "seconds": seconds}))
+    return 0
+
+
+def adverts_main(port: int, done: threading.Event) -> int:
+    """``adverts``: 500 /cmd_vel channels in cbor per advertise, as fast as the bridge takes them."""
+    from websockets.exceptions import ConnectionClosed
+    from websockets.sync.client import connect
+
+    channels = [{"id": i, "topic": "/cmd_vel", "encoding": "cbor", "schemaName": "x"} for i in range(500)]
+    message = json.dumps({"op": "advertise", "channels": channels})
+    sent = connections = 0
+    start = time.monotonic()
+    while not done.is_set():
+        with (
+            contextlib.suppress(ConnectionClosed, OSError),
+            connect(f"ws://127.0.0.1:{port}", subprotocols=[SUBPROTOCOL], open_timeout=TIMEOUT) as ws,  # type: ignore[list-item]
+        ):
+            connections += 1
+            while not done.is_set():
+                ws.send(message)
+                sent += len(channels)
+                if sent == 20 * len(channels):
+                    print("flooding", flush=True)
+    seconds = time.monotonic() - start
+    print(json.dumps({"sent": sent, "connections": connections, "refused": 0, "seconds": seconds}))
+    return 0
+
+
 # -- one round ------------------------------------------------------------------------------
 
 
 def one_round(kind: str, robot: FakeRobot, bridge: Bridge, driver: Driver) -> dict[str, Any]:
     """Flood (or not), drive PUBLISHES messages, fall silent: the two latencies, RSS, the flood's counts."""
+    lines_before = len(bridge.lines)
     with flood(kind, bridge.port) as stats, rss_peak(bridge) as rss:
         time.sleep(FLOOD_LEAD if kind != "baseline" else 0.0)
         first = last = driver.publish()
@@ -329,6 +412,7 @@ def one_round(kind: str, robot: FakeRobot, bridge: Bridge, driver: Driver) -> di
         "moved_after_stop": len(after_stop),
         "rss_before_kib": rss[0],
         "rss_grown_kib": rss[1] - rss[0],
+        "stderr_lines": len(bridge.lines) - lines_before,
         **{f"flood_{k}": v for k, v in stats.items()},
     }
 
@@ -347,6 +431,7 @@ def summary(results: list[dict[str, Any]], kind: str) -> dict[str, float]:
         "rss_grown_kib_max": max(grown),
         "repeats_max": max(r["repeats"] for r in mine),
         "moved_after_stop": sum(r["moved_after_stop"] for r in mine),
+        "stderr_lines_max": max(r["stderr_lines"] for r in mine),
     }
     seconds = sum(r.get("flood_seconds", 0.0) for r in mine)
     if seconds:
@@ -366,7 +451,7 @@ def at_most(label: str, value: float, target: float, shown: str = "") -> bool:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=10, help="rounds of each kind (default 10)")
-    parser.add_argument("--flood", choices=("small", "big"), help=argparse.SUPPRESS)
+    parser.add_argument("--flood", choices=FLOODS, help=argparse.SUPPRESS)
     parser.add_argument("--ws-port", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.flood:
@@ -381,12 +466,12 @@ def main() -> int:
                 one_round("baseline", robot, bridge, driver)  # warm-up, not counted
                 rss_start = bridge.rss_kib()
                 for i in range(args.rounds):
-                    for kind in KINDS[i % 3 :] + KINDS[: i % 3]:
+                    for kind in KINDS[i % len(KINDS) :] + KINDS[: i % len(KINDS)]:
                         result = one_round(kind, robot, bridge, driver)
                         results.append(result)
-                        extra = ""
+                        extra = f", {result['stderr_lines']} stderr lines"
                         if "flood_sent" in result:
-                            extra = (
+                            extra += (
                                 f", flood {result['flood_sent']} msgs"
                                 f"/{result['flood_connections']} connections"
                                 f" in {result['flood_seconds']:.2f} s"
@@ -411,7 +496,7 @@ def main() -> int:
     ok = alive
     if not alive:
         print("  MISS the bridge ended during the bench")
-    for kind in ("small", "big"):
+    for kind in FLOODS:
         figure = figures[kind]
         stop_ratio = figure["stop_ms_median"] / base["stop_ms_median"]
         motion_ratio = figure["motion_ms_median"] / base["motion_ms_median"]

@@ -25,12 +25,13 @@ from pathlib import Path
 import pytest
 from helpers import TIMEOUT, hcrctl_exe, wait_until
 from helpers_live import FakeRobot, is_stop
+from helpers_ws import NeverReads, subscribe_all
 from test_bridge import CMD_VEL, TWIST, Bridge, bridge, viewer
 from test_bridge_drive import velocity_of
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 
-from hcrctl.feeds.foxglove_ws import MAX_MESSAGE
+from hcrctl.feeds.foxglove_ws import MAX_ITEMS, MAX_MESSAGE
 from hcrctl.motion.governor import RESEND
 
 DEADMAN = 0.5
@@ -391,37 +392,6 @@ def _served(port: int) -> bool:
 # -- amplification and bursts ---------------------------------------------------------------------
 
 
-class NeverReads:
-    """A WebSocket client that sends and never reads after its handshake (websockets' sans-I/O protocol
-    on a socket with a small receive buffer, so what the server sends it backs up at once)."""
-
-    def __init__(self, port: int) -> None:
-        from websockets.client import ClientProtocol
-        from websockets.uri import parse_uri
-
-        self.sock = socket.socket()
-        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
-        self.sock.settimeout(TIMEOUT)
-        self.sock.connect(("127.0.0.1", port))
-        self.protocol = ClientProtocol(parse_uri(f"ws://127.0.0.1:{port}/"), subprotocols=["foxglove.sdk.v1"])  # type: ignore[list-item]
-        self.protocol.send_request(self.protocol.connect())
-        self._flush()
-        while self.protocol.handshake_exc is None and not self.protocol.events_received():
-            self.protocol.receive_data(self.sock.recv(1))  # the response alone, a byte at a time
-        assert self.protocol.handshake_exc is None, self.protocol.handshake_exc
-
-    def send(self, message: dict[str, object]) -> None:
-        self.protocol.send_text(json.dumps(message).encode())
-        self._flush()
-
-    def _flush(self) -> None:
-        for data in self.protocol.data_to_send():
-            self.sock.sendall(data)
-
-    def close(self) -> None:
-        self.sock.close()
-
-
 def test_fifty_thousand_subscriptions_from_a_client_that_never_reads_leave_the_bridge_serving(
     env: dict[str, str],
 ) -> None:
@@ -431,9 +401,7 @@ def test_fifty_thousand_subscriptions_from_a_client_that_never_reads_leave_the_b
         before = rss_kib(running.proc.pid)
         attacker = NeverReads(running.port)
         try:
-            for first in range(0, 50_000, 2_000):  # 25 messages of 2,000, each under MAX_MESSAGE
-                subs = [{"id": i, "channelId": frames_id} for i in range(first, first + 2_000)]
-                attacker.send({"op": "subscribe", "subscriptions": subs})
+            subscribe_all(attacker, frames_id)
             with viewer(running.port) as second:  # a new client is served, and gets readings
                 second.subscribe("/hcr/compass", 1)
                 assert "heading" in second.data(1)[1]
@@ -449,13 +417,13 @@ def test_fifty_thousand_subscriptions_from_a_client_that_never_reads_leave_the_b
 
 
 def test_a_burst_of_advertises_is_one_stderr_line_and_its_count(env: dict[str, str]) -> None:
-    """10,000 advertises of /cmd_vel in cbor: the first said at once, the rest counted, not a line each."""
+    """10,240 advertises of /cmd_vel in cbor: the first said at once, the rest counted, not a line each."""
     sent = 0
     with running_bridge(env) as (_, running), viewer(running.port) as client:
-        for first in range(0, 10_000, 500):
+        for first in range(0, 160 * MAX_ITEMS, MAX_ITEMS):  # as many as the bridge reads of one message
             channels = [
                 {"id": i, "topic": "/cmd_vel", "encoding": "cbor", "schemaName": "x"}
-                for i in range(first, first + 500)
+                for i in range(first, first + MAX_ITEMS)
             ]
             client.ws.send(json.dumps({"op": "advertise", "channels": channels}))
             sent += len(channels)

@@ -37,7 +37,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterable
 from http import HTTPStatus
-from typing import Any
+from typing import Any, TypeVar
 
 from websockets.asyncio.server import Server as WsServer
 from websockets.asyncio.server import ServerConnection, serve
@@ -59,12 +59,16 @@ INBOX = 16
 #: Subscriptions one client may hold, and on one channel: a viewer needs one per channel.
 MAX_SUBSCRIPTIONS = 64
 MAX_PER_CHANNEL = 4
+#: Items (channels, subscriptions, ids) of one control message looked at: a client needs a few;
+#: the rest are refused unread, so no message costs more than this many items' work.
+MAX_ITEMS = 64
 #: Messages fanned out per turn of the event loop before it serves its other work again.
 FAN_OUT_BATCH = 32
 #: Messages waiting for the fan-out; beyond it the oldest are dropped (the loop could not keep up).
 PENDING = 4096
 
 Note = Callable[[str], None]
+_Item = TypeVar("_Item")
 
 
 class FoxgloveServer:
@@ -257,6 +261,7 @@ class FoxgloveServer:
                 self._received(session, message)
                 if sender.done():
                     break
+                await asyncio.sleep(0)  # one message, then the other clients' turn (the driver's above all)
         except ConnectionClosed:
             pass
         finally:
@@ -325,7 +330,7 @@ class FoxgloveServer:
     def _subscribe(self, session: Session, message: dict[str, Any]) -> None:
         """Each subscription taken unless it is wrong or over a bound; what was refused in one status."""
         by_id = {c.id: c for c in self.channels.values()}
-        items = _items(message, "subscriptions")
+        items = _bounded(session, _items(message, "subscriptions"), "subscriptions")
         wrong = over = 0
         for at, item in enumerate(items):
             if len(session.subscriptions) >= MAX_SUBSCRIPTIONS:
@@ -352,7 +357,7 @@ class FoxgloveServer:
 
     def _unsubscribe(self, session: Session, message: dict[str, Any]) -> None:
         ids = message.get("subscriptionIds")
-        for sub in ids if isinstance(ids, list) else []:
+        for sub in _bounded(session, ids if isinstance(ids, list) else [], "subscription ids"):
             channel = session.subscriptions.pop(sub, None) if isinstance(sub, int) else None
             if channel is not None:
                 subs = channel.subscribers.get(session, set())
@@ -364,7 +369,7 @@ class FoxgloveServer:
         if self.cmd_vel is None:
             session.status(ERROR, "this server does not take client channels")
             return
-        for item in _items(message, "channels"):
+        for item in _bounded(session, _items(message, "channels"), "channels"):
             number, topic = item.get("id"), item.get("topic")
             encoding, schema_name = item.get("encoding"), item.get("schemaName", "")
             if not (
@@ -383,7 +388,7 @@ class FoxgloveServer:
 
     def _unadvertise(self, session: Session, message: dict[str, Any]) -> None:
         ids = message.get("channelIds")
-        for number in ids if isinstance(ids, list) else []:
+        for number in _bounded(session, ids if isinstance(ids, list) else [], "channel ids"):
             if isinstance(number, int) and self.cmd_vel is not None:
                 self.cmd_vel.unadvertised(session.number, number)
 
@@ -401,6 +406,13 @@ class FoxgloveServer:
 
         with contextlib.suppress(RuntimeError):
             self._loop.call_soon_threadsafe(send)
+
+
+def _bounded(session: Session, items: list[_Item], what: str) -> list[_Item]:
+    """The first ``MAX_ITEMS`` of a message's ``items``; the client told, once, that the rest were not read."""
+    if len(items) > MAX_ITEMS:
+        session.status(WARNING, f"{len(items) - MAX_ITEMS} {what} not read: at most {MAX_ITEMS} per message")
+    return items[:MAX_ITEMS]
 
 
 def _items(message: dict[str, Any], key: str) -> list[dict[str, Any]]:
