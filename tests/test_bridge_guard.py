@@ -31,7 +31,7 @@ from test_bridge_drive import velocity_of
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 
-from hcrctl.feeds.foxglove_ws import MAX_ITEMS, MAX_MESSAGE
+from hcrctl.feeds.foxglove_ws import MAX_ITEMS, MAX_MESSAGE, MAX_PER_CHANNEL, MAX_SUBSCRIPTIONS
 from hcrctl.motion.governor import RESEND
 
 DEADMAN = 0.5
@@ -417,10 +417,11 @@ def test_fifty_thousand_subscriptions_from_a_client_that_never_reads_leave_the_b
 
 
 def test_a_burst_of_advertises_is_one_stderr_line_and_its_count(env: dict[str, str]) -> None:
-    """10,240 advertises of /cmd_vel in cbor: the first said at once, the rest counted, not a line each."""
+    """1,920 advertises of /cmd_vel in cbor: the first said at once, the rest counted, not a line each."""
     sent = 0
     with running_bridge(env) as (_, running), viewer(running.port) as client:
-        for first in range(0, 160 * MAX_ITEMS, MAX_ITEMS):  # as many as the bridge reads of one message
+        # as many as the bridge reads of one message, in all less than a client's control budget
+        for first in range(0, 30 * MAX_ITEMS, MAX_ITEMS):
             channels = [
                 {"id": i, "topic": "/cmd_vel", "encoding": "cbor", "schemaName": "x"}
                 for i in range(first, first + MAX_ITEMS)
@@ -438,3 +439,24 @@ def test_a_burst_of_advertises_is_one_stderr_line_and_its_count(env: dict[str, s
         wait_until(lambda: accounted() == sent, what=f"all {sent} advertises said or counted")
     lines = [x for x in running.lines if "cbor" in x or "other than json" in x]
     assert len(lines) <= 2 * 10, lines  # two lines a burst; a burst lasts a second
+
+
+def test_a_client_gets_at_most_its_share_of_subscriptions_and_is_told(env: dict[str, str]) -> None:
+    with running_bridge(env) as (_, running), viewer(running.port) as client:
+        frames_id = client.channels["/hcr/frames"]["id"]
+        subs = [{"id": i, "channelId": frames_id} for i in range(10)]
+        client.ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+        assert client.control("status")["message"] == (
+            f"6 subscription(s) refused: at most {MAX_SUBSCRIPTIONS} per client, {MAX_PER_CHANNEL} on one channel"
+        )
+        for sub in range(MAX_PER_CHANNEL):  # the first four are served
+            client.data(sub)
+        many = [{"id": i, "channelId": frames_id} for i in range(100, 100 + 5 * MAX_ITEMS)]
+        client.ws.send(json.dumps({"op": "subscribe", "subscriptions": many}))
+        assert client.control("status")["message"] == (
+            f"{4 * MAX_ITEMS} subscriptions not read: at most {MAX_ITEMS} per message"
+        )
+        flood = json.dumps({"op": "unadvertise", "channelIds": [1] * 20_000})  # 60 KiB, under MAX_MESSAGE
+        for _ in range(6):  # more than a client's control budget at once
+            client.ws.send(flood)
+        wait_until(lambda: "dropped unread" in client.control("status")["message"], what="the budget said")

@@ -16,7 +16,8 @@ at most ``INBOX`` of them wait per client (websockets stops reading the socket
 beyond that), a slow reader loses its oldest data (``OUTBOX``). A client
 holds at most ``MAX_SUBSCRIPTIONS`` subscriptions, ``MAX_PER_CHANNEL`` of them
 on one channel, since every message is sent once per subscription: the work
-of one message is bounded whatever the clients ask. The fan-out sends
+of one message is bounded whatever the clients ask, as is what a client's
+control messages may cost (``Session.afford``; ``MAX_ITEMS`` items of each). The fan-out sends
 ``FAN_OUT_BATCH`` messages a turn of the event loop and then lets it serve
 everything else (handshakes, the driver's messages) before the rest, and at
 most ``PENDING`` messages wait for it (the oldest are dropped). At the
@@ -48,7 +49,7 @@ from websockets.http11 import Request, Response
 from .bridge_drive import CmdVelSource
 from .bursts import BurstNotes
 from .untrusted import origin_allowed, shown
-from .wssession import ERROR, WARNING, Channel, Session
+from .wssession import CONTROL_RATE, ERROR, WARNING, Channel, Session
 
 #: The current name first: a client offering both gets it.
 SUBPROTOCOLS = ("foxglove.sdk.v1", "foxglove.websocket.v1")
@@ -310,6 +311,9 @@ class FoxgloveServer:
             session.status(WARNING, said)
 
     def _control(self, session: Session, text: str) -> None:
+        if not session.afford(len(text)):
+            session.status(ERROR, f"control messages over {CONTROL_RATE // 1024} KiB/s are dropped unread")
+            return
         try:
             message = json.loads(text)
         except (ValueError, RecursionError):

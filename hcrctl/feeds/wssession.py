@@ -4,7 +4,10 @@ Data waits in a bounded queue that drops the oldest (a slow viewer sees gaps,
 never holds the robot's readings up for anyone else); control messages
 (server info, advertisements, status) wait in their own and go first. A
 status of the same text goes to a client at most once per ``STATUS_EVERY``,
-so a client that floods is not answered with a flood.
+so a client that floods is not answered with a flood. Control messages
+(JSON: subscribe, advertise...) are read on a budget of ``CONTROL_RATE``
+bytes a second with ``CONTROL_BURST`` to start: a viewer sends a few when it
+connects, so more than that is a flood, dropped before it is parsed.
 """
 
 from __future__ import annotations
@@ -20,6 +23,9 @@ from typing import Any
 from websockets.asyncio.server import ServerConnection
 
 OUTBOX = 1024
+#: Control text a client may send, bytes a second, and all at once (a viewer's subscriptions and adverts).
+CONTROL_RATE = 64 * 1024
+CONTROL_BURST = 256 * 1024
 STATUS_EVERY = 1.0
 INFO, WARNING, ERROR = 0, 1, 2
 
@@ -46,6 +52,17 @@ class Session:
         self.control: deque[str] = deque(maxlen=OUTBOX)
         self.wake = asyncio.Event()
         self.said: dict[str, float] = {}
+        self._budget, self._budget_at = float(CONTROL_BURST), time.monotonic()
+
+    def afford(self, size: int) -> bool:
+        """Whether a control message of ``size`` bytes is within this client's budget (then spent)."""
+        now = time.monotonic()
+        self._budget = min(CONTROL_BURST, self._budget + (now - self._budget_at) * CONTROL_RATE)
+        self._budget_at = now
+        if size > self._budget:
+            return False
+        self._budget -= size
+        return True
 
     def push(self, item: bytes) -> None:
         self.data.append(item)
