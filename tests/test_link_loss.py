@@ -291,6 +291,28 @@ def test_watch_stop_key_with_the_link_down_is_delivered_when_it_returns(tmp_path
         assert term.finish(timeout=TIMEOUT) == 0
 
 
+def test_watch_delivers_its_owed_stop_to_the_robot_not_to_a_stranger_at_its_path(tmp_path):
+    """A silent device at the path is polled and sent nothing owed as delivered; quitting hands the stop to
+    the rescue, which delivers it to the robot once it is back."""
+    link = tmp_path / "robot"
+    with watch_owing_a_stop(link) as (term, plugged):
+        stranger = stranger_at(link)
+        try:
+            term.wait_for("no reply", timeout=TIMEOUT)  # the poller re-opened the path: nothing answers there
+            assert "stop delivered" not in " ".join(term.output().split())
+            term.send("q")
+            term.wait_for(lambda _: WARNING in " ".join(term.output().split()), timeout=TIMEOUT)
+            stranger.wait_for(STOP_FRAME)  # the rescue writes stop to whatever holds the path...
+            again = PtyRobot(link)  # ...and keeps trying until the robot answers
+            plugged.append(again)
+            again.wait_for(lambda frames: STOP_FRAME in frames, timeout=TIMEOUT)
+            assert term.finish(timeout=TIMEOUT) == 1
+            out = " ".join(term.output().split())
+            assert DELIVERED in out and UNANSWERED not in out
+        finally:
+            stranger.close()
+
+
 def test_a_port_that_never_returns_gives_up_after_stop_wait_from_the_config_file(env, tmp_path):
     (tmp_path / "hcrctl").mkdir()
     (tmp_path / "hcrctl" / "config.toml").write_text("stop-wait = 0.5\n")
