@@ -15,9 +15,10 @@ import os
 import select
 import signal
 import subprocess
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
+from typing import TypeVar
 
 import pytest
 from helpers import DevicePty, Terminal
@@ -232,20 +233,52 @@ def _wait_released(pid: int, node: str, timeout: float = TIMEOUT) -> None:
 
 def _robot_at(node: str, plugged: list[PtyRobot], tries: int = 64) -> PtyRobot:
     """A new pty pair whose slave is ``node`` again: Linux hands out the lowest free number."""
-    spare: list[PtyRobot] = []
+    robot = _device_at(node, PtyRobot, tries)
+    plugged.append(robot)
+    return robot
+
+
+_Device = TypeVar("_Device", bound=DevicePty)
+
+
+def _device_at(node: str, make: Callable[[], _Device], tries: int = 64) -> _Device:
+    """A new pty pair (``make()``) whose slave is ``node`` again: Linux hands out the lowest free number."""
+    spare: list[DevicePty] = []
     try:
         for _ in range(tries):
-            robot = PtyRobot()
-            if robot.path == node:
-                plugged.append(robot)
-                return robot
-            spare.append(robot)
-            if int(robot.path.rsplit("/", 1)[1]) > int(node.rsplit("/", 1)[1]):
+            device = make()
+            if device.path == node:
+                return device
+            spare.append(device)
+            if int(device.path.rsplit("/", 1)[1]) > int(node.rsplit("/", 1)[1]):
                 break
     finally:
-        for robot in spare:
-            robot.close()
+        for device in spare:
+            device.close()
     pytest.skip(f"another process took {node} before it could be recreated")
+
+
+def test_a_stranger_that_took_the_robots_pty_number_is_not_called_the_robot(env, tmp_path):
+    """The next program to open a pty gets the robot's old /dev/pts number: stop goes to it, unanswered."""
+    with robots(tmp_path) as plugged:
+        plugged.append(PtyRobot())
+        node = plugged[0].path
+        hcr = Hcrctl(["--port", node, "--stop-wait", "2", "drive", "power", "40", "40"], env)
+        try:
+            plugged[0].wait_for(moving, timeout=TIMEOUT)
+            plugged[0].close()
+            hcr.wait_err(WARNING)
+            _wait_released(hcr.proc.pid, node)
+            stranger = _device_at(node, lambda: DevicePty().serve())
+            try:
+                status, _, err = hcr.finish()
+                got = stranger.wait_for(STOP_FRAME)
+            finally:
+                stranger.close()
+        finally:
+            hcr.kill()
+    assert STOP_FRAME in got and status == 1, err
+    assert f"stop written to {node}, {UNANSWERED}" in err.strip().splitlines()[-1], err
 
 
 def test_teleop_gets_stop_delivered_when_the_device_returns(tmp_path):
