@@ -441,3 +441,36 @@ def test_watch_quit_with_a_stop_still_owed_waits_for_the_port_like_any_command(t
         again.wait_for(lambda frames: STOP_FRAME in frames, timeout=TIMEOUT)
         assert term.finish(timeout=TIMEOUT) == 1
         assert DELIVERED in " ".join(term.output().split())
+
+
+def test_a_v011_board_back_at_the_path_is_known_by_its_frames_and_a_stranger_is_not(env, tmp_path):
+    """``hcrctl sim --pty --protocol v0.11`` (a streaming board) killed mid-drive: a silent device at the
+    path is not taken for it; a v0.11 board back at the path is, and stop is delivered."""
+    from helpers import sim_process
+
+    link = tmp_path / "robot"
+    board = ["sim", "--pty", "--protocol", "v0.11"]
+    with sim_process(board, env) as (first, path):
+        link.symlink_to(path)
+        hcr = Hcrctl(["--port", str(link), "--protocol", "v0.11", "drive", "power", "40", "40"], env)
+        try:
+            hcr.wait_err("driving:")
+            first.kill()
+            hcr.wait_err(WARNING)
+            stranger = DevicePty()
+            try:
+                (tmp_path / "next").symlink_to(stranger.path)
+                os.rename(tmp_path / "next", link)
+                stranger.wait_for(bytes.fromhex("55 AA 01 02 01 80 80"))  # stop, written to the stranger
+                assert hcr.proc.poll() is None, hcr.finish()  # not taken for the board: still trying
+                with sim_process(board, env) as (_, again):
+                    (tmp_path / "next").symlink_to(again)
+                    os.rename(tmp_path / "next", link)
+                    status, _, err = hcr.finish()
+            finally:
+                stranger.close()
+        finally:
+            hcr.kill()
+    assert status == 1, err
+    last = err.strip().splitlines()[-1]
+    assert DELIVERED in last and UNANSWERED not in last, err
