@@ -39,7 +39,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator
 from typing import TYPE_CHECKING
 
-from ..errors import HcrError, LinkLostWhileMoving, PortError
+from ..errors import DeviceTimeout, HcrError, LinkLostWhileMoving, PortError
 from ..protocol import commands as C
 from .defaults import BAUD
 from .dialects import frame_of, stop_frames
@@ -124,14 +124,14 @@ def rescue(robot: Robot, frames: StopFrames) -> LinkLostWhileMoving:
         )
         if getattr(reopen, "owned", True):
             robot.close()  # release the dead port (nothing can be sent on it) before re-opening
-        took = _wait_and_stop(robot.port, reopen, list(frames()), started + wait)
+        took, written = _wait_and_stop(robot.port, reopen, list(frames()), started + wait)
     except KeyboardInterrupt:
         return _not_delivered(cause, "gave up on Ctrl-C", 130)
     except Terminated as exc:
         return _not_delivered(cause, f"gave up on {signal.Signals(exc.signum).name}", exc.exit_code)
-    if took is None:
+    if took is None and not written:
         return _not_delivered(cause, f"{robot.port} did not come back within {wait:g} s", 1)
-    if took == _SILENT:
+    if took is None:
         return _not_delivered(
             cause,
             f"nothing at {robot.port} answered as the robot does within {wait:g} s: "
@@ -164,17 +164,13 @@ def _not_delivered(
     return error
 
 
-#: ``_wait_and_stop``'s answer when stop was written to a device at the path that never answered.
-_SILENT = -1.0
-
-
 def _wait_and_stop(
     port: str, reopen: Callable[[], Robot], frames: list[bytes], deadline: float
-) -> float | None:
+) -> tuple[float | None, bool]:
     """Re-open until ``deadline``; send ``frames`` on each success until the robot answers.
 
-    When stop reached a device that answered (monotonic); ``_SILENT`` if it was
-    only ever written to devices that did not; None if the port never opened.
+    When stop reached a device that answered (monotonic; None if none did), and
+    whether it was written at all (to a device that did not answer).
     """
     written = False
     while True:
@@ -182,10 +178,10 @@ def _wait_and_stop(
             with contextlib.suppress(HcrError):
                 at, answered = _send_on(reopen, frames)
                 if answered:
-                    return at
+                    return at, True
                 written = True
         if time.monotonic() >= deadline:
-            return _SILENT if written else None
+            return None, written
         time.sleep(RETRY_S)
 
 
@@ -212,15 +208,19 @@ def answers(robot: Robot) -> bool:
     """Whether the device behind ``robot``'s port answers as the robot does (asked once, with its retries).
 
     A motion command has no reply in either dialect, so the stop itself proves
-    nothing: a read is sent to the robot's address, and either its reply or
-    any other frame from that address counts (a streaming v0.11 firmware
-    sends its bumper and IR frames unasked, whatever it was asked). A device
+    nothing: a read is sent to the robot's address, and either its reply (even
+    one out of range: it came from there) or any other frame from that address
+    counts (a streaming v0.11 firmware sends its bumper and IR frames unasked,
+    whatever it was asked). A device
     that only echoes what it is sent (a pty nobody reads, a loopback) does not
     count: an echo is dropped before it is routed.
     """
     probe = next(c for c in C.COMMANDS if c.kind == "read" and robot.profile.has(c.code))
-    reply = robot.sweep([probe]).get(probe.name)
-    if not isinstance(reply, HcrError):
+    try:
+        reply = robot.sweep([probe]).get(probe.name)
+    except HcrError:  # the link went away again while asking
+        return False
+    if not isinstance(reply, DeviceTimeout):
         return True
     while True:
         try:
