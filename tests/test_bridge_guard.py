@@ -32,6 +32,7 @@ from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 
 from hcrctl.feeds.foxglove_ws import MAX_ITEMS, MAX_MESSAGE, MAX_PER_CHANNEL, MAX_SUBSCRIPTIONS
+from hcrctl.feeds.wssession import STALLED_S
 from hcrctl.motion.governor import RESEND
 
 DEADMAN = 0.5
@@ -460,3 +461,27 @@ def test_a_client_gets_at_most_its_share_of_subscriptions_and_is_told(env: dict[
         for _ in range(6):  # more than a client's control budget at once
             client.ws.send(flood)
         wait_until(lambda: "dropped unread" in client.control("status")["message"], what="the budget said")
+
+
+def test_a_client_that_reads_nothing_is_dropped_and_the_others_are_served(env: dict[str, str]) -> None:
+    """Its socket full, every send to it waits: after STALLED_S the bridge drops it (keepalive cannot)."""
+    with running_bridge(env, "--rate", "max") as (_, running), viewer(running.port) as reader:
+        attacker = NeverReads(running.port)
+        try:
+            subs = [
+                {"id": 10 * c["id"] + k, "channelId": c["id"]}
+                for c in reader.channels.values()
+                for k in range(MAX_PER_CHANNEL)
+            ]
+            attacker.send({"op": "subscribe", "subscriptions": subs})
+            # filling its socket and the bridge's send buffer takes a while before STALLED_S even starts
+            line = wait_until(
+                lambda: next((x for x in running.lines if "read nothing" in x), None),
+                timeout=STALLED_S + 3 * TIMEOUT,
+                what="the client that reads nothing dropped",
+            )
+        finally:
+            attacker.close()
+        assert line.endswith(f"dropped client 2: it read nothing for {STALLED_S:g} s")
+        reader.subscribe("/hcr/compass", 1)
+        assert "heading" in reader.data(1)[1]  # the client that reads is still served

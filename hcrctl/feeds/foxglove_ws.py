@@ -49,7 +49,7 @@ from websockets.http11 import Request, Response
 from .bridge_drive import CmdVelSource
 from .bursts import BurstNotes
 from .untrusted import origin_allowed, shown
-from .wssession import CONTROL_RATE, ERROR, WARNING, Channel, Session
+from .wssession import CONTROL_RATE, ERROR, STALLED_S, WARNING, Channel, Session
 
 #: The current name first: a client offering both gets it.
 SUBPROTOCOLS = ("foxglove.sdk.v1", "foxglove.websocket.v1")
@@ -65,6 +65,8 @@ MAX_PER_CHANNEL = 4
 MAX_ITEMS = 64
 #: Messages fanned out per turn of the event loop before it serves its other work again.
 FAN_OUT_BATCH = 32
+#: How often clients that read nothing are looked for (``Session.stalled``).
+REAP_EVERY = 1.0
 #: Messages waiting for the fan-out; beyond it the oldest are dropped (the loop could not keep up).
 PENDING = 4096
 
@@ -100,6 +102,7 @@ class FoxgloveServer:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._server: WsServer | None = None
         self._thread: threading.Thread | None = None
+        self._reaper: asyncio.TimerHandle | None = None
         self._told_full = 0.0
         self._logger = logging.getLogger("hcrctl.bridge.websocket")
         self._logger.addHandler(logging.NullHandler())
@@ -182,7 +185,9 @@ class FoxgloveServer:
                 loop.close()
                 return
             started.set()
+            self._reaper = loop.call_later(REAP_EVERY, self._reap)
             loop.run_until_complete(self._server.wait_closed())
+            self._reaper.cancel()
             loop.run_until_complete(loop.shutdown_asyncgens())
             loop.close()
 
@@ -218,6 +223,18 @@ class FoxgloveServer:
             server_header=None,
             logger=self._logger,
         )
+
+    def _reap(self) -> None:
+        """Drop the clients that read nothing (``Session.stalled``); again in ``REAP_EVERY`` s."""
+        now = time.monotonic()
+        for session in [s for s in self.sessions if s.stalled(now)]:
+            self._bursts.say(
+                "clients dropped for reading nothing",
+                f"dropped client {session.number}: it read nothing for {STALLED_S:g} s",
+            )
+            session.ws.transport.abort()  # closing would wait to send its close frame, behind the rest
+        if self._loop is not None:
+            self._reaper = self._loop.call_later(REAP_EVERY, self._reap)
 
     def _loop_error(self, loop: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
         """The loop's own errors (out of descriptors at accept, above all): said once a minute, never a traceback."""

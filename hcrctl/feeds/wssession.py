@@ -8,6 +8,12 @@ so a client that floods is not answered with a flood. Control messages
 (JSON: subscribe, advertise...) are read on a budget of ``CONTROL_RATE``
 bytes a second with ``CONTROL_BURST`` to start: a viewer sends a few when it
 connects, so more than that is a flood, dropped before it is parsed.
+
+A client that reads nothing for ``STALLED_S`` (a send to it still waiting
+for room in its socket) is ``stalled``: the server drops it, since its queue
+would only ever drop, and it holds one of the server's client places.
+Websockets' own keepalive cannot tell: its ping waits behind the same full
+socket, and its timeout starts only once the ping is out.
 """
 
 from __future__ import annotations
@@ -27,6 +33,8 @@ OUTBOX = 1024
 CONTROL_RATE = 64 * 1024
 CONTROL_BURST = 256 * 1024
 STATUS_EVERY = 1.0
+#: A send to a client waiting this long for room in its socket: the client reads nothing, and is dropped.
+STALLED_S = 10.0
 INFO, WARNING, ERROR = 0, 1, 2
 
 
@@ -53,6 +61,7 @@ class Session:
         self.wake = asyncio.Event()
         self.said: dict[str, float] = {}
         self._budget, self._budget_at = float(CONTROL_BURST), time.monotonic()
+        self._sending_since: float | None = None
 
     def afford(self, size: int) -> bool:
         """Whether a control message of ``size`` bytes is within this client's budget (then spent)."""
@@ -86,4 +95,11 @@ class Session:
             await self.wake.wait()
             self.wake.clear()
             while self.control or self.data:
+                self._sending_since = time.monotonic()
                 await self.ws.send(self.control.popleft() if self.control else self.data.popleft())
+                self._sending_since = None
+
+    def stalled(self, now: float) -> bool:
+        """Whether a send to this client has waited ``STALLED_S`` for room: it reads nothing."""
+        since = self._sending_since
+        return since is not None and now - since >= STALLED_S
