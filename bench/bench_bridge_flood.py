@@ -35,13 +35,14 @@ floods from a second client that never drives, run in a process of its own
   is mostly a handshake flood;
 - ``subs``: subscription amplification: a client that never reads after its
   handshake (websockets' sans-I/O protocol on a socket with a 4 KiB receive
-  buffer) subscribes 50,000 ids to ``/hcr/frames`` (25 messages of 2,000),
-  and a new such client comes every ``SUBS_EVERY`` s, ``SUBS_OPEN`` of them
-  held open at once: unbounded, every frame would be sent 50,000 times per
-  client;
+  buffer) subscribes up to 50,000 ids to ``/hcr/frames`` (messages of 2,000,
+  until a send waits ``SUBS_EVERY`` s: the bridge reads a client beyond its
+  control budget only at the budget's pace), and a new such client comes
+  every ``SUBS_EVERY`` s, ``SUBS_OPEN`` of them held open at once: unbounded,
+  every frame would be sent once per id to each;
 - ``adverts``: an advertise burst: 500 ``/cmd_vel`` channels in cbor per
-  message, as fast as possible (each is refused, and was once a stderr line);
-  the bridge's stderr lines during the round are counted.
+  message, as fast as the bridge takes them (each is refused, and was once a
+  stderr line); the bridge's stderr lines during the round are counted.
 
 The bridge's RSS (``/proc/<pid>/status``) is sampled every ``RSS_EVERY`` s
 during each round: the growth reported is the peak during a round less the
@@ -341,15 +342,14 @@ def subs_main(port: int, done: threading.Event) -> int:
     start = time.monotonic()
     while not done.is_set():
         try:
-            client = NeverReads(port)
+            client = NeverReads(port, timeout=SUBS_EVERY)  # a send the bridge holds back ends its turn
         except (OSError, InvalidHandshake):
             refused += 1
             done.wait(SUBS_EVERY)
             continue
         connections += 1
         held.append(client)
-        with contextlib.suppress(OSError):
-            sent += subscribe_all(client, channel)
+        sent += subscribe_all(client, channel)
         if connections == 1:
             print("flooding", flush=True)
         if len(held) > SUBS_OPEN:

@@ -17,7 +17,7 @@ beyond that), a slow reader loses its oldest data (``OUTBOX``). A client
 holds at most ``MAX_SUBSCRIPTIONS`` subscriptions, ``MAX_PER_CHANNEL`` of them
 on one channel, since every message is sent once per subscription: the work
 of one message is bounded whatever the clients ask, as is what a client's
-control messages may cost (``Session.afford``; ``MAX_ITEMS`` items of each). The fan-out sends
+control messages may cost (``Session.spend``; ``MAX_ITEMS`` items of each). The fan-out sends
 ``FAN_OUT_BATCH`` messages a turn of the event loop and then lets it serve
 everything else (handshakes, the driver's messages) before the rest, and at
 most ``PENDING`` messages wait for it (the oldest are dropped). At the
@@ -279,7 +279,8 @@ class FoxgloveServer:
                 self._received(session, message)
                 if sender.done():
                     break
-                await asyncio.sleep(0)  # one message, then the other clients' turn (the driver's above all)
+                # one message, then the other clients' turn; a client beyond its budget waits until within it
+                await asyncio.sleep(session.owed())
         except ConnectionClosed:
             pass
         finally:
@@ -328,9 +329,10 @@ class FoxgloveServer:
             session.status(WARNING, said)
 
     def _control(self, session: Session, text: str) -> None:
-        if not session.afford(len(text)):
-            session.status(ERROR, f"control messages over {CONTROL_RATE // 1024} KiB/s are dropped unread")
-            return
+        if session.spend(len(text)):
+            session.status(
+                WARNING, f"control messages beyond {CONTROL_RATE // 1024} KiB/s are read at that pace"
+            )
         try:
             message = json.loads(text)
         except (ValueError, RecursionError):

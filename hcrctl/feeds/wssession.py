@@ -7,7 +7,8 @@ status of the same text goes to a client at most once per ``STATUS_EVERY``,
 so a client that floods is not answered with a flood. Control messages
 (JSON: subscribe, advertise...) are read on a budget of ``CONTROL_RATE``
 bytes a second with ``CONTROL_BURST`` to start: a viewer sends a few when it
-connects, so more than that is a flood, dropped before it is parsed.
+connects; a client beyond it is read again only once it is back within it
+(``owed``), so the rest of its flood waits in its own socket at no cost.
 
 A client that reads nothing for ``STALLED_S`` (a send to it still waiting
 for room in its socket) is ``stalled``: the server drops it, since its queue
@@ -63,15 +64,17 @@ class Session:
         self._budget, self._budget_at = float(CONTROL_BURST), time.monotonic()
         self._sending_since: float | None = None
 
-    def afford(self, size: int) -> bool:
-        """Whether a control message of ``size`` bytes is within this client's budget (then spent)."""
+    def spend(self, size: int) -> bool:
+        """A control message of ``size`` bytes, paid from the budget; whether it took the client beyond it."""
         now = time.monotonic()
-        self._budget = min(CONTROL_BURST, self._budget + (now - self._budget_at) * CONTROL_RATE)
+        within = self._budget >= 0
+        self._budget = min(CONTROL_BURST, self._budget + (now - self._budget_at) * CONTROL_RATE) - size
         self._budget_at = now
-        if size > self._budget:
-            return False
-        self._budget -= size
-        return True
+        return within and self._budget < 0
+
+    def owed(self) -> float:
+        """Seconds until the client is back within its budget (0 if it is): its next message waits that long."""
+        return max(0.0, -self._budget) / CONTROL_RATE
 
     def push(self, item: bytes) -> None:
         self.data.append(item)
