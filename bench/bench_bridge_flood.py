@@ -363,27 +363,34 @@ def subs_main(port: int, done: threading.Event) -> int:
 
 
 def adverts_main(port: int, done: threading.Event) -> int:
-    """``adverts``: 500 /cmd_vel channels in cbor per advertise, as fast as the bridge takes them."""
-    from websockets.exceptions import ConnectionClosed
-    from websockets.sync.client import connect
+    """``adverts``: 500 /cmd_vel channels in cbor per advertise, as fast as the bridge takes them.
+
+    Sent by a ``NeverReads`` client whose sends give up after ``SUBS_EVERY`` s (a send cut short
+    leaves its stream torn, so the client is replaced), so the process ends when its stdin closes.
+    """
+    from websockets.exceptions import InvalidHandshake
 
     channels = [{"id": i, "topic": "/cmd_vel", "encoding": "cbor", "schemaName": "x"} for i in range(500)]
-    message = json.dumps({"op": "advertise", "channels": channels})
-    sent = connections = 0
+    message = {"op": "advertise", "channels": channels}
+    sent = connections = refused = 0
     start = time.monotonic()
     while not done.is_set():
-        with (
-            contextlib.suppress(ConnectionClosed, OSError),
-            connect(f"ws://127.0.0.1:{port}", subprotocols=[SUBPROTOCOL], open_timeout=TIMEOUT) as ws,  # type: ignore[list-item]
-        ):
-            connections += 1
+        try:
+            client = NeverReads(port, timeout=SUBS_EVERY)
+        except (OSError, InvalidHandshake):
+            refused += 1
+            done.wait(SUBS_EVERY)
+            continue
+        connections += 1
+        with contextlib.suppress(OSError):
             while not done.is_set():
-                ws.send(message)
+                client.send(message)
                 sent += len(channels)
                 if sent == 20 * len(channels):
                     print("flooding", flush=True)
+        client.close()
     seconds = time.monotonic() - start
-    print(json.dumps({"sent": sent, "connections": connections, "refused": 0, "seconds": seconds}))
+    print(json.dumps({"sent": sent, "connections": connections, "refused": refused, "seconds": seconds}))
     return 0
 
 

@@ -279,8 +279,8 @@ class FoxgloveServer:
                 self._received(session, message)
                 if sender.done():
                     break
-                # one message, then the other clients' turn; a client beyond its budget waits until within it
-                await asyncio.sleep(session.owed())
+                if not await session.paced():  # one message, then the other clients' turn
+                    break
         except ConnectionClosed:
             pass
         finally:

@@ -76,6 +76,19 @@ class Session:
         """Seconds until the client is back within its budget (0 if it is): its next message waits that long."""
         return max(0.0, -self._budget) / CONTROL_RATE
 
+    async def paced(self) -> bool:
+        """Before the client's next message: one turn of the loop, or until it is back within its budget;
+        False if it left meanwhile (what it queued before leaving is then not read)."""
+        owed = self.owed()
+        if not owed:
+            await asyncio.sleep(0)
+            return True
+        closed = asyncio.ensure_future(self.ws.wait_closed())
+        await asyncio.wait({closed}, timeout=owed)
+        left = closed.done()
+        closed.cancel()
+        return not left
+
     def push(self, item: bytes) -> None:
         self.data.append(item)
         self.wake.set()
