@@ -41,6 +41,16 @@ floods from a second client that never drives, run in a process of its own
   every channel and unsubscribing again, ~1 kHz of each, draining what the
   server sends. (A servo flood has no bridge counterpart: the bridge
   takes no writes but ``/cmd_vel``.)
+- ``subs``: subscription amplification: a client that never reads after its
+  handshake (websockets' sans-I/O protocol on a socket with a 4 KiB receive
+  buffer) subscribes up to 50,000 ids to ``/hcr/frames`` (messages of 2,000,
+  until a send waits ``SUBS_EVERY`` s: the bridge reads a client beyond its
+  control budget only at the budget's pace), and a new such client comes
+  every ``SUBS_EVERY`` s, ``SUBS_OPEN`` of them held open at once: unbounded,
+  every frame would be sent once per id to each;
+- ``adverts``: an advertise burst: 500 ``/cmd_vel`` channels in cbor per
+  message, as fast as the bridge takes them (each is refused, and was once a
+  stderr line); the bridge's stderr lines during the round are counted.
 
 The bridge's RSS (``/proc/<pid>/status``) is sampled every ``RSS_EVERY`` s
 during each round: the growth reported is the peak during a round less the
@@ -91,6 +101,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))  # the
 from _common import record
 from _simpty import hcrctl_exe
 from helpers_live import FakeRobot, is_stop
+from helpers_ws import NeverReads, subscribe_all
 
 from hcrctl.motion.governor import RESEND
 from hcrctl.protocol import commands as C
@@ -107,9 +118,13 @@ FLOOD_LEAD = 0.3
 SETTLE = 0.3
 RSS_EVERY = 0.05
 TIMEOUT = 10.0
-KINDS = ("baseline", "small", "big", "clients", "reads")
+KINDS = ("baseline", "small", "big", "clients", "reads", "subs", "adverts")
+#: The kinds that are floods.
+FLOODS = KINDS[1:]
 #: Connections of the ``clients`` flood.
 CLIENTS = 20
+SUBS_EVERY = 0.1
+SUBS_OPEN = 8
 
 SUBPROTOCOL = "foxglove.sdk.v1"
 CMD_VEL = 5
@@ -353,6 +368,10 @@ def flood_main(kind: str, port: int) -> int:
         counts = (many_clients_main if kind == "clients" else subscriptions_main)(port, done)
         print(json.dumps({**counts, "seconds": time.monotonic() - start}))
         return 0
+    if kind == "subs":
+        return subs_main(port, done)
+    if kind == "adverts":
+        return adverts_main(port, done)
     message = b"\x01" + struct.pack("<I", CMD_VEL) + FLOOD_PAYLOADS[kind]
     pause = FLOOD_PAUSE[kind]
     sent = connections = refused = 0
@@ -393,11 +412,82 @@ def flood_main(kind: str, port: int) -> int:
     return 0
 
 
+def frames_channel() -> int:
+    """The bridge's channel id of /hcr/frames: channels are numbered from 1 in the topics' order."""
+    from hcrctl.feeds.source import Feed
+    from hcrctl.protocol.topics import all_topics
+
+    return 1 + [t.name for t in all_topics(Feed.counters)].index("/hcr/frames")
+
+
+def subs_main(port: int, done: threading.Event) -> int:
+    """``subs``: never-reading clients, each subscribing 50,000 ids to /hcr/frames, SUBS_OPEN held open."""
+    from websockets.exceptions import InvalidHandshake
+
+    channel = frames_channel()
+    held: list[NeverReads] = []
+    sent = connections = refused = 0
+    start = time.monotonic()
+    while not done.is_set():
+        try:
+            client = NeverReads(port, timeout=SUBS_EVERY)  # a send the bridge holds back ends its turn
+        except (OSError, InvalidHandshake):
+            refused += 1
+            done.wait(SUBS_EVERY)
+            continue
+        connections += 1
+        held.append(client)
+        sent += subscribe_all(client, channel)
+        if connections == 1:
+            print("flooding", flush=True)
+        if len(held) > SUBS_OPEN:
+            held.pop(0).close()
+        done.wait(SUBS_EVERY)
+    for client in held:
+        client.close()
+    seconds = time.monotonic() - start
+    print(json.dumps({"sent": sent, "connections": connections, "refused": refused, "seconds": seconds}))
+    return 0
+
+
+def adverts_main(port: int, done: threading.Event) -> int:
+    """``adverts``: 500 /cmd_vel channels in cbor per advertise, as fast as the bridge takes them.
+
+    Sent by a ``NeverReads`` client whose sends give up after ``SUBS_EVERY`` s (a send cut short
+    leaves its stream torn, so the client is replaced), so the process ends when its stdin closes.
+    """
+    from websockets.exceptions import InvalidHandshake
+
+    channels = [{"id": i, "topic": "/cmd_vel", "encoding": "cbor", "schemaName": "x"} for i in range(500)]
+    message = {"op": "advertise", "channels": channels}
+    sent = connections = refused = 0
+    start = time.monotonic()
+    while not done.is_set():
+        try:
+            client = NeverReads(port, timeout=SUBS_EVERY)
+        except (OSError, InvalidHandshake):
+            refused += 1
+            done.wait(SUBS_EVERY)
+            continue
+        connections += 1
+        with contextlib.suppress(OSError):
+            while not done.is_set():
+                client.send(message)
+                sent += len(channels)
+                if sent == 20 * len(channels):
+                    print("flooding", flush=True)
+        client.close()
+    seconds = time.monotonic() - start
+    print(json.dumps({"sent": sent, "connections": connections, "refused": refused, "seconds": seconds}))
+    return 0
+
+
 # -- one round ------------------------------------------------------------------------------
 
 
 def one_round(kind: str, robot: FakeRobot, bridge: Bridge, driver: Driver) -> dict[str, Any]:
     """Flood (or not), drive PUBLISHES messages, fall silent: the two latencies, RSS, the flood's counts."""
+    lines_before = len(bridge.lines)
     with flood(kind, bridge.port) as stats, rss_peak(bridge) as rss:
         time.sleep(FLOOD_LEAD if kind != "baseline" else 0.0)
         first = last = driver.publish()
@@ -417,6 +507,7 @@ def one_round(kind: str, robot: FakeRobot, bridge: Bridge, driver: Driver) -> di
         "moved_after_stop": len(after_stop),
         "rss_before_kib": rss[0],
         "rss_grown_kib": rss[1] - rss[0],
+        "stderr_lines": len(bridge.lines) - lines_before,
         **{f"flood_{k}": v for k, v in stats.items()},
     }
 
@@ -435,6 +526,7 @@ def summary(results: list[dict[str, Any]], kind: str) -> dict[str, float]:
         "rss_grown_kib_max": max(grown),
         "repeats_max": max(r["repeats"] for r in mine),
         "moved_after_stop": sum(r["moved_after_stop"] for r in mine),
+        "stderr_lines_max": max(r["stderr_lines"] for r in mine),
     }
     seconds = sum(r.get("flood_seconds", 0.0) for r in mine)
     if seconds:
@@ -454,7 +546,7 @@ def at_most(label: str, value: float, target: float, shown: str = "") -> bool:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=10, help="rounds of each kind (default 10)")
-    parser.add_argument("--flood", choices=KINDS[1:], help=argparse.SUPPRESS)
+    parser.add_argument("--flood", choices=FLOODS, help=argparse.SUPPRESS)
     parser.add_argument("--ws-port", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.flood:
@@ -472,9 +564,9 @@ def main() -> int:
                     for kind in KINDS[i % len(KINDS) :] + KINDS[: i % len(KINDS)]:
                         result = one_round(kind, robot, bridge, driver)
                         results.append(result)
-                        extra = ""
+                        extra = f", {result['stderr_lines']} stderr lines"
                         if "flood_sent" in result:
-                            extra = (
+                            extra += (
                                 f", flood {result['flood_sent']} msgs"
                                 f"/{result['flood_connections']} connections"
                                 f" in {result['flood_seconds']:.2f} s"
@@ -499,7 +591,7 @@ def main() -> int:
     ok = alive
     if not alive:
         print("  MISS the bridge ended during the bench")
-    for kind in KINDS[1:]:
+    for kind in FLOODS:
         figure = figures[kind]
         stop_ratio = figure["stop_ms_median"] / base["stop_ms_median"]
         motion_ratio = figure["motion_ms_median"] / base["motion_ms_median"]

@@ -11,7 +11,9 @@ Run from the repository root with the interpreter hcrctl is installed in:
    the device stays away for ``--away`` seconds;
 3. a new pty pair is made and the link renamed into place over it in one
    step (the moment the device is back: t0); the master end is read until the
-   stop frame arrives (t1). The figure is t1 - t0.
+   stop frame arrives (t1). The figure is t1 - t0. The device then answers as
+   the robot does (the simulator's model), since hcrctl asks for a read after
+   the stop to know that the robot, not another device, got it.
 
 The reference is hcrctl's retry period (``rescue.RETRY_S``): a poll that
 tries the path every RETRY_S finds it on average RETRY_S/2 after it returns,
@@ -49,15 +51,28 @@ def pty_pair() -> tuple[int, int, str]:
     return master, slave, os.ttyname(slave)
 
 
-def read_until(fd: int, needle: bytes, timeout: float = TIMEOUT) -> float:
-    """Read ``fd`` until ``needle`` arrived; when it did (monotonic)."""
+def read_until(fd: int, needle: bytes, timeout: float = TIMEOUT) -> tuple[float, bytes]:
+    """Read ``fd`` until ``needle`` arrived; when it did (monotonic), and what came from it on."""
     got, deadline = b"", time.monotonic() + timeout
     while needle not in got:
         ready, _, _ = select.select([fd], [], [], max(0.0, deadline - time.monotonic()))
         if not ready:
             raise RuntimeError(f"{needle.hex(' ')} did not arrive within {timeout} s (got {got.hex(' ')})")
         got += os.read(fd, 4096)
-    return time.monotonic()
+    return time.monotonic(), got[got.index(needle) :]
+
+
+def answer_until_exit(fd: int, proc: subprocess.Popen[bytes], pending: bytes) -> None:
+    """Answer on ``fd`` as the robot does (the simulator's model) until ``proc`` ends."""
+    from hcrctl.sim.simulator import SimOptions, Simulator
+
+    sim = Simulator(SimOptions(broadcast_hz=0.0, map_hz=0.0))
+    deadline = time.monotonic() + TIMEOUT
+    while proc.poll() is None and time.monotonic() < deadline:
+        if pending and (reply := sim.feed(pending)):
+            os.write(fd, reply)
+        ready, _, _ = select.select([fd], [], [], 0.05)
+        pending = os.read(fd, 4096) if ready else b""
 
 
 def wait_stderr(proc: subprocess.Popen[bytes], text: bytes) -> None:
@@ -90,7 +105,8 @@ def one_run(tmp: Path, away: float) -> float:
         (tmp / "new").symlink_to(path)
         os.rename(tmp / "new", link)  # the device is back, atomically
         back = time.monotonic()
-        stopped = read_until(master, STOP)
+        stopped, pending = read_until(master, STOP)
+        answer_until_exit(master, proc, pending)
         proc.wait(timeout=TIMEOUT)
         os.close(master)
         os.close(slave)

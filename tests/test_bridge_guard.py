@@ -25,12 +25,14 @@ from pathlib import Path
 import pytest
 from helpers import TIMEOUT, hcrctl_exe, wait_until
 from helpers_live import FakeRobot, is_stop
+from helpers_ws import NeverReads, subscribe_all
 from test_bridge import CMD_VEL, TWIST, Bridge, bridge, viewer
 from test_bridge_drive import velocity_of
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 
-from hcrctl.feeds.foxglove_ws import MAX_MESSAGE
+from hcrctl.feeds.foxglove_ws import MAX_ITEMS, MAX_MESSAGE, MAX_PER_CHANNEL, MAX_SUBSCRIPTIONS
+from hcrctl.feeds.wssession import STALLED_S
 from hcrctl.motion.governor import RESEND
 from hcrctl.protocol import commands as C
 
@@ -414,3 +416,101 @@ def _served(port: int) -> bool:
             return True
     except InvalidStatus:
         return False
+
+
+# -- amplification and bursts ---------------------------------------------------------------------
+
+
+def test_fifty_thousand_subscriptions_from_a_client_that_never_reads_leave_the_bridge_serving(
+    env: dict[str, str],
+) -> None:
+    """Each frame would be sent once per subscription: the bound keeps it to a few, the fan-out yields."""
+    with running_bridge(env) as (robot, running), viewer(running.port) as driver:
+        frames_id = driver.channels["/hcr/frames"]["id"]
+        before = rss_kib(running.proc.pid)
+        attacker = NeverReads(running.port)
+        try:
+            # sent on a thread: the bridge reads it at its control budget's pace, so the sends wait
+            threading.Thread(target=subscribe_all, args=(attacker, frames_id), daemon=True).start()
+            with viewer(running.port) as second:  # a new client is served, and gets readings
+                second.subscribe("/hcr/compass", 1)
+                assert "heading" in second.data(1)[1]
+                last = drive(second, robot)
+                repeats, _ = repeats_then_stop(robot, last)  # the deadman still stops
+                assert repeats <= MAX_REPEATS
+            grown = rss_kib(running.proc.pid) - before
+            assert grown < 64 * 1024, f"the bridge grew by {grown} KiB"
+        finally:
+            attacker.close()
+        assert running.proc.poll() is None
+    assert "Traceback" not in "\n".join(running.lines)
+
+
+def test_a_burst_of_advertises_is_one_stderr_line_and_its_count(env: dict[str, str]) -> None:
+    """1,920 advertises of /cmd_vel in cbor: the first said at once, the rest counted, not a line each."""
+    sent = 0
+    with running_bridge(env) as (_, running), viewer(running.port) as client:
+        # as many as the bridge reads of one message, in all less than a client's control budget
+        for first in range(0, 30 * MAX_ITEMS, MAX_ITEMS):
+            channels = [
+                {"id": i, "topic": "/cmd_vel", "encoding": "cbor", "schemaName": "x"}
+                for i in range(first, first + MAX_ITEMS)
+            ]
+            client.ws.send(json.dumps({"op": "advertise", "channels": channels}))
+            sent += len(channels)
+        said = re.compile(r"advertised /cmd_vel in cbor: only json is accepted$")
+        counted = re.compile(r"/cmd_vel advertised in an encoding other than json: ([\d,]+) more in 1 s$")
+
+        def accounted() -> int:
+            firsts = sum(1 for line in running.lines if said.search(line))
+            more = sum(int(m.group(1).replace(",", "")) for x in running.lines if (m := counted.search(x)))
+            return firsts + more
+
+        wait_until(lambda: accounted() == sent, what=f"all {sent} advertises said or counted")
+    lines = [x for x in running.lines if "cbor" in x or "other than json" in x]
+    assert len(lines) <= 2 * 10, lines  # two lines a burst; a burst lasts a second
+
+
+def test_a_client_gets_at_most_its_share_of_subscriptions_and_is_told(env: dict[str, str]) -> None:
+    with running_bridge(env) as (_, running), viewer(running.port) as client:
+        frames_id = client.channels["/hcr/frames"]["id"]
+        subs = [{"id": i, "channelId": frames_id} for i in range(10)]
+        client.ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+        assert client.control("status")["message"] == (
+            f"6 subscription(s) refused: at most {MAX_SUBSCRIPTIONS} per client, {MAX_PER_CHANNEL} on one channel"
+        )
+        for sub in range(MAX_PER_CHANNEL):  # the first four are served
+            client.data(sub)
+        many = [{"id": i, "channelId": frames_id} for i in range(100, 100 + 5 * MAX_ITEMS)]
+        client.ws.send(json.dumps({"op": "subscribe", "subscriptions": many}))
+        assert client.control("status")["message"] == (
+            f"{4 * MAX_ITEMS} subscriptions not read: at most {MAX_ITEMS} per message"
+        )
+        flood = json.dumps({"op": "unadvertise", "channelIds": [1] * 20_000})  # 60 KiB, under MAX_MESSAGE
+        for _ in range(6):  # more than a client's control budget at once
+            client.ws.send(flood)
+        wait_until(lambda: "read at that pace" in client.control("status")["message"], what="the budget said")
+
+
+def test_a_client_that_reads_nothing_is_dropped_and_the_others_are_served(env: dict[str, str]) -> None:
+    """Its socket full, every send to it waits: after STALLED_S the bridge drops it (keepalive cannot)."""
+    with running_bridge(env, "--rate", "max") as (_, running), viewer(running.port) as reader:
+        attacker = NeverReads(running.port)
+        try:
+            subs = [
+                {"id": 10 * c["id"] + k, "channelId": c["id"]}
+                for c in reader.channels.values()
+                for k in range(MAX_PER_CHANNEL)
+            ]
+            attacker.send({"op": "subscribe", "subscriptions": subs})
+            # filling its socket and the bridge's send buffer takes a while before STALLED_S even starts
+            line = wait_until(
+                lambda: next((x for x in running.lines if "read nothing" in x), None),
+                timeout=STALLED_S + 3 * TIMEOUT,
+                what="the client that reads nothing dropped",
+            )
+        finally:
+            attacker.close()
+        assert line.endswith(f"dropped client 2: it read nothing for {STALLED_S:g} s")
+        reader.subscribe("/hcr/compass", 1)
+        assert "heading" in reader.data(1)[1]  # the client that reads is still served

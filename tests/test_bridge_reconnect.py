@@ -16,8 +16,9 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from helpers import DevicePty
 from helpers_shell import STOP_FRAME, PtyRobot
-from test_bridge import Bridge, bridge, drive_until_moving, viewer
+from test_bridge import TWIST, Bridge, bridge, drive_until_moving, viewer
 
 DELIVERED = "while the robot was moving: stop delivered after"
 
@@ -126,3 +127,59 @@ def test_a_port_gone_mid_drive_is_said_and_the_robot_plugged_back_is_not_driven_
         )  # swept a few times, 10 s inside the deadman
     assert line.endswith(f"warning: {link} went away: the drive lease is ended; re-opening it")
     assert not moving(frames)
+
+
+def test_a_stranger_at_the_path_is_not_back_is_never_driven_and_its_stop_is_not_called_delivered(
+    env: dict[str, str], tmp_path: Path
+) -> None:
+    """Another device takes the path after a loss mid-drive: no "is back", no motion to it, and the
+    end-of-run stop says it was written to the path but nothing answered."""
+    link = tmp_path / "robot"
+    with (
+        robots(link) as plugged,
+        bridge(str(link), "--deadman", "10", env={**env, "HCRCTL_STOP_WAIT": "2"}) as running,
+        viewer(running.port) as client,
+    ):
+        drive_until_moving(client, plugged[0])
+        plugged[0].close()
+        running.wait_line("went away")
+        stranger = DevicePty(link).serve()
+        try:
+            client.publish(TWIST)  # the driver keeps asking while the stranger is polled
+            stranger.wait_logged(lambda log: len(log) >= 3)
+            client.publish(TWIST)
+            silent = running.wait_line("re-opened, but nothing there answers")
+            client.publish(TWIST)
+            code, _ = running.finish(signal.SIGTERM)
+            got = [f.to_bytes() for _, f in stranger.frames_logged()]
+        finally:
+            stranger.close()
+    err = "\n".join(running.lines)
+    assert silent.endswith(
+        f"warning: {link} re-opened, but nothing there answers as the robot did: "
+        "nothing is written to it until it does"
+    ), err
+    assert "is back" not in err and "delivered after" not in err, err
+    assert not moving(got) and STOP_FRAME in got, got  # the rescue wrote stop; nothing ever moved it
+    assert code == 1, err
+    assert (
+        f"stop written to {link}, but nothing answered: the robot may still be moving" in err.splitlines()[-1]
+    )
+
+
+def test_the_robot_back_at_the_path_is_said_back_and_stopped(env: dict[str, str], tmp_path: Path) -> None:
+    link = tmp_path / "robot"
+    with (
+        robots(link) as plugged,
+        bridge(str(link), "--deadman", "10", env=env) as running,
+        viewer(running.port) as client,
+    ):
+        drive_until_moving(client, plugged[0])
+        plugged[0].close()
+        running.wait_line("went away")
+        again = PtyRobot(link)
+        plugged.append(again)
+        back = running.wait_line("is back")
+        stop_after(again, 0)  # the stop owed since the loss, on the robot's wire
+    assert back.endswith(f"{link} is back (the robot answers): stop sent")
+    assert not moving(again.received())

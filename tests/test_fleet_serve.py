@@ -300,6 +300,33 @@ def test_a_motion_request_is_decoded_through_the_table(
     assert motion_request(message, profile("v0.15"), 1) == (wheels, request_, once)
 
 
+def test_a_stranger_at_the_lost_port_is_not_back_and_is_never_driven(lab: Fleet, tmp_path: Path) -> None:
+    """Another device takes the port's path after the loss: it is never said to be back nor written motion."""
+    from helpers import DevicePty
+
+    sim = lab.start(["sim", "--pty"])
+    link = tmp_path / "robot"
+    link.symlink_to(readline(sim))
+    serve = lab.serve("r1", str(link), "--deadman", "10")
+    with operator(lab.endpoint, "r1", "op1") as op:
+        op.open()
+        op.cmd_vel(twist(0.2))
+        op.wait_said("op1 drives r1")
+        sim.kill()
+        serve.wait_err("went away")
+        stranger = DevicePty(link).serve()
+        try:
+            stranger.wait_logged(lambda log: len(log) >= 3)  # the serve re-opened the path and polls it
+            op.cmd_vel(twist(0.2))  # the driver asks again
+            text = serve.wait_err("re-opened, but nothing there answers")
+            frames = [f for _, f in stranger.frames_logged()]
+        finally:
+            stranger.close()
+    assert f"warning: {link} re-opened, but nothing there answers as the robot did" in text
+    assert "is back" not in text
+    assert not [f for f in frames if f.command in MOTION], frames
+
+
 def test_a_lost_serial_link_is_said_and_ends_the_drive(lab: Fleet, tmp_path: Path) -> None:
     """The port gone mid-drive: a warning on stderr, and the driver told its drive ended (not resumed later)."""
     sim = lab.start(["sim", "--pty"])

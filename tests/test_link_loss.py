@@ -15,12 +15,13 @@ import os
 import select
 import signal
 import subprocess
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
+from typing import TypeVar
 
 import pytest
-from helpers import Terminal
+from helpers import DevicePty, Terminal
 from helpers_cli import TIMEOUT, clean_env, hcrctl_exe, run
 from helpers_live import terminal
 from helpers_shell import STOP_FRAME, PtyRobot
@@ -28,6 +29,7 @@ from helpers_shell import STOP_FRAME, PtyRobot
 WARNING = "while the robot was moving: stop could NOT be delivered"
 DELIVERED = "while the robot was moving: stop delivered after"
 NOT_DELIVERED = "stop NOT delivered: the robot may still be moving"
+UNANSWERED = "but nothing answered: the robot may still be moving"
 
 
 @pytest.fixture
@@ -145,6 +147,58 @@ def test_stop_is_delivered_when_the_by_id_link_comes_back(what, env, tmp_path):
             hcr.kill()
 
 
+def stranger_at(link: Path) -> DevicePty:
+    """Another device takes the robot's path: a pty that records what it gets and never answers."""
+    return DevicePty(link).serve()
+
+
+def test_a_stranger_on_the_robots_path_is_not_called_the_robot(env, tmp_path):
+    """The path now leads to a device that never answers: stop is written to it, but not called delivered."""
+    link = tmp_path / "usb-HCR_robot-if00-port0"
+    with robots(link) as plugged:
+        plugged.append(PtyRobot(link))
+        hcr = Hcrctl(["--port", str(link), "--stop-wait", "2", "drive", "power", "40", "40"], env)
+        try:
+            plugged[0].wait_for(moving, timeout=TIMEOUT)
+            plugged[0].close()
+            stranger = stranger_at(link)
+            try:
+                status, out, err = hcr.finish()
+                got = stranger.wait_for(STOP_FRAME)
+            finally:
+                stranger.close()
+        finally:
+            hcr.kill()
+    assert STOP_FRAME in got  # it was written to: whatever the device is, it was told to stop
+    assert status == 1 and out == "", err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("hcrctl: error: lost the link") and "delivered after" not in err, err
+    assert f"stop written to {link}, {UNANSWERED}" in last, err
+    assert "nothing at" in last and "answered as the robot does within 2 s" in last, err
+
+
+def test_the_robot_back_after_a_stranger_is_called_delivered(env, tmp_path):
+    """A silent device at the path first, then the robot: the rescue keeps trying and the robot answers."""
+    link = tmp_path / "robot"
+    with robots(link) as plugged:
+        plugged.append(PtyRobot(link))
+        hcr = Hcrctl(["--port", str(link), "--stop-wait", "600", "drive", "power", "40", "40"], env)
+        try:
+            plugged[0].wait_for(moving, timeout=TIMEOUT)
+            plugged[0].close()
+            stranger = stranger_at(link)
+            try:
+                stranger.wait_for(STOP_FRAME)
+                assert hcr.proc.poll() is None, hcr.finish()  # not taken for the robot: still waiting
+                again = PtyRobot(link)
+                plugged.append(again)
+                assert_stop_delivered(hcr, again)
+            finally:
+                stranger.close()
+        finally:
+            hcr.kill()
+
+
 def test_stop_is_delivered_when_the_device_node_is_recreated(env, tmp_path):
     """/dev/pts/N goes away with its device and comes back as the same path (the kernel reuses the number)."""
     with robots(tmp_path) as plugged:
@@ -179,20 +233,52 @@ def _wait_released(pid: int, node: str, timeout: float = TIMEOUT) -> None:
 
 def _robot_at(node: str, plugged: list[PtyRobot], tries: int = 64) -> PtyRobot:
     """A new pty pair whose slave is ``node`` again: Linux hands out the lowest free number."""
-    spare: list[PtyRobot] = []
+    robot = _device_at(node, PtyRobot, tries)
+    plugged.append(robot)
+    return robot
+
+
+_Device = TypeVar("_Device", bound=DevicePty)
+
+
+def _device_at(node: str, make: Callable[[], _Device], tries: int = 64) -> _Device:
+    """A new pty pair (``make()``) whose slave is ``node`` again: Linux hands out the lowest free number."""
+    spare: list[DevicePty] = []
     try:
         for _ in range(tries):
-            robot = PtyRobot()
-            if robot.path == node:
-                plugged.append(robot)
-                return robot
-            spare.append(robot)
-            if int(robot.path.rsplit("/", 1)[1]) > int(node.rsplit("/", 1)[1]):
+            device = make()
+            if device.path == node:
+                return device
+            spare.append(device)
+            if int(device.path.rsplit("/", 1)[1]) > int(node.rsplit("/", 1)[1]):
                 break
     finally:
-        for robot in spare:
-            robot.close()
+        for device in spare:
+            device.close()
     pytest.skip(f"another process took {node} before it could be recreated")
+
+
+def test_a_stranger_that_took_the_robots_pty_number_is_not_called_the_robot(env, tmp_path):
+    """The next program to open a pty gets the robot's old /dev/pts number: stop goes to it, unanswered."""
+    with robots(tmp_path) as plugged:
+        plugged.append(PtyRobot())
+        node = plugged[0].path
+        hcr = Hcrctl(["--port", node, "--stop-wait", "2", "drive", "power", "40", "40"], env)
+        try:
+            plugged[0].wait_for(moving, timeout=TIMEOUT)
+            plugged[0].close()
+            hcr.wait_err(WARNING)
+            _wait_released(hcr.proc.pid, node)
+            stranger = _device_at(node, lambda: DevicePty().serve())
+            try:
+                status, _, err = hcr.finish()
+                got = stranger.wait_for(STOP_FRAME)
+            finally:
+                stranger.close()
+        finally:
+            hcr.kill()
+    assert STOP_FRAME in got and status == 1, err
+    assert f"stop written to {node}, {UNANSWERED}" in err.strip().splitlines()[-1], err
 
 
 def test_teleop_gets_stop_delivered_when_the_device_returns(tmp_path):
@@ -236,6 +322,28 @@ def test_watch_stop_key_with_the_link_down_is_delivered_when_it_returns(tmp_path
         term.wait_for("stop delivered after", timeout=TIMEOUT)
         term.send("q")
         assert term.finish(timeout=TIMEOUT) == 0
+
+
+def test_watch_delivers_its_owed_stop_to_the_robot_not_to_a_stranger_at_its_path(tmp_path):
+    """A silent device at the path is polled and sent nothing owed as delivered; quitting hands the stop to
+    the rescue, which delivers it to the robot once it is back."""
+    link = tmp_path / "robot"
+    with watch_owing_a_stop(link) as (term, plugged):
+        stranger = stranger_at(link)
+        try:
+            term.wait_for("no reply", timeout=TIMEOUT)  # the poller re-opened the path: nothing answers there
+            assert "stop delivered" not in " ".join(term.output().split())
+            term.send("q")
+            term.wait_for(lambda _: WARNING in " ".join(term.output().split()), timeout=TIMEOUT)
+            stranger.wait_for(STOP_FRAME)  # the rescue writes stop to whatever holds the path...
+            again = PtyRobot(link)  # ...and keeps trying until the robot answers
+            plugged.append(again)
+            again.wait_for(lambda frames: STOP_FRAME in frames, timeout=TIMEOUT)
+            assert term.finish(timeout=TIMEOUT) == 1
+            out = " ".join(term.output().split())
+            assert DELIVERED in out and UNANSWERED not in out
+        finally:
+            stranger.close()
 
 
 def test_a_port_that_never_returns_gives_up_after_stop_wait_from_the_config_file(env, tmp_path):
@@ -298,7 +406,9 @@ def test_socket_url_reconnects_and_gets_stop(env, tmp_path):
     assert status == 1 and DELIVERED in err.strip().splitlines()[-1], err
     sent = [json.loads(line) for line in log.read_text().splitlines()]
     tx = [rec["hex"] for rec in sent if rec["direction"] == "tx"]
-    assert tx[-1] == STOP_FRAME.hex(" ").upper() and len(tx) >= 2
+    # stop first, then the read that asks whether the robot is there: nothing that moves after the stop
+    after = tx[tx.index(STOP_FRAME.hex(" ").upper()) :]
+    assert len(tx) >= 2 and not moving([bytes.fromhex(h) for h in after])
 
 
 def test_a_held_drive_in_the_shell_reports_the_stop_its_session_delivered(tmp_path):
@@ -331,3 +441,36 @@ def test_watch_quit_with_a_stop_still_owed_waits_for_the_port_like_any_command(t
         again.wait_for(lambda frames: STOP_FRAME in frames, timeout=TIMEOUT)
         assert term.finish(timeout=TIMEOUT) == 1
         assert DELIVERED in " ".join(term.output().split())
+
+
+def test_a_v011_board_back_at_the_path_is_known_by_its_frames_and_a_stranger_is_not(env, tmp_path):
+    """``hcrctl sim --pty --protocol v0.11`` (a streaming board) killed mid-drive: a silent device at the
+    path is not taken for it; a v0.11 board back at the path is, and stop is delivered."""
+    from helpers import sim_process
+
+    link = tmp_path / "robot"
+    board = ["sim", "--pty", "--protocol", "v0.11"]
+    with sim_process(board, env) as (first, path):
+        link.symlink_to(path)
+        hcr = Hcrctl(["--port", str(link), "--protocol", "v0.11", "drive", "power", "40", "40"], env)
+        try:
+            hcr.wait_err("driving:")
+            first.kill()
+            hcr.wait_err(WARNING)
+            stranger = DevicePty()
+            try:
+                (tmp_path / "next").symlink_to(stranger.path)
+                os.rename(tmp_path / "next", link)
+                stranger.wait_for(bytes.fromhex("55 AA 01 02 01 80 80"))  # stop, written to the stranger
+                assert hcr.proc.poll() is None, hcr.finish()  # not taken for the board: still trying
+                with sim_process(board, env) as (_, again):
+                    (tmp_path / "next").symlink_to(again)
+                    os.rename(tmp_path / "next", link)
+                    status, _, err = hcr.finish()
+            finally:
+                stranger.close()
+        finally:
+            hcr.kill()
+    assert status == 1, err
+    last = err.strip().splitlines()[-1]
+    assert DELIVERED in last and UNANSWERED not in last, err

@@ -120,7 +120,8 @@ def global_options() -> list[click.Option]:
             default=DEFAULT_WAIT_S,
             show_default=True,
             metavar="SECONDS",
-            help="If the link drops while the robot moves, keep re-opening the port this long to send stop.",
+            help="If the link drops while the robot moves, keep re-opening the port this long to send stop "
+            "until the robot answers.",
         ),
         _option(
             "--deadman",

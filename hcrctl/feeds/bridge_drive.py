@@ -5,7 +5,9 @@ reads each message on a budget (``cmdvel.parse_twist``) and offers the wheels
 to the motion governor, which alone decides, writes and stops. A client that
 does not drive is refused before its payload is even read, so a second client
 cannot make the driver's messages cost more. Whatever happens to a message is
-returned as text for the client's ``status`` (``None``: taken).
+returned as text for the client's ``status`` (``None``: taken). A client
+keeps at most ``MAX_CHANNELS`` ``/cmd_vel`` channels, and what it advertises
+is said on stderr once per burst (``BurstNotes``), not once per advertise.
 """
 
 from __future__ import annotations
@@ -13,12 +15,15 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from ..motion.governor import Governor
+from .bursts import BurstNotes
 from .cmdvel import SCHEMA_NAMES, TOPIC, BadTwist, parse_twist, twist_wheels
 from .untrusted import shown
 
 Note = Callable[[str], None]
 #: (client id, client channel id)
 Publisher = tuple[int, int]
+#: ``/cmd_vel`` channels one client may hold: one drives; more only cost memory.
+MAX_CHANNELS = 8
 
 
 def source_name(client: int) -> str:
@@ -33,7 +38,9 @@ class CmdVelSource:
         self.governor = governor
         self.rejected = 0
         self._note = note
+        self._bursts = BurstNotes(note)
         self._channels: set[Publisher] = set()
+        self._per_client: dict[int, int] = {}
         self._complained: set[int] = set()
 
     def advertised(
@@ -43,26 +50,39 @@ class CmdVelSource:
         if topic != TOPIC:
             return None
         if encoding != "json":
-            self._note(
-                f"{source_name(client)} advertised {TOPIC} in {shown(encoding)}: only json is accepted"
+            self._bursts.say(
+                f"{TOPIC} advertised in an encoding other than json",
+                f"{source_name(client)} advertised {TOPIC} in {shown(encoding)}: only json is accepted",
             )
             return f"{TOPIC} is accepted in json only, not {shown(encoding)}"
+        if (client, channel) not in self._channels and self._per_client.get(client, 0) >= MAX_CHANNELS:
+            return f"{TOPIC} refused: at most {MAX_CHANNELS} {TOPIC} channels per client"
         if schema_name not in SCHEMA_NAMES:
-            self._note(
-                f"{source_name(client)} advertised {TOPIC} as {shown(schema_name)}; reading it as a Twist"
+            self._bursts.say(
+                f"{TOPIC} advertised with another schema",
+                f"{source_name(client)} advertised {TOPIC} as {shown(schema_name)}; reading it as a Twist",
             )
-        self._channels.add((client, channel))
+        if (client, channel) not in self._channels:
+            self._channels.add((client, channel))
+            self._per_client[client] = self._per_client.get(client, 0) + 1
         return None
+
+    def flush(self) -> None:
+        """Say the counts of the bursts still open (the server is closing)."""
+        self._bursts.flush()
 
     def unadvertised(self, client: int, channel: int) -> None:
         if (client, channel) in self._channels:
             self._channels.discard((client, channel))
+            if (held := self._per_client.pop(client, 1) - 1) > 0:
+                self._per_client[client] = held
             self.governor.release(source_name(client), f"{source_name(client)} left {TOPIC}")
 
     def gone(self, client: int) -> None:
         """The client disconnected: each of its channels is unadvertised."""
         for publisher in [p for p in self._channels if p[0] == client]:
             self.unadvertised(*publisher)
+        self._complained.discard(client)
 
     def data(self, client: int, channel: int, payload: bytes) -> str | None:
         """One message: offered to the governor; why not, for the client's status."""

@@ -7,6 +7,9 @@ the link is up (``stopping()`` on it, as every command does), and when the
 link is down at that moment the one the driver last wrote to, through
 ``rescue`` (warn, re-open the port, deliver stop, report the outcome) once the
 poller has been told to stop, so that it does not race the rescue for the port.
+The same rescue stops a robot lost mid-drive when the device the poller
+re-opened at its path never answered: that may be another device, and only
+the rescue's answer tells.
 This is watch's ``OwedStop`` problem, ended the way ``OwedStop.finish`` ends it.
 """
 
@@ -35,13 +38,19 @@ def stopping_driven(feed: Feed, first: Robot, driven: Callable[[], Robot | None]
 
 def _final_stop(feed: Feed, first: Robot, driven: Robot | None) -> contextlib.AbstractContextManager[None]:
     current = feed.current
-    if current is not None and current.connected:
-        return stopping(current)
     moved = [robot for robot in (driven, first) if robot is not None and robot.moved]
+    if current is not None and current.connected and _robot_there(feed, current, moved):
+        return stopping(current)
     if not moved:
         return stopping(first)  # nothing moved: stop is still tried, and a dead link is the news
     feed.poller.stop()
     return _rescued(moved[0])
+
+
+def _robot_there(feed: Feed, current: Robot, moved: list[Robot]) -> bool:
+    """Whether stopping ``current`` stops the robot that moved: it is the one driven, or it answered
+    since the poller re-opened the path (a device that did not may be another that took the path)."""
+    return not moved or current in moved or feed.state.status == "ok"
 
 
 @contextlib.contextmanager

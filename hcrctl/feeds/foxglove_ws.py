@@ -13,7 +13,14 @@ channel id, payload); ``status`` tells a client what became of what it sent.
 Every limit is explicit: a handshake must finish within ``OPEN_TIMEOUT``, at
 most ``MAX_CLIENTS`` at once, a message is at most ``MAX_MESSAGE`` bytes and
 at most ``INBOX`` of them wait per client (websockets stops reading the socket
-beyond that), a slow reader loses its oldest data (``OUTBOX``). At the
+beyond that), a slow reader loses its oldest data (``OUTBOX``). A client
+holds at most ``MAX_SUBSCRIPTIONS`` subscriptions, ``MAX_PER_CHANNEL`` of them
+on one channel, since every message is sent once per subscription: the work
+of one message is bounded whatever the clients ask, as is what a client's
+control messages may cost (``Session.spend``; ``MAX_ITEMS`` items of each). The fan-out sends
+``FAN_OUT_BATCH`` messages a turn of the event loop and then lets it serve
+everything else (handshakes, the driver's messages) before the rest, and at
+most ``PENDING`` messages wait for it (the oldest are dropped). At the
 descriptor limit the event loop stops accepting for a second and tries again,
 so the listener serves again once descriptors free up. The event loop runs on
 a thread of its own; ``publish`` is called from the poll loop and never waits.
@@ -31,7 +38,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterable
 from http import HTTPStatus
-from typing import Any
+from typing import Any, TypeVar
 
 from websockets.asyncio.server import Server as WsServer
 from websockets.asyncio.server import ServerConnection, serve
@@ -40,8 +47,9 @@ from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
 from .bridge_drive import CmdVelSource
+from .bursts import BurstNotes
 from .untrusted import origin_allowed, shown
-from .wssession import ERROR, WARNING, Channel, Session
+from .wssession import CONTROL_RATE, ERROR, STALLED_S, WARNING, Channel, Session
 
 #: The current name first: a client offering both gets it.
 SUBPROTOCOLS = ("foxglove.sdk.v1", "foxglove.websocket.v1")
@@ -49,8 +57,21 @@ OPEN_TIMEOUT = 3.0
 MAX_CLIENTS = 32
 MAX_MESSAGE = 64 * 1024
 INBOX = 16
+#: Subscriptions one client may hold, and on one channel: a viewer needs one per channel.
+MAX_SUBSCRIPTIONS = 64
+MAX_PER_CHANNEL = 4
+#: Items (channels, subscriptions, ids) of one control message looked at: a client needs a few;
+#: the rest are refused unread, so no message costs more than this many items' work.
+MAX_ITEMS = 64
+#: Messages fanned out per turn of the event loop before it serves its other work again.
+FAN_OUT_BATCH = 32
+#: How often clients that read nothing are looked for (``Session.stalled``).
+REAP_EVERY = 1.0
+#: Messages waiting for the fan-out; beyond it the oldest are dropped (the loop could not keep up).
+PENDING = 4096
 
 Note = Callable[[str], None]
+_Item = TypeVar("_Item")
 
 
 class FoxgloveServer:
@@ -68,17 +89,20 @@ class FoxgloveServer:
         self.name, self.host, self.port = name, host, port
         self.cmd_vel = cmd_vel
         self.note = note
+        self._bursts = BurstNotes(note)
         self.allowed = tuple(allowed_origins)
         self.channels: dict[str, Channel] = {}
         self.sessions: set[Session] = set()
         self.most = 0
         self.refused = 0
         self._numbers = 0
-        self._outbox: deque[tuple[Channel, bytes]] = deque()
+        self._outbox: deque[tuple[Channel, bytes]] = deque(maxlen=PENDING)
         self._kicked = False
+        self._kick = threading.Lock()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._server: WsServer | None = None
         self._thread: threading.Thread | None = None
+        self._reaper: asyncio.TimerHandle | None = None
         self._told_full = 0.0
         self._logger = logging.getLogger("hcrctl.bridge.websocket")
         self._logger.addHandler(logging.NullHandler())
@@ -113,18 +137,33 @@ class FoxgloveServer:
     def publish(self, channel: Channel, payload: bytes, at_ns: int) -> None:
         """Queue one payload for the channel's subscribers; the event loop sends it (never waits here)."""
         self._outbox.append((channel, struct.pack("<Q", at_ns) + payload))
-        if not self._kicked and self._loop is not None:
+        loop = self._loop
+        with self._kick:
+            if self._kicked or loop is None:
+                return
             self._kicked = True
-            with contextlib.suppress(RuntimeError):  # the loop is closing
-                self._loop.call_soon_threadsafe(self._fan_out)
+        with contextlib.suppress(RuntimeError):  # the loop is closing
+            loop.call_soon_threadsafe(self._fan_out)
 
     def _fan_out(self) -> None:
-        self._kicked = False
-        while self._outbox:
+        """Up to ``FAN_OUT_BATCH`` messages to their subscribers; the rest on a later turn of the loop.
+
+        One call is scheduled at a time (``_kicked``): the poll loop schedules it
+        when none is, and it schedules itself again while messages wait.
+        """
+        for _ in range(FAN_OUT_BATCH):
+            if not self._outbox:
+                break
             channel, body = self._outbox.popleft()
             for session, subs in list(channel.subscribers.items()):
                 for sub in subs:
                     session.push(b"\x01" + struct.pack("<I", sub) + body)
+        with self._kick:
+            if not self._outbox:
+                self._kicked = False
+                return
+        if self._loop is not None:
+            self._loop.call_soon(self._fan_out)
 
     # -- lifecycle -----------------------------------------------------------------------
 
@@ -146,7 +185,9 @@ class FoxgloveServer:
                 loop.close()
                 return
             started.set()
+            self._reaper = loop.call_later(REAP_EVERY, self._reap)
             loop.run_until_complete(self._server.wait_closed())
+            self._reaper.cancel()
             loop.run_until_complete(loop.shutdown_asyncgens())
             loop.close()
 
@@ -164,6 +205,9 @@ class FoxgloveServer:
         with contextlib.suppress(RuntimeError):
             self._loop.call_soon_threadsafe(self._server.close)
         self._thread.join(5.0)
+        self._bursts.flush()
+        if self.cmd_vel is not None:
+            self.cmd_vel.flush()
 
     async def _serve(self) -> WsServer:
         return await serve(
@@ -179,6 +223,18 @@ class FoxgloveServer:
             server_header=None,
             logger=self._logger,
         )
+
+    def _reap(self) -> None:
+        """Drop the clients that read nothing (``Session.stalled``); again in ``REAP_EVERY`` s."""
+        now = time.monotonic()
+        for session in [s for s in self.sessions if s.stalled(now)]:
+            self._bursts.say(
+                "clients dropped for reading nothing",
+                f"dropped client {session.number}: it read nothing for {STALLED_S:g} s",
+            )
+            session.ws.transport.abort()  # closing would wait to send its close frame, behind the rest
+        if self._loop is not None:
+            self._reaper = self._loop.call_later(REAP_EVERY, self._reap)
 
     def _loop_error(self, loop: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
         """The loop's own errors (out of descriptors at accept, above all): said once a minute, never a traceback."""
@@ -198,8 +254,9 @@ class FoxgloveServer:
             origin = "(several)"
         if not origin_allowed(origin, self.allowed):
             self.refused += 1
-            self.note(
-                f"refused a client from {shown(origin)}: only loopback pages, Foxglove and --allow-origin"
+            self._bursts.say(
+                "clients refused for their origin",
+                f"refused a client from {shown(origin)}: only loopback pages, Foxglove and --allow-origin",
             )
             return connection.respond(
                 HTTPStatus.FORBIDDEN, f"origin {origin} is not allowed (hcrctl bridge --allow-origin)\n"
@@ -221,6 +278,8 @@ class FoxgloveServer:
             async for message in ws:
                 self._received(session, message)
                 if sender.done():
+                    break
+                if not await session.paced():  # one message, then the other clients' turn
                     break
         except ConnectionClosed:
             pass
@@ -270,6 +329,10 @@ class FoxgloveServer:
             session.status(WARNING, said)
 
     def _control(self, session: Session, text: str) -> None:
+        if session.spend(len(text)):
+            session.status(
+                WARNING, f"control messages beyond {CONTROL_RATE // 1024} KiB/s are read at that pace"
+            )
         try:
             message = json.loads(text)
         except (ValueError, RecursionError):
@@ -288,18 +351,36 @@ class FoxgloveServer:
         handler(session, message)
 
     def _subscribe(self, session: Session, message: dict[str, Any]) -> None:
+        """Each subscription taken unless it is wrong or over a bound; what was refused in one status."""
         by_id = {c.id: c for c in self.channels.values()}
-        for item in _items(message, "subscriptions"):
+        items = _bounded(session, _items(message, "subscriptions"), "subscriptions")
+        wrong = over = 0
+        for at, item in enumerate(items):
+            if len(session.subscriptions) >= MAX_SUBSCRIPTIONS:
+                over += len(items) - at  # the rest is not even looked at
+                break
             sub, channel = item.get("id"), by_id.get(item.get("channelId"))  # type: ignore[arg-type]
             if not isinstance(sub, int) or channel is None or sub in session.subscriptions:
-                session.status(WARNING, f"subscription {shown(sub)} refused: no such channel, or in use")
+                wrong += 1
+                continue
+            subs = channel.subscribers.setdefault(session, set())
+            if len(subs) >= MAX_PER_CHANNEL:
+                over += 1
                 continue
             session.subscriptions[sub] = channel
-            channel.subscribers.setdefault(session, set()).add(sub)
+            subs.add(sub)
+        if wrong:
+            session.status(WARNING, f"{wrong} subscription(s) refused: no such channel, or the id is in use")
+        if over:
+            session.status(
+                WARNING,
+                f"{over} subscription(s) refused: at most {MAX_SUBSCRIPTIONS} per client, "
+                f"{MAX_PER_CHANNEL} on one channel",
+            )
 
     def _unsubscribe(self, session: Session, message: dict[str, Any]) -> None:
         ids = message.get("subscriptionIds")
-        for sub in ids if isinstance(ids, list) else []:
+        for sub in _bounded(session, ids if isinstance(ids, list) else [], "subscription ids"):
             channel = session.subscriptions.pop(sub, None) if isinstance(sub, int) else None
             if channel is not None:
                 subs = channel.subscribers.get(session, set())
@@ -311,7 +392,7 @@ class FoxgloveServer:
         if self.cmd_vel is None:
             session.status(ERROR, "this server does not take client channels")
             return
-        for item in _items(message, "channels"):
+        for item in _bounded(session, _items(message, "channels"), "channels"):
             number, topic = item.get("id"), item.get("topic")
             encoding, schema_name = item.get("encoding"), item.get("schemaName", "")
             if not (
@@ -330,7 +411,7 @@ class FoxgloveServer:
 
     def _unadvertise(self, session: Session, message: dict[str, Any]) -> None:
         ids = message.get("channelIds")
-        for number in ids if isinstance(ids, list) else []:
+        for number in _bounded(session, ids if isinstance(ids, list) else [], "channel ids"):
             if isinstance(number, int) and self.cmd_vel is not None:
                 self.cmd_vel.unadvertised(session.number, number)
 
@@ -348,6 +429,13 @@ class FoxgloveServer:
 
         with contextlib.suppress(RuntimeError):
             self._loop.call_soon_threadsafe(send)
+
+
+def _bounded(session: Session, items: list[_Item], what: str) -> list[_Item]:
+    """The first ``MAX_ITEMS`` of a message's ``items``; the client told, once, that the rest were not read."""
+    if len(items) > MAX_ITEMS:
+        session.status(WARNING, f"{len(items) - MAX_ITEMS} {what} not read: at most {MAX_ITEMS} per message")
+    return items[:MAX_ITEMS]
 
 
 def _items(message: dict[str, Any], key: str) -> list[dict[str, Any]]:

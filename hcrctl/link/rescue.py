@@ -11,9 +11,17 @@ watchdog. So ``rescue()`` takes over, the one place that knows how:
 2. it keeps re-opening the same port (``Robot.reopen``: the same path, which a
    /dev/serial/by-id link or a recreated node may now resolve to a new device;
    socket:// and rfc2217:// simply reconnect) for ``Robot.stop_wait`` seconds;
-3. it sends stop the moment the port opens;
+3. it sends stop the moment the port opens, then asks the device there to
+   answer as the robot does (``answers``): the reply to a read from the
+   robot's address, or a frame from that address a streaming firmware sends
+   unasked. Whatever now holds the path (another pty that took the number, a
+   forwarder whose robot is not back) may have received the stop without
+   being the robot, so a silent device is written to again on each re-open
+   until it answers or the wait ends;
 4. it hands back the one error to exit with, carrying the outcome: "stop
-   delivered after 2.4 s" or "stop NOT delivered: the robot may still be moving".
+   delivered after 2.4 s" (the robot answered), "stop written to PATH, but
+   nothing answered: the robot may still be moving", or "stop NOT delivered:
+   the robot may still be moving" (the port never came back).
 
 Ctrl-C (or SIGTERM/SIGHUP) during the wait gives up at once with the NOT
 delivered outcome, and the exit status of that signal (130, 143, 129).
@@ -23,6 +31,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import queue
 import signal
 import sys
 import threading
@@ -30,7 +39,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator
 from typing import TYPE_CHECKING
 
-from ..errors import HcrError, LinkLostWhileMoving, PortError
+from ..errors import DeviceTimeout, HcrError, LinkLostWhileMoving, PortError
 from ..protocol import commands as C
 from .defaults import BAUD
 from .dialects import frame_of, stop_frames
@@ -115,13 +124,21 @@ def rescue(robot: Robot, frames: StopFrames) -> LinkLostWhileMoving:
         )
         if getattr(reopen, "owned", True):
             robot.close()  # release the dead port (nothing can be sent on it) before re-opening
-        took = _wait_and_stop(robot.port, reopen, list(frames()), started + wait)
+        took, written = _wait_and_stop(robot.port, reopen, list(frames()), started + wait)
     except KeyboardInterrupt:
         return _not_delivered(cause, "gave up on Ctrl-C", 130)
     except Terminated as exc:
         return _not_delivered(cause, f"gave up on {signal.Signals(exc.signum).name}", exc.exit_code)
-    if took is None:
+    if took is None and not written:
         return _not_delivered(cause, f"{robot.port} did not come back within {wait:g} s", 1)
+    if took is None:
+        return _not_delivered(
+            cause,
+            f"nothing at {robot.port} answered as the robot does within {wait:g} s: "
+            "another device may hold the path",
+            1,
+            f"stop written to {robot.port}, but nothing answered: the robot may still be moving",
+        )
     robot.moved = False
     return LinkLostWhileMoving(
         cause,
@@ -131,10 +148,15 @@ def rescue(robot: Robot, frames: StopFrames) -> LinkLostWhileMoving:
     )
 
 
-def _not_delivered(cause: HcrError, why: str, exit_code: int) -> LinkLostWhileMoving:
+def _not_delivered(
+    cause: HcrError,
+    why: str,
+    exit_code: int,
+    outcome: str = "stop NOT delivered: the robot may still be moving",
+) -> LinkLostWhileMoving:
     error = LinkLostWhileMoving(
         cause,
-        "stop NOT delivered: the robot may still be moving",
+        outcome,
         delivered=False,
         hint=f"{why}; stop it by hand (power switch), then check the cable",
     )
@@ -144,14 +166,22 @@ def _not_delivered(cause: HcrError, why: str, exit_code: int) -> LinkLostWhileMo
 
 def _wait_and_stop(
     port: str, reopen: Callable[[], Robot], frames: list[bytes], deadline: float
-) -> float | None:
-    """Re-open until ``deadline``; send ``frames`` on the first success; when (monotonic), or None."""
+) -> tuple[float | None, bool]:
+    """Re-open until ``deadline``; send ``frames`` on each success until the robot answers.
+
+    When stop reached a device that answered (monotonic; None if none did), and
+    whether it was written at all (to a device that did not answer).
+    """
+    written = False
     while True:
         if _may_be_back(port):
             with contextlib.suppress(HcrError):
-                return _send_on(reopen, frames)
+                at, answered = _send_on(reopen, frames)
+                if answered:
+                    return at, True
+                written = True
         if time.monotonic() >= deadline:
-            return None
+            return None, written
         time.sleep(RETRY_S)
 
 
@@ -160,18 +190,45 @@ def _may_be_back(port: str) -> bool:
     return "://" in port or os.path.exists(port)
 
 
-def _send_on(reopen: Callable[[], Robot], frames: list[bytes]) -> float:
-    """Open, write the stops, drain them to the line; when they were written."""
+def _send_on(reopen: Callable[[], Robot], frames: list[bytes]) -> tuple[float, bool]:
+    """Open, write the stops, drain them to the line; when they were written, and whether the robot answered."""
     robot = reopen()
     try:
         write_stops(robot, frames)
         at = time.monotonic()
         with contextlib.suppress(Exception):
             robot.serial.flush()
-        return at
+        return at, answers(robot)
     finally:
         if getattr(reopen, "owned", True):
             robot.close()
+
+
+def answers(robot: Robot) -> bool:
+    """Whether the device behind ``robot``'s port answers as the robot does (asked once, with its retries).
+
+    A motion command has no reply in either dialect, so the stop itself proves
+    nothing: a read is sent to the robot's address, and either its reply (even
+    one out of range: it came from there) or any other frame from that address
+    counts (a streaming v0.11 firmware sends its bumper and IR frames unasked,
+    whatever it was asked). A device
+    that only echoes what it is sent (a pty nobody reads, a loopback) does not
+    count: an echo is dropped before it is routed.
+    """
+    probe = next(c for c in C.COMMANDS if c.kind == "read" and robot.profile.has(c.code))
+    try:
+        reply = robot.sweep([probe]).get(probe.name)
+    except HcrError:  # the link went away again while asking
+        return False
+    if not isinstance(reply, DeviceTimeout):
+        return True
+    while True:
+        try:
+            frame = robot.unsolicited.get_nowait()
+        except queue.Empty:
+            return False
+        if frame.address == robot.address:
+            return True
 
 
 def _same_port(robot: Robot) -> Callable[[], Robot]:

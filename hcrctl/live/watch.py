@@ -36,6 +36,7 @@ from .state import LiveState
 if TYPE_CHECKING:
     from rich.console import Console, RenderableType
 
+    from ..link.client import Robot
     from ..link.context import Connection
     from ..protocol.series import Series
 
@@ -119,7 +120,7 @@ def run_live(
             poller.stop()
             if report is not None:
                 report(state.summary())
-        owed.finish(poller.robot, robot)
+        owed.finish(answering(poller, state), robot)
     if console is not None and not can_redraw(console):
         console.print(frame(False)(time.monotonic()))
     return state.summary()
@@ -144,7 +145,7 @@ def _watch_loop(
                 return
             if key:
                 on_watch_key(key, state, poller, owed)
-            if note := owed.deliver(poller.robot):
+            if note := owed.deliver(answering(poller, state)):
                 state.note(note)
 
 
@@ -170,6 +171,12 @@ def painting(
 def frame_rate(poll_rate: float | None) -> float:
     """Frames per second: the poll rate, kept within MIN_FPS..FPS (``max`` polls get FPS)."""
     return MIN_FPS if poll_rate is None else min(FPS, max(MIN_FPS, poll_rate))
+
+
+def answering(poller: Poller, state: LiveState) -> Robot | None:
+    """The poller's robot once it has answered since it was (re-)opened: an owed stop is delivered
+    only to a device that answers as the robot does, never to whatever took the path."""
+    return poller.robot if state.status == "ok" else None
 
 
 def on_watch_key(key: str, state: LiveState, poller: Poller, owed: OwedStop) -> None:
