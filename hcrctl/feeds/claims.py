@@ -166,7 +166,7 @@ def _held(path: str) -> int | None:
 
 
 def _open_unclaimed(path: str) -> int:
-    if _is_fifo(path):
+    if _kind(path) == "fifo":
         return open_fifo(path, path)
     return os.open(path, _FLAGS | os.O_CREAT | os.O_TRUNC, _NEW_MODE)
 
@@ -175,10 +175,11 @@ def _claim(label: str, path: str, force: bool) -> _Claim | None:
     """``path`` held (locked, emptied if forced), or None if it cannot be opened at all."""
     target = os.path.realpath(path)  # a dangling symlink makes the file it points at, as open() would
     for _ in range(_ATTEMPTS):
-        if _is_fifo(target):
+        kind = _kind(target)
+        if kind == "fifo":
             return _Claim(open_fifo(target, f"{label} {path}"), target, created=False)
         try:
-            opened = _open_claimed(target, force)
+            opened = (os.open(target, _FLAGS), False) if kind == "device" else _open_claimed(target, force)
         except FileExistsError:
             raise exists_error(label, path) from None
         except OSError:
@@ -261,11 +262,13 @@ def open_fifo(path: str, named: str) -> int:
         return fd
 
 
-def _is_fifo(path: str) -> bool:
+def _kind(path: str) -> str:
+    """``fifo``, ``device`` (a character device: ``/dev/null``), or ``file`` (anything else, or nothing yet)."""
     try:
-        return stat.S_ISFIFO(os.stat(path).st_mode)
+        mode = os.stat(path).st_mode
     except OSError:
-        return False
+        return "file"
+    return "fifo" if stat.S_ISFIFO(mode) else "device" if stat.S_ISCHR(mode) else "file"
 
 
 def _identity(info: os.stat_result) -> tuple[int, int]:
