@@ -464,12 +464,25 @@ def test_a_forced_export_over_a_file_being_recorded_is_refused(log: Path, tmp_pa
     assert whole(out) > 0
 
 
+@pytest.mark.parametrize("which", ["OUT", "--log"])
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
-def test_a_record_to_a_fifo_no_one_reads_ends_on_a_signal(tmp_path: Path, sig: signal.Signals) -> None:
-    out = tmp_path / "pipe.csv"
-    os.mkfifo(out)
+def test_a_record_to_a_fifo_no_one_reads_ends_on_a_signal(
+    tmp_path: Path, sig: signal.Signals, which: str
+) -> None:
+    """A blocked open() is resumed after a signal whose handler only sets record's stop flag: it is not blocked."""
+    fifo = tmp_path / ("pipe.csv" if which == "OUT" else "pipe.jsonl")
+    os.mkfifo(fifo)
+    out = fifo if which == "OUT" else tmp_path / "out.csv"
     with wire() as tap:
-        proc = start_interruptible(["--port", tap.path, "record", str(out), "compass"], clean_env(tmp_path))
+        args = [
+            "--port",
+            tap.path,
+            *(["--log", str(fifo)] if which == "--log" else []),
+            "record",
+            str(out),
+            "compass",
+        ]
+        proc = start_interruptible(args, clean_env(tmp_path))
         try:
             said = stderr_until(proc, "(a FIFO)\n")
             proc.send_signal(sig)
@@ -477,8 +490,9 @@ def test_a_record_to_a_fifo_no_one_reads_ends_on_a_signal(tmp_path: Path, sig: s
             _, err = finish(proc)
         assert tap.read(quiet=0.3) == b""  # it never got as far as the port
     assert proc.returncode == 128 + sig, said + err
-    assert said.strip() == f"hcrctl: waiting for a reader of OUT {out} (a FIFO)"
+    assert said.strip() == f"hcrctl: waiting for a reader of {which} {fifo} (a FIFO)"
     assert "Traceback" not in err
+    assert listing(tmp_path) == [fifo.name]  # no empty OUT left behind
 
 
 def test_a_record_to_a_fifo_writes_once_a_reader_comes(tmp_path: Path) -> None:

@@ -94,8 +94,8 @@ def bridge(
     written (a full disk), that is said once, serving goes on, and the exit
     status is 1.
     """
-    from ..feeds.claims import claimed
     from ..feeds.outputs import check_outputs
+    from ..link.claims import claimed
 
     check_outputs([("--mcap", mcap)], appended=[("--log", settings.log)], force=force)
     require_extra(mcap is not None)

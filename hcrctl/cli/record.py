@@ -66,15 +66,17 @@ def record(
     encoding: str,
     force: bool,
 ) -> None:
-    from ..feeds.claims import claimed
     from ..feeds.outputs import check_outputs
     from ..feeds.progress import per_topic, size
     from ..feeds.record import reraise, run_record
+    from ..link.claims import appended, claimed
 
     refuse_encoding(out, encoding)
     # written under its own name as it goes (readable after a kill -9), so only the refusals apply
     check_outputs([("OUT", out)], appended=[("--log", settings.log)], force=force)
-    with claimed("OUT", out, force=force):  # one writer per file: a second record of OUT is refused here
+    # one writer per file: a second record of OUT is refused here; a FIFO (OUT or --log) is waited for here,
+    # before Ctrl-C only sets the recording's stop flag
+    with claimed("OUT", out, force=force), appended("--log", settings.log):
         summary = run_record(
             settings, out, sensors, rate, duration, sys.stderr, pipeline=pipeline, encoding=encoding
         )

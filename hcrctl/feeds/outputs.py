@@ -38,8 +38,8 @@ import tempfile
 from collections.abc import Iterator, Sequence
 
 from ..errors import HcrError
-from . import claims
-from .claims import FORCE_HINT, OutputRefused, exists_error
+from ..link import claims
+from ..link.claims import FORCE_HINT, OutputRefused, exists_error
 from .sinks import SinkWriteError
 
 #: (label, path): the label is what the user typed to name it (``OUT``, ``--log``, ``--mcap``);

@@ -30,8 +30,8 @@ from collections.abc import Iterable, Sequence
 from typing import IO, Any
 
 from ..errors import HcrError
+from ..link.claims import open_output
 from ..protocol.topics import Topic
-from .claims import open_output
 
 
 class SinkWriteError(HcrError):

@@ -28,7 +28,17 @@ and the claim keeps the file to one writer:
 A sink then writes through the claim's descriptor (``open_output``): the
 file it writes is the one claimed, and a FIFO's reader cannot vanish
 between the claim and the write. The lock is advisory: it keeps hcrctl's
-writers apart, not other programs. Standard library only.
+writers apart, not other programs.
+
+A ``--log`` is appended to by design (several sessions build one history),
+so it takes no lock; its lines are whole however many processes append
+(``link.trafficlog`` writes each with one ``write`` to an ``O_APPEND``
+descriptor). It is opened with ``open_appended``, a FIFO waited for as
+above. A command whose own signal handlers only set a flag (``record``
+ends on Ctrl-C by finishing its file) holds its ``--log`` with
+``appended`` before it sets them, so that wait is still one a signal ends.
+In the link layer, below both the feeds and the traffic log that use it.
+Standard library only.
 """
 
 from __future__ import annotations
@@ -120,6 +130,39 @@ def claimed(label: str, path: str | None, *, force: bool = False) -> Iterator[No
         with _HELD_LOCK:
             _HELD.pop(key, None)
         os.close(claim.fd)
+
+
+@contextlib.contextmanager
+def appended(label: str, path: str | None) -> Iterator[None]:
+    """Hold the appended output ``path`` (a ``--log``) for the block if it is a FIFO: opened now, waited for
+    here; anything else is opened when it is written (``open_appended``), as before."""
+    if path is None or _kind(path) != "fifo":
+        yield
+        return
+    fd = open_fifo(path, f"{label} {path}")
+    key = _identity(os.fstat(fd))
+    with _HELD_LOCK:
+        _HELD[key] = fd
+    try:
+        yield
+    finally:
+        with _HELD_LOCK:
+            _HELD.pop(key, None)
+        os.close(fd)
+
+
+def open_appended(path: str) -> int:
+    """A descriptor appending to ``path`` (made if missing): this process's hold on it, or opened now.
+
+    ``O_APPEND``: each ``write`` lands whole at the end, whoever else appends.
+    A FIFO is waited for as ``claimed`` waits. OSError as ``open``.
+    """
+    held = _held(path)
+    if held is not None:
+        return os.dup(held)
+    if _kind(path) == "fifo":
+        return open_fifo(path, path)
+    return os.open(path, _FLAGS | os.O_APPEND | os.O_CREAT, _NEW_MODE)
 
 
 @contextlib.contextmanager
