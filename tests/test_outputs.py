@@ -509,3 +509,22 @@ def test_a_record_to_a_fifo_writes_once_a_reader_comes(tmp_path: Path) -> None:
         _, err = finish(proc)
     assert proc.returncode == 0, err
     assert got.startswith(b"time,t,direction,address,command,name,") and b",compass," in got
+
+
+def test_a_forced_bridge_mcap_of_a_file_being_recorded_is_refused(tmp_path: Path) -> None:
+    out = tmp_path / "live.mcap"
+    env = clean_env(tmp_path)
+    first = start_interruptible(["--port", "sim://", "record", str(out), "compass"], env)
+    try:
+        wait_until(lambda: out.exists() and out.stat().st_size > 0, what="the recording to begin")
+        args = ["--port", "sim://", "bridge", "--listen", "127.0.0.1:0", "--mcap", str(out), "--force"]
+        bridge = run(
+            args, env
+        )  # a bridge that took the file would serve on: the run's timeout fails the test
+        assert bridge.returncode == 2, bridge.stderr
+        assert "--mcap" in the_refusal(bridge.stderr, out)
+        first.send_signal(signal.SIGINT)
+    finally:
+        _, err = finish(first)
+    assert first.returncode == 0, err
+    assert whole(out) > 0
