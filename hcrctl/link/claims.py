@@ -116,35 +116,35 @@ def claimed(label: str, path: str | None, *, force: bool = False) -> Iterator[No
     if claim is None:
         yield
         return
-    key = _identity(os.fstat(claim.fd))
-    with _HELD_LOCK:
-        _HELD[key] = claim.fd
-    try:
-        yield
-    except BaseException:
-        if claim.created and os.fstat(claim.fd).st_size == 0 and _identity_of(claim.target) == key:
-            with contextlib.suppress(OSError):
-                os.unlink(claim.target)
-        raise
-    finally:
-        with _HELD_LOCK:
-            _HELD.pop(key, None)
-        os.close(claim.fd)
+    with _holding(claim.fd) as key:
+        try:
+            yield
+        except BaseException:
+            if claim.created and os.fstat(claim.fd).st_size == 0 and _identity_of(claim.target) == key:
+                with contextlib.suppress(OSError):
+                    os.unlink(claim.target)
+            raise
 
 
 @contextlib.contextmanager
 def appended(label: str, path: str | None) -> Iterator[None]:
     """Hold the appended output ``path`` (a ``--log``) for the block if it is a FIFO: opened now, waited for
-    here; anything else is opened when it is written (``open_appended``), as before."""
+    here; any other file is opened when it is first written (``open_appended``)."""
     if path is None or _kind(path) != "fifo":
         yield
         return
-    fd = open_fifo(path, f"{label} {path}")
+    with _holding(open_fifo(path, f"{label} {path}")):
+        yield
+
+
+@contextlib.contextmanager
+def _holding(fd: int) -> Iterator[tuple[int, int]]:
+    """``fd`` as this process's hold on its file for the block (the file's identity), closed after."""
     key = _identity(os.fstat(fd))
     with _HELD_LOCK:
         _HELD[key] = fd
     try:
-        yield
+        yield key
     finally:
         with _HELD_LOCK:
             _HELD.pop(key, None)
