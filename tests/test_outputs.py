@@ -11,13 +11,14 @@ leaves the directory exactly as it was.
 from __future__ import annotations
 
 import errno
+import functools
 import os
 import signal
 import subprocess
 from pathlib import Path
 
 import pytest
-from helpers_cli import clean_env, finish, hcrctl_exe, one_line, run, start, wait_until, wire
+from helpers_cli import clean_env, finish, hcrctl_exe, one_line, run, start, stderr_until, wait_until, wire
 from helpers_mcap import small_tmpfs
 
 SUFFIXES = [".mcap", ".csv"]
@@ -273,6 +274,19 @@ def test_force_through_a_symlink_replaces_the_file_it_points_at(log: Path, tmp_p
 # -- export, caught mid-way: its log is a FIFO the test writes ------------------------------
 
 
+def start_interruptible(args: list[str], env: dict[str, str]) -> subprocess.Popen[str]:
+    """``start``, with Ctrl-C's default restored in the child: the suite's workers may ignore SIGINT."""
+    return subprocess.Popen(
+        [hcrctl_exe(), *args],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+
+
 @pytest.fixture
 def fifo(tmp_path: Path) -> Path:
     path = tmp_path / "live.jsonl"
@@ -307,15 +321,7 @@ def test_a_signal_mid_export_leaves_the_out_as_it_was(
 ) -> None:
     out = tmp_path / "old.mcap"
     before = existing(out)
-    proc = subprocess.Popen(
-        [hcrctl_exe(), "export", str(fifo), str(out), "--force"],
-        env=clean_env(tmp_path),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        stdin=subprocess.DEVNULL,
-        text=True,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # the suite may ignore SIGINT
-    )
+    proc = start_interruptible(["export", str(fifo), str(out), "--force"], clean_env(tmp_path))
     writer = None
     try:
         writer = open_writer(fifo, proc)
@@ -350,3 +356,175 @@ def test_an_out_that_appears_during_the_export_is_not_replaced(log: Path, fifo: 
     assert str(out) in line and "--force" in line
     assert state(out) == before
     assert temporaries(tmp_path) == []
+
+
+# -- two writers of one file, and a FIFO no one reads ---------------------------------------
+
+
+def whole(out: Path) -> int:
+    """The recording is one writer's, complete: an MCAP read through its summary, a CSV of even rows.
+
+    Returns the messages (MCAP) or rows (CSV) it holds. Two interleaved writers leave an MCAP whose
+    chunks do not decompress and CSV rows cut and spliced, which fail here.
+    """
+    if out.suffix == ".mcap":
+        from mcap.reader import make_reader
+
+        with out.open("rb") as handle:
+            reader = make_reader(handle)
+            assert reader.get_summary() is not None
+            return sum(1 for _ in reader.iter_messages())
+    import csv
+
+    rows = list(csv.reader(out.read_text().splitlines()))
+    assert rows and rows[0][:6] == ["time", "t", "direction", "address", "command", "name"]
+    assert all(len(row) == len(rows[0]) for row in rows), rows
+    for row in rows[1:]:
+        float(row[1])  # a spliced row has text where the seconds belong
+    return len(rows) - 1
+
+
+def first_ended(procs: list[subprocess.Popen[str]]) -> subprocess.Popen[str] | None:
+    return next((proc for proc in procs if proc.poll() is not None), None)
+
+
+def the_refusal(err: str, out: Path) -> str:
+    line = one_line(err)
+    assert str(out) in line and "Traceback" not in err, line
+    assert "already exists" in line or "is being written by another process" in line, line
+    return line
+
+
+@pytest.mark.parametrize("force", [False, True])
+@pytest.mark.parametrize("suffix", SUFFIXES)
+def test_two_records_of_one_file_started_together_one_is_refused_the_file_whole(
+    tmp_path: Path, suffix: str, force: bool
+) -> None:
+    """Both may pass the check for an existing file (nothing is there yet, or --force): the claim decides.
+
+    Neither ends by itself, so they always overlap, however the machine schedules them: one
+    must be refused while the other records, which then ends on Ctrl-C with its file whole.
+    Started at once, a few times over, so the two often meet between the check and the first write.
+    """
+    out = tmp_path / f"race{suffix}"
+    args = ["--port", "sim://", "record", str(out), "compass", *(["--force"] if force else [])]
+    for _attempt in range(3):
+        out.unlink(missing_ok=True)
+        if force:
+            existing(out)
+        procs = [start_interruptible(args, clean_env(tmp_path)) for _ in range(2)]
+        try:
+            refused_one = wait_until(functools.partial(first_ended, procs), what="one record to be refused")
+            (recording,) = [p for p in procs if p is not refused_one]
+            wait_until(lambda: out.stat().st_size > 0, what="the other to be recording")
+            recording.send_signal(signal.SIGINT)
+        finally:
+            ended = {proc: finish(proc) for proc in procs}
+        assert refused_one.returncode == 2, ended
+        the_refusal(ended[refused_one][1], out)
+        assert recording.returncode == 0, ended[recording]
+        assert whole(out) > 0
+        assert listing(tmp_path) == [out.name]
+
+
+@pytest.mark.parametrize("suffix", SUFFIXES)
+def test_a_forced_record_of_a_file_being_recorded_is_refused_and_changes_nothing(
+    tmp_path: Path, suffix: str
+) -> None:
+    out = tmp_path / f"live{suffix}"
+    env = clean_env(tmp_path)
+    first = start_interruptible(["--port", "sim://", "record", str(out), "compass", "--force"], env)
+    try:
+        wait_until(lambda: out.exists() and out.stat().st_size > 0, what="the first recording to begin")
+        second = run(["--port", "sim://", "record", str(out), "compass", "--duration", "0.3", "--force"], env)
+        assert second.returncode == 2, second.stderr
+        assert "is being written by another process" in the_refusal(second.stderr, out)
+        first.send_signal(signal.SIGINT)
+    finally:
+        _, err = finish(first)
+    assert first.returncode == 0, err
+    assert whole(out) > 0
+
+
+def test_a_forced_export_over_a_file_being_recorded_is_refused(log: Path, tmp_path: Path) -> None:
+    """Renaming over a live recording would leave its writer writing to a file that has gone."""
+    out = tmp_path / "live.csv"
+    env = clean_env(tmp_path)
+    first = start_interruptible(["--port", "sim://", "record", str(out), "compass"], env)
+    try:
+        wait_until(lambda: out.exists() and out.stat().st_size > 0, what="the recording to begin")
+        export = run(["export", str(log), str(out), "--force"], env)
+        assert export.returncode == 2, export.stderr
+        assert "is being written by another process" in the_refusal(export.stderr, out)
+        assert temporaries(tmp_path) == []
+        first.send_signal(signal.SIGINT)
+    finally:
+        _, err = finish(first)
+    assert first.returncode == 0, err
+    assert whole(out) > 0
+
+
+@pytest.mark.parametrize("which", ["OUT", "--log"])
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_record_to_a_fifo_no_one_reads_ends_on_a_signal(
+    tmp_path: Path, sig: signal.Signals, which: str
+) -> None:
+    """A blocked open() is resumed after a signal whose handler only sets record's stop flag: it is not blocked."""
+    fifo = tmp_path / ("pipe.csv" if which == "OUT" else "pipe.jsonl")
+    os.mkfifo(fifo)
+    out = fifo if which == "OUT" else tmp_path / "out.csv"
+    with wire() as tap:
+        args = [
+            "--port",
+            tap.path,
+            *(["--log", str(fifo)] if which == "--log" else []),
+            "record",
+            str(out),
+            "compass",
+        ]
+        proc = start_interruptible(args, clean_env(tmp_path))
+        try:
+            said = stderr_until(proc, "(a FIFO)\n")
+            proc.send_signal(sig)
+        finally:
+            _, err = finish(proc)
+        assert tap.read(quiet=0.3) == b""  # it never got as far as the port
+    assert proc.returncode == 128 + sig, said + err
+    assert said.strip() == f"hcrctl: waiting for a reader of {which} {fifo} (a FIFO)"
+    assert "Traceback" not in err
+    assert listing(tmp_path) == [fifo.name]  # no empty OUT left behind
+
+
+def test_a_record_to_a_fifo_writes_once_a_reader_comes(tmp_path: Path) -> None:
+    out = tmp_path / "pipe.csv"
+    os.mkfifo(out)
+    proc = start(
+        ["--port", "sim://", "record", str(out), "compass", "--duration", "0.5"], clean_env(tmp_path)
+    )
+    try:
+        stderr_until(proc, "(a FIFO)\n")
+        with out.open("rb") as reader:
+            got = reader.read()
+    finally:
+        _, err = finish(proc)
+    assert proc.returncode == 0, err
+    assert got.startswith(b"time,t,direction,address,command,name,") and b",compass," in got
+
+
+def test_a_forced_bridge_mcap_of_a_file_being_recorded_is_refused(tmp_path: Path) -> None:
+    out = tmp_path / "live.mcap"
+    env = clean_env(tmp_path)
+    first = start_interruptible(["--port", "sim://", "record", str(out), "compass"], env)
+    try:
+        wait_until(lambda: out.exists() and out.stat().st_size > 0, what="the recording to begin")
+        args = ["--port", "sim://", "bridge", "--listen", "127.0.0.1:0", "--mcap", str(out), "--force"]
+        bridge = run(
+            args, env
+        )  # a bridge that took the file would serve on: the run's timeout fails the test
+        assert bridge.returncode == 2, bridge.stderr
+        assert "--mcap" in the_refusal(bridge.stderr, out)
+        first.send_signal(signal.SIGINT)
+    finally:
+        _, err = finish(first)
+    assert first.returncode == 0, err
+    assert whole(out) > 0

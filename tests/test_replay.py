@@ -276,3 +276,52 @@ def test_max_gap_out_of_range_or_not_a_number_is_a_usage_error(tmp_path: Path, v
     (line,) = proc.stderr.strip().splitlines()
     assert "error:" in line and "--max-gap" in line and "Traceback" not in proc.stderr
     assert arrived == []
+
+
+SERVO = encode(1, 0x41, H("01 01"))  # the servos: no motor, and no reply owed
+POWER_30 = H("55 AA 01 02 01 A6 A6 4F 0D 0A")
+
+
+def sawtooth(path: Path, step: float, teeth: int) -> Path:
+    """A motion frame, then records stamped ``step`` later and back at the start in turn, then more motion.
+
+    Each forward step is short of any --max-gap above ``step``, and the steps back cost nothing, so
+    a replay that looks at one gap at a time holds the first motion for ``teeth`` steps.
+    """
+    records = [(100.0, VELOCITY_02)]
+    records += [(100.0 + step * (i % 2 == 0), SERVO) for i in range(2 * teeth)]
+    return write_log(path, [*records, (100.0 + step, POWER_30)])
+
+
+def test_a_log_whose_times_go_back_and_forth_holds_motion_at_most_max_gap(tmp_path: Path) -> None:
+    """Forward steps of 0.4 s with --max-gap 1: the third would take the hold past 1 s, so stop goes first.
+
+    The order on the wire shows it, whatever the machine's speed: the replay's schedule, not its
+    clock, decides which record the hold runs out before. The robot rests until the log's next
+    motion frame; stop follows that one at the end as always.
+    """
+    log = sawtooth(tmp_path / "sawtooth.jsonl", 0.4, teeth=4)
+    stops = STOP_02 + STOP
+    expected = VELOCITY_02 + SERVO * 4 + stops + SERVO * 4 + POWER_30 + stops
+    proc, arrived = replayed(log, "--max-gap", "1", until=expected)
+    assert proc.returncode == 0, proc.stderr
+    assert arrived == expected
+    said = [line for line in proc.stderr.splitlines() if "replay: the log" in line]
+    assert said == [
+        "hcrctl: replay: the log's times go backwards (line 3 is 0.4 s before the record ahead of it): "
+        "such records are sent without waiting",
+        "hcrctl: replay: the log held its motion --max-gap 1 s with no new motion frame: "
+        "stop sent, the robot rests until the log's next motion frame",
+    ]
+
+
+def test_a_motion_the_log_stopped_itself_is_not_stopped_again(tmp_path: Path) -> None:
+    """After the log's own stop nothing moves: the records after it wait their time, no stop is added."""
+    log = write_log(
+        tmp_path / "stopped.jsonl", [(0.0, VELOCITY_02), (0.1, STOP_02), (0.5, SERVO), (0.9, SERVO)]
+    )
+    expected = VELOCITY_02 + STOP_02 + SERVO * 2 + STOP_02 + STOP
+    proc, arrived = replayed(log, "--max-gap", "0.5", until=expected)
+    assert proc.returncode == 0, proc.stderr
+    assert arrived == expected
+    assert "held its motion" not in proc.stderr and "backwards" not in proc.stderr

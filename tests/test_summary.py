@@ -66,3 +66,23 @@ def test_monitor_summary_of_a_log(hcrctl: str, env: dict[str, str], tmp_path: Pa
     assert counts["frames"] == 4
     assert counts["commands"] == {"compass": 4}
     assert counts["time"]["seconds"] == 3.0
+
+
+def test_monitor_summary_spans_a_log_whose_times_go_back_and_forth(
+    hcrctl: str, env: dict[str, str], tmp_path: Path
+) -> None:
+    """Records stamped T+4.9 s and T in turn span 4.9 s: earliest to latest, not first to last record."""
+    frame = encode(0x01, 0x14, b"\x0d\x0a").hex(" ").upper()
+    stamps = ["00.000000", "04.900000"] * 3 + ["00.000000"]
+    log = tmp_path / "sawtooth.jsonl"
+    log.write_text(
+        "".join(f'{{"time": "2026-01-01T00:00:{s}", "direction": "tx", "hex": "{frame}"}}\n' for s in stamps)
+    )
+    proc = run(hcrctl, env, "monitor", "--from", str(log), "--summary", "--json")
+    assert proc.returncode == 0, proc.stderr
+    span = json.loads(proc.stdout)["time"]
+    assert span["seconds"] == 4.9
+    assert span["first"].endswith("00:00:00.000000") and span["last"].endswith("00:00:04.900000")
+    text = run(hcrctl, env, "monitor", "--from", str(log), "--summary")
+    assert text.returncode == 0, text.stderr
+    assert b"(4.9 s)" in text.stdout

@@ -95,6 +95,7 @@ def bridge(
     status is 1.
     """
     from ..feeds.outputs import check_outputs
+    from ..link.claims import claimed
 
     check_outputs([("--mcap", mcap)], appended=[("--log", settings.log)], force=force)
     require_extra(mcap is not None)
@@ -106,7 +107,8 @@ def bridge(
         report = lambda summary: click.echo(json.dumps(summary))  # noqa: E731
     else:
         report = lambda summary: click.echo(f"hcrctl: {summary_line(summary)}", err=True)  # noqa: E731
-    summary = run_bridge(settings, options, report=report)
+    with claimed("--mcap", mcap, force=force):
+        summary = run_bridge(settings, options, report=report)
     if summary.get("recording_incomplete"):  # said on stderr when it happened: only the status is left
         click.get_current_context().exit(1)
 

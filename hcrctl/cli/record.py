@@ -31,7 +31,9 @@ reading (the requests) and the grid map (not a number) are not rows. A progress 
 bytes, rate) goes to stderr. Ctrl-C, SIGTERM or --duration ends it with the
 file closed and whole; at most the last second is lost if the process is
 killed outright. Nothing but reads is sent. An existing OUT is refused
-(before the port is opened) unless --force is given.
+(before the port is opened) unless --force is given; an OUT another
+process is writing is refused with or without it. A FIFO as OUT is
+waited for until its reader opens it (Ctrl-C ends the wait).
 
 \b
 hcrctl --port sim:// record run.mcap --duration 10
@@ -67,14 +69,17 @@ def record(
     from ..feeds.outputs import check_outputs
     from ..feeds.progress import per_topic, size
     from ..feeds.record import reraise, run_record
+    from ..link.claims import appended, claimed
 
     refuse_encoding(out, encoding)
     # written under its own name as it goes (readable after a kill -9), so only the refusals apply
     check_outputs([("OUT", out)], appended=[("--log", settings.log)], force=force)
-
-    summary = run_record(
-        settings, out, sensors, rate, duration, sys.stderr, pipeline=pipeline, encoding=encoding
-    )
+    # one writer per file: a second record of OUT is refused here; a FIFO (OUT or --log) is waited for here,
+    # before Ctrl-C only sets the recording's stop flag
+    with claimed("OUT", out, force=force), appended("--log", settings.log):
+        summary = run_record(
+            settings, out, sensors, rate, duration, sys.stderr, pipeline=pipeline, encoding=encoding
+        )
     if settings.as_json:
         click.echo(json.dumps(summary))
     else:

@@ -58,7 +58,8 @@ MAX_GAP_S = 3600.0
     default=5.0,
     show_default=True,
     metavar="S",
-    help="A longer gap between two records is not waited (said on stderr): motion is never held longer.",
+    help="A longer gap between two records is not waited (said on stderr), and motion is held at most S "
+    "in all: then stop is sent until the log's next motion frame.",
 )
 @json_option
 @click.pass_obj
@@ -69,7 +70,8 @@ def replay(
 
     Exit 1 if any request went unanswered within --timeout. Stop is sent at
     the end, and on Ctrl-C or SIGTERM, to every address the log moved. A gap
-    between records longer than --max-gap is skipped, not waited.
+    between records longer than --max-gap is skipped, not waited; motion that
+    has run --max-gap with no new motion frame in the log is stopped.
     """
     records = tx_records(logfile)
     printer = TrafficPrinter(settings.as_json, "delta", FrameFilter(), start=time.time())

@@ -19,6 +19,13 @@ written, so a failure (a bad input line, a full disk, Ctrl-C) leaves the
 target as it was and no half file. A live recording must not work that way:
 it has to be readable under its own name while it runs, and after a kill -9.
 
+These checks are made before anything is opened, so a refusal costs
+nothing; they cannot keep two processes apart, which may both pass them.
+What does is the claim a writer then takes on its file (``claims``): a new
+file created exclusively, and a lock held while it is written, so a second
+``record`` of one file (``--force`` or not) is refused before it writes.
+``written_whole`` holds that lock on the file it is about to replace.
+
 No Click here (standard library and the errors only), so the bridge's feed code can use it as the CLI does.
 """
 
@@ -31,19 +38,15 @@ import tempfile
 from collections.abc import Iterator, Sequence
 
 from ..errors import HcrError
+from ..link import claims
+from ..link.claims import FORCE_HINT, OutputRefused, exists_error
 from .sinks import SinkWriteError
 
 #: (label, path): the label is what the user typed to name it (``OUT``, ``--log``, ``--mcap``);
 #: a path of None (an option not given) is skipped.
 Named = tuple[str, str | None]
 
-FORCE_HINT = "--force overwrites it"
-
-
-class OutputRefused(HcrError):
-    """An output that would destroy a file the user did not give up: a usage error, nothing opened."""
-
-    exit_code = 2
+__all__ = ["FORCE_HINT", "Named", "OutputRefused", "check_outputs", "exists_error", "written_whole"]
 
 
 def check_outputs(
@@ -104,11 +107,6 @@ def _given(named: Sequence[Named]) -> list[tuple[str, str]]:
     return [(label, path) for label, path in named if path is not None]
 
 
-def exists_error(label: str, path: str) -> OutputRefused:
-    """The refusal of an output that exists: the file named, and how to overwrite it on purpose."""
-    return OutputRefused(f"{label} {path} already exists", hint=FORCE_HINT)
-
-
 def same_file(a: str, b: str) -> bool:
     """``a`` and ``b`` are one file: the same inode if both exist, else the same path once resolved.
 
@@ -155,7 +153,9 @@ def written_whole(path: str, label: str = "OUT", *, force: bool = False) -> Iter
     at is replaced and the link stays; a stream (``/dev/null``, a FIFO) is
     written directly. Without ``force``, a file that appeared at ``path``
     meanwhile is not replaced (``OutputRefused``, as ``check_outputs``
-    would have said). A temporary file that cannot be made is ``SinkWriteError`` naming ``path``.
+    would have said); with ``force`` the file to be replaced is locked as
+    a writer's (``claims.locked``) until it is, so a live recording of it
+    is not swept away (this is refused instead). A temporary file that cannot be made is ``SinkWriteError`` naming ``path``.
     The result has the mode the replaced file had, or the one a new file gets.
     """
     target = os.path.realpath(path)
@@ -163,6 +163,12 @@ def written_whole(path: str, label: str = "OUT", *, force: bool = False) -> Iter
     if mode is not None and _is_stream(mode):
         yield path
         return
+    with claims.locked(label, path) if force and mode is not None else contextlib.nullcontext():
+        yield from _written_beside(target, mode, label, path, force)
+
+
+def _written_beside(target: str, mode: int | None, label: str, path: str, force: bool) -> Iterator[str]:
+    """``written_whole``'s temporary file beside ``target``: yielded, then published or removed."""
     folder, name = os.path.split(target)
     try:
         handle, temp = tempfile.mkstemp(

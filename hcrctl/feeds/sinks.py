@@ -30,6 +30,7 @@ from collections.abc import Iterable, Sequence
 from typing import IO, Any
 
 from ..errors import HcrError
+from ..link.claims import open_output
 from ..protocol.topics import Topic
 
 
@@ -183,23 +184,26 @@ class Sink:
         raise NotImplementedError
 
     def _open(self) -> Counting:
-        self._file = Counting(self.path, "wb")
+        self._file = Counting(self.path)
         return self._file
 
 
 class Counting:
-    """A binary file that counts what it writes and turns OSError into SinkWriteError.
+    """A binary file written from its start, that counts what it writes and turns OSError into SinkWriteError.
+
+    Opened through the output's claim when the command holds one
+    (``claims.open_output``): the file claimed is the file written.
 
     ``tell`` is the count, which is the offset in a file opened fresh: the
     MCAP writer asks for it to index its chunks, and ``/dev/full`` answers 0.
     """
 
-    def __init__(self, path: str, mode: str) -> None:
+    def __init__(self, path: str) -> None:
         self.path = path
         self.count = 0
         self.error: SinkWriteError | None = None
         try:
-            self.file: IO[bytes] = open(path, mode, buffering=1 << 16)  # noqa: SIM115 - closed by close()
+            self.file: IO[bytes] = open_output(path)  # closed by close()
         except OSError as exc:
             raise SinkWriteError(path, exc.strerror or str(exc)) from None
 

@@ -36,14 +36,21 @@ class Summary:
         self.other_ok = 0  # bad under ``rule``, good under the other one
         self.junk_bytes = self.junk_runs = self.malformed_bytes = self.malformed = 0
         self.truncated_bytes = self.text_lines = 0
+        #: The earliest and the latest time seen (``add``'s ``t``).
         self.first: float | None = None
         self.last: float | None = None
 
     def add(self, events: Iterable[Event], t: float | None = None) -> None:
-        """Count ``events``; ``t`` is when they were seen, for the time span."""
+        """Count ``events``; ``t`` is when they were seen, for the time span.
+
+        The span is the earliest and the latest time seen, not the first and
+        the last record's: a log whose times go back and forth spans what it covers.
+        """
         if t is not None:
-            self.first = t if self.first is None else self.first
-            self.last = t
+            if self.first is None or t < self.first:
+                self.first = t
+            if self.last is None or t > self.last:
+                self.last = t
         pairs = self.pairs
         for event in events:
             kind = type(event)

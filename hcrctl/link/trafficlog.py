@@ -6,9 +6,11 @@ showed; ``replay`` sends only tx records and so never sends them back.
 
 Each line is the ``hex decode --json`` shape plus ``time`` (ISO 8601, local
 time with offset, microseconds), ``direction`` (``tx``/``rx``) and ``hex``
-(the bytes exactly as they crossed the wire). Lines are written whole and
-flushed one by one, so a crash or a ``kill -9`` loses nothing already seen;
-the file is opened for appending, so several sessions build one history.
+(the bytes exactly as they crossed the wire). Lines are written whole, one
+``write`` each, so a crash or a ``kill -9`` loses nothing already seen;
+the file is opened for appending (``O_APPEND``), so several sessions build
+one history, and two at once never tear each other's lines. A FIFO is
+waited for so that a signal still ends the wait (``claims.open_appended``).
 ``monitor --from`` and ``replay`` read it back with ``read_log``. The log
 is one of ``Robot``'s traffic hooks, beside a monitor and the shell's toolbar.
 
@@ -45,6 +47,7 @@ from ..protocol.dialect import decode_all
 from ..protocol.frames import ChecksumRule
 from ..protocol.profiles import DEFAULT, Profile
 from ..protocol.records import event_dict, hexs
+from .claims import open_appended
 
 if TYPE_CHECKING:
     from .client import Robot
@@ -96,7 +99,7 @@ class TrafficLog:
         self._rule = rule
         self._lock = threading.Lock()  # tx comes from the caller's thread, rx from the reader's
         try:
-            self._file = open(path, "a", encoding="utf-8")  # noqa: SIM115 - closed by close()
+            self._fd: int | None = open_appended(path)
         except OSError as exc:
             raise LogOpenError(f"cannot open the log {path} ({exc.strerror})", hint="check the path") from exc
 
@@ -117,12 +120,13 @@ class TrafficLog:
             line = "".join(
                 json.dumps(record(piece, rule, self.profile), ensure_ascii=False) + "\n" for piece in pieces
             )
+        data = line.encode()
         with self._lock:
-            if self._file.closed:
+            if self._fd is None:
                 return
             try:
-                self._file.write(line)
-                self._file.flush()
+                while data:  # one write for a file: whole at the end, whoever else appends
+                    data = data[os.write(self._fd, data) :]
             except OSError as exc:
                 self._give_up(exc)
 
@@ -131,16 +135,18 @@ class TrafficLog:
 
     def close(self) -> None:
         with self._lock:
-            try:
-                self._file.close()
-            except OSError as exc:
-                self._give_up(exc)
+            fd, self._fd = self._fd, None
+            if fd is not None:
+                with contextlib.suppress(OSError):  # every line was written at once: nothing is left to lose
+                    os.close(fd)
 
     def _give_up(self, exc: OSError) -> None:
         """Say once, at once, that the log is incomplete, and write no more (lock held)."""
         error = LogIncomplete(self.path, exc.strerror or str(exc))
-        with contextlib.suppress(OSError):
-            self._file.close()  # the failed bytes stay in its buffer: dropping them is the point
+        fd, self._fd = self._fd, None
+        if fd is not None:
+            with contextlib.suppress(OSError):
+                os.close(fd)
         with _INCOMPLETE_LOCK:
             _INCOMPLETE.append(error)
         with contextlib.suppress(OSError, ValueError):

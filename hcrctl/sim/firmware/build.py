@@ -11,18 +11,26 @@ used as is; an Intel ``.hex`` is turned into a raw flash image.
 
 Builds are cached (``toolchain.cached``), keyed by the sketch, the MCU, the
 clock, the flags and the compiler's version. A failed build is one line: the
-compiler's first error and the path of the full log. Standard library only.
+compiler's first error and the path of the full log. The build is bounded in
+memory, CPU and wall time (``toolchain.run_bounded``), the sketch's file name
+is written into the generated source as a C string (``c_string``: a name is
+never code), and a built file is checked before the chip gets it
+(``image``). Standard library only.
 """
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
+import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import IO
 
 from ...errors import HcrError
 from . import toolchain
+from .image import MAX_FILE_BYTES, check_elf, hex_image, refused
 
 SKETCH_SUFFIXES = (".pde", ".ino")
 BUILT_SUFFIXES = (".elf", ".hex")
@@ -43,11 +51,14 @@ def firmware_image(path: Path, mcu: str, clock: int, say: Callable[[str], None] 
     """
     suffix = path.suffix.lower()
     data = read_firmware(path)
-    if suffix == ".elf":
-        return path.resolve()
+    if suffix == ".elf":  # the harness loads the bytes checked here, a copy: not the file, which may change
+        check_elf(path.name, data, mcu)
+        key = toolchain.digest("elf", data)
+        return toolchain.cached("firmware", key, "firmware.elf", _writing("firmware.elf", data))
     if suffix == ".hex":
-        key = toolchain.digest("hex", data)
-        return toolchain.cached("firmware", key, "firmware.bin", lambda d: _hex_to_bin(path, data, d))
+        image = hex_image(path.name, data, mcu)
+        key = toolchain.digest("hex", image)
+        return toolchain.cached("firmware", key, "firmware.bin", _writing("firmware.bin", image))
     toolchain.require(toolchain.BUILD_NEEDS)
     key = toolchain.digest(RECIPE, data, path.name, mcu, str(clock), _compiler_version())
 
@@ -59,11 +70,15 @@ def firmware_image(path: Path, mcu: str, clock: int, say: Callable[[str], None] 
 
 
 def read_firmware(path: Path) -> bytes:
-    """The file's bytes, or the one line saying why it cannot be read."""
+    """The file's bytes, or the one line saying why it cannot be read (more than ``MAX_FILE_BYTES`` included)."""
     try:
-        return path.read_bytes()
+        with path.open("rb") as handle:
+            data = handle.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise HcrError(f"cannot read the firmware {path}: {exc.strerror or exc}") from None
+    if len(data) > MAX_FILE_BYTES:
+        raise refused(path.name, f"it is larger than {MAX_FILE_BYTES >> 20} MiB, more than any firmware file")
+    return data
 
 
 def _compiler_version() -> str:
@@ -87,28 +102,64 @@ def _build(path: Path, data: bytes, mcu: str, clock: int, out: Path) -> None:
     sketch = out / "sketch.cpp"
     sketch.write_bytes(sketch_source(data, path.name))
     log = out / _LOG
+    deadline = time.monotonic() + toolchain.BUILD_TIMEOUT_S
     with log.open("wb") as sink:
         steps = [
             ["avr-gcc", "-c", *flags, *_C, *map(str, sorted(core.glob("*.c")))],
             ["avr-g++", "-c", *flags, *_CXX, *map(str, sorted(core.glob("*.cpp"))), str(sketch)],
             ["avr-gcc", "-c", *flags, "-x", "assembler-with-cpp", *map(str, sorted(core.glob("*.S")))],
         ]
-        procs = [subprocess.Popen(cmd, cwd=out, stdout=sink, stderr=sink) for cmd in steps]
-        if any(proc.wait() != 0 for proc in procs):
-            raise _failed(path, log)
+        _check_steps(path, log, _run(path, log, steps, out, sink, deadline))
         objects = sorted(str(p) for p in out.glob("*.o"))
         link = ["avr-g++", f"-mmcu={mcu}", "-Os", "-Wl,--gc-sections", *objects, "-o", "firmware.elf", "-lm"]
-        if subprocess.run(link, cwd=out, stdout=sink, stderr=sink, check=False).returncode != 0:
-            raise _failed(path, log)
+        _check_steps(path, log, _run(path, log, [link], out, sink, deadline))
     for obj in objects:
         Path(obj).unlink()
 
 
-def _failed(path: Path, log: Path) -> HcrError:
-    """The compiler's first error as one line, and where the whole log is."""
-    text = log.read_text(errors="replace")
-    first = next((line for line in text.splitlines() if "error" in line.lower()), "the build failed")
-    return HcrError(f"cannot build {path.name}: {first.strip()}", hint=f"the full log is {log}")
+def _run(
+    path: Path, log: Path, steps: list[list[str]], out: Path, sink: IO[bytes], deadline: float
+) -> list[int]:
+    """``toolchain.run_bounded``, a build that ran out of time said as a failed build."""
+    try:
+        return toolchain.run_bounded(steps, out, sink, deadline)
+    except toolchain.BuildBounded as exc:
+        raise _failed(path, log, exc.message) from None
+
+
+def _check_steps(path: Path, log: Path, statuses: list[int]) -> None:
+    """Every step ended well, or the build failed: a bound a step met, else the compiler's first error."""
+    if all(status == 0 for status in statuses):
+        return
+    bound = next((b for b in map(toolchain.bound_met, statuses) if b is not None), None)
+    raise _failed(path, log, bound)
+
+
+#: A log line that says why a build failed: the compiler's errors, and running out of memory at its bound.
+_FAILURE = re.compile(r"error|out of memory|memory exhausted", re.IGNORECASE)
+
+
+def _failed(path: Path, log: Path, bound: str | None = None) -> HcrError:
+    """The compiler's first error (or the bound a step met) as one line, and where the whole log is."""
+    if bound is None:
+        text = log.read_text(errors="replace")
+        first = next((ln.strip() for ln in text.splitlines() if _FAILURE.search(ln)), "the build failed")
+        if "memory" not in first.lower():  # the compiler's own error in the sketch
+            return HcrError(f"cannot build {path.name}: {first}", hint=f"the full log is {log}")
+        bound = first  # out of memory: at its address-space bound
+    return HcrError(
+        f"cannot build {path.name}: {bound}",
+        hint=f"a build is bounded to {toolchain.BOUNDS}; the full log is {log}",
+    )
+
+
+def _writing(product: str, data: bytes) -> Callable[[Path], None]:
+    """A cache entry's maker that writes ``data`` as ``product``."""
+
+    def write(folder: Path) -> None:
+        (folder / product).write_bytes(data)
+
+    return write
 
 
 # -- what the Arduino IDE adds to a sketch ------------------------------------------------
@@ -127,7 +178,15 @@ def sketch_source(data: bytes, name: str) -> bytes:
     point into the sketch itself.
     """
     protos = b"".join(head + b";\n" for head in prototypes(data))
-    return b"#include <Arduino.h>\n" + protos + f'#line 1 "{name}"\n'.encode() + data
+    return b"#include <Arduino.h>\n" + protos + b"#line 1 " + c_string(name) + b"\n" + data
+
+
+def c_string(text: str) -> bytes:
+    """``text`` as a C string literal, quotes included: what is not a plain printable ASCII character is an
+    octal escape, so a file name holding a quote, a backslash or a newline stays one string, never code."""
+    plain = set(b"abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789 _-.,+=()[]{}@#%&!~^:;/")
+    raw = os.fsencode(text)
+    return b'"' + b"".join(bytes((b,)) if b in plain else b"\\%03o" % b for b in raw) + b'"'
 
 
 def prototypes(data: bytes) -> list[bytes]:
@@ -160,31 +219,3 @@ def prototypes(data: bytes) -> list[bytes]:
 def _blank(match: re.Match[bytes]) -> bytes:
     """A comment or literal as spaces (newlines kept), so positions and line numbers stay."""
     return bytes(b if b == ord("\n") else ord(" ") for b in match[0])
-
-
-def _hex_to_bin(path: Path, data: bytes, out: Path) -> None:
-    """An Intel HEX file as the flash image it describes (gaps filled with 0xFF, as erased flash)."""
-    image = bytearray()
-    base = 0
-    for number, line in enumerate(data.decode("ascii", "replace").splitlines(), 1):
-        line = line.strip()
-        if not line:
-            continue
-        try:
-            record = bytes.fromhex(line[1:]) if line[0] == ":" else b""
-        except ValueError:
-            record = b""
-        if len(record) < 5 or len(record) != record[0] + 5 or sum(record) & 0xFF:
-            raise HcrError(f"{path.name} line {number} is not an Intel HEX record")
-        count, address, kind, payload = record[0], int.from_bytes(record[1:3], "big"), record[3], record[4:-1]
-        if kind == 0:
-            at = base + address
-            image.extend(b"\xff" * max(0, at + count - len(image)))
-            image[at : at + count] = payload
-        elif kind == 2:
-            base = int.from_bytes(payload, "big") << 4
-        elif kind == 4:
-            base = int.from_bytes(payload, "big") << 16
-        elif kind == 1:
-            break
-    (out / "firmware.bin").write_bytes(bytes(image))

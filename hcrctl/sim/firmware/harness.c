@@ -286,6 +286,10 @@ static void load(const char *mcu, uint32_t clock, const char *file)
 			fail("the image (%zu bytes) is larger than the flash of %s", size, mcu);
 		avr_loadcode(avr, flash, (uint32_t)size, 0);
 	} else {
+		/* hcrctl checked the file (image.py); this keeps simavr from aborting on one that does not fit */
+		if ((uint64_t)f.flashbase + f.flashsize > (uint64_t)avr->flashend + 1)
+			fail("the firmware (%u bytes at 0x%x) is larger than the flash of %s", f.flashsize,
+			     f.flashbase, mcu);
 		f.frequency = clock;
 		strncpy(f.mmcu, mcu, sizeof f.mmcu - 1);
 		avr_load_firmware(avr, &f);

@@ -20,6 +20,7 @@ import contextlib
 import os
 import signal
 import subprocess
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -44,7 +45,7 @@ def _compile(out: Path) -> None:
     log = out / "build.log"
     cmd = ["cc", "-O2", f"-I{toolchain.SIMAVR_INCLUDE}", str(SOURCE), "-lsimavr", "-o", str(out / PROGRAM)]
     with log.open("wb") as sink:
-        if subprocess.run(cmd, stdout=sink, stderr=sink, check=False).returncode != 0:
+        if toolchain.run_bounded([cmd], out, sink, time.monotonic() + toolchain.BUILD_TIMEOUT_S) != [0]:
             first = next((ln for ln in log.read_text(errors="replace").splitlines() if "error" in ln), "")
             raise HcrError(
                 f"cannot build the simavr harness: {first.strip() or 'cc failed'}",

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ...errors import quoted
+
 #: The MCUs whose Arduino pinout this module knows (and simavr emulates).
 MCUS = ("atmega328p", "atmega328", "atmega168")
 
@@ -101,7 +103,7 @@ class PinMap:
             name, sep, value = (part.strip() for part in item.partition("="))
             if not sep or name not in DEFAULTS:
                 raise PinMapError(
-                    f"expected name=pin with a name of {', '.join(DEFAULTS)}; got {item.strip()!r}"
+                    f"expected name=pin with a name of {', '.join(DEFAULTS)}; got {quoted(item.strip())!r}"
                 )
             if name in given:
                 raise PinMapError(f"{name} is given twice")
@@ -120,9 +122,10 @@ def _pin(name: str, value: str) -> int:
         text, allowed, what = value, PWM_PINS, f"a PWM pin ({', '.join(map(str, PWM_PINS))})"
     else:
         text, allowed, what = value, DIGITAL_PINS, "a digital pin 2..13 (0 and 1 are the UART)"
-    number = int(text) if text.isdigit() else -1
+    # ASCII digits only ("٥".isdigit() too), and few: a pin has at most two, and int() of 10,000 digits fails
+    number = int(text) if text.isascii() and text.isdigit() and len(text) <= 3 else -1
     if number not in allowed:
-        raise PinMapError(f"{name} must be {what}; got {value!r}")
+        raise PinMapError(f"{name} must be {what}; got {quoted(value)!r}")
     return number
 
 

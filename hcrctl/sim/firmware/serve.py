@@ -47,8 +47,10 @@ def serve_firmware(
     """
     read_firmware(options.path)  # a mistyped path is said first, whatever else is missing
     sketch = options.path.suffix.lower() in SKETCH_SUFFIXES
+    # a built file is checked before the packages are: what is wrong with it is news whatever is installed
+    built = None if sketch else firmware_image(options.path, options.mcu, options.clock)
     toolchain.require((*toolchain.RUN_NEEDS, *(toolchain.BUILD_NEEDS if sketch else ())))  # all at once
-    image = firmware_image(options.path, options.mcu, options.clock, say)
+    image = built or firmware_image(options.path, options.mcu, options.clock, say)
     chip = Chip(image, options.mcu, options.clock)
     try:
         master, slave = os.openpty()

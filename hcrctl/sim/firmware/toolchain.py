@@ -5,7 +5,18 @@ package at once: installing one at a time, a user would meet them one by
 one). Builds are cached under ``$XDG_CACHE_HOME/hcrctl/`` by a hash of
 everything that goes into them, so a second start of the same firmware is
 fast, and a build is made in a scratch directory then renamed into place,
-so two starts at once never see half a build. Standard library only.
+so two starts at once never see half a build.
+
+The compiler is given a sketch someone may have written to hurt
+(``#include "/dev/zero"`` grows it without end), so every program a build
+runs is bounded (``run_bounded``): each process in address space, CPU time
+and the size of any file it writes (``LIMITS``, set by a small wrapper
+that sets them and then execs the program, so nothing runs in a forked
+child of a threaded process), and the build as a whole on the wall clock
+(``BUILD_TIMEOUT_S``, after which its process groups are killed). Its
+standard input is ``/dev/null`` and it has no controlling terminal, so an
+``#include`` of a terminal or of standard input cannot wait on the user.
+Standard library only.
 """
 
 from __future__ import annotations
@@ -14,11 +25,15 @@ import contextlib
 import hashlib
 import os
 import shutil
+import signal
+import subprocess
+import sys
 import tempfile
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import IO
 
 from ...errors import HcrError
 
@@ -130,3 +145,78 @@ def cached(kind: str, key: str, product: str, make: Callable[[Path], None]) -> P
     except OSError:  # another process built it meanwhile
         shutil.rmtree(scratch, ignore_errors=True)
     return entry / product
+
+
+# -- running the compiler, bounded -------------------------------------------------------------
+
+#: What each process of a build may use (``resource``'s names): the compiler of a sketch and the
+#: Arduino core needs under 200 MB and a few seconds; a file it writes (an object, the log) stays small.
+LIMITS = {"RLIMIT_AS": 1 << 30, "RLIMIT_CPU": 120, "RLIMIT_FSIZE": 64 << 20}
+#: The longest a whole build may take on the wall clock (a loaded machine included).
+BUILD_TIMEOUT_S = 600.0
+#: What the bounds are, for a failed build's hint and docs/firmware.md.
+BOUNDS = "1 GiB of memory, 120 s of CPU and 64 MiB per file for each compiler process, 600 s for the build"
+
+#: Set the limits given as NAME=VALUE,... then become the program: run by ``sys.executable -I -S``.
+_WRAPPER = (
+    "import os, resource, sys\n"
+    "for spec in sys.argv[1].split(','):\n"
+    "    name, value = spec.split('=')\n"
+    "    resource.setrlimit(getattr(resource, name), (int(value), int(value)))\n"
+    "os.execvp(sys.argv[2], sys.argv[2:])\n"
+)
+
+
+class BuildBounded(HcrError):
+    """A build step that met one of its bounds: killed, or out of memory."""
+
+
+def bounded(cmd: Sequence[str]) -> list[str]:
+    """``cmd`` run under ``LIMITS``: a Python wrapper sets them on itself, then execs ``cmd``."""
+    specs = ",".join(f"{name}={value}" for name, value in LIMITS.items())
+    return [sys.executable, "-I", "-S", "-c", _WRAPPER, specs, *cmd]
+
+
+def run_bounded(steps: Sequence[Sequence[str]], cwd: Path, log: IO[bytes], deadline: float) -> list[int]:
+    """Run ``steps`` at once, each under ``LIMITS``, output to ``log``; their exit statuses.
+
+    Each is a process group of its own, so a compiler's children go with it:
+    when ``deadline`` (``time.monotonic()``) passes, or this wait is
+    interrupted (Ctrl-C), every group still running is killed. A step that
+    died of a signal has a negative status, as ``subprocess`` gives it.
+    """
+    procs: list[subprocess.Popen[bytes]] = []
+    try:
+        for cmd in steps:
+            procs.append(
+                subprocess.Popen(
+                    bounded(cmd),
+                    cwd=cwd,
+                    stdin=subprocess.DEVNULL,
+                    stdout=log,
+                    stderr=log,
+                    start_new_session=True,
+                )
+            )
+        return [proc.wait(timeout=max(0.0, deadline - time.monotonic())) for proc in procs]
+    except subprocess.TimeoutExpired:
+        raise BuildBounded(f"the build took longer than {BUILD_TIMEOUT_S:g} s") from None
+    finally:
+        for proc in procs:
+            if proc.poll() is None:
+                with contextlib.suppress(OSError):
+                    os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+
+
+def bound_met(status: int) -> str | None:
+    """Which bound a step's exit status says it met, or None (it ended by itself)."""
+    if status >= 0:
+        return None
+    if status == -signal.SIGXCPU:
+        return f"a compiler used more than {LIMITS['RLIMIT_CPU']} s of CPU"
+    if status == -signal.SIGXFSZ:
+        return f"a compiler wrote a file larger than {LIMITS['RLIMIT_FSIZE'] >> 20} MiB"
+    if status == -signal.SIGKILL:
+        return "a compiler was killed (SIGKILL), at its CPU bound or short of memory"
+    return f"a compiler died of signal {-status}"
