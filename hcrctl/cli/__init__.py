@@ -162,7 +162,7 @@ def no_such_command(name: str, known: list[str]) -> str:
 
 
 @click.group(cls=LazyGroup, context_settings=CONTEXT)
-@click.version_option(__version__, "--version", prog_name="hcrctl")
+@click.version_option(__version__, "-V", "--version", prog_name="hcrctl")
 @GLOBAL_OPTIONS
 @click.pass_context
 def cli(ctx: click.Context, **options: Any) -> None:
