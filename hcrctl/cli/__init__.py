@@ -20,7 +20,7 @@ from .. import __version__
 from ..errors import describe, printable
 from ..link.signals import Terminated, stop_signals_raise
 from ..protocol import commands as C
-from .settings import GLOBAL_OPTIONS, Settings, config_keys
+from .settings import GLOBAL_OPTIONS, Settings, config_defaults
 
 if TYPE_CHECKING:
     from click.shell_completion import CompletionItem
@@ -295,20 +295,13 @@ def with_log_status(code: int) -> int:
     return code
 
 
-def config_defaults() -> dict[str, Any]:
-    """The config file's values for the global options (checked), or {}."""
-    from ..config import option_defaults
-
-    return option_defaults(config_keys(cli), commands=lambda name: cli.get_command(click.Context(cli), name))
-
-
 def config_defaults_for(args: list[str]) -> dict[str, Any]:
-    """``config_defaults()``, except that ``hcrctl config`` runs with a bad file: it is the way to see
+    """``config_defaults(cli)``, except that ``hcrctl config`` runs with a bad file: it is the way to see
     where the file is and to replace it (``config`` itself names the file's error)."""
     from ..errors import ConfigError
 
     try:
-        return config_defaults()
+        return config_defaults(cli)
     except ConfigError:
         if subcommand_of(args) != "config":
             raise

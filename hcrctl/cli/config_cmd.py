@@ -22,7 +22,7 @@ from ..config import config_path, file_settings
 from ..errors import HcrError
 from .output import emit, say
 from .params import ByteNumber
-from .settings import GlobalOption, Settings, config_keys, json_option
+from .settings import GlobalOption, Settings, config_defaults, config_keys, json_option
 
 #: Where a value came from, by Click's name for it: what ``hcrctl config`` says.
 SOURCES = {
@@ -77,9 +77,8 @@ def init(ctx: click.Context, force: bool) -> None:
 
 def show(root: click.Context, settings: Settings) -> None:
     """Every setting's value and source, and what the file's command tables set."""
-    from .. import cli
-
-    cli.config_defaults()  # a bad file is its error here, as for any other command
+    if isinstance(root.command, click.Group):
+        config_defaults(root.command)  # a bad file is its error here, as for any other command
     where = config_path()
     rows = rows_of(root, where)
     record = {"file": where, "exists": os.path.lexists(where), "settings": rows}

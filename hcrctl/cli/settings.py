@@ -177,6 +177,15 @@ def config_keys(command: click.Command) -> dict[str, click.Option]:
     return keys
 
 
+def config_defaults(group: click.Group) -> dict[str, Any]:
+    """The config file's values for ``group``'s global options and its commands' tables (checked), or {}."""
+    from ..config import option_defaults
+
+    return option_defaults(
+        config_keys(group), commands=lambda name: group.get_command(click.Context(group), name)
+    )
+
+
 _F = TypeVar("_F", bound=Callable[..., Any])
 
 
