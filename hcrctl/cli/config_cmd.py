@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import os
 import textwrap
-from typing import Any
+from typing import Any, NamedTuple
 
 import click
 
@@ -75,48 +75,52 @@ def init(ctx: click.Context, force: bool) -> None:
 # -- what is in effect -----------------------------------------------------------------------------
 
 
+class Setting(NamedTuple):
+    """One line of ``hcrctl config``: the key, what ``--json`` gives for it, and its value for people."""
+
+    key: str
+    record: dict[str, Any]
+    shown: str
+
+
 def show(root: click.Context, settings: Settings) -> None:
     """Every setting's value and source, and what the file's command tables set."""
     if isinstance(root.command, click.Group):
         config_defaults(root.command)  # a bad file is its error here, as for any other command
     where = config_path()
-    rows = rows_of(root, where)
-    record = {"file": where, "exists": os.path.lexists(where), "settings": rows}
-    lines = [f"config file: {where}" + ("" if record["exists"] else " (none there)")]
-    width = max(len(key) for key in rows)
-    for key, row in rows.items():
-        lines.append(f"{key:<{width}}  {row['shown']:<24}  {source_text(row)}")
-    for row in rows.values():
-        del row["shown"]
+    found = settings_in_effect(root, where)
+    exists = os.path.lexists(where)
+    lines = [f"config file: {where}" + ("" if exists else " (none there)")]
+    width = max(len(setting.key) for setting in found)
+    lines += [f"{s.key:<{width}}  {s.shown:<24}  {source_text(s.record)}" for s in found]
+    record = {"file": where, "exists": exists, "settings": {s.key: s.record for s in found}}
     emit(settings, record, "\n".join(lines))
 
 
-def rows_of(root: click.Context, where: str) -> dict[str, dict[str, Any]]:
-    """key -> {value, source, and the option, variable or line it came from}, the file's tables last."""
+def settings_in_effect(root: click.Context, where: str) -> list[Setting]:
+    """Each global option's value and where it came from, then the values of the file's command tables."""
     in_file = {entry.key.replace("_", "-"): entry for entry in file_settings(where)}
-    rows: dict[str, dict[str, Any]] = {}
+    found = []
     for key, option in config_keys(root.command).items():
         name = option.name or key
         value = getattr(root.obj, name)
-        row: dict[str, Any] = {"value": plain(value), "shown": shown(value, option)}
         source = root.get_parameter_source(name)
-        row["source"] = SOURCES[source.name] if source is not None else "default"
-        if row["source"] == "command line":
-            row["option"] = max(option.opts, key=len)
-        elif row["source"] == "environment":
-            row["variable"] = option.envvar
-        elif row["source"] == "config file":
-            row["line"] = in_file[key].line if key in in_file else None
-        rows[key] = row
+        record: dict[str, Any] = {
+            "value": plain(value),
+            "source": SOURCES[source.name] if source else "default",
+        }
+        if record["source"] == "command line":
+            record["option"] = max(option.opts, key=len)
+        elif record["source"] == "environment":
+            record["variable"] = option.envvar
+        elif record["source"] == "config file":
+            record["line"] = in_file[key].line if key in in_file else None
+        found.append(Setting(key, record, shown(value, option)))
     for key, entry in in_file.items():
         if "." in key:
-            rows[key] = {
-                "value": entry.value,
-                "shown": shown(entry.value),
-                "source": "config file",
-                "line": entry.line,
-            }
-    return rows
+            record = {"value": entry.value, "source": "config file", "line": entry.line}
+            found.append(Setting(key, record, shown(entry.value)))
+    return found
 
 
 def source_text(row: dict[str, Any]) -> str:
