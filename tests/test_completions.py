@@ -16,7 +16,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from helpers import REPO
+from helpers import REPO, PtySpawn
 from helpers_cli import clean_env, hcrctl_exe, one_line, run
 from serial.tools import list_ports as pyserial_ports
 
@@ -184,7 +184,11 @@ printf '%s\\n' "${COMPREPLY[@]}"
     ("line", "words", "offered"),
     [
         ("hcrctl pi", "hcrctl pi", ["pid", "ping"]),
-        ("hcrctl ", "hcrctl", ["bridge", "completion", "drive"]),  # the first few, in the CLI's order
+        (
+            "hcrctl ",
+            "hcrctl",
+            ["bridge", "completion", "config", "drive"],
+        ),  # the first few, in the CLI's order
         ("hcrctl --port sim:// read co", "hcrctl --port sim : // read co", ["compass"]),
         ("hcrctl -p sim://?broadcast_hz=0 dr", "hcrctl -p sim : //?broadcast_hz = 0 dr", ["drive"]),
         # the word bash replaces is what follows the last colon, so that is all the answer holds
@@ -280,10 +284,8 @@ def test_bash_completion_loads_it_from_a_completions_directory(tmp_path, bash_sc
 @pytest.fixture
 def bash(tmp_path, bash_script):
     """An interactive ``bash --norc`` in a pty with completions/hcrctl.bash sourced (no bash-completion)."""
-    import pexpect
-
     env = shell_env(tmp_path) | {"PS1": "$ ", "TERM": "dumb", "INPUTRC": os.devnull}
-    child = pexpect.spawn(
+    child = PtySpawn(
         "bash", ["--norc", "--noprofile"], env=env, encoding="utf-8", timeout=30, dimensions=(24, 200)
     )
     child.expect_exact("$ ")
@@ -337,14 +339,12 @@ def test_zsh_loads_the_script_from_fpath_and_completes_on_every_tab(tmp_path):
     """docs/commands.md's route and the packager's (completions/_hcrctl in a directory on $fpath, as
     site-functions is). Click's stock script completed only on every other Tab that way: each later
     Tab ran the file's body again, which re-registered instead of completing."""
-    import pexpect
-
     needs("zsh")
     functions = tmp_path / "zfunc"
     functions.mkdir()
     (functions / "_hcrctl").write_text(shipped("zsh"))
     env = shell_env(tmp_path) | {"TERM": "dumb", "ZDOTDIR": str(tmp_path)}
-    child = pexpect.spawn("zsh", ["-f", "-i"], env=env, encoding="utf-8", timeout=30, dimensions=(24, 200))
+    child = PtySpawn("zsh", ["-f", "-i"], env=env, encoding="utf-8", timeout=30, dimensions=(24, 200))
     try:
         child.sendline(
             f"PS1='$ '; fpath=({functions} $fpath); autoload -U compinit; compinit -u -d {tmp_path}/zcd; echo READY"
