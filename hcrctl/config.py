@@ -22,7 +22,7 @@ import os
 import stat
 import sys
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import Any, NamedTuple
 
 import click
 
@@ -228,6 +228,32 @@ def _line_of(data: bytes, dotted: str) -> int | None:
         elif current == table and re.match(rf"""(["']?){re.escape(key)}\1\s*=""", text):
             return number
     return None
+
+
+class FileSetting(NamedTuple):
+    """One value the file sets: its key as written (``baud``, ``bridge.allow-origin``) and its line."""
+
+    key: str
+    value: Any
+    line: int | None
+
+
+def file_settings(path: str) -> list[FileSetting]:
+    """Every value the file at ``path`` sets, a table's flattened (``bridge.allow-origin``); [] with no file.
+
+    The line is the one an error about that key would name (None for a key
+    written another way, such as a dotted key outside its table).
+    """
+    data = read_config(path)
+    if data is None:
+        return []
+    found = []
+    for key, value in parse_table(path, data).items():
+        inner = value.items() if isinstance(value, dict) else [("", value)]
+        for sub, item in inner:
+            dotted = f"{key}.{sub}" if sub else key
+            found.append(FileSetting(dotted, item, _line_of(data, dotted)))
+    return found
 
 
 def command_options(command: click.Command) -> dict[str, click.Option]:

@@ -61,6 +61,15 @@ def hcrctl_exe() -> str:
     return found
 
 
+#: The checkout these tests are in: the suite runs the hcrctl installed from it (pip install [-e] .).
+REPO = Path(__file__).resolve().parent.parent
+
+
+def checkout_extra(extra: str) -> str:
+    """What a missing-extra hint names when hcrctl was installed from this checkout: ``/repo[zenoh]'``."""
+    return f"{REPO}[{extra}]'"
+
+
 def clean_env(home: Path, **extra: str) -> dict[str, str]:
     """The environment without HCRCTL_* and with a config dir of our own."""
     env = {k: v for k, v in os.environ.items() if not k.startswith("HCRCTL_") and k != "_HCRCTL_COMPLETE"}

@@ -42,8 +42,10 @@ __all__ = [
 ]
 
 
-def run(args: list[str], env: dict[str, str], timeout: float = TIMEOUT) -> subprocess.CompletedProcess[str]:
-    """Run hcrctl to completion with captured text output."""
+def run(
+    args: list[str], env: dict[str, str], timeout: float = TIMEOUT, cwd: Path | None = None
+) -> subprocess.CompletedProcess[str]:
+    """Run hcrctl to completion with captured text output (in ``cwd`` if given)."""
     return subprocess.run(
         [hcrctl_exe(), *args],
         env=env,
@@ -51,6 +53,7 @@ def run(args: list[str], env: dict[str, str], timeout: float = TIMEOUT) -> subpr
         text=True,
         timeout=timeout,
         stdin=subprocess.DEVNULL,
+        cwd=cwd,
     )
 
 

@@ -12,6 +12,7 @@ from helpers import Terminal
 from helpers_cli import clean_env, one_line, run, wire
 from helpers_shell import shell_env
 
+from hcrctl import __version__
 from hcrctl.cli import SUBCOMMANDS, no_such_command
 from hcrctl.cli.settings import global_options
 from hcrctl.shell.hexmode import HELP, banner
@@ -65,6 +66,12 @@ def test_every_global_option_says_what_it_is(tmp_path):
         "--baud INTEGER Serial line rate, bit/s. Default: the --protocol's own (115200 for v0.15, 9600 for v0.11)."
         in text
     )
+
+
+@pytest.mark.parametrize("spelling", ["-V", "--version"])
+def test_the_version_is_asked_for_as_in_other_tools(tmp_path, spelling):
+    result = run([spelling], clean_env(tmp_path))
+    assert (result.returncode, result.stdout, result.stderr) == (0, f"hcrctl, version {__version__}\n", "")
 
 
 @pytest.mark.parametrize("width", [20, 37, 60, 80, 100, 200])

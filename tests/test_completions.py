@@ -1,9 +1,11 @@
-"""Shell completion: the scripts ``hcrctl completion SHELL`` prints, and what TAB completes.
+"""Shell completion: the scripts ``hcrctl completion SHELL`` prints, the files in ``completions/``
+that packagers install, and what TAB completes.
 
 The scripts only call ``hcrctl`` back (``_HCRCTL_COMPLETE=<shell>_complete``), so the
 answers are checked by calling the installed executable the way each script does, then
-through each real shell with the script the installed hcrctl prints: bash always, zsh and
-fish when they are installed (CI installs neither: those tests skip and say so).
+through each real shell with the files of ``completions/`` (held equal to what the
+installed hcrctl prints), from the directories a user or a packager puts them in: bash
+always, zsh and fish when they are installed (where one is not, its tests skip and say so).
 """
 
 from __future__ import annotations
@@ -14,11 +16,14 @@ import subprocess
 from pathlib import Path
 
 import pytest
+from helpers import REPO, PtySpawn
 from helpers_cli import clean_env, hcrctl_exe, one_line, run
 from serial.tools import list_ports as pyserial_ports
 
 SHELLS = ["bash", "zsh", "fish"]
 BASH_COMPLETION = Path("/usr/share/bash-completion/bash_completion")
+#: The files a packager installs, by shell (README.md, "Packaging", says where each goes).
+SHIPPED = {"bash": "hcrctl.bash", "zsh": "_hcrctl", "fish": "hcrctl.fish"}
 
 
 def shell_env(tmp_path: Path, **extra: str) -> dict[str, str]:
@@ -35,9 +40,14 @@ def printed(tmp_path: Path, shell: str) -> str:
     return result.stdout
 
 
+def shipped(shell: str) -> str:
+    """The text of ``completions/`` file for ``shell``."""
+    return (REPO / "completions" / SHIPPED[shell]).read_text()
+
+
 def needs(program: str) -> None:
     if shutil.which(program) is None:
-        pytest.skip(f"{program} is not installed (apt-get install {program}); CI does not install it")
+        pytest.skip(f"{program} is not installed (apt-get install {program}; .ci/run installs it)")
 
 
 @pytest.mark.parametrize("shell", SHELLS)
@@ -54,6 +64,17 @@ def test_the_package_prints_each_script_and_clicks_source_route_prints_the_same(
     assert source.stdout == script
     marks = {"bash": "COMP_LINE", "zsh": "#compdef hcrctl", "fish": "string split -m 1"}
     assert marks[shell] in script  # ours, not Click's stock script
+
+
+@pytest.mark.parametrize("shell", SHELLS)
+def test_the_completions_directory_holds_what_the_command_prints(tmp_path, shell):
+    """Packagers install these files without running hcrctl; they are the command's output, byte for byte.
+    After a change to the scripts: for s in bash zsh fish; do hcrctl completion $s > completions/...; done."""
+    assert shipped(shell) == printed(tmp_path, shell), f"regenerate completions/{SHIPPED[shell]}"
+
+
+def test_the_completions_directory_holds_nothing_else():
+    assert sorted(p.name for p in (REPO / "completions").iterdir()) == sorted(SHIPPED.values())
 
 
 @pytest.mark.parametrize(
@@ -122,9 +143,10 @@ def test_port_completion_falls_back_to_files(monkeypatch):
 
 @pytest.fixture
 def bash_script(tmp_path) -> Path:
+    """completions/hcrctl.bash, copied where a test may change it."""
     needs("bash")
     path = tmp_path / "hcrctl.bash"
-    path.write_text(printed(tmp_path, "bash"))
+    path.write_text(shipped("bash"))
     return path
 
 
@@ -162,7 +184,11 @@ printf '%s\\n' "${COMPREPLY[@]}"
     ("line", "words", "offered"),
     [
         ("hcrctl pi", "hcrctl pi", ["pid", "ping"]),
-        ("hcrctl ", "hcrctl", ["bridge", "completion", "drive"]),  # the first few, in the CLI's order
+        (
+            "hcrctl ",
+            "hcrctl",
+            ["bridge", "completion", "config", "drive"],
+        ),  # the first few, in the CLI's order
         ("hcrctl --port sim:// read co", "hcrctl --port sim : // read co", ["compass"]),
         ("hcrctl -p sim://?broadcast_hz=0 dr", "hcrctl -p sim : //?broadcast_hz = 0 dr", ["drive"]),
         # the word bash replaces is what follows the last colon, so that is all the answer holds
@@ -235,13 +261,17 @@ def test_another_shell_sourcing_the_bash_script_is_told_which_to_use(tmp_path, b
 
 
 @pytest.mark.skipif(not BASH_COMPLETION.exists(), reason="the bash-completion package is not installed")
-def test_bash_completion_loads_it_from_the_users_completions_directory(tmp_path, bash_script):
-    """docs/commands.md's route: bash-completion loads ~/.local/share/bash-completion/completions/hcrctl
-    ($XDG_DATA_HOME) on the first Tab after hcrctl."""
-    folder = tmp_path / "data" / "bash-completion" / "completions"
+@pytest.mark.parametrize("route", ["user", "packager"])
+def test_bash_completion_loads_it_from_a_completions_directory(tmp_path, bash_script, route):
+    """On the first Tab after hcrctl, bash-completion loads the file named hcrctl from the user's
+    directory (~/.local/share/bash-completion/completions: $XDG_DATA_HOME, docs/commands.md's route) or a
+    system one ($XDG_DATA_DIRS/bash-completion/completions, as /usr/share: the packager's)."""
+    data = tmp_path / ("data" if route == "user" else "share")
+    folder = data / "bash-completion" / "completions"
     folder.mkdir(parents=True)
     (folder / "hcrctl").write_text(bash_script.read_text())
     program = f"""
+    export XDG_DATA_DIRS={tmp_path / "share"}:/usr/share
     source {BASH_COMPLETION}
     complete -p hcrctl 2>/dev/null && echo "loaded too early"
     if declare -F _comp_load >/dev/null; then _comp_load hcrctl; else __load_completion hcrctl; fi
@@ -253,11 +283,9 @@ def test_bash_completion_loads_it_from_the_users_completions_directory(tmp_path,
 
 @pytest.fixture
 def bash(tmp_path, bash_script):
-    """An interactive ``bash --norc`` in a pty with the printed bash script sourced (no bash-completion)."""
-    import pexpect
-
+    """An interactive ``bash --norc`` in a pty with completions/hcrctl.bash sourced (no bash-completion)."""
     env = shell_env(tmp_path) | {"PS1": "$ ", "TERM": "dumb", "INPUTRC": os.devnull}
-    child = pexpect.spawn(
+    child = PtySpawn(
         "bash", ["--norc", "--noprofile"], env=env, encoding="utf-8", timeout=30, dimensions=(24, 200)
     )
     child.expect_exact("$ ")
@@ -308,16 +336,15 @@ def test_zsh_answers_escape_a_described_colon_and_keep_help_on_one_line():
 
 
 def test_zsh_loads_the_script_from_fpath_and_completes_on_every_tab(tmp_path):
-    """docs/commands.md's route (a file _hcrctl on $fpath). Click's stock script completed only on every other
-    Tab that way: each later Tab ran the file's body again, which re-registered instead of completing."""
-    import pexpect
-
+    """docs/commands.md's route and the packager's (completions/_hcrctl in a directory on $fpath, as
+    site-functions is). Click's stock script completed only on every other Tab that way: each later
+    Tab ran the file's body again, which re-registered instead of completing."""
     needs("zsh")
     functions = tmp_path / "zfunc"
     functions.mkdir()
-    (functions / "_hcrctl").write_text(printed(tmp_path, "zsh"))
+    (functions / "_hcrctl").write_text(shipped("zsh"))
     env = shell_env(tmp_path) | {"TERM": "dumb", "ZDOTDIR": str(tmp_path)}
-    child = pexpect.spawn("zsh", ["-f", "-i"], env=env, encoding="utf-8", timeout=30, dimensions=(24, 200))
+    child = PtySpawn("zsh", ["-f", "-i"], env=env, encoding="utf-8", timeout=30, dimensions=(24, 200))
     try:
         child.sendline(
             f"PS1='$ '; fpath=({functions} $fpath); autoload -U compinit; compinit -u -d {tmp_path}/zcd; echo READY"
@@ -338,21 +365,23 @@ def test_zsh_loads_the_script_from_fpath_and_completes_on_every_tab(tmp_path):
 # -- fish --------------------------------------------------------------------------------
 
 
-def test_fish_loads_the_script_from_its_completions_directory_and_keeps_whole_descriptions(tmp_path):
-    """docs/commands.md's route (~/.config/fish/completions/hcrctl.fish). Click's stock script cut each
-    description at its first comma: "Drive both motors (power"."""
+@pytest.mark.parametrize("route", ["user", "packager"])
+def test_fish_loads_the_script_from_its_completions_directory_and_keeps_whole_descriptions(tmp_path, route):
+    """The user's directory (~/.config/fish/completions, docs/commands.md's route) and the packager's
+    ($XDG_DATA_DIRS/fish/vendor_completions.d, as /usr/share/fish/vendor_completions.d). Click's stock
+    script cut each description at its first comma: "Drive both motors (power"."""
     from hcrctl.cli import SUBCOMMANDS
     from hcrctl.cli.settings import global_options
 
     needs("fish")
-    folder = tmp_path / "fish" / "completions"  # $XDG_CONFIG_HOME/fish/completions
+    share = tmp_path / "share"
+    folder = tmp_path / "fish" / "completions" if route == "user" else share / "fish" / "vendor_completions.d"
     folder.mkdir(parents=True)
-    (folder / "hcrctl.fish").write_text(printed(tmp_path, "fish"))
+    (folder / "hcrctl.fish").write_text(shipped("fish"))
     lines = ["hcrctl dr", "hcrctl --por", "hcrctl --port sim:// read co", "hcrctl --port si"]
     program = "; ".join(f"complete -C '{line}'; echo END" for line in lines)
-    result = subprocess.run(
-        ["fish", "-c", program], env=shell_env(tmp_path), capture_output=True, text=True, timeout=60
-    )
+    env = shell_env(tmp_path, XDG_DATA_DIRS=f"{share}:/usr/share")
+    result = subprocess.run(["fish", "-c", program], env=env, capture_output=True, text=True, timeout=60)
     assert result.stderr == ""
     port_help = next(o.help for o in global_options() if "--port" in o.opts)
     assert "," in SUBCOMMANDS["drive"][1] and "," in str(port_help)

@@ -25,7 +25,15 @@ PACKAGE = Path(__file__).resolve().parent.parent / "hcrctl"
 
 #: Lowest first. A module may import modules of its own layer or of an earlier one.
 LAYERS: list[tuple[str, ...]] = [
-    ("hcrctl", "hcrctl.__init__", "hcrctl.errors", "hcrctl.inputs", "hcrctl.numtext", "hcrctl.config"),
+    (
+        "hcrctl",
+        "hcrctl.__init__",
+        "hcrctl.errors",
+        "hcrctl.extras",
+        "hcrctl.inputs",
+        "hcrctl.numtext",
+        "hcrctl.config",
+    ),
     ("hcrctl.protocol",),
     ("hcrctl.sim",),
     # the fleet's key layout, session and remote link are links; its serving process is a feed.

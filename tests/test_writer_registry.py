@@ -21,8 +21,9 @@ from typing import Any
 import pytest
 from helpers_cli import clean_env, one_line, run
 
+from hcrctl.extras import MissingExtra
 from hcrctl.feeds import formats
-from hcrctl.feeds.formats import MissingExtra, Writer, register
+from hcrctl.feeds.formats import Writer, register
 from hcrctl.link.context import Connection
 from hcrctl.link.trafficlog import TrafficLog
 
@@ -185,9 +186,7 @@ def test_a_missing_package_names_its_extra_and_a_broken_one_is_its_own_error(
     absent = Writer("messages", "x", "hcr_absent_pkg.sink:Sink", needs="hcr_absent_pkg", extra="absent")
     with pytest.raises(MissingExtra) as said:
         absent.load("out.x")
-    assert (
-        said.value.hint == "pip install 'hcrctl[absent]'" and "hcr_absent_pkg package" in said.value.message
-    )
+    assert "[absent]'" in (said.value.hint or "") and "hcr_absent_pkg package" in said.value.message
     (tmp_path / "hcr_broken_pkg.py").write_text("import hcr_missing_inside  # a dependency of its own\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     broken = Writer("messages", "x", "hcr_broken_pkg:Sink", needs="hcr_broken_pkg", extra="broken")

@@ -20,7 +20,7 @@ from .. import __version__
 from ..errors import describe, printable
 from ..link.signals import Terminated, stop_signals_raise
 from ..protocol import commands as C
-from .settings import GLOBAL_OPTIONS, Settings, config_keys
+from .settings import GLOBAL_OPTIONS, Settings, config_defaults
 
 if TYPE_CHECKING:
     from click.shell_completion import CompletionItem
@@ -95,6 +95,10 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
         "Print the completion script for SHELL (bash, zsh or fish).",
     ),
     "man": ("hcrctl.cli.man:man", "Print the manual page, in roff, made from every command's help."),
+    "config": (
+        "hcrctl.cli.config_cmd:config",
+        "Show every setting with its value and its source: default, config file, environment, command line.",
+    ),
 }
 
 #: Click's completion protocol variable for the program name "hcrctl".
@@ -162,7 +166,7 @@ def no_such_command(name: str, known: list[str]) -> str:
 
 
 @click.group(cls=LazyGroup, context_settings=CONTEXT)
-@click.version_option(__version__, "--version", prog_name="hcrctl")
+@click.version_option(__version__, "-V", "--version", prog_name="hcrctl")
 @GLOBAL_OPTIONS
 @click.pass_context
 def cli(ctx: click.Context, **options: Any) -> None:
@@ -270,7 +274,7 @@ def main(argv: list[str] | None = None) -> None:
         register()
     try:
         with stop_signals_raise():
-            defaults = config_defaults()
+            defaults = config_defaults_for(args)
             code = cli.main(args=args, prog_name="hcrctl", standalone_mode=False, default_map=defaults)
     except SystemExit:
         raise
@@ -291,11 +295,17 @@ def with_log_status(code: int) -> int:
     return code
 
 
-def config_defaults() -> dict[str, Any]:
-    """The config file's values for the global options (checked), or {}."""
-    from ..config import option_defaults
+def config_defaults_for(args: list[str]) -> dict[str, Any]:
+    """``config_defaults(cli)``, except that ``hcrctl config`` runs with a bad file: it is the way to see
+    where the file is and to replace it (``config`` itself names the file's error)."""
+    from ..errors import ConfigError
 
-    return option_defaults(config_keys(cli), commands=lambda name: cli.get_command(click.Context(cli), name))
+    try:
+        return config_defaults(cli)
+    except ConfigError:
+        if subcommand_of(args) != "config":
+            raise
+        return {}
 
 
 def _debug(args: list[str]) -> bool:
@@ -377,15 +387,27 @@ def _takes(token: str, name: str, option: click.Option) -> int:
     return 0
 
 
-def _moved_before_subcommand(args: list[str], name: str, option: click.Option) -> str | None:
-    """``args`` with the misplaced option (and its value) moved in front of the subcommand, quoted."""
-    import shlex
-
+def _subcommand_at(args: list[str]) -> int:
+    """Where the subcommand is in ``args``: past the global options and their values."""
     sub = 0
     while sub < len(args) and args[sub].startswith("-") and args[sub] != "--":
         given = args[sub].split("=", 1)[0]
         known = _global_option(given)
         sub += _takes(args[sub], given, known) if known is not None else 1
+    return sub
+
+
+def subcommand_of(args: list[str]) -> str | None:
+    """The subcommand ``args`` name, if any."""
+    sub = _subcommand_at(args)
+    return args[sub] if sub < len(args) else None
+
+
+def _moved_before_subcommand(args: list[str], name: str, option: click.Option) -> str | None:
+    """``args`` with the misplaced option (and its value) moved in front of the subcommand, quoted."""
+    import shlex
+
+    sub = _subcommand_at(args)
     for at in range(sub, len(args)):
         if args[at] == "--":
             break

@@ -7,14 +7,11 @@ from typing import Any
 
 import click
 
-from ..errors import HcrError
 from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
 from ..feeds.outfile import force_option
 from ..protocol.encodings import ENCODINGS
 from .params import HostPort, deadman_option, duration_option, rate_option
 from .settings import Settings
-
-EXTRA = "pip install 'hcrctl[foxglove]'"
 
 
 class Origin(click.ParamType):
@@ -89,7 +86,7 @@ def bridge(
     pressed bumper, when the client leaves, and when the bridge ends. One
     client drives at a time. A web page may connect only from this machine,
     from Foxglove's app or from an --allow-origin. Needs the foxglove extra
-    (pip install 'hcrctl[foxglove]'). With --json a summary (sweeps per
+    (without it, the error names the pip command). With --json a summary (sweeps per
     second, messages) is printed at the end. If the --mcap file cannot be
     written (a full disk), that is said once, serving goes on, and the exit
     status is 1.
@@ -114,17 +111,11 @@ def bridge(
 
 
 def require_extra(mcap: bool) -> None:
-    """The server (websockets) and the MCAP writer (mcap) are an extra: without them, one line
-    naming it, before anything is opened. Only the package missing is this error: a failing import
-    inside an installed one is that failure, with its own message."""
+    """The server (websockets) and the MCAP writer (mcap) are the foxglove extra: without them, one
+    line naming it, before anything is opened."""
+    from ..extras import require
     from ..feeds.formats import WRITERS
 
     mcap_needs = WRITERS[".mcap"].needs  # what the table's MCAP writer imports
-    needed = [("websockets", "websockets")] + ([(mcap_needs, mcap_needs)] if mcap and mcap_needs else [])
-    for module, package in needed:
-        try:
-            __import__(module)
-        except ModuleNotFoundError as exc:
-            if exc.name != module:
-                raise
-            raise HcrError(f"hcrctl bridge needs {package}, which is not installed", hint=EXTRA) from exc
+    for package in ["websockets"] + ([mcap_needs] if mcap and mcap_needs else []):
+        require(package, "foxglove", "hcrctl bridge")

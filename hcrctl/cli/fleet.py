@@ -1,7 +1,7 @@
 """``hcrctl fleet router|serve|list``: many robots and many operators on Zenoh (docs/fleet.md).
 
-Zenoh is an extra (``pip install 'hcrctl[zenoh]'``), imported only when one of
-these runs; its absence is one line naming the extra. Where the fleet is
+Zenoh is the zenoh extra, imported only when one of these runs; its absence is
+one line naming the pip command that installs it (``hcrctl.extras``). Where the fleet is
 comes from the global ``--zenoh``/``--zenoh-config``.
 """
 
@@ -37,7 +37,8 @@ def fleet() -> None:
     with --port zenoh://NAME (read, watch, teleop, drive...). Everyone says
     where the router is with the global --zenoh ENDPOINT (default
     tcp/127.0.0.1:7447), and --zenoh-config FILE for TLS or user/password.
-    Needs the zenoh extra (pip install 'hcrctl[zenoh]'). See docs/fleet.md.
+    Needs the zenoh extra (without it, the error names the pip command). See
+    docs/fleet.md.
     """
 
 

@@ -192,7 +192,8 @@ def page(root: click.Group, ctx: click.Context) -> str:
         line(
             "The config file (TOML): defaults for the global options, by long name (port, baud, "
             "checksum-from...), and a table per command for its options ([bridge] allow-origin = [...]). "
-            "Read only when it exists; a wrong key or value exits 2."
+            "Read only when it exists; a wrong key or value exits 2. hcrctl config shows every setting in "
+            "effect and where it came from; hcrctl config init writes a commented one to start from."
         ),
         ".TP",
         f"\\fI$XDG_STATE_HOME/{APP_DIR}/\\fR (default \\fI~/.local/state/{APP_DIR}/\\fR)",

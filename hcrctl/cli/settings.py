@@ -7,7 +7,9 @@ they ask ``settings.robot()`` for one.
 
 Each global option also comes from ``HCRCTL_<NAME>`` and from the config file
 (key ``<name>``), both derived here from the option's long name so the three
-spellings can never drift apart.
+spellings can never drift apart. ``global_options`` is the one table of
+settings: ``--help``, the man page, the config file's keys, ``hcrctl config``
+and its template are all read from it.
 """
 
 from __future__ import annotations
@@ -48,7 +50,16 @@ def complete_port(ctx: click.Context, param: click.Parameter, incomplete: str) -
 
 
 class GlobalOption(click.Option):
-    """Names its env var in an error only when the bad value came from there."""
+    """A setting: names its env var in an error only when the bad value came from there.
+
+    ``example`` is the value ``hcrctl config init``'s template shows for an
+    option with no default (a port, a log file): the template is written
+    from these objects, so each setting is declared once, here.
+    """
+
+    def __init__(self, *args: Any, example: Any = None, **attrs: Any) -> None:
+        super().__init__(*args, **attrs)
+        self.example = example
 
     def get_error_hint(self, ctx: click.Context | None) -> str:
         hint = click.Parameter.get_error_hint(self, ctx)
@@ -78,6 +89,7 @@ def global_options() -> list[click.Option]:
             "-p",
             metavar="PORT",
             shell_complete=complete_port,
+            example="/dev/ttyUSB0",
             help="Device path or pyserial URL (socket://, rfc2217://, spy://); sim:// is the simulator. "
             "Default: the only USB serial port.",
         ),
@@ -127,6 +139,7 @@ def global_options() -> list[click.Option]:
             "--deadman",
             type=FloatRange(0.05, 10),
             metavar="S",
+            example=0.5,
             help="Deadman of teleop and the bridge's /cmd_vel: motion stops S s after the last key or "
             "message (default 0.5; their own --deadman wins).",
         ),
@@ -134,6 +147,7 @@ def global_options() -> list[click.Option]:
             "--zenoh",
             type=Endpoint(),
             multiple=True,
+            example=["tcp/10.0.0.5:7447"],
             help="Where the fleet is (zenoh://NAME ports, fleet commands), e.g. tcp/10.0.0.5:7447; repeatable. "
             "Default: the router on tcp/127.0.0.1:7447.",
         ),
@@ -141,10 +155,16 @@ def global_options() -> list[click.Option]:
             "--zenoh-config",
             type=click.Path(exists=True, dir_okay=False),
             metavar="FILE",
+            example="zenoh.json5",
             help="Zenoh's own JSON5 configuration (TLS, user/password, access control); options win over it.",
         ),
         _option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout."),
-        _option("--log", type=click.Path(dir_okay=False), help="Append every frame to FILE."),
+        _option(
+            "--log",
+            type=click.Path(dir_okay=False),
+            example="hcrctl.jsonl",
+            help="Append every frame to FILE.",
+        ),
         _option("--debug", is_flag=True, help="Show tracebacks."),
     ]
 
@@ -156,6 +176,15 @@ def config_keys(command: click.Command) -> dict[str, click.Option]:
         if isinstance(param, click.Option) and param.envvar and str(param.envvar).startswith(ENV_PREFIX):
             keys[str(param.envvar)[len(ENV_PREFIX) :].lower().replace("_", "-")] = param
     return keys
+
+
+def config_defaults(group: click.Group) -> dict[str, Any]:
+    """The config file's values for ``group``'s global options and its commands' tables (checked), or {}."""
+    from ..config import option_defaults
+
+    return option_defaults(
+        config_keys(group), commands=lambda name: group.get_command(click.Context(group), name)
+    )
 
 
 _F = TypeVar("_F", bound=Callable[..., Any])

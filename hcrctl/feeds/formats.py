@@ -42,6 +42,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Literal, cast
 
 from ..errors import HcrError
+from ..extras import require
 from ..protocol.encodings import ENCODINGS, JSON
 from ..protocol.topics import Topic
 from .sinks import Sink
@@ -74,15 +75,9 @@ class Writer:
     def load(self, path: str) -> type:
         """The writer class (imported now); MissingExtra if the package it needs is not installed."""
         module, _, name = self.target.partition(":")
-        try:
-            return cast(type, getattr(importlib.import_module(module), name))
-        except ModuleNotFoundError as exc:
-            # only the package itself missing is this error: a failing import inside it is that failure
-            if self.needs is None or (exc.name or "").partition(".")[0] != self.needs:
-                raise
-            raise MissingExtra(
-                f"writing {path} needs the {self.needs} package", hint=f"pip install 'hcrctl[{self.extra}]'"
-            ) from None
+        if self.needs is not None:
+            require(self.needs, self.extra or self.needs, f"writing {path}")
+        return cast(type, getattr(importlib.import_module(module), name))
 
 
 #: Every format, by suffix (lower case, with its dot).
@@ -122,10 +117,6 @@ class BadEncoding(HcrError):
     """An ``--encoding`` the output's format does not write: a usage error, nothing opened."""
 
     exit_code = 2
-
-
-class MissingExtra(HcrError):
-    """The optional package a format needs is not installed."""
 
 
 def suffixes(kind: str = "messages") -> tuple[str, ...]:

@@ -1,1 +1,1 @@
-"""The fleet: robots and operators on several hosts, over Eclipse Zenoh (the ``hcrctl[zenoh]`` extra)."""
+"""The fleet: robots and operators on several hosts, over Eclipse Zenoh (the zenoh extra)."""

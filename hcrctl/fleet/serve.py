@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TextIO
 
 from .. import __version__
-from ..errors import HcrError
+from ..extras import require
 from ..feeds.bridge import Signalled
 from ..feeds.bridge_stop import stopping_driven
 from ..feeds.linkwatch import LinkWatch
@@ -151,15 +151,7 @@ def _refuse_taken(session: Any, name: str) -> None:
 
 def _foxglove_extra() -> None:
     """``--foxglove`` needs the bridge's server (websockets): without it, one line naming the extra."""
-    try:
-        import websockets  # noqa: F401
-    except ModuleNotFoundError as exc:
-        if exc.name != "websockets":
-            raise
-        raise HcrError(
-            "fleet serve --foxglove needs websockets, which is not installed",
-            hint="pip install 'hcrctl[foxglove]'",
-        ) from exc
+    require("websockets", "foxglove", "fleet serve --foxglove")
 
 
 class Serving:

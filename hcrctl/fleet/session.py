@@ -37,10 +37,10 @@ from types import ModuleType
 from typing import Any
 
 from ..errors import HcrError
+from ..extras import require
 from ..link.loopback import is_loopback
 from .keys import DEFAULT_ENDPOINT
 
-ZENOH_EXTRA = "pip install 'hcrctl[zenoh]'"
 #: Zenoh's transport lease, ms: a peer silent this long is gone (its tokens deleted).
 LEASE_MS = 1000
 #: What a peer listens on when not told: loopback, a free port.
@@ -58,23 +58,13 @@ JOIN_HINT = (
 )
 
 
-class MissingZenoh(HcrError):
-    """The ``zenoh`` package is not installed (exit 1, the extra named)."""
-
-
 class FleetError(HcrError):
     """A fleet session could not open, or a fleet robot could not be reached (exit 1, with a hint)."""
 
 
 def import_zenoh() -> ModuleType:
-    """The ``zenoh`` module; MissingZenoh only when that package itself is absent, not when it fails inside."""
-    try:
-        import zenoh
-    except ModuleNotFoundError as exc:
-        if exc.name != "zenoh":
-            raise
-        raise MissingZenoh("the fleet needs the zenoh package", hint=ZENOH_EXTRA) from exc
-    return zenoh
+    """The ``zenoh`` module; MissingExtra (the zenoh extra named) only when that package itself is absent."""
+    return require("zenoh", "zenoh", "the fleet")
 
 
 @dataclass(frozen=True)

@@ -22,8 +22,9 @@ if TYPE_CHECKING:
 
 #: Where builtins find their session: ``ctx.meta`` is shared by a whole context chain.
 SESSION_KEY = "hcrctl.shell.session"
-#: CLI commands that make no sense inside the shell (completion and man print files for the outer shell).
-HIDDEN = frozenset({"shell", "completion", "man"})
+#: CLI commands that make no sense inside the shell (completion and man print files for the outer shell;
+#: config is the outer command line's settings: the shell's own are ``set``).
+HIDDEN = frozenset({"shell", "completion", "man", "config"})
 #: Builtin forms that share their name with a CLI command: ``hex`` alone, ``monitor on|changes|off``.
 OVERLAYS = {"hex": ((),), "monitor": (("on",), ("changes",), ("off",))}
 
