@@ -147,13 +147,13 @@ def _serve(
 ) -> dict[str, Any]:
     """Poll and publish, and drive when asked, until the end; stop goes out however it ends."""
     with settings.robot() as robot, quick_handoff():
-        status.start(url(options.host, server.bound_port))
-        if not server.driving:
-            status.note(f"this firmware ({robot.profile.name}) has no velocity command: {TOPIC} is off")
         feed = Feed(robot, names, options.rate, server.publish, reconnect=Reconnect(settings, robot))
         governor.attach(lambda: feed.current)
         governor.bumped = lambda: bumper_hit(feed.state)
-        try:
+        try:  # said inside: a signal the moment it is said still gets the summary
+            status.start(url(options.host, server.bound_port))
+            if not server.driving:
+                status.note(f"this firmware ({robot.profile.name}) has no velocity command: {TOPIC} is off")
             status.watch(server, feed, governor)
             with feed, stopping_driven(feed, robot, lambda: governor.driven), governor:
                 watch = LinkWatch(feed, governor, status.note, robot.port)
