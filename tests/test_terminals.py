@@ -159,7 +159,7 @@ def test_sigterm_in_a_full_screen_view_restores_the_terminal() -> None:
     raw = bytes(term.raw)
     assert RESTORED.search(raw)
     tail = term.output().split("rc=")[-1]
-    assert tail.startswith("143") and re.search(r"(?<!-)icanon", tail) and re.search(r"(?<!-)echo ", tail)
+    assert tail.startswith("0") and re.search(r"(?<!-)icanon", tail) and re.search(r"(?<!-)echo ", tail)
 
 
 def _child_of(pid: int) -> int:
@@ -193,7 +193,8 @@ def test_watch_without_a_terminal_prints_a_plain_line_a_second_until_interrupted
     for line in lines:
         assert re.match(r"\d\d:\d\d:\d\d ok .*\| compass \d+\.\d° [NESW]{1,3} \| timeouts 0", line), line
         assert "\x1b" not in line
-    assert proc.returncode == 130 and err.strip().splitlines()[-1] == "hcrctl: interrupted"
+    assert proc.returncode == 0, err  # Ctrl-C is a server's normal end: its closing line, exit 0
+    assert re.fullmatch(r"hcrctl: watch: \d+ sweeps in [\d.]+ s .*", err.strip().splitlines()[-1]), err
 
 
 def _line_from(proc: subprocess.Popen[str], timeout: float = 30.0) -> str:
@@ -203,7 +204,7 @@ def _line_from(proc: subprocess.Popen[str], timeout: float = 30.0) -> str:
     return proc.stdout.readline()
 
 
-@pytest.mark.parametrize(("sig", "status"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+@pytest.mark.parametrize(("sig", "status"), [(signal.SIGINT, 0), (signal.SIGTERM, 0)])
 def test_json_watch_prints_its_summary_however_it_ends(sig: signal.Signals, status: int) -> None:
     with FakeRobot() as robot:
         proc = _no_terminal("--port", robot.path, "--json", "watch", "compass")
@@ -318,7 +319,7 @@ def test_one_shot_lines_and_errors_are_ascii_in_an_ascii_locale() -> None:
 
 def test_ctrl_c_with_debug_is_an_interruption_not_a_traceback() -> None:
     """--debug shows the tracebacks of bugs; Ctrl-C (Click's Abort, a RuntimeError) is not one."""
-    proc = _no_terminal("--debug", "--port", "sim://", "watch", "compass")
+    proc = _no_terminal("--debug", "--port", "sim://", "watch", "compass", "--duration", "600")
     try:
         _line_from(proc)
         proc.send_signal(signal.SIGINT)

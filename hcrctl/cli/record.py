@@ -11,7 +11,14 @@ import sys
 
 import click
 
-from ..feeds.outfile import FormatsCommand, OutFile, encoding_option, force_option, refuse_encoding
+from ..feeds.outfile import (
+    FormatsCommand,
+    OutFile,
+    encoding_option,
+    force_option,
+    refuse_encoding,
+    wide_option,
+)
 from ..protocol import commands as C
 from .params import duration_option, rate_option
 from .settings import Settings, json_option
@@ -27,7 +34,9 @@ every frame both ways, /hcr/link for the link's counters (once a second), as
 JSON with JSON Schemas, or with --encoding cdr as ROS 2 messages (profile ros2).
 CSV holds one row per reading, one column per field (as plot names them,
 e.g. sonar[0]; a list gets as many as the robot sends); frames that carry no
-reading (the requests) and the grid map (not a number) are not rows. A progress line (elapsed, messages,
+reading (the requests) and the grid map (not a number) are not rows. With
+--wide it holds one row per sweep (time, t, address, then a column per field
+of the sensors that answered), as pandas wants a table; booleans are 1/0. A progress line (elapsed, messages,
 bytes, rate) goes to stderr. Ctrl-C, SIGTERM or --duration ends it with the
 file closed and whole; at most the last second is lost if the process is
 killed outright. Nothing but reads is sent. An existing OUT is refused
@@ -51,6 +60,7 @@ hcrctl record sonar.csv sonar compass --rate 20
     help="Send a sweep's requests at once, as watch does.",
 )
 @encoding_option()
+@wide_option()
 @force_option()
 @json_option
 @click.pass_obj
@@ -62,18 +72,19 @@ def record(
     duration: float | None,
     pipeline: bool,
     encoding: str,
+    wide: bool,
     force: bool,
 ) -> None:
     from ..feeds.outputs import check_outputs
     from ..feeds.progress import per_topic, size
     from ..feeds.record import reraise, run_record
 
-    refuse_encoding(out, encoding)
+    refuse_encoding(out, encoding, wide=wide)
     # written under its own name as it goes (readable after a kill -9), so only the refusals apply
     check_outputs([("OUT", out)], appended=[("--log", settings.log)], force=force)
 
     summary = run_record(
-        settings, out, sensors, rate, duration, sys.stderr, pipeline=pipeline, encoding=encoding
+        settings, out, sensors, rate, duration, sys.stderr, pipeline=pipeline, encoding=encoding, wide=wide
     )
     if settings.as_json:
         click.echo(json.dumps(summary))

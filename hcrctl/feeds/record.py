@@ -90,15 +90,18 @@ def run_record(
     *,
     pipeline: bool = True,
     encoding: str = DEFAULT_ENCODING,
+    wide: bool = False,
 ) -> dict[str, Any]:
     """Record until ``duration`` ends or a signal comes; the summary (then the signal, re-raised).
 
-    ``encoding`` (``protocol.encodings``) is for the formats that take one (MCAP).
+    ``encoding`` (``protocol.encodings``) is for the formats that take one (MCAP); ``wide`` (a row
+    per sweep) for those whose writer has the option (CSV).
     """
     names = supported_sensors(settings.protocol, list(dict.fromkeys(sensors)))
     stop = StopFlag()
     with stop.catching():
-        with open_sink(out, all_topics(Feed.counters), flush_every=FLUSH_EVERY, encoding=encoding) as sink:
+        topics = all_topics(Feed.counters)
+        with open_sink(out, topics, flush_every=FLUSH_EVERY, encoding=encoding, wide=wide) as sink:
             progress = Progress(stream, progress_line(out, sink))
             try:
                 _poll(settings, names, rate, duration, sink, progress, stop, pipeline)

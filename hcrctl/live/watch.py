@@ -123,6 +123,9 @@ def run_live(
             _watch_loop(state, poller, console, duration, owed, frame, line, lines)
         finally:
             poller.stop()
+            if lines is not None:  # the sweeps the poller finished after the painter's last write
+                with contextlib.suppress(OSError):
+                    lines.write()
             if report is not None:
                 report(state.summary())
         owed.finish(poller.robot, robot)
