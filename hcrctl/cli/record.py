@@ -6,8 +6,8 @@ sends no motion: only the reads ``watch`` sends.
 
 from __future__ import annotations
 
-import json
 import sys
+from typing import Any
 
 import click
 
@@ -21,6 +21,7 @@ from ..feeds.outfile import (
 )
 from ..protocol import commands as C
 from .params import duration_option, rate_option
+from .serverend import ServerEnd
 from .settings import Settings, json_option
 
 RECORD_HELP = """Poll SENSORS ({sensors}; none means all) and record to OUT.
@@ -83,16 +84,25 @@ def record(
     # written under its own name as it goes (readable after a kill -9), so only the refusals apply
     check_outputs([("OUT", out)], appended=[("--log", settings.log)], force=force)
 
-    summary = run_record(
-        settings, out, sensors, rate, duration, sys.stderr, pipeline=pipeline, encoding=encoding, wide=wide
-    )
-    if settings.as_json:
-        click.echo(json.dumps(summary))
-    else:
+    def line(summary: dict[str, Any]) -> str:
         topics = per_topic(summary["topics"]) or "nothing"
-        click.echo(
-            f"hcrctl: record: {out}: {summary['messages']} messages ({topics}), "
-            f"{size(summary['bytes'])} in {summary['seconds']:.1f} s",
-            err=True,
+        return (
+            f"record: {out}: {summary['messages']} messages ({topics}), "
+            f"{size(summary['bytes'])} in {summary['seconds']:.1f} s"
         )
-    reraise(summary["signal"], duration)
+
+    # an open-ended recording is a server: a signal is its normal end (serverend)
+    with ServerEnd("record", as_json=settings.as_json, bounded=duration is not None) as end:
+        summary = run_record(
+            settings,
+            out,
+            sensors,
+            rate,
+            duration,
+            sys.stderr,
+            pipeline=pipeline,
+            encoding=encoding,
+            wide=wide,
+        )
+        end.report(summary, line(summary))
+        reraise(summary["signal"])
