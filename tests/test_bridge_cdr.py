@@ -11,7 +11,6 @@ publishes for the same frames.
 from __future__ import annotations
 
 import json
-import signal
 import struct
 import subprocess
 from pathlib import Path

@@ -76,7 +76,7 @@ def test_jq_reads_the_headings_live(env: dict[str, str], device: str) -> None:
 
 def test_a_closed_pipe_ends_it_quietly(env: dict[str, str], device: str) -> None:
     """``| head -3``: the reader goes, hcrctl ends with 0 and says nothing (no traceback, no error)."""
-    script = f'"$0" --port "$1" watch --jsonl compass | head -3; echo "status $? ${{PIPESTATUS[0]}}" >&2'
+    script = '"$0" --port "$1" watch --jsonl compass | head -3; echo "status $? ${PIPESTATUS[0]}" >&2'
     done = subprocess.run(
         ["bash", "-c", script, hcrctl_exe(), device],
         env=env,

@@ -143,7 +143,7 @@ def global_options() -> list[click.Option]:
             help="Zenoh's own JSON5 configuration (TLS, user/password, access control); options win over it.",
         ),
         _option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout."),
-        _option("--log", type=click.Path(dir_okay=False), help="Append every frame to FILE."),
+        _option("--log", type=click.Path(dir_okay=False), help="Append every frame to FILE (- for stdout)."),
         _option("--debug", is_flag=True, help="Show tracebacks."),
     ]
 

@@ -9,6 +9,8 @@ time with offset, microseconds), ``direction`` (``tx``/``rx``) and ``hex``
 (the bytes exactly as they crossed the wire). Lines are written whole and
 flushed one by one, so a crash or a ``kill -9`` loses nothing already seen;
 the file is opened for appending, so several sessions build one history.
+``--log -`` writes the lines to stdout instead (as ``hex decode -`` reads
+stdin), each whole and flushed, between the command's own lines.
 ``monitor --from`` and ``replay`` read it back with ``read_log``. The log
 is one of ``Robot``'s traffic hooks, beside a monitor and the shell's toolbar.
 
@@ -37,7 +39,7 @@ import weakref
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from datetime import datetime
-from typing import TYPE_CHECKING, Any, BinaryIO
+from typing import IO, TYPE_CHECKING, Any, BinaryIO
 
 from ..errors import LogFormatError, LogIncomplete, LogOpenError
 from ..inputs import MAX_DEPTH, quoted, too_deep
@@ -96,7 +98,7 @@ class TrafficLog:
         self._rule = rule
         self._lock = threading.Lock()  # tx comes from the caller's thread, rx from the reader's
         try:
-            self._file = open(path, "a", encoding="utf-8")  # noqa: SIM115 - closed by close()
+            self._file = _open_log(path)
         except OSError as exc:
             raise LogOpenError(f"cannot open the log {path} ({exc.strerror})", hint="check the path") from exc
 
@@ -146,6 +148,18 @@ class TrafficLog:
         with contextlib.suppress(OSError, ValueError):
             sys.stderr.write(f"hcrctl: error: {error.one_line()}\n")
             sys.stderr.flush()
+
+
+#: The path that means stdout, as for every input and output that takes one.
+STDOUT = "-"
+
+
+def _open_log(path: str) -> IO[str]:
+    """``path`` for appending; ``-``: a copy of stdout's descriptor, so closing the log leaves stdout open."""
+    if path == STDOUT:
+        sys.stdout.flush()
+        return open(os.dup(sys.stdout.fileno()), "a", encoding="utf-8", closefd=True)
+    return open(path, "a", encoding="utf-8")
 
 
 def attach(robot: Robot, path: str) -> TrafficLog:

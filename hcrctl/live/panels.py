@@ -352,7 +352,7 @@ def link_panel(view: View, now: float, compact: bool = False) -> Panel:
         rows = [
             ("status", status_text(view, now)),
             ("polling", _rate_text(view, now)),
-            ("rtt", _rtt_text(view.rtt)),
+            ("rtt", _rtt_text(view)),
             ("timeouts", f"{c.timeouts}  bad replies {c.bad_replies}"),
             ("checksum", f"{c.checksum_errors} errors  junk {c.junk_bytes} B"),
             *_other_rule_row(c),
@@ -362,7 +362,7 @@ def link_panel(view: View, now: float, compact: bool = False) -> Panel:
         ("status", status_text(view, now)),
         ("port", view.port or "?"),
         ("polling", _rate_text(view, now)),
-        ("rtt", _rtt_text(view.rtt)),
+        ("rtt", _rtt_text(view)),
         ("sweeps", f"{c.sweeps}  reads {c.reads}"),
         ("timeouts", f"{c.timeouts}  bad replies {c.bad_replies}"),
         ("checksum", f"{c.checksum_errors} errors  malformed {c.malformed}"),
@@ -397,16 +397,23 @@ def labelled(rows: Iterable[tuple[str, str | Text]], width: int = 9) -> Text:
 
 
 def _rate_text(view: View, now: float) -> str:
+    """``9.9 Hz · target 10 Hz``; a board that streams sets its own rate, whatever --rate says."""
     target = "max" if view.target_rate is None else f"{view.target_rate:g} Hz"
+    if view.streamed:
+        target = "board streams"
     idle = now - view.last_sweep if view.last_sweep is not None else 0.0
     if view.poll_rate is None or idle > 1.0:
         achieved = f"idle {age_text(idle)}" if view.last_sweep is not None else "-"
     else:
         achieved = f"{view.poll_rate:.1f} Hz"
-    return f"{achieved} · target {target}"
+    return f"{achieved} · {target}" if view.streamed else f"{achieved} · target {target}"
 
 
-def _rtt_text(rtt: Sequence[float]) -> str:
+def _rtt_text(view: View) -> str:
+    """The round trip of the polls; a board that streams is asked nothing, so there is none to time."""
+    rtt = view.rtt
+    if view.streamed and not rtt:
+        return "- (sent unasked)"
     if not rtt:
         return "-"
     ms = [1000 * r for r in rtt]

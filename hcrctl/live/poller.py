@@ -240,9 +240,10 @@ class Poller(threading.Thread):
         return robot is not self._first and getattr(self.reconnect, "owned", True)
 
     def _quiet(self, robot: Robot) -> None:
-        """No retries while polling (remembered, and restored by stop())."""
+        """No retries while polling (remembered, and restored by stop()); a streaming board noted."""
         self._retries.append((robot, robot.retries))
         robot.retries = 0
+        self.state.streamed = robot.profile.streams
 
     def _join_time(self) -> float:
         robot = self.robot or self._first
