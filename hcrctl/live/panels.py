@@ -73,11 +73,21 @@ def age_text(seconds: float | None) -> str:
     return f"{seconds / 60:.0f} min"
 
 
-def sensor_panel(name: str, body: RenderableType, reading: Reading, now: float, title: str = "") -> Panel:
-    """A panel titled from the table; stale readings are dimmed with their age."""
+def sensor_panel(
+    name: str, body: RenderableType, reading: Reading, now: float, title: str = "", note: str = ""
+) -> Panel:
+    """A panel titled from the table; stale readings are dimmed with their age; ``note`` on the bottom border."""
     title = title or panel_title(name)
     if not reading.stale:
-        return Panel(body, title=title, title_align="left", border_style="cyan")
+        subtitle = f"[dim]{note}[/]" if note else None
+        return Panel(
+            body,
+            title=title,
+            title_align="left",
+            subtitle=subtitle,
+            subtitle_align="left",
+            border_style="cyan",
+        )
     if reading.impossible:
         return _out_of_range_panel(body, title, reading, now)
     why = f" · {reading.error}" if reading.error else ""
@@ -225,6 +235,10 @@ def compass_panel(
     return sensor_panel("compass", body, reading, now)
 
 
+#: Said wherever a wheel speed is read: the protocol carries a speed, never a direction.
+UNSIGNED = "no sign: speed only"
+
+
 def wheels_panel(
     reading: Reading, history: Iterable[tuple[int, ...]], now: float, width: int | None = None
 ) -> Panel:
@@ -232,6 +246,8 @@ def wheels_panel(
 
     Given a ``width`` (a large panel), each wheel's history is a taller
     sparkline under its speed, as long as the history or the width allows.
+    The protocol's wheel speed has no sign (a byte, 0-255): the bottom border
+    says so, since a wheel turning backwards reads as forwards.
     """
     value = reading.value
     if not isinstance(value, C.WheelSpeed):
@@ -251,7 +267,7 @@ def wheels_panel(
         for side, speed, hist in sides:
             lines.append(f"{side:<5} {speed:>3} {shown}")
             lines += tall_sparkline(hist[-inner:], top, TALL_SPARK_ROWS) if hist else [""] * TALL_SPARK_ROWS
-    return sensor_panel("wheels", Text("\n".join(lines)), reading, now)
+    return sensor_panel("wheels", Text("\n".join(lines)), reading, now, note=UNSIGNED)
 
 
 def env_panel(reading: Reading, now: float, compact: bool = False) -> Panel:
