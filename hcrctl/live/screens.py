@@ -11,8 +11,10 @@ of a ``View`` and ``now``, like the panels.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 from collections.abc import Callable, Hashable, Iterator
+from contextvars import ContextVar
 from dataclasses import dataclass
 
 from rich.cells import cell_len
@@ -469,6 +471,20 @@ def header(title: str, view: View) -> Text:
     return text
 
 
+#: False while a frame is drawn for where no key can be pressed (``without_keys``).
+KEYS_SHOWN: ContextVar[bool] = ContextVar("KEYS_SHOWN", default=True)
+
+
+@contextlib.contextmanager
+def without_keys() -> Iterator[None]:
+    """Frames drawn within leave out the key line: the last frame of a run, printed into a log or a pipe."""
+    token = KEYS_SHOWN.set(False)
+    try:
+        yield
+    finally:
+        KEYS_SHOWN.reset(token)
+
+
 def footer(keys: str, note: str = "") -> KeyLine:
     return KeyLine(keys, note)
 
@@ -477,15 +493,15 @@ class KeyLine:
     """The keys on one line: the longest wording that fits the width, then the note, cropped.
 
     "q quit" is the last to go, so however narrow the screen the way out is on it.
-    Where the output is no terminal (``watch >log``, a pipe), no key reaches
-    the program through it: the keys are left out, the note stays.
+    Within ``without_keys()`` (the last frame printed into a log or a pipe,
+    once no key can be pressed) the keys are left out and the note stays.
     """
 
     def __init__(self, keys: str, note: str = "") -> None:
         self.keys, self.note = keys, note
 
     def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
-        if not console.is_terminal:
+        if not KEYS_SHOWN.get():
             if self.note:
                 yield Text(self.note, style="bold yellow", no_wrap=True, overflow="crop")
             return

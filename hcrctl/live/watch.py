@@ -130,7 +130,10 @@ def run_live(
                 report(state.summary())
         owed.finish(poller.robot, robot)
     if console is not None and not can_redraw(console):
-        console.print(frame(False)(time.monotonic()))
+        from .screens import without_keys
+
+        with without_keys():  # the keys worked while it ran; in the log they would be a puzzle
+            console.print(frame(False)(time.monotonic()))
     return state.summary()
 
 
