@@ -10,6 +10,7 @@ a server given ``--duration``, still exit 130/143 when a signal cuts them short.
 from __future__ import annotations
 
 import importlib.util
+import os
 import re
 import signal
 import subprocess
@@ -21,10 +22,17 @@ from helpers import hcrctl_exe, wait_until
 from helpers_cli import finish, readline, start, stderr_until
 from helpers_fleet_robot import free_port
 
+from hcrctl.sim.firmware.toolchain import missing_reason
+
 HAS_ZENOH = importlib.util.find_spec("zenoh") is not None
 HAS_WEBSOCKETS = importlib.util.find_spec("websockets") is not None
 needs_zenoh = pytest.mark.skipif(not HAS_ZENOH, reason="the fleet needs the zenoh extra")
 needs_websockets = pytest.mark.skipif(not HAS_WEBSOCKETS, reason="the bridge needs the foxglove extra")
+FIRMWARE = Path(
+    os.environ.get("HCRCTL_FIRMWARE") or Path(__file__).parent / "data" / "firmware" / "HCR_romeo.pde"
+)
+NO_FIRMWARE = missing_reason() or (None if FIRMWARE.is_file() else f"no firmware at {FIRMWARE}")
+needs_firmware = pytest.mark.skipif(NO_FIRMWARE is not None, reason=NO_FIRMWARE or "")
 
 
 def _first_line(proc: subprocess.Popen[str]) -> str:
@@ -47,6 +55,11 @@ SERVERS: dict[str, tuple[Callable[[], list[str]], Callable[[subprocess.Popen[str
         _first_line,
         r"hcrctl: sim: stopped serving socket://127\.0\.0\.1:\d+ after [\d.]+ s",
     ),
+    "sim --firmware": (
+        lambda: ["sim", "--firmware", str(FIRMWARE)],
+        _first_line,
+        r"hcrctl: sim: the chip ran [\d.]+ s in [\d.]+ s of wall time \(ratio [\d.]+; [\d.]+ s given up .*\)",
+    ),
     "watch": (
         lambda: ["--port", "sim://", "watch", "compass"],
         _first_line,
@@ -68,7 +81,12 @@ SERVERS: dict[str, tuple[Callable[[], list[str]], Callable[[subprocess.Popen[str
         r"hcrctl: fleet serve bob: \d+ sweeps in [\d.]+ s .*messages published.*",
     ),
 }
-MARKS = {"bridge": [needs_websockets], "fleet router": [needs_zenoh], "fleet serve": [needs_zenoh]}
+MARKS = {
+    "bridge": [needs_websockets],
+    "fleet router": [needs_zenoh],
+    "fleet serve": [needs_zenoh],
+    "sim --firmware": [needs_firmware],
+}
 PARAMS = [pytest.param(name, marks=MARKS.get(name, []), id=name) for name in SERVERS]
 
 
