@@ -58,7 +58,8 @@ SERVERS: dict[str, tuple[Callable[[], list[str]], Callable[[subprocess.Popen[str
     "sim --firmware": (
         lambda: ["sim", "--firmware", str(FIRMWARE)],
         _first_line,
-        r"hcrctl: sim: the chip ran [\d.]+ s in [\d.]+ s of wall time \(ratio [\d.]+; [\d.]+ s given up .*\)",
+        # the chip's time when the emulator reported it, else where and how long it served
+        r"hcrctl: sim: (the chip ran [\d.]+ s in [\d.]+ s of wall time \(.*\)|stopped serving /dev/\S+ after [\d.]+ s)",
     ),
     "watch": (
         lambda: ["--port", "sim://", "watch", "compass"],
