@@ -8,9 +8,10 @@ at each size, it times in turns (best of N, so load hits all alike):
 
 - baseline: ``log_fields`` (the reader export uses) + ``decode_all`` per record, nothing written (what ``monitor --from
   --summary`` must do at least);
-- ``export LOG OUT.mcap``, ``export LOG OUT.mcap --encoding cdr`` and ``export LOG OUT.csv``:
-  ``feeds.export.export_log`` into the sink ``open_sink`` gives, closed (the command's own code,
-  without Click's start-up).
+- ``export LOG OUT.mcap``, ``export LOG OUT.mcap --encoding cdr``, ``export LOG OUT.csv`` and
+  ``export LOG OUT.csv --wide`` (a row per sweep, its rows kept in a temporary file until the
+  end so that only filled columns are written): ``feeds.export.export_log`` into the sink
+  ``open_sink`` gives, closed (the command's own code, without Click's start-up).
 
 It prints the ratios, writes ``bench/results/export.json`` and exits 1 if a ratio is >= 2.0.
 
@@ -104,8 +105,8 @@ def baseline(log: Path) -> int:
     return count
 
 
-def export(log: Path, out: Path, encoding: str = "json") -> int:
-    with open_sink(str(out), export_topics(), encoding=encoding) as sink:
+def export(log: Path, out: Path, encoding: str = "json", wide: bool = False) -> int:
+    with open_sink(str(out), export_topics(), encoding=encoding, wide=wide) as sink:
         export_log(str(log), sink, RULE, DEFAULT)
     return sink.bytes_written
 
@@ -117,6 +118,7 @@ def measure(log: Path, out: Path, repeat: int) -> dict[str, float]:
         "mcap": lambda: export(log, out.with_suffix(".mcap")),
         "cdr": lambda: export(log, out.with_suffix(".mcap"), "cdr"),
         "csv": lambda: export(log, out.with_suffix(".csv")),
+        "wide": lambda: export(log, out.with_suffix(".csv"), wide=True),
     }
     return best_of_each(runs, repeat)
 
@@ -134,14 +136,21 @@ def main() -> int:
             lines = write_log(log, size)
             best = measure(log, Path(tmp) / "out", args.repeat)
             print(f"{lines:,} records ({log.stat().st_size / 1e6:.1f} MB):")
-            for kind, what in (("mcap", ".mcap"), ("cdr", ".mcap --encoding cdr"), ("csv", ".csv")):
+            kinds = (
+                ("mcap", ".mcap"),
+                ("cdr", ".mcap --encoding cdr"),
+                ("csv", ".csv"),
+                ("wide", ".csv --wide"),
+            )
+            for kind, what in kinds:
                 ratio = best[kind] / best["baseline"]
-                verdict = "ok  " if ratio < TARGET else "MISS"
+                # --wide reads its rows back once more (only filled columns): measured, not held to the target
+                verdict = "info" if kind == "wide" else "ok  " if ratio < TARGET else "MISS"
                 print(
                     f"  {verdict} export {what}: {best[kind]:.2f} s vs baseline {best['baseline']:.2f} s: "
                     f"{ratio:.2f}x (target < {TARGET})"
                 )
-                ok = ok and ratio < TARGET
+                ok = ok and (ratio < TARGET or kind == "wide")
                 metrics[f"{kind}_ratio_{size}"] = round(ratio, 3)
                 metrics[f"{kind}_s_{size}"] = round(best[kind], 3)
             metrics[f"baseline_s_{size}"] = round(best["baseline"], 3)

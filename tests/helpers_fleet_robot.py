@@ -79,7 +79,7 @@ class Fleet:
     def router(self, *options: str) -> subprocess.Popen[bytes]:
         proc = self.start([*self.zenoh, "fleet", "router", *options], ROUTER_HOST)
         line = readline(proc)
-        assert line.startswith("listening on "), line
+        assert line.startswith(("tcp/", "tls/", "udp/")), line
         return proc
 
     def sim(self, *options: str) -> str:

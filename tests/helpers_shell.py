@@ -59,10 +59,15 @@ class Term(Terminal):
     predicate), and the alternate screen is saved/restored around live panels.
     """
 
-    def __init__(self, args: list[str], state_home: Path, timeout: float = TIMEOUT) -> None:
-        super().__init__(
-            args, size=(COLS, ROWS), env=shell_env(state_home), timeout=timeout, alt_screen=True, strip=True
-        )
+    def __init__(
+        self,
+        args: list[str],
+        state_home: Path,
+        timeout: float = TIMEOUT,
+        size: tuple[int, int] = (COLS, ROWS),
+    ) -> None:
+        env = dict(shell_env(state_home), COLUMNS=str(size[0]), LINES=str(size[1]))
+        super().__init__(args, size=size, env=env, timeout=timeout, alt_screen=True, strip=True)
 
     def _matcher(self, what: str | Callable[[str], Any]) -> Callable[[str], Any]:
         return (lambda s: what in s) if isinstance(what, str) else what
@@ -76,8 +81,11 @@ class Term(Terminal):
 
 
 @contextmanager
-def shell(args: list[str], state_home: Path, timeout: float = TIMEOUT) -> Iterator[Term]:
-    term = Term(args, state_home, timeout)
+def shell(
+    args: list[str], state_home: Path, timeout: float = TIMEOUT, size: tuple[int, int] = (COLS, ROWS)
+) -> Iterator[Term]:
+    """``hcrctl ARGS`` (a shell) on a pty of ``size`` (columns, rows)."""
+    term = Term(args, state_home, timeout, size)
     try:
         yield term
     finally:

@@ -95,7 +95,7 @@ def test_monitor_summary_gives_the_fix_and_following_it_clears_the_errors() -> N
         right = run("--port", port, "--checksum-from", "address", "monitor", "--duration", "1")
     assert wrong.returncode == 0, wrong.stderr
     summary = wrong.stderr.strip().splitlines()[-1]
-    assert summary.startswith("hcrctl: monitor: 0 frames, ")
+    assert summary.startswith("hcrctl: monitor: 0 good frames, ")
     errors = int(summary.split(", ")[1].split()[0])
     assert errors > 0
     assert summary.endswith(f"(hint: {errors} of {errors} checksum errors pass the address rule: {FIX})")

@@ -103,7 +103,7 @@ def test_a_sketch_that_does_not_compile_is_its_first_error_and_the_log(tmp_path:
     building, err = result.stderr.splitlines()  # what it is doing, then the one error line
     assert (
         building
-        == "hcrctl sim: building broken.ino for atmega328p at 16000000 Hz (cached for the next start)"
+        == "hcrctl: sim: building broken.ino for atmega328p at 16000000 Hz (cached for the next start)"
     )
     assert "cannot build broken.ino: broken.ino:2" in err and "undeclared_thing" in err, err
     log = Path(err.rsplit("the full log is ", 1)[1].rstrip(")\n"))

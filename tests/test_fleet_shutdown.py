@@ -121,7 +121,7 @@ def _stderr_to_end(serve: Any) -> str:
 
 
 def test_sigterm_while_polling_ends_cleanly_every_time(tmp_path: Path) -> None:
-    """Eight serves polling at 10 Hz, each ended by SIGTERM: exit 143, a summary, no internal error.
+    """Eight serves polling at 10 Hz, each ended by SIGTERM: exit 0, a summary, no internal error.
 
     At 10 Hz a reply still coming in when the publishers are undeclared is
     the likeliest (the race the lead saw, in about one end in four before the lock).
@@ -142,7 +142,7 @@ def _wait_polling(serve: Any, frames: int) -> None:
 
 
 def test_sigterm_in_a_flood_of_queries_and_cmd_vel_stops_and_ends_cleanly(tmp_path: Path) -> None:
-    """Three serves in turn, each ended by SIGTERM mid-flood: exit 143, stop on the wire, a summary."""
+    """Three serves in turn, each ended by SIGTERM mid-flood: exit 0, stop on the wire, a summary."""
     with fleet(clean_env(tmp_path)) as lab:
         lab.router()
         for turn in range(3):
@@ -178,7 +178,7 @@ def _ended_cleanly(serve: Any, status: int) -> None:
     assert "internal error" not in err and "Traceback" not in err, err
     assert "Already borrowed" not in err and "failed while closing" not in err, err
     assert f"hcrctl: fleet serve {serve.name}: " in err, err
-    assert status == 128 + signal.SIGTERM, err
+    assert status == 0, err  # SIGTERM is a server's normal end
 
 
 def _wait_for_answers(op: Operator, robot: str) -> None:

@@ -64,7 +64,7 @@ def test_document_frames_as_text_say_the_errata_verdicts() -> None:
             "neither": f"checksum {ck:02X} bad: header rule {text_ck:02X}, address rule {address_ck:02X}",
         }[expected_verdict(ck, text_ck, address_ck)]
         assert line.endswith(verdict), (example, line)
-    assert "3 frames, 7 checksum errors, 0 junk bytes, 2 malformed" in proc.stderr
+    assert "3 good frames, 7 checksum errors, 0 junk bytes, 2 malformed" in proc.stderr
 
 
 def test_good_frames_exit_0_and_print_plain_rows_when_piped() -> None:

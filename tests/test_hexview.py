@@ -180,7 +180,7 @@ def test_tally_counts_like_linkstats() -> None:
         tally.add(row)
     assert (tally.frames, tally.checksum_errors, tally.junk_bytes) == (1, 1, 2)
     assert not tally.all_good
-    assert tally.text() == "1 frame, 1 checksum error, 2 junk bytes"
+    assert tally.text() == "1 good frame, 1 checksum error, 2 junk bytes"
 
 
 def test_table_renders_every_row_on_a_fixed_width_console() -> None:

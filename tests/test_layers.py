@@ -154,12 +154,13 @@ def test_at_most_eight_modules_directly_in_the_package() -> None:
     assert len(top) <= MAX_TOP_LEVEL, top
 
 
-#: The CLI modules every subcommand may use: option declarations, settings, output; and the shell's door.
+#: The CLI modules every subcommand may use: options, settings, output, how a server ends; the shell's door.
 CLI_SHARED = {
     "hcrctl.cli",
     "hcrctl.cli.params",
     "hcrctl.cli.settings",
     "hcrctl.cli.output",
+    "hcrctl.cli.serverend",
     "hcrctl.cli.embed",
 }
 

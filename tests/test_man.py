@@ -116,7 +116,7 @@ def test_every_command_option_its_help_and_env_var_is_on_the_rendered_page(page)
 def test_the_exit_status_and_the_config_file_are_said(page):
     text = rendered(page)
     exit_status = text.split("EXIT STATUS", 1)[1].split("FILES", 1)[0]
-    for code in ("0 Success.", "1 The device or the link failed", "2 A usage error", "130 Interrupted"):
+    for code in ("0 Success;", "1 The device or the link failed", "2 A usage error", "130 Interrupted"):
         assert code in exit_status
     files = text.split("FILES", 1)[1]
     assert "$XDG_CONFIG_HOME/hcrctl/config.toml (default ~/.config/hcrctl/config.toml)" in files

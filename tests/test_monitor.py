@@ -98,7 +98,7 @@ def test_junk_and_checksum_errors_are_shown_and_counted() -> None:
     assert lines[0].startswith("rx       junk") and "3 bytes skipped" in lines[0]
     assert "compass" in lines[1] and "bad: header rule" in lines[1]
     assert "position" in lines[2] and lines[2].endswith("ok")
-    assert "1 frame, 1 checksum error, 3 junk bytes" in err
+    assert "1 good frame, 1 checksum error, 3 junk bytes" in err
 
 
 def test_ctrl_c_ends_an_open_ended_monitor_with_counters() -> None:

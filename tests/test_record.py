@@ -60,8 +60,7 @@ def test_a_stop_signal_leaves_a_finished_mcap_with_every_topic(
         proc.send_signal(sig)
     finally:
         _, err = finish(proc)
-    assert proc.returncode == 128 + sig, err
-    assert err.strip().splitlines()[-1] == f"hcrctl: terminated by {sig.name}"
+    assert proc.returncode == 0, err  # a stop signal is an open-ended recording's normal end
     summary, messages = whole(out)
     assert summary.statistics is not None and summary.statistics.message_count == len(messages)
     channels = {c.topic for c in summary.channels.values()}
@@ -70,7 +69,7 @@ def test_a_stop_signal_leaves_a_finished_mcap_with_every_topic(
     topics = {topic for topic, _ in messages}
     assert {"/hcr/compass", "/hcr/sonar", "/hcr/wheels", T.FRAMES, T.LINK} <= topics
     said = f"hcrctl: record: {out}: {len(messages)} messages"
-    assert said in err, err
+    assert err.strip().splitlines()[-1].startswith(said), err
     times = [m.log_time for _, m in messages]
     assert times == sorted(times)
     for topic, message in messages:
@@ -86,7 +85,7 @@ def test_sigterm_leaves_a_csv_of_whole_lines(robot: str, tmp_path: Path) -> None
         proc.send_signal(signal.SIGTERM)
     finally:
         _, err = finish(proc)
-    assert proc.returncode == 128 + signal.SIGTERM, err
+    assert proc.returncode == 0, err
     text = out.read_text()
     assert text.endswith("\n")
     rows = list(csv.reader(io.StringIO(text)))

@@ -114,7 +114,7 @@ def test_a_bumper_hit_stops_forward_but_not_reverse() -> None:
 
 def test_q_sends_stop_even_when_already_stopped() -> None:
     with FakeRobot() as robot, _teleop(robot) as term:
-        term.wait_for(r"sending +stop")
+        term.wait_for(r"sending +nothing yet")  # stopped, and nothing sent yet
         quit_at = time.monotonic()
         term.send("q")
         assert term.finish() == 0

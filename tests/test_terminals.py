@@ -42,7 +42,7 @@ def _default_sigint() -> None:
 
 def test_the_deadman_stops_while_nobody_reads_the_terminal() -> None:
     with FakeRobot() as robot, terminal(["--port", robot.path, "teleop", "--deadman", "0.5"]) as term:
-        term.wait_for(r"sending +stop", timeout=30)
+        term.wait_for(r"sending +(stop|nothing yet)", timeout=30)
         with term.stalled():
             term.send("w")
             moved = robot.wait_frame(lambda f: speed_of(f) == (50, 50), timeout=GENEROUS)
@@ -55,7 +55,7 @@ def test_the_deadman_stops_while_nobody_reads_the_terminal() -> None:
 
 def test_a_key_drives_and_the_deadman_stops_when_the_pty_is_already_full() -> None:
     with FakeRobot() as robot, terminal(["--port", robot.path, "teleop", "--deadman", "0.5"]) as term:
-        term.wait_for(r"sending +stop", timeout=30)
+        term.wait_for(r"sending +(stop|nothing yet)", timeout=30)
         with term.stalled():
             term.fill(lambda: term.send("w"))  # a held key: the screen changes ten times a second
             pressed = time.monotonic()
@@ -68,7 +68,7 @@ def test_a_key_drives_and_the_deadman_stops_when_the_pty_is_already_full() -> No
 
 def test_quitting_teleop_sends_stop_before_the_stalled_terminal_is_restored() -> None:
     with FakeRobot() as robot, terminal(["--port", robot.path, "teleop", "--deadman", "5"]) as term:
-        term.wait_for(r"sending +stop", timeout=30)
+        term.wait_for(r"sending +(stop|nothing yet)", timeout=30)
         with term.stalled():
             term.fill(lambda: term.send("w"))
             pressed = time.monotonic()
@@ -128,7 +128,8 @@ def test_an_ascii_locale_draws_in_ascii_and_restores_the_terminal(command: str) 
             )
         else:
             term.wait_for(
-                lambda t: re.search(r"sending +stop", t) and "+- drive" in t and "q quit" in t, timeout=30
+                lambda t: re.search(r"sending +(stop|nothing yet)", t) and "+- drive" in t and "q quit" in t,
+                timeout=30,
             )
         term.send("q")
         assert term.finish(timeout=30) == 0
@@ -159,7 +160,7 @@ def test_sigterm_in_a_full_screen_view_restores_the_terminal() -> None:
     raw = bytes(term.raw)
     assert RESTORED.search(raw)
     tail = term.output().split("rc=")[-1]
-    assert tail.startswith("143") and re.search(r"(?<!-)icanon", tail) and re.search(r"(?<!-)echo ", tail)
+    assert tail.startswith("0") and re.search(r"(?<!-)icanon", tail) and re.search(r"(?<!-)echo ", tail)
 
 
 def _child_of(pid: int) -> int:
@@ -193,7 +194,8 @@ def test_watch_without_a_terminal_prints_a_plain_line_a_second_until_interrupted
     for line in lines:
         assert re.match(r"\d\d:\d\d:\d\d ok .*\| compass \d+\.\d° [NESW]{1,3} \| timeouts 0", line), line
         assert "\x1b" not in line
-    assert proc.returncode == 130 and err.strip().splitlines()[-1] == "hcrctl: interrupted"
+    assert proc.returncode == 0, err  # Ctrl-C is a server's normal end: its closing line, exit 0
+    assert re.fullmatch(r"hcrctl: watch: \d+ sweeps in [\d.]+ s .*", err.strip().splitlines()[-1]), err
 
 
 def _line_from(proc: subprocess.Popen[str], timeout: float = 30.0) -> str:
@@ -203,7 +205,7 @@ def _line_from(proc: subprocess.Popen[str], timeout: float = 30.0) -> str:
     return proc.stdout.readline()
 
 
-@pytest.mark.parametrize(("sig", "status"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+@pytest.mark.parametrize(("sig", "status"), [(signal.SIGINT, 0), (signal.SIGTERM, 0)])
 def test_json_watch_prints_its_summary_however_it_ends(sig: signal.Signals, status: int) -> None:
     with FakeRobot() as robot:
         proc = _no_terminal("--port", robot.path, "--json", "watch", "compass")
@@ -231,7 +233,7 @@ def test_teleop_at_40x10_keeps_the_key_line_after_the_deadman_notice() -> None:
         FakeRobot() as robot,
         terminal(["--port", robot.path, "teleop", "--deadman", "0.3"], size=(40, 10)) as term,
     ):
-        screen = term.wait_for(r"sending +stop", timeout=30)
+        screen = term.wait_for(r"sending +(stop|nothing yet)", timeout=30)
         assert screen.splitlines()[-1].rstrip().endswith("q quit")
         term.send("w")
         screen = term.wait_for("deadman: no key", timeout=30)
@@ -318,7 +320,7 @@ def test_one_shot_lines_and_errors_are_ascii_in_an_ascii_locale() -> None:
 
 def test_ctrl_c_with_debug_is_an_interruption_not_a_traceback() -> None:
     """--debug shows the tracebacks of bugs; Ctrl-C (Click's Abort, a RuntimeError) is not one."""
-    proc = _no_terminal("--debug", "--port", "sim://", "watch", "compass")
+    proc = _no_terminal("--debug", "--port", "sim://", "watch", "compass", "--duration", "600")
     try:
         _line_from(proc)
         proc.send_signal(signal.SIGINT)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
 import click
@@ -11,6 +10,7 @@ from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
 from ..feeds.outfile import force_option
 from ..protocol.encodings import ENCODINGS
 from .params import HostPort, deadman_option, duration_option, rate_option
+from .serverend import ServerEnd
 from .settings import Settings
 
 
@@ -100,13 +100,14 @@ def bridge(
 
     timeout = settings.deadman_or(deadman, DEFAULT_TIMEOUT_S)
     options = Options(listen[0], listen[1], mcap, rate, duration, timeout, encoding, allow_origins)
-    if settings.as_json:
-        report = lambda summary: click.echo(json.dumps(summary))  # noqa: E731
-    else:
-        report = lambda summary: click.echo(f"hcrctl: {summary_line(summary)}", err=True)  # noqa: E731
-    with claimed("--mcap", mcap, force=force):
-        summary = run_bridge(settings, options, report=report)
-    if summary.get("recording_incomplete"):  # said on stderr when it happened: only the status is left
+    with (
+        claimed("--mcap", mcap, force=force),
+        ServerEnd("bridge", as_json=settings.as_json, bounded=duration is not None) as end,
+    ):
+        run_bridge(settings, options, report=end.reporter(summary_line))
+    if (end.summary or {}).get(
+        "recording_incomplete"
+    ):  # said on stderr when it happened: only the status is left
         click.get_current_context().exit(1)
 
 

@@ -12,7 +12,14 @@ import sys
 
 import click
 
-from ..feeds.outfile import FormatsCommand, OutFile, encoding_option, force_option, refuse_encoding
+from ..feeds.outfile import (
+    FormatsCommand,
+    OutFile,
+    encoding_option,
+    force_option,
+    refuse_encoding,
+    wide_option,
+)
 from .params import FloatRange
 from .settings import Settings, json_option
 
@@ -29,7 +36,9 @@ bridge serves them; Foxglove, Lichtblick and PlotJuggler open it. CSV holds one 
 per reading (time, t, direction, address, command (its number), name, then
 one column per field, named as plot names them, e.g. sonar[0], with as many
 list items as the readings have; empty where a reading has no such field); frames that carry no reading, such
-as requests, and the grid map (not a number) are not rows. A summary goes to stderr (with --json, to stdout).
+as requests, and the grid map (not a number) are not rows. With --wide it holds
+one row per sweep (time, t, address, then only the columns some row fills);
+booleans are 1/0. A summary goes to stderr (with --json, to stdout).
 
 An existing OUT is refused unless --force is given. OUT is written beside
 itself under a temporary name and renamed only when whole, so a failure
@@ -49,11 +58,18 @@ hcrctl export session.jsonl session.mcap
     "--duration", type=FloatRange(0, 864_000), metavar="S", help="Only the first S seconds of the log."
 )
 @encoding_option()
+@wide_option()
 @force_option()
 @json_option
 @click.pass_obj
 def export(
-    settings: Settings, logfile: str, out: str, duration: float | None, encoding: str, force: bool
+    settings: Settings,
+    logfile: str,
+    out: str,
+    duration: float | None,
+    encoding: str,
+    wide: bool,
+    force: bool,
 ) -> None:
     from ..feeds.export import export_log, export_topics
     from ..feeds.formats import open_sink
@@ -61,10 +77,13 @@ def export(
     from ..feeds.progress import per_topic, size
     from ..protocol.profiles import profile
 
-    refuse_encoding(out, encoding)
+    refuse_encoding(out, encoding, wide=wide)
     # --log is never written by export, but a command line naming one file twice is a mistake
     check_outputs([("OUT", out)], [("LOG", logfile)], appended=[("--log", settings.log)], force=force)
-    with written_whole(out, force=force) as path, open_sink(path, export_topics(), encoding=encoding) as sink:
+    with (
+        written_whole(out, force=force) as path,
+        open_sink(path, export_topics(), encoding=encoding, wide=wide) as sink,
+    ):
         summary = export_log(logfile, sink, settings.checksum, profile(settings.protocol), duration)
     report = summary.as_dict(sink) | {"output": out}  # the sink wrote the temporary name
     if settings.as_json:

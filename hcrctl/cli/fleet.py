@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import sys
 from typing import Any
 
 import click
@@ -16,6 +17,7 @@ import click
 from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
 from ..protocol.encodings import ENCODINGS
 from .params import Endpoint, FloatRange, HostPort, deadman_option, rate_option
+from .serverend import PREFIX, ServerEnd
 from .settings import Settings, json_option, stdout_is_terminal
 
 
@@ -54,7 +56,8 @@ def fleet() -> None:
 def router(settings: Settings, listen: tuple[str, ...]) -> None:
     """Run a Zenoh router for the fleet until Ctrl-C, SIGTERM or SIGHUP.
 
-    Its first line on stdout says where it listens. Listening beyond loopback
+    Its first line on stdout is where it listens (the endpoints, for scripts);
+    stderr says so too, and how long it served when it ends. Listening beyond loopback
     warns: anyone who reaches it joins the fleet (use --zenoh-config for TLS
     and user/password).
     """
@@ -62,7 +65,18 @@ def router(settings: Settings, listen: tuple[str, ...]) -> None:
     from ..fleet.session import import_zenoh
 
     import_zenoh()
-    run_router(where(listen, settings.zenoh, settings.zenoh_config))
+
+    def ready(endpoints: str) -> None:
+        end.serving(endpoints)  # first: a signal the moment the line is out ends a server that is up
+        click.echo(endpoints)
+        sys.stdout.flush()
+        click.echo(
+            f"{PREFIX}fleet router: listening on {endpoints}; press Ctrl-C (or send SIGTERM) to stop",
+            err=True,
+        )
+
+    with ServerEnd("fleet router") as end:
+        run_router(where(listen, settings.zenoh, settings.zenoh_config), ready)
 
 
 @fleet.command()
@@ -121,11 +135,8 @@ def serve(
         settings.deadman_or(deadman, DEFAULT_TIMEOUT_S),
         foxglove,
     )
-    if settings.as_json:
-        report = lambda summary: click.echo(json.dumps(summary))  # noqa: E731
-    else:
-        report = lambda summary: click.echo(f"hcrctl: {summary_line(summary)}", err=True)  # noqa: E731
-    run_serve(settings, options, report=report)
+    with ServerEnd(f"fleet serve {name}", as_json=settings.as_json) as end:
+        run_serve(settings, options, report=end.reporter(summary_line))
 
 
 @fleet.command(name="list")

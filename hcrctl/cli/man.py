@@ -22,7 +22,11 @@ from ..protocol.commands import PLUGINS_ENV
 
 #: What the exit status means, for every command (docs/commands.md: "Exit codes").
 EXIT_STATUS = [
-    ("0", "Success."),
+    (
+        "0",
+        "Success; also a server (watch, bridge, fleet serve, fleet router, sim, an open-ended record) "
+        "ended by Ctrl-C, SIGTERM or SIGHUP: its normal end, after its closing line.",
+    ),
     (
         "1",
         "The device or the link failed (no reply, a refused or impossible reply, a lost port), "
@@ -34,7 +38,10 @@ EXIT_STATUS = [
         "A usage error: an unknown command or option, a value out of its range, a --port URL that "
         "cannot be right, a bad config file. One line on stderr names it; nothing is sent.",
     ),
-    ("130", "Interrupted by Ctrl-C (SIGINT); a moving robot is sent stop first."),
+    (
+        "130",
+        "Interrupted by Ctrl-C (SIGINT), a one-shot or a --duration cut short; a moving robot is sent stop first.",
+    ),
     ("128+N", "Ended by signal N: 143 for SIGTERM, 129 for SIGHUP; stop is sent first."),
 ]
 

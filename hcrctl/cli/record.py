@@ -6,14 +6,22 @@ sends no motion: only the reads ``watch`` sends.
 
 from __future__ import annotations
 
-import json
 import sys
+from typing import Any
 
 import click
 
-from ..feeds.outfile import FormatsCommand, OutFile, encoding_option, force_option, refuse_encoding
+from ..feeds.outfile import (
+    FormatsCommand,
+    OutFile,
+    encoding_option,
+    force_option,
+    refuse_encoding,
+    wide_option,
+)
 from ..protocol import commands as C
 from .params import duration_option, rate_option
+from .serverend import ServerEnd
 from .settings import Settings, json_option
 
 RECORD_HELP = """Poll SENSORS ({sensors}; none means all) and record to OUT.
@@ -27,7 +35,9 @@ every frame both ways, /hcr/link for the link's counters (once a second), as
 JSON with JSON Schemas, or with --encoding cdr as ROS 2 messages (profile ros2).
 CSV holds one row per reading, one column per field (as plot names them,
 e.g. sonar[0]; a list gets as many as the robot sends); frames that carry no
-reading (the requests) and the grid map (not a number) are not rows. A progress line (elapsed, messages,
+reading (the requests) and the grid map (not a number) are not rows. With
+--wide it holds one row per sweep (time, t, address, then a column per field
+of the sensors that answered), as pandas wants a table; booleans are 1/0. A progress line (elapsed, messages,
 bytes, rate) goes to stderr. Ctrl-C, SIGTERM or --duration ends it with the
 file closed and whole; at most the last second is lost if the process is
 killed outright. Nothing but reads is sent. An existing OUT is refused
@@ -53,6 +63,7 @@ hcrctl record sonar.csv sonar compass --rate 20
     help="Send a sweep's requests at once, as watch does.",
 )
 @encoding_option()
+@wide_option()
 @force_option()
 @json_option
 @click.pass_obj
@@ -64,6 +75,7 @@ def record(
     duration: float | None,
     pipeline: bool,
     encoding: str,
+    wide: bool,
     force: bool,
 ) -> None:
     from ..feeds.outputs import check_outputs
@@ -71,22 +83,35 @@ def record(
     from ..feeds.record import reraise, run_record
     from ..link.claims import appended, claimed
 
-    refuse_encoding(out, encoding)
+    refuse_encoding(out, encoding, wide=wide)
     # written under its own name as it goes (readable after a kill -9), so only the refusals apply
     check_outputs([("OUT", out)], appended=[("--log", settings.log)], force=force)
-    # one writer per file: a second record of OUT is refused here; a FIFO (OUT or --log) is waited for here,
-    # before Ctrl-C only sets the recording's stop flag
-    with claimed("OUT", out, force=force), appended("--log", settings.log):
-        summary = run_record(
-            settings, out, sensors, rate, duration, sys.stderr, pipeline=pipeline, encoding=encoding
-        )
-    if settings.as_json:
-        click.echo(json.dumps(summary))
-    else:
+
+    def line(summary: dict[str, Any]) -> str:
         topics = per_topic(summary["topics"]) or "nothing"
-        click.echo(
-            f"hcrctl: record: {out}: {summary['messages']} messages ({topics}), "
-            f"{size(summary['bytes'])} in {summary['seconds']:.1f} s",
-            err=True,
+        return (
+            f"record: {out}: {summary['messages']} messages ({topics}), "
+            f"{size(summary['bytes'])} in {summary['seconds']:.1f} s"
         )
-    reraise(summary["signal"], duration)
+
+    # one writer per file: a second record of OUT is refused here; a FIFO (OUT or --log) is waited for here,
+    # before Ctrl-C only sets the recording's stop flag. An open-ended recording is a server: a signal is its
+    # normal end (serverend)
+    with (
+        claimed("OUT", out, force=force),
+        appended("--log", settings.log),
+        ServerEnd("record", as_json=settings.as_json, bounded=duration is not None) as end,
+    ):
+        summary = run_record(
+            settings,
+            out,
+            sensors,
+            rate,
+            duration,
+            sys.stderr,
+            pipeline=pipeline,
+            encoding=encoding,
+            wide=wide,
+        )
+        end.report(summary, line(summary))
+        reraise(summary["signal"])

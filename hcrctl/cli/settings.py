@@ -163,7 +163,7 @@ def global_options() -> list[click.Option]:
             "--log",
             type=click.Path(dir_okay=False),
             example="hcrctl.jsonl",
-            help="Append every frame to FILE.",
+            help="Append every frame to FILE (- for stdout).",
         ),
         _option("--debug", is_flag=True, help="Show tracebacks."),
     ]

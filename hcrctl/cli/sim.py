@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import sys
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import click
@@ -20,6 +21,7 @@ from ..protocol.profiles import PROFILES
 from ..sim.firmware.pins import MCUS
 from ..sim.options import MAX_BAUD, MAX_SEED, MIN_BAUD, SimOptions
 from .params import IntRange
+from .serverend import PREFIX, ServerEnd
 
 if TYPE_CHECKING:
     from ..sim.firmware.serve import FirmwareOptions
@@ -125,11 +127,12 @@ def sim(
     address = parse_tcp(tcp) if tcp is not None else None
     from ..sim import serve as simserve
 
-    try:
-        with simserve.Stopper() as stopper:
-            _serve(options, address, stopper)
-    except OSError as exc:
-        raise serve_error(exc, tcp) from None
+    with ServerEnd("sim") as end:
+        try:
+            with simserve.Stopper() as stopper:
+                _serve(options, address, stopper, _announcer(end))
+        except OSError as exc:
+            raise serve_error(exc, tcp) from None
 
 
 def _refuse_with_firmware(**given: object) -> None:
@@ -166,17 +169,19 @@ def _serve_firmware(options: FirmwareOptions) -> None:
     from ..sim import serve as simserve
     from ..sim.firmware.serve import serve_firmware
 
-    try:
-        with simserve.Stopper() as stopper:
-            last = serve_firmware(options, stopper, _announce, _note)
-    except OSError as exc:
-        raise serve_error(exc, None) from None
-    if last is not None:
-        ratio = last.chip / last.wall if last.wall else 1.0
-        _note(
-            f"the chip ran {last.chip:.2f} s in {last.wall:.2f} s of wall time (ratio {ratio:.3f}; "
-            f"{last.slip:.2f} s given up while the host could not keep up)"
-        )
+    with ServerEnd("sim") as end:
+        try:
+            with simserve.Stopper() as stopper:
+                last = serve_firmware(options, stopper, _announcer(end), _note)
+        except OSError as exc:
+            raise serve_error(exc, None) from None
+        if last is not None:
+            ratio = last.chip / last.wall if last.wall else 1.0
+            end.report(
+                None,
+                f"sim: the chip ran {last.chip:.2f} s in {last.wall:.2f} s of wall time (ratio {ratio:.3f}; "
+                f"{last.slip:.2f} s given up while the host could not keep up)",
+            )
 
 
 def serve_error(exc: OSError, tcp: str | None) -> HcrError:
@@ -194,13 +199,15 @@ def serve_error(exc: OSError, tcp: str | None) -> HcrError:
     return HcrError(f"cannot serve the simulator on {where}: {reason[:1].lower()}{reason[1:]}", hint=hint)
 
 
-def _serve(options: SimOptions, address: tuple[str, int] | None, stopper: Stopper) -> None:
+def _serve(
+    options: SimOptions, address: tuple[str, int] | None, stopper: Stopper, announce: Callable[[str], None]
+) -> None:
     from ..sim import serve as simserve
 
     if address is None:
-        simserve.serve_pty(options, stopper, _announce)
+        simserve.serve_pty(options, stopper, announce)
     else:
-        simserve.serve_tcp(options, address[0], address[1], stopper, _announce, _note)
+        simserve.serve_tcp(options, address[0], address[1], stopper, announce, _note)
 
 
 def _options(query: str, pace: bool, baud: int | None, seed: int | None) -> SimOptions:
@@ -234,10 +241,16 @@ def parse_tcp(text: str) -> tuple[str, int]:
 
 def _note(line: str) -> None:
     """Clients coming and going, on stderr (stdout has only the URL)."""
-    click.echo(f"hcrctl sim: {printable(line)}", err=True)
+    click.echo(f"{PREFIX}sim: {printable(line)}", err=True)
 
 
-def _announce(where: str) -> None:
-    click.echo(where)
-    sys.stdout.flush()
-    click.echo(f"hcrctl sim: serving on {where}; press Ctrl-C (or send SIGTERM) to stop", err=True)
+def _announcer(end: ServerEnd) -> Callable[[str], None]:
+    """Where it serves: the bare path or URL on stdout (for scripts), the sentence on stderr."""
+
+    def announce(where: str) -> None:
+        end.serving(where)  # first: a signal the moment the line is out ends a server that is up
+        click.echo(where)
+        sys.stdout.flush()
+        click.echo(f"{PREFIX}sim: serving on {where}; press Ctrl-C (or send SIGTERM) to stop", err=True)
+
+    return announce

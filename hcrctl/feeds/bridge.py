@@ -150,7 +150,7 @@ def _serve(
         feed = Feed(robot, names, options.rate, server.publish, reconnect=Reconnect(settings, robot))
         governor.attach(lambda: feed.current)
         governor.bumpers = bumper_rule(feed.state, options.rate)
-        try:
+        try:  # said inside: a signal the moment it is said still gets the summary
             with feed, stopping_driven(feed, robot, lambda: governor.driven), governor:
                 feed.poller.first_sweep()  # the bumper rule has a reading before anyone is told where to drive
                 status.start(url(options.host, server.bound_port))

@@ -25,15 +25,30 @@ are readings with no number in them (the grid map is a picture, not a series).
 
 Lines are written whole (a row is formatted before it is written), and
 ``flush()`` pushes them out, so a recording cut off mid-way ends on a
-complete line as far as the file got. Standard library only.
+complete line as far as the file got.
+
+``wide`` (``record --wide``, ``export --wide``): one row per sweep instead,
+``time``, ``t`` (the sweep's first reading), ``address``, then a column per
+field of the commands the robot answered. A sweep's row ends where a
+command it already holds comes again, or another address speaks; a
+broadcast (a station's 0xA0) is a row of its own. The columns are those of
+the commands seen while the header waits, as above; a reading of a command
+first seen later is not written, and ``close()`` says how many in one
+warning line. An export (no ``flush_every``: nothing reads the file until it
+is whole) keeps its rows in a temporary file until the end and writes only
+the columns some row fills, so no column is empty all the way down.
+
+Booleans (a bumper) are 1 or 0 in both layouts, so a column is one type:
+pandas reads a wide bumper column as integers. Standard library only.
 """
 
 from __future__ import annotations
 
 import csv
 import io
-from collections.abc import Iterable, Sequence
-from typing import Any
+import tempfile
+from collections.abc import Iterable, Iterator, Sequence
+from typing import IO, Any
 
 from ..link.rescue import warn
 from ..link.trafficlog import iso_time
@@ -43,6 +58,8 @@ from ..protocol.topics import Topic
 from .sinks import Prepared, Sink, seconds
 
 HEAD = ("time", "t", "direction", "address", "command", "name")
+#: The first columns of a wide row (one per sweep): its time, as above, and the robot's address.
+WIDE_HEAD = ("time", "t", "address")
 #: The longest the header waits for every list to be seen: seconds of readings (their log times), and rows.
 HOLD_SECONDS = 1.0
 HOLD_ROWS = 1000
@@ -85,10 +102,13 @@ class Row:
     not known while the header waits.
     """
 
-    __slots__ = ("cells", "command", "head", "line", "over", "sizes")
+    __slots__ = ("cells", "commands", "head", "line", "over", "sizes")
 
-    def __init__(self, command: str, head: list[object], cells: list[str], sizes: dict[str, int]) -> None:
-        self.command = command
+    def __init__(
+        self, commands: tuple[str, ...], head: list[object], cells: list[str], sizes: dict[str, int]
+    ) -> None:
+        #: The commands whose readings are in it: one, or a sweep's (wide).
+        self.commands = commands
         self.head = head
         #: One cell per series of ``S.all_series()``, in its order.
         self.cells = cells
@@ -104,13 +124,66 @@ def list_name(s: S.Series) -> str:
     return s.path.rpartition("[")[0]
 
 
+class Sweeps:
+    """Readings merged into one row per sweep (``wide``): the row ends where the sweep repeats itself.
+
+    ``add`` takes a reading's row and gives back the rows complete by then, in
+    time order: a broadcast's row waits behind the open sweep it came in.
+    """
+
+    def __init__(self) -> None:
+        self._open: tuple[bytes, Row] | None = None
+        self._behind: list[tuple[bytes, Row]] = []
+
+    def add(self, start: bytes, row: Row, broadcast: bool) -> Iterator[tuple[bytes, Row]]:
+        address = row.head[1]
+        if broadcast:
+            wide = (start, Row(row.commands, [address], list(row.cells), dict(row.sizes)))
+            if self._open is None:
+                yield wide
+            else:
+                self._behind.append(wide)
+            return
+        current = self._open
+        if current is not None and (row.commands[0] in current[1].commands or current[1].head[0] != address):
+            yield from self.done()
+            current = None
+        if current is None:
+            self._open = (start, Row(row.commands, [address], list(row.cells), dict(row.sizes)))
+            return
+        merged = current[1]
+        merged.commands += row.commands
+        merged.sizes.update(row.sizes)
+        merged.cells = [mine or theirs for mine, theirs in zip(merged.cells, row.cells, strict=True)]
+
+    def done(self) -> Iterator[tuple[bytes, Row]]:
+        """The open sweep's row and the broadcasts behind it (a flush, the end)."""
+        if self._open is not None:
+            yield self._open
+            self._open = None
+        behind, self._behind = self._behind, []
+        yield from behind
+
+
 class CsvSink(Sink):
     """Readings as rows; the columns are fixed when the header is written (see the module's docstring)."""
 
-    def __init__(self, path: str, topics: Iterable[Topic], flush_every: float | None = None) -> None:
+    def __init__(
+        self, path: str, topics: Iterable[Topic], flush_every: float | None = None, wide: bool = False
+    ) -> None:
         super().__init__(path, topics, flush_every)
         self._series = S.all_series()
         self.columns: list[str] | None = None
+        self.wide = wide
+        self._head = WIDE_HEAD if wide else HEAD
+        self._sweeps = Sweeps() if wide else None
+        #: An export's wide rows until the end, every column, and which columns some row filled.
+        self._spool: IO[str] | None = (
+            tempfile.TemporaryFile("w+", newline="") if wide and not flush_every else None  # noqa: SIM115 - closed by _unspool
+        )
+        self._filled = [False] * len(self._series)
+        self._commands: set[str] = set()  # the commands seen while the header waits (wide)
+        self._unlisted: dict[str, int] = {}  # command -> readings after the header without columns (wide)
         #: The commands whose lists the header waits to see once.
         self._waiting = {
             t.command.name for t in self.topics.values() if t.command is not None and self._lists(t.command)
@@ -121,7 +194,7 @@ class CsvSink(Sink):
         self._keep: list[int] = []
         self._dropped: dict[str, int] = {}  # list -> readings that had more items than the header
         self._out = self._open()
-        self._out.write(csv_line(HEAD)[:-1].encode())
+        self._out.write(csv_line(self._head)[:-1].encode())
         self._out.flush()  # a bad path or a full disk shows at once, not at the first reading
 
     def _lists(self, command: Command) -> list[S.Series]:
@@ -141,32 +214,70 @@ class CsvSink(Sink):
             value = message.get(s.key)
             sizes[list_name(s)] = len(value) if isinstance(value, list) else 0
         head = [message.get("direction", "rx"), message.get("address", ""), cmd.code, cmd.name]
-        return Row(cmd.name, head, cells, sizes)
+        return Row((cmd.name,), head, cells, sizes)
 
     def _emit(self, topic: str, encoded: Any, log_time: float, stamp: str | None) -> None:
         start = ((stamp or iso_time(log_time)) + "," + seconds(log_time)[1]).encode()
-        if self.columns is not None:
-            self._write_row(start, encoded)
+        if self._sweeps is None:
+            self._accept(start, encoded, log_time)
             return
-        row: Row = encoded
+        topic_of = self.topics[topic].command
+        broadcast = topic_of is not None and topic_of.kind == "broadcast"
+        for begun, row in self._sweeps.add(start, encoded, broadcast):
+            self._accept(begun, row, log_time)
+
+    def _accept(self, start: bytes, row: Row, log_time: float) -> None:
+        """A row complete: written, spooled (a wide export), or held until the header is known."""
+        if self._spool is not None:
+            self._spool_row(start, row)
+            return
+        if self.columns is not None:
+            self._write_row(start, row)
+            return
         self._held.append((start, row))
         for name, count in row.sizes.items():
             self._seen[name] = max(count, self._seen.get(name, 0))
-        self._waiting.discard(row.command)
+        self._waiting.difference_update(row.commands)
+        self._commands.update(row.commands)
         if self._first is None:
             self._first = log_time
-        if not self._waiting or log_time - self._first >= HOLD_SECONDS or len(self._held) >= HOLD_ROWS:
+        # a wide row's columns are the commands seen: it waits the whole hold for a late one
+        waited = not self._waiting and not self.wide
+        if waited or log_time - self._first >= HOLD_SECONDS or len(self._held) >= HOLD_ROWS:
             self._write_header()
+
+    def _spool_row(self, start: bytes, row: Row) -> None:
+        """A wide export's row, every column, into the temporary file; which cells it fills is noted."""
+        assert self._spool is not None
+        filled = self._filled
+        for i, value in enumerate(row.cells):
+            if value:
+                filled[i] = True
+        self._spool.write(start.decode() + "," + csv_line([*row.head, *row.cells]))
+
+    def _unspool(self, spool: IO[str]) -> None:
+        """A wide export's rows, read back with only the columns some row filled."""
+        self._keep = [i for i, filled in enumerate(self._filled) if filled]
+        names = [self._series[i].path for i in self._keep]
+        self.columns = [*self._head, *names]
+        self._out.write(("," + csv_line(names) if names else "\n").encode())
+        spool.seek(0)
+        fixed, keep = len(self._head), self._keep
+        for cells in csv.reader(spool):
+            self._out.write(csv_line([*cells[:fixed], *(cells[fixed + i] for i in keep)]).encode())
+        spool.close()
+        self._spool = None
 
     def _write_header(self) -> None:
         """The rest of the header, with each list's items as many as seen, then the rows held for it."""
         self._keep = [
             i
             for i, s in enumerate(self._series)
-            if not s.is_list_item or (s.index or 0) < self._seen.get(list_name(s), 0)
+            if (not s.is_list_item or (s.index or 0) < self._seen.get(list_name(s), 0))
+            and (not self.wide or s.command.name in self._commands)
         ]
         names = [self._series[i].path for i in self._keep]
-        self.columns = [*HEAD, *names]
+        self.columns = [*self._head, *names]
         self._out.write(("," + csv_line(names) if names else "\n").encode())
         held, self._held = self._held, []
         for start, row in held:
@@ -181,6 +292,10 @@ class CsvSink(Sink):
             row.over = tuple(name for name, n in row.sizes.items() if n > self._seen.get(name, 0))
         for name in row.over:
             self._dropped[name] = self._dropped.get(name, 0) + 1
+        if self.wide:
+            for name in row.commands:
+                if name not in self._commands:
+                    self._unlisted[name] = self._unlisted.get(name, 0) + 1
         self._out.write(start + line)
 
     def flush(self) -> None:
@@ -191,9 +306,17 @@ class CsvSink(Sink):
         self._out.flush()
 
     def _finish(self) -> None:
+        if self._sweeps is not None:
+            for start, row in self._sweeps.done():
+                self._accept(start, row, 0.0)
+        if self._spool is not None:
+            self._unspool(self._spool)
         if self.columns is None:
             self._write_header()  # nothing started it: no list seen means no list columns
         self._out.flush()
+        if self._unlisted:
+            said = ", ".join(f"{count} {name}" for name, count in self._unlisted.items())
+            warn(f"CSV: {said} reading(s) came after the header was written, which has no columns for them")
         if self._dropped:  # the sink's path may be a temporary one (export renames it): not named here
             said = "; ".join(
                 f"{count} {name} reading(s) had more than {self._seen.get(name, 0)} items"

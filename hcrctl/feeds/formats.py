@@ -63,6 +63,8 @@ class Writer:
     ``extra`` the hcrctl extra that installs it. ``encodes``: the writer takes
     every encoding of ``protocol.encodings`` (MCAP); the others write what
     they write (CSV's cells), and ``--encoding`` other than json is refused.
+    ``options``: the layout flags the writer's class takes as keyword
+    arguments (CSV's ``wide``: a row per sweep); another format refuses them.
     """
 
     kind: Literal["messages", "traffic"]
@@ -71,6 +73,7 @@ class Writer:
     needs: str | None = None
     extra: str | None = None
     encodes: bool = False
+    options: frozenset[str] = frozenset()
 
     def load(self, path: str) -> type:
         """The writer class (imported now); MissingExtra if the package it needs is not installed."""
@@ -90,7 +93,12 @@ WRITERS: dict[str, Writer] = {
         extra="mcap",
         encodes=True,
     ),
-    ".csv": Writer("messages", "CSV (one row per reading)", "hcrctl.feeds.csvsink:CsvSink"),
+    ".csv": Writer(
+        "messages",
+        "CSV (one row per reading; --wide: one per sweep)",
+        "hcrctl.feeds.csvsink:CsvSink",
+        options=frozenset({"wide"}),
+    ),
     ".jsonl": Writer(
         "traffic",
         "traffic log (--log): every frame both ways, one JSON line each",
@@ -157,6 +165,14 @@ def encoding_refusal(encoding: str) -> str:
     return f"--encoding {encoding} needs an {takers} output"
 
 
+def check_options(writer: Writer, **options: bool) -> None:
+    """Refuse (BadEncoding, exit 2) a layout flag (``wide=True``) ``writer`` does not take, before anything opens."""
+    for name, on in options.items():
+        if on and name not in writer.options:
+            takers = " or ".join(f"OUT{s}" for s, w in WRITERS.items() if name in w.options)
+            raise BadEncoding(f"--{name} needs an {takers} output")
+
+
 def check_encoding(writer: Writer, encoding: str) -> None:
     """Refuse (BadEncoding, exit 2) an encoding ``writer`` does not write, before anything opens."""
     if encoding not in ENCODINGS:
@@ -172,19 +188,23 @@ def open_sink(
     flush_every: float | None = None,
     encoding: str = DEFAULT_ENCODING,
     suffix: str | None = None,
+    wide: bool = False,
 ) -> Sink:
     """The sink for ``path``'s suffix (or for ``suffix``, whatever the path's), every topic announced up front.
 
     ``flush_every`` (seconds): make the file readable that often, for a live
     recording that may be killed; an export needs none. ``encoding`` is an
-    entry of ``protocol.encodings``, for the formats that take one.
+    entry of ``protocol.encodings``, for the formats that take one; ``wide``
+    a row per sweep, for those whose ``options`` have it (CSV).
     """
     writer = writer_for(path, suffix)
     check_encoding(writer, encoding)
+    check_options(writer, wide=wide)
     cls = writer.load(path)
+    options = {"wide": True} if wide else {}
     if writer.encodes:
-        return cast(Sink, cls(path, topics, flush_every, encoding))
-    return cast(Sink, cls(path, topics, flush_every))
+        return cast(Sink, cls(path, topics, flush_every, encoding, **options))
+    return cast(Sink, cls(path, topics, flush_every, **options))
 
 
 def open_mcap(

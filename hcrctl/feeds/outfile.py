@@ -23,7 +23,7 @@ if TYPE_CHECKING:
 
 from ..protocol.encodings import ENCODINGS
 from . import formats
-from .formats import BadEncoding, BadSuffix, check_encoding, writer_for
+from .formats import BadEncoding, BadSuffix, check_encoding, check_options, writer_for
 
 _F = TypeVar("_F", bound=Callable[..., Any])
 
@@ -76,6 +76,16 @@ def force_option(what: str = "OUT") -> Callable[[_F], _F]:
     )
 
 
+def wide_option() -> Callable[[_F], _F]:
+    """``--wide`` of ``record`` and ``export``: a row per sweep, for the formats whose writer has the option."""
+    takers = ", ".join(s for s, w in formats.WRITERS.items() if "wide" in w.options)
+    return click.option(
+        "--wide",
+        is_flag=True,
+        help=f"One row per sweep, a column per field the robot filled ({takers} only).",
+    )
+
+
 def encoding_option() -> Callable[[_F], _F]:
     """``--encoding json|cdr`` of ``record`` and ``export``: the bridge's choices, for the formats that take one."""
     return click.option(
@@ -87,10 +97,11 @@ def encoding_option() -> Callable[[_F], _F]:
     )
 
 
-def refuse_encoding(out: str, encoding: str) -> None:
-    """A usage error (exit 2, one line) for an ``--encoding`` OUT's format does not write."""
+def refuse_encoding(out: str, encoding: str, *, wide: bool = False) -> None:
+    """A usage error (exit 2, one line) for an ``--encoding`` (or ``--wide``) OUT's format does not write."""
     try:
         check_encoding(writer_for(out), encoding)
+        check_options(writer_for(out), wide=wide)
     except BadEncoding as exc:
         raise click.UsageError(exc.message, click.get_current_context(silent=True)) from None
 

@@ -5,9 +5,10 @@ touched), the ``Feed`` publishes straight into the sink, and the sink makes
 what it holds readable every ``FLUSH_EVERY`` seconds. Ctrl-C, SIGTERM and
 SIGHUP only set a flag that ``Feed.run`` looks at, so the signal never lands
 in the middle of a write: the feed stops, the port closes, and then the sink
-writes its footer. Only after that is the signal reported (exit 143 for
-SIGTERM, as everywhere in hcrctl; Ctrl-C is the normal end of an open-ended
-recording, exit 0, and 130 when it cut a ``--duration`` short).
+writes its footer. Only after that is the signal reported (``reraise``), and
+the CLI's server rule (``cli/serverend.py``) makes it the exit status: 0 for
+an open-ended recording, which a signal ends normally, 130/143/129 for one
+whose ``--duration`` it cut short.
 """
 
 from __future__ import annotations
@@ -62,12 +63,11 @@ class StopFlag:
             signal.signal(signal.SIGINT, previous)
 
 
-def reraise(signum: int | None, duration: float | None) -> None:
+def reraise(signum: int | None) -> None:
     """Report the signal that ended the recording, now that the file is whole and summed up."""
     if signum == signal.SIGINT:
-        if duration is not None:
-            raise KeyboardInterrupt
-    elif signum is not None:
+        raise KeyboardInterrupt
+    if signum is not None:
         raise Terminated(signum)
 
 
@@ -90,15 +90,18 @@ def run_record(
     *,
     pipeline: bool = True,
     encoding: str = DEFAULT_ENCODING,
+    wide: bool = False,
 ) -> dict[str, Any]:
     """Record until ``duration`` ends or a signal comes; the summary (then the signal, re-raised).
 
-    ``encoding`` (``protocol.encodings``) is for the formats that take one (MCAP).
+    ``encoding`` (``protocol.encodings``) is for the formats that take one (MCAP); ``wide`` (a row
+    per sweep) for those whose writer has the option (CSV).
     """
     names = supported_sensors(settings.protocol, list(dict.fromkeys(sensors)))
     stop = StopFlag()
     with stop.catching():
-        with open_sink(out, all_topics(Feed.counters), flush_every=FLUSH_EVERY, encoding=encoding) as sink:
+        topics = all_topics(Feed.counters)
+        with open_sink(out, topics, flush_every=FLUSH_EVERY, encoding=encoding, wide=wide) as sink:
             progress = Progress(stream, progress_line(out, sink))
             try:
                 _poll(settings, names, rate, duration, sink, progress, stop, pipeline)

@@ -3,17 +3,17 @@
 ``zenohd`` is not on PyPI; ``zenoh.open`` in mode ``router`` is a router.
 It listens where it is told (``--listen``, else the global ``--zenoh``
 endpoints, which is where everyone else will connect, else a
-``--zenoh-config`` file's, else ``tcp/127.0.0.1:7447``) and says so on its first line of stdout, flushed, so
-a script can wait for it. It connects to nobody unless a ``--zenoh-config``
-says so.
+``--zenoh-config`` file's, else ``tcp/127.0.0.1:7447``). Its first line of
+stdout is where (the endpoints, space-separated, flushed, so a script can
+wait for it and connect there); stderr says it as a sentence. It connects
+to nobody unless a ``--zenoh-config`` says so.
 """
 
 from __future__ import annotations
 
 import json
-import sys
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from ..link.rescue import warn
 from ..link.signals import stop_signals_handled
@@ -32,8 +32,8 @@ def listening(at: Where) -> list[str]:
     return [str(e) for e in found] if isinstance(found, list) else [DEFAULT_ENDPOINT]
 
 
-def run_router(at: Where) -> None:
-    """Route until a stop signal (or Ctrl-C); then close and return (exit status 0)."""
+def run_router(at: Where, on_ready: Callable[[str], None]) -> None:
+    """Route until a stop signal (or Ctrl-C), then close and return; ``on_ready`` gets where, once listening."""
     endpoints = listening(at)
     for endpoint in beyond_loopback(endpoints):
         warn(f"listening on {endpoint}: anyone on the network who can reach it joins the fleet")
@@ -41,8 +41,7 @@ def run_router(at: Where) -> None:
     with stop_signals_handled(lambda signum, frame: done.set()):
         session = open_session("router", at)
         try:
-            sys.stdout.write(f"listening on {' '.join(endpoints)}\n")
-            sys.stdout.flush()
+            on_ready(" ".join(endpoints))
             try:
                 while not done.wait(0.5):
                     pass

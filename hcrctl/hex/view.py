@@ -268,8 +268,14 @@ class FrameTally:
         return not (self.bad_frames or self.malformed or self.junk_bytes or self.truncated)
 
     def text(self) -> str:
+        """``3 frames, 0 checksum errors, ...``; beside a checksum error the count is of ``good frames``.
+
+        A frame that failed its checksum is still printed as a row, so ``0
+        frames`` under it would read as "nothing found".
+        """
+        good = " good" if self.checksum_errors else ""
         parts = [
-            f"{self.frames} frame{'s' if self.frames != 1 else ''}",
+            f"{self.frames}{good} frame{'s' if self.frames != 1 else ''}",
             f"{self.checksum_errors} checksum error{'s' if self.checksum_errors != 1 else ''}",
             f"{self.junk_bytes} junk byte{'s' if self.junk_bytes != 1 else ''}",
         ]

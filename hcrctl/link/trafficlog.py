@@ -11,6 +11,8 @@ time with offset, microseconds), ``direction`` (``tx``/``rx``) and ``hex``
 the file is opened for appending (``O_APPEND``), so several sessions build
 one history, and two at once never tear each other's lines. A FIFO is
 waited for so that a signal still ends the wait (``claims.open_appended``).
+``--log -`` writes the lines to stdout instead (as ``hex decode -`` reads
+stdin), each whole, between the command's own lines.
 ``monitor --from`` and ``replay`` read it back with ``read_log``. The log
 is one of ``Robot``'s traffic hooks, beside a monitor and the shell's toolbar.
 
@@ -99,7 +101,7 @@ class TrafficLog:
         self._rule = rule
         self._lock = threading.Lock()  # tx comes from the caller's thread, rx from the reader's
         try:
-            self._fd: int | None = open_appended(path)
+            self._fd: int | None = _open_log(path)
         except OSError as exc:
             raise LogOpenError(f"cannot open the log {path} ({exc.strerror})", hint="check the path") from exc
 
@@ -152,6 +154,18 @@ class TrafficLog:
         with contextlib.suppress(OSError, ValueError):
             sys.stderr.write(f"hcrctl: error: {error.one_line()}\n")
             sys.stderr.flush()
+
+
+#: The path that means stdout, as for every input and output that takes one.
+STDOUT = "-"
+
+
+def _open_log(path: str) -> int:
+    """A descriptor appending to ``path``; ``-``: a copy of stdout's, so closing the log leaves stdout open."""
+    if path == STDOUT:
+        sys.stdout.flush()
+        return os.dup(sys.stdout.fileno())
+    return open_appended(path)
 
 
 def attach(robot: Robot, path: str) -> TrafficLog:

@@ -73,11 +73,21 @@ def age_text(seconds: float | None) -> str:
     return f"{seconds / 60:.0f} min"
 
 
-def sensor_panel(name: str, body: RenderableType, reading: Reading, now: float, title: str = "") -> Panel:
-    """A panel titled from the table; stale readings are dimmed with their age."""
+def sensor_panel(
+    name: str, body: RenderableType, reading: Reading, now: float, title: str = "", note: str = ""
+) -> Panel:
+    """A panel titled from the table; stale readings are dimmed with their age; ``note`` on the bottom border."""
     title = title or panel_title(name)
     if not reading.stale:
-        return Panel(body, title=title, title_align="left", border_style="cyan")
+        subtitle = f"[dim]{note}[/]" if note else None
+        return Panel(
+            body,
+            title=title,
+            title_align="left",
+            subtitle=subtitle,
+            subtitle_align="left",
+            border_style="cyan",
+        )
     if reading.impossible:
         return _out_of_range_panel(body, title, reading, now)
     why = f" · {reading.error}" if reading.error else ""
@@ -225,6 +235,10 @@ def compass_panel(
     return sensor_panel("compass", body, reading, now)
 
 
+#: Said wherever a wheel speed is read: the protocol carries a speed, never a direction.
+UNSIGNED = "no sign: speed only"
+
+
 def wheels_panel(
     reading: Reading, history: Iterable[tuple[int, ...]], now: float, width: int | None = None
 ) -> Panel:
@@ -232,6 +246,8 @@ def wheels_panel(
 
     Given a ``width`` (a large panel), each wheel's history is a taller
     sparkline under its speed, as long as the history or the width allows.
+    The protocol's wheel speed has no sign (a byte, 0-255): the bottom border
+    says so, since a wheel turning backwards reads as forwards.
     """
     value = reading.value
     if not isinstance(value, C.WheelSpeed):
@@ -251,7 +267,7 @@ def wheels_panel(
         for side, speed, hist in sides:
             lines.append(f"{side:<5} {speed:>3} {shown}")
             lines += tall_sparkline(hist[-inner:], top, TALL_SPARK_ROWS) if hist else [""] * TALL_SPARK_ROWS
-    return sensor_panel("wheels", Text("\n".join(lines)), reading, now)
+    return sensor_panel("wheels", Text("\n".join(lines)), reading, now, note=UNSIGNED)
 
 
 def env_panel(reading: Reading, now: float, compact: bool = False) -> Panel:
@@ -352,7 +368,7 @@ def link_panel(view: View, now: float, compact: bool = False) -> Panel:
         rows = [
             ("status", status_text(view, now)),
             ("polling", _rate_text(view, now)),
-            ("rtt", _rtt_text(view.rtt)),
+            ("rtt", _rtt_text(view)),
             ("timeouts", f"{c.timeouts}  bad replies {c.bad_replies}"),
             ("checksum", f"{c.checksum_errors} errors  junk {c.junk_bytes} B"),
             *_other_rule_row(c),
@@ -362,7 +378,7 @@ def link_panel(view: View, now: float, compact: bool = False) -> Panel:
         ("status", status_text(view, now)),
         ("port", view.port or "?"),
         ("polling", _rate_text(view, now)),
-        ("rtt", _rtt_text(view.rtt)),
+        ("rtt", _rtt_text(view)),
         ("sweeps", f"{c.sweeps}  reads {c.reads}"),
         ("timeouts", f"{c.timeouts}  bad replies {c.bad_replies}"),
         ("checksum", f"{c.checksum_errors} errors  malformed {c.malformed}"),
@@ -397,16 +413,23 @@ def labelled(rows: Iterable[tuple[str, str | Text]], width: int = 9) -> Text:
 
 
 def _rate_text(view: View, now: float) -> str:
+    """``9.9 Hz · target 10 Hz``; a board that streams sets its own rate, whatever --rate says."""
     target = "max" if view.target_rate is None else f"{view.target_rate:g} Hz"
+    if view.streamed:
+        target = "board streams"
     idle = now - view.last_sweep if view.last_sweep is not None else 0.0
     if view.poll_rate is None or idle > 1.0:
         achieved = f"idle {age_text(idle)}" if view.last_sweep is not None else "-"
     else:
         achieved = f"{view.poll_rate:.1f} Hz"
-    return f"{achieved} · target {target}"
+    return f"{achieved} · {target}" if view.streamed else f"{achieved} · target {target}"
 
 
-def _rtt_text(rtt: Sequence[float]) -> str:
+def _rtt_text(view: View) -> str:
+    """The round trip of the polls; a board that streams is asked nothing, so there is none to time."""
+    rtt = view.rtt
+    if view.streamed and not rtt:
+        return "- (sent unasked)"
     if not rtt:
         return "-"
     ms = [1000 * r for r in rtt]

@@ -37,6 +37,9 @@ SLICE = 0.05
 #: The longest ``first_sweep`` waits: a sweep of a silent robot costs a reply timeout.
 FIRST_SWEEP_S = 2.0
 
+#: ``on_sweep(time, results)``: a sweep's outcome per sensor, ``time`` when it began (epoch seconds).
+OnSweep = Callable[[float, dict[str, C.Reply | HcrError]], None]
+
 
 class Poller(threading.Thread):
     """Sweeps ``sensors`` at ``rate`` Hz (None: as fast as replies come)."""
@@ -51,6 +54,7 @@ class Poller(threading.Thread):
         reconnect: Callable[[], Robot] | None = None,
         retry_every: float = RETRY_EVERY,
         pipeline: bool = True,
+        on_sweep: OnSweep | None = None,
     ) -> None:
         super().__init__(name="hcrctl-poller", daemon=True)
         self.robot: Robot | None = robot
@@ -60,6 +64,10 @@ class Poller(threading.Thread):
         self.reconnect = reconnect
         self.retry_every = retry_every
         self.pipeline = pipeline
+        #: Given every sweep's results, on this thread (``watch --jsonl``): it must not block.
+        self.on_sweep = on_sweep
+        self._round: dict[str, C.Reply | HcrError] = {}
+        self._round_at = 0.0
         self.lost: PortError | None = None
         self.crash: BaseException | None = None
         self.paused = threading.Event()
@@ -137,13 +145,15 @@ class Poller(threading.Thread):
         if robot.profile.streams:
             return  # the board sends its readings unasked: listen (``_drain``), never flood it with requests
         started = self.state.clock()
-        t0 = time.monotonic()
+        t0, at = time.monotonic(), time.time()
         results = robot.sweep(self.sensors, pipeline=self.pipeline)
         rtt = _reply_time(robot, t0, results)
         for name, result in results.items():
             self._record(name, result, rtt)
         self._count_errors(robot)
         self.state.sweep_done(started)
+        if self.on_sweep is not None:
+            self.on_sweep(at, results)
 
     def _record(self, name: str, result: C.Reply | HcrError, rtt: float | None) -> None:
         """One sensor's outcome; ``rtt`` is the sweep's time per reading."""
@@ -182,8 +192,14 @@ class Poller(threading.Thread):
             self.state.broadcast(frame)
             return
         self._record(name, reply, None)
+        if not self._round:
+            self._round_at = time.time()
+        self._round[name] = reply
         if name == self.sensors[-1]:  # the last of a streamed round: a sweep's worth is in
             self.state.sweep_done(self.state.clock())
+            done, self._round = self._round, {}
+            if self.on_sweep is not None:
+                self.on_sweep(self._round_at, done)
 
     def _count_errors(self, robot: Robot) -> None:
         now = _error_counts(robot)
@@ -234,9 +250,10 @@ class Poller(threading.Thread):
         return robot is not self._first and getattr(self.reconnect, "owned", True)
 
     def _quiet(self, robot: Robot) -> None:
-        """No retries while polling (remembered, and restored by stop())."""
+        """No retries while polling (remembered, and restored by stop()); a streaming board noted."""
         self._retries.append((robot, robot.retries))
         robot.retries = 0
+        self.state.streamed = robot.profile.streams
 
     def _join_time(self) -> float:
         robot = self.robot or self._first

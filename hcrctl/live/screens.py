@@ -11,8 +11,10 @@ of a ``View`` and ``now``, like the panels.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 from collections.abc import Callable, Hashable, Iterator
+from contextvars import ContextVar
 from dataclasses import dataclass
 
 from rich.cells import cell_len
@@ -469,6 +471,20 @@ def header(title: str, view: View) -> Text:
     return text
 
 
+#: False while a frame is drawn for where no key can be pressed (``without_keys``).
+KEYS_SHOWN: ContextVar[bool] = ContextVar("KEYS_SHOWN", default=True)
+
+
+@contextlib.contextmanager
+def without_keys() -> Iterator[None]:
+    """Frames drawn within leave out the key line: the last frame of a run, printed into a log or a pipe."""
+    token = KEYS_SHOWN.set(False)
+    try:
+        yield
+    finally:
+        KEYS_SHOWN.reset(token)
+
+
 def footer(keys: str, note: str = "") -> KeyLine:
     return KeyLine(keys, note)
 
@@ -477,12 +493,18 @@ class KeyLine:
     """The keys on one line: the longest wording that fits the width, then the note, cropped.
 
     "q quit" is the last to go, so however narrow the screen the way out is on it.
+    Within ``without_keys()`` (the last frame printed into a log or a pipe,
+    once no key can be pressed) the keys are left out and the note stays.
     """
 
     def __init__(self, keys: str, note: str = "") -> None:
         self.keys, self.note = keys, note
 
     def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
+        if not KEYS_SHOWN.get():
+            if self.note:
+                yield Text(self.note, style="bold yellow", no_wrap=True, overflow="crop")
+            return
         wordings = (self.keys, *SHORTER_KEYS.get(self.keys, ()), "q quit")
         keys = next((k for k in wordings if cell_len(k) + 2 <= options.max_width), wordings[-1])
         text = Text(f" {keys} ", style="reverse", no_wrap=True, overflow="crop")
@@ -515,20 +537,27 @@ def drive_text(drive: DriveStatus, now: float, size: str = "full", width: int | 
 
     Compact, the command is one short row and the frame count goes; large
     (given the panel's ``width``), each wheel's percent is a bar either side of zero.
+    Until the first frame goes out nothing is being sent, and the panel says
+    so: a robot that moves by itself (``sim://?wander=1``) is not told to stop
+    until a key (space) says so.
     """
     style = "bold green" if drive.motion != "stop" else "bold"
+    idle = drive.motion == "stop" and drive.frames == 0
     left = drive.timeout - (now - drive.last_key) if drive.motion != "stop" else None
     deadman = f"{drive.timeout:g} s" + (f" ({max(left, 0):.1f} s left)" if left is not None else "")
     rows: list[tuple[str, str | Text]]
     if size == "compact":
+        sending = "nothing yet" if idle else f"{drive.motion} {drive.left:+d} {drive.right:+d} %"
         rows = [
-            ("sending", Text(f"{drive.motion} {drive.left:+d} {drive.right:+d} %", style)),
+            ("sending", Text(sending, style)),
             ("speed", f"{drive.speed} %  turn {drive.turn} %"),
             ("deadman", deadman),
         ]
     else:
         sent = "never" if drive.sent_at is None else f"{age_text(now - drive.sent_at)} ago"
         command = Text(f"{drive.motion:<8} left {drive.left:+4d} %  right {drive.right:+4d} %", style)
+        if idle:
+            command = Text("nothing yet (space sends stop)", style)
         rows = [
             ("sending", command),
             ("sent", f"{drive.frames} frame{'' if drive.frames == 1 else 's'}, last {sent}"),

@@ -97,6 +97,8 @@ class View:
     last_reply: float | None
     port: str
     note: str
+    #: The board sends its readings unasked (v0.11): the rate is its own, and there is no round trip to time.
+    streamed: bool = False
 
 
 @dataclass(frozen=True)
@@ -127,6 +129,8 @@ class LiveState:
     ) -> None:
         self.sensors = tuple(sensors)
         self.target_rate = target_rate
+        #: Set by the poller from the link's profile (``Profile.streams``).
+        self.streamed = False
         self.clock = clock
         self.version = 0
         self._lock = threading.Lock()
@@ -297,6 +301,7 @@ class LiveState:
                 last_reply=self._last_reply,
                 port=self._port,
                 note=self._note,
+                streamed=self.streamed,
             )
 
     def summary(self) -> dict[str, object]:

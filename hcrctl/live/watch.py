@@ -39,6 +39,7 @@ if TYPE_CHECKING:
     from ..link.client import Robot
     from ..link.context import Connection
     from ..protocol.series import Series
+    from .jsonlines import SweepLines
 
 __all__ = ["FPS", "MIN_FPS", "TICK", "Redrawer", "live_screen", "run_live", "run_watch"]
 
@@ -69,6 +70,7 @@ def run_watch(
     as_json: bool = False,
     plot: Sequence[Series] = (),
     window: float = 30.0,
+    lines: SweepLines | None = None,
 ) -> dict[str, Any]:
     """Show the dashboard until ``q`` or ``duration``; returns the run's summary.
 
@@ -76,7 +78,8 @@ def run_watch(
     Ctrl-C, SIGTERM, a lost link), so ``--json`` never loses it. With
     ``as_json`` nothing is drawn (and rich is never imported). ``plot`` adds
     a panel charting those series over the last ``window`` seconds (their
-    sensors are polled too).
+    sensors are polled too). ``lines`` (``watch --jsonl``) is given every
+    sweep to write, and nothing is drawn.
     """
     names = supported_sensors(settings.protocol, list(dict.fromkeys(sensors)))
     needed = sensors_of(plot)
@@ -84,7 +87,7 @@ def run_watch(
     state = PlotState(names, plot, window, target_rate=rate) if plot else LiveState(names, target_rate=rate)
     return run_live(
         settings, state, rate, duration, lambda fit: _dashboard(state, fit), _plain(state),
-        console=console, pipeline=pipeline, report=report, as_json=as_json,
+        console=console, pipeline=pipeline, report=report, as_json=as_json or lines is not None, lines=lines,
     )  # fmt: skip
 
 
@@ -100,6 +103,7 @@ def run_live(
     pipeline: bool = True,
     report: Callable[[dict[str, Any]], None] | None = None,
     as_json: bool = False,
+    lines: SweepLines | None = None,
 ) -> dict[str, Any]:
     """Poll ``state.sensors`` into ``state`` and draw it with ``frame`` (or ``line``) until ``q`` or ``duration``.
 
@@ -110,19 +114,27 @@ def run_live(
     console = None if as_json else console or default_console()
     owed = OwedStop()
     with settings.robot() as robot, quick_handoff():
+        on_sweep = lines.add if lines is not None else None
+        reconnect = Reconnect(settings, robot)
         poller = Poller(
-            robot, state, state.sensors, rate, reconnect=Reconnect(settings, robot), pipeline=pipeline
+            robot, state, state.sensors, rate, reconnect=reconnect, pipeline=pipeline, on_sweep=on_sweep
         )
         try:  # started inside: a signal the moment its first request is out still reports
             poller.start()
-            _watch_loop(state, poller, console, duration, owed, frame, line)
+            _watch_loop(state, poller, console, duration, owed, frame, line, lines)
         finally:
             poller.stop()
+            if lines is not None:  # the sweeps the poller finished after the painter's last write
+                with contextlib.suppress(OSError):
+                    lines.write()
             if report is not None:
                 report(state.summary())
         owed.finish(answering(poller, state), robot)
     if console is not None and not can_redraw(console):
-        console.print(frame(False)(time.monotonic()))
+        from .screens import without_keys
+
+        with without_keys():  # the keys worked while it ran; in the log they would be a puzzle
+            console.print(frame(False)(time.monotonic()))
     return state.summary()
 
 
@@ -134,9 +146,10 @@ def _watch_loop(
     owed: OwedStop,
     frame: Frame,
     line: Callable[[float], str],
+    lines: SweepLines | None = None,
 ) -> None:
     deadline = time.monotonic() + duration if duration else math.inf
-    with KeyReader() as keys, painting(console, state, frame, line) as painter:
+    with KeyReader() as keys, painting(console, state, frame, line, lines) as painter:
         while (now := time.monotonic()) < deadline:
             raise_from(poller)
             painter.check()
@@ -151,11 +164,18 @@ def _watch_loop(
 
 @contextlib.contextmanager
 def painting(
-    console: Console | None, state: LiveState, frame: Frame, line: Callable[[float], str]
+    console: Console | None,
+    state: LiveState,
+    frame: Frame,
+    line: Callable[[float], str],
+    lines: SweepLines | None = None,
 ) -> Iterator[Painter]:
-    """The screen drawn on its own thread: full screen, plain lines, or nothing (``--json``)."""
-    if console is None:
-        screen: contextlib.AbstractContextManager[Callable[[], None]] = contextlib.nullcontext(lambda: None)
+    """On its own thread: the full screen, plain lines, JSON lines (``--jsonl``) or nothing (``--json``)."""
+    if lines is not None:
+        screen: contextlib.AbstractContextManager[Callable[[], None]] = lines.screen()
+        interval = STEP
+    elif console is None:
+        screen = contextlib.nullcontext(lambda: None)
         interval = TICK
     elif can_redraw(console):
         fps = frame_rate(state.target_rate)

@@ -183,7 +183,7 @@ COMMANDS: tuple[Command, ...] = (
         "read",
         ReadRequest,
         WheelSpeed,
-        "Read both wheel speeds, in cm/s.",
+        "Read both wheel speeds, in cm/s (unsigned: no direction).",
         "wheels",
         1,
     ),

@@ -240,7 +240,13 @@ class WheelSpeed(Reply):
     """Both wheel speeds from the encoders, cm/s."""
 
     CODE: ClassVar[int] = 0x15
-    wheels: tuple[int, int] = spec(0, 255, "cm/s", "wheel speeds from the encoders", names=("left", "right"))
+    wheels: tuple[int, int] = spec(
+        0,
+        255,
+        "cm/s",
+        "wheel speeds from the encoders, unsigned (the protocol has no direction)",
+        names=("left", "right"),
+    )
 
     @classmethod
     def from_content(cls, content: bytes) -> Reply:

@@ -272,12 +272,31 @@ def readings_json(readings: dict[str, Result]) -> dict[str, Any]:
     so a script never takes a missing value for a reading.
     """
     out: dict[str, Any] = {}
-    errors: dict[str, str] = {}
-    for name, reply in readings.items():
-        if isinstance(reply, HcrError):
-            errors[name] = failure_text(name, reply)
-        else:
+    for reply in readings.values():
+        if not isinstance(reply, HcrError):
             out.update(reply.fields())
+    return _with_errors(out, readings)
+
+
+def sweep_json(readings: dict[str, Result], time: float) -> dict[str, Any]:
+    """A sweep as ``watch --jsonl`` writes it: ``time``, each reading by its sensor's name, ``errors``.
+
+    Each reading is its reply's fields as ``read --json`` has them, under the
+    sensor's name (``{"compass": {"heading": 90.0}}``, the shape of ``watch
+    --json``'s ``latest``), so two sensors' fields never collide; ``time`` is
+    when the sweep began, seconds since the epoch. A sensor with no reading
+    has its reason in ``errors``, as in ``read --json``.
+    """
+    out: dict[str, Any] = {"time": round(time, 6)}
+    for name, reply in readings.items():
+        if not isinstance(reply, HcrError):
+            out[name] = reply.fields()
+    return _with_errors(out, readings)
+
+
+def _with_errors(out: dict[str, Any], readings: dict[str, Result]) -> dict[str, Any]:
+    """``out`` with ``errors`` (sensor: why) if any sensor failed."""
+    errors = {name: failure_text(name, r) for name, r in readings.items() if isinstance(r, HcrError)}
     if errors:
         out["errors"] = errors
     return out

@@ -8,7 +8,9 @@ monitor modes:
 - ``changes`` (the default at the prompt): a line when a station is first
   heard, and when it sends a kind of frame (a command code) it had not sent
   before. Nothing else scrolls: an idle prompt with three stations prints
-  three lines, however long it waits. The toolbar shows every station's
+  three lines, however long it waits, and the stations heard before the
+  first prompt (or while a command held the terminal) are one line
+  (``news_line``). The toolbar shows every station's
   latest frame, its count and its age, so nothing is hidden.
 - ``on``: every frame, one line each (what a monitor is for).
 - ``off``: none (scripts start here; the toolbar still counts).
@@ -101,6 +103,12 @@ class Broadcasts:
         """(address, frames seen) per station, lowest address first."""
         with self._lock:
             return sorted((address, s.total) for address, s in self.stations.items())
+
+
+def news_line(frames: list[Frame]) -> str:
+    """Several stations' news at once (held for the prompt) as one line: ``new: 0x50 position, 0x51 position ...``."""
+    heard = ", ".join(f"0x{f.address:02X} {C.name_of(f.command)}" for f in frames)
+    return f"new: {heard} (the toolbar keeps the latest)"
 
 
 def latest_text(item: Latest) -> str:

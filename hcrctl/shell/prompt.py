@@ -116,7 +116,8 @@ def _toolbar(session: Session) -> Any:
         try:
             app = get_app()
             typed = app.current_buffer.document.text_before_cursor
-            return toolbar_fragments(session, typed, app.output.get_size().columns)
+            size = app.output.get_size()
+            return toolbar_fragments(session, typed, size.columns, size.rows)
         except Exception as exc:  # a drawing bug must not end the session (and skip its stop)
             return f" toolbar error: {exc!r}"
 

@@ -15,7 +15,7 @@ import click
 
 from ..errors import HcrError, printable
 from ..protocol.frames import Frame, TextLine
-from .broadcasts import Broadcasts
+from .broadcasts import Broadcasts, news_line
 from .link import SessionLink
 
 if TYPE_CHECKING:
@@ -24,6 +24,8 @@ if TYPE_CHECKING:
     from ..link.traffic import Traffic
 
 Printer = Callable[[str], object]  # what it returns (a write's count) is ignored
+#: Seconds the news of stations first heard is gathered before it is printed, as one line.
+NEWS_WINDOW = 1.0
 
 
 class Session:
@@ -43,10 +45,10 @@ class Session:
         self.printer: Printer | None = None
         #: ``moves.hcr:3`` while a script line runs: errors start with it.
         self.where: str | None = None
-        self._held: list[str] = []
-        self._news: list[
-            Frame
-        ] = []  # stations first heard while no prompt could print them  # notices that came while a command owned the terminal
+        self._held: list[str] = []  # notices that came while a command owned the terminal
+        #: Stations (or kinds) first heard and not printed yet: no prompt could, or within NEWS_WINDOW.
+        self._news: list[Frame] = []
+        self._news_due: threading.Timer | None = None
         self._say_lock = threading.Lock()
         self._last_text: str | None = None  # the firmware's last printed line
         settings.robot_hooks.append(self._hear_text)
@@ -90,10 +92,27 @@ class Session:
             self.printer = printer
         for text in held:
             printer(text)
+        self._print_news(news, printer)
+
+    def _print_news(self, news: list[Frame], printer: Printer) -> None:
+        """News held together: one line with ``changes`` (a start among stations is one line, not one each)."""
+        if self.monitor == "changes" and len(news) > 1:
+            printer(news_line(news))
+            return
         for frame in news:
             line = self.broadcasts.line_for(frame, True, self.monitor)
             if line is not None:
                 printer(line)
+
+    def _news_later(self) -> None:
+        """What NEWS_WINDOW gathered: printed together, or held again if a command took the terminal."""
+        with self._say_lock:
+            self._news_due = None
+            printer = self.printer
+            if printer is None:
+                return  # ``attach`` prints them with the next prompt
+            news, self._news = self._news, []
+        self._print_news(news, printer)
 
     def _hear_text(self, robot: Robot) -> None:
         """A ``Settings.robot_hooks`` entry: what the firmware prints reaches the monitor output too."""
@@ -120,6 +139,13 @@ class Session:
             if printer is None:
                 if news and self.interactive:
                     self._news.append(frame)
+                return
+            if news and self.monitor == "changes":  # gathered a moment: stations heard together are one line
+                self._news.append(frame)
+                if self._news_due is None:
+                    self._news_due = threading.Timer(NEWS_WINDOW, self._news_later)
+                    self._news_due.daemon = True
+                    self._news_due.start()
                 return
         line = self.broadcasts.line_for(frame, news, self.monitor)
         if line is not None:

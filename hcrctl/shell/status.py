@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from ..protocol import commands as C
 from .broadcasts import Broadcasts, latest_text
 from .session import Session
 
@@ -63,6 +64,16 @@ def broadcast_lines(broadcasts: Broadcasts, limit: int | None = None) -> list[st
     shown_here = [latest_text(item) for item in latest[: limit - 1]]
     rest = len(latest) - len(shown_here)
     return [*shown_here, f"+{plural(rest, 'more station')} (status lists them all)"]
+
+
+def broadcast_summary(broadcasts: Broadcasts) -> str:
+    """Every station on one line: ``0x01 map ×3 · 0x50 position ×15 · ...`` (a small terminal's toolbar)."""
+    latest = broadcasts.latest()
+    if not latest:
+        return "unsolicited: none yet"
+    return " · ".join(
+        f"0x{item.address:02X} {C.name_of(item.frame.command)} ×{item.total}" for item in latest
+    )
 
 
 def plural(count: int, noun: str) -> str:

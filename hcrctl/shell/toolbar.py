@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 from .grammar import root_context, split_partial
 from .session import Session
-from .status import Fragments, broadcast_lines, link_fragments, state_class
+from .status import Fragments, broadcast_lines, broadcast_summary, link_fragments, state_class
 from .tree import hint, locate
 
 if TYPE_CHECKING:
@@ -20,6 +20,8 @@ if TYPE_CHECKING:
 
 #: Stations the toolbar shows a line for; ``status`` lists them all.
 TOOLBAR_STATIONS = 3
+#: Below this many rows (an 80x24 terminal) the stations share one line, so the toolbar keeps to three.
+TALL = 30
 ELLIPSIS = "…"
 
 STYLE = {
@@ -52,11 +54,15 @@ def prompt_fragments(session: Session) -> StyleAndTextTuples:
     ]
 
 
-def toolbar_fragments(session: Session, typed: str = "", width: int | None = None) -> Fragments:
+def toolbar_fragments(
+    session: Session, typed: str = "", width: int | None = None, height: int | None = None
+) -> Fragments:
     """The bottom toolbar: the argument being typed, the link, each station's latest frame.
 
     With ``width``, every line longer than the terminal ends in an ellipsis
-    instead of being silently cut at the edge.
+    instead of being silently cut at the edge. With a ``height`` under
+    ``TALL`` rows the stations share one line (their counts and commands;
+    ``status`` has the rest), so the toolbar keeps an 80x24 screen's room.
     """
     out: Fragments = []
     tip = argument_hint(session, typed)
@@ -64,7 +70,11 @@ def toolbar_fragments(session: Session, typed: str = "", width: int | None = Non
         out += [("class:toolbar.hint", f" {tip}\n")]
     out += link_fragments(session)
     out += [("", f"  monitor {session.monitor}")]
-    for line in broadcast_lines(session.broadcasts, TOOLBAR_STATIONS):
+    if height is not None and height < TALL:
+        lines = [broadcast_summary(session.broadcasts)]
+    else:
+        lines = broadcast_lines(session.broadcasts, TOOLBAR_STATIONS)
+    for line in lines:
         out += [("", "\n"), ("class:toolbar.dim", " " + line)]
     return out if width is None else fit(out, width)
 
