@@ -395,7 +395,7 @@ def test_a_sketch_that_includes_dev_zero_meets_the_builds_memory_bound(tmp_path:
     result = sim("--firmware", str(sketch), env={**os.environ, "XDG_CACHE_HOME": str(tmp_path / "cache")})
     assert result.returncode == 1 and result.stdout == "", result.stderr
     building, err = result.stderr.splitlines()
-    assert building.startswith("hcrctl sim: building zero.ino"), building
+    assert building.startswith("hcrctl: sim: building zero.ino"), building
     assert err.startswith("hcrctl: error: cannot build zero.ino: ") and "out of memory" in err, err
     assert "a build is bounded to 1 GiB of memory" in err, err
 

@@ -44,40 +44,41 @@ def _serving(text: str) -> Callable[[subprocess.Popen[str]], str]:
 
 
 #: name -> (arguments, how to know it is up, its closing line on stderr)
-SERVERS: dict[str, tuple[Callable[[], list[str]], Callable[[subprocess.Popen[str]], str], str]] = {
+#: The arguments are made from a fleet endpoint, where ``fleet serve`` finds a router the test started.
+SERVERS: dict[str, tuple[Callable[[str], list[str]], Callable[[subprocess.Popen[str]], str], str]] = {
     "sim --pty": (
-        lambda: ["sim", "--pty"],
+        lambda _: ["sim", "--pty"],
         _first_line,
         r"hcrctl: sim: stopped serving /dev/\S+ after [\d.]+ s",
     ),
     "sim --tcp": (
-        lambda: ["sim", "--tcp", "0"],
+        lambda _: ["sim", "--tcp", "0"],
         _first_line,
         r"hcrctl: sim: stopped serving socket://127\.0\.0\.1:\d+ after [\d.]+ s",
     ),
     "sim --firmware": (
-        lambda: ["sim", "--firmware", str(FIRMWARE)],
+        lambda _: ["sim", "--firmware", str(FIRMWARE)],
         _first_line,
         # the chip's time when the emulator reported it, else where and how long it served
         r"hcrctl: sim: (the chip ran [\d.]+ s in [\d.]+ s of wall time \(.*\)|stopped serving /dev/\S+ after [\d.]+ s)",
     ),
     "watch": (
-        lambda: ["--port", "sim://", "watch", "compass"],
+        lambda _: ["--port", "sim://", "watch", "compass"],
         _first_line,
         r"hcrctl: watch: \d+ sweeps in [\d.]+ s \(.*\), 0 timeouts, 0 bad replies",
     ),
     "bridge": (
-        lambda: ["--port", "sim://", "bridge", "--listen", "127.0.0.1:0"],
+        lambda _: ["--port", "sim://", "bridge", "--listen", "127.0.0.1:0"],
         _serving("serving on ws://"),
         r"hcrctl: bridge: \d+ sweeps in [\d.]+ s .*messages, at most 0 client\(s\), 0 drive frame\(s\)",
     ),
     "fleet router": (
-        lambda: ["fleet", "router", "--listen", f"tcp/127.0.0.1:{free_port()}"],
+        lambda _: ["fleet", "router", "--listen", f"tcp/127.0.0.1:{free_port()}"],
         _first_line,
         r"hcrctl: fleet router: stopped serving tcp/127\.0\.0\.1:\d+ after [\d.]+ s",
     ),
     "fleet serve": (
-        lambda: ["--zenoh", f"tcp/127.0.0.1:{free_port()}", "--port", "sim://", "fleet", "serve", "bob"],
+        lambda fleet: ["--zenoh", fleet, "--port", "sim://", "fleet", "serve", "bob"],
         _serving("serving bob"),
         r"hcrctl: fleet serve bob: \d+ sweeps in [\d.]+ s .*messages published.*",
     ),
@@ -97,14 +98,22 @@ def test_a_stop_signal_ends_a_server_with_exit_0_and_its_closing_line(
     server: str, sig: signal.Signals, env: dict[str, str]
 ) -> None:
     args, up, closing = SERVERS[server]
-    proc = start(args(), env)
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    router = start(["fleet", "router", "--listen", endpoint], env) if server == "fleet serve" else None
+    proc = None
     try:
+        if router is not None:
+            readline(router)  # listening: a fleet serve is a client of its router
+        proc = start(args(endpoint), env)
         up(proc)
         proc.send_signal(sig)
         _, err = finish(proc)
     finally:
-        if proc.poll() is None:
-            proc.kill()
+        for child in (proc, router):
+            if child is not None and child.poll() is None:
+                child.kill()
+                child.wait()
+    assert proc is not None
     assert proc.returncode == 0, err
     last = err.strip().splitlines()[-1]
     assert re.fullmatch(closing, last), err
