@@ -6,9 +6,13 @@ frame both ways is published exactly as ``--log`` would write it, and every
 good reply also as a reading on its own topic (``protocol.topics``). The link
 counters are published every ``link_every`` seconds by ``run``'s loop.
 
-``publish`` is called from the link's reader and writer threads and from
-``run``'s; the feed holds a lock around it, so a sink never sees two calls at
-once and needs no locking of its own. A publish that raises ends the feed
+Every message is published in the link's order (``link.traffic.Watchers``),
+the counters too: a sink gets the frames in the order the traffic log writes
+them, at the log's times, and no message's time is before the one published
+ahead of it (unless the system clock is set back). ``publish`` is called from
+whichever thread tells the link's hooks (the reader or a writer); the feed
+holds a lock around it, so a sink never sees two calls at once (a robot
+reopened after a lost link has hooks of its own) and needs no locking. A publish that raises ends the feed
 (its error is raised by ``run``): a recording that cannot write must say so,
 not poll on.
 """
@@ -16,6 +20,7 @@ not poll on.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -102,8 +107,11 @@ class Feed:
     # -- publishing -------------------------------------------------------------
 
     def publish_link(self) -> None:
+        """The link counters, in the link's order: after every frame published before, timed after them."""
         robot = self.poller.robot or self.robot
-        now = time.time()
+        robot.watchers.in_order(functools.partial(self._publish_link, robot))
+
+    def _publish_link(self, robot: Robot, now: float) -> None:
         message: dict[str, Any] = {"time": now}
         message.update((name, getattr(robot.stats, name)) for name in self.counters)
         self._send(T.LINK, message, now)
