@@ -8,6 +8,7 @@ the robot's replies were logged, never with hcrctl's own encoder.
 
 from __future__ import annotations
 
+import csv
 import json
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
@@ -162,10 +163,14 @@ trafficlog.TrafficLog.write = trafficlog.TrafficLog.__call__ = slow
 """
 
 
+def slow_log_env(home: Path) -> dict[str, str]:
+    (home / "slow_log.py").write_text(SLOW_LOG)
+    return clean_env(home, PYTHONPATH=str(home), HCRCTL_PLUGINS="slow_log")
+
+
 def test_a_recording_holds_the_frames_in_the_logs_order_while_the_log_is_slow(tmp_path: Path) -> None:
     """The log and the recording are told of the traffic in one order, whatever thread saw it and however slow."""
-    (tmp_path / "slow_log.py").write_text(SLOW_LOG)
-    env = clean_env(tmp_path, PYTHONPATH=str(tmp_path), HCRCTL_PLUGINS="slow_log")
+    env = slow_log_env(tmp_path)
     out, log = tmp_path / "run.mcap", tmp_path / "run.jsonl"
     args = ["--port", "sim://", "--log", str(log), "record", str(out), "compass", "sonar", "env"]
     done = run([*args, "--duration", "2", "--encoding", "cdr"], env)
@@ -175,6 +180,20 @@ def test_a_recording_holds_the_frames_in_the_logs_order_while_the_log_is_slow(tm
     check_against_log([item for item in found if item[0] != "/hcr/link"], lines_of(log))
     times = [m.log_time for _, m, _ in found]  # the link counters too: in order with the frames
     assert times == sorted(times) and any(topic == "/hcr/link" for topic, _, _ in found)
+
+
+def test_a_csv_recording_holds_the_readings_in_the_logs_order_while_the_log_is_slow(tmp_path: Path) -> None:
+    """A CSV row per reading (the map is no row), in the log's order, at the log's time."""
+    out, log = tmp_path / "run.csv", tmp_path / "run.jsonl"
+    args = ["--port", "sim://", "--log", str(log), "record", str(out), "compass", "sonar", "env"]
+    done = run([*args, "--duration", "2"], slow_log_env(tmp_path))
+    assert done.returncode == 0, done.stderr
+    assert "warning" not in done.stderr, done.stderr
+    with out.open(newline="") as handle:
+        rows = [(r["time"], r["direction"], int(r["address"]), r["name"]) for r in csv.DictReader(handle)]
+    wanted = [line for line in lines_of(log) if is_reading(line) and line["name"] != "map"]
+    assert rows == [(line["time"], line["direction"], line["address"], line["name"]) for line in wanted]
+    assert {"compass", "sonar", "position"} <= {name for *_, name in rows}
 
 
 @pytest.mark.parametrize("command", ["record", "export"])

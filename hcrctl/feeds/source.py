@@ -27,7 +27,7 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from ..link.client import Robot
-from ..link.traffic import LinkStats, Traffic, decode_sent
+from ..link.traffic import LinkStats, Relay, Traffic, decode_sent
 from ..live.poller import Poller
 from ..live.state import LiveState
 from ..protocol import topics as T
@@ -54,7 +54,10 @@ class Feed:
         link_every: float = 1.0,
         reconnect: Callable[[], Robot] | None = None,
         pipeline: bool = True,
+        relay: Relay | None = None,
     ) -> None:
+        """``relay``: the hook ``robot`` was opened with (``Connection.robot(on_traffic=relay)``), which
+        hands this feed the link from its first byte, and goes on after the feed ends, until the port closes."""
         self.robot = robot
         self.publish = publish
         self.link_every = link_every
@@ -65,7 +68,10 @@ class Feed:
         self._reconnect = reconnect
         wrapped = self._watched(reconnect) if reconnect is not None else None
         self.poller = Poller(robot, self.state, tuple(sensors), rate, reconnect=wrapped, pipeline=pipeline)
-        robot.add_traffic_hook(self._on_traffic)
+        if relay is None:
+            robot.add_traffic_hook(self._on_traffic)
+        else:
+            robot.watchers.in_order(lambda now: relay.to(self._on_traffic))
 
     # -- lifetime -------------------------------------------------------------
 

@@ -186,3 +186,30 @@ class Watchers:
             turn()
         except Exception as exc:
             sys.stderr.write(f"hcrctl: warning: {turn!r} failed in the link's order ({exc})\n")
+
+
+class Relay:
+    """A traffic hook for a port as it opens, for a watcher made after: what came before is kept for it.
+
+    Given to ``Connection.robot(on_traffic=...)``, it hears the link from the
+    first byte, as the ``--log`` does; ``to(hook)``, run in the link's order
+    (``Watchers.in_order``), hands ``hook`` what it kept and everything after.
+    So a recording begins where the log's session does, and ends with it.
+    """
+
+    def __init__(self) -> None:
+        self._kept: list[Traffic] = []
+        self._hook: TrafficHook | None = None
+
+    def __call__(self, traffic: Traffic) -> None:
+        if self._hook is None:
+            self._kept.append(traffic)
+        else:
+            self._hook(traffic)
+
+    def to(self, hook: TrafficHook) -> None:
+        """From now on everything goes to ``hook``, after what was kept (call it in the link's order)."""
+        kept, self._kept = self._kept, []
+        for traffic in kept:
+            hook(traffic)
+        self._hook = hook
