@@ -72,14 +72,14 @@ class Robot(TypedReads, Dialect):
         rule: ChecksumRule | str = ChecksumRule.HEADER,
         protocol: Profile | str = DEFAULT,
         on_unsolicited: FrameHook | None = None,
-        on_traffic: TrafficHook | None = None,
+        on_traffic: TrafficHook | tuple[TrafficHook, ...] | None = None,
     ) -> None:
         self.address = address
         self.timeout = timeout
         self.retries = retries
         self.on_unsolicited = on_unsolicited
         #: Everyone watching the link (--log, a monitor, the shell's toolbar).
-        self.watchers = Watchers(on_traffic)
+        self.watchers = Watchers(*(on_traffic if isinstance(on_traffic, tuple) else (on_traffic,)))
         self.stats = LinkStats()
         self.unsolicited: queue.Queue[Frame] = queue.Queue(UNSOLICITED_BACKLOG)
         self.moved = False

@@ -121,8 +121,9 @@ class Watchers:
     The hook list is a tuple replaced whole, so delivery iterates a stable snapshot.
     """
 
-    def __init__(self, first: TrafficHook | None = None) -> None:
-        self.hooks: tuple[TrafficHook, ...] = (first,) if first else ()
+    def __init__(self, *first: TrafficHook | None) -> None:
+        """``first``: the hooks that hear the link from its first byte (None are skipped)."""
+        self.hooks: tuple[TrafficHook, ...] = tuple(hook for hook in first if hook is not None)
         self._lock = threading.Lock()
         self._stamping = threading.Lock()  # held only to stamp and queue: never while a hook runs
         self._queue: deque[Traffic | Callable[[], None]] = deque()

@@ -104,6 +104,12 @@ class TrafficLog:
     def rule(self) -> ChecksumRule:
         return self._rule() if callable(self._rule) else self._rule
 
+    def bind(self, robot: Robot) -> None:
+        """Follow ``robot``'s checksum rule from now on, and close when it goes."""
+        ref = weakref.ref(robot)
+        self._rule = lambda: _rule_of(ref)
+        weakref.finalize(robot, self.close)
+
     def write(self, traffic: Traffic) -> None:
         """Append one line; never raises, as it runs in the reader thread and before stop goes out."""
         data, rule = traffic.data, self.rule
@@ -154,14 +160,13 @@ def attach(robot: Robot, path: str) -> TrafficLog:
     If the file cannot be opened the robot is closed before the error rises,
     so a failed connect leaves no port open behind it.
     """
-    ref = weakref.ref(robot)
     try:
-        log = TrafficLog(path, rule=lambda: _rule_of(ref), profile=robot.profile)
+        log = TrafficLog(path, rule=robot.rule, profile=robot.profile)
     except LogOpenError:
         robot.close()
         raise
     robot.add_traffic_hook(log)
-    weakref.finalize(robot, log.close)
+    log.bind(robot)
     return log
 
 
