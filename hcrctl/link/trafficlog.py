@@ -15,7 +15,9 @@ is one of ``Robot``'s traffic hooks, beside a monitor and the shell's toolbar.
 ``TrafficLog`` is the ``.jsonl`` entry of ``feeds.formats.WRITERS``, the
 writer of the ``traffic`` kind: opened with the path, ``write`` a piece of
 traffic, ``close``, as every recording's writer. ``Connection`` (this layer)
-opens it for ``--log`` whatever the file is called.
+opens it for ``--log`` whatever the file is called, before the port, so it
+hears the link from its first byte; its lines are in the link's order
+(``traffic.Watchers``), the order every other watcher is told.
 
 A write that fails (a full disk) must neither stop the robot's work nor
 pass unnoticed: the log says so at once on one stderr line, stops writing,
