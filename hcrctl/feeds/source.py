@@ -12,9 +12,9 @@ them, at the log's times, and no message's time is before the one published
 ahead of it (unless the system clock is set back). ``publish`` is called from
 whichever thread tells the link's hooks (the reader or a writer); the feed
 holds a lock around it, so a sink never sees two calls at once (a robot
-reopened after a lost link has hooks of its own) and needs no locking. A publish that raises ends the feed
-(its error is raised by ``run``): a recording that cannot write must say so,
-not poll on.
+reopened after a lost link has hooks of its own) and needs no locking. A
+publish that raises ends the feed (its error is raised by ``run``): a
+recording that cannot write must say so, not poll on.
 """
 
 from __future__ import annotations
