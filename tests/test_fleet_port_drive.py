@@ -99,7 +99,7 @@ def test_a_second_operator_is_refused_naming_the_driver_and_a_third_stops_it(rob
 
 
 def test_teleop_of_a_second_operator_ends_with_one_line_naming_the_driver(robot: Fleet) -> None:
-    first, _, _ = robot.start("r1", "drive", *SPIN)
+    first, _, first_err = robot.start("r1", "drive", *SPIN)
     wire = robot.served["r1"]
     moved = wire.wait_sent(power(*SPIN_POWER), what="the first operator's motion")
     env = terminal_env() | {"XDG_CONFIG_HOME": str(robot.tmp)}
@@ -113,9 +113,9 @@ def test_teleop_of_a_second_operator_ends_with_one_line_naming_the_driver(robot:
     # teleop's own stop on its way out is not sent over the fleet: it would stop the driver it was refused for
     again = robot.run("r1", "read", "compass")  # a round trip through the robot side after it
     assert again.returncode == 0, again.stderr
-    said = wire.said()  # the robot side says why it stops: a failure here names the cause
-    assert not [f for f in wire.sent()[moved:] if is_stop(f)] and "stop from" not in said, said
-    assert first.poll() is None  # the driver drives on
+    said = wire.said() + first_err.read_text()  # both sides say why it stopped: a failure names the cause
+    assert not [f for f in wire.sent()[moved:] if is_stop(f)] and "stop from" not in wire.said(), said
+    assert first.poll() is None, said  # the driver drives on
 
 
 def test_a_killed_operator_is_stopped_by_its_token_going_not_by_the_deadman(robot: Fleet) -> None:
