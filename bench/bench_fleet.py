@@ -1,6 +1,7 @@
 """A fleet on Zenoh: readings' latency and each robot's cost as robots are added; zenoh:// reads; safety stops.
 
-Run from the repository root: ``python bench/bench_fleet.py [--robots 1,5,20] [--seconds 10] [--rounds 7]``.
+Run from the repository root: ``python bench/bench_fleet.py [--robots 1,5,20] [--seconds 10] [--rounds 7]
+[--parts scaling,reads,lost,hosts,floods,renewals]``.
 
 1. For each N: a router on a free loopback port and N ``hcrctl fleet serve rK``
    on ``sim://``, each polling at 10 Hz, and one operator (this process, a
@@ -30,6 +31,14 @@ Run from the repository root: ``python bench/bench_fleet.py [--robots 1,5,20] [-
    deadman stop on the wire under each, as a ratio to the stop without a
    flood in the same run. Target <= 1.2x. ``--flood-rounds`` rounds of each
    (0 skips it).
+6. The driver's renewals under load: ``drive power 30 -30`` on a serve with
+   the default 0.5 s deadman, held ``--seconds``, once on a quiet machine and
+   once beside two busy loops (one per core, as a loaded CI host), in the
+   same run. The robot side's ``info`` counts the renewals that came after
+   half their lease (``late_renewals``) and the longest gap between two
+   (``longest_renewal_gap_ms``); the driver spins on the spot, so no wall
+   stops it, and any stop on the wire is a miss. Target: no stop, and the
+   longest gap under load within half the deadman.
 
 It prints the figures, writes ``bench/results/bench_fleet.json`` and exits 1
 if a target is missed. Needs the zenoh extra.
@@ -267,10 +276,10 @@ def wire(log: Path) -> list[tuple[float, bytes]]:
     return out
 
 
-def moving_since(log: Path, start: int) -> int | None:
-    """The index after the first motion frame at or after ``start``, if one was written."""
+def moving_since(log: Path, start: int, motion: bytes = POWER) -> int | None:
+    """The index after the first ``motion`` frame at or after ``start``, if one was written."""
     frames = wire(log)
-    return next((i + 1 for i in range(start, len(frames)) if frames[i][1] == POWER), None)
+    return next((i + 1 for i in range(start, len(frames)) if frames[i][1] == motion), None)
 
 
 def stop_since(log: Path, start: int) -> float | None:
@@ -280,6 +289,7 @@ def stop_since(log: Path, start: int) -> float | None:
 
 #: Not a signal: the operator's cable pulled out of the switch (hosts only).
 CUT = "cut"
+SPIN = C.encode_request(C.MotorPower(30, -30))
 
 
 def lost_operator(
@@ -377,76 +387,204 @@ def floods(rounds: int, tmp: Path) -> tuple[dict[str, Any], bool]:
         )
 
 
+# -- 6. the driver's renewals, quiet and beside two busy loops ------------------------------------
+
+
+@contextlib.contextmanager
+def busy_loops(count: int) -> Iterator[None]:
+    """``count`` processes spinning on a core each, for as long as the block runs."""
+    spinners = [
+        subprocess.Popen([sys.executable, "-c", "while True: pass"], start_new_session=True)
+        for _ in range(count)
+    ]
+    try:
+        yield
+    finally:
+        for proc in spinners:
+            proc.kill()
+            proc.wait()
+
+
+def info_counters(endpoint: str, name: str) -> dict[str, Any]:
+    """The robot side's ``info`` counters, asked as any operator asks."""
+    from hcrctl.fleet import keys
+
+    session = open_session("client", Where((endpoint,), ()))
+    try:
+        for _ in range(10):  # a session just opened may not know the route to the robot yet
+            for reply in session.get(keys.info(name), timeout=5.0):
+                if reply.ok is not None:
+                    return dict(json.loads(reply.ok.payload.to_bytes())["counters"])
+            time.sleep(0.2)
+    finally:
+        session.close()
+    raise RuntimeError(f"{name} did not answer its info")
+
+
+def renewals(seconds: float, busy: int, tmp: Path) -> dict[str, Any]:
+    """A driver held ``seconds`` on a 0.5 s deadman beside ``busy`` spinning processes: how late its renewals came."""
+    with busy_loops(busy), fleet(tmp) as (procs, endpoint):
+        log = tmp / f"wire-renewals-{busy}.jsonl"
+        _, said = procs.start(
+            "--zenoh",
+            endpoint,
+            "--port",
+            "sim://",
+            "--log",
+            str(log),
+            "fleet",
+            "serve",
+            "r1",
+            "--deadman",
+            str(DEADMAN_S),
+        )
+        wait_for(lambda: "serving r1" in said.read_text(), what="fleet serve r1")
+        op, _ = procs.start("--zenoh", endpoint, "--port", "zenoh://r1", "drive", "power", "30", "-30")
+        moved = wait_for(lambda: moving_since(log, 0, SPIN), what="motion")
+        time.sleep(seconds)
+        counters = info_counters(endpoint, "r1")
+        stops = [t for t, data in wire(log)[moved:] if data == STOP]
+        text = said.read_text()
+        os.killpg(op.pid, signal.SIGKILL)
+        op.wait()
+    return {
+        "busy_loops": busy,
+        "seconds": seconds,
+        "late_renewals": counters["late_renewals"],
+        "longest_gap_ms": counters["longest_renewal_gap_ms"],
+        "stops": len(stops),
+        "deadman_stops": text.count("stopped: deadman"),
+        "said_late": text.count("late renewal:"),
+        "load": round(os.getloadavg()[0], 2),
+    }
+
+
+def part_scaling(robots: str, seconds: float, tmp: Path, metrics: dict[str, Any]) -> bool:
+    scaling = []
+    for n in (int(x) for x in robots.split(",")):
+        row = many(n, seconds, tmp)
+        scaling.append(row)
+        print(
+            f"  {n:3} robots: {row['messages']} readings ({row['delivered']:.0%} of 10 Hz x {len(C.SENSORS)}), "
+            f"latency median {row['latency_median_ms']:.2f} ms, p99 {row['latency_p99_ms']:.2f} ms; "
+            f"per robot {row['cpu_per_robot_pct']:.1f} % CPU, {row['rss_per_robot_mb']:.1f} MB; "
+            f"operator {row['operator_cpu_pct']:.1f} % CPU"
+        )
+    base = scaling[0]
+    for row in scaling:
+        row["latency_growth"] = round(row["latency_median_ms"] / base["latency_median_ms"], 2)
+        row["cpu_growth"] = round(row["cpu_per_robot_pct"] / base["cpu_per_robot_pct"], 2)
+        row["rss_growth"] = round(row["rss_per_robot_mb"] / base["rss_per_robot_mb"], 2)
+    print(
+        "  growth against 1 robot: "
+        + "; ".join(
+            f"{r['robots']}: latency {r['latency_growth']}x, CPU/robot {r['cpu_growth']}x, RSS/robot {r['rss_growth']}x"
+            for r in scaling
+        )
+    )
+    metrics["scaling"] = scaling
+    return True
+
+
+def part_reads(rounds: int, tmp: Path, metrics: dict[str, Any]) -> bool:
+    read = reads(rounds, tmp)
+    metrics["read_compass"] = read
+    good = read["ratio"] <= READ_RATIO
+    print(
+        f"  {'ok  ' if good else 'MISS'} read compass via zenoh:// {read['fleet_read_ms']} ms, "
+        f"local pty {read['pty_read_ms']} ms: {read['ratio']}x (target <= {READ_RATIO})"
+    )
+    return good
+
+
+def part_lost(rounds: int, tmp: Path, metrics: dict[str, Any]) -> bool:
+    ok = True
+    for label, sig, deadman, target in (
+        ("kill -9", signal.SIGKILL, "10", KILL_STOP_S),
+        ("SIGSTOP", signal.SIGSTOP, str(DEADMAN_S), FREEZE_STOP_S),
+    ):
+        figures = lost_operator(sig, deadman, rounds, tmp)
+        worst = max(figures)
+        good = worst <= target
+        ok &= good
+        key = "kill_stop" if sig is signal.SIGKILL else "freeze_stop"
+        metrics[key] = {
+            "median_ms": round(statistics.median(figures) * 1e3, 1),
+            "max_ms": round(worst * 1e3, 1),
+            "deadman_s": float(deadman),
+            "target_ms": target * 1e3,
+        }
+        print(
+            f"  {'ok  ' if good else 'MISS'} {label} to stop on the wire: median "
+            f"{statistics.median(figures) * 1e3:.1f} ms, max {worst * 1e3:.1f} ms (target <= {target * 1e3:.0f} ms)"
+        )
+    return ok
+
+
+def part_renewals(seconds: float, tmp: Path, metrics: dict[str, Any]) -> bool:
+    quiet, loaded = renewals(seconds, 0, tmp), renewals(seconds, 2, tmp)
+    ratio = round(loaded["longest_gap_ms"] / quiet["longest_gap_ms"], 2)
+    target = DEADMAN_S / 2 * 1e3
+    good = loaded["stops"] == 0 and loaded["longest_gap_ms"] <= target
+    metrics["renewals"] = {"quiet": quiet, "two_busy_loops": loaded, "longest_gap_ratio": ratio}
+    for row in (quiet, loaded):
+        print(
+            f"  renewals over {row['seconds']:g} s beside {row['busy_loops']} busy loop(s) (load {row['load']}): "
+            f"longest gap {row['longest_gap_ms']:.1f} ms, {row['late_renewals']} late "
+            f"({row['said_late']} line(s) said), {row['stops']} stop(s), {row['deadman_stops']} by the deadman"
+        )
+    print(
+        f"  {'ok  ' if good else 'MISS'} renewals under load: longest gap {ratio}x the quiet one "
+        f"(target <= {target:.0f} ms, half the {DEADMAN_S:g} s deadman, and no deadman stop)"
+    )
+    return good
+
+
+def part_hosts(rounds: int, tmp: Path, metrics: dict[str, Any]) -> bool:
+    why = helpers_netns.why_not()
+    if why is not None:
+        print(f"  hosts: skipped: {why}")
+        return True
+    return on_hosts(rounds, tmp, metrics)
+
+
+def part_floods(rounds: int, tmp: Path, metrics: dict[str, Any]) -> bool:
+    if not rounds:
+        return True
+    flooded, good = floods(rounds, tmp)
+    metrics["floods"] = flooded
+    return good
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robots", default="1,5,20", help="comma-separated robot counts")
     parser.add_argument("--seconds", type=float, default=10.0, help="measuring window per robot count")
     parser.add_argument("--rounds", type=int, default=7)
     parser.add_argument("--flood-rounds", type=int, default=5, help="rounds of each flood kind (0: none)")
+    parser.add_argument(
+        "--parts",
+        default="scaling,reads,lost,hosts,floods,renewals",
+        help="which parts to run (comma-separated)",
+    )
     args = parser.parse_args()
+    parts = set(args.parts.split(","))
     metrics: dict[str, Any] = {}
     ok = True
     with tempfile.TemporaryDirectory(prefix="bench_fleet_") as tmp_dir:
         tmp = Path(tmp_dir)
-        scaling = []
-        for n in (int(x) for x in args.robots.split(",")):
-            row = many(n, args.seconds, tmp)
-            scaling.append(row)
-            print(
-                f"  {n:3} robots: {row['messages']} readings ({row['delivered']:.0%} of 10 Hz x {len(C.SENSORS)}), "
-                f"latency median {row['latency_median_ms']:.2f} ms, p99 {row['latency_p99_ms']:.2f} ms; "
-                f"per robot {row['cpu_per_robot_pct']:.1f} % CPU, {row['rss_per_robot_mb']:.1f} MB; "
-                f"operator {row['operator_cpu_pct']:.1f} % CPU"
-            )
-        base = scaling[0]
-        for row in scaling:
-            row["latency_growth"] = round(row["latency_median_ms"] / base["latency_median_ms"], 2)
-            row["cpu_growth"] = round(row["cpu_per_robot_pct"] / base["cpu_per_robot_pct"], 2)
-            row["rss_growth"] = round(row["rss_per_robot_mb"] / base["rss_per_robot_mb"], 2)
-        print(
-            "  growth against 1 robot: "
-            + "; ".join(
-                f"{r['robots']}: latency {r['latency_growth']}x, CPU/robot {r['cpu_growth']}x, RSS/robot {r['rss_growth']}x"
-                for r in scaling
-            )
-        )
-        metrics["scaling"] = scaling
-        read = reads(args.rounds, tmp)
-        metrics["read_compass"] = read
-        good = read["ratio"] <= READ_RATIO
-        ok &= good
-        print(
-            f"  {'ok  ' if good else 'MISS'} read compass via zenoh:// {read['fleet_read_ms']} ms, "
-            f"local pty {read['pty_read_ms']} ms: {read['ratio']}x (target <= {READ_RATIO})"
-        )
-        for label, sig, deadman, target in (
-            ("kill -9", signal.SIGKILL, "10", KILL_STOP_S),
-            ("SIGSTOP", signal.SIGSTOP, str(DEADMAN_S), FREEZE_STOP_S),
-        ):
-            figures = lost_operator(sig, deadman, args.rounds, tmp)
-            worst = max(figures)
-            good = worst <= target
-            ok &= good
-            key = "kill_stop" if sig is signal.SIGKILL else "freeze_stop"
-            metrics[key] = {
-                "median_ms": round(statistics.median(figures) * 1e3, 1),
-                "max_ms": round(worst * 1e3, 1),
-                "deadman_s": float(deadman),
-                "target_ms": target * 1e3,
-            }
-            print(
-                f"  {'ok  ' if good else 'MISS'} {label} to stop on the wire: median "
-                f"{statistics.median(figures) * 1e3:.1f} ms, max {worst * 1e3:.1f} ms (target <= {target * 1e3:.0f} ms)"
-            )
-        why = helpers_netns.why_not()
-        if why is None:
-            ok &= on_hosts(args.rounds, tmp, metrics)
-        else:
-            print(f"  hosts: skipped: {why}")
-        if args.flood_rounds:
-            flooded, good = floods(args.flood_rounds, tmp)
-            metrics["floods"] = flooded
-            ok &= good
+        if "scaling" in parts:
+            ok &= part_scaling(args.robots, args.seconds, tmp, metrics)
+        if "reads" in parts:
+            ok &= part_reads(args.rounds, tmp, metrics)
+        if "lost" in parts:
+            ok &= part_lost(args.rounds, tmp, metrics)
+        if "hosts" in parts:
+            ok &= part_hosts(args.rounds, tmp, metrics)
+        if "floods" in parts:
+            ok &= part_floods(args.flood_rounds, tmp, metrics)
+        if "renewals" in parts:
+            ok &= part_renewals(args.seconds, tmp, metrics)
     metrics["load"] = round(os.getloadavg()[0], 2)
     record("bench_fleet", metrics)
     return 0 if ok else 1

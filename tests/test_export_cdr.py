@@ -8,6 +8,7 @@ the robot's replies were logged, never with hcrctl's own encoder.
 
 from __future__ import annotations
 
+import csv
 import json
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
@@ -83,7 +84,14 @@ def decoded(path: Path) -> tuple[Any, list[tuple[str, Any, Any]]]:
 
 
 def check_against_log(found: list[tuple[str, Any, Any]], lines: list[dict[str, Any]]) -> None:
-    """Every frame of the log is a /hcr/frames message, every reading a /hcr/<name> one, with its values and times."""
+    """Every frame of the log is a /hcr/frames message, every reading a /hcr/<name> one, with its values and times.
+
+    In the log's order, and no time, in the log or in the file (in file order, every topic), before the one ahead of it.
+    """
+    stamps = [us_of(line["time"]) for line in lines]
+    assert stamps == sorted(stamps), "the log's times go backwards"
+    times = [m.log_time for _, m, _ in found]
+    assert times == sorted(times), "the recording's log times go backwards in file order"
     frames = [(m, d) for topic, m, d in found if topic == "/hcr/frames"]
     assert [(d.direction, d.hex) for _, d in frames] == [(line["direction"], line["hex"]) for line in lines]
     assert [m.log_time for m, _ in frames] == [us_of(line["time"]) * 1000 for line in lines]
@@ -131,6 +139,61 @@ def test_record_cdr_holds_what_its_log_says_crossed_the_link(tmp_path: Path) -> 
     check_against_log([item for item in found if item[0] != "/hcr/link"], lines_of(log))
     link = [plain(d) for topic, _, d in found if topic == "/hcr/link"]
     assert len(link) >= 2 and link[-1]["tx_frames"] > 0  # the counters are decoded too, and count
+
+
+#: A plugin (``HCRCTL_PLUGINS``, imported at start) that makes the ``--log`` writer slow, on whichever thread
+#: calls it: a request's line is written and the thread then held, before any other watcher hears of it; a
+#: reply's thread is held before its line is written. So the link's other thread always runs in between.
+SLOW_LOG = """
+import time
+from hcrctl.link import trafficlog
+
+_write = trafficlog.TrafficLog.write
+
+
+def slow(self, traffic):
+    if traffic.direction == "rx":
+        time.sleep(0.02)
+    _write(self, traffic)
+    if traffic.direction == "tx":
+        time.sleep(0.02)
+
+
+trafficlog.TrafficLog.write = trafficlog.TrafficLog.__call__ = slow
+"""
+
+
+def slow_log_env(home: Path) -> dict[str, str]:
+    (home / "slow_log.py").write_text(SLOW_LOG)
+    return clean_env(home, PYTHONPATH=str(home), HCRCTL_PLUGINS="slow_log")
+
+
+def test_a_recording_holds_the_frames_in_the_logs_order_while_the_log_is_slow(tmp_path: Path) -> None:
+    """The log and the recording are told of the traffic in one order, whatever thread saw it and however slow."""
+    env = slow_log_env(tmp_path)
+    out, log = tmp_path / "run.mcap", tmp_path / "run.jsonl"
+    args = ["--port", "sim://", "--log", str(log), "record", str(out), "compass", "sonar", "env"]
+    done = run([*args, "--duration", "2", "--encoding", "cdr"], env)
+    assert done.returncode == 0, done.stderr
+    assert "warning" not in done.stderr, done.stderr  # the plugin was loaded
+    _, found = decoded(out)
+    check_against_log([item for item in found if item[0] != "/hcr/link"], lines_of(log))
+    times = [m.log_time for _, m, _ in found]  # the link counters too: in order with the frames
+    assert times == sorted(times) and any(topic == "/hcr/link" for topic, _, _ in found)
+
+
+def test_a_csv_recording_holds_the_readings_in_the_logs_order_while_the_log_is_slow(tmp_path: Path) -> None:
+    """A CSV row per reading (the map is no row), in the log's order, at the log's time."""
+    out, log = tmp_path / "run.csv", tmp_path / "run.jsonl"
+    args = ["--port", "sim://", "--log", str(log), "record", str(out), "compass", "sonar", "env"]
+    done = run([*args, "--duration", "2"], slow_log_env(tmp_path))
+    assert done.returncode == 0, done.stderr
+    assert "warning" not in done.stderr, done.stderr
+    with out.open(newline="") as handle:
+        rows = [(r["time"], r["direction"], int(r["address"]), r["name"]) for r in csv.DictReader(handle)]
+    wanted = [line for line in lines_of(log) if is_reading(line) and line["name"] != "map"]
+    assert rows == [(line["time"], line["direction"], line["address"], line["name"]) for line in wanted]
+    assert {"compass", "sonar", "position"} <= {name for *_, name in rows}
 
 
 @pytest.mark.parametrize("command", ["record", "export"])

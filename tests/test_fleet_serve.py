@@ -12,8 +12,10 @@ test asserts a time.
 from __future__ import annotations
 
 import json
+import re
 import signal
 import struct
+import time
 from pathlib import Path
 from typing import Any
 
@@ -115,6 +117,29 @@ def test_a_second_operator_is_refused_and_a_third_may_stop(lab: Fleet, tmp_path:
     assert said == {"op": "op1", "session": op1.op.session, "text": "stopped: stop from op3"}
     backwards = [f for f in serve.sent_codes({VELOCITY}) if f.content[0]]
     assert not backwards, "op2's reverse reached the wire"
+
+
+def test_a_renewal_after_half_its_lease_is_said_with_a_count_and_counted_in_info(
+    lab: Fleet, tmp_path: Path
+) -> None:
+    """The robot side says when a driver's renewals eat into the deadman's margin, before any stop.
+
+    The gap under test is a wait of its own (5.5 s of a 10 s deadman): at least that, whatever the load.
+    """
+    serve = served(lab, tmp_path, "--deadman", "10")
+    with operator(lab.endpoint, "r1", "op1") as op:
+        op.open()
+        assert op.claim()[0] and op.claim()[0]  # the second renews the first at once: on time
+        time.sleep(5.5)
+        assert op.claim()[0]
+        text = serve.wait_err("late so far)")
+        taken, info = op.query(keys.info("r1"))
+    assert re.search(
+        r"late renewal: op1's came \d+\.\d\d s after its last word, of a 10 s lease \(1 late so far\)", text
+    )
+    assert taken and info["counters"]["late_renewals"] == 1
+    assert 5500 <= info["counters"]["longest_renewal_gap_ms"] < 10_000
+    assert "stopped" not in text
 
 
 def test_a_turn_is_written_once_and_held_under_the_lease(lab: Fleet, tmp_path: Path) -> None:

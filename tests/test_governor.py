@@ -8,7 +8,7 @@ import pytest
 from helpers import wait_until
 
 from hcrctl.errors import DeviceTimeout
-from hcrctl.motion.governor import STILL, Governor
+from hcrctl.motion.governor import STILL, Governor, Late
 from hcrctl.protocol import commands as C
 
 
@@ -164,3 +164,24 @@ def test_a_claim_renews_the_lease_without_touching_the_motion_and_is_refused_to_
     assert not verdict and verdict.why == "refused: a drives the robot"
     gov.turn(1.01)
     assert wire.last() == "stop" and gov.driver is None
+
+
+def test_a_renewal_after_half_its_lease_is_counted_and_told_once() -> None:
+    """The margin the deadman leaves: a driver's word after half its lease is late, said with a count."""
+    told: list[tuple[object, Late]] = []
+    gov = governor(Wire())  # a 0.3 s deadman: a renewal more than 0.15 s after the last word is late
+    gov.on_late = lambda source, late: told.append((source, late))
+    assert gov.offer("a", (20, 20), now=0.0)
+    assert gov.claim("a", now=0.1) and gov.offer("a", (20, 20), now=0.2)  # on time
+    assert told == [] and gov.lease.late == 0
+    assert gov.claim("a", now=0.4)  # 0.2 s after the last word: late
+    assert not gov.claim("b", now=0.41)  # another's refused claim renews nothing
+    assert gov.offer("a", (20, 20), now=0.6)  # 0.2 s again: late again
+    assert told == [
+        ("a", Late(pytest.approx(0.2), pytest.approx(0.3), 1)),
+        ("a", Late(pytest.approx(0.2), pytest.approx(0.3), 2)),
+    ]  # type: ignore[arg-type]
+    assert gov.lease.late == 2 and gov.lease.longest_gap == pytest.approx(0.2)
+    gov.stop("stop asked")
+    assert gov.claim("a", now=5.0)  # a new lease after a stop is no renewal
+    assert len(told) == 2 and gov.lease.longest_gap == pytest.approx(0.2)

@@ -25,6 +25,7 @@ from ..errors import HcrError
 from ..link.context import Connection, Reconnect
 from ..link.dialects import supported_sensors
 from ..link.signals import Terminated, stop_signals_handled
+from ..link.traffic import Relay
 from ..protocol.topics import all_topics
 from .formats import DEFAULT_ENCODING, open_sink
 from .progress import Progress, size
@@ -141,12 +142,25 @@ def _poll(
     stop: StopFlag,
     pipeline: bool,
 ) -> None:
-    with settings.robot() as robot:
-        feed = Feed(robot, names, rate, sink.write, reconnect=Reconnect(settings, robot), pipeline=pipeline)
+    relay = Relay()  # the recording hears what the log hears, from the port's opening to its closing
+    try:
+        with settings.robot(on_traffic=relay) as robot:
+            feed = Feed(
+                robot,
+                names,
+                rate,
+                sink.write,
+                reconnect=Reconnect(settings, robot),
+                pipeline=pipeline,
+                relay=relay,
+            )
 
-        def should_stop() -> bool:  # Feed.run asks every few ms, on this thread: the progress line's tick
-            progress.tick(lambda: sum(sink.counts.values()))
-            return stop.is_set()
+            def should_stop() -> bool:  # Feed.run asks every few ms, on this thread: the progress line's tick
+                progress.tick(lambda: sum(sink.counts.values()))
+                return stop.is_set()
 
-        with feed:
-            feed.run(duration, should_stop)
+            with feed:
+                feed.run(duration, should_stop)
+    finally:
+        if settings.shared_robot is not None:  # the shell's robot stays open after the recording
+            settings.shared_robot.remove_traffic_hook(relay)

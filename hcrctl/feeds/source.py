@@ -8,23 +8,28 @@ counters are published every ``link_every`` seconds by ``run``'s loop. The
 last reply heard per (address, command) is kept (``heard``), so a peer's
 read can be answered from the sweep instead of on the line.
 
-``publish`` is called from the link's reader and writer threads and from
-``run``'s; the feed holds a lock around it, so a sink never sees two calls at
-once and needs no locking of its own. A publish that raises ends the feed
-(its error is raised by ``run``): a recording that cannot write must say so,
-not poll on.
+Every message is published in the link's order (``link.traffic.Watchers``),
+the counters too: a sink gets the frames in the order the traffic log writes
+them, at the log's times, and no message's time is before the one published
+ahead of it (unless the system clock is set back). ``publish`` is called from
+whichever thread tells the link's hooks (the reader or a writer); the feed
+holds a lock around it, so a sink never sees two calls at once (a robot
+reopened after a lost link has hooks of its own) and needs no locking. A
+publish that raises ends the feed (its error is raised by ``run``): a
+recording that cannot write must say so, not poll on.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import threading
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
 from ..link.client import Robot
-from ..link.traffic import LinkStats, Traffic, decode_sent
+from ..link.traffic import LinkStats, Relay, Traffic, decode_sent
 from ..live.poller import Poller
 from ..live.state import LiveState
 from ..protocol import topics as T
@@ -56,7 +61,10 @@ class Feed:
         link_every: float = 1.0,
         reconnect: Callable[[], Robot] | None = None,
         pipeline: bool = True,
+        relay: Relay | None = None,
     ) -> None:
+        """``relay``: the hook ``robot`` was opened with (``Connection.robot(on_traffic=relay)``), which
+        hands this feed the link from its first byte, and goes on after the feed ends, until the port closes."""
         self.robot = robot
         self.publish = publish
         self.link_every = link_every
@@ -69,7 +77,10 @@ class Feed:
         self._reconnect = reconnect
         wrapped = self._watched(reconnect) if reconnect is not None else None
         self.poller = Poller(robot, self.state, tuple(sensors), rate, reconnect=wrapped, pipeline=pipeline)
-        robot.add_traffic_hook(self._on_traffic)
+        if relay is None:
+            robot.add_traffic_hook(self._on_traffic)
+        else:
+            robot.watchers.in_order(lambda now: relay.to(self._on_traffic))
 
     # -- lifetime -------------------------------------------------------------
 
@@ -111,8 +122,11 @@ class Feed:
     # -- publishing -------------------------------------------------------------
 
     def publish_link(self) -> None:
+        """The link counters, in the link's order: after every frame published before, timed after them."""
         robot = self.poller.robot or self.robot
-        now = time.time()
+        robot.watchers.in_order(functools.partial(self._publish_link, robot))
+
+    def _publish_link(self, robot: Robot, now: float) -> None:
         message: dict[str, Any] = {"time": now}
         message.update((name, getattr(robot.stats, name)) for name in self.counters)
         self._send(T.LINK, message, now)

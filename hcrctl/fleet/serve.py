@@ -43,7 +43,7 @@ from ..link.rescue import DEADMAN_S, warn
 from ..link.signals import Terminated, stop_signals_handled
 from ..live.bumpers import bumper_rule, freshness_bound
 from ..live.watch import quick_handoff
-from ..motion.governor import Governor
+from ..motion.governor import Governor, Late
 from ..protocol import commands as C
 from ..protocol.profiles import profile
 from ..protocol.topics import all_topics
@@ -64,6 +64,8 @@ NAME_CHECK_S = 2.0
 NAME_ASKS = 3
 #: How long a token may take to show up after each ask.
 NAME_SETTLE_S = 0.1
+#: Late renewals are said at most this often (each line carries the count so far).
+LATE_SAY_S = 1.0
 
 
 @dataclass
@@ -173,6 +175,7 @@ class Serving:
         self.fresh = freshness_bound(options.rate)
         self.drive = FleetDrive(name, governor, self.say, self._profile)
         self.declared: list[Any] = []
+        self._late_said = -LATE_SAY_S
 
     def _profile(self) -> tuple[Any, int]:
         robot = self.robot
@@ -201,6 +204,19 @@ class Serving:
     def told_stop(self, source: object, why: str) -> None:
         """A stop for any reason but a new message (deadman, operator gone, stop, bumper)."""
         self.say(source if isinstance(source, (str, keys.Who)) else None, f"stopped: {why}")
+
+    def renewal_late(self, source: object, late: Late) -> None:
+        """A driver's renewal after half its lease: said on stderr (at most once a second, with the count).
+
+        Only there: a word on ``status`` naming the driver would tell it the lease was lost.
+        """
+        now = time.monotonic()
+        if now - self._late_said >= LATE_SAY_S:
+            self._late_said = now
+            self.notes.note(
+                f"late renewal: {source}'s came {late.gap:.2f} s after its last word, "
+                f"of a {late.lease:g} s lease ({late.count} late so far)"
+            )
 
     # -- declarations -------------------------------------------------------------
 
@@ -314,6 +330,8 @@ class Serving:
             stops=drive.stops,
             unadmitted=drive.unadmitted,
             drive_frames=self.governor.frames,
+            late_renewals=self.governor.lease.late,
+            longest_renewal_gap_ms=round(self.governor.lease.longest_gap * 1e3, 1),
             queries=self.answers.answered,
             queries_failed=self.answers.failed,
         )
@@ -380,6 +398,7 @@ def _serve(
         governor.attach(lambda: feed.current)
         governor.bumpers = bumper_rule(feed.state, options.rate)
         governor.on_stop = serving.told_stop
+        governor.on_late = serving.renewal_late
         try:
             with _entered(server), feed, stopping_driven(feed, robot, lambda: governor.driven), governor:
                 feed.poller.first_sweep()  # the bumper rule has a reading before the robot is in the fleet
@@ -469,6 +488,7 @@ def _summary(serving: Serving, sent: int) -> dict[str, Any]:
         refused=drive.refused,
         stops=drive.stops,
         drive_frames=serving.governor.frames,
+        late_renewals=serving.governor.lease.late,
     )
     return summary
 

@@ -40,7 +40,7 @@ from .defaults import BAUD, REPLY_TIMEOUT_S, RETRIES
 from .dialects import HEAR_FIRST, Dialect, stop_frames
 from .reads import TypedReads
 from .stopwait import DEFAULT_WAIT_S as DEFAULT_WAIT_S
-from .traffic import FrameHook, LinkStats, Traffic, TrafficHook, Watchers, decode_sent
+from .traffic import FrameHook, LinkStats, TrafficHook, Watchers, decode_sent
 
 #: How long the reader blocks in one read; bounds how fast close() returns.
 READ_SLICE = 0.05
@@ -72,14 +72,14 @@ class Robot(TypedReads, Dialect):
         rule: ChecksumRule | str = ChecksumRule.HEADER,
         protocol: Profile | str = DEFAULT,
         on_unsolicited: FrameHook | None = None,
-        on_traffic: TrafficHook | None = None,
+        on_traffic: TrafficHook | tuple[TrafficHook, ...] | None = None,
     ) -> None:
         self.address = address
         self.timeout = timeout
         self.retries = retries
         self.on_unsolicited = on_unsolicited
         #: Everyone watching the link (--log, a monitor, the shell's toolbar).
-        self.watchers = Watchers(on_traffic)
+        self.watchers = Watchers(*(on_traffic if isinstance(on_traffic, tuple) else (on_traffic,)))
         self.stats = LinkStats()
         self.unsolicited: queue.Queue[Frame] = queue.Queue(UNSOLICITED_BACKLOG)
         self.moved = False
@@ -245,25 +245,27 @@ class Robot(TypedReads, Dialect):
             raise DeviceRefused(f"the device at 0x{self.address:02X} on {self.port} refused PID {p} {i} {d}")
 
     def write(self, frame: bytes) -> None:
-        """Put bytes on the wire as given, telling the traffic hook."""
+        """Put bytes on the wire as given, telling the traffic hooks."""
         frame = bytes(frame)
-        with self._tx:
-            self._check_link()
-            if self.motion.feed(frame):
-                self.moved = True
-            self._recent_tx.append(frame)
-            # Told before the bytes leave, so the hook never sees the reply first.
-            if self.watchers.hooks:
-                self.watchers.tell(
-                    Traffic(time.time(), "tx", frame, decode_sent(frame, self._rule, self.profile))
-                )
-            try:
-                self.serial.write(frame)
-            except HcrError:
-                raise  # the port's own word (a fleet robot driven by another): not a lost link
-            except Exception as exc:
-                raise self._lost(exc) from exc
-            self.stats.tx_frames += 1
+        try:
+            with self._tx:
+                self._check_link()
+                if self.motion.feed(frame):
+                    self.moved = True
+                self._recent_tx.append(frame)
+                # In the link's order before the bytes leave, so no hook sees the reply first;
+                # the hooks are told after, so the bytes never wait for a hook
+                if self.watchers.hooks:
+                    self.watchers.queue("tx", frame, decode_sent(frame, self._rule, self.profile))
+                try:
+                    self.serial.write(frame)
+                except HcrError:
+                    raise  # the port's own word (a fleet robot driven by another): not a lost link
+                except Exception as exc:
+                    raise self._lost(exc) from exc
+                self.stats.tx_frames += 1
+        finally:
+            self.watchers.deliver()
 
     def transact(
         self, frame: bytes, expect: tuple[int, int], what: str = "request", *, timeout: float | None = None
@@ -362,18 +364,24 @@ class Robot(TypedReads, Dialect):
         self._dispatch(self._decoder.idle())
 
     def _dispatch(self, events: list[Event]) -> None:
-        now = time.time()
+        """Count, queue for the hooks and route each event; then tell the hooks.
+
+        An event takes its place in the link's order before a reply is handed
+        to its caller, who may send the next request at once: that request
+        must come after it.
+        """
         for event in events:
             self.stats.count(event, self.profile)
+            if self.watchers.hooks:
+                data = self.wire_bytes(event) if isinstance(event, Frame) else event.data
+                self.watchers.queue("rx", data, event)
             if isinstance(event, Frame):
                 self._route(event)
             elif isinstance(event, BadChecksum) and event.matches_other_rule:
                 self._other_rule_keys.update(((event.address, event.command), ON_THE_LINE))
             elif isinstance(event, Malformed | Truncated):
                 self.hear(event.data)
-            if self.watchers.hooks:
-                data = self.wire_bytes(event) if isinstance(event, Frame) else event.data
-                self.watchers.tell(Traffic(now, "rx", data, event))
+        self.watchers.deliver()
 
     def _route(self, frame: Frame) -> None:
         if self._is_echo(frame):

@@ -24,6 +24,7 @@ from .stopwait import DEFAULT_WAIT_S
 if TYPE_CHECKING:
     from .client import Robot
     from .traffic import TrafficHook
+    from .trafficlog import TrafficLog
 
 
 @dataclass
@@ -75,26 +76,43 @@ class Connection:
             robot.reopen, robot.stop_wait = Reconnect(self, robot), self.stop_wait
 
     def connect(self, on_traffic: TrafficHook | None = None) -> Robot:
-        """A new robot on the resolved port, with the traffic log and hooks attached (``on_traffic`` first)."""
+        """A new robot on the resolved port, with the traffic log and hooks attached (``on_traffic`` first).
+
+        The log is opened before the port (a bad path costs nothing sent) and,
+        with ``on_traffic``, hears the link from its first byte: so a recording
+        given ``on_traffic`` and the log begin at the same frame.
+        """
         from .client import Robot
 
-        robot = Robot(
-            self._port(),
-            baud=self.baud,
-            address=self.address,
-            timeout=self.timeout,
-            retries=self.retries,
-            rule=self.checksum,
-            protocol=self.protocol,
-            on_traffic=on_traffic,
-        )
-        if self.log:
-            from .trafficlog import attach
-
-            attach(robot, self.log)
+        log = self._open_log()
+        try:
+            robot = Robot(
+                self._port(),
+                baud=self.baud,
+                address=self.address,
+                timeout=self.timeout,
+                retries=self.retries,
+                rule=self.checksum,
+                protocol=self.protocol,
+                on_traffic=tuple(hook for hook in (on_traffic, log) if hook is not None),
+            )
+        except BaseException:
+            if log is not None:
+                log.close()
+            raise
+        if log is not None:
+            log.bind(robot)
         for hook in self.robot_hooks:
             hook(robot)
         return robot
+
+    def _open_log(self) -> TrafficLog | None:
+        if not self.log:
+            return None
+        from ..protocol.profiles import profile
+        from .trafficlog import TrafficLog
+
+        return TrafficLog(self.log, rule=ChecksumRule(self.checksum), profile=profile(self.protocol))
 
     def _port(self) -> Any:
         """The resolved port; a fleet robot's (``zenoh://NAME``) opened here, told where the fleet is."""

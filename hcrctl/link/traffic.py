@@ -2,15 +2,19 @@
 
 A ``Robot`` reports every frame it sends and every decoder event it receives
 as a ``Traffic`` record to its watchers (``--log``, a monitor, the shell's
-toolbar) and counts them in ``LinkStats``. ``Watchers`` keeps that list safe
-for the reader thread: a watcher that raises is dropped with a warning, never
-allowed to kill the reader.
+toolbar) and counts them in ``LinkStats``. ``Watchers`` tells them all in
+one order, the order the traffic crossed the link, whichever thread saw it;
+a watcher that raises is dropped with a warning, never allowed to kill the
+thread telling it.
 """
 
 from __future__ import annotations
 
+import functools
 import sys
 import threading
+import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -23,7 +27,7 @@ from ..protocol.profiles import DEFAULT, Profile
 class Traffic:
     """One frame or diagnostic on the link, as the traffic hook sees it."""
 
-    time: float  # wall clock, time.time()
+    time: float  # wall clock, time.time(), taken when the piece took its place in the link's order
     direction: str  # "tx" or "rx"
     data: bytes
     event: Event | None = None
@@ -94,12 +98,36 @@ def decode_sent(frame: bytes, rule: ChecksumRule, profile: Profile = DEFAULT) ->
     return event
 
 
-class Watchers:
-    """The traffic hooks of one robot: a tuple replaced whole, so the reader iterates a stable snapshot."""
+#: Something run in the link's order instead of a piece of traffic: given the time of its turn.
+Turn = Callable[[float], None]
 
-    def __init__(self, first: TrafficHook | None = None) -> None:
-        self.hooks: tuple[TrafficHook, ...] = (first,) if first else ()
+
+class Watchers:
+    """The traffic hooks of one robot, told every piece of traffic in one order: the order it crossed the link.
+
+    Traffic comes from two threads at once, what is sent from the writer's and
+    what is received from the reader's. Were each thread to call the hooks
+    itself, one hook (the log) could get a request before its reply and the
+    next hook (a recording) the reply first, and a time taken before a thread
+    was preempted could be written after a later one. So each piece is
+    stamped (``time.time()``) and queued under one short lock (``queue``), and
+    the hooks are told from that queue (``deliver``) by one thread at a time:
+    the thread that finds nobody telling tells everything queued, its own
+    pieces and those other threads queued meanwhile. Every hook therefore
+    sees the same pieces in the same order, their times never go backwards
+    unless the system clock is set back, and no thread waits for another's
+    hooks: a stop leaves while the reader is still inside a slow hook.
+
+    The hook list is a tuple replaced whole, so delivery iterates a stable snapshot.
+    """
+
+    def __init__(self, *first: TrafficHook | None) -> None:
+        """``first``: the hooks that hear the link from its first byte (None are skipped)."""
+        self.hooks: tuple[TrafficHook, ...] = tuple(hook for hook in first if hook is not None)
         self._lock = threading.Lock()
+        self._stamping = threading.Lock()  # held only to stamp and queue: never while a hook runs
+        self._queue: deque[Traffic | Callable[[], None]] = deque()
+        self._telling = threading.Lock()  # held by the one thread delivering
 
     def add(self, hook: TrafficHook) -> None:
         with self._lock:
@@ -109,11 +137,80 @@ class Watchers:
         with self._lock:
             self.hooks = tuple(h for h in self.hooks if h != hook)
 
-    def tell(self, traffic: Traffic) -> None:
-        """Every hook; one that raises is dropped with a warning rather than kill the reader."""
+    def queue(self, direction: str, data: bytes, event: Event | None) -> None:
+        """Stamp a piece of traffic with the time now and take its place in the order; ``deliver`` tells it."""
+        with self._stamping:
+            self._queue.append(Traffic(time.time(), direction, data, event))
+
+    def in_order(self, turn: Turn) -> None:
+        """Run ``turn(now)`` in the link's order: after every piece queued before it, before any queued after."""
+        with self._stamping:
+            self._queue.append(functools.partial(turn, time.time()))
+        self.deliver()
+
+    def tell(self, direction: str, data: bytes, event: Event | None) -> None:
+        """``queue`` and ``deliver``: for a thread that holds no lock a hook could want."""
+        self.queue(direction, data, event)
+        self.deliver()
+
+    def deliver(self) -> None:
+        """Tell the hooks everything queued, unless another thread is telling (it tells ours too).
+
+        The thread telling looks at the queue again after it lets go, so a
+        piece queued just as it finished is never left behind.
+        """
+        while self._queue:
+            if not self._telling.acquire(blocking=False):
+                return
+            try:
+                while self._queue:
+                    item = self._queue.popleft()
+                    if isinstance(item, Traffic):
+                        self._tell_hooks(item)
+                    else:
+                        self._run(item)
+            finally:
+                self._telling.release()
+
+    def _tell_hooks(self, traffic: Traffic) -> None:
+        """Every hook; one that raises is dropped with a warning rather than kill the thread telling."""
         for hook in self.hooks:
             try:
                 hook(traffic)
             except Exception as exc:
                 self.remove(hook)
                 sys.stderr.write(f"hcrctl: warning: traffic hook {hook!r} failed and was removed ({exc})\n")
+
+    @staticmethod
+    def _run(turn: Callable[[], None]) -> None:
+        try:
+            turn()
+        except Exception as exc:
+            sys.stderr.write(f"hcrctl: warning: {turn!r} failed in the link's order ({exc})\n")
+
+
+class Relay:
+    """A traffic hook for a port as it opens, for a watcher made after: what came before is kept for it.
+
+    Given to ``Connection.robot(on_traffic=...)``, it hears the link from the
+    first byte, as the ``--log`` does; ``to(hook)``, run in the link's order
+    (``Watchers.in_order``), hands ``hook`` what it kept and everything after.
+    So a recording begins where the log's session does, and ends with it.
+    """
+
+    def __init__(self) -> None:
+        self._kept: list[Traffic] = []
+        self._hook: TrafficHook | None = None
+
+    def __call__(self, traffic: Traffic) -> None:
+        if self._hook is None:
+            self._kept.append(traffic)
+        else:
+            self._hook(traffic)
+
+    def to(self, hook: TrafficHook) -> None:
+        """From now on everything goes to ``hook``, after what was kept (call it in the link's order)."""
+        kept, self._kept = self._kept, []
+        for traffic in kept:
+            hook(traffic)
+        self._hook = hook

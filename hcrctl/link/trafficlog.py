@@ -19,7 +19,9 @@ is one of ``Robot``'s traffic hooks, beside a monitor and the shell's toolbar.
 ``TrafficLog`` is the ``.jsonl`` entry of ``feeds.formats.WRITERS``, the
 writer of the ``traffic`` kind: opened with the path, ``write`` a piece of
 traffic, ``close``, as every recording's writer. ``Connection`` (this layer)
-opens it for ``--log`` whatever the file is called.
+opens it for ``--log`` whatever the file is called, before the port, so it
+hears the link from its first byte; its lines are in the link's order
+(``traffic.Watchers``), the order every other watcher is told.
 
 A write that fails (a full disk) must neither stop the robot's work nor
 pass unnoticed: the log says so at once on one stderr line, stops writing,
@@ -109,6 +111,12 @@ class TrafficLog:
     def rule(self) -> ChecksumRule:
         return self._rule() if callable(self._rule) else self._rule
 
+    def bind(self, robot: Robot) -> None:
+        """Follow ``robot``'s checksum rule from now on, and close when it goes."""
+        ref = weakref.ref(robot)
+        self._rule = lambda: _rule_of(ref)
+        weakref.finalize(robot, self.close)
+
     def write(self, traffic: Traffic) -> None:
         """Append one line; never raises, as it runs in the reader thread and before stop goes out."""
         data, rule = traffic.data, self.rule
@@ -174,14 +182,13 @@ def attach(robot: Robot, path: str) -> TrafficLog:
     If the file cannot be opened the robot is closed before the error rises,
     so a failed connect leaves no port open behind it.
     """
-    ref = weakref.ref(robot)
     try:
-        log = TrafficLog(path, rule=lambda: _rule_of(ref), profile=robot.profile)
+        log = TrafficLog(path, rule=robot.rule, profile=robot.profile)
     except LogOpenError:
         robot.close()
         raise
     robot.add_traffic_hook(log)
-    weakref.finalize(robot, log.close)
+    log.bind(robot)
     return log
 
 

@@ -15,7 +15,10 @@ governor decides:
 - forward motion is refused, and stopped, while ``bumpers`` says why not
   (a bumper pressed, or no reading fresh enough to tell: ``live.bumpers``);
   a rule that fails blocks forward motion too;
-- anyone may ``stop``.
+- anyone may ``stop``;
+- a driver's renewal that comes after half the lease it renews is counted
+  (``Lease.late``, ``longest_gap``) and told (``on_late``): the margin the
+  deadman leaves is being spent, and the robot side can say so before it stops.
 
 An offer is wheel speeds made into a frame by the governor's ``make`` (the
 bridge's velocity), or it carries its own ``request`` of the command table
@@ -67,6 +70,17 @@ MakeMotion = Callable[[int, int], "C.Request"]
 OnStop = Callable[[Hashable | None, str], None]
 #: Why forward motion is blocked now ("" when it is not): the bumper rule (``live.bumpers``).
 Bumpers = Callable[[], str]
+#: (driver, its renewal as a ``Late``): told when a driver's renewal came after half the lease it renewed.
+OnLate = Callable[[Hashable, "Late"], None]
+
+
+@dataclass(frozen=True)
+class Late:
+    """A renewal that came after half the lease it renewed had run: one more like it and the driver is stopped."""
+
+    gap: float  # seconds since the driver's previous word
+    lease: float  # the lease that word had granted
+    count: int  # late renewals of this lease so far, this one included
 
 
 @dataclass(frozen=True)
@@ -103,6 +117,12 @@ class Lease:
         self.why_stopped = ""
         self.stopped_driver: Hashable | None = None
         self.version = 0
+        #: Renewals that came after half the lease they renewed (``Late``), and the longest gap between
+        #: a driver's words: how much of the deadman's margin the drivers' renewals used.
+        self.late = 0
+        self.longest_gap = 0.0
+        #: The last renewal, if it was late: taken (and cleared) by ``take_late``.
+        self._late: Late | None = None
 
     def offer(
         self,
@@ -128,9 +148,22 @@ class Lease:
         """``source`` holds the lease (renewed) without changing the motion; refused if another drives."""
         if self.driver not in (None, source):
             return Verdict(False, f"refused: {self.driver} drives the robot")
+        if self.driver == source:
+            self._renewed(now - self.last, self.until - self.last)
         self.driver, self.last = source, now
         self.until = now + (self.deadman if lease is None else min(lease, MAX_LEASE))
         return Verdict(True)
+
+    def _renewed(self, gap: float, lease: float) -> None:
+        self.longest_gap = max(self.longest_gap, gap)
+        if gap > lease / 2:
+            self.late += 1
+            self._late = Late(gap, lease, self.late)
+
+    def take_late(self) -> Late | None:
+        """The last renewal if it came late (once): for the governor to tell, outside its lock."""
+        late, self._late = self._late, None
+        return late
 
     def check(self, now: float, blocked: str) -> None:
         """The deadman and the bumpers (``blocked``: why forward is not allowed): once per turn of the clock."""
@@ -188,6 +221,8 @@ class Governor:
         self.on_stop: OnStop = on_stop or (lambda source, why: None)
         #: Why forward motion is blocked now, "" when it is not (the bumper rule).
         self.bumpers = bumpers
+        #: Told, on the offering thread, when a driver's renewal came after half its lease (``Late``).
+        self.on_late: OnLate = lambda source, late: None
         self._robot: Callable[[], Robot | None] = lambda: None
         self._lock = threading.Lock()
         self._wake = threading.Event()
@@ -220,14 +255,24 @@ class Governor:
         now = time.monotonic() if now is None else now
         with self._lock:
             verdict = self.lease.offer(source, wheels, now, self._blocked(), lease, request, once)
+            late = self.lease.take_late()
         self._wake.set()
+        self._tell_late(source, late)
         return verdict
 
     def claim(self, source: Hashable, now: float | None = None, lease: float | None = None) -> Verdict:
         """``source`` takes (or renews) the lease without moving: refused, with who drives, if another does."""
         now = time.monotonic() if now is None else now
         with self._lock:
-            return self.lease.claim(source, now, lease)
+            verdict = self.lease.claim(source, now, lease)
+            late = self.lease.take_late()
+        self._tell_late(source, late)
+        return verdict
+
+    def _tell_late(self, source: Hashable, late: Late | None) -> None:
+        if late is not None:
+            with contextlib.suppress(Exception):  # a word about the margin never costs the offer
+                self.on_late(source, late)
 
     def release(self, source: Hashable, why: str) -> None:
         """``source`` is gone (disconnected, unadvertised): if it drove, stop."""
