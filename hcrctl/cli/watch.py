@@ -90,9 +90,6 @@ def watch(
 
 def summary_line(summary: dict[str, Any]) -> str:
     """``watch: 41 sweeps in 4.1 s (10 sweeps/s), 0 timeouts, 0 bad replies``: its closing line."""
-    rate = summary.get("sweeps_per_s")
-    shown = f"{rate:g} sweeps/s" if rate else "no sweep rate"
-    return (
-        f"watch: {summary['sweeps']} sweeps in {summary['seconds']:g} s ({shown}), "
-        f"{summary['timeouts']} timeouts, {summary['bad_replies']} bad replies"
-    )
+    from ..feeds.progress import sweeps
+
+    return f"watch: {sweeps(summary)}, {summary['timeouts']} timeouts, {summary['bad_replies']} bad replies"

@@ -37,6 +37,7 @@ from .bridge_status import Status
 from .bridge_stop import stopping_driven
 from .cmdvel import DEFAULT_TIMEOUT_S, TOPIC
 from .linkwatch import LinkWatch
+from .progress import sweeps
 from .source import Feed
 from .untrusted import shown
 
@@ -198,10 +199,8 @@ def _summary(feed: Feed, server: Server, drive_frames: int) -> dict[str, Any]:
 
 
 def summary_line(summary: dict[str, Any]) -> str:
-    rate = summary.get("sweeps_per_s")
-    shown = f"{rate:g} sweeps/s" if rate else "no sweep rate"
     return (
-        f"bridge: {summary.get('sweeps', 0)} sweeps in {summary.get('seconds', 0):g} s ({shown}), "
+        f"bridge: {sweeps(summary)}, "
         f"{summary['messages']} messages, at most {summary['clients_most']} client(s), "
         f"{summary['drive_frames']} drive frame(s)"
     )

@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable, Mapping
-from typing import TextIO
+from typing import Any, TextIO
 
 #: Seconds between redraws on a terminal, and between plain lines elsewhere.
 TTY_EVERY = 0.25
@@ -27,6 +27,13 @@ def size(count: int) -> str:
             return f"{count} B" if unit == "B" else f"{value:.1f} {unit}"
         value /= 1000
     return f"{value:.1f} TB"  # pragma: no cover - the loop returns at GB
+
+
+def sweeps(summary: Mapping[str, Any]) -> str:
+    """``41 sweeps in 4.1 s (10 sweeps/s)``: how a polling server's closing line begins."""
+    rate = summary.get("sweeps_per_s")
+    shown = f"{rate:g} sweeps/s" if rate else "no sweep rate"
+    return f"{summary.get('sweeps', 0)} sweeps in {summary.get('seconds', 0):g} s ({shown})"
 
 
 def per_topic(counts: Mapping[str, int]) -> str:

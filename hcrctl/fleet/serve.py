@@ -35,6 +35,7 @@ from ..extras import require
 from ..feeds.bridge import Signalled
 from ..feeds.bridge_stop import stopping_driven
 from ..feeds.linkwatch import LinkWatch
+from ..feeds.progress import sweeps
 from ..feeds.source import Feed
 from ..link.context import Connection, Reconnect
 from ..link.dialects import supported_sensors
@@ -494,11 +495,8 @@ def _summary(serving: Serving, sent: int) -> dict[str, Any]:
 
 
 def summary_line(summary: dict[str, Any]) -> str:
-    rate = summary.get("sweeps_per_s")
-    shown = f"{rate:g} sweeps/s" if rate else "no sweep rate"
     return (
-        f"fleet serve {summary['name']}: {summary.get('sweeps', 0)} sweeps in {summary.get('seconds', 0):g} s "
-        f"({shown}), {summary['published']} messages published, {summary['queries']} queries answered, "
+        f"fleet serve {summary['name']}: {sweeps(summary)}, {summary['published']} messages published, {summary['queries']} queries answered, "
         f"{summary['cmd_vel']} cmd_vel ({summary['ignored']} ignored, {summary['refused']} refused), "
         f"{summary['drive_frames']} drive frame(s)"
     )
