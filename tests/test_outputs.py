@@ -18,7 +18,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from helpers_cli import clean_env, finish, hcrctl_exe, one_line, run, start, stderr_until, wait_until, wire
+from helpers_cli import clean_env, finish, one_line, run, start, stderr_until, wait_until, wire
 from helpers_mcap import small_tmpfs
 
 SUFFIXES = [".mcap", ".csv"]
@@ -274,19 +274,6 @@ def test_force_through_a_symlink_replaces_the_file_it_points_at(log: Path, tmp_p
 # -- export, caught mid-way: its log is a FIFO the test writes ------------------------------
 
 
-def start_interruptible(args: list[str], env: dict[str, str]) -> subprocess.Popen[str]:
-    """``start``, with Ctrl-C's default restored in the child: the suite's workers may ignore SIGINT."""
-    return subprocess.Popen(
-        [hcrctl_exe(), *args],
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        stdin=subprocess.DEVNULL,
-        text=True,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-    )
-
-
 @pytest.fixture
 def fifo(tmp_path: Path) -> Path:
     path = tmp_path / "live.jsonl"
@@ -321,7 +308,7 @@ def test_a_signal_mid_export_leaves_the_out_as_it_was(
 ) -> None:
     out = tmp_path / "old.mcap"
     before = existing(out)
-    proc = start_interruptible(["export", str(fifo), str(out), "--force"], clean_env(tmp_path))
+    proc = start(["export", str(fifo), str(out), "--force"], clean_env(tmp_path))
     writer = None
     try:
         writer = open_writer(fifo, proc)
@@ -412,7 +399,7 @@ def test_two_records_of_one_file_started_together_one_is_refused_the_file_whole(
         out.unlink(missing_ok=True)
         if force:
             existing(out)
-        procs = [start_interruptible(args, clean_env(tmp_path)) for _ in range(2)]
+        procs = [start(args, clean_env(tmp_path)) for _ in range(2)]
         try:
             refused_one = wait_until(functools.partial(first_ended, procs), what="one record to be refused")
             (recording,) = [p for p in procs if p is not refused_one]
@@ -432,35 +419,36 @@ def test_a_forced_record_of_a_file_being_recorded_is_refused_and_changes_nothing
     tmp_path: Path, suffix: str
 ) -> None:
     out = tmp_path / f"live{suffix}"
-    env = clean_env(tmp_path)
-    first = start_interruptible(["--port", "sim://", "record", str(out), "compass", "--force"], env)
-    try:
-        wait_until(lambda: out.exists() and out.stat().st_size > 0, what="the first recording to begin")
-        second = run(["--port", "sim://", "record", str(out), "compass", "--duration", "0.3", "--force"], env)
-        assert second.returncode == 2, second.stderr
-        assert "is being written by another process" in the_refusal(second.stderr, out)
-        first.send_signal(signal.SIGINT)
-    finally:
-        _, err = finish(first)
-    assert first.returncode == 0, err
+    second = ["--port", "sim://", "record", str(out), "compass", "--duration", "0.3", "--force"]
+    refusal = refused_beside_a_recording(out, clean_env(tmp_path), second, "--force")
+    assert "is being written by another process" in refusal
     assert whole(out) > 0
+
+
+def refused_beside_a_recording(out: Path, env: dict[str, str], args: list[str], *first: str) -> str:
+    """``args`` run while a ``record`` (with ``first``) writes ``out``: its one refusal line (exit 2).
+
+    The recording is then ended by Ctrl-C, and must end as it would alone (exit 0).
+    """
+    recording = start(["--port", "sim://", "record", str(out), "compass", *first], env)
+    try:
+        wait_until(lambda: out.exists() and out.stat().st_size > 0, what="the recording to begin")
+        other = run(args, env)  # one that took the file would write on: the run's timeout fails the test
+        assert other.returncode == 2, other.stderr
+        refusal = the_refusal(other.stderr, out)
+        recording.send_signal(signal.SIGINT)
+    finally:
+        _, err = finish(recording)
+    assert recording.returncode == 0, err
+    return refusal
 
 
 def test_a_forced_export_over_a_file_being_recorded_is_refused(log: Path, tmp_path: Path) -> None:
     """Renaming over a live recording would leave its writer writing to a file that has gone."""
     out = tmp_path / "live.csv"
-    env = clean_env(tmp_path)
-    first = start_interruptible(["--port", "sim://", "record", str(out), "compass"], env)
-    try:
-        wait_until(lambda: out.exists() and out.stat().st_size > 0, what="the recording to begin")
-        export = run(["export", str(log), str(out), "--force"], env)
-        assert export.returncode == 2, export.stderr
-        assert "is being written by another process" in the_refusal(export.stderr, out)
-        assert temporaries(tmp_path) == []
-        first.send_signal(signal.SIGINT)
-    finally:
-        _, err = finish(first)
-    assert first.returncode == 0, err
+    refusal = refused_beside_a_recording(out, clean_env(tmp_path), ["export", str(log), str(out), "--force"])
+    assert "is being written by another process" in refusal
+    assert temporaries(tmp_path) == []
     assert whole(out) > 0
 
 
@@ -482,7 +470,7 @@ def test_a_record_to_a_fifo_no_one_reads_ends_on_a_signal(
             str(out),
             "compass",
         ]
-        proc = start_interruptible(args, clean_env(tmp_path))
+        proc = start(args, clean_env(tmp_path))
         try:
             said = stderr_until(proc, "(a FIFO)\n")
             proc.send_signal(sig)
@@ -513,18 +501,6 @@ def test_a_record_to_a_fifo_writes_once_a_reader_comes(tmp_path: Path) -> None:
 
 def test_a_forced_bridge_mcap_of_a_file_being_recorded_is_refused(tmp_path: Path) -> None:
     out = tmp_path / "live.mcap"
-    env = clean_env(tmp_path)
-    first = start_interruptible(["--port", "sim://", "record", str(out), "compass"], env)
-    try:
-        wait_until(lambda: out.exists() and out.stat().st_size > 0, what="the recording to begin")
-        args = ["--port", "sim://", "bridge", "--listen", "127.0.0.1:0", "--mcap", str(out), "--force"]
-        bridge = run(
-            args, env
-        )  # a bridge that took the file would serve on: the run's timeout fails the test
-        assert bridge.returncode == 2, bridge.stderr
-        assert "--mcap" in the_refusal(bridge.stderr, out)
-        first.send_signal(signal.SIGINT)
-    finally:
-        _, err = finish(first)
-    assert first.returncode == 0, err
+    args = ["--port", "sim://", "bridge", "--listen", "127.0.0.1:0", "--mcap", str(out), "--force"]
+    assert "--mcap" in refused_beside_a_recording(out, clean_env(tmp_path), args)
     assert whole(out) > 0
