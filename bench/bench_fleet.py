@@ -349,26 +349,11 @@ def on_hosts(rounds: int, tmp: Path, metrics: dict[str, Any]) -> bool:
         f"  {'ok  ' if good else 'MISS'} hosts: read compass via zenoh:// from op {read['fleet_read_ms']} ms, "
         f"local pty on bot {read['pty_read_ms']} ms: {read['ratio']}x (target <= {READ_RATIO})"
     )
-    for label, sig, deadman, target in (
-        ("kill -9", signal.SIGKILL, "10", KILL_STOP_S),
-        ("SIGSTOP", signal.SIGSTOP, str(DEADMAN_S), FREEZE_STOP_S),
-        ("cable cut", CUT, str(DEADMAN_S), FREEZE_STOP_S),
-    ):
+    for label, sig, deadman, target in LOSSES:
         with helpers_netns.topology("hosts") as where:
             figures = lost_operator(sig, deadman, rounds, tmp, where)
-        worst = max(figures)
-        good = worst <= target
-        ok &= good
-        metrics[f"hosts_{label.replace(' ', '_').replace('-', '').lower()}_stop"] = {
-            "median_ms": round(statistics.median(figures) * 1e3, 1),
-            "max_ms": round(worst * 1e3, 1),
-            "deadman_s": float(deadman),
-            "target_ms": target * 1e3,
-        }
-        print(
-            f"  {'ok  ' if good else 'MISS'} hosts: {label} to stop on the wire: median "
-            f"{statistics.median(figures) * 1e3:.1f} ms, max {worst * 1e3:.1f} ms (target <= {target * 1e3:.0f} ms)"
-        )
+        key = f"hosts_{label.replace(' ', '_').replace('-', '').lower()}_stop"
+        ok &= stop_figures(f"hosts: {label}", figures, deadman, target, metrics, key)
     return ok
 
 
@@ -497,27 +482,39 @@ def part_reads(rounds: int, tmp: Path, metrics: dict[str, Any]) -> bool:
     return good
 
 
+#: (label, the signal or the cable cut, the serve's deadman, target seconds to the stop on the wire).
+LOSSES: tuple[tuple[str, signal.Signals | str, str, float], ...] = (
+    ("kill -9", signal.SIGKILL, "10", KILL_STOP_S),
+    ("SIGSTOP", signal.SIGSTOP, str(DEADMAN_S), FREEZE_STOP_S),
+    ("cable cut", CUT, str(DEADMAN_S), FREEZE_STOP_S),
+)
+
+
+def stop_figures(
+    label: str, figures: list[float], deadman: str, target: float, metrics: dict[str, Any], key: str
+) -> bool:
+    """Seconds to the stop, per round, as metrics and a printed line; whether the worst met ``target``."""
+    worst = max(figures)
+    good = worst <= target
+    metrics[key] = {
+        "median_ms": round(statistics.median(figures) * 1e3, 1),
+        "max_ms": round(worst * 1e3, 1),
+        "deadman_s": float(deadman),
+        "target_ms": target * 1e3,
+    }
+    print(
+        f"  {'ok  ' if good else 'MISS'} {label} to stop on the wire: median "
+        f"{statistics.median(figures) * 1e3:.1f} ms, max {worst * 1e3:.1f} ms (target <= {target * 1e3:.0f} ms)"
+    )
+    return good
+
+
 def part_lost(rounds: int, tmp: Path, metrics: dict[str, Any]) -> bool:
+    """kill -9 and SIGSTOP on loopback (a cable is cut on hosts only)."""
     ok = True
-    for label, sig, deadman, target in (
-        ("kill -9", signal.SIGKILL, "10", KILL_STOP_S),
-        ("SIGSTOP", signal.SIGSTOP, str(DEADMAN_S), FREEZE_STOP_S),
-    ):
-        figures = lost_operator(sig, deadman, rounds, tmp)
-        worst = max(figures)
-        good = worst <= target
-        ok &= good
+    for label, sig, deadman, target in LOSSES[:2]:
         key = "kill_stop" if sig is signal.SIGKILL else "freeze_stop"
-        metrics[key] = {
-            "median_ms": round(statistics.median(figures) * 1e3, 1),
-            "max_ms": round(worst * 1e3, 1),
-            "deadman_s": float(deadman),
-            "target_ms": target * 1e3,
-        }
-        print(
-            f"  {'ok  ' if good else 'MISS'} {label} to stop on the wire: median "
-            f"{statistics.median(figures) * 1e3:.1f} ms, max {worst * 1e3:.1f} ms (target <= {target * 1e3:.0f} ms)"
-        )
+        ok &= stop_figures(label, lost_operator(sig, deadman, rounds, tmp), deadman, target, metrics, key)
     return ok
 
 
