@@ -18,7 +18,18 @@ pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip instal
 pytest.importorskip("websockets", reason="--foxglove needs the foxglove extra")
 
 from helpers import TIMEOUT, clean_env, wait_until
-from helpers_fleet_robot import MOTION, VELOCITY, Fleet, Serve, fleet, free_port, is_stop, operator, readline, twist
+from helpers_fleet_robot import (
+    MOTION,
+    VELOCITY,
+    Fleet,
+    Serve,
+    fleet,
+    free_port,
+    is_stop,
+    operator,
+    readline,
+    twist,
+)
 from test_bridge import viewer
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect

@@ -52,9 +52,7 @@ class Refusals:
         self._said: set[tuple[Who | None, str]] = set()
         self._held = 0
 
-    def refused(
-        self, op: Who | None, text: str, seq: int | None = None, kind: str | None = None
-    ) -> None:
+    def refused(self, op: Who | None, text: str, seq: int | None = None, kind: str | None = None) -> None:
         """One word for ``op``: said unless already said to it this window or over the budget (then counted)."""
         told = (op, kind or _DIGITS.sub("#", text))
         with self._lock:
