@@ -36,12 +36,19 @@ from hcrctl.protocol import topics as T
 class BorrowedPublisher:
     """A publisher with the bindings' borrow rule: ``undeclare`` while a ``put`` runs is 'Already borrowed'."""
 
-    def __init__(self) -> None:
+    def __init__(self, matching: bool = True) -> None:
         self.inside = threading.Event()
         self.release = threading.Event()
         self.events: list[str] = []
         self._borrows = 0
         self.undeclared = False
+        self.matching_status = SimpleNamespace(matching=matching)
+        self.listeners: list[Any] = []
+
+    def declare_matching_listener(self, callback: Any) -> Any:
+        """Zenoh's matching listener: ``callback`` hears whether any subscriber matches."""
+        self.listeners.append(callback)
+        return SimpleNamespace(undeclare=lambda: None)
 
     def put(self, data: bytes) -> None:
         if self.undeclared:
@@ -61,11 +68,12 @@ class BorrowedPublisher:
 
 
 class Session:
-    def __init__(self) -> None:
+    def __init__(self, matching: bool = True) -> None:
         self.publishers: list[BorrowedPublisher] = []
+        self.matching = matching
 
     def declare_publisher(self, key: str, encoding: Any = None) -> BorrowedPublisher:
-        publisher = BorrowedPublisher()
+        publisher = BorrowedPublisher(self.matching)
         self.publishers.append(publisher)
         return publisher
 
@@ -101,6 +109,23 @@ def test_publishers_are_undeclared_only_once_no_put_runs_and_publish_after_close
     assert publisher.events == ["put", "put done", "undeclared"]
     publishers.publish(T.LINK, {"time": 2.0, "rx": 2}, 2.0)  # a late reply: dropped, not put
     assert publisher.events[-1] == "undeclared" and publishers.sent == 1
+
+
+def test_a_topic_nobody_subscribes_to_is_neither_encoded_nor_put() -> None:
+    zenoh = SimpleNamespace(Encoding=SimpleNamespace(APPLICATION_JSON="application/json"))
+    session = Session(matching=False)
+    link = next(t for t in T.all_topics(("rx",)) if t.name == T.LINK)
+    publishers = Publishers(zenoh, session, "r1", [link], "json")
+    (publisher,) = session.publishers
+    publisher.release.set()
+    publishers.publish(T.LINK, {"time": 1.0, "rx": 1}, 1.0)
+    assert publisher.events == [] and publishers.sent == 0
+    (heard,) = publisher.listeners
+    heard(SimpleNamespace(matching=True))  # a subscriber came
+    publishers.publish(T.LINK, {"time": 2.0, "rx": 2}, 2.0)
+    heard(SimpleNamespace(matching=False))  # and went
+    publishers.publish(T.LINK, {"time": 3.0, "rx": 3}, 3.0)
+    assert publisher.events == ["put", "put done"] and publishers.sent == 1
 
 
 def _flood(op: Operator, robot: str, done: threading.Event) -> None:

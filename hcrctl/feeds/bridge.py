@@ -71,7 +71,7 @@ class Foxglove(FrontEnd):
     is ``Foxglove on URL``; alone, ``on URL (the protocols)``.
     """
 
-    name = "Foxglove server"
+    label = "Foxglove server"
 
     def __init__(self, served: ServedRobot, options: Options, notes: Notes, *, beside: bool = False) -> None:
         from .bridge_drive import CmdVelSource

@@ -5,7 +5,10 @@ and so are the encodings (``protocol.encodings``): JSON with Zenoh's
 ``application/json``, or ROS 2 CDR as ``application/cdr`` with the ROS 2
 type's name as its schema. A put never blocks the serial reader that calls
 it: readings are dropped under congestion (Zenoh's default for a put), and
-the next one is a tenth of a second away.
+the next one is a tenth of a second away. A topic nobody subscribes to costs
+nothing: each publisher's matching listener keeps whether any subscriber
+matches it, and a message is encoded and put only while one does (a serve
+nobody watches then spends its time polling, not encoding).
 
 ``publish`` runs on whichever thread saw the traffic (the link's reader, the
 poller, a query's worker, the governor) and ``close`` on the main thread.
@@ -20,8 +23,9 @@ what comes: no put can start after, nor be running during, ``close``.
 
 from __future__ import annotations
 
+import contextlib
 import threading
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import Any
 
 from ..protocol.encodings import ENCODINGS, Encode
@@ -47,19 +51,34 @@ class Publishers:
     def __init__(self, zenoh: Any, session: Any, robot: str, topics: Iterable[Topic], encoding: str) -> None:
         kind = ENCODINGS[encoding]
         self._served: dict[str, tuple[Any, Encode]] = {}
+        #: The topics some subscriber matches now (kept by each publisher's matching listener).
+        self._matched: set[str] = set()
+        self._listeners: list[Any] = []
         for topic in topics:
             publisher = session.declare_publisher(
                 keys.topic(robot, key_name(topic)), encoding=zenoh_encoding(zenoh, encoding, topic)
             )
             self._served[topic.name] = (publisher, kind.encoder(topic))
+            self._listeners.append(publisher.declare_matching_listener(self._matching(topic.name)))
+            if publisher.matching_status.matching:
+                self._matched.add(topic.name)
         self.sent = 0
         #: Held around every put and around close: a publisher is never undeclared mid-put.
         self._lock = threading.Lock()
         self.closed = False
 
+    def _matching(self, topic: str) -> Callable[[Any], None]:
+        def matched(status: Any) -> None:
+            if status.matching:
+                self._matched.add(topic)
+            else:
+                self._matched.discard(topic)
+
+        return matched
+
     def publish(self, topic: str, message: dict[str, Any], at: float) -> None:
         served = self._served.get(topic)
-        if served is None:
+        if served is None or topic not in self._matched:
             return
         publisher, encode = served
         data = encode(message)
@@ -79,6 +98,10 @@ class Publishers:
             self.closed = True
             served = list(self._served.values())
             self._served.clear()
+            for listener in self._listeners:
+                with contextlib.suppress(Exception):  # undeclared with its publisher in any case
+                    listener.undeclare()
+            self._listeners.clear()
             for publisher, _ in served:
                 try:
                     publisher.undeclare()

@@ -90,20 +90,23 @@ def run_serve(settings: Connection, options: Options, *, report: Report | None =
     )
     fronts: list[FrontEnd] = [Fleet(served, settings, options, notes)]
     if options.foxglove is not None:
-        fronts.append(_foxglove(served, options, notes))
+        fronts.append(_foxglove(served, options, options.foxglove, notes))
     return served.run(fronts, report=report)
 
 
-def _foxglove(served: ServedRobot, options: Options, notes: Notes) -> FrontEnd:
+def _foxglove(served: ServedRobot, options: Options, at: tuple[str, int], notes: Notes) -> FrontEnd:
     """The bridge's front end on the same feed and governor, with the bridge's options."""
     from ..feeds.bridge import Foxglove, require_foxglove
     from ..feeds.bridge import Options as BridgeOptions
 
     require_foxglove("fleet serve --foxglove")
-    assert options.foxglove is not None
-    host, port = options.foxglove
     bridge = BridgeOptions(
-        host, port, None, options.rate, None, options.deadman, options.encoding, options.allow_origins
+        host=at[0],
+        port=at[1],
+        rate=options.rate,
+        timeout=options.deadman,
+        encoding=options.encoding,
+        allow_origins=options.allow_origins,
     )
     return Foxglove(served, bridge, notes, beside=True)
 
@@ -135,7 +138,7 @@ def _refuse_taken(session: Any, name: str) -> None:
 class Fleet(FrontEnd):
     """The robot on Zenoh: its topics, its queryables, the fleet's motion in and its ``status`` out."""
 
-    name = "fleet"
+    label = "fleet"
 
     def __init__(self, served: ServedRobot, settings: Connection, options: Options, notes: Notes) -> None:
         self.zenoh = import_zenoh()

@@ -59,7 +59,7 @@ if TYPE_CHECKING:
     from ..link.client import Robot
     from ..protocol import commands as C
 
-#: How often the governor's clock turns when nothing wakes it.
+#: How often the governor's clock turns when nothing wakes it, while anyone drives (idle, it only waits).
 STEP = 0.02
 #: An unchanged motion is re-sent this often (a lost frame costs one interval).
 RESEND = 0.1
@@ -341,6 +341,7 @@ class Governor:
         with self._lock:
             verdict = self.lease.claim(source, now, lease)
             late = self.lease.take_late()
+        self._wake.set()  # the clock turns while anyone holds the lease
         self._tell_late(source, late)
         return verdict
 
@@ -390,12 +391,18 @@ class Governor:
 
     def _run(self) -> None:
         while not self._done.is_set():
-            self._wake.wait(STEP)
+            self._wake.wait(STEP if self._busy() else None)
             self._wake.clear()
             try:
                 self.turn(time.monotonic())
             except Exception as exc:  # a bug must cost a stop, never the loop
                 self._failed(exc)
+
+    def _busy(self) -> bool:
+        """Whether the clock must turn by itself: someone holds the lease, or motion is (or may be) on the
+        wire. Otherwise nothing can change until an offer, claim, release or stop wakes the thread."""
+        lease = self.lease
+        return lease.driver is not None or lease.wheels != STILL or self._moving or self._stop_asked
 
     def turn(self, now: float) -> None:
         """The clock first (deadman, bumpers), then the wire: a change at once, a repeat every RESEND."""

@@ -96,7 +96,7 @@ class FrontEnd:
     """One way the served robot is reached; every hook does nothing unless overridden (see the module)."""
 
     #: How it is named in a note about its own failure.
-    name = "front end"
+    label = "front end"
 
     def open(self, served: ServedRobot) -> None:
         """Before the robot's port opens."""
@@ -178,7 +178,7 @@ class ServedRobot:
             finally:
                 try:
                     for front in reversed(opened):
-                        self._quietly(f"closing the {front.name}", front.finish)
+                        self._quietly(f"closing the {front.label}", front.finish)
                 finally:  # the summary however it ends, even at a second signal during the closing
                     if self._feed is not None:
                         summary = self.summary()
@@ -215,7 +215,7 @@ class ServedRobot:
                     finally:
                         self.signalled.closing = True
                         for front in self._fronts:
-                            self._quietly(f"closing the {front.name}", front.close)
+                            self._quietly(f"closing the {front.label}", front.close)
                     if governor.error is not None:
                         raise governor.error
             finally:
