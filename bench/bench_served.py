@@ -70,6 +70,7 @@ class Procs:
                 stdout=stdout,
                 stderr=stderr,
                 env=env,
+                cwd=self.tmp,  # python -m puts the working directory first: no checkout there
                 start_new_session=True,
             )
         proc.err = self.tmp / f"{self._n}.err"  # type: ignore[attr-defined]
