@@ -14,6 +14,13 @@ in a process of its own, so the figure is the server's alone):
 - with ``--source DIR``, ``fleet serve`` from that checkout (another
   commit, e.g. ``git archive main | tar -x -C DIR``), the before beside the after.
 
+Then, ``--ends`` times: a ``fleet serve`` whose port went away while the
+robot stood still (driven by a one-shot ``drive power 30 30 --for 0.3``
+over ``zenoh://``, which ends with its stop delivered) gets SIGTERM; the figure is the time to
+its exit (target: within 1 s), its exit status and whether it raised the
+"may still be moving" alarm, beside the ``--source`` tree's, given
+``--stop-wait 5`` so that one waits 5 s, not 30.
+
 Every process is started as ``python -m hcrctl`` with ``PYTHONPATH`` set
 to its checkout, so both trees start alike. After ``--warmup`` seconds, CPU
 is utime + stime over ``--seconds`` (``/proc/PID/stat``), and memory is read
@@ -161,12 +168,59 @@ def one_round(seconds: float, warmup: float, source: Path | None) -> Figures:
         }
 
 
+ALARM = "may still be moving"
+
+
+def sigterm_end(root: Path) -> tuple[float, int, bool]:
+    """(seconds from SIGTERM to exit, exit status, alarm said) of a serve whose port went away while still."""
+    with procs() as group:
+        endpoint = free_endpoint()
+        group.start("fleet", "router", "--listen", endpoint)
+        sim = group.start("sim", "--pty", stdout=subprocess.PIPE)
+        assert sim.stdout is not None
+        port = sim.stdout.readline().decode().strip()
+        serve = group.start(
+            "--stop-wait", "5", "--port", port, "--zenoh", endpoint, "fleet", "serve", "r1", root=root
+        )
+        wait_said(serve, "serving ")
+        drive = group.start(
+            "--zenoh", endpoint, "--port", "zenoh://r1", "drive", "power", "30", "30", "--for", "0.3"
+        )
+        if drive.wait(timeout=60) != 0:  # the one-shot ends with stop delivered: the robot stands still
+            raise RuntimeError(f"the drive failed: {drive.err.read_text()!r}")  # type: ignore[attr-defined]
+        sim.kill()
+        wait_said(serve, "went away")
+        start = time.monotonic()
+        serve.send_signal(signal.SIGTERM)
+        status = serve.wait(timeout=60)
+        took = time.monotonic() - start
+        return took, status, ALARM in serve.err.read_text()  # type: ignore[attr-defined]
+
+
+def part_ends(rounds: int, source: Path | None, metrics: dict[str, float]) -> bool:
+    trees = {"fleet serve": ROOT, **({"fleet serve (--source)": source} if source else {})}
+    ok = True
+    for label, root in trees.items():
+        ends = [sigterm_end(root) for _ in range(rounds)]
+        took = [t for t, _, _ in ends]
+        print(
+            f"{label}: SIGTERM to exit {min(took):.2f}-{max(took):.2f} s, statuses {sorted({s for _, s, _ in ends})}, "
+            f"alarm in {sum(a for _, _, a in ends)} of {rounds}"
+        )
+        metrics[f"{label} sigterm_s_max"] = round(max(took), 2)
+        metrics[f"{label} alarms"] = sum(a for _, _, a in ends)
+        if label == "fleet serve":
+            ok = max(took) <= 1.0 and not any(a for _, _, a in ends) and all(s == 0 for _, s, _ in ends)
+    return ok
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=20.0)
     parser.add_argument("--warmup", type=float, default=3.0)
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--source", type=Path, help="another checkout's fleet serve, measured beside")
+    parser.add_argument("--ends", type=int, default=5, help="rounds of SIGTERM with the port gone (0 skips)")
     args = parser.parse_args()
     rounds = []
     for n in range(args.rounds):
@@ -186,9 +240,11 @@ def main() -> int:
     metrics["fleet serve / bridge cpu"] = round(
         serve_cpu / max(metrics["bridge (baseline) cpu_pct"], 1e-9), 2
     )
+    ends_ok = part_ends(args.ends, args.source, metrics) if args.ends else True
     metrics["load"] = round(os.getloadavg()[0], 1)
     record("bench_served", metrics)
-    ok = serve_cpu <= CPU_TARGET and serve_rss <= RSS_TARGET
+    ok = serve_cpu <= CPU_TARGET and serve_rss <= RSS_TARGET and ends_ok
+    print(f"  {'ok  ' if ends_ok else 'MISS'} SIGTERM with the port gone while still: within 1 s, no alarm")
     print(
         f"  {'ok  ' if serve_cpu <= CPU_TARGET else 'MISS'} fleet serve CPU {serve_cpu:.2f} % (target <= {CPU_TARGET})"
     )

@@ -169,11 +169,7 @@ class ServedRobot:
         opened: list[FrontEnd] = []
         with stop_signals_handled(self.signalled):
             try:
-                for front in fronts:
-                    front.open(self)
-                    opened.append(front)
-                    if self.signalled:
-                        raise Terminated(self.signalled.signum or 0)
+                self._open(opened)
                 self._serve()
             finally:
                 try:
@@ -187,6 +183,14 @@ class ServedRobot:
         if self.signalled.signum is not None:
             raise Terminated(self.signalled.signum)
         return summary
+
+    def _open(self, opened: list[FrontEnd]) -> None:
+        """Each front end opened in turn (kept in ``opened`` to be finished); a signal meanwhile ends it."""
+        for front in self._fronts:
+            front.open(self)
+            opened.append(front)
+            if self.signalled:
+                raise Terminated(self.signalled.signum or 0)
 
     def _serve(self) -> None:
         """Poll and publish, drive when asked, until the end; stop goes out however it ends."""
@@ -202,24 +206,27 @@ class ServedRobot:
                 with feed, stopping_driven(feed, robot, lambda: governor.driven), governor:
                     feed.poller.first_sweep()  # the bumper rule has a reading before anyone may drive
                     self._started(robot)
-                    watch = LinkWatch(feed, governor, self.notes.note, robot.port)
-
-                    def ended() -> bool:
-                        watch.check()
-                        for front in self._fronts:
-                            front.tick()
-                        return bool(self.signalled) or governor.error is not None
-
-                    try:
-                        feed.run(self.duration, ended)
-                    finally:
-                        self.signalled.closing = True
-                        for front in self._fronts:
-                            self._quietly(f"closing the {front.label}", front.close)
+                    self._loop(LinkWatch(feed, governor, self.notes.note, robot.port))
                     if governor.error is not None:
                         raise governor.error
             finally:
                 self.notes.stop()
+
+    def _loop(self, watch: LinkWatch) -> None:
+        """Until the duration, a signal or the governor's error; then every front end closes (no more offers)."""
+
+        def ended() -> bool:
+            watch.check()
+            for front in self._fronts:
+                front.tick()
+            return bool(self.signalled) or self.governor.error is not None
+
+        try:
+            self.feed.run(self.duration, ended)
+        finally:
+            self.signalled.closing = True
+            for front in self._fronts:
+                self._quietly(f"closing the {front.label}", front.close)
 
     def _started(self, robot: Robot) -> None:
         parts = [part for part in (front.start(self) for front in self._fronts) if part]
