@@ -47,6 +47,7 @@ from typing import Any
 
 from . import ros2msg
 from . import ros2types as R
+from .messages import BUMPER_NAMES
 from .topics import PREFIX, Topic
 
 Fields = dict[str, Any]
@@ -416,7 +417,7 @@ class Converter:
                     R.RANGE,
                     bumper(t, lay.frame(f"bumper_{i}"), lay.bumper_distance, bool(hit)),
                 )
-                for i, hit in enumerate(message["bump"][: len(lay.bumpers)])
+                for i, hit in enumerate([message[name] for name in BUMPER_NAMES][: len(lay.bumpers)])
             ]
         if topic == PREFIX + "compass":
             return [(IMU, R.IMU, imu(t, lay.frame(lay.imu_frame), message["heading"], lay.heading_variance))]
@@ -443,7 +444,7 @@ class Converter:
                 ),
             ]
         if topic == PREFIX + "wheels":
-            speeds = [wheel_rad_s(v, lay.wheel_radius) for v in message["wheels"]]
+            speeds = [wheel_rad_s(message[side], lay.wheel_radius) for side in ("left", "right")]
             fields = {
                 "header": header(t, lay.frame(lay.base_frame)),
                 "name": list(lay.wheel_joints),
