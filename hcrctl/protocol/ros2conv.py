@@ -299,7 +299,7 @@ def ir_metres(value: int, model: str) -> float:
     """An IR byte in metres, ``+inf`` when it sees nothing in range (REP 117)."""
     if model == "cm":
         return math.inf if value == 0 or value >= 80 else value / 100
-    return math.inf if value == 0 else 10.2 / value
+    return math.inf if value == 0 else 1020 / value / 100
 
 
 def wheel_rad_s(cm_s: float, radius: float) -> float:
