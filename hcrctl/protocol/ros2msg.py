@@ -451,3 +451,7 @@ def decoder(name: str) -> Callable[[bytes], dict[str, Any]]:
         return value
 
     return decode
+
+
+#: Every type made from a schema starts with it, so it is always there (``ros2types`` defines it again, equal).
+parse(TIME_TYPE, "int32 sec\nuint32 nanosec\n")
