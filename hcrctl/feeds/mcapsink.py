@@ -172,10 +172,10 @@ class McapSink(Sink):
     def _encode(self, prepared: Prepared) -> list[tuple[int, bytes]]:
         """Each channel's message, as its bytes after the time (the time's head is put before them per moment)."""
         channels, untimed, memo, out = self._channels, self._untimed, self._memo, []
-        for topic, message, key in self._out.keyed(prepared.topic, prepared.message):
+        for topic, key, make in self._out.keyed(prepared.topic, prepared.message):
             tail = None if key is None else memo.get(key)
             if tail is None:
-                tail = untimed[topic](message)
+                tail = untimed[topic](make())
                 if key is not None:
                     if len(memo) >= MEMO_SIZE:
                         memo.clear()

@@ -35,6 +35,8 @@ from .topics import Topic
 
 Encode = Callable[[dict[str, Any]], bytes]
 Messages = list[tuple[str, dict[str, Any]]]
+#: (channel topic, key or None, what makes the message): ``Channels.keyed``.
+Keyed = list[tuple[str, Any, Callable[[], dict[str, Any]]]]
 
 
 @dataclass(frozen=True)
@@ -42,16 +44,16 @@ class Channels:
     """The channels a writer of one encoding announces, and what goes on them.
 
     ``expand(topic, message)`` turns one message of ``protocol.topics`` into
-    ``(channel topic, message)`` pairs for ``topics``' encoders; ``keyed`` does
-    the same with a key per message, equal for two messages that differ only in
-    their time (None: no key), so a writer encodes a repeated reading's bytes
-    after the time once; ``initial(time)`` are the messages a writer publishes
+    ``(channel topic, message)`` pairs for ``topics``' encoders; ``keyed`` gives
+    ``(channel topic, key, make)`` instead, ``make()`` the message and the key
+    equal for two messages that differ only in their time (None: no key), so a
+    writer encodes a repeated reading's bytes after the time once, and makes it once; ``initial(time)`` are the messages a writer publishes
     once, as it starts; ``metadata(topic)`` is a channel's MCAP metadata.
     """
 
     topics: tuple[Topic, ...]
     expand: Callable[[str, dict[str, Any]], Messages]
-    keyed: Callable[[str, dict[str, Any]], list[tuple[str, dict[str, Any], Any]]]
+    keyed: Callable[[str, dict[str, Any]], Keyed]
     initial: Callable[[float], Messages]
     metadata: Callable[[str], dict[str, str]]
 
@@ -115,7 +117,7 @@ def json_channels(topics: Iterable[Topic]) -> Channels:
     return Channels(
         tuple(topics),
         lambda topic, message: [(topic, message)],
-        lambda topic, message: [(topic, message, None)],
+        lambda topic, message: [(topic, None, lambda: message)],
         lambda t: [],
         lambda topic: {},
     )
@@ -127,12 +129,12 @@ def cdr_channels(topics: Iterable[Topic]) -> Channels:
     ros = {t.full_name(): t for t in conv.topics}
     offered = {name: {"offered_qos_profiles": t.qos.yaml()} for name, t in ros.items()}
 
-    def keyed(topic: str, message: dict[str, Any]) -> list[tuple[str, dict[str, Any], Any]]:
-        return [("/" + name, fields, key) for name, _, fields, key in conv.keyed(topic, message)]
+    def keyed(topic: str, message: dict[str, Any]) -> Keyed:
+        return [("/" + name, key, make) for name, _, key, make in conv.keyed(topic, message)]
 
     return Channels(
         tuple(Topic(name, t.type, {}) for name, t in ros.items()),
-        lambda topic, message: [(name, fields) for name, fields, _ in keyed(topic, message)],
+        lambda topic, message: [(name, make()) for name, _, make in keyed(topic, message)],
         keyed,
         lambda t: [(ros2conv.TF_STATIC, conv.tf_static(t))],
         lambda topic: offered.get(topic, {}),

@@ -40,6 +40,7 @@ Standard library only.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, replace
@@ -52,7 +53,8 @@ from .topics import PREFIX, Topic, microseconds
 
 Fields = dict[str, Any]
 Converted = list[tuple[str, str, Fields]]
-Keyed = list[tuple[str, str, Fields, Any]]
+#: (ROS topic, type, key, what makes the fields): ``Converter.keyed``.
+Keyed = list[tuple[str, str, Any, Callable[[], Fields]]]
 
 TF_STATIC = "/tf_static"
 IMU, TEMPERATURE, HUMIDITY, JOINT_STATES = "imu", "temperature", "humidity", "joint_states"
@@ -329,6 +331,31 @@ def imu(t: float, frame_id: str, heading: float, yaw_variance: float) -> Fields:
     }
 
 
+def temperature(t: float, frame_id: str, celsius: float) -> Fields:
+    return {"header": header(t, frame_id), "temperature": celsius, "variance": 0.0}  # variance 0: unknown
+
+
+def relative_humidity(t: float, frame_id: str, fraction: float) -> Fields:
+    return {"header": header(t, frame_id), "relative_humidity": fraction, "variance": 0.0}
+
+
+def joint_state(t: float, frame_id: str, joints: Iterable[str], speeds: list[float]) -> Fields:
+    """The wheels' rotation speeds (rad/s); no position or effort is measured."""
+    return {
+        "header": header(t, frame_id),
+        "name": list(joints),
+        "position": [],
+        "velocity": speeds,
+        "effort": [],
+    }
+
+
+def _stamped(message: Mapping[str, Any]) -> Fields:
+    """A message of a type made from its schema: its ``time`` as the ``stamp`` first, the rest as it is."""
+    rest = {k: v for k, v in message.items() if k != "time"}
+    return {"stamp": ros2msg.stamp(microseconds(message["time"])), **rest}
+
+
 def transform(t: float, parent: str, child: str, pose: Pose) -> Fields:
     return {
         "header": header(t, parent),
@@ -358,6 +385,10 @@ class Converter:
             kind = ros2msg.from_schema(ros2msg.type_name(topic.schema_name), topic.schema).name
             self._custom[topic.name] = (name, kind)
             custom.append(RosTopic(name, kind))
+        self._ranger_names = {
+            kind: [f"range/{kind}_{i}" for i in range(len(poses))]
+            for kind, poses in (("sonar", layout.sonar), ("ir", layout.ir), ("bumper", layout.bumpers))
+        }
         self._conversions = {
             PREFIX + "sonar": self._sonar,
             PREFIX + "ir": self._ir,
@@ -391,24 +422,25 @@ class Converter:
 
     def convert(self, topic: str, message: Mapping[str, Any]) -> Converted:
         """``(ROS topic, type, fields)`` for one hcrctl topic message; [] for a topic it does not know."""
-        return [(name, kind, fields) for name, kind, fields, _ in self.keyed(topic, message)]
+        return [(name, kind, make()) for name, kind, _, make in self.keyed(topic, message)]
 
     def keyed(self, topic: str, message: Mapping[str, Any]) -> Keyed:
-        """``convert``'s messages, each with a key that equals another's when their fields do, but for the
-        time (None: no key): a writer that meets the same reading again reuses what it made of it."""
+        """``convert``'s messages as ``(ROS topic, type, key, make)``: ``make()`` gives the fields, and the key
+        equals another's when their fields do but for the time (None: no key), so a writer that meets the
+        same reading again reuses what it made of it without making the fields."""
         convert = self._conversions.get(topic)
         if convert is not None:
             return convert(message["time"], message)
         custom = self._custom.get(topic)
         if custom is None:
             return []
-        rest = {k: v for k, v in message.items() if k != "time"}
-        return [(custom[0], custom[1], {"stamp": ros2msg.stamp(microseconds(message["time"])), **rest}, None)]
+        return [(custom[0], custom[1], None, functools.partial(_stamped, message))]
 
     def _rangers(self, kind: str, values: Iterable[Any], make: Callable[[int, Any], Fields]) -> Keyed:
-        """``range/<kind>_<i>`` for each value, keyed by its topic and value."""
+        """``range/<kind>_<i>`` for each value the layout has a frame for, keyed by its topic and value."""
         return [
-            (f"range/{kind}_{i}", R.RANGE, make(i, v), (f"range/{kind}_{i}", v)) for i, v in enumerate(values)
+            (name, R.RANGE, (name, v), functools.partial(make, i, v))
+            for i, (name, v) in enumerate(zip(self._ranger_names[kind], values, strict=False))
         ]
 
     def _sonar(self, t: float, message: Mapping[str, Any]) -> Keyed:
@@ -417,7 +449,7 @@ class Converter:
         def make(i: int, v: int) -> Fields:
             return ranger(t, lay.frame(f"sonar_{i}"), R.ULTRASOUND, lay.sonar_ranger, sonar_metres(v))
 
-        return self._rangers("sonar", message["sonar"][: len(lay.sonar)], make)
+        return self._rangers("sonar", message["sonar"], make)
 
     def _ir(self, t: float, message: Mapping[str, Any]) -> Keyed:
         lay = self.layout
@@ -425,7 +457,7 @@ class Converter:
         def make(i: int, v: int) -> Fields:
             return ranger(t, lay.frame(f"ir_{i}"), R.INFRARED, lay.ir_ranger, ir_metres(v, lay.ir_model))
 
-        return self._rangers("ir", message["ir"][: len(lay.ir)], make)
+        return self._rangers("ir", message["ir"], make)
 
     def _bumpers(self, t: float, message: Mapping[str, Any]) -> Keyed:
         lay = self.layout
@@ -433,13 +465,12 @@ class Converter:
         def make(i: int, hit: bool) -> Fields:
             return bumper(t, lay.frame(f"bumper_{i}"), lay.bumper_distance, hit)
 
-        return self._rangers(
-            "bumper", [bool(message[side]) for side in BUMPER_NAMES][: len(lay.bumpers)], make
-        )
+        return self._rangers("bumper", [bool(message[side]) for side in BUMPER_NAMES], make)
 
     def _compass(self, t: float, message: Mapping[str, Any]) -> Keyed:
         lay, heading = self.layout, message["heading"]
-        return [(IMU, R.IMU, imu(t, lay.frame(lay.imu_frame), heading, lay.heading_variance), (IMU, heading))]
+        make = functools.partial(imu, t, lay.frame(lay.imu_frame), heading, lay.heading_variance)
+        return [(IMU, R.IMU, (IMU, heading), make)]
 
     def _env(self, t: float, message: Mapping[str, Any]) -> Keyed:
         base = self.layout.frame(self.layout.base_frame)
@@ -448,28 +479,22 @@ class Converter:
             (
                 TEMPERATURE,
                 R.TEMPERATURE,
-                {"header": header(t, base), "temperature": celsius, "variance": 0.0},
                 (TEMPERATURE, celsius),
+                functools.partial(temperature, t, base, celsius),
             ),
             (
                 HUMIDITY,
                 R.RELATIVE_HUMIDITY,
-                {"header": header(t, base), "relative_humidity": humidity, "variance": 0.0},
                 (HUMIDITY, humidity),
+                functools.partial(relative_humidity, t, base, humidity),
             ),
         ]
 
     def _wheels(self, t: float, message: Mapping[str, Any]) -> Keyed:
         lay = self.layout
         speeds = [wheel_rad_s(message[side], lay.wheel_radius) for side in ("left", "right")]
-        fields = {
-            "header": header(t, lay.frame(lay.base_frame)),
-            "name": list(lay.wheel_joints),
-            "position": [],
-            "velocity": speeds,
-            "effort": [],
-        }
-        return [(JOINT_STATES, R.JOINT_STATE, fields, (JOINT_STATES, *speeds))]
+        make = functools.partial(joint_state, t, lay.frame(lay.base_frame), lay.wheel_joints, speeds)
+        return [(JOINT_STATES, R.JOINT_STATE, (JOINT_STATES, *speeds), make)]
 
     def tf_static(self, t: float) -> Fields:
         """``base_link`` to every sensor frame, as one ``tf2_msgs/TFMessage`` stamped ``t``."""
