@@ -86,14 +86,15 @@ class Options:
 class Notes:
     """The serve's stderr: one line per event, from any thread."""
 
-    def __init__(self, stream: TextIO) -> None:
+    def __init__(self, stream: TextIO, prefix: str = PREFIX) -> None:
         self.stream = stream
+        self.prefix = prefix
         self._lock = threading.Lock()
 
     def note(self, text: str) -> None:
         with self._lock:
             try:
-                self.stream.write(f"{PREFIX}{text}\n")
+                self.stream.write(f"{self.prefix}{text}\n")
                 self.stream.flush()
             except (OSError, ValueError):
                 pass  # stderr gone: serving goes on
