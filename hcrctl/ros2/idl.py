@@ -18,10 +18,23 @@ stays free of any DDS type.
 import dataclasses
 import typing
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cyclonedds.idl import IdlStruct
-from cyclonedds.idl.types import array, float32, float64, int32, sequence, uint8, uint32
+
+if TYPE_CHECKING:  # to a type checker, each field is the Python value it holds
+    from builtins import float as float32, float as float64, int as int32, int as uint8, int as uint32
+    from builtins import list as sequence
+
+    Covariance = list[float]
+    GidBytes = list[int]
+else:
+    from cyclonedds.idl.types import array, float32, float64, int32, sequence, uint8, uint32
+
+    #: A covariance matrix, row-major: ``float64[9]``.
+    Covariance = Covariance
+    #: A GUID's 16 bytes: ``char[16]`` (ROS ``char`` is IDL ``uint8``).
+    GidBytes = array[uint8, 16]
 
 #: ROS type name -> its DDS type (every class below).
 MESSAGES: dict[str, type[IdlStruct]] = {}
@@ -109,11 +122,11 @@ def _nine() -> list[float]:
 class Imu(IdlStruct, typename=dds_name("sensor_msgs/msg/Imu")):
     header: Header = field(default_factory=Header)
     orientation: Quaternion = field(default_factory=Quaternion)
-    orientation_covariance: array[float64, 9] = field(default_factory=_nine)
+    orientation_covariance: Covariance = field(default_factory=_nine)
     angular_velocity: Vector3 = field(default_factory=Vector3)
-    angular_velocity_covariance: array[float64, 9] = field(default_factory=_nine)
+    angular_velocity_covariance: Covariance = field(default_factory=_nine)
     linear_acceleration: Vector3 = field(default_factory=Vector3)
-    linear_acceleration_covariance: array[float64, 9] = field(default_factory=_nine)
+    linear_acceleration_covariance: Covariance = field(default_factory=_nine)
 
 
 @dataclass
@@ -145,7 +158,7 @@ def _gid() -> list[int]:
 
 @dataclass
 class Gid(IdlStruct, typename=dds_name("rmw_dds_common/msg/Gid")):
-    data: array[uint8, 16] = field(default_factory=_gid)
+    data: GidBytes = field(default_factory=_gid)
 
 
 @dataclass
@@ -177,7 +190,7 @@ def build(ros_name: str, fields: dict[str, Any]) -> IdlStruct:
 def _filled(cls: type[IdlStruct], fields: dict[str, Any]) -> IdlStruct:
     hints = typing.get_type_hints(cls, include_extras=True)
     values: dict[str, Any] = {}
-    for item in dataclasses.fields(cls):
+    for item in dataclasses.fields(cls):  # type: ignore[arg-type]  # every message is a dataclass
         if item.name not in fields:
             continue
         value, kind = fields[item.name], hints[item.name]

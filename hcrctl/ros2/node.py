@@ -131,7 +131,9 @@ class Node:
     def close(self) -> None:
         """Readers first (no message after this), then the participant and everything in it."""
         self.unsubscribe()
-        self.participant = None  # type: ignore[assignment]  # cyclonedds deletes entities with the last reference
+        # dds_delete of the participant deletes every reader and writer in it, and tells the peers at once
+        # (a remote reader sees the writers go); Cyclone's Python binding calls it from __del__ only.
+        self.participant.__del__()
         self._readers.clear()
         self._writers.clear()
 
@@ -140,7 +142,7 @@ def _gid(guid: Any) -> idl.Gid:
     return idl.Gid(data=list(guid.bytes))
 
 
-class _Reading(Listener):  # type: ignore[misc]
+class _Reading(Listener):
     """cmd_vel samples and unmatched writers, on Cyclone's listener thread; a failure costs only its sample."""
 
     def __init__(self, on_message: OnMessage, on_gone: OnGone, note: Note) -> None:
