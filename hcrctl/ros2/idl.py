@@ -32,7 +32,7 @@ else:
     from cyclonedds.idl.types import array, float32, float64, int32, sequence, uint8, uint32
 
     #: A covariance matrix, row-major: ``float64[9]``.
-    Covariance = Covariance
+    Covariance = array[float64, 9]
     #: A GUID's 16 bytes: ``char[16]`` (ROS ``char`` is IDL ``uint8``).
     GidBytes = array[uint8, 16]
 
