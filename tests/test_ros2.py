@@ -10,7 +10,7 @@ import pytest
 from helpers import wait_until
 from helpers_cli import sim_pty
 from helpers_fleet_robot import VELOCITY, is_stop
-from helpers_ros2 import LATCHED_QOS, SENSOR_QOS, place, ros2_node, ros_side
+from helpers_dds import LATCHED_QOS, SENSOR_QOS, place, ros2_node, ros_side
 
 from hcrctl.motion.governor import RESEND
 from hcrctl.protocol import commands as C
