@@ -8,6 +8,12 @@ subcommand holds that command's options the same way (``[bridge]`` with
 ``allow-origin = ["https://viewer.example"]``); only then is that command
 loaded to check them.
 
+A few top-level tables hold no command's options but a description the
+program uses (``TABLES``): ``[layout]`` is the robot's frames and sensors as
+its ROS 2 messages give them (``protocol.ros2conv``: ``wheel-radius``,
+``sonar-yaw``...). The caller hands the function that checks such a table and
+puts it to use; a bad value is reported as that file, key and line.
+
 Every value is checked here, with the option's own Click type, so a typo in a
 file the user forgot about is reported as that file and that key, not as a
 mysterious ``--baud`` error. The file is only parsed when it exists: a
@@ -168,16 +174,25 @@ def _toml_module() -> Any:
 
 
 Commands = Callable[[str], "click.Command | None"]
+#: A top-level table that is no command's: its name -> what checks it (ValueError, maybe with ``.key``)
+#: and puts it to use.
+Tables = Mapping[str, Callable[[dict[str, Any]], None]]
+#: The tables a config file may hold besides the commands', and what each describes.
+TABLES = {"layout": "the robot's frames and sensors for its ROS 2 messages (docs/ros2.md)"}
 
 
 def option_defaults(
-    options: Mapping[str, click.Option], path: str | None = None, commands: Commands = lambda name: None
+    options: Mapping[str, click.Option],
+    path: str | None = None,
+    commands: Commands = lambda name: None,
+    tables: Tables | None = None,
 ) -> dict[str, Any]:
     """The file's values as Click ``default_map`` entries, each one checked.
 
     ``options`` maps each config key to its Click option; the result is keyed
     by the option's parameter name, the way ``default_map`` wants it.
-    ``commands`` finds a subcommand by name, for a table of its options.
+    ``commands`` finds a subcommand by name, for a table of its options;
+    ``tables`` checks and uses the other tables (``TABLES``) the file has.
     """
     path = config_path() if path is None else path
     data = read_config(path)
@@ -185,11 +200,22 @@ def option_defaults(
         return {}
     table = parse_table(path, data)
     try:
+        for name, check in (tables or {}).items():
+            if isinstance(table.get(name), dict):
+                _use_table(path, name, table.pop(name), check)
         return _defaults(path, "", table, options, commands)
     except ConfigError as exc:
         if exc.line is not None or not exc.key:
             raise
         raise ConfigError(path, exc.key, exc.problem, _line_of(data, exc.key)) from None
+
+
+def _use_table(path: str, name: str, value: dict[str, Any], check: Callable[[dict[str, Any]], None]) -> None:
+    try:
+        check(value)
+    except ValueError as exc:
+        key = getattr(exc, "key", "")
+        raise ConfigError(path, f"{name}.{key}" if key else name, str(exc)) from None
 
 
 def _defaults(
@@ -200,7 +226,11 @@ def _defaults(
         if isinstance(value, dict):
             command = commands(key) if not where else None
             if command is None:
-                raise ConfigError(path, where + key, "unknown table: a table is named after a subcommand")
+                raise ConfigError(
+                    path,
+                    where + key,
+                    f"unknown table: a table is named after a subcommand or is {', '.join(TABLES)}",
+                )
             defaults[key] = _defaults(path, f"{key}.", value, command_options(command), commands)
             continue
         option = options.get(key) or options.get(key.replace("_", "-"))

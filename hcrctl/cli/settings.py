@@ -183,8 +183,17 @@ def config_defaults(group: click.Group) -> dict[str, Any]:
     from ..config import option_defaults
 
     return option_defaults(
-        config_keys(group), commands=lambda name: group.get_command(click.Context(group), name)
+        config_keys(group),
+        commands=lambda name: group.get_command(click.Context(group), name),
+        tables={"layout": use_layout},
     )
+
+
+def use_layout(table: dict[str, Any]) -> None:
+    """The config's ``[layout]``: the frames and sensors every ROS 2 message of this run is made with."""
+    from ..protocol import ros2conv
+
+    ros2conv.use_layout(ros2conv.layout_from(table))
 
 
 _F = TypeVar("_F", bound=Callable[..., Any])

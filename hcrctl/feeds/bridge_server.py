@@ -6,10 +6,12 @@ someone wants it: a subscribed client, or the ``--mcap`` recording, which is
 written by ``record``'s own writer (``McapSink``) with those very bytes.
 
 Each topic is served either as JSON with its JSON Schema (``json``, what
-Foxglove reads best) or as CDR with a ROS 2 message definition (``cdr``:
-``protocol.ros2msg``, the only kind PlotJuggler's Foxglove bridge client
-subscribes to); Foxglove reads both, and the recording holds what is served
-(``protocol.encodings`` names both for the server and the file).
+Foxglove reads best) or as the ROS 2 Jazzy messages of ``protocol.ros2conv``
+with ``ros2msg`` definitions (``cdr``: a channel per ROS topic, the only kind
+PlotJuggler's Foxglove bridge client subscribes to, and ``/tf_static``
+latched: every subscription gets it); Foxglove reads both, and the recording
+holds what is served (``protocol.encodings`` names both for the server and
+the file).
 
 The recording, like ``record``'s, finishes a chunk at least once a second, so
 a kill -9 loses at most about a second of it. A write that fails (a full
@@ -21,6 +23,7 @@ file is left readable up to the failure, and the exit status becomes 1
 from __future__ import annotations
 
 import contextlib
+import time
 from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any
 
@@ -54,6 +57,7 @@ class Server:
     ) -> None:
         self.topics = tuple(topics)
         self.encoding = encoding
+        self.channels = ENCODINGS[encoding].channels(self.topics)
         self.host, self.port = host, port
         self.mcap = mcap
         self.note = note
@@ -69,12 +73,13 @@ class Server:
         return self.ws.cmd_vel is not None
 
     def __enter__(self) -> Server:
-        for topic in self.topics:
+        for topic in self.channels.topics:
             self._add_channel(topic)
         try:
             if self.mcap is not None:
                 self._sink = self._open_mcap(self.mcap)
             self.bound_port = self._start()
+            self._latch(time.time())
         except BaseException:
             self.__exit__()
             raise
@@ -90,6 +95,10 @@ class Server:
         The log time is ``at`` to the microsecond, as ``record`` and the traffic
         log keep it, the same on the wire and in the file.
         """
+        for name, body in self.channels.expand(topic, message):
+            self._publish(name, body, at)
+
+    def _publish(self, topic: str, message: dict[str, Any], at: float) -> None:
         channel, encode = self._served[topic]
         sink = self._sink
         if not channel.subscribers and sink is None:
@@ -97,11 +106,21 @@ class Server:
         payload, us = encode(message), seconds(at)[0]
         if channel.subscribers:
             self.ws.publish(channel, payload, us * 1000)
+        self._record(topic, payload, at)
+
+    def _record(self, topic: str, payload: bytes, at: float) -> None:
+        sink = self._sink
         if sink is not None:
             try:
                 sink.write_encoded(topic, payload, at)
             except SinkWriteError as exc:
                 self._stop_recording(exc)
+
+    def _latch(self, at: float) -> None:
+        """What the encoding sends once (``/tf_static``): kept for every subscription (the file writes its own)."""
+        for topic, message in self.channels.initial(at):
+            channel, encode = self._served[topic]
+            self.ws.latch(channel, encode(message), seconds(at)[0] * 1000)
 
     def close_recording(self) -> None:
         """Finish the file (summary and footer) once nothing publishes any more; a second call does nothing.

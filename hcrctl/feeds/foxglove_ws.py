@@ -134,6 +134,11 @@ class FoxgloveServer:
     def wants(self, channel: Channel) -> bool:
         return bool(channel.subscribers)
 
+    def latch(self, channel: Channel, payload: bytes, at_ns: int) -> None:
+        """Keep ``payload`` as the channel's latched message: every subscription, now or later, gets it."""
+        channel.latched = struct.pack("<Q", at_ns) + payload
+        self.publish(channel, payload, at_ns)
+
     def publish(self, channel: Channel, payload: bytes, at_ns: int) -> None:
         """Queue one payload for the channel's subscribers; the event loop sends it (never waits here)."""
         self._outbox.append((channel, struct.pack("<Q", at_ns) + payload))
@@ -369,6 +374,8 @@ class FoxgloveServer:
                 continue
             session.subscriptions[sub] = channel
             subs.add(sub)
+            if channel.latched:  # what a late joiner must still get, as a transient local writer keeps it
+                session.push(b"\x01" + struct.pack("<I", sub) + channel.latched)
         if wrong:
             session.status(WARNING, f"{wrong} subscription(s) refused: no such channel, or the id is in use")
         if over:

@@ -115,13 +115,15 @@ class ChunkWriter:
         self._buf += _record(schema)
         return schema.id
 
-    def register_channel(self, topic: str, message_encoding: str, schema_id: int) -> int:
+    def register_channel(
+        self, topic: str, message_encoding: str, schema_id: int, metadata: dict[str, str] | None = None
+    ) -> int:
         channel = Channel(
             id=len(self._channels) + 1,
             topic=topic,
             message_encoding=message_encoding,
             schema_id=schema_id,
-            metadata={},
+            metadata=metadata or {},
         )
         self._channels.append(channel)
         self.statistics.channel_count += 1

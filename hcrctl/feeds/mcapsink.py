@@ -3,11 +3,14 @@
 ``record``, ``export`` and the bridge's ``--mcap`` all write through it. The
 encoding is an entry of ``protocol.encodings``: ``json`` (the default: schema
 encoding ``jsonschema``, the topic's JSON Schema from the command table,
-Foxglove's convention) or ``cdr`` (ROS 2 messages with ``ros2msg``
-definitions in a file of profile ``ros2``, what ``bridge --encoding cdr``
-serves; ``record``/``export --encoding cdr`` write the same). One channel per topic,
-all announced when the file opens, so a viewer lists every topic even before
-it has data. The bridge hands over the bytes it already encoded for its
+Foxglove's convention) or ``cdr`` (the ROS 2 Jazzy messages of
+``protocol.ros2conv`` with ``ros2msg`` definitions, in a file of profile
+``ros2`` whose channels carry rosbag2's ``offered_qos_profiles``: what
+``bridge --encoding cdr`` serves; ``record``/``export --encoding cdr`` write the
+same). The channels are the encoding's (``Encoding.channels``: a topic each in
+JSON, a ROS topic each in CDR), all announced when the file opens, so a viewer
+lists every topic even before it has data; what the encoding sends once
+(``/tf_static``) goes in before the first message, at its time. The bridge hands over the bytes it already encoded for its
 clients (``write_encoded``), so the file holds exactly what was served.
 
 Why a file survives a crash: messages go into chunks (zstd-compressed when
@@ -71,13 +74,20 @@ class McapSink(Sink):
         self._writer.start(profile=kind.mcap_profile, library=f"hcrctl {__version__}")
         self._channels: dict[str, int] = {}
         self._untimed: dict[str, Encode] = {}
-        for topic in self.topics.values():
-            schema = kind.schema(topic).encode()
-            schema_id = self._writer.register_schema(kind.schema_name(topic), kind.schema_encoding, schema)
+        self._encoders: dict[str, Encode] = {}
+        self._out = out = kind.channels(self.topics.values())
+        schemas: dict[str, int] = {}
+        for topic in out.topics:
+            name = kind.schema_name(topic)
+            if name not in schemas:
+                schema = kind.schema(topic).encode()
+                schemas[name] = self._writer.register_schema(name, kind.schema_encoding, schema)
             self._channels[topic.name] = self._writer.register_channel(
-                topic.name, kind.message_encoding, schema_id
+                topic.name, kind.message_encoding, schemas[name], out.metadata(topic.name)
             )
             self._untimed[topic.name] = kind.untimed(topic)
+            self._encoders[topic.name] = kind.encoder(topic)
+        self._initial = True  # what the encoding sends once is still to be written
         self._writer.flush()  # a bad path or a full disk shows now, not at the first message
         assert self._file is not None
         self._file.flush()
@@ -99,7 +109,11 @@ class McapSink(Sink):
             us = seconds(log_time)[0]
             self._time, self._ns = log_time, us * 1000
             self._head = self._time_head(us)
-        encoded = [p.encoded or self._encoded(p) for p in items]
+        if self._initial:
+            self._write_initial(log_time)
+        encoded: list[Any] = []
+        for p in items:
+            encoded += p.encoded or self._encoded(p)
         self._settle(self._writer.add_all(encoded, self._ns, self._head))
 
     def write_encoded(self, topic: str, data: bytes, log_time: float) -> None:
@@ -108,8 +122,17 @@ class McapSink(Sink):
         The bridge encodes each message once, for its clients and this file
         alike, so nothing is encoded twice and the file holds the bytes served.
         """
+        if self._initial:
+            self._write_initial(log_time)
         ns, channel = seconds(log_time)[0] * 1000, self._channels[topic]
         self._settle(self._writer.add_raw(channel, ns, data))
+
+    def _write_initial(self, log_time: float) -> None:
+        """What the encoding sends once (``/tf_static``), whole, at the first message's time."""
+        self._initial = False
+        ns = seconds(log_time)[0] * 1000
+        for topic, message in self._out.initial(log_time):
+            self._writer.add_raw(self._channels[topic], ns, self._encoders[topic](message))
 
     def _settle(self, size: int) -> None:
         """Finish the chunk once it is full (``size``, uncompressed), and flush every ``flush_every`` s."""
@@ -122,23 +145,32 @@ class McapSink(Sink):
         """``write_prepared``'s work for many log lines in one loop, the time rounded as ``seconds`` rounds it."""
         add, encoded_of, time_head, us_of = self._writer.add_all, self._encoded, self._time_head, microseconds
         for items, log_time, _ in batch:
+            if self._initial:
+                self._write_initial(log_time)
             us = us_of(log_time)
-            size = add([p.encoded or encoded_of(p) for p in items], us * 1000, time_head(us))
+            encoded: list[Any] = []
+            for p in items:
+                encoded += p.encoded or encoded_of(p)
+            size = add(encoded, us * 1000, time_head(us))
             if size > CHUNK_SIZE:
                 self._writer.flush()
         self._time = float("nan")
         if self.flush_every and time.monotonic() >= self._next_flush:
             self.flush()
 
-    def _encoded(self, prepared: Prepared) -> list[Any]:
-        """The channel and the encoded tail, with room for the record head ``add_all`` packs once."""
-        channel, tail = self._encode(prepared)
-        encoded = prepared.encoded = [channel, tail, b"", -1]
+    def _encoded(self, prepared: Prepared) -> list[list[Any]]:
+        """Per channel message: the channel and the encoded tail, with room for the record head ``add_all``
+        packs once."""
+        encoded = prepared.encoded = [[channel, tail, b"", -1] for channel, tail in self._encode(prepared)]
         return encoded
 
-    def _encode(self, prepared: Prepared) -> tuple[int, bytes]:
-        """The channel, and the message's bytes after its time (the time's head is put before them per moment)."""
-        return self._channels[prepared.topic], self._untimed[prepared.topic](prepared.message)
+    def _encode(self, prepared: Prepared) -> list[tuple[int, bytes]]:
+        """Each channel's message, as its bytes after the time (the time's head is put before them per moment)."""
+        channels, untimed = self._channels, self._untimed
+        return [
+            (channels[topic], untimed[topic](message))
+            for topic, message in self._out.expand(prepared.topic, prepared.message)
+        ]
 
     def flush(self) -> None:
         super().flush()

@@ -48,6 +48,8 @@ class Channel:
     encode: Callable[[dict[str, Any]], bytes]
     #: session -> its subscription ids on this channel
     subscribers: dict[Session, set[int]] = field(default_factory=dict)
+    #: A latched channel's message (log time, then payload), sent to each new subscription (``/tf_static``).
+    latched: bytes = b""
 
 
 class Session:

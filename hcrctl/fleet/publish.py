@@ -1,9 +1,12 @@
-"""The readings on Zenoh: each bridge topic as ``hcr/<robot>/<topic>``, JSON or CDR, one publisher each.
+"""The readings on Zenoh: each channel as ``hcr/<robot>/<topic>``, JSON or CDR, one publisher each.
 
 The messages are the bridge's (``protocol.topics``, fed by ``feeds.source.Feed``)
-and so are the encodings (``protocol.encodings``): JSON with Zenoh's
-``application/json``, or ROS 2 CDR as ``application/cdr`` with the ROS 2
-type's name as its schema. A put never blocks the serial reader that calls
+and so are the encodings and their channels (``protocol.encodings``): JSON
+with Zenoh's ``application/json``, a key per topic (``hcr/r1/compass``); or
+the ROS 2 messages of ``protocol.ros2conv`` as ``application/cdr`` with the
+ROS 2 type's name as its schema, a key per ROS topic (``hcr/r1/range/sonar_0``,
+``hcr/r1/imu``, ``hcr/r1/tf_static``). Zenoh keeps no message for a late
+subscriber, so ``tf_static`` goes out again with every link-counter message. A put never blocks the serial reader that calls
 it: readings are dropped under congestion (Zenoh's default for a put), and
 the next one is a tenth of a second away.
 
@@ -25,14 +28,14 @@ from collections.abc import Iterable
 from typing import Any
 
 from ..protocol.encodings import ENCODINGS, Encode
-from ..protocol.topics import PREFIX, Topic
+from ..protocol.topics import LINK, PREFIX, Topic
 from . import keys
 
 
 def key_name(topic: Topic | str) -> str:
-    """A bridge topic's name as a fleet key's last part: ``/hcr/compass`` is ``compass``."""
+    """A channel's name as a fleet key's last part: ``/hcr/compass`` is ``compass``, ``/imu`` is ``imu``."""
     name = topic if isinstance(topic, str) else topic.name
-    return name.removeprefix(PREFIX)
+    return name.removeprefix(PREFIX).lstrip("/")
 
 
 def zenoh_encoding(zenoh: Any, encoding: str, topic: Topic) -> Any:
@@ -46,8 +49,9 @@ class Publishers:
 
     def __init__(self, zenoh: Any, session: Any, robot: str, topics: Iterable[Topic], encoding: str) -> None:
         kind = ENCODINGS[encoding]
+        self._channels = kind.channels(topics)
         self._served: dict[str, tuple[Any, Encode]] = {}
-        for topic in topics:
+        for topic in self._channels.topics:
             publisher = session.declare_publisher(
                 keys.topic(robot, key_name(topic)), encoding=zenoh_encoding(zenoh, encoding, topic)
             )
@@ -58,6 +62,14 @@ class Publishers:
         self.closed = False
 
     def publish(self, topic: str, message: dict[str, Any], at: float) -> None:
+        """One message of ``protocol.topics``, on its channels (with ``tf_static`` beside the link counters)."""
+        out = self._channels.expand(topic, message)
+        if topic == LINK:
+            out += self._channels.initial(at)
+        for name, body in out:
+            self._put(name, body)
+
+    def _put(self, topic: str, message: dict[str, Any]) -> None:
         served = self._served.get(topic)
         if served is None:
             return

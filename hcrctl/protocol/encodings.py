@@ -8,25 +8,51 @@ encoded once for its clients). Adding an encoding is one entry.
 - ``json``: the message as compact ASCII JSON, described by the topic's JSON
   Schema (schema encoding ``jsonschema``): Foxglove's convention, and what it
   reads best.
-- ``cdr``: the message as ROS 2 CDR, described by a ``ros2msg`` definition
-  (``ros2msg``): the only kind PlotJuggler's Foxglove bridge client and its
-  MCAP loader read. An MCAP file of it has the ``ros2`` profile, as the
-  MCAP spec asks of ROS 2 messages.
+- ``cdr``: the readings as ROS 2 Jazzy messages (``ros2conv``: ``/range/sonar_0``
+  is a ``sensor_msgs/msg/Range``, ``/imu`` an ``Imu``...), what has no standard
+  type as an ``hcrctl_msgs`` one, and ``/tf_static`` first, in CDR described by
+  ``ros2msg`` definitions: what ROS 2 tools and PlotJuggler read. An MCAP file
+  of it has the ``ros2`` profile, each channel's ``offered_qos_profiles`` as
+  rosbag2 writes them, so ``ros2 bag play`` and rosbags read it as the robot.
+
+A writer asks an encoding for its ``Channels`` (``channels(topics)``): the
+topics it announces, each one's metadata, and how one of ``protocol.topics``'
+messages becomes messages of those channels (JSON: itself; CDR: one per
+sensor), plus what a writer sends once at its start (``/tf_static``).
 
 Standard library only, like the rest of the protocol layer.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any
 
-from . import ros2msg
+from . import ros2conv, ros2msg
 from .jsontext import json_encoder
 from .topics import Topic
 
 Encode = Callable[[dict[str, Any]], bytes]
+Messages = list[tuple[str, dict[str, Any]]]
+
+
+@dataclass(frozen=True)
+class Channels:
+    """The channels a writer of one encoding announces, and what goes on them.
+
+    ``expand(topic, message)`` turns one message of ``protocol.topics`` into
+    ``(channel topic, message)`` pairs for ``topics``' encoders; ``initial(time)``
+    are the messages a writer publishes once, as it starts; ``metadata(topic)``
+    is a channel's MCAP metadata.
+    """
+
+    topics: tuple[Topic, ...]
+    expand: Callable[[str, dict[str, Any]], Messages]
+    initial: Callable[[float], Messages]
+    metadata: Callable[[str], dict[str, str]]
+
+
 #: Compact ASCII JSON: what the bridge serves, and the text ``McapSink`` splices times into.
 JSON_TEXT = json_encoder(compact=True, ensure_ascii=True)
 
@@ -53,6 +79,8 @@ class Encoding:
     time_head: Callable[[int], bytes]
     #: The topic's message -> its bytes after the time.
     untimed: Callable[[Topic], Encode]
+    #: The channels for ``protocol.topics``' topics.
+    channels: Callable[[Iterable[Topic]], Channels]
 
 
 def json_bytes(message: dict[str, Any]) -> bytes:
@@ -79,6 +107,42 @@ def json_tail(message: dict[str, Any]) -> bytes:
     return ("," + rest[1:] if rest != "{}" else "}").encode()
 
 
+def json_channels(topics: Iterable[Topic]) -> Channels:
+    """JSON's channels are the topics themselves, each message as it is."""
+    return Channels(tuple(topics), lambda topic, message: [(topic, message)], lambda t: [], lambda topic: {})
+
+
+def cdr_channels(topics: Iterable[Topic]) -> Channels:
+    """The ROS 2 topics of ``ros2conv`` (with the config's layout), named from the root, and their QoS."""
+    conv = ros2conv.Converter(ros2conv.current_layout(), topics)
+    ros = {t.full_name(): t for t in conv.topics}
+    offered = {name: {"offered_qos_profiles": t.qos.yaml()} for name, t in ros.items()}
+
+    def expand(topic: str, message: dict[str, Any]) -> Messages:
+        return [
+            ("/" + name if name[0] != "/" else name, fields)
+            for name, _, fields in conv.convert(topic, message)
+        ]
+
+    return Channels(
+        tuple(Topic(name, t.type, {}) for name, t in ros.items()),
+        expand,
+        lambda t: [(ros2conv.TF_STATIC, conv.tf_static(t))],
+        lambda topic: offered.get(topic, {}),
+    )
+
+
+def cdr_untimed(topic: Topic) -> Encode:
+    """The bytes after the time, for a type that starts with one; a type that does not is written whole."""
+    if ros2msg.starts_with_time(topic.schema_name):
+        return ros2msg.untimed_encoder(topic.schema_name)
+
+    def refuse(message: dict[str, Any]) -> bytes:
+        raise ValueError(f"{topic.name} ({topic.schema_name}) has no leading time: write it whole")
+
+    return refuse
+
+
 JSON = Encoding(
     "json",
     "json",
@@ -89,17 +153,19 @@ JSON = Encoding(
     "",
     json_time_head,
     lambda topic: json_tail,
+    json_channels,
 )
 CDR = Encoding(
     "cdr",
     ros2msg.MESSAGE_ENCODING,
     ros2msg.SCHEMA_ENCODING,
-    ros2msg.schema_name,
-    ros2msg.definition,
-    ros2msg.encoder,
+    lambda topic: topic.schema_name,
+    lambda topic: ros2msg.definition(topic.schema_name),
+    lambda topic: ros2msg.encoder(topic.schema_name),
     "ros2",
     ros2msg.time_head,
-    ros2msg.untimed_encoder,
+    cdr_untimed,
+    cdr_channels,
 )
 #: Every encoding by its name (``bridge --encoding``'s choices, in this order).
 ENCODINGS: dict[str, Encoding] = {e.name: e for e in (JSON, CDR)}

@@ -1,25 +1,31 @@
-"""The topics as ROS 2 messages: a ``.msg`` definition and a CDR encoder per topic.
+"""ROS 2 message types: their ``.msg`` definitions, and CDR to write and read them.
 
-PlotJuggler's Foxglove bridge client (and its MCAP loader) parse only
-``ros2msg`` schemas with ``cdr`` messages, so ``hcrctl bridge --encoding cdr``
-serves the same messages that way. Both the definition and the encoder are
-derived from the topic's JSON Schema, which the command table generates
-(``topics``): a plugin's read gets a ROS 2 type with no other change, and
-nothing here names a sensor or a field.
+A type is a ``Message``: its fields (primitives, strings, fixed arrays,
+sequences, nested messages) and constants, in the order its ``.msg`` file has
+them. Types come from two places, and both land in one registry (``TYPES``)
+that the definitions and codecs look names up in:
 
-- ``boolean`` is ``bool``, ``number`` is ``float64``, ``string`` is ``string``;
-- ``integer`` is the narrowest ROS integer holding its declared range
-  (``uint8`` for an address, ``int8`` for -128..127), ``uint64`` for a count
-  with no maximum, ``int64`` when nothing is declared;
-- an array is a sequence (``uint8[] sonar``), an object a nested message;
-- a schema that does not require all its properties describes messages of
-  varying shape (``/hcr/frames``): absent fields read 0, "" or false, and
-  the keys it does not list go, as JSON, into ``string json``.
+- ``.msg`` text (``parse``): the ROS 2 standard types hcrctl publishes
+  (``ros2types``), written exactly as the distribution defines them;
+- a topic's JSON Schema (``from_schema``), for what has no standard type (the
+  link's frames and counters, a plugin's read): a type of the ``hcrctl_msgs``
+  package whose first field is ``builtin_interfaces/Time stamp``.
 
-CDR is what ROS 2 writes: the encapsulation header ``00 01 00 00`` (plain CDR,
-little-endian), then each primitive aligned to its size counted from the end
-of that header, sequences and strings as a uint32 length first (a string's
-length counts its NUL). Standard library only.
+From a JSON Schema: ``boolean`` is ``bool``, ``number`` is ``float64``,
+``string`` is ``string``; ``integer`` is the narrowest ROS integer holding its
+declared range (``uint8`` for an address), ``uint64`` for a count with no
+maximum, ``int64`` when nothing is declared; an array is a sequence, an object
+a nested message. A schema that does not require all its properties describes
+messages of varying shape (the frames): absent fields read 0, "" or false,
+and the keys it does not list go, as JSON, into ``string json``.
+
+CDR is what ROS 2 writes (XCDR1, final): the encapsulation header
+``00 01 00 00`` (little-endian), then each primitive aligned to its size
+counted from the end of that header, sequences and strings as a uint32 count
+first (a string's counts its NUL), fixed arrays without one. A ``definition``
+is what rosbag2 and the MCAP ``ros2msg`` schema encoding hold: the type's
+text, then each type it uses once, after a line of ``=`` and ``MSG: pkg/Type``.
+Standard library only.
 """
 
 from __future__ import annotations
@@ -30,15 +36,17 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from .topics import Topic
-
 #: CDR, little-endian (ROS 2's ``CDR_LE``), options 0.
 ENCAPSULATION = b"\x00\x01\x00\x00"
 SCHEMA_ENCODING = "ros2msg"
 MESSAGE_ENCODING = "cdr"
+#: The package of every type hcrctl makes up (what no standard type carries).
+PACKAGE = "hcrctl_msgs"
 #: Where keys a varying message does not list go.
 REST = "json"
 SEPARATOR = "=" * 80
+#: The time every message hcrctl makes up starts with, as a standard message's header does.
+TIME_TYPE = "builtin_interfaces/msg/Time"
 
 #: ROS integer types, narrowest first, with the range each holds.
 INTEGERS = tuple(
@@ -46,51 +54,137 @@ INTEGERS = tuple(
     for bits in (8, 16, 32, 64)
     for lo, hi in ((0, 2**bits - 1), (-(2 ** (bits - 1)), 2 ** (bits - 1) - 1))
 )
-#: struct codes of the ROS primitives used here.
-CODES = {"bool": "?", "float64": "d", **{name: "BbHhIiQq"[i] for i, (name, _, _) in enumerate(INTEGERS)}}
+#: struct codes of the ROS primitives.
+CODES = {
+    "bool": "?",
+    "byte": "B",
+    "char": "B",
+    "float32": "f",
+    "float64": "d",
+    **{name: "BbHhIiQq"[i] for i, (name, _, _) in enumerate(INTEGERS)},
+}
 DEFAULTS: dict[str, Any] = {"bool": False, "string": ""}
 
 Write = Callable[[bytearray, Any], None]
+Read = Callable[[bytes, int], tuple[Any, int]]
 
 
 @dataclass(frozen=True)
 class Field:
-    """One line of a definition: ``uint8[] sonar``; ``nested`` for a message-typed field."""
+    """One field line: ``float64[9] orientation_covariance``, ``string[] name``, ``std_msgs/Header header``.
+
+    ``kind`` is a primitive, ``string``, or a full type name (``std_msgs/msg/Header``);
+    ``size`` is a fixed array's length, ``sequence`` an unbounded one; ``default`` is as written.
+    """
 
     name: str
     kind: str
     sequence: bool = False
-    nested: Message | None = None
+    size: int = 0
+    default: str = ""
+
+    @property
+    def nested(self) -> bool:
+        return "/" in self.kind
 
     @property
     def line(self) -> str:
-        return f"{self.kind}{'[]' if self.sequence else ''} {self.name}"
+        kind = ref(self.kind) if self.nested else self.kind
+        suffix = "[]" if self.sequence else f"[{self.size}]" if self.size else ""
+        default = f" {self.default}" if self.default else ""
+        return f"{kind}{suffix} {self.name}{default}"
 
 
 @dataclass(frozen=True)
 class Message:
-    """A ROS 2 message type made from a JSON Schema object."""
+    """A ROS 2 message type: ``lines`` is its ``.msg`` text (fields and constants, in order)."""
 
-    name: str  # ``hcr/msg/Compass``
+    name: str  # ``sensor_msgs/msg/Range``
     fields: tuple[Field, ...]
+    lines: tuple[str, ...]
+    #: Keys a message of this type may carry beyond its fields go, as JSON, into ``string json``.
     rest: bool = False
-
-    @property
-    def ref(self) -> str:
-        """How another definition names it (``hcr/Compass``, as .msg files do)."""
-        return self.name.replace("/msg/", "/")
+    constants: tuple[tuple[str, str, str], ...] = ()  # (type, NAME, value)
 
     def text(self) -> str:
-        lines = [f.line for f in self.fields]
-        if self.rest:
-            lines.append(f"string {REST}")
-        return "\n".join(lines) + "\n"
+        return "".join(line + "\n" for line in self.lines)
+
+
+def ref(name: str) -> str:
+    """How a definition names a type (``std_msgs/Header``, as .msg files do)."""
+    return name.replace("/msg/", "/")
+
+
+def full_name(name: str, package: str) -> str:
+    """``Header`` in std_msgs, ``std_msgs/Header`` -> ``std_msgs/msg/Header``."""
+    pkg, _, base = name.rpartition("/")
+    return f"{pkg.removesuffix('/msg') or package}/msg/{base}"
+
+
+#: Every type the definitions and codecs can name: the standard ones and those made from schemas.
+TYPES: dict[str, Message] = {}
+
+
+def register(message: Message) -> Message:
+    """Add ``message`` to ``TYPES`` (the one already there under its name stays, if equal)."""
+    found = TYPES.setdefault(message.name, message)
+    if found != message:
+        raise ValueError(f"two definitions of {message.name}")
+    return found
+
+
+def parse(name: str, text: str) -> Message:
+    """A type from its ``.msg`` text (comments and blank lines are dropped); registered in ``TYPES``."""
+    package = name.split("/")[0]
+    fields, constants, lines = [], [], []
+    for raw in text.splitlines():
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        kind, rest = line.split(None, 1)
+        if "=" in rest:
+            const, value = (part.strip() for part in rest.split("=", 1))
+            constants.append((kind, const, value))
+            lines.append(f"{kind} {const}={value}")
+            continue
+        field_name, _, default = rest.partition(" ")
+        base, _, count = kind.partition("[")
+        count = count.rstrip("]")
+        if base not in CODES and base != "string":
+            base = full_name(base, package)
+        field = Field(
+            field_name, base, sequence=bool(_) and not count, size=int(count or 0), default=default.strip()
+        )
+        fields.append(field)
+        lines.append(field.line)
+    return register(Message(name, tuple(fields), tuple(lines), constants=tuple(constants)))
+
+
+def definition(name: str) -> str:
+    """The ``ros2msg`` schema of a type: its text, then each type it uses once, after a separator line."""
+    root = TYPES[name]
+    parts, seen = [root.text()], {name}
+    for used in _used(root):
+        if used not in seen:
+            seen.add(used)
+            parts.append(f"{SEPARATOR}\nMSG: {ref(used)}\n{TYPES[used].text()}")
+    return "".join(parts).rstrip("\n")
+
+
+def _used(msg: Message) -> list[str]:
+    out = []
+    for f in msg.fields:
+        if f.nested:
+            out += [f.kind, *_used(TYPES[f.kind])]
+    return out
+
+
+# -- types made from JSON Schemas --------------------------------------------------------------
 
 
 def type_name(schema_name: str) -> str:
-    """``hcr.compass`` -> ``hcr/msg/Compass``, ``hcr.grid_map`` -> ``hcr/msg/GridMap``."""
-    package, _, name = schema_name.rpartition(".")
-    return f"{package or 'hcr'}/msg/{_camel(name)}"
+    """``hcr.frame`` -> ``hcrctl_msgs/msg/Frame``, ``hcr.grid_map`` -> ``hcrctl_msgs/msg/GridMap``."""
+    return f"{PACKAGE}/msg/{_camel(schema_name.rpartition('.')[2])}"
 
 
 def _camel(name: str) -> str:
@@ -117,57 +211,28 @@ def _kind(prop: dict[str, Any]) -> str:
     return "string"
 
 
-def message(name: str, schema: dict[str, Any]) -> Message:
-    """The message a JSON Schema object describes (nested objects become nested types)."""
-    fields = []
+def from_schema(name: str, schema: dict[str, Any], stamped: bool = True) -> Message:
+    """The type a JSON Schema object describes, registered; ``stamped``: its ``time`` is a ``Time stamp`` first.
+
+    Nested objects become nested types of their own (``FrameFields``).
+    """
+    fields = [Field("stamp", TIME_TYPE)] if stamped else []
     for key, prop in schema.get("properties", {}).items():
+        if stamped and key == "time":
+            continue
         if prop.get("type") == "object":
-            nested = message(f"{name}{_camel(key)}", prop)
-            fields.append(Field(key, nested.ref, nested=nested))
+            fields.append(Field(key, from_schema(f"{name}{_camel(key)}", prop, stamped=False).name))
         elif prop.get("type") == "array":
             fields.append(Field(key, _kind(prop.get("items", {})), sequence=True))
         else:
             fields.append(Field(key, _kind(prop)))
     required = set(schema.get("required", schema.get("properties", {})))
-    return Message(name, tuple(fields), rest=required != set(schema.get("properties", {})))
+    rest = required != set(schema.get("properties", {}))
+    lines = [f.line for f in fields] + ([f"string {REST}"] if rest else [])
+    return register(Message(name, tuple(fields), tuple(lines), rest=rest))
 
 
-_MESSAGES: dict[tuple[str, str], Message] = {}
-
-
-def topic_message(topic: Topic) -> Message:
-    """The topic's ROS 2 type, made once."""
-    key = (topic.name, topic.schema_name)
-    found = _MESSAGES.get(key)
-    if found is None:
-        found = _MESSAGES[key] = message(type_name(topic.schema_name), topic.schema)
-    return found
-
-
-def schema_name(topic: Topic) -> str:
-    return topic_message(topic).name
-
-
-def definition(topic: Topic) -> str:
-    """The ``ros2msg`` schema: the type's fields, then each nested type after a separator line."""
-    root = topic_message(topic)
-    parts, seen = [root.text()], {root.name}
-    for nested in _nested(root):
-        if nested.name not in seen:
-            seen.add(nested.name)
-            parts.append(f"{SEPARATOR}\nMSG: {nested.ref}\n{nested.text()}")
-    return "".join(parts).rstrip("\n")
-
-
-def _nested(msg: Message) -> list[Message]:
-    out = []
-    for f in msg.fields:
-        if f.nested is not None:
-            out += [f.nested, *_nested(f.nested)]
-    return out
-
-
-# -- CDR -------------------------------------------------------------------------------------
+# -- CDR: writing ----------------------------------------------------------------------------
 
 
 def _pad(buf: bytearray, size: int) -> None:
@@ -194,35 +259,41 @@ def _string(buf: bytearray, value: Any) -> None:
     buf += struct.pack("<I", len(data) + 1) + data + b"\0"
 
 
-def _sequence(kind: str) -> Write:
+def _items(kind: str, size: int) -> Write:
+    """A fixed array (``size``) or a sequence (0: a uint32 count first) of ``kind``."""
     code = CODES.get(kind)
-    item = _string if code is None else None
-    size = struct.calcsize(code) if code else 4
+    item = None if code else _string if kind == "string" else _struct(kind)
+    width = struct.calcsize(code) if code else 4
 
     def write(buf: bytearray, value: Any) -> None:
         values = list(value or ())
-        _pad(buf, 4)
-        buf += struct.pack("<I", len(values))
+        if size:
+            if len(values) != size:
+                raise ValueError(f"{size} values wanted, got {len(values)}")
+        else:
+            _pad(buf, 4)
+            buf += struct.pack("<I", len(values))
         if item is not None:
             for one in values:
                 item(buf, one)
         elif values:
-            _pad(buf, size)
+            _pad(buf, width)
             buf += struct.pack(f"<{len(values)}{code}", *values)
 
     return write
 
 
 def _writer(field: Field) -> Write:
-    if field.nested is not None:
-        return _struct(field.nested)
-    if field.sequence:
-        return _sequence(field.kind)
+    if field.sequence or field.size:
+        return _items(field.kind, field.size)
+    if field.nested:
+        return _struct(field.kind)
     return _string if field.kind == "string" else _primitive(field.kind)
 
 
-def _struct(msg: Message) -> Write:
+def _struct(name: str) -> Write:
     """Write a dict's fields in order; with ``rest``, the unlisted keys as JSON last."""
+    msg = TYPES[name]
     parts = [(f.name, _writer(f)) for f in msg.fields]
     listed = {f.name for f in msg.fields}
 
@@ -237,36 +308,146 @@ def _struct(msg: Message) -> Write:
     return write
 
 
-def encoder(topic: Topic) -> Callable[[dict[str, Any]], bytes]:
-    """The topic's message dict -> its CDR bytes (header included); made once per topic."""
-    write = _struct(topic_message(topic))
-
-    def encode(values: dict[str, Any]) -> bytes:
-        buf = bytearray(ENCAPSULATION)
-        write(buf, values)
-        return bytes(buf)
-
-    return encode
+_ENCODERS: dict[str, Callable[[dict[str, Any]], bytes]] = {}
 
 
-#: A message's ``time``: its first field (``topics.COMMON``), a float64 right after the header.
-TIME = struct.Struct("<d")
+def encoder(name: str) -> Callable[[dict[str, Any]], bytes]:
+    """A message dict of type ``name`` -> its CDR bytes (header included); made once per type."""
+    found = _ENCODERS.get(name)
+    if found is None:
+        write = _struct(name)
+
+        def found(values: dict[str, Any]) -> bytes:
+            buf = bytearray(ENCAPSULATION)
+            write(buf, values)
+            return bytes(buf)
+
+        _ENCODERS[name] = found
+    return found
+
+
+#: A ``builtin_interfaces/Time``: int32 sec, uint32 nanosec.
+TIME = struct.Struct("<iI")
+
+
+def stamp(us: int) -> dict[str, int]:
+    """A time of ``us`` microseconds since the epoch as a ``builtin_interfaces/Time``."""
+    sec, part = divmod(us, 1_000_000)
+    return {"sec": sec, "nanosec": part * 1000}
 
 
 def time_head(us: int) -> bytes:
-    """The header and a ``time`` of ``us`` microseconds: what comes before ``untimed_encoder``'s bytes."""
-    return ENCAPSULATION + TIME.pack(us / 1_000_000)
+    """The encapsulation and a ``Time`` of ``us`` microseconds: what comes before ``untimed_encoder``'s bytes."""
+    sec, part = divmod(us, 1_000_000)
+    return ENCAPSULATION + TIME.pack(sec, part * 1000)
 
 
-def untimed_encoder(topic: Topic) -> Callable[[dict[str, Any]], bytes]:
-    """The topic's CDR bytes after the header and the time: the same bytes whatever the time.
+def starts_with_time(name: str) -> bool:
+    """Whether a type's bytes begin with a ``Time`` (its own ``stamp``, or its header's)."""
+    fields = TYPES[name].fields
+    first = fields[0] if fields else None
+    if first is None or first.sequence or first.size:
+        return False
+    return first.kind == TIME_TYPE or (first.nested and starts_with_time(first.kind))
 
-    ``time`` takes the message's first eight bytes, and alignment counts from
+
+def untimed_encoder(name: str) -> Callable[[dict[str, Any]], bytes]:
+    """A type's CDR bytes after the encapsulation and the leading ``Time``: the same bytes whatever the time.
+
+    The time takes the message's first eight bytes, and alignment counts from
     there, so what follows never moves: a writer that meets the same message
     at many times (an export) encodes it once and puts ``time_head`` before it.
     """
-    first = topic_message(topic).fields[0]
-    if (first.name, first.kind, first.sequence) != ("time", "float64", False):
-        raise ValueError(f"{topic.name}: time is not its first field, so it cannot be written apart")
-    encode, cut = encoder(topic), len(ENCAPSULATION) + TIME.size
+    if not starts_with_time(name):
+        raise ValueError(f"{name}: a time is not its first field, so it cannot be written apart")
+    encode, cut = encoder(name), len(ENCAPSULATION) + TIME.size
     return lambda values: encode(values)[cut:]
+
+
+# -- CDR: reading ----------------------------------------------------------------------------
+
+
+def _align(offset: int, size: int) -> int:
+    return offset + (-(offset - len(ENCAPSULATION)) % size)
+
+
+def _read_items(kind: str, size: int) -> Read:
+    code = CODES.get(kind)
+    item = None if code else _read_string if kind == "string" else _read_struct(kind)
+    width = struct.calcsize(code) if code else 4
+
+    def read(data: bytes, at: int) -> tuple[Any, int]:
+        count = size
+        if not size:
+            at = _align(at, 4)
+            (count,) = struct.unpack_from("<I", data, at)
+            at += 4
+        if item is not None:
+            out = []
+            for _ in range(count):
+                one, at = item(data, at)
+                out.append(one)
+            return out, at
+        if not count:
+            return [], at
+        at = _align(at, width)
+        return list(struct.unpack_from(f"<{count}{code}", data, at)), at + count * width
+
+    return read
+
+
+def _read_string(data: bytes, at: int) -> tuple[Any, int]:
+    at = _align(at, 4)
+    (size,) = struct.unpack_from("<I", data, at)
+    if size == 0 or at + 4 + size > len(data) or data[at + 3 + size] != 0:
+        raise ValueError("a CDR string without its NUL")
+    return data[at + 4 : at + 3 + size].decode(), at + 4 + size
+
+
+def _read_primitive(kind: str) -> Read:
+    packer = struct.Struct("<" + CODES[kind])
+
+    def read(data: bytes, at: int) -> tuple[Any, int]:
+        at = _align(at, packer.size)
+        return packer.unpack_from(data, at)[0], at + packer.size
+
+    return read
+
+
+def _reader(field: Field) -> Read:
+    if field.sequence or field.size:
+        return _read_items(field.kind, field.size)
+    if field.nested:
+        return _read_struct(field.kind)
+    return _read_string if field.kind == "string" else _read_primitive(field.kind)
+
+
+def _read_struct(name: str) -> Read:
+    parts = [(f.name, _reader(f)) for f in TYPES[name].fields]
+
+    def read(data: bytes, at: int) -> tuple[Any, int]:
+        out = {}
+        for key, part in parts:
+            out[key], at = part(data, at)
+        return out, at
+
+    return read
+
+
+def decoder(name: str) -> Callable[[bytes], dict[str, Any]]:
+    """CDR bytes (little-endian, encapsulation first) -> the message of type ``name`` as a dict.
+
+    ValueError for bytes that are not one: another encapsulation, too short, a string without its NUL.
+    """
+    read = _read_struct(name)
+
+    def decode(data: bytes) -> dict[str, Any]:
+        if data[:2] != ENCAPSULATION[:2]:
+            raise ValueError(f"not little-endian plain CDR (encapsulation {data[:2].hex()})")
+        try:
+            value, _ = read(data, len(ENCAPSULATION))
+        except struct.error as exc:
+            raise ValueError(f"{name} cut short ({exc})") from None
+        return value
+
+    return decode
