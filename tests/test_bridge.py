@@ -267,7 +267,7 @@ def test_cmd_vel_drives_the_wheels_and_the_deadman_stops_them(
         drive_until_moving(client, pty_robot)
         wait_until(lambda: client.data(2)[1]["left"] > 0, what="/hcr/wheels to show the wheels turning")
         pty_robot.wait_for(stop_after_motion)  # publishing stopped: the deadman
-        running.wait_line("stop: deadman")
+        running.wait_line("stopped: deadman")
         code, _ = running.finish()
     assert code == 0
 
@@ -277,7 +277,7 @@ def test_a_client_that_disconnects_stops_the_robot(env: dict[str, str], pty_robo
         with viewer(running.port) as client:
             drive_until_moving(client, pty_robot)
         pty_robot.wait_for(stop_after_motion)
-        assert running.wait_line("stop: client")  # why: it left, not the 10 s deadman
+        assert running.wait_line("stopped: client")  # why: it left, not the 10 s deadman
         code, _ = running.finish()
     assert code == 0
 

@@ -198,12 +198,12 @@ def test_under_a_flood_a_pressed_or_silent_bumper_stops_forward_motion(env: dict
         with flooding(running.port, json.dumps(TWIST).encode(), 0.001):
             robot.values["bump"] = C.Bumpers((False, True, False))
             pressed = _driven_until_stopped(driver, robot, 0.0)
-            running.wait_line("stop: bumper hit")
+            running.wait_line("stopped: bumper hit")
             robot.values["bump"] = C.Bumpers((False, False, False))
             moved = drive(driver, robot, after=pressed)
             robot.mute = True
             _driven_until_stopped(driver, robot, moved)
-            running.wait_line("stop: bumper reading")
+            running.wait_line("stopped: bumper reading")
         assert running.proc.poll() is None
 
 
@@ -280,18 +280,18 @@ def test_a_second_driver_is_told_who_drives_and_the_driver_is_told_of_its_deadma
         second.publish(TWIST)
         assert re.search(r"refused: client \d+ drives the robot", second.control("status")["message"])
         assert "deadman" in first.control("status")["message"]
-        running.wait_line("stop: deadman")
+        running.wait_line("stopped: deadman")
 
 
 def test_client_text_reaches_the_terminal_escaped_and_short(env: dict[str, str]) -> None:
-    forged = "\x1b]0;pwned\x07\x1b[2J\nhcrctl: bridge: stop: deadman (forged)" + "x" * 40_000
+    forged = "\x1b]0;pwned\x07\x1b[2J\nhcrctl: bridge: stopped: deadman (forged)" + "x" * 40_000
     with running_bridge(env) as (_, running), viewer(running.port) as client:
         channel = {"id": CMD_VEL, "topic": "/cmd_vel", "encoding": "json", "schemaName": forged}
         client.ws.send(json.dumps({"op": "advertise", "channels": [channel]}))
         line = running.wait_line("reading it as a Twist")
         assert "\x1b" not in line and "\x07" not in line and "\\x1b" in line
         assert len(line) < 300
-        assert not [x for x in running.lines if x.startswith("hcrctl: bridge: stop: deadman (forged)")]
+        assert not [x for x in running.lines if x.startswith("hcrctl: bridge: stopped: deadman (forged)")]
 
 
 # -- the listener --------------------------------------------------------------------------------

@@ -119,7 +119,7 @@ def test_a_port_gone_mid_drive_is_said_and_the_robot_plugged_back_is_not_driven_
         drive_until_moving(client, plugged[0])
         plugged[0].close()
         line = running.wait_line("went away")
-        running.wait_line(f"stop: {link} went away")
+        running.wait_line(f"stopped: {link} went away")
         again = PtyRobot(link)
         plugged.append(again)
         frames = again.wait_for(

@@ -23,7 +23,7 @@ from helpers_fleet_robot import VELOCITY, Fleet, attacker, fleet, is_stop, opera
 
 from hcrctl.fleet import keys
 from hcrctl.fleet.refusals import MAX_LINES, WINDOW
-from hcrctl.live.bumpers import freshness_bound
+from hcrctl.motion.bumpers import freshness_bound
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.frames import Frame
 

@@ -36,9 +36,9 @@ class Wire:
             return self.sent[-1] if self.sent else None
 
 
-def governor(wire: Wire, **options: object) -> Governor:
-    made = Governor(C.Velocity, deadman=0.3, silence="no test", **options)  # type: ignore[arg-type]
-    made.attach(lambda: wire)  # type: ignore[arg-type, return-value]
+def governor(wire: Wire, **collaborators: object) -> Governor:
+    made = Governor(C.Velocity, deadman=0.3, silence="no test")
+    made.attach(lambda: wire, **collaborators)  # type: ignore[arg-type, return-value]
     return made
 
 
@@ -170,7 +170,7 @@ def test_a_renewal_after_half_its_lease_is_counted_and_told_once() -> None:
     """The margin the deadman leaves: a driver's word after half its lease is late, said with a count."""
     told: list[tuple[object, Late]] = []
     gov = governor(Wire())  # a 0.3 s deadman: a renewal more than 0.15 s after the last word is late
-    gov.on_late = lambda source, late: told.append((source, late))
+    gov.attach(on_late=lambda source, late: told.append((source, late)))
     assert gov.offer("a", (20, 20), now=0.0)
     assert gov.claim("a", now=0.1) and gov.offer("a", (20, 20), now=0.2)  # on time
     assert told == [] and gov.lease.late == 0

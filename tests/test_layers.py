@@ -39,7 +39,7 @@ LAYERS: list[tuple[str, ...]] = [
     # the fleet's key layout, session and remote link are links; its serving process is a feed.
     ("hcrctl.link", "hcrctl.urlhandler", "hcrctl.fleet.keys", "hcrctl.fleet.session", "hcrctl.fleet.remote"),
     ("hcrctl.hex", "hcrctl.render", "hcrctl.ops", "hcrctl.motion"),
-    ("hcrctl.live", "hcrctl.feeds", "hcrctl.fleet"),
+    ("hcrctl.live", "hcrctl.served", "hcrctl.feeds", "hcrctl.fleet"),
     ("hcrctl.cli",),
     ("hcrctl.shell", "hcrctl.__main__"),
 ]

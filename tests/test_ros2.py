@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 from helpers import wait_until
 from helpers_cli import sim_pty
-from helpers_fleet_robot import VELOCITY, is_stop
 from helpers_dds import LATCHED_QOS, SENSOR_QOS, place, ros2_node, ros_side
+from helpers_fleet_robot import VELOCITY, is_stop
 
 from hcrctl.motion.governor import RESEND
 from hcrctl.protocol import commands as C
@@ -80,7 +80,7 @@ def test_a_twist_drives_and_the_deadman_stops_within_its_repeats(env: dict[str, 
         repeats = [at for at, w in velocities(node) if w == (30, 30)]
         assert 1 <= len(repeats) <= deadman / RESEND + 1, repeats
         assert not [at for at, _ in velocities(node) if at > stop]
-        node.wait_err("stop: deadman: no cmd_vel for 0.5 s")
+        node.wait_err("stopped: deadman: no cmd_vel for 0.5 s")
 
 
 @pytest.mark.parametrize("bad", [{"linear.x": math.nan}, {"linear.x": 1e308}, {"angular.z": -math.inf}])

@@ -15,9 +15,9 @@ from helpers_live import FakeRobot, Terminal, is_stop, speed_of, terminal, termi
 
 from hcrctl.link.client import Robot
 from hcrctl.link.context import Connection
-from hcrctl.live.bumpers import freshness_bound
 from hcrctl.live.state import LiveState
 from hcrctl.live.teleop import HOLD_GRACE, POLL_HZ, Drive, press, run_teleop, teleop_governor
+from hcrctl.motion.bumpers import freshness_bound
 from hcrctl.motion.governor import Governor
 from hcrctl.protocol import commands as C
 

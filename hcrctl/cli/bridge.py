@@ -2,30 +2,14 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import click
 
 from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
 from ..feeds.outfile import force_option
 from ..protocol.encodings import ENCODINGS
-from .params import HostPort, deadman_option, duration_option, rate_option
+from .params import HostPort, allow_origin_option, deadman_option, duration_option, rate_option
 from .serverend import ServerEnd
 from .settings import Settings
-
-
-class Origin(click.ParamType):
-    """A web origin as a browser sends it: scheme://host[:port], nothing after."""
-
-    name = "ORIGIN"
-
-    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
-        import re
-
-        text = str(value).strip().rstrip("/")
-        if not re.fullmatch(r"https?://[^\s/?#@]+", text):
-            self.fail(f"{value!r} is not an origin such as https://viewer.example:8080", param, ctx)
-        return text
 
 
 @click.command()
@@ -52,17 +36,7 @@ class Origin(click.ParamType):
 @rate_option()
 @duration_option("Exit by itself after S seconds.")
 @deadman_option(DEFAULT_TIMEOUT_S, "Deadman: stop when no /cmd_vel message arrives for S seconds.")
-@click.option(
-    "--allow-origin",
-    "allow_origins",
-    type=Origin(),
-    multiple=True,
-    envvar="HCRCTL_ALLOW_ORIGIN",
-    show_envvar=True,
-    metavar="ORIGIN",
-    help="Also let web pages from ORIGIN (https://viewer.example:8080) connect; repeatable. "
-    "Loopback pages, https://app.foxglove.dev and clients without an Origin always may.",
-)
+@allow_origin_option()
 @click.pass_obj
 def bridge(
     settings: Settings,
@@ -95,8 +69,9 @@ def bridge(
     from ..link.claims import claimed
 
     check_outputs([("--mcap", mcap)], appended=[("--log", settings.log)], force=force)
-    require_extra(mcap is not None)
-    from ..feeds.bridge import Options, run_bridge, summary_line
+    from ..feeds.bridge import Options, require_foxglove, run_bridge, summary_line
+
+    require_foxglove("hcrctl bridge", mcap=mcap is not None)
 
     timeout = settings.deadman_or(deadman, DEFAULT_TIMEOUT_S)
     options = Options(listen[0], listen[1], mcap, rate, duration, timeout, encoding, allow_origins)
@@ -109,14 +84,3 @@ def bridge(
         "recording_incomplete"
     ):  # said on stderr when it happened: only the status is left
         click.get_current_context().exit(1)
-
-
-def require_extra(mcap: bool) -> None:
-    """The server (websockets) and the MCAP writer (mcap) are the foxglove extra: without them, one
-    line naming it, before anything is opened."""
-    from ..extras import require
-    from ..feeds.formats import WRITERS
-
-    mcap_needs = WRITERS[".mcap"].needs  # what the table's MCAP writer imports
-    for package in ["websockets"] + ([mcap_needs] if mcap and mcap_needs else []):
-        require(package, "foxglove", "hcrctl bridge")

@@ -16,7 +16,7 @@ import click
 
 from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
 from ..protocol.encodings import ENCODINGS
-from .params import Endpoint, FloatRange, HostPort, deadman_option, rate_option
+from .params import Endpoint, FloatRange, HostPort, allow_origin_option, deadman_option, rate_option
 from .serverend import PREFIX, ServerEnd
 from .settings import Settings, json_option, stdout_is_terminal
 
@@ -104,6 +104,7 @@ def router(settings: Settings, listen: tuple[str, ...]) -> None:
     metavar="HOST:PORT",
     help="Also serve the Foxglove bridge here, from the same link and governor (needs the foxglove extra).",
 )
+@allow_origin_option()
 @click.pass_obj
 def serve(
     settings: Settings,
@@ -114,6 +115,7 @@ def serve(
     encoding: str,
     deadman: float | None,
     foxglove: tuple[str, int] | None,
+    allow_origins: tuple[str, ...],
 ) -> None:
     """Publish this robot (--port) to the fleet as NAME, and let one operator at a time drive it.
 
@@ -134,6 +136,7 @@ def serve(
         encoding,
         settings.deadman_or(deadman, DEFAULT_TIMEOUT_S),
         foxglove,
+        allow_origins,
     )
     with ServerEnd(f"fleet serve {name}", as_json=settings.as_json) as end:
         run_serve(settings, options, report=end.reporter(summary_line))

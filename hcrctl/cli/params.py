@@ -361,3 +361,30 @@ class Endpoint(click.ParamType):
         if not sep or not proto.isalnum() or not rest:
             self.fail(f"{value!r} is not a Zenoh endpoint such as tcp/127.0.0.1:7447", param, ctx)
         return text
+
+
+class Origin(click.ParamType):
+    """A web origin as a browser sends it: scheme://host[:port], nothing after."""
+
+    name = "ORIGIN"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        text = str(value).strip().rstrip("/")
+        if not re.fullmatch(r"https?://[^\s/?#@]+", text):
+            self.fail(f"{value!r} is not an origin such as https://viewer.example:8080", param, ctx)
+        return text
+
+
+def allow_origin_option() -> Callable:
+    """``--allow-origin``: every command that serves Foxglove takes it, in these words."""
+    return click.option(
+        "--allow-origin",
+        "allow_origins",
+        type=Origin(),
+        multiple=True,
+        envvar="HCRCTL_ALLOW_ORIGIN",
+        show_envvar=True,
+        metavar="ORIGIN",
+        help="Also let web pages from ORIGIN (https://viewer.example:8080) connect; repeatable. "
+        "Loopback pages, https://app.foxglove.dev and clients without an Origin always may.",
+    )

@@ -1,50 +1,40 @@
 """``hcrctl bridge``: the robot on the Foxglove WebSocket protocol, live, for any number of viewers.
 
-One serial link, polled like ``watch`` (``Feed``); every message it yields is
-encoded once for its topic and fanned out to each subscribed client and to
-the ``--mcap`` file. A client may drive through ``/cmd_vel``
-(``CmdVelSource``): its messages are offers to the motion governor, which
-alone writes motion, runs the deadman on its own clock and stops.
+``Foxglove`` is the served robot's front end for the Foxglove WebSocket
+protocol (``served.runtime``): every message the feed yields is encoded once
+for its topic and fanned out to each subscribed client and to the ``--mcap``
+file. A client may drive through ``/cmd_vel`` (``CmdVelSource``): its
+messages are offers to the motion governor, which alone writes motion, runs
+the deadman on its own clock and stops; a client stopped for any reason but
+its own message is told why on its ``status``. ``hcrctl bridge`` is this
+front end alone; ``fleet serve --foxglove`` is it beside the fleet's.
 
-How it ends: ``--duration``, Ctrl-C, SIGTERM or SIGHUP (turned into a flag the
-loop reads, so the server, the driver and the recording all close in order),
-or a failure. Stop goes out whenever motion was sent (``stopping_driven()``:
-to the robot driven then, which after a reconnect is not the one opened), and
-the run's summary is printed however it ends, so the bench can compare the
-sweep rate with ``watch --json``'s.
+How it ends is the runtime's: ``--duration``, Ctrl-C, SIGTERM or SIGHUP, or a
+failure; stop goes out whenever motion was sent, and the run's summary is
+printed however it ends, so the bench can compare the sweep rate with
+``watch --json``'s.
 """
 
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from ..link.context import Connection, Reconnect
-from ..link.dialects import supported_sensors
+from ..link.context import Connection
 from ..link.loopback import is_loopback
-from ..link.rescue import warn
-from ..link.signals import Terminated, stop_signals_handled
-from ..live.bumpers import bumper_rule
-from ..live.watch import quick_handoff
-from ..motion.governor import Governor
-from ..protocol import commands as C
-from ..protocol.profiles import profile
-from ..protocol.topics import all_topics
-from .bridge_drive import CmdVelSource
+from ..motion.governor import Kind, Source
+from ..served.notes import Notes
+from ..served.runtime import FrontEnd, Report, ServedRobot, exposed, status_line, ws_url
 from .bridge_status import Status
-from .bridge_stop import stopping_driven
 from .cmdvel import DEFAULT_TIMEOUT_S, TOPIC
-from .linkwatch import LinkWatch
 from .progress import sweeps
-from .source import Feed
-from .untrusted import shown
 
 if TYPE_CHECKING:
     from .bridge_server import Server
 
-Report = Callable[[dict[str, Any]], None]
+#: What a Foxglove client is told, in the one "serving ..." line, when the bridge serves alone.
+PROTOCOLS = "Foxglove WebSocket: foxglove.sdk.v1 or foxglove.websocket.v1"
 
 
 @dataclass
@@ -63,139 +53,97 @@ class Options:
     allow_origins: tuple[str, ...] = ()
 
 
-class Signalled:
-    """SIGTERM/SIGHUP as a flag: the loop ends and everything closes before the exit status says why.
+def require_foxglove(needed_by: str, *, mcap: bool = False) -> None:
+    """The server (websockets) and, for a recording, the MCAP writer are the foxglove extra: without
+    them, one line naming it, before anything is opened."""
+    from ..extras import require
+    from .formats import WRITERS
 
-    Once the loop is over (``closing``), or at a second signal, one raises
-    ``Terminated`` as everywhere else, so a stop rescue waiting for a lost
-    port gives up on it as ``rescue`` promises.
+    mcap_needs = WRITERS[".mcap"].needs if mcap else None  # what the table's MCAP writer imports
+    for package in ["websockets"] + ([mcap_needs] if mcap_needs else []):
+        require(package, "foxglove", needed_by)
+
+
+class Foxglove(FrontEnd):
+    """The Foxglove WebSocket server (and the ``--mcap`` recording) as a front end of a served robot.
+
+    ``beside``: serving beside another front end, its part of the serving line
+    is ``Foxglove on URL``; alone, ``on URL (the protocols)``.
     """
 
-    def __init__(self) -> None:
-        self.signum: int | None = None
-        self.closing = False
+    name = "Foxglove server"
 
-    def __call__(self, signum: int, frame: object) -> None:
-        if self.closing or self.signum is not None:
-            raise Terminated(signum)
-        self.signum = signum
+    def __init__(self, served: ServedRobot, options: Options, notes: Notes, *, beside: bool = False) -> None:
+        from .bridge_drive import CmdVelSource
+        from .bridge_server import Server
 
-    def __bool__(self) -> bool:
-        return self.signum is not None
+        if not is_loopback(options.host):
+            exposed(options.host)
+        self.beside = beside
+        self.notes = notes
+        cmd_vel = CmdVelSource(served.governor, notes.note) if served.drives else None
+        self.server: Server = Server(
+            served.topics,
+            options.host,
+            options.port,
+            options.mcap,
+            cmd_vel,
+            notes.note,
+            options.encoding,
+            options.allow_origins,
+        )
 
+    @property
+    def url(self) -> str:
+        return ws_url(self.server.host, self.server.bound_port)
 
-def url(host: str, port: int) -> str:
-    shown = f"[{host}]" if ":" in host else host
-    return f"ws://{shown}:{port}"
+    def open(self, served: ServedRobot) -> None:
+        """Bind before the robot's port opens: an address in use fails at once with nothing sent."""
+        self.server.__enter__()
+
+    def publish(self, topic: str, message: dict[str, Any], at: float) -> None:
+        self.server.publish(topic, message, at)
+
+    def start(self, served: ServedRobot) -> str:
+        self.notes.watch(status_line(served, lambda: len(self.server.ws.sessions)))
+        if self.beside:
+            return f"Foxglove on {self.url}"
+        return f"on {self.url} ({PROTOCOLS})"
+
+    def stopped(self, source: Source | None, why: str) -> None:
+        """A client that drove is told why it was stopped, on its status."""
+        if source is not None and source.kind is Kind.CLIENT and isinstance(source.id, int):
+            self.server.ws.tell(source.id, 1, f"stopped: {why}")
+
+    def finish(self) -> None:
+        """The recording whole once nothing publishes (or said not to be), then the server down."""
+        try:
+            self.server.close_recording()
+        finally:
+            self.server.__exit__()
+
+    def summary(self) -> dict[str, Any]:
+        """``recording_incomplete`` is why the ``--mcap`` file stopped early (None if it did not): the CLI
+        makes that exit status 1, as a ``--log`` that lost a write."""
+        incomplete = self.server.incomplete
+        return {
+            "clients_most": self.server.ws.most,
+            "recording_incomplete": incomplete.why if incomplete is not None else None,
+        }
 
 
 def run_bridge(settings: Connection, options: Options, *, report: Report | None = None) -> dict[str, Any]:
-    """Serve until the duration ends or a signal; the summary (also given to ``report``, however it ends).
-
-    The server binds before the robot's port opens, so an address in use
-    fails at once with nothing sent; where it serves is said once both are
-    open, so either failure is the one line on stderr.
-    """
-    from .bridge_server import Server
-
-    if not is_loopback(options.host):
-        warn(f"listening on {options.host}: anyone on the network who can reach it can drive the robot")
-    names = supported_sensors(settings.protocol, [])
-    drives = profile(settings.protocol).has(C.BY_NAME["velocity"].code)
-    signalled = Signalled()
+    """Serve until the duration ends or a signal; the summary (also given to ``report``, however it ends)."""
     status = Status(sys.stderr)
-    governor = Governor(C.Velocity, deadman=options.timeout, silence=f"no {TOPIC}")
-    cmd_vel = CmdVelSource(governor, status.note) if drives else None
-    topics = all_topics(Feed.counters)
-    server = Server(
-        topics,
-        options.host,
-        options.port,
-        options.mcap,
-        cmd_vel,
-        status.note,
-        options.encoding,
-        options.allow_origins,
+    served = ServedRobot(
+        settings,
+        status,
+        rate=options.rate,
+        deadman=options.timeout,
+        silence=f"no {TOPIC}",
+        duration=options.duration,
     )
-    governor.on_stop = _told_stop(server, status)
-    with stop_signals_handled(signalled), server:
-        summary = _serve(settings, options, server, governor, names, status, signalled, report)
-    if signalled.signum is not None:
-        raise Terminated(signalled.signum)
-    return summary
-
-
-def _told_stop(server: Server, status: Status) -> Callable[[object, str], None]:
-    """A stop for any reason but a new message: said on stderr, and to the client that drove."""
-
-    def told(source: object, why: str) -> None:
-        status.note(f"stop: {shown(why, 120)}")
-        if isinstance(source, str) and source.startswith("client "):
-            server.ws.tell(int(source.split()[1]), 1, f"stopped: {why}")
-
-    return told
-
-
-def _serve(
-    settings: Connection,
-    options: Options,
-    server: Server,
-    governor: Governor,
-    names: list[str],
-    status: Status,
-    signalled: Signalled,
-    report: Report | None,
-) -> dict[str, Any]:
-    """Poll and publish, and drive when asked, until the end; stop goes out however it ends."""
-    with settings.robot() as robot, quick_handoff():
-        feed = Feed(robot, names, options.rate, server.publish, reconnect=Reconnect(settings, robot))
-        governor.attach(lambda: feed.current)
-        governor.bumpers = bumper_rule(feed.state, options.rate)
-        try:  # said inside: a signal the moment it is said still gets the summary
-            with feed, stopping_driven(feed, robot, lambda: governor.driven), governor:
-                feed.poller.first_sweep()  # the bumper rule has a reading before anyone is told where to drive
-                status.start(url(options.host, server.bound_port))
-                if not server.driving:
-                    status.note(
-                        f"this firmware ({robot.profile.name}) has no velocity command: {TOPIC} is off"
-                    )
-                status.watch(server, feed, governor)
-                watch = LinkWatch(feed, governor, status.note, robot.port)
-
-                def ended() -> bool:
-                    watch.check()
-                    return bool(signalled) or governor.error is not None
-
-                try:
-                    feed.run(options.duration, ended)
-                finally:
-                    signalled.closing = True
-                if governor.error is not None:
-                    raise governor.error
-        finally:
-            status.stop()
-            server.close_recording()  # nothing publishes any more: the file is whole (or said not to be)
-            summary = _summary(feed, server, governor.frames)
-            if report is not None:
-                report(summary)
-    return summary
-
-
-def _summary(feed: Feed, server: Server, drive_frames: int) -> dict[str, Any]:
-    """watch's summary (sweeps, sweeps_per_s...) plus what only the bridge has.
-
-    ``recording_incomplete`` is why the ``--mcap`` file stopped early (None if
-    it did not): the CLI makes that exit status 1, as a ``--log`` that lost a write.
-    """
-    summary = dict(feed.state.summary())
-    incomplete = server.incomplete.why if server.incomplete is not None else None
-    summary.update(
-        messages=feed.messages,
-        clients_most=server.ws.most,
-        drive_frames=drive_frames,
-        recording_incomplete=incomplete,
-    )
-    return summary
+    return served.run([Foxglove(served, options, status)], report=report)
 
 
 def summary_line(summary: dict[str, Any]) -> str:

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from ..motion.governor import Governor
+from ..motion.governor import Governor, Kind, Source
 from .bursts import BurstNotes
 from .cmdvel import SCHEMA_NAMES, TOPIC, BadTwist, parse_twist, twist_wheels
 from .untrusted import shown
@@ -26,9 +26,9 @@ Publisher = tuple[int, int]
 MAX_CHANNELS = 8
 
 
-def source_name(client: int) -> str:
-    """How a client is named to the governor, to the terminal and to the other clients."""
-    return f"client {client}"
+def client_source(client: int) -> Source:
+    """A client as the governor knows it; said as ``client N`` to the terminal and to the other clients."""
+    return Source(Kind.CLIENT, client, f"client {client}")
 
 
 class CmdVelSource:
@@ -36,7 +36,6 @@ class CmdVelSource:
 
     def __init__(self, governor: Governor, note: Note) -> None:
         self.governor = governor
-        self.rejected = 0
         self._note = note
         self._bursts = BurstNotes(note)
         self._channels: set[Publisher] = set()
@@ -52,7 +51,7 @@ class CmdVelSource:
         if encoding != "json":
             self._bursts.say(
                 f"{TOPIC} advertised in an encoding other than json",
-                f"{source_name(client)} advertised {TOPIC} in {shown(encoding)}: only json is accepted",
+                f"{client_source(client)} advertised {TOPIC} in {shown(encoding)}: only json is accepted",
             )
             return f"{TOPIC} is accepted in json only, not {shown(encoding)}"
         if (client, channel) not in self._channels and self._per_client.get(client, 0) >= MAX_CHANNELS:
@@ -60,7 +59,7 @@ class CmdVelSource:
         if schema_name not in SCHEMA_NAMES:
             self._bursts.say(
                 f"{TOPIC} advertised with another schema",
-                f"{source_name(client)} advertised {TOPIC} as {shown(schema_name)}; reading it as a Twist",
+                f"{client_source(client)} advertised {TOPIC} as {shown(schema_name)}; reading it as a Twist",
             )
         if (client, channel) not in self._channels:
             self._channels.add((client, channel))
@@ -76,7 +75,7 @@ class CmdVelSource:
             self._channels.discard((client, channel))
             if (held := self._per_client.pop(client, 1) - 1) > 0:
                 self._per_client[client] = held
-            self.governor.release(source_name(client), f"{source_name(client)} left {TOPIC}")
+            self.governor.release(client_source(client), f"{client_source(client)} left {TOPIC}")
 
     def gone(self, client: int) -> None:
         """The client disconnected: each of its channels is unadvertised."""
@@ -88,14 +87,14 @@ class CmdVelSource:
         """One message: offered to the governor; why not, for the client's status."""
         if (client, channel) not in self._channels:
             return None  # not /cmd_vel: nothing else is read
-        source = source_name(client)
+        source = client_source(client)
+        refused = self.governor.would_refuse(source)
+        if refused is not None:
+            return f"{TOPIC} {refused}"
         driver = self.governor.driver
-        if driver not in (None, source):
-            return f"{TOPIC} refused: {driver} drives the robot"
         try:
             wheels = twist_wheels(*parse_twist(payload))
         except BadTwist as exc:
-            self.rejected += 1
             if client not in self._complained:
                 self._complained.add(client)
                 self._note(f"{source}: {TOPIC} refused: {exc}")

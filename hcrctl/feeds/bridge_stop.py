@@ -10,6 +10,8 @@ poller has been told to stop, so that it does not race the rescue for the port.
 The same rescue stops a robot lost mid-drive when the device the poller
 re-opened at its path never answered: that may be another device, and only
 the rescue's answer tells.
+A robot at rest (nothing moved since its last stop was written: ``Robot.moved``
+is false) owes no stop: a port gone then is no alarm, and nothing waits for it.
 This is watch's ``OwedStop`` problem, ended the way ``OwedStop.finish`` ends it.
 """
 
@@ -41,8 +43,8 @@ def _final_stop(feed: Feed, first: Robot, driven: Robot | None) -> contextlib.Ab
     moved = [robot for robot in (driven, first) if robot is not None and robot.moved]
     if current is not None and current.connected and _robot_there(feed, current, moved):
         return stopping(current)
-    if not moved:
-        return stopping(first)  # nothing moved: stop is still tried, and a dead link is the news
+    if not moved:  # at rest: stop is still tried on a live link; a dead one owes nothing (its loss was said)
+        return stopping(first) if first.connected else contextlib.nullcontext()
     feed.poller.stop()
     return _rescued(moved[0])
 

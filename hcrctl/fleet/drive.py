@@ -45,13 +45,13 @@ from __future__ import annotations
 import json
 import re
 import threading
-from collections.abc import Callable, Hashable
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, SupportsBytes
 
 from ..errors import ProtocolError
 from ..feeds.cmdvel import MAX_NESTING, BadTwist, parse_twist, twist_wheels
-from ..motion.governor import Governor, Wheels
+from ..motion.governor import Governor, Kind, Source, Verdict, Wheels, refusal
 from ..protocol import commands as C
 from ..protocol.profiles import Profile
 from . import keys
@@ -64,7 +64,12 @@ _DIGITS = re.compile(r"\d+")
 #: Operator sessions present at once (their tokens); a token beyond this is not admitted.
 MAX_OPERATORS = 256
 #: Say = (operator the word is for or about, text, the sequence number it is about): a put on ``status``.
-Say = Callable[[Hashable | None, str, int | None], None]
+Say = Callable[[keys.Who | None, str, int | None], None]
+
+
+def operator_source(op: keys.Who) -> Source:
+    """An operator session as the governor knows it: equal only to the same session, said by its name."""
+    return Source(Kind.OPERATOR, op, op.name)
 
 
 class BadMotion(ValueError):
@@ -160,12 +165,14 @@ class FleetDrive:
             return
         op, seq = parsed.who, parsed.seq
         self.counters.cmd_vel += 1
-        driver = self.governor.driver
-        if driver not in (None, op):
-            self.refused(op, self.refusal(driver), seq)
+        source = operator_source(op)
+        refused = self.governor.would_refuse(source)
+        if refused is not None:
+            self.refused(op, refused, seq)
             return
+        drove = self.governor.driver == source
         data = bytes(payload)
-        why = self._admitted(parsed, data, driver == op)
+        why = self._admitted(parsed, data, drove)
         if why is not None:
             self.counters.ignored += 1
             self._tell(op, why, seq)
@@ -177,7 +184,7 @@ class FleetDrive:
             return
         if not verdict:
             self._dropped(op, seq, f"cmd_vel {verdict.why}")
-        elif driver != op:
+        elif not drove:
             self._say(op, f"{op} drives {self.robot}", None)
 
     def _not_the_drivers(self, attachment: bytes | None) -> bool:
@@ -185,9 +192,10 @@ class FleetDrive:
         at once: its signature, sequence number and payload are never read, nor its attachment unless the
         refusal is said, so a flood of other names (or of garbage) costs the driver's own messages little."""
         driver = self.governor.driver
-        if not isinstance(driver, keys.Who) or attachment is None:
+        if driver is None or driver.kind is not Kind.OPERATOR or attachment is None:
             return False
-        if attachment.startswith(f"{driver.name} {driver.session} ".encode()):
+        who = driver.id
+        if isinstance(who, keys.Who) and attachment.startswith(f"{who.name} {who.session} ".encode()):
             return False
         self.counters.cmd_vel += 1
         parsed = keys.parse_attachment(attachment) if self.refusals.may_say() else None
@@ -217,7 +225,7 @@ class FleetDrive:
         """A message under ``op``'s session not signed with its key: if it drives, stop and end the lease."""
         why = f"a second sender under {op}'s session: {what} was not signed with its key"
         if drives:
-            self.governor.release(op, f"{why}; the lease is ended")
+            self.governor.release(operator_source(op), f"{why}; the lease is ended")
         return f"ignored: {why}"
 
     def _no_token(self, op: keys.Who) -> str:
@@ -226,15 +234,16 @@ class FleetDrive:
             f"(an operator declares {keys.operator(self.robot, op.name, op.session)} first)"
         )
 
-    def _offer(self, op: keys.Who, payload: bytes) -> Any:
+    def _offer(self, op: keys.Who, payload: bytes) -> Verdict:
         message = parse_motion(payload)
         profile, address = self._profile()
+        source = operator_source(op)
         if "command" in message:
             wheels, request, once = motion_request(message, profile, address)
-            return self.governor.offer(op, wheels, request=request, once=once)
+            return self.governor.offer(source, wheels, request=request, once=once)
         if not profile.has(C.BY_NAME["velocity"].code):
             raise BadMotion(f"this firmware ({profile.name}) has no velocity command for a Twist")
-        return self.governor.offer(op, twist_wheels(*parse_twist(payload)))
+        return self.governor.offer(source, twist_wheels(*parse_twist(payload)))
 
     def stop(self, attachment: bytes | None) -> None:
         """Anyone may stop; the lease is freed. A bad attachment still stops (it only names nobody)."""
@@ -250,7 +259,7 @@ class FleetDrive:
         if op is None or do not in ("claim", "release"):
             raise BadMotion('drive takes {"op": OPERATOR, "session": SESSION, "do": "claim" or "release"}')
         if do == "release":
-            self.governor.release(op, f"{op} released {self.robot}")
+            self.governor.release(operator_source(op), f"{op} released {self.robot}")
             return True, {"driver": named(self.governor.driver)}
         return self._claim(op, message)
 
@@ -261,15 +270,21 @@ class FleetDrive:
         of one, or one overtaken on the way) renews nothing: a replayed claim
         cannot keep a frozen driver's lease alive past its deadman.
         """
-        driver = self.governor.driver
-        if driver not in (None, op):
-            return False, {"error": self.refusal(driver), "driver": named(driver)}
+        source = operator_source(op)
+        refused = self.governor.would_refuse(source)
+        if refused is not None:
+            return self._claim_refused(op, refused)
+        drove = self.governor.driver == source
         given = message.get("signature")
         seq = _seq_of(message)
         with self._lock:
             present = self._present.get(op)
             if present is None:
-                return False, {"error": self._no_token(op), "driver": named(driver), "token": False}
+                return False, {
+                    "error": self._no_token(op),
+                    "driver": named(self.governor.driver),
+                    "token": False,
+                }
             key = present.key
             good = (
                 isinstance(seq, int)
@@ -280,13 +295,10 @@ class FleetDrive:
             if good and fresh:
                 present.claimed = seq
         if key is not None and not good:
-            why = self._second_sender(op, "a claim", driver == op)
+            why = self._second_sender(op, "a claim", drove)
             return False, {"error": why, "driver": named(self.governor.driver)}
-        if fresh and not self.governor.claim(op):
-            return False, {
-                "error": self.refusal(self.governor.driver),
-                "driver": named(self.governor.driver),
-            }
+        if fresh and not (verdict := self.governor.claim(source)):
+            return self._claim_refused(op, verdict.why)
         answer: dict[str, Any] = {"driver": op.name}
         with self._lock:
             if present.key is None:
@@ -296,9 +308,14 @@ class FleetDrive:
             asked = message.get("confirm")
             if present.dropped is not None and present.dropped[0] == asked:
                 answer["dropped"] = present.dropped[1]
-        if driver != op and fresh:
+        if not drove and fresh:
             self._say(op, f"{op} drives {self.robot}", None)
         return True, answer
+
+    def _claim_refused(self, op: keys.Who, why: str) -> tuple[bool, dict[str, Any]]:
+        """A claim refused because another drives: answered, counted, and said (on the budget)."""
+        self.refused(op, why)
+        return False, {"error": why, "driver": named(self.governor.driver)}
 
     def operator_here(self, key: str) -> None:
         """An operator's token appeared: its session may claim (if fewer than MAX_OPERATORS are present)."""
@@ -324,11 +341,11 @@ class FleetDrive:
             return
         with self._lock:
             self._present.pop(op, None)
-        if op == self.governor.driver:
-            self.governor.release(op, f"operator {op} gone")
+        if operator_source(op) == self.governor.driver:
+            self.governor.release(operator_source(op), f"operator {op} gone")
 
-    def refusal(self, driver: Hashable | None) -> str:
-        return f"refused: {driver} drives {self.robot}"
+    def refusal(self, driver: Source | None) -> str:
+        return refusal(driver, self.robot)
 
     def refused(self, op: keys.Who | None, text: str, seq: int | None = None) -> None:
         """Counted every time, said on the budget (``refusals``: a flood of refusals is a few lines a second)."""
@@ -355,6 +372,6 @@ def _seq_of(message: dict[str, Any]) -> int:
     return seq if isinstance(seq, int) and keys.number_in(seq, 1, keys.MAX_SEQ) else 0
 
 
-def named(driver: Hashable | None) -> str | None:
+def named(driver: Source | None) -> str | None:
     """Who drives, as the JSON of a reply says it: the operator's name, a Foxglove client's, or null."""
     return None if driver is None else str(driver)

@@ -2,7 +2,7 @@
 
 The robot's own sweep comes first, whatever its peers ask. A read of a
 sensor the poller sweeps is answered from its last reply (``swept``), heard
-at most the freshness bound ago (``live.bumpers``): no serial traffic, so any
+at most the freshness bound ago (``motion.bumpers``): no serial traffic, so any
 number of peers reading cost the poller nothing. Anything else that needs
 the serial link (a read of another address, one whose reply is too old, a
 write) takes its turn (``Turnstile``): one query at a time, each only after
@@ -41,7 +41,7 @@ from ..protocol.frames import Frame
 #: Queries answered at once; the serial link takes one at a time anyway.
 WORKERS = 2
 #: The longest a peer's read holds the serial line waiting for its reply: a sweep waits for it,
-#: so this, with a sweep period, must stay well inside the bumper rule's bound (``live.bumpers``).
+#: so this, with a sweep period, must stay well inside the bumper rule's bound (``motion.bumpers``).
 QUERY_REPLY_S = 0.15
 #: The longest a serial query waits for the poller's sweep before it takes the link anyway.
 TURN_WAIT_S = 0.5

@@ -18,14 +18,16 @@ from __future__ import annotations
 import re
 import threading
 import time
-from collections.abc import Callable, Hashable
+from collections.abc import Callable
+
+from .keys import Who
 
 #: Words said per window, at most.
 MAX_LINES = 5
 #: The window, in seconds.
 WINDOW = 1.0
 #: (operator the word is for, text, the sequence number it answers): a put on ``status`` and a line on stderr.
-Say = Callable[[Hashable | None, str, "int | None"], None]
+Say = Callable[["Who | None", str, "int | None"], None]
 
 _DIGITS = re.compile(r"\d+")
 
@@ -47,12 +49,10 @@ class Refusals:
         self._clock = clock
         self._lock = threading.Lock()
         self._start = clock()
-        self._said: set[tuple[Hashable | None, str]] = set()
+        self._said: set[tuple[Who | None, str]] = set()
         self._held = 0
 
-    def refused(
-        self, op: Hashable | None, text: str, seq: int | None = None, kind: str | None = None
-    ) -> None:
+    def refused(self, op: Who | None, text: str, seq: int | None = None, kind: str | None = None) -> None:
         """One word for ``op``: said unless already said to it this window or over the budget (then counted)."""
         told = (op, kind or _DIGITS.sub("#", text))
         with self._lock:

@@ -1,19 +1,21 @@
 """``hcrctl fleet serve NAME``: this robot on the fleet, polled, readable, drivable under the governor.
 
-One serial link, polled like ``watch`` and ``bridge`` (``Feed``); every message
-it yields goes to Zenoh as its topic (``Publishers``) and, with ``--foxglove``,
-to the Foxglove bridge of the same process. The robot's queryables (``read/*``,
-``write``, ``info``, ``drive``) answer through that same link. Motion from
-the fleet (``cmd_vel``) and from a Foxglove client (``/cmd_vel``) are both
-offers to one motion governor: one driver at a time, the deadman on the
-robot's own clock, stop when the driver's liveliness token goes.
+``Fleet`` is the served robot's front end on Zenoh (``served.runtime``): every
+message the feed yields goes to Zenoh as its topic (``Publishers``); the
+robot's queryables (``read/*``, ``write``, ``info``, ``drive``) answer
+through the same link; the fleet's ``cmd_vel`` is offered to the one motion
+governor (one driver at a time, the deadman on the robot's own clock, stop
+when the driver's liveliness token goes). With ``--foxglove`` the bridge's
+front end (``feeds.bridge.Foxglove``) serves beside it, every bridge option
+included, and its clients' ``/cmd_vel`` is one more source of that governor.
+Each front end tells its own sources why they were stopped; the fleet's
+``status`` also carries the stops that name no source (a bumper, a lost port).
 
-How it ends: Ctrl-C, SIGTERM or SIGHUP (a flag the loop reads, so the
-subscribers go first, then the governor, then the final stop), or a failure
-(a lost port it cannot reopen). Stop goes out however it ends, to the robot
-driven then (``stopping_driven``), and a one-line summary is printed. What
-fails in the closing after that (undeclaring, the session) is a note on
-stderr: the robot is stopped by then, and the exit status says how it ended.
+How it ends is the runtime's: Ctrl-C, SIGTERM or SIGHUP (a flag the loop
+reads, so the subscribers go first, then the governor, then the final stop),
+or a failure (a lost port it cannot reopen). What fails in the closing after
+that (undeclaring, the session) is a note on stderr: the robot is stopped by
+then, and the exit status says how it ended.
 Zenoh objects used from several threads are guarded where they are owned:
 the publishers by ``Publishers``' lock (the link's reader may still be
 publishing a late reply while the main thread undeclares them).
@@ -26,38 +28,29 @@ import json
 import sys
 import threading
 import time
-from collections.abc import Callable, Hashable
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import TYPE_CHECKING, Any
 
 from .. import __version__
-from ..extras import require
-from ..feeds.bridge import Signalled
-from ..feeds.bridge_stop import stopping_driven
-from ..feeds.linkwatch import LinkWatch
 from ..feeds.progress import sweeps
 from ..feeds.source import Feed
-from ..link.context import Connection, Reconnect
-from ..link.dialects import supported_sensors
-from ..link.loopback import is_loopback
-from ..link.rescue import DEADMAN_S, warn
-from ..link.signals import Terminated, stop_signals_handled
-from ..live.bumpers import bumper_rule, freshness_bound
-from ..live.watch import quick_handoff
-from ..motion.governor import Governor, Late
+from ..link.context import Connection
+from ..link.rescue import DEADMAN_S
+from ..link.signals import Terminated
+from ..motion.bumpers import freshness_bound
+from ..motion.governor import Kind, Late, Source, refusal
 from ..protocol import commands as C
-from ..protocol.profiles import profile
-from ..protocol.topics import all_topics
+from ..served.notes import Notes
+from ..served.runtime import FrontEnd, Report, ServedRobot, exposed
 from . import keys, queries
-from .drive import BadMotion, FleetDrive, named
+from .drive import BadMotion, FleetDrive, named, operator_source
 from .publish import Publishers
 from .session import FleetError, Where, beyond_loopback, import_zenoh, open_member
 
 if TYPE_CHECKING:
-    from ..feeds.bridge_server import Server
     from ..link.client import Robot
 
-Report = Callable[[dict[str, Any]], None]
 PREFIX = "hcrctl: fleet: "
 #: How long to look for another process serving the same name before declaring ours.
 NAME_CHECK_S = 2.0
@@ -81,23 +74,8 @@ class Options:
     deadman: float = DEADMAN_S
     #: Also serve the Foxglove bridge here (host, port).
     foxglove: tuple[str, int] | None = None
-
-
-class Notes:
-    """The serve's stderr: one line per event, from any thread."""
-
-    def __init__(self, stream: TextIO, prefix: str = PREFIX) -> None:
-        self.stream = stream
-        self.prefix = prefix
-        self._lock = threading.Lock()
-
-    def note(self, text: str) -> None:
-        with self._lock:
-            try:
-                self.stream.write(f"{self.prefix}{text}\n")
-                self.stream.flush()
-            except (OSError, ValueError):
-                pass  # stderr gone: serving goes on
+    #: Web pages beyond loopback and Foxglove's app that may connect to ``foxglove``.
+    allow_origins: tuple[str, ...] = ()
 
 
 def where_of(settings: Connection, options: Options) -> Where:
@@ -106,27 +84,28 @@ def where_of(settings: Connection, options: Options) -> Where:
 
 def run_serve(settings: Connection, options: Options, *, report: Report | None = None) -> dict[str, Any]:
     """Serve until a signal or a failure; the summary (also given to ``report``, however it ends)."""
-    zenoh = import_zenoh()
-    where = where_of(settings, options)
-    for endpoint in beyond_loopback(where.listen):
-        warn(f"listening on {endpoint}: anyone on the network who can reach it can drive the robot")
+    notes = Notes(sys.stderr, PREFIX)
+    served = ServedRobot(
+        settings, notes, rate=options.rate, deadman=options.deadman, silence="no cmd_vel", name=options.name
+    )
+    fronts: list[FrontEnd] = [Fleet(served, settings, options, notes)]
     if options.foxglove is not None:
-        _foxglove_extra()
-    signalled = Signalled()
-    notes = Notes(sys.stderr)
-    governor = Governor(C.Velocity, deadman=options.deadman, silence="no cmd_vel")
-    with stop_signals_handled(signalled):
-        session = open_member(where, lambda: bool(signalled), notes.note)
-        if session is None:
-            raise Terminated(signalled.signum or 0)
-        try:
-            _refuse_taken(session, options.name)
-            summary = _serve(zenoh, session, settings, options, governor, notes, signalled, report)
-        finally:
-            _quietly(notes, "closing the Zenoh session", session.close)
-    if signalled.signum is not None:
-        raise Terminated(signalled.signum)
-    return summary
+        fronts.append(_foxglove(served, options, notes))
+    return served.run(fronts, report=report)
+
+
+def _foxglove(served: ServedRobot, options: Options, notes: Notes) -> FrontEnd:
+    """The bridge's front end on the same feed and governor, with the bridge's options."""
+    from ..feeds.bridge import Foxglove, require_foxglove
+    from ..feeds.bridge import Options as BridgeOptions
+
+    require_foxglove("fleet serve --foxglove")
+    assert options.foxglove is not None
+    host, port = options.foxglove
+    bridge = BridgeOptions(
+        host, port, None, options.rate, None, options.deadman, options.encoding, options.allow_origins
+    )
+    return Foxglove(served, bridge, notes, beside=True)
 
 
 def _refuse_taken(session: Any, name: str) -> None:
@@ -153,31 +132,100 @@ def _refuse_taken(session: Any, name: str) -> None:
         watch.undeclare()
 
 
-def _foxglove_extra() -> None:
-    """``--foxglove`` needs the bridge's server (websockets): without it, one line naming the extra."""
-    require("websockets", "foxglove", "fleet serve --foxglove")
+class Fleet(FrontEnd):
+    """The robot on Zenoh: its topics, its queryables, the fleet's motion in and its ``status`` out."""
 
+    name = "fleet"
 
-class Serving:
-    """What one serve holds while it runs: the feed, the governor, the drive source and the answers."""
-
-    def __init__(
-        self, name: str, session: Any, governor: Governor, notes: Notes, feed: Feed, options: Options
-    ) -> None:
-        self.name = name
-        self.session = session
-        self.governor = governor
-        self.notes = notes
-        self.feed = feed
+    def __init__(self, served: ServedRobot, settings: Connection, options: Options, notes: Notes) -> None:
+        self.zenoh = import_zenoh()
+        self.where = where_of(settings, options)
+        self.name = options.name
         self.options = options
+        self.notes = notes
+        self.governor = served.governor
+        self.served = served
         self.started = time.time()
         self.answers = queries.Answers()
-        self.turnstile = queries.Turnstile(feed.poller.paused, lambda: feed.state.last_sweep)
         #: A read is answered from the sweep when its reply is at most this old (the bumper rule's bound).
         self.fresh = freshness_bound(options.rate)
-        self.drive = FleetDrive(name, governor, self.say, self._profile)
+        self.drive = FleetDrive(self.name, served.governor, self.say, self._profile)
         self.declared: list[Any] = []
+        self.session: Any = None
+        self.publishers: Publishers | None = None
         self._late_said = -LATE_SAY_S
+        served.governor.attach(on_late=self.renewal_late)
+
+    # -- the front end's hooks --------------------------------------------------------
+
+    def open(self, served: ServedRobot) -> None:
+        """Join the fleet (refused if the name is served already) and declare the publishers."""
+        for endpoint in beyond_loopback(self.where.listen):
+            exposed(endpoint)
+        self.session = open_member(self.where, lambda: bool(served.signalled), self.notes.note)
+        if self.session is None:
+            raise Terminated(served.signalled.signum or 0)
+        _refuse_taken(self.session, self.name)
+        self.publishers = Publishers(
+            self.zenoh, self.session, self.name, served.topics, self.options.encoding
+        )
+
+    def publish(self, topic: str, message: dict[str, Any], at: float) -> None:
+        if self.publishers is not None:
+            self.publishers.publish(topic, message, at)
+
+    def start(self, served: ServedRobot) -> str:
+        feed = served.feed
+        self.turnstile = queries.Turnstile(feed.poller.paused, lambda: feed.state.last_sweep)
+        self.declare(served.sensors)
+        return f"{self.name} ({self.robot.port}) as {keys.ROOT}/{self.name}/..."
+
+    def stopped(self, source: Source | None, why: str) -> None:
+        """A stop told on ``status``: to the operator that drove, or to all when it names no source.
+
+        Another front end's source (a Foxglove client) is told by its own front end, not named here.
+        """
+        if source is None:
+            self.tell(None, f"stopped: {why}")
+        elif source.kind is Kind.OPERATOR and isinstance(source.id, keys.Who):
+            self.tell(source.id, f"stopped: {why}")
+
+    def tick(self) -> None:
+        self.drive.refusals.tick()
+
+    def close(self) -> None:
+        self.undeclare()
+
+    def finish(self) -> None:
+        """Each step on its own: one that fails is a note and the others still run."""
+        self._quietly("undeclaring the robot's queryables and subscribers", self.undeclare)
+        if self.publishers is not None:
+            self._quietly("undeclaring the publishers", self.publishers.close)
+        if self.session is not None:
+            self._quietly("closing the Zenoh session", self.session.close)
+
+    def summary(self) -> dict[str, Any]:
+        drive = self.drive.counters
+        return {
+            "name": self.name,
+            "published": self.publishers.sent if self.publishers is not None else 0,
+            "queries": self.answers.answered,
+            "queries_failed": self.answers.failed,
+            "cmd_vel": drive.cmd_vel,
+            "ignored": drive.ignored,
+            "refused": drive.refused,
+            "stops": drive.stops,
+            "late_renewals": self.governor.lease.late,
+        }
+
+    def _quietly(self, what: str, step: Callable[[], None]) -> None:
+        """A step of the closing: by now stop has gone out, so a failure is a note, not the serve's error."""
+        try:
+            step()
+        except Exception as exc:
+            self.notes.note(f"{what} failed while closing (ignored): {exc!r}")
+
+    # -- saying ---------------------------------------------------------------------------
 
     def _profile(self) -> tuple[Any, int]:
         robot = self.robot
@@ -185,29 +233,30 @@ class Serving:
 
     @property
     def robot(self) -> Robot:
-        return self.feed.current or self.feed.robot
+        return self.served.robot
 
-    def say(self, op: Hashable | None, text: str, seq: int | None = None) -> None:
-        """A word to the operators (``status``) and a line on stderr.
+    @property
+    def feed(self) -> Feed:
+        return self.served.feed
 
-        ``op`` is the operator it is for or about: a fleet session (its name and
-        session id go in the message, so a name used by two sessions is told
-        apart), a Foxglove client, or nobody; ``seq`` the message it is about.
-        """
+    def say(self, op: keys.Who | None, text: str, seq: int | None = None) -> None:
+        """A word to the operators (``status``) and a line on stderr."""
         self.notes.note(text)
+        self.tell(op, text, seq)
+
+    def tell(self, op: keys.Who | None, text: str, seq: int | None = None) -> None:
+        """A word on ``status``: ``op`` is the operator session it is for or about (its name and session id
+        go in the message, so a name used by two sessions is told apart), or nobody; ``seq`` the message
+        it is about."""
         said: dict[str, Any] = {"op": None if op is None else str(op), "text": text}
-        if isinstance(op, keys.Who):
+        if op is not None:
             said["session"] = op.session
         if seq is not None:
             said["seq"] = seq
         with contextlib.suppress(Exception):  # the session is closing: stderr said it
             self.session.put(keys.status(self.name), json.dumps(said).encode(), encoding="application/json")
 
-    def told_stop(self, source: object, why: str) -> None:
-        """A stop for any reason but a new message (deadman, operator gone, stop, bumper)."""
-        self.say(source if isinstance(source, (str, keys.Who)) else None, f"stopped: {why}")
-
-    def renewal_late(self, source: object, late: Late) -> None:
+    def renewal_late(self, source: Source, late: Late) -> None:
         """A driver's renewal after half its lease: said on stderr (at most once a second, with the count).
 
         Only there: a word on ``status`` naming the driver would tell it the lease was lost.
@@ -299,9 +348,9 @@ class Serving:
     def _may_write(self, message: dict[str, Any]) -> None:
         """A write moves an actuator or changes its control: while someone drives, only the driver may."""
         driver, who = self.governor.driver, keys.who(message.get("op"), message.get("session"))
-        if driver is None or who == driver:
+        if driver is None or (who is not None and driver == operator_source(who)):
             return
-        text = f"write refused: {driver} drives {self.name} (servo and pid need the drive lease)"
+        text = f"write {refusal(driver, self.name)} (servo and pid need the drive lease)"
         self.drive.refused(who, text)
         raise queries.QueryError(text)
 
@@ -376,123 +425,6 @@ class Serving:
 
 def _bytes(data: Any) -> bytes | None:
     return bytes(data) if data is not None else None
-
-
-def _serve(
-    zenoh: Any,
-    session: Any,
-    settings: Connection,
-    options: Options,
-    governor: Governor,
-    notes: Notes,
-    signalled: Signalled,
-    report: Report | None,
-) -> dict[str, Any]:
-    """Poll and publish, answer and drive, until the end; stop goes out however it ends."""
-    names = supported_sensors(settings.protocol, [])
-    topics = all_topics(Feed.counters)
-    with settings.robot() as robot, quick_handoff():
-        publishers = Publishers(zenoh, session, options.name, topics, options.encoding)
-        server = _foxglove_server(options, governor, notes, topics, settings.protocol)
-        publish = publishers.publish if server is None else _both(publishers.publish, server.publish)
-        feed = Feed(robot, names, options.rate, publish, reconnect=Reconnect(settings, robot))
-        serving = Serving(options.name, session, governor, notes, feed, options)
-        governor.attach(lambda: feed.current)
-        governor.bumpers = bumper_rule(feed.state, options.rate)
-        governor.on_stop = serving.told_stop
-        governor.on_late = serving.renewal_late
-        try:
-            with _entered(server), feed, stopping_driven(feed, robot, lambda: governor.driven), governor:
-                feed.poller.first_sweep()  # the bumper rule has a reading before the robot is in the fleet
-                serving.declare(names)
-                notes.note(_serving_line(serving, robot, server))
-                try:
-                    watch = LinkWatch(feed, governor, notes.note, robot.port)
-
-                    def ended() -> bool:
-                        watch.check()
-                        serving.drive.refusals.tick()
-                        return bool(signalled) or governor.error is not None
-
-                    feed.run(None, ended)
-                finally:
-                    signalled.closing = True
-                    serving.undeclare()
-                if governor.error is not None:
-                    raise governor.error
-        finally:
-            try:
-                _quietly(notes, "undeclaring the robot's queryables and subscribers", serving.undeclare)
-                _quietly(notes, "undeclaring the publishers", publishers.close)
-            finally:  # the summary however it ends, even at a second signal during the closing
-                summary = _summary(serving, publishers.sent)
-                if report is not None:
-                    report(summary)
-    return summary
-
-
-def _quietly(notes: Notes, what: str, step: Callable[[], None]) -> None:
-    """A step of the closing: by now stop has gone out, so a failure is a note, not the serve's error."""
-    try:
-        step()
-    except Exception as exc:
-        notes.note(f"{what} failed while closing (ignored): {exc!r}")
-
-
-def _serving_line(serving: Serving, robot: Robot, server: Server | None) -> str:
-    extra = f"; Foxglove on ws://{server.host}:{server.bound_port}" if server is not None else ""
-    return f"serving {serving.name} ({robot.port}) as {keys.ROOT}/{serving.name}/...{extra}; Ctrl-C ends it"
-
-
-def _both(
-    first: Callable[..., None], second: Callable[..., None]
-) -> Callable[[str, dict[str, Any], float], None]:
-    def publish(topic: str, message: dict[str, Any], at: float) -> None:
-        first(topic, message, at)
-        second(topic, message, at)
-
-    return publish
-
-
-def _entered(server: Server | None) -> contextlib.AbstractContextManager[Any]:
-    return server if server is not None else contextlib.nullcontext()
-
-
-def _foxglove_server(
-    options: Options, governor: Governor, notes: Notes, topics: Any, protocol: str
-) -> Server | None:
-    """The bridge's server on the same feed and governor (its ``/cmd_vel`` is one more source, when the
-    firmware has the velocity command a Twist becomes)."""
-    if options.foxglove is None:
-        return None
-    from ..feeds.bridge_drive import CmdVelSource
-    from ..feeds.bridge_server import Server
-
-    host, port = options.foxglove
-    if not is_loopback(host):
-        warn(f"Foxglove on {host}: anyone on the network who can reach it can drive the robot")
-    drives = profile(protocol).has(C.BY_NAME["velocity"].code)
-    cmd_vel = CmdVelSource(governor, notes.note) if drives else None
-    return Server(topics, host, port, None, cmd_vel, notes.note, options.encoding)
-
-
-def _summary(serving: Serving, sent: int) -> dict[str, Any]:
-    summary = dict(serving.feed.state.summary())
-    drive = serving.drive.counters
-    summary.update(
-        name=serving.name,
-        messages=serving.feed.messages,
-        published=sent,
-        queries=serving.answers.answered,
-        queries_failed=serving.answers.failed,
-        cmd_vel=drive.cmd_vel,
-        ignored=drive.ignored,
-        refused=drive.refused,
-        stops=drive.stops,
-        drive_frames=serving.governor.frames,
-        late_renewals=serving.governor.lease.late,
-    )
-    return summary
 
 
 def summary_line(summary: dict[str, Any]) -> str:

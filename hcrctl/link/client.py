@@ -235,8 +235,14 @@ class Robot(TypedReads, Dialect):
         return cmd
 
     def stop(self) -> None:
-        """Motor power 0x80 0x80. Sent even when already stopped: cheap, and safe."""
+        """Motor power 0x80 0x80. Sent even when already stopped: cheap, and safe.
+
+        Once written, a link that moved no other address is at rest (``moved``
+        false), as after ``rescue.write_stops``: losing it later is no alarm.
+        """
         self.write(self.frame_for(C.STOP))
+        if set(self.motion.moved) <= {self.address}:
+            self.moved = False
 
     def set_pid(self, p: int, i: int, d: int) -> None:
         """Set the gains; raises DeviceRefused when the device answers 0x00."""

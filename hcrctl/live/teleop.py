@@ -35,9 +35,9 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from ..link.rescue import stopping
-from ..motion.governor import Governor
+from ..motion.bumpers import bumper_rule
+from ..motion.governor import Governor, Kind, Source
 from ..protocol import commands as C
-from .bumpers import bumper_rule
 from .keys import KeyReader
 from .painter import Painter, Redrawer, can_redraw, full_screen
 from .poller import Poller
@@ -56,7 +56,8 @@ POLL_HZ = 20.0
 STEP = 0.02
 SPEED_STEP = 10
 #: The keys' name as a source of motion.
-KEYS = "keys"
+#: The keys as a source of motion (one keyboard per teleop).
+KEYS = Source(Kind.KEYS, "keys", "the keys")
 #: The lease of a key's first press: past every common key-repeat delay (X11's 660 ms, a first
 #: repeat that comes late), yet a tap stops within a second.
 HOLD_GRACE = 0.9
@@ -163,13 +164,9 @@ def press(drive: Drive, governor: Governor, key: str, now: float | None = None) 
 
 def teleop_governor(drive: Drive, state: LiveState) -> Governor:
     """Motor speed (0x02) per key mix, the deadman from ``drive``, the bumpers from ``state``."""
-    return Governor(
-        C.MotorSpeed,
-        deadman=drive.timeout,
-        silence="no key",
-        on_stop=lambda source, why: drive.halt(why),
-        bumpers=bumper_rule(state, POLL_HZ),
-    )
+    governor = Governor(C.MotorSpeed, deadman=drive.timeout, silence="no key")
+    governor.attach(bumpers=bumper_rule(state, POLL_HZ), on_stop=lambda source, why: drive.halt(why))
+    return governor
 
 
 def run_teleop(

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..link.context import Reconnect
 from ..link.dialects import supported_sensors
+from ..link.handoff import quick_handoff
 from ..link.rescue import OwedStop
 from .keys import KeyReader
 from .painter import FPS, TICK, Painter, Redrawer, can_redraw, full_screen, live_screen, plain_lines
@@ -49,8 +50,6 @@ MIN_FPS = 10
 STEP = 0.05
 #: One plain line a second where the screen cannot be redrawn.
 LINE_PERIOD = 1.0
-#: The GIL switch interval while polling (Python's default is 5 ms).
-SWITCH_INTERVAL = 0.0005
 QUIT_KEYS = frozenset({"q", "Q", "ctrl-d", "ctrl-c"})
 
 
@@ -249,20 +248,3 @@ def default_console() -> Console:
     from ..render.readings import encodable
 
     return Console(file=encodable(sys.stdout))
-
-
-@contextlib.contextmanager
-def quick_handoff(seconds: float = SWITCH_INTERVAL) -> Iterator[None]:
-    """Let a thread woken by a reply take the GIL from the drawing thread sooner.
-
-    Drawing a frame holds the GIL for milliseconds; with the default 5 ms
-    switch interval a reply that lands meanwhile waits up to that long, which
-    costs a fast poll loop a third of its sweeps. Restored on the way out,
-    since the shell shares the interpreter.
-    """
-    previous = sys.getswitchinterval()
-    sys.setswitchinterval(seconds)
-    try:
-        yield
-    finally:
-        sys.setswitchinterval(previous)

@@ -1,7 +1,8 @@
 """The motion governor: the one owner of a link's continuous motion.
 
-Sources of motion (the bridge's ``/cmd_vel`` clients, the fleet's operators,
-and any other that asks for motion for as long as it keeps asking) never
+Sources of motion (a Foxglove client's ``/cmd_vel``, a fleet operator, the
+teleop keys, any other that asks for motion for as long as it keeps asking:
+each a ``Source``, its ``Kind`` and its id) never
 write a motion frame themselves. They ``offer`` wheel speeds, and the
 governor decides:
 
@@ -13,9 +14,12 @@ governor decides:
   the terminal's repeat delay): the governor's own thread runs the clock, so
   no source can hold motion by being slow, silent, flooded or dead;
 - forward motion is refused, and stopped, while ``bumpers`` says why not
-  (a bumper pressed, or no reading fresh enough to tell: ``live.bumpers``);
+  (a bumper pressed, or no reading fresh enough to tell: ``motion.bumpers``);
   a rule that fails blocks forward motion too;
 - anyone may ``stop``;
+- every stop (for any reason but a new offer) is told to each of the
+  ``listeners``, with the source that drove: each front end tells its own
+  sources why they were stopped;
 - a driver's renewal that comes after half the lease it renews is counted
   (``Lease.late``, ``longest_gap``) and told (``on_late``): the margin the
   deadman leaves is being spent, and the robot side can say so before it stops.
@@ -33,7 +37,8 @@ arbiter with timeouts. Offers are applied under a lock by the caller's thread
 and only wake the governor's thread, which alone writes: there is no inbox a
 flood could fill, and each turn of its loop checks the clock first. A turn
 that fails (a bug, a write that raises) is a stop attempt and a note, never a
-dead loop. On exit it stops every address the link moved (``stop_frames``).
+dead loop. On exit it writes stop if it left motion on the wire; the
+caller's final stop (``stopping_driven``) then stops every address moved.
 """
 
 from __future__ import annotations
@@ -43,7 +48,8 @@ import math
 import threading
 import time
 from collections.abc import Callable, Hashable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from enum import Enum
 from typing import TYPE_CHECKING
 
 from ..errors import HcrError, PortError
@@ -66,12 +72,46 @@ Wheels = tuple[int, int]
 Sent = tuple[Wheels, "C.Request | None"]
 #: What each wheel pair becomes on the wire (velocity in cm/s, motor speed in %...).
 MakeMotion = Callable[[int, int], "C.Request"]
-#: (source that drove, why motion stopped): told when motion stops for any reason but a new offer.
-OnStop = Callable[[Hashable | None, str], None]
-#: Why forward motion is blocked now ("" when it is not): the bumper rule (``live.bumpers``).
+#: Why forward motion is blocked now ("" when it is not): the bumper rule (``motion.bumpers``).
 Bumpers = Callable[[], str]
+#: The robot to write to now (None while the link is down).
+Where = Callable[[], "Robot | None"]
+
+
+class Kind(Enum):
+    """What kind of source asks for motion: each front end knows its own kind."""
+
+    KEYS = "keys"
+    CLIENT = "client"  # a Foxglove WebSocket client
+    OPERATOR = "operator"  # a fleet operator's session
+    NODE = "node"  # a ROS 2 publisher
+
+
+@dataclass(frozen=True)
+class Source:
+    """One source of motion: its kind and its id (equal sources are the same driver).
+
+    ``name`` is how it is said to people (``client 3``, an operator's name);
+    it takes no part in equality, so a source is never parsed back from text.
+    """
+
+    kind: Kind
+    id: Hashable
+    name: str = field(default="", compare=False)
+
+    def __str__(self) -> str:
+        return self.name or f"{self.kind.value} {self.id}"
+
+
+#: (source that drove, why motion stopped): told when motion stops for any reason but a new offer.
+OnStop = Callable[[Source | None, str], None]
 #: (driver, its renewal as a ``Late``): told when a driver's renewal came after half the lease it renewed.
-OnLate = Callable[[Hashable, "Late"], None]
+OnLate = Callable[[Source, "Late"], None]
+
+
+def refusal(driver: object, robot: str) -> str:
+    """The one wording of "someone else drives": said to every source refused for it."""
+    return f"refused: {driver} drives {robot}"
 
 
 @dataclass(frozen=True)
@@ -102,20 +142,24 @@ def forward(wheels: Wheels) -> bool:
 class Lease:
     """Who drives, what was asked and until when: the arbitration, pure, the clock the caller's."""
 
-    def __init__(self, deadman: float, silence: str = "nothing from the driver") -> None:
+    def __init__(
+        self, deadman: float, silence: str = "nothing from the driver", robot: str = "the robot"
+    ) -> None:
         self.deadman = deadman
+        #: How the robot is named in a refusal (``refusal``).
+        self.robot = robot
         #: What the deadman's stop says was missing ("no key", "no /cmd_vel").
         self.silence = silence
         self.wheels: Wheels = STILL
         #: The request to write for ``wheels`` (None: the governor's ``make``), and whether it is written once.
         self.request: C.Request | None = None
         self.once = False
-        self.driver: Hashable | None = None
+        self.driver: Source | None = None
         self.last = -math.inf
         #: When the lease runs out (monotonic): the last offer's time plus its lease.
         self.until = -math.inf
         self.why_stopped = ""
-        self.stopped_driver: Hashable | None = None
+        self.stopped_driver: Source | None = None
         self.version = 0
         #: Renewals that came after half the lease they renewed (``Late``), and the longest gap between
         #: a driver's words: how much of the deadman's margin the drivers' renewals used.
@@ -126,7 +170,7 @@ class Lease:
 
     def offer(
         self,
-        source: Hashable,
+        source: Source,
         wheels: Wheels,
         now: float,
         blocked: str,
@@ -144,10 +188,10 @@ class Lease:
         self._set(wheels, "" if moving else "asked for zero", request=request if moving else None, once=once)
         return Verdict(True)
 
-    def claim(self, source: Hashable, now: float, lease: float | None = None) -> Verdict:
+    def claim(self, source: Source, now: float, lease: float | None = None) -> Verdict:
         """``source`` holds the lease (renewed) without changing the motion; refused if another drives."""
         if self.driver not in (None, source):
-            return Verdict(False, f"refused: {self.driver} drives the robot")
+            return Verdict(False, refusal(self.driver, self.robot))
         if self.driver == source:
             self._renewed(now - self.last, self.until - self.last)
         self.driver, self.last = source, now
@@ -175,7 +219,7 @@ class Lease:
         if forward(self.wheels) and blocked:
             self._set(STILL, blocked)
 
-    def release(self, source: Hashable, why: str) -> None:
+    def release(self, source: Source, why: str) -> None:
         if self.driver == source:
             self.driver = None
             self._set(STILL, why, source)
@@ -188,7 +232,7 @@ class Lease:
         self,
         wheels: Wheels,
         why: str,
-        source: Hashable | None = None,
+        source: Source | None = None,
         request: C.Request | None = None,
         once: bool = False,
     ) -> None:
@@ -208,22 +252,19 @@ class Governor:
         *,
         deadman: float = DEADMAN_S,
         silence: str = "nothing from the driver",
-        on_stop: OnStop | None = None,
-        bumpers: Bumpers = lambda: "",
+        robot: str = "the robot",
     ) -> None:
-        self.lease = Lease(deadman, silence)
+        """``robot``: how the robot is named in a refusal; the collaborators come with ``attach``."""
+        self.lease = Lease(deadman, silence, robot)
         self.frames = 0
         self.error: HcrError | None = None
         #: The robot the last frame went to: after a reconnect, not the one first opened.
         self.driven: Robot | None = None
         self._make = make
-        #: Told, on the governor's thread, when motion stops for any reason but a new offer.
-        self.on_stop: OnStop = on_stop or (lambda source, why: None)
-        #: Why forward motion is blocked now, "" when it is not (the bumper rule).
-        self.bumpers = bumpers
-        #: Told, on the offering thread, when a driver's renewal came after half its lease (``Late``).
-        self.on_late: OnLate = lambda source, late: None
-        self._robot: Callable[[], Robot | None] = lambda: None
+        self._listeners: list[OnStop] = []
+        self._bumpers: Bumpers = lambda: ""
+        self._on_late: OnLate = lambda source, late: None
+        self._robot: Where = lambda: None
         self._lock = threading.Lock()
         self._wake = threading.Event()
         self._done = threading.Event()
@@ -233,11 +274,45 @@ class Governor:
         self._seen = 0
         self._thread = threading.Thread(target=self._run, name="hcrctl-governor", daemon=True)
 
+    def attach(
+        self,
+        robot: Where | None = None,
+        *,
+        bumpers: Bumpers | None = None,
+        on_stop: OnStop | None = None,
+        on_late: OnLate | None = None,
+    ) -> None:
+        """Wire the collaborators, before enter (``robot`` may be re-attached later: a link watch).
+
+        ``robot``: where to write (the link's current robot; None while it is
+        down); ``bumpers``: why forward motion is blocked now, "" when it is
+        not; ``on_stop``: one more listener told (on the governor's thread)
+        when motion stops for any reason but a new offer, with the source that
+        drove; ``on_late``: told, on the offering thread, when a driver's
+        renewal came after half its lease (``Late``).
+        """
+        if robot is not None:
+            self._robot = robot
+        if bumpers is not None:
+            self._bumpers = bumpers
+        if on_stop is not None:
+            self._listeners.append(on_stop)
+        if on_late is not None:
+            self._on_late = on_late
+
+    def would_refuse(self, source: Source) -> str | None:
+        """Why an offer from ``source`` would be refused now because another drives (None: it would not).
+
+        Asked by a source before it reads a payload, so a non-driver's flood costs the driver little.
+        """
+        driver = self.lease.driver
+        return None if driver in (None, source) else refusal(driver, self.lease.robot)
+
     # -- the sources' side: any thread, never waits on the wire --------------------------
 
     def offer(
         self,
-        source: Hashable,
+        source: Source,
         wheels: Wheels,
         now: float | None = None,
         lease: float | None = None,
@@ -260,7 +335,7 @@ class Governor:
         self._tell_late(source, late)
         return verdict
 
-    def claim(self, source: Hashable, now: float | None = None, lease: float | None = None) -> Verdict:
+    def claim(self, source: Source, now: float | None = None, lease: float | None = None) -> Verdict:
         """``source`` takes (or renews) the lease without moving: refused, with who drives, if another does."""
         now = time.monotonic() if now is None else now
         with self._lock:
@@ -269,12 +344,12 @@ class Governor:
         self._tell_late(source, late)
         return verdict
 
-    def _tell_late(self, source: Hashable, late: Late | None) -> None:
+    def _tell_late(self, source: Source, late: Late | None) -> None:
         if late is not None:
             with contextlib.suppress(Exception):  # a word about the margin never costs the offer
-                self.on_late(source, late)
+                self._on_late(source, late)
 
-    def release(self, source: Hashable, why: str) -> None:
+    def release(self, source: Source, why: str) -> None:
         """``source`` is gone (disconnected, unadvertised): if it drove, stop."""
         with self._lock:
             self.lease.release(source, why)
@@ -288,7 +363,7 @@ class Governor:
         self._wake.set()
 
     @property
-    def driver(self) -> Hashable | None:
+    def driver(self) -> Source | None:
         return self.lease.driver
 
     @property
@@ -301,10 +376,6 @@ class Governor:
         return self._sent_at if self._sent is not None else None
 
     # -- the governor's own thread -------------------------------------------------------------
-
-    def attach(self, robot: Callable[[], Robot | None]) -> None:
-        """Where to write: the link's current robot (after a reconnect, a new one)."""
-        self._robot = robot
 
     def __enter__(self) -> Governor:
         self._thread.start()
@@ -337,7 +408,7 @@ class Governor:
         if version != self._seen:
             self._seen = version
             if wheels == STILL and stopped[1]:
-                self.on_stop(*stopped)
+                self._tell_stop(*stopped)
         if wheels == STILL:
             if asked or self._moving:
                 self._write(STILL, now)
@@ -350,12 +421,24 @@ class Governor:
         with contextlib.suppress(Exception):
             self._write(STILL)
         with contextlib.suppress(Exception):
-            self.on_stop(None, f"internal error in the governor: {exc!r}")
+            self._tell_stop(None, f"internal error in the governor: {exc!r}")
+
+    def _tell_stop(self, source: Source | None, why: str) -> None:
+        """Every listener hears the stop; the first failure is raised after all were told (a turn that
+        fails is a stop and a note)."""
+        failed: Exception | None = None
+        for listener in self._listeners:
+            try:
+                listener(source, why)
+            except Exception as exc:
+                failed = failed or exc
+        if failed is not None:
+            raise failed
 
     def _blocked(self) -> str:
         """The bumper rule's word; a rule that fails blocks forward motion (it cannot say the way is clear)."""
         try:
-            return str(self.bumpers())
+            return str(self._bumpers())
         except Exception as exc:
             return f"the bumper rule failed ({exc!r})"
 

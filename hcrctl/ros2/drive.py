@@ -23,15 +23,15 @@ from typing import Any
 
 from ..feeds.bursts import BurstNotes
 from ..feeds.cmdvel import BadTwist, speed, twist_wheels
-from ..motion.governor import Governor
+from ..motion.governor import Governor, Kind, Source
 
 TOPIC = "cmd_vel"
 AXES = ("x", "y", "z")
 
 
-def source_name(writer: str) -> str:
-    """How a DDS writer is named to the governor and on stderr."""
-    return f"ros2 writer {writer}"
+def writer_source(writer: str) -> Source:
+    """A DDS writer as a source of motion: its instance handle is its id."""
+    return Source(Kind.NODE, writer, f"ROS 2 writer {writer}")
 
 
 def twist_of(message: Any) -> Any:
@@ -58,29 +58,33 @@ class RosCmdVel:
         self._bursts = BurstNotes(note)
 
     def message(self, writer: str, message: Any) -> None:
-        source = source_name(writer)
-        driver = self.governor.driver
-        if driver not in (None, source):
-            self.refused += 1
-            self._bursts.say(f"{source} refused", f"{TOPIC} from {source} refused: {driver} drives the robot")
+        """One sample from ``writer``: offered, or refused and counted (said once per burst)."""
+        source = writer_source(writer)
+        refused = self.governor.would_refuse(source)
+        if refused is not None:
+            self._refused(source, "busy", refused)
             return
+        driver = self.governor.driver
         try:
             wheels = twist_wheels(*checked(twist_of(message)))
         except BadTwist as exc:
-            self.refused += 1
-            self._bursts.say(f"{source} bad", f"{TOPIC} from {source} refused: {exc}")
+            self._refused(source, "bad", f"refused: {exc}")
             return
         verdict = self.governor.offer(source, wheels)
         if not verdict:
-            self.refused += 1
-            self._bursts.say(f"{source} {verdict.why}", f"{TOPIC} from {source} {verdict.why}")
+            self._refused(source, verdict.why, verdict.why)
             return
         self.taken += 1
         if driver != source:
             self._note(f"{source} drives the robot ({TOPIC})")
 
+    def _refused(self, source: Source, kind: str, why: str) -> None:
+        self.refused += 1
+        self._bursts.say(f"{TOPIC} from {source} {kind}", f"{TOPIC} from {source} {why}")
+
     def gone(self, writer: str) -> None:
-        source = source_name(writer)
+        """``writer`` went away: if it drove, stop."""
+        source = writer_source(writer)
         self.governor.release(source, f"{source} left {TOPIC}")
 
     def flush(self) -> None:

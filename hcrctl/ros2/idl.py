@@ -1,202 +1,111 @@
-"""The ROS 2 Jazzy messages hcrctl speaks, as Cyclone DDS types, and a message built from a plain dict.
+"""The ROS 2 messages as Cyclone DDS types, made from the one set of definitions (``protocol.ros2msg``).
 
 ROS 2 over DDS names a message type ``pkg/msg/Name`` as the DDS type
 ``pkg::msg::dds_::Name_`` and sends it as plain CDR (XCDR1, final): any DDS
 that declares the same names and shapes talks to a ROS 2 node. DDS matches
-by name and shape only, so each class below must equal Jazzy's definition
-field for field (``tests/test_ros2_idl.py`` holds them to rosbags' Jazzy type
-store, an independent copy of the definitions). ROS ``char`` is IDL ``uint8``.
+by name and shape only, so each type here is made from the definition every
+CDR writer of hcrctl uses (``ros2msg.TYPES``: Jazzy's ``.msg`` text, held to
+rosbags' Jazzy store by ``tests/test_ros2conv.py``), never written a second
+time. ROS ``char`` and ``byte`` are IDL ``uint8``.
 
-Annotations are evaluated at class creation (no ``from __future__ import annotations``): Cyclone
-reads them to lay the type out.
+Besides the readings' types, the node needs rmw's own discovery message
+(``rmw_dds_common/msg/ParticipantEntitiesInfo``), parsed here from Jazzy's
+definition (its strings are bounded to 256 in the ``.msg``: a bound is no
+part of the CDR).
 
 ``build(name, fields)`` makes the message from the nested dict the
-conversion gives (missing fields keep their zero value), so the conversion
-stays free of any DDS type.
+conversion gives (a missing field is its zero), so the conversion stays
+free of any DDS type.
 """
 
-import dataclasses
-import typing
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from __future__ import annotations
 
-from cyclonedds.idl import IdlStruct
+import functools
+from typing import Any
 
-if TYPE_CHECKING:  # to a type checker, each field is the Python value it holds
-    from builtins import float as float32, float as float64, int as int32, int as uint8, int as uint32
-    from builtins import list as sequence
+from cyclonedds.idl import IdlStruct, make_idl_struct
+from cyclonedds.idl import types as T
 
-    Covariance = list[float]
-    GidBytes = list[int]
-else:
-    from cyclonedds.idl.types import array, float32, float64, int32, sequence, uint8, uint32
+from ..protocol import ros2msg
+from ..protocol import ros2types as R
 
-    #: A covariance matrix, row-major: ``float64[9]``.
-    Covariance = array[float64, 9]
-    #: A GUID's 16 bytes: ``char[16]`` (ROS ``char`` is IDL ``uint8``).
-    GidBytes = array[uint8, 16]
+GID = "rmw_dds_common/msg/Gid"
+NODE_ENTITIES = "rmw_dds_common/msg/NodeEntitiesInfo"
+PARTICIPANT_ENTITIES = "rmw_dds_common/msg/ParticipantEntitiesInfo"
+RMW_TEXT = {
+    GID: "char[16] data\n",
+    NODE_ENTITIES: "string node_namespace\nstring node_name\nGid[] reader_gid_seq\nGid[] writer_gid_seq\n",
+    PARTICIPANT_ENTITIES: "Gid gid\nNodeEntitiesInfo[] node_entities_info_seq\n",
+}
+for _name, _text in RMW_TEXT.items():
+    if _name not in ros2msg.TYPES:
+        ros2msg.parse(_name, _text)
 
-#: ROS type name -> its DDS type (every class below).
-MESSAGES: dict[str, type[IdlStruct]] = {}
-
-
-def dds_name(ros_name: str) -> str:
-    """``sensor_msgs/msg/Range`` -> ``sensor_msgs::msg::dds_::Range_``: the name rmw gives the type on DDS."""
-    package, kind, name = ros_name.split("/")
-    return f"{package}::{kind}::dds_::{name}_"
-
-
-@dataclass
-class Time(IdlStruct, typename=dds_name("builtin_interfaces/msg/Time")):
-    sec: int32 = 0
-    nanosec: uint32 = 0
-
-
-@dataclass
-class Header(IdlStruct, typename=dds_name("std_msgs/msg/Header")):
-    stamp: Time = field(default_factory=Time)
-    frame_id: str = ""
-
-
-@dataclass
-class Vector3(IdlStruct, typename=dds_name("geometry_msgs/msg/Vector3")):
-    x: float64 = 0.0
-    y: float64 = 0.0
-    z: float64 = 0.0
+#: Each ROS primitive as Cyclone lays it out.
+PRIMITIVES: dict[str, Any] = {
+    "bool": bool,
+    "byte": T.uint8,
+    "char": T.uint8,
+    "float32": T.float32,
+    "float64": T.float64,
+    "int8": T.int8,
+    "uint8": T.uint8,
+    "int16": T.int16,
+    "uint16": T.uint16,
+    "int32": T.int32,
+    "uint32": T.uint32,
+    "int64": T.int64,
+    "uint64": T.uint64,
+    "string": str,
+}
+ZERO: dict[str, Any] = {"bool": False, "string": "", "float32": 0.0, "float64": 0.0}
 
 
-@dataclass
-class Quaternion(IdlStruct, typename=dds_name("geometry_msgs/msg/Quaternion")):
-    x: float64 = 0.0
-    y: float64 = 0.0
-    z: float64 = 0.0
-    w: float64 = 1.0
+@functools.cache
+def dds_type(name: str) -> type[IdlStruct]:
+    """The Cyclone type of ROS type ``name`` (made once), named as rmw names it."""
+    message = ros2msg.TYPES[name]
+    if message.rest:
+        raise ValueError(f"{name} carries free-form keys: it has no fixed DDS shape")
+    fields = {field.name: _field_type(field) for field in message.fields}
+    return make_idl_struct(name.rpartition("/")[2], R.dds_type_name(name), fields)
 
 
-@dataclass
-class Transform(IdlStruct, typename=dds_name("geometry_msgs/msg/Transform")):
-    translation: Vector3 = field(default_factory=Vector3)
-    rotation: Quaternion = field(default_factory=Quaternion)
+def _field_type(field: ros2msg.Field) -> Any:
+    item = dds_type(field.kind) if field.nested else PRIMITIVES[field.kind]
+    if field.sequence:
+        return T.sequence[item]  # type: ignore[misc]  # Cyclone's annotations are instances, typed as classes
+    if field.size:
+        return T.array[item, field.size]  # type: ignore[misc]
+    return item
 
 
-@dataclass
-class TransformStamped(IdlStruct, typename=dds_name("geometry_msgs/msg/TransformStamped")):
-    header: Header = field(default_factory=Header)
-    child_frame_id: str = ""
-    transform: Transform = field(default_factory=Transform)
+def build(name: str, fields: dict[str, Any]) -> IdlStruct:
+    """The message ``name`` with ``fields`` (nested dicts for nested messages; a missing field is zero)."""
+    message = ros2msg.TYPES[name]
+    values = {field.name: _value(field, fields.get(field.name)) for field in message.fields}
+    return dds_type(name)(**values)
 
 
-@dataclass
-class TFMessage(IdlStruct, typename=dds_name("tf2_msgs/msg/TFMessage")):
-    transforms: sequence[TransformStamped] = field(default_factory=list)
+def _value(field: ros2msg.Field, value: Any) -> Any:
+    if value is None:
+        return _zero(field)
+    if not field.nested:
+        return value
+    if field.sequence or field.size:
+        return [build(field.kind, item) for item in value]
+    return build(field.kind, value)
 
 
-@dataclass
-class Twist(IdlStruct, typename=dds_name("geometry_msgs/msg/Twist")):
-    linear: Vector3 = field(default_factory=Vector3)
-    angular: Vector3 = field(default_factory=Vector3)
-
-
-@dataclass
-class TwistStamped(IdlStruct, typename=dds_name("geometry_msgs/msg/TwistStamped")):
-    header: Header = field(default_factory=Header)
-    twist: Twist = field(default_factory=Twist)
-
-
-@dataclass
-class Range(IdlStruct, typename=dds_name("sensor_msgs/msg/Range")):
-    header: Header = field(default_factory=Header)
-    radiation_type: uint8 = 0
-    field_of_view: float32 = 0.0
-    min_range: float32 = 0.0
-    max_range: float32 = 0.0
-    range: float32 = 0.0
-    variance: float32 = 0.0
-
-
-def _nine() -> list[float]:
-    return [0.0] * 9
-
-
-@dataclass
-class Imu(IdlStruct, typename=dds_name("sensor_msgs/msg/Imu")):
-    header: Header = field(default_factory=Header)
-    orientation: Quaternion = field(default_factory=Quaternion)
-    orientation_covariance: Covariance = field(default_factory=_nine)
-    angular_velocity: Vector3 = field(default_factory=Vector3)
-    angular_velocity_covariance: Covariance = field(default_factory=_nine)
-    linear_acceleration: Vector3 = field(default_factory=Vector3)
-    linear_acceleration_covariance: Covariance = field(default_factory=_nine)
-
-
-@dataclass
-class Temperature(IdlStruct, typename=dds_name("sensor_msgs/msg/Temperature")):
-    header: Header = field(default_factory=Header)
-    temperature: float64 = 0.0
-    variance: float64 = 0.0
-
-
-@dataclass
-class RelativeHumidity(IdlStruct, typename=dds_name("sensor_msgs/msg/RelativeHumidity")):
-    header: Header = field(default_factory=Header)
-    relative_humidity: float64 = 0.0
-    variance: float64 = 0.0
-
-
-@dataclass
-class JointState(IdlStruct, typename=dds_name("sensor_msgs/msg/JointState")):
-    header: Header = field(default_factory=Header)
-    name: sequence[str] = field(default_factory=list)
-    position: sequence[float64] = field(default_factory=list)
-    velocity: sequence[float64] = field(default_factory=list)
-    effort: sequence[float64] = field(default_factory=list)
-
-
-def _gid() -> list[int]:
-    return [0] * 16
-
-
-@dataclass
-class Gid(IdlStruct, typename=dds_name("rmw_dds_common/msg/Gid")):
-    data: GidBytes = field(default_factory=_gid)
-
-
-@dataclass
-class NodeEntitiesInfo(IdlStruct, typename=dds_name("rmw_dds_common/msg/NodeEntitiesInfo")):
-    node_namespace: str = ""  # bounded to 256 in the .msg: a bound is no part of the CDR
-    node_name: str = ""
-    reader_gid_seq: sequence[Gid] = field(default_factory=list)
-    writer_gid_seq: sequence[Gid] = field(default_factory=list)
-
-
-@dataclass
-class ParticipantEntitiesInfo(IdlStruct, typename=dds_name("rmw_dds_common/msg/ParticipantEntitiesInfo")):
-    gid: Gid = field(default_factory=Gid)
-    node_entities_info_seq: sequence[NodeEntitiesInfo] = field(default_factory=list)
-
-
-for _cls in (
-    Time, Header, Vector3, Quaternion, Transform, TransformStamped, TFMessage, Twist, TwistStamped,
-    Range, Imu, Temperature, RelativeHumidity, JointState, Gid, NodeEntitiesInfo, ParticipantEntitiesInfo,
-):  # fmt: skip
-    MESSAGES[_cls.__idl_typename__.replace("::dds_::", "/").replace("::", "/").rstrip("_")] = _cls
-
-
-def build(ros_name: str, fields: dict[str, Any]) -> IdlStruct:
-    """The message ``ros_name`` with ``fields`` (nested dicts for nested messages; the rest zero)."""
-    return _filled(MESSAGES[ros_name], fields)
-
-
-def _filled(cls: type[IdlStruct], fields: dict[str, Any]) -> IdlStruct:
-    hints = typing.get_type_hints(cls, include_extras=True)
-    values: dict[str, Any] = {}
-    for item in dataclasses.fields(cls):  # type: ignore[arg-type]  # every message is a dataclass
-        if item.name not in fields:
-            continue
-        value, kind = fields[item.name], hints[item.name]
-        if isinstance(kind, type) and issubclass(kind, IdlStruct):
-            value = _filled(kind, value)
-        elif isinstance(value, list) and value and isinstance(value[0], dict):
-            value = [_filled(typing.get_args(kind)[1].subtype, v) for v in value]
-        values[item.name] = value
-    return cls(**values)
+def _zero(field: ros2msg.Field) -> Any:
+    """A field's value when the dict has none: its default in the definition (a Quaternion's w is 1), else 0."""
+    one: Any
+    if field.nested:
+        one = build(field.kind, {})
+    elif field.default:
+        one = float(field.default) if field.kind.startswith("float") else int(field.default)
+    else:
+        one = ZERO.get(field.kind, 0)
+    if field.sequence:
+        return []
+    return [one] * field.size if field.size else one

@@ -2,23 +2,17 @@
 
 Names as rmw gives them: a topic ``range/sonar_0`` of the node's namespace
 ``/hcr`` is the DDS topic ``rt/hcr/range/sonar_0``; an absolute one
-(``/tf_static``) ignores the namespace. QoS as ROS 2 uses them (``QOS``):
-sensor data best effort keep last 5 (``SensorDataQoS``: a best-effort reader
-and a reliable one both match it... a reliable reader does not, so echo with
-``--qos-reliability best_effort`` or let ``ros2 topic echo`` pick it up as it
-does by default), commands and states reliable keep last 10 (the default
-profile), ``/tf_static`` reliable and transient local so a late rviz2 still
-gets it.
+(``/tf_static``) ignores the namespace. QoS are the conversion's
+(``ros2conv.Qos``: sensor data best effort keep last 5, ``/tf_static``
+reliable and transient local keep last 1, ``cmd_vel`` reliable keep last 10).
+A reliable writer never blocks the caller (``max_blocking_time`` 0): with
+KeepLast history there is always room, the oldest sample gives way.
 
-The node is announced as rmw announces one: a ``ParticipantEntitiesInfo`` on
-``ros_discovery_info`` naming the node and the GUIDs of its readers and
-writers, so ``ros2 node list`` and ``ros2 node info`` show it. The type hash
-rmw adds to USER_DATA (``typehash=RIHS01_...``) is not sent: ROS 2 tools use
-it only to warn about a mismatch, and matching is by type name and shape.
-
-Writers are made on a topic's first message (a firmware without a sensor
-gets no topic for it). Writing never blocks the caller: sensor topics are
-best effort, and a reliable writer keeps at most its history (``KeepLast``).
+The node is announced as a Jazzy rmw announces one: each reader's and
+writer's USER_DATA carries ``typehash=RIHS01_...;`` (the type's hash, REP
+2016), and a ``ParticipantEntitiesInfo`` on ``ros_discovery_info`` names the
+node and the GUIDs of its readers and writers, so ``ros2 node list`` and
+``ros2 node info`` show it.
 """
 
 from __future__ import annotations
@@ -29,121 +23,124 @@ from typing import Any
 
 from cyclonedds.core import Listener
 from cyclonedds.domain import DomainParticipant
-from cyclonedds.idl import IdlStruct
 from cyclonedds.pub import DataWriter
 from cyclonedds.qos import Policy, Qos
 from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 
+from ..protocol import ros2conv
+from ..protocol.ros2types import TYPE_HASHES
 from . import idl
 
-#: The QoS profiles by the name the conversion gives each topic.
-QOS = {
-    "sensor": Qos(Policy.Reliability.BestEffort, Policy.Durability.Volatile, Policy.History.KeepLast(5)),
-    "default": Qos(
-        Policy.Reliability.Reliable(max_blocking_time=0),
-        Policy.Durability.Volatile,
-        Policy.History.KeepLast(10),
-    ),
-    "static": Qos(
-        Policy.Reliability.Reliable(max_blocking_time=0),
-        Policy.Durability.TransientLocal,
-        Policy.History.KeepLast(1),
-    ),
-}
 DISCOVERY_TOPIC = "ros_discovery_info"
+#: rmw's own topic: reliable, transient local, keep last 1, so a tool started later learns the node.
+DISCOVERY_QOS = ros2conv.Qos(reliable=True, transient_local=True, depth=1)
 NODE_NAME = "hcrctl"
 
-#: (the writer that sent it, as a GUID string; its message) for every valid cmd_vel sample.
+#: (the writer that sent it; its message) for every valid sample a reader takes.
 OnMessage = Callable[[str, Any], None]
-#: A cmd_vel writer went away (unmatched): its GUID string.
+#: A writer went away (unmatched).
 OnGone = Callable[[str], None]
-#: A line on stderr.
 Note = Callable[[str], None]
 
 
 def dds_topic(name: str, namespace: str) -> str:
     """The DDS topic of ROS topic ``name`` (relative to ``namespace`` unless it starts with /)."""
-    full = name if name.startswith("/") else f"{namespace.rstrip('/')}/{name}"
-    return "rt" + (full if full.startswith("/") else "/" + full)
+    return "rt" + ros2conv.RosTopic(name, "").full_name(namespace)
+
+
+def dds_qos(qos: ros2conv.Qos, ros_type: str) -> Qos:
+    """Cyclone's QoS for a ROS one, with the type's hash in USER_DATA as rmw puts it there."""
+    reliability = (
+        Policy.Reliability.Reliable(max_blocking_time=0) if qos.reliable else Policy.Reliability.BestEffort
+    )
+    durability = Policy.Durability.TransientLocal if qos.transient_local else Policy.Durability.Volatile
+    policies = [reliability, durability, Policy.History.KeepLast(qos.depth)]
+    if ros_type in TYPE_HASHES:
+        policies.append(Policy.Userdata(f"typehash={TYPE_HASHES[ros_type]};".encode()))
+    return Qos(*policies)
 
 
 class Node:
-    """A participant on ``domain``, its writers by topic, and one reader (``subscribe``)."""
+    """A participant on ``domain``: writers made up front (``advertise``), readers (``subscribe``)."""
 
     def __init__(self, domain: int, namespace: str) -> None:
         self.namespace = namespace
         self.participant = DomainParticipant(domain)
-        self._writers: dict[str, DataWriter] = {}
+        self._writers: dict[str, tuple[DataWriter, str]] = {}
         self._readers: list[DataReader] = []
         self._lock = threading.Lock()
-        self._discovery = self._writer(DISCOVERY_TOPIC, idl.ParticipantEntitiesInfo, "static", raw=True)
-
-    def publish(self, name: str, ros_type: str, qos: str, fields: dict[str, Any]) -> None:
-        """One message on ROS topic ``name`` (its writer made on first use)."""
-        writer = self._writers.get(name)
-        if writer is None:
-            writer = self._writer(name, idl.MESSAGES[ros_type], qos)
-        writer.write(idl.build(ros_type, fields))
+        discovery = Topic(self.participant, DISCOVERY_TOPIC, idl.dds_type(idl.PARTICIPANT_ENTITIES))
+        self._discovery = DataWriter(self.participant, discovery, qos=dds_qos(DISCOVERY_QOS, ""))
 
     @property
     def fullname(self) -> str:
         """The node as ``ros2 node list`` shows it: ``/ns/hcrctl``."""
         return f"{self.namespace.rstrip('/')}/{NODE_NAME}"
 
-    def subscribe(self, name: str, ros_type: str, on_message: OnMessage, on_gone: OnGone, note: Note) -> None:
-        """Read ROS topic ``name`` (default QoS: reliable keep last 10) into ``on_message``, on DDS's thread."""
-        topic = Topic(self.participant, dds_topic(name, self.namespace), idl.MESSAGES[ros_type])
-        listener = _Reading(on_message, on_gone, note)
-        self._readers.append(DataReader(self.participant, topic, qos=QOS["default"], listener=listener))
+    def advertise(self, topics: list[ros2conv.RosTopic]) -> None:
+        """A writer for each topic, then the node announced once with all of them."""
+        for topic in topics:
+            kind = idl.dds_type(topic.type)
+            dds = Topic(self.participant, dds_topic(topic.name, self.namespace), kind)
+            writer = DataWriter(self.participant, dds, qos=dds_qos(topic.qos, topic.type))
+            with self._lock:
+                self._writers[topic.name] = (writer, topic.type)
         self.announce()
 
-    def _writer(self, name: str, kind: type[IdlStruct], qos: str, *, raw: bool = False) -> DataWriter:
+    def publish(self, name: str, fields: dict[str, Any]) -> bool:
+        """One message on ROS topic ``name``; False if the topic was never advertised."""
+        found = self._writers.get(name)
+        if found is None:
+            return False
+        writer, kind = found
+        writer.write(idl.build(kind, fields))
+        return True
+
+    def subscribe(self, topic: ros2conv.RosTopic, on_message: OnMessage, on_gone: OnGone, note: Note) -> None:
+        """Read ``topic`` into ``on_message``, on Cyclone's listener thread."""
+        dds = Topic(self.participant, dds_topic(topic.name, self.namespace), idl.dds_type(topic.type))
+        listener = _Reading(on_message, on_gone, note)
+        reader = DataReader(self.participant, dds, qos=dds_qos(topic.qos, topic.type), listener=listener)
         with self._lock:
-            if name in self._writers:
-                return self._writers[name]
-            topic = Topic(self.participant, name if raw else dds_topic(name, self.namespace), kind)
-            writer = DataWriter(self.participant, topic, qos=QOS[qos])
-            self._writers[name] = writer
-        if not raw:
-            self.announce()
-        return writer
+            self._readers.append(reader)
+        self.announce()
 
     def announce(self) -> None:
         """Say on ``ros_discovery_info`` what this node reads and writes, as rmw does after each change."""
         with self._lock:
-            writers = [w for name, w in self._writers.items() if name != DISCOVERY_TOPIC]
+            writers = [writer for writer, _ in self._writers.values()]
             readers = list(self._readers)
-        node = idl.NodeEntitiesInfo(
-            node_namespace=self.namespace or "/",
-            node_name=NODE_NAME,
-            reader_gid_seq=[_gid(r.guid) for r in readers],
-            writer_gid_seq=[_gid(w.guid) for w in writers],
-        )
-        info = idl.ParticipantEntitiesInfo(gid=_gid(self.participant.guid), node_entities_info_seq=[node])
-        self._discovery.write(info)
+        node = {
+            "node_namespace": self.namespace or "/",
+            "node_name": NODE_NAME,
+            "reader_gid_seq": [_gid(r.guid) for r in readers],
+            "writer_gid_seq": [_gid(w.guid) for w in writers],
+        }
+        info = {"gid": _gid(self.participant.guid), "node_entities_info_seq": [node]}
+        self._discovery.write(idl.build(idl.PARTICIPANT_ENTITIES, info))
 
     def unsubscribe(self) -> None:
-        """No reader calls back after this (the participant stays, so late writes still go out)."""
+        """No reader calls back after this (the writers stay, so late readings still go out)."""
         for reader in self._readers:
             reader.set_listener(None)
 
     def close(self) -> None:
         """Readers first (no message after this), then the participant and everything in it."""
         self.unsubscribe()
-        # dds_delete of the participant deletes every reader and writer in it, and tells the peers at once
-        # (a remote reader sees the writers go); Cyclone's Python binding calls it from __del__ only.
+        # dds_delete of the participant deletes every reader and writer in it and tells the peers at
+        # once (a remote reader sees the writers go); Cyclone's Python binding calls it from __del__ only.
         self.participant.__del__()
         self._readers.clear()
         self._writers.clear()
 
 
-def _gid(guid: Any) -> idl.Gid:
-    return idl.Gid(data=list(guid.bytes))
+def _gid(guid: Any) -> dict[str, list[int]]:
+    return {"data": list(guid.bytes)}
 
 
 class _Reading(Listener):
-    """cmd_vel samples and unmatched writers, on Cyclone's listener thread; a failure costs only its sample."""
+    """Samples and unmatched writers, on Cyclone's listener thread; a failure costs only its sample."""
 
     def __init__(self, on_message: OnMessage, on_gone: OnGone, note: Note) -> None:
         super().__init__()
@@ -167,5 +164,5 @@ class _Reading(Listener):
 
 
 def _writer(handle: int) -> str:
-    """A DDS writer as this reader knows it: its instance handle, short enough to say."""
+    """A DDS writer as this reader knows it: its instance handle."""
     return f"{handle:x}"

@@ -1,44 +1,35 @@
-"""``hcrctl ros2``: the robot as a ROS 2 node, polled, published and driven under the governor.
+"""``hcrctl ros2``: the robot as a ROS 2 node, a front end of the served robot (``ServedRobot``).
 
-One serial link, polled like ``bridge`` and ``fleet serve`` (``Feed``); every
-reading it yields is converted to its ROS 2 messages and written on DDS
-(``Node``); ``/tf_static`` is written once, before the first reading.
-``cmd_vel`` is a source of the motion governor (``RosCmdVel``): one writer
-drives at a time, the deadman on the governor's clock, stop however it ends.
+Every reading the feed yields is converted to its ROS 2 messages
+(``ros2conv.Converter``, the conversion every CDR writer uses) and written on
+DDS (``Node``); the node's writers are made before the robot's port opens,
+and ``/tf_static`` (the layout's frames) is written once, transient local,
+so a late rviz2 still gets it. What has no standard type (the raw frames,
+the link counters, the positioning broadcasts, the map) is left to the
+Foxglove and fleet topics and to recordings.
 
-How it ends: Ctrl-C, SIGTERM or SIGHUP (a flag the loop reads), or a
-failure. The cmd_vel reader goes first, then the governor, then the final
-stop (``stopping_driven``), then the participant; the summary is given to
-``report`` however it ends.
+``cmd_vel`` is a source of the one motion governor (``RosCmdVel``): one
+writer drives at a time, the deadman on the governor's clock, stop however
+it ends; a ROS writer has no channel to be told why it was stopped, so the
+runtime's stderr line is the only word of it.
 """
 
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable
+import time
 from dataclasses import dataclass
 from typing import Any
 
-from ..feeds.bridge import Signalled
-from ..feeds.bridge_stop import stopping_driven
 from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
-from ..feeds.linkwatch import LinkWatch
 from ..feeds.progress import sweeps
-from ..feeds.source import Feed
-from ..fleet.serve import Notes
-from ..link.context import Connection, Reconnect
-from ..link.dialects import supported_sensors
-from ..link.signals import Terminated, stop_signals_handled
-from ..live.bumpers import bumper_rule
-from ..live.watch import quick_handoff
-from ..motion.governor import Governor
-from ..protocol import commands as C
-from ..protocol.profiles import profile
-from . import placeholder as conversion
+from ..protocol import ros2conv
+from ..protocol import ros2types as R
+from ..served.notes import Notes
+from ..served.runtime import FrontEnd, Report, ServedRobot
 from .drive import TOPIC, RosCmdVel
 from .node import Node
 
-Report = Callable[[dict[str, Any]], None]
 PREFIX = "hcrctl: ros2: "
 
 
@@ -54,98 +45,71 @@ class Options:
     stamped: bool = False
 
 
-def run_ros2(settings: Connection, options: Options, *, report: Report | None = None) -> dict[str, Any]:
+def run_ros2(settings: Any, options: Options, *, report: Report | None = None) -> dict[str, Any]:
     """Serve until a signal or a failure; the summary (also given to ``report``, however it ends)."""
-    signalled = Signalled()
     notes = Notes(sys.stderr, PREFIX)
-    node = Node(options.domain_id, options.namespace)
-    try:
-        with stop_signals_handled(signalled):
-            summary = _serve(settings, options, node, notes, signalled, report)
-    finally:
-        node.close()
-    if signalled.signum is not None:
-        raise Terminated(signalled.signum)
-    return summary
+    served = ServedRobot(settings, notes, rate=options.rate, deadman=options.deadman, silence=f"no {TOPIC}")
+    return served.run([Ros2Node(served, options, notes)], report=report)
 
 
-def _publisher(node: Node) -> Callable[[str, dict[str, Any], float], None]:
-    def publish(topic: str, message: dict[str, Any], at: float) -> None:
-        for name, ros_type, qos, fields in conversion.convert(topic, message, at):
-            node.publish(name, ros_type, qos, fields)
+class Ros2Node(FrontEnd):
+    """The served robot on DDS: readings out as ROS 2 messages, ``cmd_vel`` in as offers."""
 
-    return publish
+    name = "ROS 2 node"
 
+    def __init__(self, served: ServedRobot, options: Options, notes: Notes) -> None:
+        self.options = options
+        self.notes = notes
+        self.converter = ros2conv.Converter(ros2conv.current_layout(), served.topics)
+        #: The standard topics only: what has no standard type stays off DDS (see the module).
+        self.topics = [t for t in self.converter.topics if not t.type.startswith("hcrctl_msgs/")]
+        self._published = {t.name for t in self.topics}
+        self.cmd_vel = RosCmdVel(served.governor, notes.note)
+        self.node: Node | None = None
+        self.messages = 0
 
-def _serve(
-    settings: Connection,
-    options: Options,
-    node: Node,
-    notes: Notes,
-    signalled: Signalled,
-    report: Report | None,
-) -> dict[str, Any]:
-    """Poll, publish and drive until the end; stop goes out however it ends."""
-    names = supported_sensors(settings.protocol, [])
-    drives = profile(settings.protocol).has(C.BY_NAME["velocity"].code)
-    governor = Governor(C.Velocity, deadman=options.deadman, silence=f"no {TOPIC}")
-    cmd_vel = RosCmdVel(governor, notes.note)
-    governor.on_stop = lambda source, why: notes.note(f"stop: {why}")
-    node.publish("/tf_static", "tf2_msgs/msg/TFMessage", "static", conversion.static_transforms())
-    with settings.robot() as robot, quick_handoff():
-        feed = Feed(robot, names, options.rate, _publisher(node), reconnect=Reconnect(settings, robot))
-        governor.bumpers = bumper_rule(feed.state, options.rate)
-        try:
-            with feed, stopping_driven(feed, robot, lambda: governor.driven), governor:
-                feed.poller.first_sweep()  # the bumper rule has a reading before anyone may drive
-                watch = LinkWatch(feed, governor, notes.note, robot.port)
-                if drives:
-                    cmd_type = (
-                        "geometry_msgs/msg/TwistStamped" if options.stamped else "geometry_msgs/msg/Twist"
-                    )
-                    node.subscribe(TOPIC, cmd_type, cmd_vel.message, cmd_vel.gone, notes.note)
-                else:
-                    notes.note(
-                        f"this firmware ({robot.profile.name}) has no velocity command: {TOPIC} is off"
-                    )
-                notes.note(
-                    f"serving {robot.port} as ROS 2 node {node.fullname} on DDS domain {options.domain_id}; "
-                    "Ctrl-C ends it"
-                )
+    def open(self, served: ServedRobot) -> None:
+        """Join the DDS domain, make every writer and latch ``/tf_static``: before the port opens."""
+        self.node = node = Node(self.options.domain_id, self.options.namespace)
+        node.advertise(self.topics)
+        node.publish(ros2conv.TF_STATIC, self.converter.tf_static(time.time()))
 
-                def ended() -> bool:
-                    watch.check()
-                    return bool(signalled) or governor.error is not None
+    def publish(self, topic: str, message: dict[str, Any], at: float) -> None:
+        assert self.node is not None
+        for name, _, fields in self.converter.convert(topic, message):
+            if name in self._published and self.node.publish(name, fields):
+                self.messages += 1
 
-                try:
-                    feed.run(None, ended)
-                finally:
-                    signalled.closing = True
-                    node.unsubscribe()
-                if governor.error is not None:
-                    raise governor.error
-        finally:
-            cmd_vel.flush()
-            summary = _summary(feed, cmd_vel, governor.frames)
-            if report is not None:
-                report(summary)
-    return summary
+    def start(self, served: ServedRobot) -> str:
+        assert self.node is not None
+        if served.drives:
+            kind = R.TWIST_STAMPED if self.options.stamped else R.TWIST
+            topic = ros2conv.RosTopic(TOPIC, kind, ros2conv.CMD_VEL_QOS)
+            self.node.subscribe(topic, self.cmd_vel.message, self.cmd_vel.gone, self.notes.note)
+        return (
+            f"{served.robot.port} as ROS 2 node {self.node.fullname} on DDS domain {self.options.domain_id}"
+        )
 
+    def close(self) -> None:
+        if self.node is not None:
+            self.node.unsubscribe()
+        self.cmd_vel.flush()
 
-def _summary(feed: Feed, cmd_vel: RosCmdVel, drive_frames: int) -> dict[str, Any]:
-    summary = dict(feed.state.summary())
-    summary.update(
-        messages=feed.messages,
-        cmd_vel=cmd_vel.taken,
-        cmd_vel_refused=cmd_vel.refused,
-        drive_frames=drive_frames,
-    )
-    return summary
+    def finish(self) -> None:
+        if self.node is not None:
+            self.node.close()
+
+    def summary(self) -> dict[str, Any]:
+        return {
+            "ros2_messages": self.messages,
+            "cmd_vel": self.cmd_vel.taken,
+            "cmd_vel_refused": self.cmd_vel.refused,
+        }
 
 
 def summary_line(summary: dict[str, Any]) -> str:
     return (
-        f"ros2: {sweeps(summary)}, {summary['messages']} messages, "
+        f"ros2: {sweeps(summary)}, {summary['ros2_messages']} ROS 2 messages, "
         f"{summary['cmd_vel']} cmd_vel taken, {summary['cmd_vel_refused']} refused, "
         f"{summary['drive_frames']} drive frame(s)"
     )

@@ -16,8 +16,28 @@ not); the motion governor asks it on every offer and every turn of its clock.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Protocol
+
 from ..protocol import commands as C
-from .state import LiveState
+
+
+class Reading(Protocol):
+    """One sensor's last good value and its age (``live.state.Reading`` is one)."""
+
+    @property
+    def value(self) -> object: ...
+
+    def age(self, now: float) -> float | None: ...
+
+
+class Readings(Protocol):
+    """Where the bumper reading is kept, and its clock (a poller's ``Readings``)."""
+
+    clock: Callable[[], float]
+
+    def reading(self, name: str) -> Reading: ...
+
 
 #: A bumper reading older than this many sweeps no longer allows forward motion...
 FRESH_SWEEPS = 3
@@ -31,7 +51,7 @@ def freshness_bound(rate: float | None) -> float:
     return max(FRESH_SWEEPS / rate, MIN_FRESH_S) if rate else MIN_FRESH_S
 
 
-def forward_blocked(state: LiveState, bound: float) -> str:
+def forward_blocked(state: Readings, bound: float) -> str:
     """Why forward motion is not allowed now ("" when it is): a bumper pressed, or no fresh reading."""
     reading = state.reading(BUMP)
     age = reading.age(state.clock())
@@ -44,7 +64,7 @@ def forward_blocked(state: LiveState, bound: float) -> str:
     return ""
 
 
-def bumper_rule(state: LiveState, rate: float | None) -> BumperRule:
+def bumper_rule(state: Readings, rate: float | None) -> BumperRule:
     """The rule for a front end polling ``state`` at ``rate``: what its governor's ``bumpers`` calls."""
     return BumperRule(state, freshness_bound(rate))
 
@@ -52,7 +72,7 @@ def bumper_rule(state: LiveState, rate: float | None) -> BumperRule:
 class BumperRule:
     """``forward_blocked`` of one state at one bound, as a callable (the governor's ``bumpers``)."""
 
-    def __init__(self, state: LiveState, bound: float) -> None:
+    def __init__(self, state: Readings, bound: float) -> None:
         self.state = state
         self.bound = bound
 

@@ -1,0 +1,42 @@
+"""A server's stderr: one line per event, from any thread, each behind the server's prefix.
+
+Every server front end says what happens through one ``Notes``: a line is
+written whole under a lock, so two threads never interleave, and a stderr
+that is gone costs the server nothing (it serves on, unheard). ``Notes``
+with a redrawn status line on a terminal is ``feeds.bridge_status.Status``.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from typing import TextIO
+
+#: A status line for a terminal, made when it is redrawn.
+StatusLine = Callable[[], str]
+
+
+class Notes:
+    """``note(text)`` writes ``PREFIX text`` on its own line; safe from any thread."""
+
+    def __init__(self, stream: TextIO, prefix: str) -> None:
+        self.stream = stream
+        self.prefix = prefix
+        self._lock = threading.Lock()
+
+    def note(self, text: str) -> None:
+        self._write(f"{self.prefix}{text}\n")
+
+    def watch(self, line: StatusLine) -> None:
+        """A status line to redraw on a terminal: none here (only events are written)."""
+
+    def stop(self) -> None:
+        """No more status line (the server is closing); events may still be written."""
+
+    def _write(self, text: str) -> None:
+        with self._lock:
+            try:
+                self.stream.write(text)
+                self.stream.flush()
+            except (OSError, ValueError):
+                pass  # stderr gone: serving goes on

@@ -1,0 +1,266 @@
+"""``ServedRobot``: one robot served to the network, whatever front ends reach it.
+
+How a front end plugs in: subclass ``FrontEnd`` and override only what it
+needs, then hand it to ``ServedRobot.run``::
+
+    served = ServedRobot(settings, notes, rate=10.0, deadman=0.5, silence="no /cmd_vel")
+    node = MyNode(served.governor, notes)        # its sources offer to served.governor
+    summary = served.run([node], report=report)
+
+``run`` calls each front end, in order:
+
+- ``open(served)`` before the robot's port opens (bind a socket, join a
+  network): a failure there fails the run with nothing sent;
+- ``publish(topic, message, at)`` for every message the feed yields, from the
+  link's threads, one call at a time (the feed holds a lock);
+- ``start(served)`` after the first sweep (the bumper rule has a reading):
+  declare what clients may use; it returns its part of the one "serving ..."
+  line ("" for none);
+- ``stopped(source, why)`` on the governor's thread, for every stop but a new
+  offer: tell the sources it owns (``source.kind``) why they were stopped;
+  the stop itself is said on stderr once, by the runtime;
+- ``tick()`` each turn of the main loop;
+- ``close()`` once the loop is over and before the final stop: from then on
+  its sources offer nothing;
+- ``finish()`` last, however the run ended (a failure there is a note: the
+  robot is stopped by then);
+- ``summary()`` what it adds to the run's summary.
+
+The runtime owns the rest: the signals (a flag the loop reads; a second
+signal, or one once closing, raises ``Terminated``), the governor (the bumper
+rule, the stop listeners, the link watch as where it writes), the final stop
+to the robot driven then (``stopping_driven``), the governor's error, and the
+summary, handed to ``report`` however the run ends once the robot was open.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any
+
+from ..feeds.bridge_stop import stopping_driven
+from ..feeds.linkwatch import LinkWatch
+from ..feeds.source import Feed
+from ..feeds.untrusted import shown
+from ..link.context import Connection, Reconnect
+from ..link.dialects import supported_sensors
+from ..link.handoff import quick_handoff
+from ..link.rescue import warn
+from ..link.signals import Terminated, stop_signals_handled
+from ..motion.bumpers import bumper_rule
+from ..motion.governor import Governor, Source
+from ..protocol import commands as C
+from ..protocol.profiles import profile
+from ..protocol.topics import Topic, all_topics
+from .notes import Notes
+
+if TYPE_CHECKING:
+    from ..link.client import Robot
+
+Report = Callable[[dict[str, Any]], None]
+
+
+class Signalled:
+    """SIGTERM/SIGHUP as a flag: the loop ends and everything closes before the exit status says why.
+
+    Once the loop is over (``closing``), or at a second signal, one raises
+    ``Terminated`` as everywhere else, so a stop rescue waiting for a lost
+    port gives up on it as ``rescue`` promises.
+    """
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+        self.closing = False
+
+    def __call__(self, signum: int, frame: object) -> None:
+        if self.closing or self.signum is not None:
+            raise Terminated(signum)
+        self.signum = signum
+
+    def __bool__(self) -> bool:
+        return self.signum is not None
+
+
+def exposed(where: str, what: str = "can drive the robot") -> None:
+    """The one warning for a server reachable beyond this machine."""
+    warn(f"listening on {where}: anyone on the network who can reach it {what}")
+
+
+def ws_url(host: str, port: int) -> str:
+    """A WebSocket URL as a client types it: an IPv6 host in brackets."""
+    return f"ws://[{host}]:{port}" if ":" in host else f"ws://{host}:{port}"
+
+
+class FrontEnd:
+    """One way the served robot is reached; every hook does nothing unless overridden (see the module)."""
+
+    #: How it is named in a note about its own failure.
+    name = "front end"
+
+    def open(self, served: ServedRobot) -> None:
+        """Before the robot's port opens."""
+
+    def publish(self, topic: str, message: dict[str, Any], at: float) -> None:
+        """One message of the feed; ``at`` in seconds since the epoch."""
+
+    def start(self, served: ServedRobot) -> str:
+        """After the first sweep; its part of the "serving ..." line ("" for none)."""
+        return ""
+
+    def stopped(self, source: Source | None, why: str) -> None:
+        """Motion stopped: tell ``source`` if it is one of this front end's."""
+
+    def tick(self) -> None:
+        """A turn of the main loop."""
+
+    def close(self) -> None:
+        """The loop is over: no offer from this front end's sources after this."""
+
+    def finish(self) -> None:
+        """Last, however the run ended: release what ``open`` took."""
+
+    def summary(self) -> dict[str, Any]:
+        return {}
+
+
+class ServedRobot:
+    """The robot behind ``settings``, polled at ``rate`` and driven under one governor, for its front ends."""
+
+    def __init__(
+        self,
+        settings: Connection,
+        notes: Notes,
+        *,
+        rate: float | None,
+        deadman: float,
+        silence: str,
+        duration: float | None = None,
+        name: str = "the robot",
+    ) -> None:
+        self.settings = settings
+        self.notes = notes
+        self.rate = rate
+        self.duration = duration
+        self.governor = Governor(C.Velocity, deadman=deadman, silence=silence, robot=name)
+        self.signalled = Signalled()
+        self.sensors: list[str] = supported_sensors(settings.protocol, [])
+        #: Whether the firmware has the velocity command a Twist becomes.
+        self.drives = profile(settings.protocol).has(C.BY_NAME["velocity"].code)
+        self.topics: tuple[Topic, ...] = tuple(all_topics(Feed.counters))
+        self._feed: Feed | None = None
+        self._fronts: Sequence[FrontEnd] = ()
+
+    @property
+    def feed(self) -> Feed:
+        """The feed, from ``start`` on."""
+        assert self._feed is not None, "the feed exists once the robot's port is open"
+        return self._feed
+
+    @property
+    def robot(self) -> Robot:
+        """The robot polled now (after a reconnect, the new one; the first while the port is gone)."""
+        return self.feed.current or self.feed.robot
+
+    def run(self, fronts: Sequence[FrontEnd], *, report: Report | None = None) -> dict[str, Any]:
+        """Serve until the duration, a signal or a failure; the summary (also to ``report``, however it ends)."""
+        self._fronts = fronts
+        summary: dict[str, Any] = {}
+        opened: list[FrontEnd] = []
+        with stop_signals_handled(self.signalled):
+            try:
+                for front in fronts:
+                    front.open(self)
+                    opened.append(front)
+                    if self.signalled:
+                        raise Terminated(self.signalled.signum or 0)
+                self._serve()
+            finally:
+                try:
+                    for front in reversed(opened):
+                        self._quietly(f"closing the {front.name}", front.finish)
+                finally:  # the summary however it ends, even at a second signal during the closing
+                    if self._feed is not None:
+                        summary = self.summary()
+                        if report is not None:
+                            report(summary)
+        if self.signalled.signum is not None:
+            raise Terminated(self.signalled.signum)
+        return summary
+
+    def _serve(self) -> None:
+        """Poll and publish, drive when asked, until the end; stop goes out however it ends."""
+        governor = self.governor
+        with self.settings.robot() as robot, quick_handoff():
+            feed = self._feed = Feed(
+                robot, self.sensors, self.rate, self._publish, reconnect=Reconnect(self.settings, robot)
+            )
+            governor.attach(bumpers=bumper_rule(feed.state, self.rate), on_stop=self._said_stop)
+            for front in self._fronts:
+                governor.attach(on_stop=front.stopped)
+            try:
+                with feed, stopping_driven(feed, robot, lambda: governor.driven), governor:
+                    feed.poller.first_sweep()  # the bumper rule has a reading before anyone may drive
+                    self._started(robot)
+                    watch = LinkWatch(feed, governor, self.notes.note, robot.port)
+
+                    def ended() -> bool:
+                        watch.check()
+                        for front in self._fronts:
+                            front.tick()
+                        return bool(self.signalled) or governor.error is not None
+
+                    try:
+                        feed.run(self.duration, ended)
+                    finally:
+                        self.signalled.closing = True
+                        for front in self._fronts:
+                            self._quietly(f"closing the {front.name}", front.close)
+                    if governor.error is not None:
+                        raise governor.error
+            finally:
+                self.notes.stop()
+
+    def _started(self, robot: Robot) -> None:
+        parts = [part for part in (front.start(self) for front in self._fronts) if part]
+        self.notes.note(f"serving {'; '.join(parts)}; Ctrl-C ends it")
+        if not self.drives:
+            self.notes.note(f"this firmware ({robot.profile.name}) has no velocity command: nobody can drive")
+
+    def _publish(self, topic: str, message: dict[str, Any], at: float) -> None:
+        for front in self._fronts:
+            front.publish(topic, message, at)
+
+    def _said_stop(self, source: Source | None, why: str) -> None:
+        self.notes.note(f"stopped: {shown(why, 120)}")
+
+    def _quietly(self, what: str, step: Callable[[], None]) -> None:
+        """A step of the closing: a failure is a note (stop has gone out, or goes out regardless)."""
+        try:
+            step()
+        except Exception as exc:
+            self.notes.note(f"{what} failed (ignored): {exc!r}")
+
+    def summary(self) -> dict[str, Any]:
+        """The feed's summary (sweeps, sweeps_per_s...), the messages and drive frames, and each front end's."""
+        feed = self.feed
+        summary = dict(feed.state.summary())
+        summary.update(messages=feed.messages, drive_frames=self.governor.frames)
+        for front in self._fronts:
+            summary.update(front.summary())
+        return summary
+
+
+def status_line(served: ServedRobot, clients: Callable[[], int]) -> Callable[[], str]:
+    """A terminal's status line: clients, messages a second, who drives."""
+    last = [time.monotonic(), 0]
+
+    def line() -> str:
+        now, messages = time.monotonic(), served.feed.messages
+        rate = (messages - last[1]) / max(now - float(last[0]), 1e-9)
+        last[:] = [now, messages]
+        driver = served.governor.driver
+        who = f"{driver} driving" if driver else "not driving"
+        return f"{clients()} client(s) · {rate:,.0f} messages/s · {messages:,} sent · {who}"
+
+    return line
