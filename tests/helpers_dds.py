@@ -36,6 +36,8 @@ typesys = pytest.importorskip("rosbags.typesys", reason="rosbags (the Jazzy type
 Nodetype = pytest.importorskip("rosbags.interfaces").Nodetype
 
 STORE = typesys.get_typestore(typesys.Stores.ROS2_JAZZY)
+#: The longest string either side sends here (frame ids, joint names, a namespace).
+STRING_BOUND = 256
 BASE = {"char": "uint8", "byte": "uint8", "bool": "boolean", "octet": "uint8"}
 SENSOR_QOS = "<reliability><kind>BEST_EFFORT_RELIABILITY_QOS</kind></reliability>"
 LATCHED_QOS = (
@@ -48,6 +50,10 @@ COMMAND_QOS = (
 )
 
 
+#: rmw's discovery topic: a DDS topic of its own, outside the ROS names.
+RMW_TOPICS = {"ros_discovery_info"}
+
+
 @dataclass(frozen=True)
 class Place:
     """Where one test's node lives: its DDS domain and ROS namespace, both its own."""
@@ -56,6 +62,9 @@ class Place:
     namespace: str
 
     def topic(self, name: str) -> str:
+        """The DDS topic of a ROS one (rmw's own topics carry no ``rt/``)."""
+        if name in RMW_TOPICS:
+            return name
         return "rt" + (name if name.startswith("/") else f"{self.namespace}/{name}")
 
 
@@ -77,8 +86,8 @@ def _element(node: Any, arg: Any) -> str:
     if node == Nodetype.NAME:
         return f'type="nonBasic" nonBasicTypeName="{dds_type(arg)}"'
     name, bound = arg
-    if name == "string":
-        return f'type="string" stringMaxLength="{bound or -1}"'
+    if name == "string":  # bounded: an RTI writer preallocates its samples (bounds are no part of the CDR)
+        return f'type="string" stringMaxLength="{bound or STRING_BOUND}"'
     return f'type="{BASE.get(name, name)}"'
 
 
@@ -191,9 +200,14 @@ def ros_side(
         yield RosSide(connector)
 
 
-def number(sample: Any, field: str) -> float:
-    """A float field as sent (the Connector's dictionaries spell -inf as "Infinity": the sign is lost)."""
-    return float(sample.get_number(field))
+def as_dict(sample: Any) -> dict[str, Any]:
+    """A sample as nested dicts and lists, each infinity with its sign (the Connector's dictionaries spell
+    -inf as "Infinity": the sign is read again with ``get_number``)."""
+    values = dict(sample.get_dictionary())
+    for key, value in values.items():
+        if value in ("Infinity", "-Infinity", "NaN"):
+            values[key] = float(sample.get_number(key))
+    return values
 
 
 # -- the node -------------------------------------------------------------------------------------------

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
 from pathlib import Path
 
 import pytest
-from helpers import wait_until
+from helpers import checkout_extra, clean_env, hcrctl_exe, wait_until
 from helpers_cli import sim_pty
-from helpers_dds import LATCHED_QOS, SENSOR_QOS, place, ros2_node, ros_side
+from helpers_dds import LATCHED_QOS, SENSOR_QOS, as_dict, place, ros2_node, ros_side
 from helpers_fleet_robot import VELOCITY, is_stop
+from helpers_ros2 import expected, mismatches
 
 from hcrctl.motion.governor import RESEND
 from hcrctl.protocol import commands as C
@@ -20,10 +22,6 @@ QUIET = ("--options", "noise=0&broadcast_hz=0&map_hz=0")
 
 
 def read_json(port: str, env: dict[str, str]) -> dict[str, object]:
-    import subprocess
-
-    from helpers import hcrctl_exe
-
     done = subprocess.run(
         [hcrctl_exe(), "--port", port, "--json", "read"], env=env, capture_output=True, text=True, check=True
     )
@@ -40,18 +38,45 @@ def velocities(node: object) -> list[tuple[float, tuple[int, int]]]:
     return found
 
 
-def test_each_sonar_is_a_range_in_metres_as_read_says(env: dict[str, str], tmp_path: Path) -> None:
+#: The ROS type of each topic a reading becomes (docs/ros2.md's table).
+TYPES = {
+    "range/": "sensor_msgs/msg/Range",
+    "imu": "sensor_msgs/msg/Imu",
+    "temperature": "sensor_msgs/msg/Temperature",
+    "humidity": "sensor_msgs/msg/RelativeHumidity",
+    "joint_states": "sensor_msgs/msg/JointState",
+}
+
+
+def ros_type(topic: str) -> str:
+    return next(kind for prefix, kind in TYPES.items() if topic.startswith(prefix))
+
+
+def test_each_topic_holds_what_read_says_converted(env: dict[str, str], tmp_path: Path) -> None:
+    """The simulator's readings stand still (noise off) but for temperature and humidity, which always
+    jitter: each topic must carry read's value converted in some message, not necessarily the first."""
     here = place()
     with sim_pty(env, *QUIET) as port:
         read = read_json(port, env)
-        sonar = read["sonar"]
-        assert isinstance(sonar, list)
-        readers = {f"range/sonar_{i}": ("sensor_msgs/msg/Range", SENSOR_QOS) for i in range(len(sonar))}
+        wanted: dict[str, dict[str, object]] = {}
+        for name in ("sonar", "ir", "bump", "compass", "wheels", "env"):
+            fields = {"bump": read["bump"]} if name == "bump" else read
+            wanted.update(expected(name, fields))
+        assert len(wanted) == 3 + 5 + 3 + 4, sorted(wanted)
+        readers = {topic: (ros_type(topic), SENSOR_QOS) for topic in wanted}
         with ros_side(here, tmp_path, readers) as ros, ros2_node(port, here, env):
-            for i, cm in enumerate(sonar):
-                sample = ros.wait_sample(f"range/sonar_{i}")
-                assert sample["header.frame_id"] == f"sonar_{i}"
-                assert math.isclose(sample.get_number("range"), cm / 100, rel_tol=1e-6)
+            for topic, want in wanted.items():
+                last: list[list[str]] = [[]]
+
+                def agrees(topic: str = topic, want: dict[str, object] = want) -> bool:
+                    found = [mismatches(topic, as_dict(sample), want) for sample in ros.take(topic)]
+                    last[0] = next((m for m in reversed(found) if m), last[0])
+                    return any(not m for m in found)
+
+                try:
+                    wait_until(agrees, what=f"{topic} as read says")
+                except AssertionError:
+                    raise AssertionError(f"{topic} never as read says; last: {last[0]}") from None
 
 
 def test_a_twist_drives_and_the_deadman_stops_within_its_repeats(env: dict[str, str], tmp_path: Path) -> None:
@@ -117,18 +142,34 @@ def test_a_twist_no_one_meant_moves_nothing_and_the_node_lives_on(
     assert summary["cmd_vel_refused"] >= 1 and summary["cmd_vel"] >= 1
 
 
-def test_tf_static_reaches_a_late_reader_and_the_node_is_announced(
-    env: dict[str, str], tmp_path: Path
-) -> None:
+def test_tf_static_and_the_node_reach_a_late_reader(env: dict[str, str], tmp_path: Path) -> None:
+    """Both are transient local: a reader that joins after the node started still gets them."""
     here = place()
     readers = {
         "/tf_static": ("tf2_msgs/msg/TFMessage", LATCHED_QOS),
+        "ros_discovery_info": ("rmw_dds_common/msg/ParticipantEntitiesInfo", LATCHED_QOS),
     }
-    with sim_pty(env, *QUIET) as port, ros2_node(port, here, env) as node:
-        node.wait_err("serving ")
-        with ros_side(here, tmp_path, readers) as ros:
-            sample = ros.wait_sample("/tf_static")
-            assert sample is not None
+    with sim_pty(env, *QUIET) as port, ros2_node(port, here, env), ros_side(here, tmp_path, readers) as ros:
+        tf = ros.wait_sample("/tf_static").get_dictionary()
+        parents = {t["header"]["frame_id"] for t in tf["transforms"]}
+        children = {t["child_frame_id"] for t in tf["transforms"]}
+        sensors = (
+            {f"sonar_{i}" for i in range(3)}
+            | {f"ir_{i}" for i in range(5)}
+            | {f"bumper_{i}" for i in range(3)}
+        )
+        assert parents == {"base_link"} and children == sensors | {"imu_link"}
+
+        def announced() -> dict[str, object] | None:
+            for sample in ros.take("ros_discovery_info"):
+                for node in sample.get_dictionary()["node_entities_info_seq"]:
+                    if node["node_namespace"] == here.namespace:
+                        return dict(node)
+            return None
+
+        node = wait_until(announced, what="the node on ros_discovery_info")
+        assert node["node_name"] == "hcrctl"
+        assert len(node["writer_gid_seq"]) >= 1 + 3 + 5 + 3 + 4 and len(node["reader_gid_seq"]) == 1
 
 
 @pytest.mark.parametrize(
@@ -142,13 +183,42 @@ def test_tf_static_reaches_a_late_reader_and_the_node_is_announced(
     ],
 )
 def test_usage_errors_exit_2_in_one_line(env: dict[str, str], args: list[str], names: str) -> None:
-    import subprocess
-
-    from helpers import hcrctl_exe
-
     done = subprocess.run(
         [hcrctl_exe(), "--port", "sim://", "ros2", *args], env=env, capture_output=True, text=True, timeout=30
     )
     assert done.returncode == 2, done.stderr
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and names in lines[0], lines
+
+
+def test_with_stamped_cmd_vel_is_a_twist_stamped(env: dict[str, str], tmp_path: Path) -> None:
+    """teleop_twist_keyboard's ``stamped:=true`` (and Nav2 from Kilted) publish TwistStamped."""
+    here, log = place(), tmp_path / "wire.jsonl"
+    with (
+        sim_pty(env, *QUIET) as port,
+        ros_side(here, tmp_path, {}, {"cmd_vel": "geometry_msgs/msg/TwistStamped"}) as ros,
+        ros2_node(port, here, env, "--stamped", log=log) as node,
+    ):
+
+        def moving() -> bool:
+            ros.write("cmd_vel", {"twist.angular.z": 1.0})
+            return bool(velocities(node))
+
+        wait_until(moving, what="a velocity frame from a TwistStamped")
+        assert {w for _, w in velocities(node)} == {(-12, 12)}
+
+
+def test_without_cyclonedds_one_line_names_the_extra(tmp_path: Path) -> None:
+    """A ``cyclonedds`` that cannot be found (a package that says so on import) stands for the extra missing."""
+    shadow = tmp_path / "shadow" / "cyclonedds"
+    shadow.mkdir(parents=True)
+    (shadow / "__init__.py").write_text(
+        "raise ModuleNotFoundError(\"No module named 'cyclonedds'\", name='cyclonedds')\n"
+    )
+    env = clean_env(tmp_path, PYTHONPATH=str(shadow.parent))
+    done = subprocess.run(
+        [hcrctl_exe(), "--port", "sim://", "ros2"], env=env, capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == 1 and done.stdout == ""
+    (line,) = done.stderr.splitlines()
+    assert "hcrctl ros2 needs the cyclonedds package" in line and checkout_extra("ros2") in line, line
