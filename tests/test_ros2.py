@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from helpers import checkout_extra, clean_env, hcrctl_exe, wait_until
 from helpers_cli import sim_pty
-from helpers_dds import LATCHED_QOS, SENSOR_QOS, as_dict, place, ros2_node, ros_side
+from helpers_dds import LATCHED_QOS, SENSOR_QOS, RosSide, as_dict, place, ros2_node, ros_side
 from helpers_fleet_robot import VELOCITY, is_stop
 from helpers_ros2 import expected, mismatches
 
@@ -52,6 +52,21 @@ def ros_type(topic: str) -> str:
     return next(kind for prefix, kind in TYPES.items() if topic.startswith(prefix))
 
 
+def wait_agreeing(ros: RosSide, topic: str, want: dict[str, object]) -> None:
+    """Until a message on ``topic`` holds ``want`` (helpers_ros2's rules); fails naming the last difference."""
+    last: list[str] = []
+
+    def agrees() -> bool:
+        found = [mismatches(topic, as_dict(sample), want) for sample in ros.take(topic)]
+        last[:] = next((m for m in reversed(found) if m), last)
+        return any(not m for m in found)
+
+    try:
+        wait_until(agrees, what=f"{topic} as read says")
+    except AssertionError:
+        raise AssertionError(f"{topic} never as read says; last: {last}") from None
+
+
 def test_each_topic_holds_what_read_says_converted(env: dict[str, str], tmp_path: Path) -> None:
     """The simulator's readings stand still (noise off) but for temperature and humidity, which always
     jitter: each topic must carry read's value converted in some message, not necessarily the first."""
@@ -66,17 +81,7 @@ def test_each_topic_holds_what_read_says_converted(env: dict[str, str], tmp_path
         readers = {topic: (ros_type(topic), SENSOR_QOS) for topic in wanted}
         with ros_side(here, tmp_path, readers) as ros, ros2_node(port, here, env):
             for topic, want in wanted.items():
-                last: list[list[str]] = [[]]
-
-                def agrees(topic: str = topic, want: dict[str, object] = want) -> bool:
-                    found = [mismatches(topic, as_dict(sample), want) for sample in ros.take(topic)]
-                    last[0] = next((m for m in reversed(found) if m), last[0])
-                    return any(not m for m in found)
-
-                try:
-                    wait_until(agrees, what=f"{topic} as read says")
-                except AssertionError:
-                    raise AssertionError(f"{topic} never as read says; last: {last[0]}") from None
+                wait_agreeing(ros, topic, want)
 
 
 def test_a_twist_drives_and_the_deadman_stops_within_its_repeats(env: dict[str, str], tmp_path: Path) -> None:
