@@ -23,6 +23,7 @@ It prints the figures, writes ``bench/results/bench_ros2.json`` and exits 1 if a
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import random
 import statistics
@@ -68,6 +69,11 @@ def place() -> tuple[int, str]:
 # -- 1. Twist to motion ---------------------------------------------------------------------------
 
 
+def written(log: Path, start: int, frame: bytes) -> float | None:
+    """When ``frame`` was written at or after the log's ``start``-th frame, if it was."""
+    return next((t for t, data in wire(log)[start:] if data == frame), None)
+
+
 def to_motion(rounds: int, tmp: Path) -> dict[str, Any]:
     domain, namespace = place()
     log = tmp / "ros2.jsonl"
@@ -85,7 +91,7 @@ def to_motion(rounds: int, tmp: Path) -> dict[str, Any]:
             start = len(wire(log))
             sent = time.time()
             writer.write(idl.build(R.TWIST, {"linear": {"x": speed / 100}}))
-            at = wait_for(lambda: next((t for t, d in wire(log)[start:] if d == frame), None), what="motion")
+            at = wait_for(functools.partial(written, log, start, frame), what="motion")
             if k:  # the first round pays for the first match
                 delays.append((at - sent) * 1e3)
             time.sleep(0.05)
