@@ -128,7 +128,10 @@ def bridge(
 
 
 class Viewer:
-    """A Foxglove WebSocket client: serverInfo and advertise read on connect."""
+    """A Foxglove WebSocket client: serverInfo and advertise read on connect (every channel of ``TOPICS``)."""
+
+    #: The channels the bridge advertises (JSON: the topics themselves).
+    TOPICS: dict[str, Any] = TOPICS
 
     def __init__(self, port: int, subprotocols: list[str] | None = None, **options: Any) -> None:
         self._open = ExitStack()
@@ -138,7 +141,7 @@ class Viewer:
         )
         self.info = self.control("serverInfo")
         self.channels: dict[str, dict[str, Any]] = {}
-        while set(self.channels) != set(TOPICS):
+        while set(self.channels) != set(self.TOPICS):
             self.channels.update((c["topic"], c) for c in self.control("advertise")["channels"])
 
     def control(self, op: str) -> dict[str, Any]:

@@ -1,11 +1,12 @@
-"""``hcrctl bridge --encoding cdr``: every topic as a ROS 2 message, read back by an independent decoder.
+"""``hcrctl bridge --encoding cdr``: the robot as ROS 2 Jazzy topics, read back by an independent decoder.
 
 PlotJuggler's Foxglove bridge client subscribes only to channels with message
 encoding ``cdr`` and schema encoding ``ros2msg``. What the installed bridge
 serves (and records with ``--mcap``) is decoded here by ``mcap_ros2``, the
 MCAP project's ROS 2 message parser and CDR reader, not by hcrctl: its
-definitions must parse and its bytes must decode to the values the JSON mode
-publishes for the same frames.
+definitions must parse and its bytes must decode to what the JSON mode
+publishes for the same frames, converted by docs/ros2.md's rules
+(``helpers_ros2.expected``).
 """
 
 from __future__ import annotations
@@ -19,18 +20,42 @@ from typing import Any
 
 import pytest
 from helpers import TIMEOUT, hcrctl_exe
+from helpers_ros2 import expected, mismatches, qos_of
 from mcap_ros2._dynamic import generate_dynamic
 from test_bridge import TOPICS, Viewer, bridge
 
 from hcrctl.feeds.source import Feed
-from hcrctl.protocol import commands as C
 from hcrctl.protocol import ros2msg
 from hcrctl.protocol import topics as T
 from hcrctl.protocol.decoder import FrameDecoder
 from hcrctl.protocol.frames import ChecksumRule
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
-READINGS = ("/hcr/compass", "/hcr/wheels", "/hcr/sonar", "/hcr/bump", "/hcr/env")
+#: The simulated robot's ROS topics by their type: what docs/ros2.md's table lists for it.
+ROS_TOPICS = {
+    **{
+        f"/range/{kind}_{i}": "sensor_msgs/msg/Range"
+        for kind, n in (("sonar", 3), ("ir", 5), ("bumper", 3))
+        for i in range(n)
+    },
+    "/imu": "sensor_msgs/msg/Imu",
+    "/joint_states": "sensor_msgs/msg/JointState",
+    "/temperature": "sensor_msgs/msg/Temperature",
+    "/humidity": "sensor_msgs/msg/RelativeHumidity",
+    "/tf_static": "tf2_msgs/msg/TFMessage",
+    "/hcrctl/frames": "hcrctl_msgs/msg/Frame",
+    "/hcrctl/link": "hcrctl_msgs/msg/Link",
+    "/hcrctl/position": "hcrctl_msgs/msg/Position",
+    "/hcrctl/map": "hcrctl_msgs/msg/Map",
+}
+#: A reading's ROS topics, and the hcrctl reading each comes from.
+READINGS = {
+    "/imu": "compass",
+    "/joint_states": "wheels",
+    "/range/sonar_1": "sonar",
+    "/range/bumper_0": "bump",
+    "/temperature": "env",
+}
 
 
 def plain(value: Any) -> Any:
@@ -43,7 +68,9 @@ def plain(value: Any) -> Any:
 
 
 class CdrViewer(Viewer):
-    """A viewer that decodes each channel's CDR with the decoder its advertised definition makes."""
+    """A viewer of the ROS 2 channels that decodes each one's CDR with the decoder its advertised definition makes."""
+
+    TOPICS = ROS_TOPICS
 
     def decoders(self) -> dict[str, Any]:
         out = {}
@@ -69,79 +96,105 @@ def subscribe_all(client: CdrViewer, names: tuple[str, ...]) -> dict[int, str]:
     return subs
 
 
-def test_cdr_channels_carry_ros2msg_definitions_that_an_independent_parser_reads(env: dict[str, str]) -> None:
-    with bridge("sim://", "--encoding", "cdr", env=env) as running:
-        client = CdrViewer(running.port)
-        try:
-            assert client.info["supportedEncodings"] == ["json"]  # what /cmd_vel is still published in
-            for channel in client.channels.values():
-                assert (channel["encoding"], channel["schemaEncoding"]) == ("cdr", "ros2msg")
-                assert channel["schemaName"].startswith("hcr/msg/")
-            decoders = client.decoders()  # every definition parses
-            schema = {name: client.channels[name]["schema"] for name in TOPICS}
-            subs = subscribe_all(client, (*READINGS, T.LINK))
-            seen: dict[str, dict[str, Any]] = {}
-            while len(seen) < len(subs):
-                sub, log_time, payload = client.raw()
-                assert payload[:4] == b"\x00\x01\x00\x00"  # CDR, little-endian
-                message = plain(decoders[subs[sub]](payload))
-                assert log_time == pytest.approx(message["time"] * 1e9, abs=1e3)
-                seen[subs[sub]] = message
-        finally:
-            client.close()
-        code, _ = running.finish()
-    assert code == 0
-    assert schema["/hcr/compass"] == "float64 time\nuint8 address\nfloat64 heading"
-    assert schema["/hcr/wheels"] == "float64 time\nuint8 address\nuint8 left\nuint8 right"
-    assert schema["/hcr/env"] == "float64 time\nuint8 address\nuint8 humidity\nint8 temperature"
-    assert "uint8[] sonar" in schema["/hcr/sonar"].splitlines()
-    assert "bool front" in schema["/hcr/bump"].splitlines()
-    assert schema[T.LINK].splitlines() == ["float64 time", *(f"uint64 {name}" for name in Feed.counters)]
-    frames = schema[T.FRAMES].splitlines()
-    assert frames[:3] == ["float64 time", "string direction", "string hex"] and frames[-1] == "string json"
-    for name, message in seen.items():
-        assert list(message) == list(TOPICS[name].schema["properties"]), name
-    assert all(seen[name]["address"] == 1 for name in READINGS)
-    assert 0 <= seen["/hcr/compass"]["heading"] <= 359.9
-    assert all(0 <= seen["/hcr/wheels"][side] <= 255 for side in ("left", "right"))
-    assert 1 <= len(seen["/hcr/sonar"]["sonar"]) <= 8
-    assert seen[T.LINK]["tx_frames"] > 0
+def stamp_of(message: dict[str, Any]) -> float:
+    stamp = message["header"]["stamp"] if "header" in message else message["stamp"]
+    return float(stamp["sec"] + stamp["nanosec"] / 1e9)
 
 
-def json_mode(frame: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
-    """What the JSON mode publishes for the frame a /hcr/frames message shows: the same builder, fed its bytes."""
-    data = bytes.fromhex(frame["hex"])
-    (event,) = FrameDecoder().feed(data)
-    rule = ChecksumRule(json.loads(frame["json"])["rule"])
-    return T.messages(frame["time"], frame["direction"], data, event, rule)
-
-
-def test_cdr_messages_hold_the_values_the_json_mode_publishes_for_the_same_frames(
+def test_cdr_channels_are_the_ros2_topics_with_definitions_an_independent_parser_reads(
     env: dict[str, str],
 ) -> None:
     with bridge("sim://", "--encoding", "cdr", env=env) as running:
         client = CdrViewer(running.port)
         try:
+            assert client.info["supportedEncodings"] == ["json"]  # what /cmd_vel is still published in
+            assert {name: c["schemaName"] for name, c in client.channels.items()} == ROS_TOPICS
+            for channel in client.channels.values():
+                assert (channel["encoding"], channel["schemaEncoding"]) == ("cdr", "ros2msg")
+            decoders = client.decoders()  # every definition parses
+            schema = {name: client.channels[name]["schema"] for name in ROS_TOPICS}
+            subs = subscribe_all(client, (*READINGS, "/hcrctl/link", "/tf_static"))
+            seen: dict[str, dict[str, Any]] = {}
+            while len(seen) < len(subs):
+                sub, log_time, payload = client.raw()
+                assert payload[:4] == b"\x00\x01\x00\x00"  # CDR, little-endian
+                message = plain(decoders[subs[sub]](payload))
+                if subs[sub] != "/tf_static":
+                    assert log_time == pytest.approx(stamp_of(message) * 1e9, abs=1e3)
+                seen[subs[sub]] = message
+        finally:
+            client.close()
+        code, _ = running.finish()
+    assert code == 0
+    assert "float32 variance" in schema["/range/sonar_0"].splitlines()  # Jazzy's Range
+    assert schema["/imu"].splitlines()[:3] == [
+        "std_msgs/Header header",
+        "geometry_msgs/Quaternion orientation",
+        "float64[9] orientation_covariance",
+    ]
+    link = schema["/hcrctl/link"].split("\n=")[0].splitlines()  # its own fields, before the types it uses
+    assert link == ["builtin_interfaces/Time stamp", *(f"uint64 {n}" for n in Feed.counters)]
+    frames = schema["/hcrctl/frames"].splitlines()
+    assert frames[:3] == ["builtin_interfaces/Time stamp", "string direction", "string hex"]
+    assert frames[-1] == "string json" or "string json" in frames
+    # /tf_static was published as the bridge started, before this client came: latched, it still arrived
+    assert {t["child_frame_id"] for t in seen["/tf_static"]["transforms"]} >= {
+        "sonar_1",
+        "bumper_0",
+        "imu_link",
+    }
+    assert seen["/hcrctl/link"]["tx_frames"] > 0
+    assert seen["/joint_states"]["name"] == ["left_wheel_joint", "right_wheel_joint"]
+
+
+def json_mode(frame: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
+    """What the JSON mode publishes for the frame a /hcrctl/frames message shows: the same builder, fed its bytes."""
+    data = bytes.fromhex(frame["hex"])
+    (event,) = FrameDecoder().feed(data)
+    rule = ChecksumRule(json.loads(frame["json"])["rule"])
+    return T.messages(stamp_of(frame), frame["direction"], data, event, rule)
+
+
+def read_shape(name: str, message: dict[str, Any]) -> dict[str, Any]:
+    """A JSON-mode reading as ``read --json`` holds it (the bumpers and wheels as lists)."""
+    if name == "bump":
+        return {"bump": [message["left"], message["front"], message["right"]]}
+    if name == "wheels":
+        return {"wheels": [message["left"], message["right"]]}
+    return message
+
+
+def test_cdr_messages_hold_the_json_modes_readings_converted(env: dict[str, str]) -> None:
+    with bridge("sim://", "--encoding", "cdr", env=env) as running:
+        client = CdrViewer(running.port)
+        try:
             decoders = client.decoders()
-            subs = subscribe_all(client, (T.FRAMES, *READINGS))
+            subs = subscribe_all(client, ("/hcrctl/frames", *READINGS))
             frames: dict[float, list[dict[str, Any]]] = {}  # frames read in one chunk share a time
             readings: list[tuple[str, dict[str, Any]]] = []
             matched: set[str] = set()
             while matched != set(READINGS):
                 sub, _, payload = client.raw()
                 message = plain(decoders[subs[sub]](payload))
-                if subs[sub] == T.FRAMES:
-                    frames.setdefault(message["time"], []).append(message)
+                if subs[sub] == "/hcrctl/frames":
+                    frames.setdefault(stamp_of(message), []).append(message)
                 else:
                     readings.append((subs[sub], message))
-                for name, reading in readings:
+                for topic, reading in readings:
+                    name = READINGS[topic]
                     same = [
-                        dict(json_mode(f)) for f in frames.get(reading["time"], []) if f["direction"] == "rx"
+                        dict(json_mode(f))
+                        for f in frames.get(stamp_of(reading), [])
+                        if f["direction"] == "rx"
                     ]
-                    published = [p[name] for p in same if name in p]
+                    published = [p[T.PREFIX + name] for p in same if T.PREFIX + name in p]
                     if published:
-                        assert reading in published, (name, reading, published)
-                        matched.add(name)
+                        wants = [expected(name, read_shape(name, p))[topic.lstrip("/")] for p in published]
+                        assert any(mismatches(topic.lstrip("/"), reading, w) == [] for w in wants), (
+                            topic,
+                            reading,
+                        )
+                        matched.add(topic)
         finally:
             client.close()
         running.finish()
@@ -149,7 +202,9 @@ def test_cdr_messages_hold_the_values_the_json_mode_publishes_for_the_same_frame
         published = dict(json_mode(frame))[T.FRAMES]
         rest = json.loads(frame.pop("json"))
         for key, value in published.items():
-            if key in frame:
+            if key == "time":
+                assert value == stamp_of(frame)
+            elif key in frame:
                 assert frame[key] == ("" if value is None else value), key
             else:
                 assert rest[key] == value, key
@@ -170,6 +225,7 @@ def test_the_mcap_recording_is_cdr_that_the_ros2_decoder_factory_reads(
     assert result.returncode == 0, result.stderr
     with out.open("rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        assert reader.get_header().profile == "ros2"
         summary = reader.get_summary()
         assert summary is not None
         for channel in summary.channels.values():
@@ -177,16 +233,19 @@ def test_the_mcap_recording_is_cdr_that_the_ros2_decoder_factory_reads(
                 "cdr",
                 "ros2msg",
             )
+            (qos,) = qos_of(channel.metadata["offered_qos_profiles"])
+            assert qos["reliability"] == ("reliable" if channel.topic == "/tf_static" else "best_effort")
         decoded: dict[str, list[dict[str, Any]]] = {}
         for _, channel, message, ros in reader.iter_decoded_messages():
             decoded.setdefault(channel.topic, []).append(plain(ros))
-            assert message.log_time == pytest.approx(plain(ros)["time"] * 1e9, abs=1e3)
-    polled = {f"/hcr/{name}" for name in C.SENSORS} | {T.FRAMES, T.LINK}
-    assert polled <= set(decoded) <= set(TOPICS)
-    headings = [m["heading"] for m in decoded["/hcr/compass"]]
-    assert headings and all(0 <= h <= 359.9 for h in headings)
-    assert {m["address"] for m in decoded["/hcr/wheels"]} == {1}
-    assert {m["direction"] for m in decoded[T.FRAMES]} == {"tx", "rx"}
+            if channel.topic != "/tf_static":  # stamped at the start, written at the first message's time
+                assert message.log_time == pytest.approx(stamp_of(plain(ros)) * 1e9, abs=1e3)
+    assert set(ROS_TOPICS) - {"/hcrctl/map", "/hcrctl/position"} <= set(decoded) <= set(ROS_TOPICS)
+    assert len(decoded["/tf_static"]) == 1
+    yaws = [m["orientation"]["z"] for m in decoded["/imu"]]
+    assert yaws and all(-1 <= z <= 1 for z in yaws)
+    assert {m["header"]["frame_id"] for m in decoded["/joint_states"]} == {"base_link"}
+    assert {m["direction"] for m in decoded["/hcrctl/frames"]} == {"tx", "rx"}
 
 
 def test_a_named_field_of_a_many_field_reply_becomes_a_nested_type() -> None:
@@ -201,24 +260,26 @@ def test_a_named_field_of_a_many_field_reply_becomes_a_nested_type() -> None:
         },
     }
     schema["required"] = list(schema["properties"])
-    topic = T.Topic("/hcr/drive_state", "hcr.drive_state", schema)
-    text = ros2msg.definition(topic)
+    name = ros2msg.from_schema(ros2msg.type_name("hcr.drive_state"), schema).name
+    assert name == "hcrctl_msgs/msg/DriveState"
+    text = ros2msg.definition(name)
     assert text.splitlines()[:5] == [
-        "float64 time",
+        "builtin_interfaces/Time stamp",
         "uint8 address",
-        "hcr/DriveStateWheels wheels",
+        "hcrctl_msgs/DriveStateWheels wheels",
         "int16 mode",
         "float64[] samples",
     ]
     message = {
-        "time": 3.25,
+        "stamp": {"sec": 3, "nanosec": 250_000_000},
         "address": 2,
         "wheels": {"left": 7, "right": 9},
         "mode": -2,
         "samples": [0.5, 1.5],
     }
-    decode = generate_dynamic(ros2msg.schema_name(topic), text)[ros2msg.schema_name(topic)]
-    assert plain(decode(ros2msg.encoder(topic)(message))) == message
+    decode = generate_dynamic(name, text)[name]
+    assert plain(decode(ros2msg.encoder(name)(message))) == message
+    assert ros2msg.decoder(name)(ros2msg.encoder(name)(message)) == message
 
 
 def test_the_cdr_sink_records_a_message_or_the_bytes_served_and_the_decoder_factory_reads_both(
@@ -226,20 +287,31 @@ def test_the_cdr_sink_records_a_message_or_the_bytes_served_and_the_decoder_fact
 ) -> None:
     """``McapSink(encoding="cdr")``, which ``bridge --encoding cdr --mcap`` records with: its own encoding
     of a message (``write``, as ``record`` hands them) and the bytes the bridge served (``write_encoded``)
-    must be the same CDR, under the ros2msg definition an independent parser reads."""
+    must be the same CDR, under the ros2msg definition an independent parser reads; /tf_static goes first."""
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
 
     from hcrctl.feeds.mcapsink import McapSink
 
-    topic = TOPICS[T.LINK]
     first = {"time": 1.5, **{name: i for i, name in enumerate(Feed.counters)}}
     second = first | {"time": 2.25, Feed.counters[0]: 99}
+
+    def ros(m: dict[str, Any]) -> dict[str, Any]:
+        return {
+            "stamp": {"sec": int(m["time"]), "nanosec": round(m["time"] % 1 * 1e9)},
+            **{k: v for k, v in m.items() if k != "time"},
+        }
+
     out = tmp_path / "link.mcap"
     with McapSink(str(out), TOPICS.values(), encoding="cdr") as sink:
+        encode = ros2msg.encoder("hcrctl_msgs/msg/Link")  # made from the topic's schema as the sink opened
         sink.write(T.LINK, first, first["time"])
-        sink.write_encoded(T.LINK, ros2msg.encoder(topic)(second), second["time"])
+        sink.write_encoded("/hcrctl/link", encode(ros(second)), second["time"])
     with out.open("rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
-        got = [(m.log_time, m.data, plain(ros)) for _, _, m, ros in reader.iter_decoded_messages()]
-    assert got == [(int(m["time"] * 1e9), ros2msg.encoder(topic)(m), m) for m in (first, second)]
+        got = [(c.topic, m.log_time, m.data, plain(r)) for _, c, m, r in reader.iter_decoded_messages()]
+    assert [topic for topic, *_ in got] == ["/tf_static", "/hcrctl/link", "/hcrctl/link"]
+    assert got[0][1] == int(first["time"] * 1e9)
+    assert got[1:] == [
+        ("/hcrctl/link", int(m["time"] * 1e9), encode(ros(m)), ros(m)) for m in (first, second)
+    ]

@@ -2,8 +2,9 @@
 
 The files are decoded by ``mcap_ros2`` (the MCAP project's ROS 2 definition
 parser and CDR reader), not by hcrctl, and what they hold is compared with
-the traffic log of the same frames (its ``fields``, ``hex`` and times), as
-the robot's replies were logged, never with hcrctl's own encoder.
+the traffic log of the same frames (its ``fields``, ``hex`` and times,
+converted by docs/ros2.md's rules: ``helpers_ros2``), as the robot's replies
+were logged, never with hcrctl's own encoder.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from typing import Any
 
 import pytest
 from helpers_cli import clean_env, one_line, run, wire
+from helpers_ros2 import expected, mismatches
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
@@ -83,8 +85,18 @@ def decoded(path: Path) -> tuple[Any, list[tuple[str, Any, Any]]]:
     return header, found
 
 
+#: hcrctl's readings that keep an hcrctl_msgs type, on their ROS topic.
+CUSTOM = {"position": "/hcrctl/position", "map": "/hcrctl/map"}
+
+
+def stamp_us(message: Any) -> int:
+    stamp = message["header"]["stamp"] if "header" in message else message["stamp"]
+    return int(stamp["sec"]) * 1_000_000 + int(stamp["nanosec"]) // 1000
+
+
 def check_against_log(found: list[tuple[str, Any, Any]], lines: list[dict[str, Any]]) -> None:
-    """Every frame of the log is a /hcr/frames message, every reading a /hcr/<name> one, with its values and times.
+    """Every frame of the log is a /hcrctl/frames message, every reading its ROS topics' messages, with its
+    values (docs/ros2.md's conversion of the log's fields) and times.
 
     In the log's order, and no time, in the log or in the file (in file order, every topic), before the one ahead of it.
     """
@@ -92,18 +104,33 @@ def check_against_log(found: list[tuple[str, Any, Any]], lines: list[dict[str, A
     assert stamps == sorted(stamps), "the log's times go backwards"
     times = [m.log_time for _, m, _ in found]
     assert times == sorted(times), "the recording's log times go backwards in file order"
-    frames = [(m, d) for topic, m, d in found if topic == "/hcr/frames"]
-    assert [(d.direction, d.hex) for _, d in frames] == [(line["direction"], line["hex"]) for line in lines]
+    frames = [(m, plain(d)) for topic, m, d in found if topic == "/hcrctl/frames"]
+    assert [(d["direction"], d["hex"]) for _, d in frames] == [
+        (line["direction"], line["hex"]) for line in lines
+    ]
     assert [m.log_time for m, _ in frames] == [us_of(line["time"]) * 1000 for line in lines]
-    wanted = [line for line in lines if is_reading(line)]
-    readings = [(topic, m, d) for topic, m, d in found if topic not in ("/hcr/frames", "/hcr/link")]
-    assert [f"/hcr/{line['name']}" for line in wanted] == [topic for topic, _, _ in readings]
-    for line, (topic, message, ros) in zip(wanted, readings, strict=True):
-        body = plain(ros)
-        assert body.pop("address") == line["address"], topic
-        assert round(body.pop("time") * 1e6) == us_of(line["time"]) == message.log_time // 1000, topic
-        assert flat(body) == flat(line["fields"]), topic
-    assert {"/hcr/compass", "/hcr/sonar", "/hcr/position"} <= {topic for topic, _, _ in readings}
+    assert all(stamp_us(d) * 1000 == m.log_time for m, d in frames)
+    wanted: list[tuple[str, int, Any]] = []  # (ROS topic, stamp, what it holds) in the log's order
+    for line in (line for line in lines if is_reading(line)):
+        us = us_of(line["time"])
+        if line["name"] in CUSTOM:
+            wanted.append((CUSTOM[line["name"]], us, [line["address"], *flat(line["fields"])]))
+        wanted += [("/" + topic, us, want) for topic, want in expected(line["name"], line["fields"]).items()]
+    readings = [
+        (topic, m, plain(d))
+        for topic, m, d in found
+        if topic not in ("/hcrctl/frames", "/hcrctl/link", "/tf_static")
+    ]
+    assert [(topic, us) for topic, us, _ in wanted] == [(topic, stamp_us(d)) for topic, _, d in readings]
+    for (topic, us, want), (_, message, ros) in zip(wanted, readings, strict=True):
+        assert message.log_time == us * 1000, topic
+        if topic in CUSTOM.values():
+            assert flat({k: v for k, v in ros.items() if k != "stamp"}) == want, topic
+        else:
+            assert mismatches(topic.lstrip("/"), ros, want) == []
+    assert {"/imu", "/range/sonar_0", "/hcrctl/position"} <= {topic for topic, _, _ in readings}
+    statics = [topic for topic, _, _ in found if topic == "/tf_static"]
+    assert statics == ["/tf_static"] and found[0][0] == "/tf_static"
 
 
 @pytest.fixture(scope="module")
@@ -136,8 +163,8 @@ def test_record_cdr_holds_what_its_log_says_crossed_the_link(tmp_path: Path) -> 
     assert done.returncode == 0, done.stderr
     header, found = decoded(out)
     assert header.profile == "ros2"
-    check_against_log([item for item in found if item[0] != "/hcr/link"], lines_of(log))
-    link = [plain(d) for topic, _, d in found if topic == "/hcr/link"]
+    check_against_log([item for item in found if item[0] != "/hcrctl/link"], lines_of(log))
+    link = [plain(d) for topic, _, d in found if topic == "/hcrctl/link"]
     assert len(link) >= 2 and link[-1]["tx_frames"] > 0  # the counters are decoded too, and count
 
 
@@ -177,9 +204,9 @@ def test_a_recording_holds_the_frames_in_the_logs_order_while_the_log_is_slow(tm
     assert done.returncode == 0, done.stderr
     assert "warning" not in done.stderr, done.stderr  # the plugin was loaded
     _, found = decoded(out)
-    check_against_log([item for item in found if item[0] != "/hcr/link"], lines_of(log))
+    check_against_log([item for item in found if item[0] != "/hcrctl/link"], lines_of(log))
     times = [m.log_time for _, m, _ in found]  # the link counters too: in order with the frames
-    assert times == sorted(times) and any(topic == "/hcr/link" for topic, _, _ in found)
+    assert times == sorted(times) and any(topic == "/hcrctl/link" for topic, _, _ in found)
 
 
 def test_a_csv_recording_holds_the_readings_in_the_logs_order_while_the_log_is_slow(tmp_path: Path) -> None:
@@ -216,7 +243,7 @@ def test_cdr_into_a_csv_is_a_usage_error_before_anything_is_opened(
 
 
 def test_json_stays_the_default_and_cdr_changes_only_the_encoding(log: Path, tmp_path: Path) -> None:
-    """The same log exported twice: the same channels, one in JSON (no profile), one in CDR (ros2)."""
+    """The same log exported twice: JSON keeps hcrctl's topics (no profile), CDR has the ROS 2 ones (ros2)."""
     topics = {}
     for encoding in ("json", "cdr"):
         out = tmp_path / f"{encoding}.mcap"
@@ -230,7 +257,11 @@ def test_json_stays_the_default_and_cdr_changes_only_the_encoding(log: Path, tmp
             profile = reader.get_header().profile
         topics[encoding] = (profile, sorted((c.topic, c.message_encoding) for c in summary.channels.values()))
     assert topics["json"][0] == "" and topics["cdr"][0] == "ros2"
-    assert [t for t, _ in topics["json"][1]] == [t for t, _ in topics["cdr"][1]]
+    assert {f"/hcr/{name}" for name in READINGS} | {"/hcr/frames"} <= {t for t, _ in topics["json"][1]}
+    assert not any(t.startswith("/hcr/") for t, _ in topics["cdr"][1])
+    assert {"/imu", "/range/bumper_2", "/range/ir_4", "/joint_states", "/humidity", "/tf_static"} <= {
+        t for t, _ in topics["cdr"][1]
+    }
     assert {e for _, e in topics["json"][1]} == {"json"} and {e for _, e in topics["cdr"][1]} == {"cdr"}
 
 

@@ -211,16 +211,24 @@ def test_a_write_is_decoded_through_the_table_and_motion_is_refused(lab: Fleet, 
 
 
 def test_cdr_topics_at_the_asked_rate(lab: Fleet, tmp_path: Path) -> None:
+    """With ``--encoding cdr`` the keys are the ROS 2 topics (``hcr/r1/imu``), in Jazzy's types, which rosbags reads."""
+    from helpers_ros2 import jazzy, plain
+
     served(lab, tmp_path, "--encoding", "cdr", "--rate", "5")
     got: list[Any] = []
+    statics: list[Any] = []
     with operator(lab.endpoint, "r1", "op1") as op:
-        op.session.declare_subscriber(keys.topic("r1", "compass"), got.append)
-        wait_until(lambda: len(got) >= 2, what="two compass readings")
+        op.session.declare_subscriber(keys.topic("r1", "imu"), got.append)
+        op.session.declare_subscriber(keys.topic("r1", "tf_static"), statics.append)
+        wait_until(lambda: len(got) >= 2 and statics, what="two compass readings and the static frames")
         ok, info = op.query(keys.info("r1"))
     assert ok, info
     sample = got[0]
-    assert str(sample.encoding).startswith("application/cdr;")
-    assert bytes(sample.payload)[:2] == b"\x00\x01"  # CDR, little-endian encapsulation
+    assert str(sample.encoding) == "application/cdr;sensor_msgs/msg/Imu"
+    imu = plain(jazzy().deserialize_cdr(bytes(sample.payload), "sensor_msgs/msg/Imu"))
+    assert imu["header"]["frame_id"] == "imu_link" and imu["angular_velocity_covariance"][0] == -1
+    tf = plain(jazzy().deserialize_cdr(bytes(statics[0].payload), "tf2_msgs/msg/TFMessage"))
+    assert "imu_link" in {t["child_frame_id"] for t in tf["transforms"]}
     assert info["encoding"] == "cdr" and info["rate"] == 5.0
 
 

@@ -43,6 +43,8 @@ from .sinks import Prepared, Sink, microseconds, seconds
 
 #: Uncompressed chunk size: big enough to compress well, small enough to lose little.
 CHUNK_SIZE = 1 << 20
+#: Channel messages whose bytes are remembered by their key.
+MEMO_SIZE = 4096
 
 
 def compression() -> CompressionType:
@@ -88,6 +90,9 @@ class McapSink(Sink):
             self._untimed[topic.name] = kind.untimed(topic)
             self._encoders[topic.name] = kind.encoder(topic)
         self._initial = True  # what the encoding sends once is still to be written
+        #: A channel message's bytes after its time, by its key (``Channels.keyed``): one sonar reading
+        #: repeats while the others around it change.
+        self._memo: dict[Any, bytes] = {}
         self._writer.flush()  # a bad path or a full disk shows now, not at the first message
         assert self._file is not None
         self._file.flush()
@@ -166,11 +171,17 @@ class McapSink(Sink):
 
     def _encode(self, prepared: Prepared) -> list[tuple[int, bytes]]:
         """Each channel's message, as its bytes after the time (the time's head is put before them per moment)."""
-        channels, untimed = self._channels, self._untimed
-        return [
-            (channels[topic], untimed[topic](message))
-            for topic, message in self._out.expand(prepared.topic, prepared.message)
-        ]
+        channels, untimed, memo, out = self._channels, self._untimed, self._memo, []
+        for topic, message, key in self._out.keyed(prepared.topic, prepared.message):
+            tail = None if key is None else memo.get(key)
+            if tail is None:
+                tail = untimed[topic](message)
+                if key is not None:
+                    if len(memo) >= MEMO_SIZE:
+                        memo.clear()
+                    memo[key] = tail
+            out.append((channels[topic], tail))
+        return out
 
     def flush(self) -> None:
         super().flush()

@@ -42,13 +42,16 @@ class Channels:
     """The channels a writer of one encoding announces, and what goes on them.
 
     ``expand(topic, message)`` turns one message of ``protocol.topics`` into
-    ``(channel topic, message)`` pairs for ``topics``' encoders; ``initial(time)``
-    are the messages a writer publishes once, as it starts; ``metadata(topic)``
-    is a channel's MCAP metadata.
+    ``(channel topic, message)`` pairs for ``topics``' encoders; ``keyed`` does
+    the same with a key per message, equal for two messages that differ only in
+    their time (None: no key), so a writer encodes a repeated reading's bytes
+    after the time once; ``initial(time)`` are the messages a writer publishes
+    once, as it starts; ``metadata(topic)`` is a channel's MCAP metadata.
     """
 
     topics: tuple[Topic, ...]
     expand: Callable[[str, dict[str, Any]], Messages]
+    keyed: Callable[[str, dict[str, Any]], list[tuple[str, dict[str, Any], Any]]]
     initial: Callable[[float], Messages]
     metadata: Callable[[str], dict[str, str]]
 
@@ -109,7 +112,13 @@ def json_tail(message: dict[str, Any]) -> bytes:
 
 def json_channels(topics: Iterable[Topic]) -> Channels:
     """JSON's channels are the topics themselves, each message as it is."""
-    return Channels(tuple(topics), lambda topic, message: [(topic, message)], lambda t: [], lambda topic: {})
+    return Channels(
+        tuple(topics),
+        lambda topic, message: [(topic, message)],
+        lambda topic, message: [(topic, message, None)],
+        lambda t: [],
+        lambda topic: {},
+    )
 
 
 def cdr_channels(topics: Iterable[Topic]) -> Channels:
@@ -118,15 +127,13 @@ def cdr_channels(topics: Iterable[Topic]) -> Channels:
     ros = {t.full_name(): t for t in conv.topics}
     offered = {name: {"offered_qos_profiles": t.qos.yaml()} for name, t in ros.items()}
 
-    def expand(topic: str, message: dict[str, Any]) -> Messages:
-        return [
-            ("/" + name if name[0] != "/" else name, fields)
-            for name, _, fields in conv.convert(topic, message)
-        ]
+    def keyed(topic: str, message: dict[str, Any]) -> list[tuple[str, dict[str, Any], Any]]:
+        return [("/" + name, fields, key) for name, _, fields, key in conv.keyed(topic, message)]
 
     return Channels(
         tuple(Topic(name, t.type, {}) for name, t in ros.items()),
-        expand,
+        lambda topic, message: [(name, fields) for name, fields, _ in keyed(topic, message)],
+        keyed,
         lambda t: [(ros2conv.TF_STATIC, conv.tf_static(t))],
         lambda topic: offered.get(topic, {}),
     )

@@ -41,7 +41,7 @@ Standard library only.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -52,6 +52,7 @@ from .topics import PREFIX, Topic
 
 Fields = dict[str, Any]
 Converted = list[tuple[str, str, Fields]]
+Keyed = list[tuple[str, str, Fields, Any]]
 
 TF_STATIC = "/tf_static"
 IMU, TEMPERATURE, HUMIDITY, JOINT_STATES = "imu", "temperature", "humidity", "joint_states"
@@ -368,6 +369,14 @@ class Converter:
             kind = ros2msg.from_schema(ros2msg.type_name(topic.schema_name), topic.schema).name
             self._custom[topic.name] = (name, kind)
             custom.append(RosTopic(name, kind))
+        self._conversions = {
+            PREFIX + "sonar": self._sonar,
+            PREFIX + "ir": self._ir,
+            PREFIX + "bump": self._bumpers,
+            PREFIX + "compass": self._compass,
+            PREFIX + "env": self._env,
+            PREFIX + "wheels": self._wheels,
+        }
         #: Every ROS topic the conversion publishes, ``/tf_static`` first.
         self.topics: tuple[RosTopic, ...] = (
             RosTopic(TF_STATIC, R.TF_MESSAGE, TF_STATIC_QOS),
@@ -393,71 +402,85 @@ class Converter:
 
     def convert(self, topic: str, message: Mapping[str, Any]) -> Converted:
         """``(ROS topic, type, fields)`` for one hcrctl topic message; [] for a topic it does not know."""
-        t = message["time"]
-        lay = self.layout
-        if topic == PREFIX + "sonar":
-            spec, out = lay.sonar_ranger, []
-            for i, value in enumerate(message["sonar"][: len(lay.sonar)]):
-                fields = ranger(t, lay.frame(f"sonar_{i}"), R.ULTRASOUND, spec, sonar_metres(value))
-                out.append((f"range/sonar_{i}", R.RANGE, fields))
-            return out
-        if topic == PREFIX + "ir":
-            return [
-                (
-                    f"range/ir_{i}",
-                    R.RANGE,
-                    ranger(t, lay.frame(f"ir_{i}"), R.INFRARED, lay.ir_ranger, ir_metres(v, lay.ir_model)),
-                )
-                for i, v in enumerate(message["ir"][: len(lay.ir)])
-            ]
-        if topic == PREFIX + "bump":
-            return [
-                (
-                    f"range/bumper_{i}",
-                    R.RANGE,
-                    bumper(t, lay.frame(f"bumper_{i}"), lay.bumper_distance, bool(hit)),
-                )
-                for i, hit in enumerate([message[name] for name in BUMPER_NAMES][: len(lay.bumpers)])
-            ]
-        if topic == PREFIX + "compass":
-            return [(IMU, R.IMU, imu(t, lay.frame(lay.imu_frame), message["heading"], lay.heading_variance))]
-        if topic == PREFIX + "env":
-            base = lay.frame(lay.base_frame)
-            return [
-                (
-                    TEMPERATURE,
-                    R.TEMPERATURE,
-                    {
-                        "header": header(t, base),
-                        "temperature": float(message["temperature"]),
-                        "variance": 0.0,
-                    },
-                ),
-                (
-                    HUMIDITY,
-                    R.RELATIVE_HUMIDITY,
-                    {
-                        "header": header(t, base),
-                        "relative_humidity": message["humidity"] / 100,
-                        "variance": 0.0,
-                    },
-                ),
-            ]
-        if topic == PREFIX + "wheels":
-            speeds = [wheel_rad_s(message[side], lay.wheel_radius) for side in ("left", "right")]
-            fields = {
-                "header": header(t, lay.frame(lay.base_frame)),
-                "name": list(lay.wheel_joints),
-                "position": [],
-                "velocity": speeds,
-                "effort": [],
-            }
-            return [(JOINT_STATES, R.JOINT_STATE, fields)]
+        return [(name, kind, fields) for name, kind, fields, _ in self.keyed(topic, message)]
+
+    def keyed(self, topic: str, message: Mapping[str, Any]) -> Keyed:
+        """``convert``'s messages, each with a key that equals another's when their fields do, but for the
+        time (None: no key): a writer that meets the same reading again reuses what it made of it."""
+        convert = self._conversions.get(topic)
+        if convert is not None:
+            return convert(message["time"], message)
         custom = self._custom.get(topic)
         if custom is None:
             return []
         rest = {k: v for k, v in message.items() if k != "time"}
-        return [(custom[0], custom[1], {"stamp": ros2msg.stamp(microseconds(t)), **rest})]
+        return [(custom[0], custom[1], {"stamp": ros2msg.stamp(microseconds(message["time"])), **rest}, None)]
+
+    def _rangers(self, kind: str, values: Iterable[Any], make: Callable[[int, Any], Fields]) -> Keyed:
+        """``range/<kind>_<i>`` for each value, keyed by its topic and value."""
+        return [
+            (f"range/{kind}_{i}", R.RANGE, make(i, v), (f"range/{kind}_{i}", v)) for i, v in enumerate(values)
+        ]
+
+    def _sonar(self, t: float, message: Mapping[str, Any]) -> Keyed:
+        lay = self.layout
+
+        def make(i: int, v: int) -> Fields:
+            return ranger(t, lay.frame(f"sonar_{i}"), R.ULTRASOUND, lay.sonar_ranger, sonar_metres(v))
+
+        return self._rangers("sonar", message["sonar"][: len(lay.sonar)], make)
+
+    def _ir(self, t: float, message: Mapping[str, Any]) -> Keyed:
+        lay = self.layout
+
+        def make(i: int, v: int) -> Fields:
+            return ranger(t, lay.frame(f"ir_{i}"), R.INFRARED, lay.ir_ranger, ir_metres(v, lay.ir_model))
+
+        return self._rangers("ir", message["ir"][: len(lay.ir)], make)
+
+    def _bumpers(self, t: float, message: Mapping[str, Any]) -> Keyed:
+        lay = self.layout
+
+        def make(i: int, hit: bool) -> Fields:
+            return bumper(t, lay.frame(f"bumper_{i}"), lay.bumper_distance, hit)
+
+        return self._rangers(
+            "bumper", [bool(message[side]) for side in BUMPER_NAMES][: len(lay.bumpers)], make
+        )
+
+    def _compass(self, t: float, message: Mapping[str, Any]) -> Keyed:
+        lay, heading = self.layout, message["heading"]
+        return [(IMU, R.IMU, imu(t, lay.frame(lay.imu_frame), heading, lay.heading_variance), (IMU, heading))]
+
+    def _env(self, t: float, message: Mapping[str, Any]) -> Keyed:
+        base = self.layout.frame(self.layout.base_frame)
+        celsius, humidity = float(message["temperature"]), message["humidity"] / 100
+        return [
+            (
+                TEMPERATURE,
+                R.TEMPERATURE,
+                {"header": header(t, base), "temperature": celsius, "variance": 0.0},
+                (TEMPERATURE, celsius),
+            ),
+            (
+                HUMIDITY,
+                R.RELATIVE_HUMIDITY,
+                {"header": header(t, base), "relative_humidity": humidity, "variance": 0.0},
+                (HUMIDITY, humidity),
+            ),
+        ]
+
+    def _wheels(self, t: float, message: Mapping[str, Any]) -> Keyed:
+        lay = self.layout
+        speeds = [wheel_rad_s(message[side], lay.wheel_radius) for side in ("left", "right")]
+        fields = {
+            "header": header(t, lay.frame(lay.base_frame)),
+            "name": list(lay.wheel_joints),
+            "position": [],
+            "velocity": speeds,
+            "effort": [],
+        }
+        return [(JOINT_STATES, R.JOINT_STATE, fields, (JOINT_STATES, *speeds))]
 
     def tf_static(self, t: float) -> Fields:
         """``base_link`` to every sensor frame, as one ``tf2_msgs/TFMessage`` stamped ``t``."""
