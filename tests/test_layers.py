@@ -192,3 +192,31 @@ def test_the_checks_see_modules_named_in_strings() -> None:
     assert "hcrctl.cli.read" in own("hcrctl.cli")  # "hcrctl.cli.read:read" in SUBCOMMANDS
     assert "hcrctl.urlhandler" in own("hcrctl.link.transport_sim")  # handed to pyserial by name
     assert not any(m.startswith("hcrctl.shell") for m in own("hcrctl.cli"))
+
+
+#: The processes that serve a robot to the network: they import no terminal UI, shell or CLI.
+SERVERS = ("hcrctl.served", "hcrctl.feeds.bridge", "hcrctl.fleet.serve")
+#: What a server may use of live/: the poller and its state (what the feed polls with), nothing drawn.
+LIVE_FOR_SERVERS = {"hcrctl.live", "hcrctl.live.poller", "hcrctl.live.state"}
+
+
+def reached(name: str) -> set[str]:
+    """Every package module importing ``name`` loads, directly or through others."""
+    seen, todo = set(), [name]
+    while todo:
+        for target in own(todo.pop()) - seen:
+            seen.add(target)
+            todo.append(target)
+    return seen
+
+
+@pytest.mark.parametrize("name", sorted(m for m in MODULES if m.startswith(SERVERS)))
+def test_a_server_loads_no_terminal_ui(name: str) -> None:
+    """Serving loads the feed and the governor, never teleop, watch, keys, the painter or the shell."""
+    ui = sorted(
+        m
+        for m in reached(name)
+        if (m.startswith("hcrctl.live") and m not in LIVE_FOR_SERVERS)
+        or m.startswith(("hcrctl.shell", "hcrctl.cli", "hcrctl.render"))
+    )
+    assert not ui, f"{name} loads {ui}"
