@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from helpers import checkout_extra, clean_env, hcrctl_exe, wait_until
 from helpers_cli import sim_pty
-from helpers_dds import LATCHED_QOS, SENSOR_QOS, RosSide, as_dict, place, ros2_node, ros_side
+from helpers_dds import LATCHED_QOS, SENSOR_QOS, Place, RosSide, as_dict, place, ros2_node, ros_side
 from helpers_fleet_robot import VELOCITY, is_stop
 from helpers_ros2 import expected, mismatches
 
@@ -144,7 +144,7 @@ def test_a_twist_no_one_meant_moves_nothing_and_the_node_lives_on(
         out, _ = node.proc.communicate(timeout=30)
     assert node.proc.returncode == 0
     summary = json.loads(out)
-    assert summary["cmd_vel_refused"] >= 1 and summary["cmd_vel"] >= 1
+    assert summary["ros2_cmd_vel_refused"] >= 1 and summary["ros2_cmd_vel"] >= 1
 
 
 def test_tf_static_and_the_node_reach_a_late_reader(env: dict[str, str], tmp_path: Path) -> None:
@@ -227,3 +227,42 @@ def test_without_cyclonedds_one_line_names_the_extra(tmp_path: Path) -> None:
     assert done.returncode == 1 and done.stdout == ""
     (line,) = done.stderr.splitlines()
     assert "hcrctl ros2 needs the cyclonedds package" in line and checkout_extra("ros2") in line, line
+
+
+def test_fleet_serve_with_ros2_is_the_same_node_in_the_robots_name(
+    env: dict[str, str], tmp_path: Path
+) -> None:
+    """``fleet serve NAME --ros2``: readings on ``rt/NAME/...`` and ``NAME/cmd_vel`` driving through the one
+    governor, beside the fleet."""
+    from helpers_fleet_robot import fleet
+
+    here = place()
+    name = "r" + here.namespace.lstrip("/")
+    robot = Place(here.domain, f"/{name}")
+    env = {**env, "ROS_DOMAIN_ID": str(here.domain)}
+    readers = {"imu": ("sensor_msgs/msg/Imu", SENSOR_QOS)}
+    with fleet(env) as group, ros_side(robot, tmp_path, readers, {"cmd_vel": TWIST}) as ros:
+        group.router()
+        serve = group.serve(name, group.sim(*QUIET), "--ros2", log=tmp_path / "wire.jsonl")
+        assert "ROS 2 node" in serve.said()
+        assert ros.wait_sample("imu")["header.frame_id"] == "imu_link"
+
+        def moving() -> bool:
+            ros.write("cmd_vel", {"linear.x": 0.2})
+            return bool(velocities(serve))
+
+        wait_until(moving, what="a velocity frame from ROS 2 through fleet serve")
+        assert {w for _, w in velocities(serve)} == {(20, 20)}
+
+
+def test_fleet_serve_with_ros2_needs_a_name_that_is_a_namespace(env: dict[str, str]) -> None:
+    done = subprocess.run(
+        [hcrctl_exe(), "--port", "sim://", "fleet", "serve", "lab-3", "--ros2"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2, done.stderr
+    (line,) = [line for line in done.stderr.splitlines() if line.strip()]
+    assert "NAME" in line and "namespace" in line, line

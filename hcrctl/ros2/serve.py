@@ -100,16 +100,17 @@ class Ros2Node(FrontEnd):
             self.node.close()
 
     def summary(self) -> dict[str, Any]:
+        """Its own keys, ``ros2_`` first: beside ``fleet serve``'s in one summary, none may clash."""
         return {
             "ros2_messages": self.messages,
-            "cmd_vel": self.cmd_vel.taken,
-            "cmd_vel_refused": self.cmd_vel.refused,
+            "ros2_cmd_vel": self.cmd_vel.taken,
+            "ros2_cmd_vel_refused": self.cmd_vel.refused,
         }
 
 
 def summary_line(summary: dict[str, Any]) -> str:
     return (
         f"ros2: {sweeps(summary)}, {summary['ros2_messages']} ROS 2 messages, "
-        f"{summary['cmd_vel']} cmd_vel taken, {summary['cmd_vel_refused']} refused, "
+        f"{summary['ros2_cmd_vel']} cmd_vel taken, {summary['ros2_cmd_vel_refused']} refused, "
         f"{summary['drive_frames']} drive frame(s)"
     )
