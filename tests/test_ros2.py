@@ -266,3 +266,19 @@ def test_fleet_serve_with_ros2_needs_a_name_that_is_a_namespace(env: dict[str, s
     assert done.returncode == 2, done.stderr
     (line,) = [line for line in done.stderr.splitlines() if line.strip()]
     assert "NAME" in line and "namespace" in line, line
+
+
+def test_a_dds_that_cannot_start_is_one_error_line_and_exit_1(env: dict[str, str]) -> None:
+    """A ``CYCLONEDDS_URI`` naming no interface of this machine: nothing is sent, no traceback."""
+    bad = '<CycloneDDS><Domain><General><Interfaces><NetworkInterface name="nosuch0"/></Interfaces></General></Domain></CycloneDDS>'
+    done = subprocess.run(
+        [hcrctl_exe(), "--port", "sim://", "ros2", "--domain-id", str(place().domain)],
+        env={**env, "CYCLONEDDS_URI": bad},
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 1 and done.stdout == "", done.stderr
+    last = done.stderr.strip().splitlines()[-1]
+    assert last.startswith("hcrctl: error: could not join DDS domain") and "CYCLONEDDS_URI" in last, last
+    assert "Traceback" not in done.stderr and "serving" not in done.stderr

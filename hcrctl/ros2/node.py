@@ -21,13 +21,14 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
-from cyclonedds.core import Listener
+from cyclonedds.core import DDSException, Listener
 from cyclonedds.domain import DomainParticipant
 from cyclonedds.pub import DataWriter
 from cyclonedds.qos import Policy, Qos
 from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 
+from ..errors import HcrError
 from ..protocol import ros2conv
 from ..protocol.ros2types import TYPE_HASHES
 from . import idl
@@ -61,12 +62,26 @@ def dds_qos(qos: ros2conv.Qos, ros_type: str) -> Qos:
     return Qos(*policies)
 
 
+class DdsError(HcrError):
+    """DDS could not be joined (a bad ``CYCLONEDDS_URI``, no usable network interface): exit 1, with a hint."""
+
+
+def _participant(domain: int) -> DomainParticipant:
+    try:
+        return DomainParticipant(domain)
+    except DDSException:  # its text names only the class; Cyclone logged the reason on stderr
+        raise DdsError(
+            f"could not join DDS domain {domain}",
+            hint="Cyclone DDS says why on the line above; check CYCLONEDDS_URI (its network interface)",
+        ) from None
+
+
 class Node:
     """A participant on ``domain``: writers made up front (``advertise``), readers (``subscribe``)."""
 
     def __init__(self, domain: int, namespace: str) -> None:
         self.namespace = namespace
-        self.participant = DomainParticipant(domain)
+        self.participant = _participant(domain)
         self._writers: dict[str, tuple[DataWriter, str]] = {}
         self._readers: list[DataReader] = []
         self._lock = threading.Lock()
