@@ -23,7 +23,6 @@ that fails (a full disk) raises ``SinkWriteError`` at once: exit 1, one line.
 from __future__ import annotations
 
 import contextlib
-import math
 import time
 from collections import Counter
 from collections.abc import Iterable, Sequence
@@ -31,7 +30,7 @@ from typing import IO, Any
 
 from ..errors import HcrError
 from ..link.claims import open_output
-from ..protocol.topics import Topic
+from ..protocol.topics import Topic, microseconds
 
 
 class SinkWriteError(HcrError):
@@ -56,18 +55,6 @@ class RecordingIncomplete(HcrError):
             hint="free some space; what was recorded before the failure stays readable",
         )
         self.path, self.why = path, why
-
-
-def microseconds(t: float) -> int:
-    """``t`` (seconds) in whole microseconds, rounded as ``datetime.fromtimestamp`` rounds it.
-
-    That is how the traffic log's ISO time is made (``trafficlog.iso_time``):
-    the fraction is scaled alone and rounded half to even. ``round(t * 1e6)``
-    would scale the whole value first and, at today's epoch seconds, round one
-    live time in eight the other way, a microsecond off the log's.
-    """
-    fraction, whole = math.modf(t)
-    return int(whole) * 1_000_000 + round(fraction * 1_000_000)
 
 
 def seconds(t: float) -> tuple[int, str]:

@@ -48,7 +48,7 @@ from typing import Any
 from . import ros2msg
 from . import ros2types as R
 from .messages import BUMPER_NAMES
-from .topics import PREFIX, Topic
+from .topics import PREFIX, Topic, microseconds
 
 Fields = dict[str, Any]
 Converted = list[tuple[str, str, Fields]]
@@ -264,17 +264,6 @@ def layout_from(table: Mapping[str, Any], base: Layout = DEFAULT_LAYOUT) -> Layo
 
 
 # -- conversions -----------------------------------------------------------------------------
-
-
-def microseconds(t: float) -> int:
-    """``t`` (seconds) in whole microseconds, the fraction rounded alone (half to even).
-
-    That is how the traffic log's ISO time is made: ``round(t * 1e6)`` would
-    scale the whole value first and, at today's epoch seconds, round one live
-    time in eight the other way, a microsecond off the log's.
-    """
-    fraction, whole = math.modf(t)
-    return int(whole) * 1_000_000 + round(fraction * 1_000_000)
 
 
 def header(t: float, frame_id: str) -> Fields:

@@ -12,6 +12,7 @@ published by whoever polls). Standard library only.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
@@ -32,6 +33,19 @@ COMMON = {
     "time": {"type": "number", "description": "when hcrctl saw it, seconds since the Unix epoch"},
     "address": {"type": "integer", "minimum": 0, "maximum": 255, "description": "the sender's address"},
 }
+
+
+def microseconds(t: float) -> int:
+    """A message's ``time`` (seconds) in whole microseconds, rounded as ``datetime.fromtimestamp`` rounds it.
+
+    That is how the traffic log's ISO time is made (``trafficlog.iso_time``):
+    the fraction is scaled alone and rounded half to even. ``round(t * 1e6)``
+    would scale the whole value first and, at today's epoch seconds, round one
+    live time in eight the other way, a microsecond off the log's. Every writer
+    of a message's time (a recording's log time, a ROS 2 header's stamp) uses it.
+    """
+    fraction, whole = math.modf(t)
+    return int(whole) * 1_000_000 + round(fraction * 1_000_000)
 
 
 @dataclass(frozen=True)
