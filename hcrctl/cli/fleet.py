@@ -16,8 +16,16 @@ import click
 
 from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
 from ..protocol.encodings import ENCODINGS
-from .params import Endpoint, FloatRange, HostPort, allow_origin_option, deadman_option, rate_option
-from .ros2 import domain_option, namespace_of
+from .params import (
+    Endpoint,
+    FloatRange,
+    HostPort,
+    allow_origin_option,
+    deadman_option,
+    domain_option,
+    namespace_of,
+    rate_option,
+)
 from .serverend import PREFIX, ServerEnd
 from .settings import Settings, json_option, stdout_is_terminal
 

@@ -6,61 +6,19 @@ one line naming the pip command that installs it (``hcrctl.extras``).
 
 from __future__ import annotations
 
-import re
-from collections.abc import Callable
-from typing import Any, TypeVar
-
 import click
 
 from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
-from .params import IntRange, deadman_option, rate_option
+from .params import deadman_option, domain_option, namespace_param, rate_option
 from .serverend import ServerEnd
 from .settings import Settings
-
-F = TypeVar("F", bound=Callable[..., Any])
-#: DDS domain ids a ROS 2 node may take (rmw's range: the RTPS ports of a higher one overflow).
-DOMAIN_IDS = (0, 232)
-#: One token of a ROS 2 name: a letter or underscore, then letters, digits, underscores.
-TOKEN = r"[A-Za-z_][A-Za-z0-9_]*"
-
-
-def namespace_of(value: str) -> str:
-    """A ROS 2 namespace, absolute (``hcr`` and ``/hcr`` are ``/hcr``; "" or "/" is the root), or ValueError."""
-    text = "/" + value.strip("/") if value.strip("/") else ""
-    if text and (not re.fullmatch(rf"(/{TOKEN})+", text) or "__" in text):
-        raise ValueError(
-            f"{value!r} is no ROS 2 namespace: /-separated tokens of letters, digits and '_', "
-            "none starting with a digit, no '__'"
-        )
-    return text
-
-
-def _namespace(ctx: click.Context, param: click.Parameter, value: str) -> str:
-    try:
-        return namespace_of(value)
-    except ValueError as exc:
-        raise click.BadParameter(str(exc), ctx, param) from exc
-
-
-def domain_option(name: str = "--domain-id", help: str = "") -> Callable[[F], F]:
-    """The DDS domain, 0-232 (rmw's range: a higher one's RTPS ports overflow), from ROS_DOMAIN_ID by default."""
-    return click.option(
-        name,
-        "domain_id",
-        type=IntRange(*DOMAIN_IDS),
-        default=0,
-        envvar="ROS_DOMAIN_ID",
-        show_envvar=True,
-        show_default=True,
-        help=help or "The DDS domain, as ROS_DOMAIN_ID: only nodes on the same domain see each other.",
-    )
 
 
 @click.command()
 @click.option(
     "--namespace",
     default="",
-    callback=_namespace,
+    callback=namespace_param,
     metavar="NS",
     help="The node's namespace: topics are NS/range/sonar_0 ... and NS/cmd_vel. [default: none (/)]",
 )
