@@ -17,6 +17,7 @@ Without the DDS wheels for this interpreter the tests skip, saying so.
 from __future__ import annotations
 
 import contextlib
+import itertools
 import random
 import re
 import subprocess
@@ -190,11 +191,14 @@ class RosSide:
         return bool(self.connector.get_output(f"pub::{entity(topic)}").matched_subscriptions)
 
 
+_CONFIGS = itertools.count()
+
+
 @contextlib.contextmanager
 def ros_side(
     place: Place, tmp_path: Path, readers: dict[str, tuple[str, str]], writers: dict[str, str] | None = None
 ) -> Iterator[RosSide]:
-    config = tmp_path / "connector.xml"
+    config = tmp_path / f"connector-{next(_CONFIGS)}.xml"
     config.write_text(connector_xml(place, readers, writers or {}))
     with rti.open_connector(config_name="parts::ros", url=str(config)) as connector:
         yield RosSide(connector)

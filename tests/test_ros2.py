@@ -113,6 +113,34 @@ def test_a_twist_drives_and_the_deadman_stops_within_its_repeats(env: dict[str, 
         node.wait_err("stopped: deadman: no cmd_vel for 0.5 s")
 
 
+def test_the_first_writer_holds_the_lease_until_it_goes_quiet(env: dict[str, str], tmp_path: Path) -> None:
+    """Two ROS 2 participants on cmd_vel (a teleop beside a mux): the second is refused while the first
+    sends, and drives once the first has been quiet for the deadman."""
+    here, log = place(), tmp_path / "wire.jsonl"
+    with (
+        sim_pty(env, *QUIET) as port,
+        ros_side(here, tmp_path, {}, {"cmd_vel": TWIST}) as first,
+        ros_side(here, tmp_path, {}, {"cmd_vel": TWIST}) as second,
+        ros2_node(port, here, env, "--deadman", "0.5", log=log) as node,
+    ):
+
+        def moving(side: RosSide, speed: float, wheels: tuple[int, int]) -> bool:
+            side.write("cmd_vel", {"linear.x": speed})
+            return any(w == wheels for _, w in velocities(node))
+
+        wait_until(lambda: moving(first, 0.2, (20, 20)), what="the first writer driving")
+
+        def refused() -> bool:
+            first.write("cmd_vel", {"linear.x": 0.2})
+            second.write("cmd_vel", {"linear.x": -0.2})
+            return "refused: ROS 2 writer" in node.said()  # "cmd_vel from W2 refused: W1 drives the robot"
+
+        wait_until(refused, what="the second writer refused")
+        assert (-20, -20) not in {w for _, w in velocities(node)}
+        node.wait_err("stopped: deadman")  # the first goes quiet
+        wait_until(lambda: moving(second, -0.2, (-20, -20)), what="the second writer driving")
+
+
 @pytest.mark.parametrize("bad", [{"linear.x": math.nan}, {"linear.x": 1e308}, {"angular.z": -math.inf}])
 def test_a_twist_no_one_meant_moves_nothing_and_the_node_lives_on(
     env: dict[str, str], tmp_path: Path, bad: dict[str, float]
