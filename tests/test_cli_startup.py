@@ -28,6 +28,9 @@ sys.stderr.write("\\nMODULES " + json.dumps({"code": code, "modules": sorted(sys
 
 NEVER_IN_ONE_SHOT = (
     "prompt_toolkit",
+    # only `hcrctl ros2` needs these
+    "cyclonedds",
+    "hcrctl.ros2",
     "hcrctl.sim.simulator",
     "hcrctl.shell.command",
     "tomllib",

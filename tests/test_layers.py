@@ -39,7 +39,7 @@ LAYERS: list[tuple[str, ...]] = [
     # the fleet's key layout, session and remote link are links; its serving process is a feed.
     ("hcrctl.link", "hcrctl.urlhandler", "hcrctl.fleet.keys", "hcrctl.fleet.session", "hcrctl.fleet.remote"),
     ("hcrctl.hex", "hcrctl.render", "hcrctl.ops", "hcrctl.motion"),
-    ("hcrctl.live", "hcrctl.served", "hcrctl.feeds", "hcrctl.fleet"),
+    ("hcrctl.live", "hcrctl.served", "hcrctl.feeds", "hcrctl.fleet", "hcrctl.ros2"),
     ("hcrctl.cli",),
     ("hcrctl.shell", "hcrctl.__main__"),
 ]
@@ -195,7 +195,7 @@ def test_the_checks_see_modules_named_in_strings() -> None:
 
 
 #: The processes that serve a robot to the network: they import no terminal UI, shell or CLI.
-SERVERS = ("hcrctl.served", "hcrctl.feeds.bridge", "hcrctl.fleet.serve")
+SERVERS = ("hcrctl.served", "hcrctl.feeds.bridge", "hcrctl.fleet.serve", "hcrctl.ros2")
 #: What a server may use of live/: the poller and its state (what the feed polls with), nothing drawn.
 LIVE_FOR_SERVERS = {"hcrctl.live", "hcrctl.live.poller", "hcrctl.live.state"}
 

@@ -78,6 +78,10 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
         "hcrctl.cli.fleet:fleet",
         "Many robots and operators on Zenoh: a router, each robot served, the robots listed.",
     ),
+    "ros2": (
+        "hcrctl.cli.ros2:ros2",
+        "Be a ROS 2 node over DDS: the readings as standard messages, and drive from cmd_vel.",
+    ),
     "replay": (
         "hcrctl.cli.replay:replay",
         "Re-send the tx frames of LOGFILE (written by --log) and print the replies decoded.",

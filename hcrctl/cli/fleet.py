@@ -16,7 +16,16 @@ import click
 
 from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
 from ..protocol.encodings import ENCODINGS
-from .params import Endpoint, FloatRange, HostPort, allow_origin_option, deadman_option, rate_option
+from .params import (
+    Endpoint,
+    FloatRange,
+    HostPort,
+    allow_origin_option,
+    deadman_option,
+    domain_option,
+    namespace_of,
+    rate_option,
+)
 from .serverend import PREFIX, ServerEnd
 from .settings import Settings, json_option, stdout_is_terminal
 
@@ -105,6 +114,12 @@ def router(settings: Settings, listen: tuple[str, ...]) -> None:
     help="Also serve the Foxglove bridge here, from the same link and governor (needs the foxglove extra).",
 )
 @allow_origin_option()
+@click.option(
+    "--ros2",
+    is_flag=True,
+    help="Also be a ROS 2 node (namespace /NAME), from the same link and governor (needs the ros2 extra).",
+)
+@domain_option("--ros2-domain-id", "With --ros2: the DDS domain, as ROS_DOMAIN_ID.")
 @click.pass_obj
 def serve(
     settings: Settings,
@@ -116,6 +131,8 @@ def serve(
     deadman: float | None,
     foxglove: tuple[str, int] | None,
     allow_origins: tuple[str, ...],
+    ros2: bool,
+    domain_id: int,
 ) -> None:
     """Publish this robot (--port) to the fleet as NAME, and let one operator at a time drive it.
 
@@ -128,6 +145,8 @@ def serve(
     """
     from ..fleet.serve import Options, run_serve, summary_line
 
+    if ros2:
+        _ros2_name(name)
     options = Options(
         name,
         connect,
@@ -137,9 +156,20 @@ def serve(
         settings.deadman_or(deadman, DEFAULT_TIMEOUT_S),
         foxglove,
         allow_origins,
+        domain_id if ros2 else None,
     )
     with ServerEnd(f"fleet serve {name}", as_json=settings.as_json) as end:
         run_serve(settings, options, report=end.reporter(summary_line))
+
+
+def _ros2_name(name: str) -> None:
+    """With --ros2 the robot's name is its ROS 2 namespace, so it must be one (no '.' or '-')."""
+    try:
+        namespace_of(name)
+    except ValueError as exc:
+        raise click.BadParameter(
+            f"with --ros2, NAME is the node's namespace: {exc}", param_hint="NAME"
+        ) from exc
 
 
 @fleet.command(name="list")

@@ -388,3 +388,46 @@ def allow_origin_option() -> Callable:
         help="Also let web pages from ORIGIN (https://viewer.example:8080) connect; repeatable. "
         "Loopback pages, https://app.foxglove.dev and clients without an Origin always may.",
     )
+
+
+# -- ROS 2 names ----------------------------------------------------------------------------------------
+
+#: DDS domain ids a ROS 2 node may take (rmw's range: the RTPS ports of a higher one overflow).
+DOMAIN_IDS = (0, 232)
+#: One token of a ROS 2 name: a letter or underscore, then letters, digits, underscores.
+TOKEN = r"[A-Za-z_][A-Za-z0-9_]*"
+
+
+def namespace_of(value: str) -> str:
+    """A ROS 2 namespace, absolute (``hcr`` and ``/hcr`` are ``/hcr``; "" or "/" is the root), or ValueError."""
+    text = "/" + value.strip("/") if value.strip("/") else ""
+    if text and (not re.fullmatch(rf"(/{TOKEN})+", text) or "__" in text):
+        raise ValueError(
+            f"{value!r} is no ROS 2 namespace: /-separated tokens of letters, digits and '_', "
+            "none starting with a digit, no '__'"
+        )
+    return text
+
+
+def namespace_param(ctx: click.Context, param: click.Parameter, value: str) -> str:
+    """A Click callback: ``namespace_of``, its refusal a usage error naming the parameter."""
+    try:
+        return namespace_of(value)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), ctx, param) from exc
+
+
+def domain_option(
+    name: str = "--domain-id", help: str = ""
+) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """The DDS domain, 0-232 (rmw's range: a higher one's RTPS ports overflow), from ROS_DOMAIN_ID by default."""
+    return click.option(
+        name,
+        "domain_id",
+        type=IntRange(*DOMAIN_IDS),
+        default=0,
+        envvar="ROS_DOMAIN_ID",
+        show_envvar=True,
+        show_default=True,
+        help=help or "The DDS domain, as ROS_DOMAIN_ID: only nodes on the same domain see each other.",
+    )

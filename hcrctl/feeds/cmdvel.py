@@ -56,11 +56,19 @@ def _number(message: Mapping[str, Any], group: str, axis: str) -> float:
     part = message.get(group, {})
     if not isinstance(part, Mapping):
         raise BadTwist(f"{group} is not an object")
-    value = part.get(axis, 0.0)
+    return speed(f"{group}.{axis}", part.get(axis, 0.0))
+
+
+def speed(name: str, value: object) -> float:
+    """A Twist component as a speed anyone meant: a finite number within ±``LIMIT``, else ``BadTwist``.
+
+    The rule for every Twist hcrctl reads, JSON or CDR: a NaN, an infinity or
+    1e308 is refused rather than scaled down to full speed.
+    """
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise BadTwist(f"{group}.{axis} is not a finite number")
+        raise BadTwist(f"{name} is not a finite number")
     if abs(value) > LIMIT:
-        raise BadTwist(f"{group}.{axis} is {value:g}: beyond ±{LIMIT:g}")
+        raise BadTwist(f"{name} is {value:g}: beyond ±{LIMIT:g}")
     return float(value)
 
 

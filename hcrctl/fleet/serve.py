@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from .. import __version__
+from ..extras import require
 from ..feeds.progress import sweeps
 from ..feeds.source import Feed
 from ..link.context import Connection
@@ -76,6 +77,8 @@ class Options:
     foxglove: tuple[str, int] | None = None
     #: Web pages beyond loopback and Foxglove's app that may connect to ``foxglove``.
     allow_origins: tuple[str, ...] = ()
+    #: Also be a ROS 2 node on this DDS domain, the robot's name its namespace.
+    ros2: int | None = None
 
 
 def where_of(settings: Connection, options: Options) -> Where:
@@ -91,6 +94,8 @@ def run_serve(settings: Connection, options: Options, *, report: Report | None =
     fronts: list[FrontEnd] = [Fleet(served, settings, options, notes)]
     if options.foxglove is not None:
         fronts.append(_foxglove(served, options, options.foxglove, notes))
+    if options.ros2 is not None:
+        fronts.append(_ros2(served, options, notes))
     return served.run(fronts, report=report)
 
 
@@ -109,6 +114,17 @@ def _foxglove(served: ServedRobot, options: Options, at: tuple[str, int], notes:
         allow_origins=options.allow_origins,
     )
     return Foxglove(served, bridge, notes, beside=True)
+
+
+def _ros2(served: ServedRobot, options: Options, notes: Notes) -> FrontEnd:
+    """The ROS 2 node on the same feed and governor, in the robot's name as its namespace."""
+    from ..ros2.serve import Options as Ros2Options
+    from ..ros2.serve import Ros2Node
+
+    require("cyclonedds", "ros2", "fleet serve --ros2")
+    assert options.ros2 is not None
+    ros2 = Ros2Options(f"/{options.name}", options.ros2, options.rate, options.deadman)
+    return Ros2Node(served, ros2, notes)
 
 
 def _refuse_taken(session: Any, name: str) -> None:

@@ -1,0 +1,62 @@
+"""``hcrctl ros2 [--namespace NS] [--domain-id N] [--rate HZ] [--deadman S] [--stamped]`` (docs/ros2.md).
+
+Cyclone DDS is the ros2 extra, imported only when this runs; its absence is
+one line naming the pip command that installs it (``hcrctl.extras``).
+"""
+
+from __future__ import annotations
+
+import click
+
+from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
+from .params import deadman_option, domain_option, namespace_param, rate_option
+from .serverend import ServerEnd
+from .settings import Settings
+
+
+@click.command()
+@click.option(
+    "--namespace",
+    default="",
+    callback=namespace_param,
+    metavar="NS",
+    help="The node's namespace: topics are NS/range/sonar_0 ... and NS/cmd_vel. [default: none (/)]",
+)
+@domain_option()
+@rate_option()
+@deadman_option(DEFAULT_TIMEOUT_S, "Deadman: stop when no cmd_vel message arrives for S seconds.")
+@click.option(
+    "--stamped",
+    is_flag=True,
+    help="Read cmd_vel as geometry_msgs/msg/TwistStamped (teleop_twist_keyboard's stamped:=true; Nav2 from Kilted).",
+)
+@click.pass_obj
+def ros2(
+    settings: Settings,
+    namespace: str,
+    domain_id: int,
+    rate: float | None,
+    deadman: float | None,
+    stamped: bool,
+) -> None:
+    """Be a ROS 2 node over DDS: the readings as standard messages, and drive from cmd_vel.
+
+    Range for each sonar, IR sensor and bumper, Imu from the compass,
+    Temperature, RelativeHumidity, JointState for the wheels and /tf_static
+    for the sensor frames, as ROS 2 Jazzy defines them; no ROS installation
+    is needed on this side. A geometry_msgs/msg/Twist on cmd_vel (linear.x
+    m/s, angular.z rad/s) drives the robot: one writer at a time, stopped
+    when messages stop for --deadman, when forward motion meets a pressed
+    bumper, and when this command ends. NaN, infinite or huge values are
+    refused and counted. Needs the ros2 extra (without it, the error names
+    the pip command). Runs until Ctrl-C; with --json a summary is printed
+    at the end.
+    """
+    from ..extras import require
+
+    require("cyclonedds", "ros2", "hcrctl ros2")
+    from ..ros2.serve import Options, run_ros2, summary_line
+
+    options = Options(namespace, domain_id, rate, settings.deadman_or(deadman, DEFAULT_TIMEOUT_S), stamped)
+    with ServerEnd("ros2", as_json=settings.as_json) as end:
+        run_ros2(settings, options, report=end.reporter(summary_line))

@@ -1,0 +1,91 @@
+"""``cmd_vel`` from ROS 2: each Twist (or TwistStamped) a DDS writer sends, offered to the motion governor.
+
+This is a *source* of motion, as the bridge's ``/cmd_vel`` is: the governor
+alone decides, writes, runs the deadman and stops. Each DDS writer is a
+driver of its own (named by its instance handle), so the first writer to send
+motion holds the lease and another is refused until the first stops sending
+for the deadman, or goes away (unmatched). A twist_mux in front of the robot
+is then the one writer, and its own priorities decide which input reaches
+the robot: hcrctl's rule only keeps two muxes, or a stray teleop beside one,
+from taking turns.
+
+A sample is held to the rule every Twist hcrctl reads (``cmdvel.speed``: a
+finite number within ±1000 m/s or rad/s, for all six components): NaN, an
+infinity or 1e308 is refused and counted, said once per burst, and never
+reaches the wire. Only ``linear.x`` and ``angular.z`` move a differential
+drive; the others must still be numbers.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from ..feeds.bursts import BurstNotes
+from ..feeds.cmdvel import BadTwist, speed, twist_wheels
+from ..motion.governor import Governor, Kind, Source
+
+TOPIC = "cmd_vel"
+AXES = ("x", "y", "z")
+
+
+def writer_source(writer: str) -> Source:
+    """A DDS writer as a source of motion: its instance handle is its id."""
+    return Source(Kind.NODE, writer, f"ROS 2 writer {writer}")
+
+
+def twist_of(message: Any) -> Any:
+    """The Twist in a Twist or a TwistStamped."""
+    return getattr(message, "twist", message)
+
+
+def checked(twist: Any) -> tuple[float, float]:
+    """(linear.x, angular.z) of a Twist whose six components all pass ``cmdvel.speed``."""
+    for group in ("linear", "angular"):
+        for axis in AXES:
+            speed(f"{group}.{axis}", getattr(getattr(twist, group), axis))
+    return float(twist.linear.x), float(twist.angular.z)
+
+
+class RosCmdVel:
+    """Twists from DDS writers, turned into offers to ``governor``; counts of what was taken and refused."""
+
+    def __init__(self, governor: Governor, note: Callable[[str], None]) -> None:
+        self.governor = governor
+        self.taken = 0
+        self.refused = 0
+        self._note = note
+        self._bursts = BurstNotes(note)
+
+    def message(self, writer: str, message: Any) -> None:
+        """One sample from ``writer``: offered, or refused and counted (said once per burst)."""
+        source = writer_source(writer)
+        refused = self.governor.would_refuse(source)
+        if refused is not None:
+            self._refused(source, "busy", refused)
+            return
+        driver = self.governor.driver
+        try:
+            wheels = twist_wheels(*checked(twist_of(message)))
+        except BadTwist as exc:
+            self._refused(source, "bad", f"refused: {exc}")
+            return
+        verdict = self.governor.offer(source, wheels)
+        if not verdict:
+            self._refused(source, verdict.why, verdict.why)
+            return
+        self.taken += 1
+        if driver != source:
+            self._note(f"{source} drives the robot ({TOPIC})")
+
+    def _refused(self, source: Source, kind: str, why: str) -> None:
+        self.refused += 1
+        self._bursts.say(f"{TOPIC} from {source} {kind}", f"{TOPIC} from {source} {why}")
+
+    def gone(self, writer: str) -> None:
+        """``writer`` went away: if it drove, stop."""
+        source = writer_source(writer)
+        self.governor.release(source, f"{source} left {TOPIC}")
+
+    def flush(self) -> None:
+        self._bursts.flush()

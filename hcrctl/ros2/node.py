@@ -1,0 +1,183 @@
+"""The DDS side of ``hcrctl ros2``: one participant that ROS 2 tools see as a node.
+
+Names as rmw gives them: a topic ``range/sonar_0`` of the node's namespace
+``/hcr`` is the DDS topic ``rt/hcr/range/sonar_0``; an absolute one
+(``/tf_static``) ignores the namespace. QoS are the conversion's
+(``ros2conv.Qos``: sensor data best effort keep last 5, ``/tf_static``
+reliable and transient local keep last 1, ``cmd_vel`` reliable keep last 10).
+A reliable writer never blocks the caller (``max_blocking_time`` 0): with
+KeepLast history there is always room, the oldest sample gives way.
+
+The node is announced as a Jazzy rmw announces one: each reader's and
+writer's USER_DATA carries ``typehash=RIHS01_...;`` (the type's hash, REP
+2016), and a ``ParticipantEntitiesInfo`` on ``ros_discovery_info`` names the
+node and the GUIDs of its readers and writers, so ``ros2 node list`` and
+``ros2 node info`` show it.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from typing import Any
+
+from cyclonedds.core import DDSException, Listener
+from cyclonedds.domain import DomainParticipant
+from cyclonedds.pub import DataWriter
+from cyclonedds.qos import Policy, Qos
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
+
+from ..errors import HcrError
+from ..protocol import ros2conv
+from ..protocol.ros2types import TYPE_HASHES
+from . import idl
+
+DISCOVERY_TOPIC = "ros_discovery_info"
+#: rmw's own topic: reliable, transient local, keep last 1, so a tool started later learns the node.
+DISCOVERY_QOS = ros2conv.Qos(reliable=True, transient_local=True, depth=1)
+NODE_NAME = "hcrctl"
+
+#: (the writer that sent it; its message) for every valid sample a reader takes.
+OnMessage = Callable[[str, Any], None]
+#: A writer went away (unmatched).
+OnGone = Callable[[str], None]
+Note = Callable[[str], None]
+
+
+def dds_topic(name: str, namespace: str) -> str:
+    """The DDS topic of ROS topic ``name`` (relative to ``namespace`` unless it starts with /)."""
+    return "rt" + ros2conv.RosTopic(name, "").full_name(namespace)
+
+
+def dds_qos(qos: ros2conv.Qos, ros_type: str) -> Qos:
+    """Cyclone's QoS for a ROS one, with the type's hash in USER_DATA as rmw puts it there."""
+    reliability = (
+        Policy.Reliability.Reliable(max_blocking_time=0) if qos.reliable else Policy.Reliability.BestEffort
+    )
+    durability = Policy.Durability.TransientLocal if qos.transient_local else Policy.Durability.Volatile
+    policies = [reliability, durability, Policy.History.KeepLast(qos.depth)]
+    if ros_type in TYPE_HASHES:
+        policies.append(Policy.Userdata(f"typehash={TYPE_HASHES[ros_type]};".encode()))
+    return Qos(*policies)
+
+
+class DdsError(HcrError):
+    """DDS could not be joined (a bad ``CYCLONEDDS_URI``, no usable network interface): exit 1, with a hint."""
+
+
+def _participant(domain: int) -> DomainParticipant:
+    try:
+        return DomainParticipant(domain)
+    except DDSException:  # its text names only the class; Cyclone logged the reason on stderr
+        raise DdsError(
+            f"could not join DDS domain {domain}",
+            hint="Cyclone DDS says why on the line above; check CYCLONEDDS_URI (its network interface)",
+        ) from None
+
+
+class Node:
+    """A participant on ``domain``: writers made up front (``advertise``), readers (``subscribe``)."""
+
+    def __init__(self, domain: int, namespace: str) -> None:
+        self.namespace = namespace
+        self.participant = _participant(domain)
+        self._writers: dict[str, tuple[DataWriter, str]] = {}
+        self._readers: list[DataReader] = []
+        self._lock = threading.Lock()
+        discovery = Topic(self.participant, DISCOVERY_TOPIC, idl.dds_type(idl.PARTICIPANT_ENTITIES))
+        self._discovery = DataWriter(self.participant, discovery, qos=dds_qos(DISCOVERY_QOS, ""))
+
+    @property
+    def fullname(self) -> str:
+        """The node as ``ros2 node list`` shows it: ``/ns/hcrctl``."""
+        return f"{self.namespace.rstrip('/')}/{NODE_NAME}"
+
+    def advertise(self, topics: list[ros2conv.RosTopic]) -> None:
+        """A writer for each topic, then the node announced once with all of them."""
+        for topic in topics:
+            kind = idl.dds_type(topic.type)
+            dds = Topic(self.participant, dds_topic(topic.name, self.namespace), kind)
+            writer = DataWriter(self.participant, dds, qos=dds_qos(topic.qos, topic.type))
+            with self._lock:
+                self._writers[topic.name] = (writer, topic.type)
+        self.announce()
+
+    def publish(self, name: str, fields: dict[str, Any]) -> bool:
+        """One message on ROS topic ``name``; False if the topic was never advertised."""
+        found = self._writers.get(name)
+        if found is None:
+            return False
+        writer, kind = found
+        writer.write(idl.build(kind, fields))
+        return True
+
+    def subscribe(self, topic: ros2conv.RosTopic, on_message: OnMessage, on_gone: OnGone, note: Note) -> None:
+        """Read ``topic`` into ``on_message``, on Cyclone's listener thread."""
+        dds = Topic(self.participant, dds_topic(topic.name, self.namespace), idl.dds_type(topic.type))
+        listener = _Reading(on_message, on_gone, note)
+        reader = DataReader(self.participant, dds, qos=dds_qos(topic.qos, topic.type), listener=listener)
+        with self._lock:
+            self._readers.append(reader)
+        self.announce()
+
+    def announce(self) -> None:
+        """Say on ``ros_discovery_info`` what this node reads and writes, as rmw does after each change."""
+        with self._lock:
+            writers = [writer for writer, _ in self._writers.values()]
+            readers = list(self._readers)
+        node = {
+            "node_namespace": self.namespace or "/",
+            "node_name": NODE_NAME,
+            "reader_gid_seq": [_gid(r.guid) for r in readers],
+            "writer_gid_seq": [_gid(w.guid) for w in writers],
+        }
+        info = {"gid": _gid(self.participant.guid), "node_entities_info_seq": [node]}
+        self._discovery.write(idl.build(idl.PARTICIPANT_ENTITIES, info))
+
+    def unsubscribe(self) -> None:
+        """No reader calls back after this (the writers stay, so late readings still go out)."""
+        for reader in self._readers:
+            reader.set_listener(None)
+
+    def close(self) -> None:
+        """Readers first (no message after this), then the participant and everything in it."""
+        self.unsubscribe()
+        # dds_delete of the participant deletes every reader and writer in it and tells the peers at
+        # once (a remote reader sees the writers go); Cyclone's Python binding calls it from __del__ only.
+        self.participant.__del__()
+        self._readers.clear()
+        self._writers.clear()
+
+
+def _gid(guid: Any) -> dict[str, list[int]]:
+    return {"data": list(guid.bytes)}
+
+
+class _Reading(Listener):
+    """Samples and unmatched writers, on Cyclone's listener thread; a failure costs only its sample."""
+
+    def __init__(self, on_message: OnMessage, on_gone: OnGone, note: Note) -> None:
+        super().__init__()
+        self._on_message, self._on_gone, self._note = on_message, on_gone, note
+
+    def on_data_available(self, reader: DataReader) -> None:
+        try:
+            for sample in reader.take(N=64):
+                info = getattr(sample, "sample_info", None)
+                if info is not None and info.valid_data:
+                    self._on_message(_writer(info.publication_handle), sample)
+        except Exception as exc:  # never into Cyclone's thread: the deadman stops what this left moving
+            self._note(f"error reading {reader.topic.name} (ignored): {exc!r}")
+
+    def on_subscription_matched(self, reader: DataReader, status: Any) -> None:
+        try:
+            if status.current_count_change < 0:
+                self._on_gone(_writer(status.last_publication_handle))
+        except Exception as exc:
+            self._note(f"error in a writer's leaving {reader.topic.name} (ignored): {exc!r}")
+
+
+def _writer(handle: int) -> str:
+    """A DDS writer as this reader knows it: its instance handle."""
+    return f"{handle:x}"
