@@ -22,7 +22,6 @@ publishing a late reply while the main thread undeclares them).
 from __future__ import annotations
 
 import contextlib
-import json
 import sys
 import threading
 import time
@@ -186,25 +185,23 @@ class Serving:
     def robot(self) -> Robot:
         return self.feed.current or self.feed.robot
 
-    def say(self, op: Hashable | None, text: str, seq: int | None = None) -> None:
-        """A word to the operators (``status``) and a line on stderr.
+    def say(self, op: Hashable | None, said: str | keys.Status, seq: int | None = None) -> None:
+        """A word to the operators (``status``, built by ``keys``) and a line on stderr.
 
-        ``op`` is the operator it is for or about: a fleet session (its name and
-        session id go in the message, so a name used by two sessions is told
-        apart), a Foxglove client, or nobody; ``seq`` the message it is about.
+        ``op`` is the operator a refusal (``said`` as text) is for: a fleet
+        session (its name and session id go in the message, so a name used by
+        two sessions is told apart), a Foxglove client, or nobody; ``seq`` the
+        message it is about. Any other word comes built (``keys.drives_status``).
         """
-        self.notes.note(text)
-        said: dict[str, Any] = {"op": None if op is None else str(op), "text": text}
-        if isinstance(op, keys.Who):
-            said["session"] = op.session
-        if seq is not None:
-            said["seq"] = seq
+        status = said if isinstance(said, keys.Status) else keys.refused_status(op, said, seq)
+        self.notes.note(status.text)
         with contextlib.suppress(Exception):  # the session is closing: stderr said it
-            self.session.put(keys.status(self.name), json.dumps(said).encode(), encoding="application/json")
+            self.session.put(keys.status(self.name), status.to_bytes(), encoding="application/json")
 
     def told_stop(self, source: object, why: str) -> None:
-        """A stop for any reason but a new message (deadman, operator gone, stop, bumper)."""
-        self.say(source if isinstance(source, (str, keys.Who)) else None, f"stopped: {why}")
+        """A stop for any reason but a new message (deadman, operator gone, stop, bumper), to who drove."""
+        driver = source if source is not None else self.governor.driver
+        self.say(None, keys.stopped_status(driver if isinstance(driver, (str, keys.Who)) else None, why))
 
     def renewal_late(self, source: object, late: Late) -> None:
         """A driver's renewal after half its lease: said on stderr (at most once a second, with the count).
