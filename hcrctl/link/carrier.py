@@ -75,11 +75,23 @@ def requests_in(events: list[Event]) -> list[tuple[Frame, C.Command]] | None:
     return found or None
 
 
+def is_stop(cmd: C.Command, content: bytes) -> bool:
+    """Whether a request (content in the table's layout) is the stop request: read through the table."""
+    if not cmd.motion or cmd.request is None:
+        return False
+    try:
+        return bool(cmd.request.from_content(content) == C.STOP)
+    except (ValueError, HcrError):
+        return False
+
+
 class Carrier(ABC):
     """The Robot's end of a request-carrying link; ``bind`` tells it where replies and a lost link go."""
 
     #: The port's name in messages (the URL).
     port: str
+    #: What to check when the link ends (``lost``).
+    lost_hint = "is the far side still there?"
 
     @abstractmethod
     def bind(self, deliver: Deliver, lost: Lost) -> None:

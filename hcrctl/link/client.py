@@ -36,7 +36,7 @@ from ..protocol.dialect import decode_all, make_decoder
 from ..protocol.frames import MAX_FRAME, BadChecksum, ChecksumRule, Event, Frame, Malformed, Truncated
 from ..protocol.motionscan import MotionScan
 from ..protocol.profiles import DEFAULT, Profile, profile
-from .carrier import Carrier, RawRefused, opener, requests_in
+from .carrier import Carrier, RawRefused, is_stop, opener, requests_in
 from .defaults import BAUD, REPLY_TIMEOUT_S, RETRIES
 from .dialects import HEAR_FIRST, Dialect, stop_frames
 from .reads import TypedReads
@@ -274,7 +274,7 @@ class Robot(TypedReads, Dialect):
         try:
             with self._tx:
                 self._check_link()
-                if self.motion.feed(frame):
+                if self.motion.feed(frame) and self.carrier is None:
                     self.moved = True
                 self._recent_tx.append(frame)
                 # In the link's order before the bytes leave, so no hook sees the reply first;
@@ -282,8 +282,7 @@ class Robot(TypedReads, Dialect):
                 if self.watchers.hooks:
                     self.watchers.queue("tx", frame, decode_sent(frame, self._rule, self.profile))
                 if self.carrier is not None and requests is not None:
-                    for address, cmd, content in requests:
-                        self.carrier.send(address, cmd, content)
+                    self._carry(self.carrier, requests)
                 else:
                     self._put(frame)
                 self.stats.tx_frames += 1
@@ -295,6 +294,14 @@ class Robot(TypedReads, Dialect):
             self.serial.write(frame)
         except Exception as exc:
             raise self._lost(exc) from exc
+
+    def _carry(self, carrier: Carrier, requests: list[tuple[int, C.Command, bytes]]) -> None:
+        """Each request to the carrier; the robot moved once it took motion other than the stop request
+        (the far side says what a refused one did: nothing)."""
+        for address, cmd, content in requests:
+            carrier.send(address, cmd, content)
+            if cmd.motion and not is_stop(cmd, content):
+                self.moved = True
 
     def _requests(self, data: bytes) -> list[tuple[int, C.Command, bytes]]:
         """``data`` as the table's requests (content in the table's layout); RawRefused if it is not only that."""
@@ -315,8 +322,8 @@ class Robot(TypedReads, Dialect):
             self._dispatch([frame])
 
     def _carrier_lost(self, why: str) -> None:
-        if not self._closing.is_set():
-            self._lost(ConnectionError(why))
+        if not self._closing.is_set() and self.carrier is not None:
+            self.error = PortError(f"lost the link ({why})", self.port, hint=self.carrier.lost_hint)
 
     def transact(
         self, frame: bytes, expect: tuple[int, int], what: str = "request", *, timeout: float | None = None

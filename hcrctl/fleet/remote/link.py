@@ -39,7 +39,7 @@ import time
 from typing import TYPE_CHECKING, Any
 
 from ...errors import BadPortUrl, DeviceRefused, HcrError, quoted
-from ...link.carrier import Carrier, Deliver, Lost, Timeout
+from ...link.carrier import Carrier, Deliver, Lost, Timeout, is_stop
 from ...protocol import commands as C
 from ...protocol.profiles import DEFAULT, Profile, profile
 from ...protocol.records import hexs
@@ -101,6 +101,8 @@ def robot_name(url: str) -> str:
 class RemoteLink(Carrier):
     """One operator's link to one fleet robot."""
 
+    lost_hint = LIST_HINT
+
     def __init__(self, name: str, where: Where, url: str | None = None) -> None:
         self.name = name
         self.port = url or f"{SCHEME}{name}"
@@ -120,6 +122,8 @@ class RemoteLink(Carrier):
         self._cond = threading.Condition()
         self._asking: set[tuple[int, int]] = set()
         self._said: dict[tuple[int, int], tuple[str, str | None]] = {}
+        #: Closed: no timeout waits for an explanation any more (a signal's exit must not wait for one).
+        self._closed = False
 
     # -- opening and closing -------------------------------------------------------------
 
@@ -187,6 +191,9 @@ class RemoteLink(Carrier):
 
     def close(self) -> None:
         """Give the lease back, undeclare everything, close the session; quietly, whatever state it is in."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
         if self.lease is not None:
             self.lease.close()
         for held in reversed(self._held):
@@ -233,7 +240,7 @@ class RemoteLink(Carrier):
 
     def send(self, address: int, cmd: C.Command, content: bytes) -> None:
         """One request of the table: a read, motion under the lease, or a write (see the module)."""
-        stop = cmd.motion and _is_stop(cmd, content)
+        stop = is_stop(cmd, content)
         if not stop:
             self._informed_of()
         if cmd.kind == "read":
@@ -300,7 +307,7 @@ class RemoteLink(Carrier):
         key = (error.address, cmd.code)
         deadline = time.monotonic() + GRACE_S
         with self._cond:
-            while key in self._asking and (left := deadline - time.monotonic()) > 0:
+            while key in self._asking and not self._closed and (left := deadline - time.monotonic()) > 0:
                 self._cond.wait(left)
             said = self._said.get(key)
         served = self.info.get("sensors")
@@ -356,16 +363,6 @@ class RemoteLink(Carrier):
         except (TypeError, ValueError, HcrError):
             return  # nothing the Robot can read: it times out, as on a wire
         self._deliver(address, cmd, content)
-
-
-def _is_stop(cmd: C.Command, content: bytes) -> bool:
-    """Whether a motion request is the stop request (read through the table, not compared as bytes)."""
-    if cmd.request is None:
-        return False
-    try:
-        return bool(cmd.request.from_content(content) == C.STOP)
-    except (ValueError, HcrError):
-        return False
 
 
 def _hex(text: object) -> bytes | None:
