@@ -177,15 +177,17 @@ class DriveLease:
         with self._lock:
             self.held = False
 
-    def heard(self, said: Status, robot: str) -> None:
+    def heard(self, said: Status) -> None:
         """The robot side's status for this session: a stop or a refusal while it drives halts its motion."""
         if said.event not in ("stopped", "refused"):
             return
+        self._halt(quoted(said.text, SAID_CHARS), said.reason)
+
+    def _halt(self, text: str, reason: str | None) -> None:
+        """The motion this session drives was stopped (``text``, the robot side's words): kept, lease lost."""
         with self._lock:
             if self.held:
-                self.halted = MotionHalted(
-                    f"{robot} {quoted(said.text, SAID_CHARS)}", hint=HALT_HINTS.get(said.reason or "")
-                )
+                self.halted = MotionHalted(f"{self._robot} {text}", hint=HALT_HINTS.get(reason or ""))
             self.held = False
 
     def close(self) -> None:
@@ -227,8 +229,14 @@ class DriveLease:
         )
 
     def _renewed(self, reply: Any) -> None:
+        """A renewal's answer: refused, the lease is lost; granted with a new key, the robot side forgot this
+        session (its token went, and with it the motion it drove) and took it for a new one."""
         if reply.err is not None:
             self.lost()
+        elif "key" in _object(reply.ok.payload.to_bytes()):
+            self._halt(
+                f"stopped: it lost {self._op}'s liveliness token, and the motion with it", "operator gone"
+            )
 
     # -- the wire -------------------------------------------------------------------------
 

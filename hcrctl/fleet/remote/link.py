@@ -234,7 +234,7 @@ class RemoteLink(Carrier):
         """The robot side's word about this session: a stop or a refusal ends the lease and halts its motion."""
         said = parse_status(sample.payload.to_bytes())
         if self.lease is not None and said is not None and said.is_for(self.op):
-            self.lease.heard(said, self.name)
+            self.lease.heard(said)
 
     # -- requests -------------------------------------------------------------------------------
 
