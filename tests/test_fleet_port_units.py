@@ -1,11 +1,23 @@
-"""The operator side's pure parts: the zenoh:// name rule. They need no Zenoh."""
+"""The operator side's pure parts: the zenoh:// name rule, the status contract, what a carrier carries.
+
+They need no Zenoh.
+"""
 
 from __future__ import annotations
+
+import json
 
 import pytest
 
 from hcrctl.errors import BadPortUrl
+from hcrctl.fleet import keys
 from hcrctl.fleet.remote.link import robot_name
+from hcrctl.link.carrier import is_stop, requests_in
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.decoder import decode_all
+
+OP = keys.Who("op1", "0123456789abcdef")
+
 
 @pytest.mark.parametrize(
     "url", ["zenoh://", "zenoh://a/b", "zenoh://-r", "zenoh://r*", "zenoh://" + "r" * 65, "zenoh://@r"]
@@ -20,3 +32,84 @@ def test_a_name_that_cannot_be_a_key_chunk_is_a_usage_error_saying_the_rule(url:
 def test_a_good_name_is_the_robots() -> None:
     assert robot_name("zenoh://lab_robot-1.a") == "lab_robot-1.a"
     assert robot_name("ZENOH://r1") == "r1"
+
+
+@pytest.mark.parametrize(
+    ("why", "reason"),
+    [
+        ("bumper hit", "bumper"),
+        ("bumper hit: forward blocked", "bumper"),
+        ("bumper reading 0.61 s old (over 0.6 s)", "bumper"),
+        ("deadman: no cmd_vel for 0.5 s", "deadman"),
+        ("stop from op2", "stop"),
+        ("operator op1 gone", "operator gone"),
+        ("/dev/ttyUSB0 went away", "port lost"),
+        ("op1 released r1", "released"),
+        (
+            "a second sender under op1's session: cmd_vel #3 was not signed with its key; the lease is ended",
+            "second sender",
+        ),
+        ("internal error in the governor: KeyError()", "error"),
+        ("something new", "other"),
+    ],
+)
+def test_a_stop_carries_the_reason_a_program_compares(why: str, reason: str) -> None:
+    said = keys.stopped_status(OP, why)
+    assert json.loads(said.to_bytes()) == {
+        "event": "stopped",
+        "text": f"stopped: {why}",
+        "op": "op1",
+        "session": OP.session,
+        "reason": reason,
+    }
+    assert keys.parse_status(said.to_bytes()) == said
+
+
+def test_status_messages_are_for_one_session_and_say_their_event() -> None:
+    drives = keys.parse_status(keys.drives_status(OP, "r1").to_bytes())
+    assert drives is not None and drives.event == "drives" and drives.text == "op1 drives r1"
+    assert drives.is_for(OP) and not drives.is_for(keys.Who("op1", "f" * 16))
+    refused = keys.parse_status(keys.refused_status(OP, "cmd_vel refused: bumper hit", 7).to_bytes())
+    assert refused is not None and (refused.event, refused.seq) == ("refused", 7)
+    nobody = keys.parse_status(keys.refused_status(None, "ignored a cmd_vel").to_bytes())
+    assert nobody is not None and nobody.op is None and not nobody.is_for(OP)
+
+
+@pytest.mark.parametrize(
+    "data",
+    [
+        b"",
+        b"[]",
+        b'{"text": "op1 drives r1"}',  # no event: a word for people only
+        b'{"event": "drove", "text": "x"}',
+        b'{"event": "stopped", "text": "x", "reason": "gremlins"}',
+        b'{"event": "refused", "text": "x", "seq": 1.5}',
+        b'{"event": "refused", "text": "x", "seq": NaN}',
+        b'{"event": "note", "text": 3}',
+        b'{"event": "note", "text": "x", "session": 12}',
+    ],
+)
+def test_what_is_no_status_message_is_none(data: bytes) -> None:
+    assert keys.parse_status(data) is None
+
+
+def _events(data: bytes) -> list[object]:
+    return list(decode_all(data))
+
+
+def test_requests_of_the_table_are_carried_and_anything_else_is_not() -> None:
+    read = bytes.fromhex("55AA 01 01 14 FF 14 0D0A")  # compass read request, header checksum
+    power = bytes.fromhex("55AA 01 02 01 C0 40 03 0D0A")  # motor power 50 -50
+    found = requests_in(_events(read + power))  # type: ignore[arg-type]
+    assert found is not None and [cmd.name for _, cmd in found] == ["compass", "power"]
+    reply = bytes.fromhex("55AA 01 02 14 0384 9D 0D0A")  # a compass reply is no request
+    assert requests_in(_events(reply)) is None  # type: ignore[arg-type]
+    assert requests_in(_events(b"junk" + read)) is None  # type: ignore[arg-type]
+    assert requests_in([]) is None
+
+
+def test_the_stop_request_is_told_by_the_table_not_by_its_bytes() -> None:
+    power = C.BY_NAME["power"]
+    assert is_stop(power, C.STOP.content())
+    assert not is_stop(power, C.MotorPower(40, 40).content())
+    assert not is_stop(C.BY_NAME["compass"], C.STOP.content())
