@@ -6,6 +6,8 @@ They need no Zenoh.
 from __future__ import annotations
 
 import json
+import re
+from pathlib import Path
 
 import pytest
 
@@ -113,3 +115,19 @@ def test_the_stop_request_is_told_by_the_table_not_by_its_bytes() -> None:
     assert is_stop(power, C.STOP.content())
     assert not is_stop(power, C.MotorPower(40, 40).content())
     assert not is_stop(C.BY_NAME["compass"], C.STOP.content())
+
+
+def test_the_motion_requests_docs_fleet_md_lists_are_the_tables() -> None:
+    """docs/fleet.md's table of motion requests, which a client is written from, is the command table's."""
+    text = (Path(__file__).resolve().parent.parent / "docs" / "fleet.md").read_text()
+    section = text.split("### Motion requests", 1)[1].split("###", 1)[0]
+    rows = re.findall(
+        r"^\| (0x[0-9A-F]{2}) \| (\w+) \| .* \| (\w+) ([-\d ]+).*: `([0-9A-F ]+)` \|$", section, re.M
+    )
+    assert {name for _, name, *_ in rows} == {c.name for c in C.COMMANDS if c.motion}, rows
+    for code, name, example, args, content in rows:
+        cmd = C.BY_NAME[name]
+        assert (int(code, 16), example) == (cmd.code, name)
+        assert cmd.request is not None and cmd.request(*map(int, args.split())).content() == bytes.fromhex(
+            content
+        )
