@@ -149,3 +149,15 @@ def test_two_operators_of_one_name_one_after_the_other_both_drive(robot: Fleet) 
         after = wire.wait_sent(is_stop, after=moved, what="its stop") + 1
     names = re.findall(r"(\S+) drives r1", wire.said())
     assert len(names) == 2 and names[0] == names[1] and names[0].endswith(".1"), names
+
+
+def test_a_turn_stopped_by_another_operator_exits_1_naming_the_stop(robot: Fleet) -> None:
+    turning, _, err = robot.start("r1", "--json", "turn", "255", "--rate", "20")
+    wire = robot.served["r1"]
+    moved = wire.wait_sent(lambda f: f.command == C.BY_NAME["turn"].code, what="the turn")
+    assert robot.run("r1", "stop").returncode == 0
+    wire.wait_sent(is_stop, after=moved, what="the other operator's stop")
+    assert turning.wait(timeout=TIMEOUT) == 1
+    line = error_line(err.read_text())
+    assert re.match(r"hcrctl: error: turn 255° clockwise: .*: r1 stopped: stop from \S+ after ", line), line
+    assert "(hint: someone on the fleet sent stop" in line
