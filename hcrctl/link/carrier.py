@@ -14,36 +14,38 @@ a port is declared here and nowhere else:
 - ``halted`` is why the far side stopped the motion this link asked for (a
   bumper, a deadman, someone's stop, its port gone), None while it runs.
 
-A URL scheme names its carrier in ``CARRIERS`` (a module imported only when a
-port of that scheme is opened, so its dependencies load only then).
+A URL scheme names its carrier's opener in ``schemes``.
 """
 
 from __future__ import annotations
 
-import importlib
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from typing import TYPE_CHECKING, TypeVar, cast
+from typing import Protocol, TypeVar
 
 from ..errors import DeviceTimeout, HcrError
 from ..protocol import commands as C
 from ..protocol.frames import Event, Frame
 from ..protocol.messages import READ_REQUEST
 
-if TYPE_CHECKING:
-    from .context import Connection
-
 #: A reply or broadcast from the far side: (address, command, content in the table's layout).
 Deliver = Callable[[int, C.Command, bytes], None]
 #: The link ended (the robot left): why.
 Lost = Callable[[str], None]
+
+
+class Settings(Protocol):
+    """What a carrier reads of the Connection opening it: where a fleet is (``--zenoh``, ``--zenoh-config``)."""
+
+    zenoh: tuple[str, ...]
+    zenoh_config: str | None
+
+
 #: Opens a carrier for a URL of its scheme, with the settings of the Connection opening it (None: defaults).
-Opener = Callable[[str, "Connection | None"], "Carrier"]
+Opener = Callable[[str, "Settings | None"], "Carrier"]
 
 #: A timeout error of any kind (a silent device, a lost reply): given back as the same kind.
 Timeout = TypeVar("Timeout", bound=DeviceTimeout)
-#: URL scheme (lower case, with ``://``) to the ``module:function`` that opens its carrier.
-CARRIERS: dict[str, str] = {"zenoh://": "hcrctl.fleet.remote.link:open_carrier"}
 
 
 class RawRefused(HcrError):
@@ -115,12 +117,3 @@ class Carrier(ABC):
     @abstractmethod
     def close(self) -> None:
         """Release the link (the far side frees whatever this end held); quietly, whatever state it is in."""
-
-
-def opener(url: str) -> Opener | None:
-    """The carrier opener for ``url``'s scheme, or None for a port of bytes."""
-    for scheme, target in CARRIERS.items():
-        if url.lower().startswith(scheme):
-            module, _, name = target.partition(":")
-            return cast(Opener, getattr(importlib.import_module(module), name))
-    return None

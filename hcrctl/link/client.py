@@ -36,10 +36,11 @@ from ..protocol.dialect import decode_all, make_decoder
 from ..protocol.frames import MAX_FRAME, BadChecksum, ChecksumRule, Event, Frame, Malformed, Truncated
 from ..protocol.motionscan import MotionScan
 from ..protocol.profiles import DEFAULT, Profile, profile
-from .carrier import Carrier, RawRefused, is_stop, opener, requests_in
+from .carrier import Carrier, RawRefused, is_stop, requests_in
 from .defaults import BAUD, REPLY_TIMEOUT_S, RETRIES
 from .dialects import HEAR_FIRST, Dialect, stop_frames
 from .reads import TypedReads
+from .schemes import opener
 from .stopwait import DEFAULT_WAIT_S as DEFAULT_WAIT_S
 from .traffic import FrameHook, LinkStats, TrafficHook, Watchers, decode_sent
 

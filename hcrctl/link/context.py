@@ -18,8 +18,8 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import PortError
 from ..protocol.frames import ChecksumRule
-from .carrier import opener
 from .defaults import BAUD, REPLY_TIMEOUT_S, RETRIES
+from .schemes import opener
 from .stopwait import DEFAULT_WAIT_S
 
 if TYPE_CHECKING:
@@ -116,7 +116,7 @@ class Connection:
         return TrafficLog(self.log, rule=ChecksumRule(self.checksum), profile=profile(self.protocol))
 
     def _port(self) -> Any:
-        """The resolved port; one whose scheme names a carrier (``link.carrier``) opened here, with these
+        """The resolved port; one whose scheme names a carrier (``schemes``) opened here, with these
         settings (where the fleet is)."""
         port = self.resolve_port()
         carry = opener(port)

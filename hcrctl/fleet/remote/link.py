@@ -36,10 +36,10 @@ import contextlib
 import json
 import threading
 import time
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from ...errors import BadPortUrl, DeviceRefused, HcrError, quoted
-from ...link.carrier import Carrier, Deliver, Lost, Timeout, is_stop
+from ...link.carrier import Carrier, Deliver, Lost, Settings, Timeout, is_stop
 from ...protocol import commands as C
 from ...protocol.profiles import DEFAULT, Profile, profile
 from ...protocol.records import hexs
@@ -64,9 +64,6 @@ from ..keys import write as write_key
 from ..session import FleetError, Where, import_zenoh, join, looked_at
 from .lease import DriveLease
 
-if TYPE_CHECKING:
-    from ...link.context import Connection
-
 SCHEME = "zenoh://"
 #: How long the robot's presence, its info and a write may take to answer.
 ASK_TIMEOUT_S = 2.0
@@ -81,7 +78,7 @@ SAID_CHARS = 200
 BROADCAST = b'"broadcast"'
 
 
-def open_carrier(url: str, settings: Connection | None) -> RemoteLink:
+def open_carrier(url: str, settings: Settings | None) -> RemoteLink:
     """``zenoh://NAME`` opened where ``settings`` says the fleet is (the default router without them)."""
     where = Where() if settings is None else Where(settings.zenoh, (), settings.zenoh_config)
     link = RemoteLink(robot_name(url), where, url)
