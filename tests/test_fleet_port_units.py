@@ -73,6 +73,11 @@ def test_status_messages_are_for_one_session_and_say_their_event() -> None:
     assert drives.is_for(OP) and not drives.is_for(keys.Who("op1", "f" * 16))
     refused = keys.parse_status(keys.refused_status(OP, "cmd_vel refused: bumper hit", 7).to_bytes())
     assert refused is not None and (refused.event, refused.seq) == ("refused", 7)
+    assert json.loads(keys.refused_status(None, "x").to_bytes()) == {
+        "event": "refused",
+        "text": "x",
+        "op": None,
+    }
     nobody = keys.parse_status(keys.refused_status(None, "ignored a cmd_vel").to_bytes())
     assert nobody is not None and nobody.op is None and not nobody.is_for(OP)
 

@@ -331,8 +331,10 @@ class Status(NamedTuple):
     reason: str | None = None
 
     def to_bytes(self) -> bytes:
-        """The message as it goes on ``status``: a JSON object, the fields that are None left out."""
-        return json.dumps({k: v for k, v in self._asdict().items() if v is not None}).encode()
+        """The message as it goes on ``status``: a JSON object; ``op`` always (null: about nobody), the other
+        fields that are None left out."""
+        fields = self._asdict()
+        return json.dumps({k: v for k, v in fields.items() if v is not None or k == "op"}).encode()
 
     def is_for(self, op: Who) -> bool:
         """Whether the message is about this operator session (a name alone is never enough)."""
