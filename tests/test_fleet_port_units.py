@@ -136,3 +136,31 @@ def test_the_motion_requests_docs_fleet_md_lists_are_the_tables() -> None:
         assert cmd.request is not None and cmd.request(*map(int, args.split())).content() == bytes.fromhex(
             content
         )
+
+
+class _Session:
+    """Where a lease puts its messages, kept to look at (no Zenoh session needed)."""
+
+    def __init__(self) -> None:
+        self.puts: list[str] = []
+
+    def put(self, key: str, data: bytes, **options: object) -> None:
+        self.puts.append(key)
+
+
+def test_the_word_of_this_sessions_own_stop_never_halts_its_next_motion() -> None:
+    pytest.importorskip("zenoh", reason="the lease's puts name Zenoh's encodings")
+    from hcrctl.fleet.remote.lease import HALT_HINTS, DriveLease
+
+    assert set(HALT_HINTS) <= set(keys.REASONS)
+    session = _Session()
+    lease = DriveLease(session, "r1", OP, 0.5)
+    lease.held = True  # driving
+    lease.stop()
+    assert session.puts == [keys.stop("r1")]
+    lease.held = True  # the next motion claimed before the robot side's word of that stop came
+    lease.heard(keys.stopped_status(OP, "stop from op1"))
+    assert lease.halted is None and lease.held
+    lease.heard(keys.stopped_status(OP, "stop from op2"))  # another's stop, after it
+    assert lease.halted is not None and not lease.held
+    assert lease.halted.message == "r1 stopped: stop from op2" and lease.halted.hint == HALT_HINTS["stop"]

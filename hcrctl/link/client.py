@@ -1,10 +1,12 @@
-"""``Robot``: blocking request/reply over any serial-like object.
+"""``Robot``: blocking request/reply over any serial-like object, or over a carrier of requests.
 
 A reader thread owns the port's input and runs the shared ``FrameDecoder``.
 A frame that answers the pending request (same address and command) goes to
 the waiting caller; everything else (0xA0 positioning, 0xB0 maps, strays) goes
 to the ``unsolicited`` queue and callback, so a broadcast arriving between a
-request and its reply disturbs nothing.
+request and its reply disturbs nothing. Over a carrier (``carrier``: a fleet
+robot) there is no byte stream to read: each request written goes to the
+carrier, and its replies come back as frames routed the same way.
 
 If the robot was ever told to move, closing it sends stop first: a library
 user who forgets, or whose program crashes inside ``with Robot(...)``, must

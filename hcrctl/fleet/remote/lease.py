@@ -101,6 +101,9 @@ class DriveLease:
         self.claimed_ever = False
         #: Why the robot side stopped or refused the motion this session asked for last; None while it runs.
         self.halted: MotionHalted | None = None
+        #: This session's own stops sent while it drove, whose "stopped" word has not come back yet: that word
+        #: may come after the next motion's claim was answered, and must not halt that motion.
+        self._own_stops = 0
 
     def pace(self, deadman: float) -> None:
         """Renew often enough for a robot side whose deadman is ``deadman`` s (four renewals to one)."""
@@ -134,6 +137,7 @@ class DriveLease:
         if self.refused and not self.held:
             return
         with self._lock:
+            self._own_stops += 1 if self.held else 0
             self.held = False
             self._put(stop_key(self._robot), {})
 
@@ -181,6 +185,10 @@ class DriveLease:
         """The robot side's status for this session: a stop or a refusal while it drives halts its motion."""
         if said.event not in ("stopped", "refused"):
             return
+        with self._lock:
+            if said.reason == "stop" and self._own_stops:
+                self._own_stops -= 1  # the robot side telling of this session's own stop
+                return
         self._halt(quoted(said.text, SAID_CHARS), said.reason)
 
     def _halt(self, text: str, reason: str | None) -> None:
