@@ -73,13 +73,13 @@ def run_drive(settings: Settings, value: C.Request, hold_for: float | None) -> N
 
 
 def _held(settings: Settings, record: dict[str, Any], robot: Robot, hold_for: float | None) -> float:
-    """How long the motion was held; a hold the link ended is the command's error, and ``--json`` says
-    what happened (its ``error`` and the seconds it really held)."""
+    """How long the motion was held. A hold the far side of a carrier stopped (``Robot.halted``) is the
+    command's error, and ``--json`` says what happened: its ``error`` and the seconds it really held."""
     start = time.monotonic()
     try:
         return round(hold(robot, hold_for), 3)
     except HcrError as exc:
-        if settings.as_json:
+        if settings.as_json and exc is robot.halted:
             emit(settings, record | {"held_s": round(time.monotonic() - start, 3), "error": exc.message}, "")
         raise
 
