@@ -147,8 +147,8 @@ def test_two_operators_of_one_name_one_after_the_other_both_drive(robot: Fleet) 
         assert done.returncode == 0, done.stderr
         moved = wire.wait_sent(lambda f: is_motion(f) and not forward(f), after=after, what="power 40 40")
         after = wire.wait_sent(is_stop, after=moved, what="its stop") + 1
-    names = re.findall(r"(\S+) drives r1", wire.said())
-    assert len(names) == 2 and names[0] == names[1] and names[0].endswith(".1"), names
+    names = re.findall(r"(\S+) drives r1", wire.said())  # a renewal that overtook a stop may say it again
+    assert len(names) >= 2 and set(names) == {names[0]} and names[0].endswith(".1"), names
 
 
 def test_a_turn_stopped_by_another_operator_exits_1_naming_the_stop(robot: Fleet) -> None:
