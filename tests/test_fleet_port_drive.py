@@ -18,7 +18,7 @@ import pytest
 
 pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip install 'hcrctl[zenoh]')")
 
-from helpers import terminal, terminal_env
+from helpers import TIMEOUT, terminal, terminal_env
 from helpers_fleet_port import Fleet, fleet, is_motion, is_stop
 from helpers_netns import Topology
 
@@ -93,11 +93,10 @@ def test_a_second_operator_is_refused_naming_the_driver_and_a_third_stops_it(rob
     assert third.returncode == 0, third.stderr
     stopped = wire.wait_sent(is_stop, after=moved, what="the third operator's stop")
     robot.served["r1"].wait_said("stopped: stop from")
-    # The first operator still holds its drive open and keeps renewing: that must not set it going again.
+    # The first operator's drive ends on that stop (exit 1, saying so) and never sets the robot going again.
+    assert first.wait(timeout=TIMEOUT) == 1
     again = robot.run("r1", "read", "compass")  # a round trip through the robot side after the stop
     assert again.returncode == 0, again.stderr
-    first.send_signal(signal.SIGTERM)
-    first.wait(timeout=30)
     sent = wire.sent()
     assert not [f for f in sent[stopped:] if power(*SPIN_POWER)(f) or power(20, 20)(f)], sent[stopped:]
     assert not [f for f in sent[:stopped] if power(20, 20)(f)]  # the refused one never moved it
@@ -154,7 +153,7 @@ def test_a_frozen_operator_is_stopped_by_the_deadman_while_still_frozen(
 ) -> None:
     with fleet(tmp_path, topology) as running:
         running.serve("r1", "sim://", "--deadman", "0.3")
-        driver, _, _ = running.start("r1", "drive", *SPIN)
+        driver, _, driver_err = running.start("r1", "drive", *SPIN)
         wire = running.served["r1"]
         moved = wire.wait_sent(power(*SPIN_POWER), what="motion")
         os.kill(driver.pid, signal.SIGSTOP)
@@ -165,11 +164,12 @@ def test_a_frozen_operator_is_stopped_by_the_deadman_while_still_frozen(
             assert "deadman" in said or "gone" in said, said  # the lease, or the link's (1 s) after it
         finally:
             os.kill(driver.pid, signal.SIGCONT)
-        # Thawed, it renews its claim but sends no motion again: only a new command moves the robot.
+        # Thawed, it learns its motion was stopped and ends saying why; it never sends motion again.
+        assert driver.wait(timeout=TIMEOUT) == 1
+        error = driver_err.read_text().rstrip().splitlines()[-1]
+        assert re.match(r"hcrctl: error: r1 stopped: (deadman|it lost \S+'s liveliness token)", error), error
         again = running.run("r1", "read", "compass")
         assert again.returncode == 0, again.stderr
-        driver.send_signal(signal.SIGTERM)
-        driver.wait(timeout=30)
         assert not [f for f in wire.sent()[stopped:] if is_motion(f)]
 
 

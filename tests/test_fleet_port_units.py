@@ -1,41 +1,24 @@
-"""The operator side's pure parts: a reply laid out again for the local profile, and the zenoh:// name rule.
+"""The operator side's pure parts: the zenoh:// name rule, the status contract, what a carrier carries.
 
-These need no Zenoh: the frames are written out by hand from the protocol
-document and the v0.33 firmware's dialect, not made by the code under test.
+They need no Zenoh.
 """
 
 from __future__ import annotations
 
+import json
+import re
+from pathlib import Path
+
 import pytest
 
 from hcrctl.errors import BadPortUrl
+from hcrctl.fleet import keys
 from hcrctl.fleet.remote.link import robot_name
-from hcrctl.fleet.remote.reframe import reframe
-from hcrctl.protocol.frames import ChecksumRule
-from hcrctl.protocol.profiles import V011, V015
+from hcrctl.link.carrier import is_stop, requests_in
+from hcrctl.protocol import commands as C
+from hcrctl.protocol.decoder import decode_all
 
-#: A v0.11 board's bumper reply: active low, bits (right, front, left) = (0, 1, 2); 0x05 = only front pressed.
-#: Its checksum is address + length + command (01 + 01 + 11 = 0x13), and it ends in a lone 0A.
-V011_FRONT = bytes.fromhex("55AA 01 01 11 05 13 0A")
-#: The same reading as the document lays it out: bit 1 (front) set, header checksum, 0D 0A.
-V015_FRONT = bytes.fromhex("55AA 01 01 11 02 14 0D0A")
-COMPASS_90 = bytes.fromhex("55AA 01 02 14 0384 9D 0D0A")  # 90.0°: 0x55 + 0xAA + ... + 0x84 = 0x19D
-
-
-def test_a_v011_bumper_reply_reads_as_the_document_lays_it_out() -> None:
-    assert reframe(V011_FRONT, V011, V015, ChecksumRule.HEADER) == V015_FRONT
-
-
-def test_a_v015_reply_is_unchanged_for_a_v015_operator_and_checksummed_for_its_rule() -> None:
-    assert reframe(COMPASS_90, V015, V015, ChecksumRule.HEADER) == COMPASS_90
-    assert reframe(COMPASS_90, V015, V015, ChecksumRule.ADDRESS) == COMPASS_90[:7] + b"\x9e\r\n"
-
-
-@pytest.mark.parametrize(
-    "raw", [b"", b"\x55\xaa\x01", bytes.fromhex("55AA 01 05 14 0384 9D 0D0A"), b"junk junk"]
-)
-def test_what_is_no_whole_frame_is_nothing(raw: bytes) -> None:
-    assert reframe(raw, V015, V015, ChecksumRule.HEADER) is None
+OP = keys.Who("op1", "0123456789abcdef")
 
 
 @pytest.mark.parametrize(
@@ -51,3 +34,133 @@ def test_a_name_that_cannot_be_a_key_chunk_is_a_usage_error_saying_the_rule(url:
 def test_a_good_name_is_the_robots() -> None:
     assert robot_name("zenoh://lab_robot-1.a") == "lab_robot-1.a"
     assert robot_name("ZENOH://r1") == "r1"
+
+
+@pytest.mark.parametrize(
+    ("why", "reason"),
+    [
+        ("bumper hit", "bumper"),
+        ("bumper hit: forward blocked", "bumper"),
+        ("bumper reading 0.61 s old (over 0.6 s)", "bumper"),
+        ("deadman: no cmd_vel for 0.5 s", "deadman"),
+        ("stop from op2", "stop"),
+        ("operator op1 gone", "operator gone"),
+        ("/dev/ttyUSB0 went away", "port lost"),
+        ("op1 released r1", "released"),
+        (
+            "a second sender under op1's session: cmd_vel #3 was not signed with its key; the lease is ended",
+            "second sender",
+        ),
+        ("internal error in the governor: KeyError()", "error"),
+        ("something new", "other"),
+    ],
+)
+def test_a_stop_carries_the_reason_a_program_compares(why: str, reason: str) -> None:
+    said = keys.stopped_status(OP, why)
+    assert json.loads(said.to_bytes()) == {
+        "event": "stopped",
+        "text": f"stopped: {why}",
+        "op": "op1",
+        "session": OP.session,
+        "reason": reason,
+    }
+    assert keys.parse_status(said.to_bytes()) == said
+
+
+def test_status_messages_are_for_one_session_and_say_their_event() -> None:
+    drives = keys.parse_status(keys.drives_status(OP, "r1").to_bytes())
+    assert drives is not None and drives.event == "drives" and drives.text == "op1 drives r1"
+    assert drives.is_for(OP) and not drives.is_for(keys.Who("op1", "f" * 16))
+    refused = keys.parse_status(keys.refused_status(OP, "cmd_vel refused: bumper hit", 7).to_bytes())
+    assert refused is not None and (refused.event, refused.seq) == ("refused", 7)
+    assert json.loads(keys.refused_status(None, "x").to_bytes()) == {
+        "event": "refused",
+        "text": "x",
+        "op": None,
+    }
+    nobody = keys.parse_status(keys.refused_status(None, "ignored a cmd_vel").to_bytes())
+    assert nobody is not None and nobody.op is None and not nobody.is_for(OP)
+
+
+@pytest.mark.parametrize(
+    "data",
+    [
+        b"",
+        b"[]",
+        b'{"text": "op1 drives r1"}',  # no event: a word for people only
+        b'{"event": "drove", "text": "x"}',
+        b'{"event": "stopped", "text": "x", "reason": "gremlins"}',
+        b'{"event": "refused", "text": "x", "seq": 1.5}',
+        b'{"event": "refused", "text": "x", "seq": NaN}',
+        b'{"event": "note", "text": 3}',
+        b'{"event": "note", "text": "x", "session": 12}',
+    ],
+)
+def test_what_is_no_status_message_is_none(data: bytes) -> None:
+    assert keys.parse_status(data) is None
+
+
+def _events(data: bytes) -> list[object]:
+    return list(decode_all(data))
+
+
+def test_requests_of_the_table_are_carried_and_anything_else_is_not() -> None:
+    read = bytes.fromhex("55AA 01 01 14 FF 14 0D0A")  # compass read request, header checksum
+    power = bytes.fromhex("55AA 01 02 01 C0 40 03 0D0A")  # motor power 50 -50
+    found = requests_in(_events(read + power))  # type: ignore[arg-type]
+    assert found is not None and [cmd.name for _, cmd in found] == ["compass", "power"]
+    reply = bytes.fromhex("55AA 01 02 14 0384 9D 0D0A")  # a compass reply is no request
+    assert requests_in(_events(reply)) is None  # type: ignore[arg-type]
+    assert requests_in(_events(b"junk" + read)) is None  # type: ignore[arg-type]
+    assert requests_in([]) is None
+
+
+def test_the_stop_request_is_told_by_the_table_not_by_its_bytes() -> None:
+    power = C.BY_NAME["power"]
+    assert is_stop(power, C.STOP.content())
+    assert not is_stop(power, C.MotorPower(40, 40).content())
+    assert not is_stop(C.BY_NAME["compass"], C.STOP.content())
+
+
+def test_the_motion_requests_docs_fleet_md_lists_are_the_tables() -> None:
+    """docs/fleet.md's table of motion requests, which a client is written from, is the command table's."""
+    text = (Path(__file__).resolve().parent.parent / "docs" / "fleet.md").read_text()
+    section = text.split("### Motion requests", 1)[1].split("###", 1)[0]
+    rows = re.findall(
+        r"^\| (0x[0-9A-F]{2}) \| (\w+) \| .* \| (\w+) ([-\d ]+).*: `([0-9A-F ]+)` \|$", section, re.M
+    )
+    assert {name for _, name, *_ in rows} == {c.name for c in C.COMMANDS if c.motion}, rows
+    for code, name, example, args, content in rows:
+        cmd = C.BY_NAME[name]
+        assert (int(code, 16), example) == (cmd.code, name)
+        assert cmd.request is not None and cmd.request(*map(int, args.split())).content() == bytes.fromhex(
+            content
+        )
+
+
+class _Session:
+    """Where a lease puts its messages, kept to look at (no Zenoh session needed)."""
+
+    def __init__(self) -> None:
+        self.puts: list[str] = []
+
+    def put(self, key: str, data: bytes, **options: object) -> None:
+        self.puts.append(key)
+
+
+def test_the_word_of_this_sessions_own_stop_never_halts_its_next_motion() -> None:
+    pytest.importorskip("zenoh", reason="the lease's puts name Zenoh's encodings")
+    from hcrctl.fleet.remote.lease import HALT_HINTS, DriveLease
+
+    assert set(HALT_HINTS) <= set(keys.REASONS)
+    session = _Session()
+    lease = DriveLease(session, "r1", OP, 0.5)
+    lease.held = True  # driving
+    lease.stop()
+    assert session.puts == [keys.stop("r1")]
+    lease.held = True  # the next motion claimed before the robot side's word of that stop came
+    lease.heard(keys.stopped_status(OP, "stop from op1"))
+    assert lease.halted is None and lease.held
+    lease.heard(keys.stopped_status(OP, "stop from op2"))  # another's stop, after it
+    assert lease.halted is not None and not lease.held
+    assert lease.halted.message == "r1 stopped: stop from op2" and lease.halted.hint == HALT_HINTS["stop"]

@@ -94,6 +94,7 @@ def test_a_silent_driver_is_stopped_by_the_deadman(lab: Fleet, tmp_path: Path) -
         said = op.wait_said("deadman")
         wait_until(lambda: motion_then_stop(serve)[1], what="stop after the motion")
     assert said["text"] == "stopped: deadman: no cmd_vel for 0.3 s"
+    assert (said["event"], said["reason"], said["session"]) == ("stopped", "deadman", op.op.session)
     assert "stopped: deadman: no cmd_vel" in serve.wait_err("deadman")
 
 
@@ -114,7 +115,13 @@ def test_a_second_operator_is_refused_and_a_third_may_stop(lab: Fleet, tmp_path:
         op3.stop()
         said = op1.wait_said("stop from op3")
         wait_until(lambda: motion_then_stop(serve)[1], what="stop after the motion")
-    assert said == {"op": "op1", "session": op1.op.session, "text": "stopped: stop from op3"}
+    assert said == {
+        "event": "stopped",
+        "op": "op1",
+        "session": op1.op.session,
+        "reason": "stop",
+        "text": "stopped: stop from op3",
+    }
     backwards = [f for f in serve.sent_codes({VELOCITY}) if f.content[0]]
     assert not backwards, "op2's reverse reached the wire"
 
@@ -176,15 +183,32 @@ def test_a_message_without_its_operator_is_ignored(lab: Fleet, tmp_path: Path) -
     assert not serve.sent_codes({VELOCITY})
 
 
+#: The one spelling of bytes in every fleet message: upper-case hex pairs, one space between.
+HEX = re.compile(r"[0-9A-F]{2}( [0-9A-F]{2})*")
+
+
 def test_a_read_through_the_queryable_is_the_frame_on_the_wire(lab: Fleet, tmp_path: Path) -> None:
     serve = served(lab, tmp_path)
     with operator(lab.endpoint, "r1", "op1") as op:
+        broadcasts: list[dict[str, Any]] = []
+        frames = op.session.declare_subscriber(
+            keys.topic("r1", "frames"), lambda sample: broadcasts.append(json.loads(bytes(sample.payload)))
+        )
         ok, body = op.query(keys.read("r1", "compass"))
         assert ok, body
         bad_ok, bad = op.query(keys.read("r1", "compass"), {"address": 300})
+        wait_until(
+            lambda: [m for m in list(broadcasts) if m.get("name") == "compass"], what="a compass frame"
+        )
+        frames.undeclare()
+    spelt = {m["hex"] for m in broadcasts} | {body["frame"], body["content"]}
+    assert all(HEX.fullmatch(text) for text in spelt), (
+        spelt
+    )  # the read's answer as the frames topic spells it
     frame = bytes.fromhex(body["frame"])
     (event,) = decode_all(frame)
     assert isinstance(event, Frame) and event.command == 0x14
+    assert bytes.fromhex(body["content"]) == event.content  # v0.15: the table's layout is the wire's
     heading = int.from_bytes(event.content, "big") / 10
     assert body["reading"]["heading"] == pytest.approx(heading)
     assert body["reading"]["address"] == 1
@@ -374,3 +398,4 @@ def test_a_lost_serial_link_is_said_and_ends_the_drive(lab: Fleet, tmp_path: Pat
         said = op.wait_said("went away")
     assert f"warning: {port} went away: the drive lease is ended" in text
     assert said["text"] == f"stopped: {port} went away"
+    assert (said["event"], said["reason"], said["op"]) == ("stopped", "port lost", "op1")

@@ -9,10 +9,12 @@ timed move, which is held and stopped there too.
 
 from __future__ import annotations
 
+import time
 from typing import TYPE_CHECKING, Any
 
 import click
 
+from ..errors import HcrError
 from ..link.dialects import check_command, frame_of
 from ..link.rescue import stopping
 from ..ops.motion import DRIVE_COMMANDS, hold
@@ -23,7 +25,7 @@ from .params import hold_option, request_value, table_command
 from .settings import Settings
 
 if TYPE_CHECKING:
-    pass
+    from ..link.client import Robot
 
 
 @click.group()
@@ -63,11 +65,23 @@ def run_drive(settings: Settings, value: C.Request, hold_for: float | None) -> N
             record, _ = send_request(robot, value)
             until = "" if hold_for is None else f" for {hold_for:g} s"
             say(f"driving: {describe(value)}{until} — Ctrl-C to stop")
-            record["held_s"] = round(hold(robot, hold_for), 3)
+            record["held_s"] = _held(settings, record, robot, hold_for)
         record["stop_hex"] = hex_bytes(frame_of(robot, C.STOP))
     say(f"stopped after {record['held_s']:g} s")
     if settings.as_json:
         emit(settings, record, "")
+
+
+def _held(settings: Settings, record: dict[str, Any], robot: Robot, hold_for: float | None) -> float:
+    """How long the motion was held. A hold the far side of a carrier stopped (``Robot.halted``) is the
+    command's error, and ``--json`` says what happened: its ``error`` and the seconds it really held."""
+    start = time.monotonic()
+    try:
+        return round(hold(robot, hold_for), 3)
+    except HcrError as exc:
+        if settings.as_json and exc is robot.halted:
+            emit(settings, record | {"held_s": round(time.monotonic() - start, 3), "error": exc.message}, "")
+        raise
 
 
 @click.command()

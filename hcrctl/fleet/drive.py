@@ -63,8 +63,9 @@ MAX_MESSAGE = 4096
 _DIGITS = re.compile(r"\d+")
 #: Operator sessions present at once (their tokens); a token beyond this is not admitted.
 MAX_OPERATORS = 256
-#: Say = (operator the word is for or about, text, the sequence number it is about): a put on ``status``.
-Say = Callable[[keys.Who | None, str, int | None], None]
+#: Say = (operator a refusal is for or about, its text or a built status, the sequence number it is
+#: about): a put on ``status``.
+Say = Callable[[keys.Who | None, "str | keys.Status", int | None], None]
 
 
 def operator_source(op: keys.Who) -> Source:
@@ -185,7 +186,7 @@ class FleetDrive:
         if not verdict:
             self._dropped(op, seq, f"cmd_vel {verdict.why}")
         elif not drove:
-            self._say(op, f"{op} drives {self.robot}", None)
+            self._say(op, keys.drives_status(op, self.robot), None)
 
     def _not_the_drivers(self, attachment: bytes | None) -> bool:
         """While one drives, a message whose attachment does not start with the driver's session is refused
@@ -309,7 +310,7 @@ class FleetDrive:
             if present.dropped is not None and present.dropped[0] == asked:
                 answer["dropped"] = present.dropped[1]
         if not drove and fresh:
-            self._say(op, f"{op} drives {self.robot}", None)
+            self._say(op, keys.drives_status(op, self.robot), None)
         return True, answer
 
     def _claim_refused(self, op: keys.Who, why: str) -> tuple[bool, dict[str, Any]]:

@@ -40,6 +40,7 @@ import os
 import re
 import secrets
 import socket
+from collections.abc import Hashable
 from typing import Any, NamedTuple
 
 ROOT = "hcr"
@@ -282,3 +283,102 @@ def check_info(info: dict[str, Any]) -> dict[str, Any]:
     ):
         raise BadInfo("its sensors are not a list of names")
     return info
+
+
+# -- the robot's word on ``hcr/<robot>/status``: built and read here only --------------------------
+
+#: What a status message says happened. ``drives``: ``op`` holds the lease now; ``stopped``: motion ended
+#: (``reason`` says why) and ``op``, who drove, no longer holds the lease; ``refused``: a message of ``op``'s
+#: (``seq``, when it had one) did not count, and ``op`` no longer drives; ``note``: anything else.
+EVENTS = ("drives", "stopped", "refused", "note")
+#: Why motion stopped, a word a program compares (the ``text`` beside it is for people).
+REASONS = (
+    "bumper",
+    "deadman",
+    "stop",
+    "operator gone",
+    "port lost",
+    "released",
+    "second sender",
+    "error",
+    "other",
+)
+#: The governor's words for a stop, first match wins: (what the words start with or contain, the reason).
+_REASON_WORDS = (
+    ("bumper", "bumper"),
+    ("deadman", "deadman"),
+    ("stop from ", "stop"),
+    ("operator ", "operator gone"),
+    ("went away", "port lost"),
+    ("lost the link", "port lost"),
+    ("second sender", "second sender"),
+    ("released", "released"),
+    ("left", "released"),
+    ("internal error", "error"),
+)
+#: The longest text a status message carries.
+MAX_STATUS_TEXT = 1000
+
+
+class Status(NamedTuple):
+    """One status message: ``event`` (``EVENTS``), who it is for, why; ``text`` says it to people."""
+
+    event: str
+    text: str
+    op: str | None = None
+    session: str | None = None
+    seq: int | None = None
+    reason: str | None = None
+
+    def to_bytes(self) -> bytes:
+        """The message as it goes on ``status``: a JSON object; ``op`` always (null: about nobody), the other
+        fields that are None left out."""
+        fields = self._asdict()
+        return json.dumps({k: v for k, v in fields.items() if v is not None or k == "op"}).encode()
+
+    def is_for(self, op: Who) -> bool:
+        """Whether the message is about this operator session (a name alone is never enough)."""
+        return self.op == op.name and self.session == op.session
+
+
+def addressed(op: Hashable | None) -> tuple[str | None, str | None]:
+    """(name, session) a status message names for ``op``: a fleet session, another source, or nobody."""
+    if isinstance(op, Who):
+        return op.name, op.session
+    return (None if op is None else str(op)), None
+
+
+def drives_status(op: Who, robot: str) -> Status:
+    return Status("drives", f"{op} drives {robot}", op.name, op.session)
+
+
+def stopped_status(op: Hashable | None, why: str) -> Status:
+    """Motion stopped for ``why`` (the governor's words), while ``op`` drove."""
+    return Status("stopped", f"stopped: {why}", *addressed(op), reason=stop_reason(why))
+
+
+def refused_status(op: Hashable | None, text: str, seq: int | None = None) -> Status:
+    """A message of ``op``'s (``seq``) refused or ignored, and why (``text``)."""
+    return Status("refused", text, *addressed(op), seq=seq)
+
+
+def stop_reason(why: str) -> str:
+    """The ``REASONS`` word for the governor's words of a stop."""
+    lowered = why.lower()
+    return next((reason for words, reason in _REASON_WORDS if words in lowered), "other")
+
+
+def parse_status(data: bytes) -> Status | None:
+    """A status message, its fields checked for their kinds; None for anything else."""
+    found = loads(data) if len(data) <= 4 * MAX_STATUS_TEXT else None
+    if not isinstance(found, dict):
+        return None
+    event, text, seq = found.get("event"), found.get("text"), found.get("seq")
+    op, session, reason = found.get("op"), found.get("session"), found.get("reason")
+    if event not in EVENTS or not isinstance(text, str) or reason not in (None, *REASONS):
+        return None
+    if not all(v is None or isinstance(v, str) for v in (op, session)):
+        return None
+    if seq is not None and not (isinstance(seq, int) and number_in(seq, 1, MAX_SEQ)):
+        return None
+    return Status(event, text[:MAX_STATUS_TEXT], op, session, seq, reason)

@@ -15,8 +15,9 @@ line, so those queries are answered from a small pool (``Answers``); more
 than ``MAX_PENDING`` waiting is a busy robot, said at once. ``info``, a
 claim and a stop never wait behind them: answered on Zenoh's thread, they
 need no serial line. Every answer is JSON: the reply frame's hex exactly as
-it came off the wire and the reading as its topic carries it, or an error
-with the one-line text hcrctl would print and its hint.
+it came off the wire, its content in the table's layout, and the reading as
+its topic carries it; or an error with the one-line text hcrctl would print
+and its hint.
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ from ..link.client import Robot
 from ..protocol import commands as C
 from ..protocol import topics as T
 from ..protocol.frames import Frame
+from ..protocol.records import hexs
 
 #: Queries answered at once; the serial link takes one at a time anyway.
 WORKERS = 2
@@ -106,8 +108,17 @@ def read(robot: Robot, sensor: str, message: dict[str, Any]) -> dict[str, Any]:
     reply = robot.transact(
         robot.frame_for(cmd, address), (address, cmd.code), cmd.name, timeout=QUERY_REPLY_S
     )
-    data = robot.wire_bytes(reply)
-    return {"frame": data.hex(), "reading": reading(robot, cmd, reply, data)}
+    return answered(robot, cmd, reply, robot.wire_bytes(reply))
+
+
+def answered(robot: Robot, cmd: C.Command, reply: Frame, data: bytes) -> dict[str, Any]:
+    """A read's answer: the reply frame as it came off the wire (``data``), its content in the table's
+    layout (whatever the firmware's dialect) and its reading. Hex as everywhere: ``55 AA 01``."""
+    return {
+        "frame": hexs(data),
+        "content": hexs(robot.profile.to_document(cmd.code, reply.content)),
+        "reading": reading(robot, cmd, reply, data),
+    }
 
 
 def reading(robot: Robot, cmd: C.Command, reply: Frame, data: bytes) -> dict[str, Any]:
@@ -132,7 +143,7 @@ def swept(robot: Robot, cmd: C.Command, heard: Heard | None, within: float) -> d
     age = time.monotonic() - at
     if age > within:
         return None
-    return {"frame": data.hex(), "reading": reading(robot, cmd, frame, data), "age": round(age, 3)}
+    return answered(robot, cmd, frame, data) | {"age": round(age, 3)}
 
 
 def write(robot: Robot, message: dict[str, Any]) -> dict[str, Any]:
@@ -152,7 +163,7 @@ def write(robot: Robot, message: dict[str, Any]) -> dict[str, Any]:
     address = address_of(message, robot)
     frame = robot.frame_for(request, address)
     answer = robot.send(request, address=address)
-    body: dict[str, Any] = {"frame": frame.hex()}
+    body: dict[str, Any] = {"frame": hexs(frame)}
     if answer is not None:
         body["reply"] = answer.fields()
     return body

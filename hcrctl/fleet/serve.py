@@ -24,7 +24,6 @@ publishing a late reply while the main thread undeclares them).
 from __future__ import annotations
 
 import contextlib
-import json
 import sys
 import threading
 import time
@@ -200,14 +199,17 @@ class Fleet(FrontEnd):
         return f"{self.name} ({self.robot.port}) as {keys.ROOT}/{self.name}/..."
 
     def stopped(self, source: Source | None, why: str) -> None:
-        """A stop told on ``status``: to the operator that drove, or to all when it names no source.
+        """A stop told on ``status``: to the operator that drove, or to all when it names no operator.
 
-        Another front end's source (a Foxglove client) is told by its own front end, not named here.
+        A stop with no source (the bumper, the port) is addressed to whoever drove then, so an operator
+        learns why its motion ended. Another front end's source (a Foxglove client) is told by its own
+        front end, not named here.
         """
-        if source is None:
-            self.tell(None, f"stopped: {why}")
-        elif source.kind is Kind.OPERATOR and isinstance(source.id, keys.Who):
-            self.tell(source.id, f"stopped: {why}")
+        driver = source if source is not None else self.governor.driver
+        op = driver.id if driver is not None and driver.kind is Kind.OPERATOR else None
+        if source is not None and not isinstance(op, keys.Who):
+            return
+        self.tell(keys.stopped_status(op if isinstance(op, keys.Who) else None, why))
 
     def tick(self) -> None:
         self.drive.refusals.tick()
@@ -258,22 +260,21 @@ class Fleet(FrontEnd):
     def feed(self) -> Feed:
         return self.served.feed
 
-    def say(self, op: keys.Who | None, text: str, seq: int | None = None) -> None:
-        """A word to the operators (``status``) and a line on stderr."""
-        self.notes.note(text)
-        self.tell(op, text, seq)
+    def say(self, op: keys.Who | None, said: str | keys.Status, seq: int | None = None) -> None:
+        """A word to the operators (``status``, built by ``keys``) and a line on stderr.
 
-    def tell(self, op: keys.Who | None, text: str, seq: int | None = None) -> None:
-        """A word on ``status``: ``op`` is the operator session it is for or about (its name and session id
-        go in the message, so a name used by two sessions is told apart), or nobody; ``seq`` the message
-        it is about."""
-        said: dict[str, Any] = {"op": None if op is None else str(op), "text": text}
-        if op is not None:
-            said["session"] = op.session
-        if seq is not None:
-            said["seq"] = seq
+        ``op`` is the operator session a refusal (``said`` as text) is for (its name and session id go in
+        the message, so a name used by two sessions is told apart), or nobody; ``seq`` the message it is
+        about. Any other word comes built (``keys.drives_status``).
+        """
+        status = said if isinstance(said, keys.Status) else keys.refused_status(op, said, seq)
+        self.notes.note(status.text)
+        self.tell(status)
+
+    def tell(self, status: keys.Status) -> None:
+        """A word on ``status`` only."""
         with contextlib.suppress(Exception):  # the session is closing: stderr said it
-            self.session.put(keys.status(self.name), json.dumps(said).encode(), encoding="application/json")
+            self.session.put(keys.status(self.name), status.to_bytes(), encoding="application/json")
 
     def renewal_late(self, source: Source, late: Late) -> None:
         """A driver's renewal after half its lease: said on stderr (at most once a second, with the count).

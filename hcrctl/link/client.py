@@ -1,10 +1,12 @@
-"""``Robot``: blocking request/reply over any serial-like object.
+"""``Robot``: blocking request/reply over any serial-like object, or over a carrier of requests.
 
 A reader thread owns the port's input and runs the shared ``FrameDecoder``.
 A frame that answers the pending request (same address and command) goes to
 the waiting caller; everything else (0xA0 positioning, 0xB0 maps, strays) goes
 to the ``unsolicited`` queue and callback, so a broadcast arriving between a
-request and its reply disturbs nothing.
+request and its reply disturbs nothing. Over a carrier (``carrier``: a fleet
+robot) there is no byte stream to read: each request written goes to the
+carrier, and its replies come back as frames routed the same way.
 
 If the robot was ever told to move, closing it sends stop first: a library
 user who forgets, or whose program crashes inside ``with Robot(...)``, must
@@ -32,13 +34,15 @@ from ..errors import (
     ProtocolError,
 )
 from ..protocol import commands as C
-from ..protocol.dialect import make_decoder
+from ..protocol.dialect import decode_all, make_decoder
 from ..protocol.frames import MAX_FRAME, BadChecksum, ChecksumRule, Event, Frame, Malformed, Truncated
 from ..protocol.motionscan import MotionScan
 from ..protocol.profiles import DEFAULT, Profile, profile
+from .carrier import Carrier, RawRefused, is_stop, requests_in
 from .defaults import BAUD, REPLY_TIMEOUT_S, RETRIES
 from .dialects import HEAR_FIRST, Dialect, stop_frames
 from .reads import TypedReads
+from .schemes import opener
 from .stopwait import DEFAULT_WAIT_S as DEFAULT_WAIT_S
 from .traffic import FrameHook, LinkStats, TrafficHook, Watchers, decode_sent
 
@@ -111,8 +115,15 @@ class Robot(TypedReads, Dialect):
         self._replies: queue.SimpleQueue[Frame] = queue.SimpleQueue()
         self._closing = threading.Event()
         self.serial, self.port = self._open(port, baud)
-        self._reader = threading.Thread(target=self._read_loop, name="hcrctl-reader", daemon=True)
-        self._reader.start()
+        #: The port when it carries requests, not bytes (``carrier``); None for a serial port.
+        self.carrier: Carrier | None = self.serial if isinstance(self.serial, Carrier) else None
+        self._carried = threading.Lock()  # the carrier's replies come on its threads: one at a time here
+        self._reader: threading.Thread | None = None
+        if self.carrier is not None:
+            self.carrier.bind(self._heard_carried, self._carrier_lost)
+        else:
+            self._reader = threading.Thread(target=self._read_loop, name="hcrctl-reader", daemon=True)
+            self._reader.start()
 
     # -- lifecycle -----------------------------------------------------------
 
@@ -120,9 +131,14 @@ class Robot(TypedReads, Dialect):
     def _open(port: Any, baud: int) -> tuple[Any, str]:
         from .transport import describe, open_port
 
-        if isinstance(port, str):
-            return open_port(port, baud, timeout=READ_SLICE), port
-        return port, describe(port)
+        if isinstance(port, Carrier):
+            return port, port.port
+        if not isinstance(port, str):
+            return port, describe(port)
+        carry = opener(port)
+        if carry is not None:
+            return carry(port, None), port
+        return open_port(port, baud, timeout=READ_SLICE), port
 
     def __enter__(self) -> Robot:
         return self
@@ -139,9 +155,10 @@ class Robot(TypedReads, Dialect):
                 for frame in stop_frames(self):
                     self.write(frame)
         self._closing.set()
-        with contextlib.suppress(Exception):
-            self.serial.cancel_read()
-        self._reader.join(timeout=1.0)
+        if self._reader is not None:
+            with contextlib.suppress(Exception):
+                self.serial.cancel_read()
+            self._reader.join(timeout=1.0)
         with contextlib.suppress(Exception):
             self.serial.close()
 
@@ -207,9 +224,13 @@ class Robot(TypedReads, Dialect):
         )
 
     def _port_says(self, error: _Timeout) -> _Timeout:
-        """A port that knows why no reply came (a fleet robot's own error) adds it to the timeout."""
-        why = getattr(self.serial, "why_no_reply", None)
-        return error if why is None else why(error)
+        """A carrier adds what the far side said about the request (its own timeout, a refusal)."""
+        return error if self.carrier is None else self.carrier.why_no_reply(error)
+
+    @property
+    def halted(self) -> HcrError | None:
+        """Why the far side stopped the motion this robot asked for (a carrier's word); None while it runs."""
+        return None if self.carrier is None else self.carrier.halted()
 
     def _result(
         self, cmd: C.Command, addr: int, frame: Frame | None, silent: DeviceSilent | None = None
@@ -251,27 +272,67 @@ class Robot(TypedReads, Dialect):
             raise DeviceRefused(f"the device at 0x{self.address:02X} on {self.port} refused PID {p} {i} {d}")
 
     def write(self, frame: bytes) -> None:
-        """Put bytes on the wire as given, telling the traffic hooks."""
+        """Put bytes on the wire as given, telling the traffic hooks.
+
+        Over a carrier the bytes must be whole requests of the table, each
+        sent as one (RawRefused, nothing sent, for anything else); a refusal
+        the carrier raises is that request's error, not a lost link.
+        """
         frame = bytes(frame)
+        requests = None if self.carrier is None else self._requests(frame)
         try:
             with self._tx:
                 self._check_link()
-                if self.motion.feed(frame):
+                if self.motion.feed(frame) and self.carrier is None:
                     self.moved = True
                 self._recent_tx.append(frame)
                 # In the link's order before the bytes leave, so no hook sees the reply first;
                 # the hooks are told after, so the bytes never wait for a hook
                 if self.watchers.hooks:
                     self.watchers.queue("tx", frame, decode_sent(frame, self._rule, self.profile))
-                try:
-                    self.serial.write(frame)
-                except HcrError:
-                    raise  # the port's own word (a fleet robot driven by another): not a lost link
-                except Exception as exc:
-                    raise self._lost(exc) from exc
+                if self.carrier is not None and requests is not None:
+                    self._carry(self.carrier, requests)
+                else:
+                    self._put(frame)
                 self.stats.tx_frames += 1
         finally:
             self.watchers.deliver()
+
+    def _put(self, frame: bytes) -> None:
+        try:
+            self.serial.write(frame)
+        except Exception as exc:
+            raise self._lost(exc) from exc
+
+    def _carry(self, carrier: Carrier, requests: list[tuple[int, C.Command, bytes]]) -> None:
+        """Each request to the carrier; the robot moved once it took motion other than the stop request
+        (the far side says what a refused one did: nothing)."""
+        for address, cmd, content in requests:
+            carrier.send(address, cmd, content)
+            if cmd.motion and not is_stop(cmd, content):
+                self.moved = True
+
+    def _requests(self, data: bytes) -> list[tuple[int, C.Command, bytes]]:
+        """``data`` as the table's requests (content in the table's layout); RawRefused if it is not only that."""
+        found = requests_in(decode_all(data, self._rule, self.profile))
+        if found is None:
+            raise RawRefused.of(self.port, data)
+        return [(f.address, cmd, self.profile.to_document(f.command, f.content)) for f, cmd in found]
+
+    def _heard_carried(self, address: int, cmd: C.Command, content: bytes) -> None:
+        """A reply or broadcast a carrier brought (content in the table's layout), as if this link heard it."""
+        if not self.profile.has(cmd.code) or self._closing.is_set():
+            return
+        local = self.profile.from_document(cmd.code, content)
+        wire = self.profile.encode(address, cmd.code, local, self._rule)
+        frame = Frame(address, cmd.code, local, wire[-len(self.profile.terminator) - 1], 0)
+        with self._carried:
+            self.rx_bytes += len(wire)
+            self._dispatch([frame])
+
+    def _carrier_lost(self, why: str) -> None:
+        if not self._closing.is_set() and self.carrier is not None:
+            self.error = PortError(f"lost the link ({why})", self.port, hint=self.carrier.lost_hint)
 
     def transact(
         self, frame: bytes, expect: tuple[int, int], what: str = "request", *, timeout: float | None = None

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 from ..errors import PortError
 from ..protocol.frames import ChecksumRule
 from .defaults import BAUD, REPLY_TIMEOUT_S, RETRIES
+from .schemes import opener
 from .stopwait import DEFAULT_WAIT_S
 
 if TYPE_CHECKING:
@@ -115,17 +116,11 @@ class Connection:
         return TrafficLog(self.log, rule=ChecksumRule(self.checksum), profile=profile(self.protocol))
 
     def _port(self) -> Any:
-        """The resolved port; a fleet robot's (``zenoh://NAME``) opened here, told where the fleet is."""
+        """The resolved port; one whose scheme names a carrier (``schemes``) opened here, with these
+        settings (where the fleet is)."""
         port = self.resolve_port()
-        if not port.lower().startswith("zenoh://"):
-            return port
-        from ..fleet.remote import Reach
-        from ..fleet.session import Where
-        from .client import READ_SLICE
-        from .transport import open_port
-
-        reach = Reach(Where(self.zenoh, (), self.zenoh_config), self.protocol, self.checksum)
-        return open_port(port, self.baud, timeout=READ_SLICE, reach=reach)
+        carry = opener(port)
+        return port if carry is None else carry(port, self)
 
     def resolve_port(self) -> str:
         """The given port, or the one USB serial port present (said on stderr).

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import errno
 import os
-from typing import Any
 
 import serial
 
@@ -21,17 +20,12 @@ SIM_OPTIONS_HINT = "for example sim://?drop=0.1&seed=3; docs/simulator.md lists 
 URL_HINT = "a device path, or a URL such as socket://HOST:PORT, rfc2217://HOST:PORT, loop:// or sim://"
 
 
-def open_port(url: str, baud: int = BAUD, timeout: float | None = 0.1, **handler: Any) -> serial.SerialBase:
-    """Open ``url`` for the client; raises PortError with a hint on any failure.
-
-    ``handler`` keywords go to our own URL handlers (``zenoh://`` takes ``reach``: where the fleet is).
-    """
+def open_port(url: str, baud: int = BAUD, timeout: float | None = 0.1) -> serial.SerialBase:
+    """Open ``url`` for the client; raises PortError with a hint on any failure."""
     register_sim()
     is_device = "://" not in url
     try:
-        return serial.serial_for_url(
-            url, baudrate=baud, timeout=timeout, exclusive=is_device or None, **handler
-        )
+        return serial.serial_for_url(url, baudrate=baud, timeout=timeout, exclusive=is_device or None)
     except (OSError, ValueError, KeyError, TypeError) as exc:  # pyserial raises all four
         raise _open_error(url, exc) from exc
 

@@ -27,7 +27,8 @@ def hold(robot: Robot, seconds: float | None) -> float:
 
     Ctrl-C is the normal end of an open-ended drive (exit 0); with --for it
     interrupts (exit 130). SIGTERM/SIGHUP raise through, and the caller's
-    ``stopping()`` still sends stop. A lost link ends the hold with its error.
+    ``stopping()`` still sends stop. A lost link ends the hold with its error,
+    and so does motion the far side of a carrier stopped (``Robot.halted``).
     """
     start = time.monotonic()
     deadline = None if seconds is None else start + seconds
@@ -35,6 +36,8 @@ def hold(robot: Robot, seconds: float | None) -> float:
         while deadline is None or time.monotonic() < deadline:
             if robot.error is not None:
                 raise robot.error
+            if robot.halted is not None:
+                raise robot.halted
             left = HOLD_POLL_S if deadline is None else deadline - time.monotonic()
             time.sleep(max(0.0, min(HOLD_POLL_S, left)))
     except KeyboardInterrupt:

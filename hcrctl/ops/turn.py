@@ -12,6 +12,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..errors import HcrError
 from ..protocol import commands as C
 
 POLL_S = 0.05
@@ -61,6 +62,8 @@ class TurnProgress:
     last: float = field(init=False)
     moved_at: float = field(init=False)
     still_from: float = field(init=False)
+    #: Why the far side of the link stopped the turn (``Robot.halted``), if it did.
+    halted: HcrError | None = None
 
     def __post_init__(self) -> None:
         self.last = self.still_from = self.start
@@ -90,6 +93,8 @@ class TurnProgress:
         """Why the turn did not happen as asked, or None when the compass saw it done."""
         if self.reached:
             return None
+        if self.halted is not None:
+            return f"{self.halted.message} after {self.turned:.1f}° of {self.angle:g}°"
         if abs(self.turned) < NO_MOVE_DEG:
             return "the compass did not move: the robot is stuck, not turning, or the compass is broken"
         got = f"{self.turned:.1f}° of {self.angle:g}°"
@@ -99,6 +104,8 @@ class TurnProgress:
 
 
 def failure_hint(progress: TurnProgress) -> str:
+    if progress.halted is not None and progress.halted.hint:
+        return progress.halted.hint
     if abs(progress.turned) < NO_MOVE_DEG:
         return (
             "check that the wheels are free and the compass reads (hcrctl read compass while turning by hand)"
@@ -116,5 +123,8 @@ def watch_turn(robot: Any, value: C.Turn, start: float) -> tuple[TurnProgress, b
         if time.monotonic() > deadline:
             return progress, True
         time.sleep(POLL_S)
+        progress.halted = robot.halted
+        if progress.halted is not None:
+            return progress, False
         done = progress.feed(robot.read("compass").heading, time.monotonic())
     return progress, False

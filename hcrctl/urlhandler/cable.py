@@ -1,4 +1,4 @@
-"""The modem lines of a port that has no cable: ``sim://`` and ``zenoh://`` report a healthy one.
+"""The modem lines of a port that has no cable: ``sim://`` reports a healthy one.
 
 pyserial's ``SerialBase`` asks a port to set RTS, DTR and break and to read
 CTS, DSR, RI and CD; a port made of software has none of these, and a

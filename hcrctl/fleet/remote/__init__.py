@@ -1,21 +1,18 @@
 """The operator's end of a fleet robot: ``--port zenoh://NAME`` as a link like any other.
 
-Every command talks to a ``Robot`` that writes frames to a serial-like port
-and reads replies back. For a fleet robot that port is
-``urlhandler.protocol_zenoh``, a thin pyserial handler over ``RemoteLink``
-(``link``): each frame the Robot writes is decoded and becomes fleet traffic
-(a read query, a write query, the drive lease and ``cmd_vel``, a stop), and
-the reply frames the robot side sends back are what the Robot reads. Raw bytes
-are never tunnelled: anything that is not a request of the command table is
-refused. ``lease`` holds the drive lease while motion runs; ``reframe`` lays
-a reply out in the dialect the local Robot speaks.
+Every command talks to a ``Robot``. For a fleet robot its port is a carrier
+(``link.carrier``): ``RemoteLink`` (``link``) takes each request of the
+command table the Robot sends and makes it fleet traffic (a read query, a
+write query, the drive lease and ``cmd_vel``, a stop), and hands the robot
+side's answers back as replies, content in the table's layout. Raw bytes are
+never tunnelled. ``lease`` holds the drive lease while motion runs.
 
 A package (not ``remote_*.py`` modules) so that all of it stays in the link
-layer, where the URL handler may import it.
+layer, where ``link.carrier`` names it.
 """
 
 from __future__ import annotations
 
-from .link import Reach, RemoteLink
+from .link import RemoteLink, open_carrier
 
-__all__ = ["Reach", "RemoteLink"]
+__all__ = ["RemoteLink", "open_carrier"]

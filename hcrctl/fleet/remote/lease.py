@@ -20,7 +20,11 @@ liveliness token goes (a killed one). This side only asks and keeps asking:
   2 s. It renews with ``claim``, never by re-sending the motion: once the
   robot side has stopped this operator (another's ``stop``, its deadman), a
   renewal must not set it going again;
-- a stop frame is the fleet's ``stop``, and the lease is then free;
+- the stop request is the fleet's ``stop``, and the lease is then free;
+- a status message for this session (``heard``) saying its motion stopped
+  (a bumper, the deadman, someone's stop, the robot's port gone) or was
+  refused ends the lease and is kept as ``halted``: the motion this session
+  asked for is no longer running, and a one-shot command says why;
 - ``close`` releases it.
 """
 
@@ -33,8 +37,9 @@ import time
 from typing import Any
 
 from ...errors import HcrError, quoted
-from ...protocol.frames import Frame
-from ..keys import CLAIM, Who, attachment, cmd_vel, loads, signature
+from ...protocol import commands as C
+from ...protocol.records import hexs
+from ..keys import CLAIM, Status, Who, attachment, cmd_vel, loads, signature
 from ..keys import drive as drive_key
 from ..keys import stop as stop_key
 from ..session import FleetError
@@ -53,8 +58,23 @@ CONFIRM_ASKS = 10
 SAID_CHARS = 200
 
 
+#: What to do about each reason the robot side gives for stopping this session's motion.
+HALT_HINTS = {
+    "bumper": "a bumper is pressed: back away (drive power -40 -40 --for 1) or clear the obstacle",
+    "deadman": "this operator's renewals stopped reaching the robot within its deadman: a slow or cut network",
+    "stop": "someone on the fleet sent stop; drive again once it is safe",
+    "port lost": "the robot's serial port went away: check its cable and power on the robot's side",
+    "operator gone": "the robot side lost this operator's liveliness token: a broken network",
+    "second sender": "someone on the fleet sends as you; restrict who may drive with Zenoh's access control",
+}
+
+
 class DriveRefused(HcrError):
     """Another operator drives the robot (exit 1, nothing sent): the message names who."""
+
+
+class MotionHalted(HcrError):
+    """The robot side stopped or refused this session's motion (exit 1): its reason, one line."""
 
 
 class DriveLease:
@@ -79,6 +99,11 @@ class DriveLease:
         self._thread: threading.Thread | None = None
         #: Whether a claim was ever granted: only then is there a lease to give back on close.
         self.claimed_ever = False
+        #: Why the robot side stopped or refused the motion this session asked for last; None while it runs.
+        self.halted: MotionHalted | None = None
+        #: This session's own stops sent while it drove, whose "stopped" word has not come back yet: that word
+        #: may come after the next motion's claim was answered, and must not halt that motion.
+        self._own_stops = 0
 
     def pace(self, deadman: float) -> None:
         """Renew often enough for a robot side whose deadman is ``deadman`` s (four renewals to one)."""
@@ -86,14 +111,15 @@ class DriveLease:
 
     # -- motion ---------------------------------------------------------------------
 
-    def drive(self, frame: Frame) -> None:
+    def drive(self, address: int, cmd: C.Command, content: bytes) -> None:
         """Claim if not held, put the motion as ``cmd_vel``, and confirm the robot side took it.
 
         DriveRefused names who drives, or why the robot side dropped the motion.
         """
+        self.halted = None
         if not self.held:
             self.claim()
-        payload = {"address": frame.address, "command": frame.command, "content": frame.content.hex()}
+        payload = {"address": address, "command": cmd.code, "content": hexs(content)}
         seq = self._put(cmd_vel(self._robot), payload)
         answer = self.claim(confirm=seq)
         for _ in range(CONFIRM_ASKS):  # the motion still on its way when the claim was answered
@@ -111,6 +137,7 @@ class DriveLease:
         if self.refused and not self.held:
             return
         with self._lock:
+            self._own_stops += 1 if self.held else 0
             self.held = False
             self._put(stop_key(self._robot), {})
 
@@ -154,6 +181,23 @@ class DriveLease:
         with self._lock:
             self.held = False
 
+    def heard(self, said: Status) -> None:
+        """The robot side's status for this session: a stop or a refusal while it drives halts its motion."""
+        if said.event not in ("stopped", "refused"):
+            return
+        with self._lock:
+            if said.reason == "stop" and self._own_stops:
+                self._own_stops -= 1  # the robot side telling of this session's own stop
+                return
+        self._halt(quoted(said.text, SAID_CHARS), said.reason)
+
+    def _halt(self, text: str, reason: str | None) -> None:
+        """The motion this session drives was stopped (``text``, the robot side's words): kept, lease lost."""
+        with self._lock:
+            if self.held:
+                self.halted = MotionHalted(f"{self._robot} {text}", hint=HALT_HINTS.get(reason or ""))
+            self.held = False
+
     def close(self) -> None:
         """Stop renewing and give the lease back (best effort: the robot side frees it when we go anyway)."""
         self._done.set()
@@ -193,8 +237,14 @@ class DriveLease:
         )
 
     def _renewed(self, reply: Any) -> None:
+        """A renewal's answer: refused, the lease is lost; granted with a new key, the robot side forgot this
+        session (its token went, and with it the motion it drove) and took it for a new one."""
         if reply.err is not None:
             self.lost()
+        elif "key" in _object(reply.ok.payload.to_bytes()):
+            self._halt(
+                f"stopped: it lost {self._op}'s liveliness token, and the motion with it", "operator gone"
+            )
 
     # -- the wire -------------------------------------------------------------------------
 

@@ -1,4 +1,4 @@
-"""``RemoteLink``: the frames a Robot writes, as fleet traffic to one robot; its replies back as frames.
+"""``RemoteLink``: a fleet robot as the Robot's carrier (``link.carrier``): requests in, replies out.
 
 Opening it opens a Zenoh client session of the fleet's router (everything it
 says goes through the router, where the lab's access control decides who may
@@ -8,22 +8,26 @@ once if it goes while this operator drives), checks the robot's own token is
 there and listens to its ``frames`` (the broadcasts its wire hears),
 ``status`` and presence. Its ``info`` (protocol, deadman, the reads it
 serves; its numbers range-checked, since any peer may answer as a robot) is
-asked before the first frame that needs it, never for a stop: a stop needs
+asked before the first request that needs it, never for a stop: a stop needs
 nothing but itself, so no robot side too busy to answer anything else can
 keep it from going out. What the robot side says (an error, a refusal) is
 quoted escaped and cut short in this side's errors.
 
-Each frame written is one of:
+Each request sent is one of (by its row of the command table):
 
-- a read request: a query of ``hcr/R/read/<sensor>``, answered on Zenoh's
-  thread, so a sweep's requests go out together as the Robot pipelines them;
-  the reply's frame goes to the read buffer. A refusal leaves nothing (the
-  Robot times out, as on a wire) but its text is kept for ``why_no_reply``;
-- motion (``commands.is_motion``): the drive lease (``lease``) and ``cmd_vel``;
-  a stop frame is the fleet's ``stop``;
+- a read: a query of ``hcr/R/read/<sensor>``, answered on Zenoh's thread, so
+  a sweep's requests go out together as the Robot pipelines them; the
+  answer's ``content`` (the table's layout) is the reply. A refusal leaves
+  nothing (the Robot times out, as on a wire) but its text is kept for
+  ``why_no_reply``;
+- motion (the row's ``motion``): the drive lease (``lease``) and ``cmd_vel``;
+  the stop request is the fleet's ``stop``;
 - any other write of the table (pid, servo...): the ``write`` query, waited
-  for, its refusal raised;
-- anything else (raw bytes from ``hex send``): refused, nothing sent.
+  for, its refusal raised.
+
+A status message for this session (``keys.parse_status``) saying its motion
+was stopped or refused ends the lease, and is ``halted``: a one-shot drive
+ends on it with the robot side's reason.
 """
 
 from __future__ import annotations
@@ -32,16 +36,13 @@ import contextlib
 import json
 import threading
 import time
-from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import Any
 
-from ...errors import BadPortUrl, DeviceRefused, DeviceTimeout, HcrError, quoted
+from ...errors import BadPortUrl, DeviceRefused, HcrError, quoted
+from ...link.carrier import Carrier, Deliver, Lost, Settings, Timeout, is_stop
 from ...protocol import commands as C
-from ...protocol.dialect import decode_all
-from ...protocol.frames import ChecksumRule, Frame
-from ...protocol.messages import READ_REQUEST
 from ...protocol.profiles import DEFAULT, Profile, profile
+from ...protocol.records import hexs
 from ..keys import (
     NAME_RULE,
     BadInfo,
@@ -53,6 +54,7 @@ from ..keys import (
     new_session,
     operator,
     operator_id,
+    parse_status,
     status,
     topic,
 )
@@ -61,7 +63,6 @@ from ..keys import read as read_key
 from ..keys import write as write_key
 from ..session import FleetError, Where, import_zenoh, join, looked_at
 from .lease import DriveLease
-from .reframe import reframe
 
 SCHEME = "zenoh://"
 #: How long the robot's presence, its info and a write may take to answer.
@@ -71,27 +72,18 @@ READ_TIMEOUT_S = 5.0
 #: How long a timeout's explanation waits for a read query still under way to say why.
 GRACE_S = 1.0
 LIST_HINT = "hcrctl fleet list shows the robots present"
-STOP_CODE = C.command_for(C.STOP).code
 #: The longest the robot side's words (an error, a hint) are quoted in a command's error.
 SAID_CHARS = 200
 #: What a frame message of a broadcast says it is (``"kind": "broadcast"``; the message is checked whole after).
 BROADCAST = b'"broadcast"'
 
-Deliver = Callable[[bytes], None]
-Lost = Callable[[str], None]
 
-
-class RawRefused(HcrError):
-    """Bytes that are not a request of the command table: never sent over the fleet (exit 1)."""
-
-
-@dataclass(frozen=True)
-class Reach:
-    """Where the fleet is and how the local Robot frames its requests (from the Connection)."""
-
-    where: Where = field(default_factory=Where)
-    protocol: str = DEFAULT.name
-    rule: ChecksumRule = ChecksumRule.HEADER
+def open_carrier(url: str, settings: Settings | None) -> RemoteLink:
+    """``zenoh://NAME`` opened where ``settings`` says the fleet is (the default router without them)."""
+    where = Where() if settings is None else Where(settings.zenoh, (), settings.zenoh_config)
+    link = RemoteLink(robot_name(url), where, url)
+    link.open()
+    return link
 
 
 def robot_name(url: str) -> str:
@@ -103,21 +95,23 @@ def robot_name(url: str) -> str:
         raise BadPortUrl(url, f"expected zenoh://NAME, NAME {NAME_RULE}", hint=LIST_HINT) from None
 
 
-class RemoteLink:
-    """One operator's link to one fleet robot; ``deliver`` gets reply bytes, ``lost`` why the link ended."""
+class RemoteLink(Carrier):
+    """One operator's link to one fleet robot."""
 
-    def __init__(self, name: str, reach: Reach, deliver: Deliver, lost: Lost) -> None:
+    lost_hint = LIST_HINT
+
+    def __init__(self, name: str, where: Where, url: str | None = None) -> None:
         self.name = name
-        self.reach = reach
+        self.port = url or f"{SCHEME}{name}"
+        self.where = where
         #: This operator: its name, and a session id of its own (a name used again later is another operator).
         self.op = Who(operator_id(), new_session())
-        self.local: Profile = profile(reach.protocol)
         self.remote: Profile = DEFAULT
         self.info: dict[str, Any] = {}
         self._informed = threading.Lock()
         self._asked_info = False
-        self._deliver = deliver
-        self._lost = lost
+        self._deliver: Deliver = lambda address, cmd, content: None
+        self._lost: Lost = lambda why: None
         self._session: Any = None
         self._held: list[Any] = []  # the token and subscribers, undeclared on close
         self.lease: DriveLease | None = None
@@ -125,12 +119,14 @@ class RemoteLink:
         self._cond = threading.Condition()
         self._asking: set[tuple[int, int]] = set()
         self._said: dict[tuple[int, int], tuple[str, str | None]] = {}
+        #: Closed: no timeout waits for an explanation any more (a signal's exit must not wait for one).
+        self._closed = False
 
     # -- opening and closing -------------------------------------------------------------
 
     def open(self) -> None:
         """Session, token, presence, info, subscriptions; FleetError (exit 1) if the robot is not there."""
-        self._session = join(self.reach.where)
+        self._session = join(self.where)
         try:
             self._open_on(self._session)
         except BaseException:
@@ -155,7 +151,7 @@ class RemoteLink:
         ]
 
     def _where(self) -> str:
-        return looked_at(self.reach.where)
+        return looked_at(self.where)
 
     def _informed_of(self) -> None:
         """The robot's info, asked once, before the first frame that needs it (FleetError if unanswered)."""
@@ -187,8 +183,14 @@ class RemoteLink:
             hint="is its fleet serve busy or stuck? hcrctl fleet list shows its age",
         )
 
+    def bind(self, deliver: Deliver, lost: Lost) -> None:
+        self._deliver, self._lost = deliver, lost
+
     def close(self) -> None:
         """Give the lease back, undeclare everything, close the session; quietly, whatever state it is in."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
         if self.lease is not None:
             self.lease.close()
         for held in reversed(self._held):
@@ -217,65 +219,40 @@ class RemoteLink:
         message = _json(data)
         if not isinstance(message, dict) or message.get("direction") != "rx":
             return
-        code = message.get("command")
+        code, address = message.get("command"), message.get("address")
         cmd = C.BY_CODE.get(code) if isinstance(code, int) else None
         if cmd is None or cmd.kind != "broadcast" or not message.get("checksum_ok", True):
             return
-        self._give(message.get("hex"))
+        payload = _hex(message.get("payload"))
+        if payload is not None and isinstance(address, int) and _byte(address):
+            self._deliver(address, cmd, self.remote.to_document(cmd.code, payload))
 
     def _status(self, sample: Any) -> None:
-        """The robot side's word about this operator: anything but "OP drives R" means it no longer does.
+        """The robot side's word about this session: a stop or a refusal ends the lease and halts its motion."""
+        said = parse_status(sample.payload.to_bytes())
+        if self.lease is not None and said is not None and said.is_for(self.op):
+            self.lease.heard(said)
 
-        A stop (anyone's, the deadman's), a refusal of one of its messages: the
-        lease stops being renewed, and the next motion claims it afresh.
-        """
-        message = _json(sample.payload.to_bytes())
-        if self.lease is None or not isinstance(message, dict) or message.get("session") != self.op.session:
-            return
-        if message.get("text") != f"{self.op} drives {self.name}":
-            self.lease.lost()
+    # -- requests -------------------------------------------------------------------------------
 
-    # -- writes -------------------------------------------------------------------------------
-
-    def write(self, data: bytes) -> None:
-        """Each frame of ``data`` as fleet traffic; RawRefused, before anything is sent, for any other byte."""
-        events = decode_all(data, self.reach.rule, self.local)
-        frames = [e for e in events if isinstance(e, Frame)]
-        if len(frames) != len(events) or not frames:
-            raise self._raw(data)
-        requests = [(frame, C.BY_CODE.get(frame.command)) for frame in frames]
-        for frame, cmd in requests:
-            if (
-                cmd is None
-                or cmd.kind == "broadcast"
-                or (cmd.kind == "read" and frame.content != READ_REQUEST)
-            ):
-                raise self._raw(data)
-        for frame, cmd in requests:
-            assert cmd is not None  # checked above
-            self._request(frame, cmd)
-
-    def _raw(self, data: bytes) -> RawRefused:
-        shown = data[:16].hex(" ").upper() + (" ..." if len(data) > 16 else "")
-        return RawRefused(
-            f"{SCHEME}{self.name}: only requests of the command table go over the fleet, not raw bytes ({shown})",
-            hint="hex send writes raw frames only to a local port; use read, drive, turn, stop, pid, servo",
-        )
-
-    def _request(self, frame: Frame, cmd: C.Command) -> None:
-        stop = (frame.command, frame.content) == (STOP_CODE, C.STOP.content())
+    def send(self, address: int, cmd: C.Command, content: bytes) -> None:
+        """One request of the table: a read, motion under the lease, or a write (see the module)."""
+        stop = is_stop(cmd, content)
         if not stop:
             self._informed_of()
         if cmd.kind == "read":
-            self._read(frame.address, cmd)
+            self._read(address, cmd)
         elif cmd.motion:
             assert self.lease is not None  # set by open()
             if stop:
                 self.lease.stop()
             else:
-                self.lease.drive(frame)
+                self.lease.drive(address, cmd, content)
         else:
-            self._write(frame, cmd)
+            self._write(address, cmd, content)
+
+    def halted(self) -> HcrError | None:
+        return None if self.lease is None else self.lease.halted
 
     # -- reads ----------------------------------------------------------------------------------
 
@@ -290,22 +267,26 @@ class RemoteLink:
         zenoh = import_zenoh()
         self._session.get(
             read_key(self.name, cmd.name),
-            zenoh.handlers.Callback(lambda reply: self._answer(key, reply), lambda: self._answered(key)),
+            zenoh.handlers.Callback(
+                lambda reply: self._answer(address, cmd, reply), lambda: self._answered(key)
+            ),
             payload=json.dumps({"address": address}),
             encoding=zenoh.Encoding.APPLICATION_JSON,
             timeout=READ_TIMEOUT_S,
         )
 
-    def _answer(self, key: tuple[int, int], reply: Any) -> None:
+    def _answer(self, address: int, cmd: C.Command, reply: Any) -> None:
         if reply.ok is not None:
             answer = _json(reply.ok.payload.to_bytes())
-            self._give(answer.get("frame") if isinstance(answer, dict) else None)
+            content = _hex(answer.get("content")) if isinstance(answer, dict) else None
+            if content is not None:
+                self._deliver(address, cmd, content)
             return
         said = _json(reply.err.payload.to_bytes())
         if isinstance(said, dict) and isinstance(said.get("error"), str):
             hint = said.get("hint")
             with self._cond:
-                self._said[key] = (
+                self._said[(address, cmd.code)] = (
                     quoted(said["error"], SAID_CHARS),
                     quoted(hint, SAID_CHARS) if isinstance(hint, str) else None,
                 )
@@ -315,19 +296,7 @@ class RemoteLink:
             self._asking.discard(key)
             self._cond.notify_all()
 
-    def _give(self, hex_text: object) -> None:
-        """A frame from the robot's wire (hex), laid out for the local Robot, into its read buffer."""
-        if not isinstance(hex_text, str):
-            return
-        try:
-            raw = bytes.fromhex(hex_text)
-        except ValueError:
-            return
-        frame = reframe(raw, self.remote, self.local, self.reach.rule)
-        if frame is not None:
-            self._deliver(frame)
-
-    def why_no_reply(self, error: DeviceTimeout) -> DeviceTimeout:
+    def why_no_reply(self, error: Timeout) -> Timeout:
         """A read that timed out, with what the robot side said about it (its own timeout, a refusal)."""
         cmd = C.BY_NAME.get(error.command)
         if cmd is None:
@@ -335,7 +304,7 @@ class RemoteLink:
         key = (error.address, cmd.code)
         deadline = time.monotonic() + GRACE_S
         with self._cond:
-            while key in self._asking and (left := deadline - time.monotonic()) > 0:
+            while key in self._asking and not self._closed and (left := deadline - time.monotonic()) > 0:
                 self._cond.wait(left)
             said = self._said.get(key)
         served = self.info.get("sensors")
@@ -351,15 +320,15 @@ class RemoteLink:
 
     # -- other writes ------------------------------------------------------------------------
 
-    def _write(self, frame: Frame, cmd: C.Command) -> None:
+    def _write(self, address: int, cmd: C.Command, content: bytes) -> None:
         """A non-motion write, through the robot side's table; waited for, so a refusal is this write's error."""
         zenoh = import_zenoh()
         payload = {
             "op": self.op.name,
             "session": self.op.session,
-            "address": frame.address,
+            "address": address,
             "command": cmd.code,
-            "content": frame.content.hex(),
+            "content": hexs(content),
         }
         replies = self._session.get(
             write_key(self.name),
@@ -371,7 +340,7 @@ class RemoteLink:
             if reply.ok is not None:
                 answer = _json(reply.ok.payload.to_bytes())
                 if isinstance(answer, dict) and isinstance(answer.get("reply"), dict):
-                    self._reply_of(frame, cmd, answer["reply"])
+                    self._reply_of(address, cmd, answer["reply"])
                 return
             said = _json(reply.err.payload.to_bytes())
             text = said.get("error") if isinstance(said, dict) else None
@@ -382,19 +351,29 @@ class RemoteLink:
             hint="hcrctl fleet list shows whether it is still there",
         )
 
-    def _reply_of(self, frame: Frame, cmd: C.Command, fields: dict[str, Any]) -> None:
-        """A write's reply (pid's acknowledgement), sent back as its fields: the frame the Robot waits for."""
+    def _reply_of(self, address: int, cmd: C.Command, fields: dict[str, Any]) -> None:
+        """A write's reply (pid's acknowledgement), sent back as its fields: the reply the Robot waits for."""
         if cmd.reply is None:
             return
         try:
             content = cmd.reply(**fields).content()
         except (TypeError, ValueError, HcrError):
             return  # nothing the Robot can read: it times out, as on a wire
-        self._deliver(
-            self.local.encode(
-                frame.address, cmd.code, self.local.from_document(cmd.code, content), self.reach.rule
-            )
-        )
+        self._deliver(address, cmd, content)
+
+
+def _hex(text: object) -> bytes | None:
+    """Bytes of a message's hex field (``55 AA 01`` or ``55aa01``), None for anything else."""
+    if not isinstance(text, str):
+        return None
+    try:
+        return bytes.fromhex(text)
+    except ValueError:
+        return None
+
+
+def _byte(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= 0xFF
 
 
 def _json(data: bytes) -> object:
