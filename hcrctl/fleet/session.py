@@ -15,14 +15,14 @@ with multicast scouting and gossip off: it connects only where it is told.
 
 The link lease is 3 s (Zenoh's is 10 s): a peer heard nothing from for that
 long is gone, its tokens deleted, so a frozen laptop or a cut cable is
-noticed within 3 s (a killed process at once: its TCP closes). The lease is
-not what stops the robot: the robot side's deadman (0.5 s unless told) does,
-as it holds even when the network does not. Nor may the lease lapse on a
-peer that is there: that deletes a live driver's token, which the robot side
-must take for the driver gone, and stop. Keep-alives go every quarter lease,
-so a lease may lapse on a process stalled for three quarters of it: 0.75 s
-of a 1 s lease is a stall a loaded 2-core machine has been seen to reach;
-3 s allows 2.25 s.
+noticed within 3 s (a killed process at once: its TCP closes). The robot
+side's deadman (0.5 s unless told) stops the robot before that, as it holds
+even when the network does not; the lease stops a silent driver first only
+under a deadman over 3 s. Nor may the lease lapse on a peer that is there:
+that deletes a live driver's token, which the robot side must take for the
+driver gone, and stop. Keep-alives go every quarter lease, so a lease may
+lapse on a process stalled for three quarters of it: 0.75 s of a 1 s lease
+is a stall a loaded 2-core machine has been seen to reach; 3 s allows 2.25 s.
 
 A client whose router goes away connects again by itself and declares again
 what it had declared (its tokens, subscribers, queryables), so a router
