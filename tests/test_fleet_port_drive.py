@@ -161,7 +161,7 @@ def test_a_frozen_operator_is_stopped_by_the_deadman_while_still_frozen(
             stopped = wire.wait_sent(is_stop, after=moved, what="stop while frozen")
             assert driver.poll() is None and _state(driver.pid) == "T"  # still frozen when the stop came
             said = running.served["r1"].wait_said("stopped:")
-            assert "deadman" in said or "gone" in said, said  # the lease, or the link's (1 s) after it
+            assert "deadman" in said or "gone" in said, said  # the deadman, or the link lease (3 s) after it
         finally:
             os.kill(driver.pid, signal.SIGCONT)
         # Thawed, it learns its motion was stopped and ends saying why; it never sends motion again.

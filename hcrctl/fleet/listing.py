@@ -2,7 +2,7 @@
 
 A robot is present while its ``fleet serve`` holds ``hcr/<robot>/alive``; a
 killed one is gone as soon as Zenoh notices (its TCP closed: milliseconds; a
-frozen host: the 1 s link lease). What each one is (port, protocol, who
+frozen host: the link lease, 3 s). What each one is (port, protocol, who
 drives, since when) is its ``info`` queryable, asked of all of them at once.
 
 The session is a Zenoh client: it opens only if a router (or a peer) at the

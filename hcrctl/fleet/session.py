@@ -13,12 +13,21 @@ else listens on this machine's loopback to the fleet. A ``fleet serve`` told
 ``--listen`` is a peer listening there (a robot reachable directly), still
 with multicast scouting and gossip off: it connects only where it is told.
 
-The link lease is 1 s (Zenoh's is 10 s), so a frozen laptop or a cut cable
-is noticed in under a second; the robot's own deadman still stops it
-sooner, as it holds even when the network does not. A client whose router
-goes away connects again by itself and declares again what it had declared
-(its tokens, subscribers, queryables), so a router restarted, or a cable
-plugged back in, finds its robots and operators as they were. A
+The link lease is 3 s (Zenoh's is 10 s): a peer heard nothing from for that
+long is gone, its tokens deleted, so a frozen laptop or a cut cable is
+noticed within 3 s (a killed process at once: its TCP closes). The robot
+side's deadman (0.5 s unless told) stops the robot before that, as it holds
+even when the network does not; the lease stops a silent driver first only
+under a deadman over 3 s. Nor may the lease lapse on a peer that is there:
+that deletes a live driver's token, which the robot side must take for the
+driver gone, and stop. Keep-alives go every quarter lease, so a lease may
+lapse on a process stalled for three quarters of it: 0.75 s of a 1 s lease
+is a stall a loaded 2-core machine has been seen to reach; 3 s allows 2.25 s.
+
+A client whose router goes away connects again by itself and declares again
+what it had declared (its tokens, subscribers, queryables), so a router
+restarted, or a cable plugged back in, finds its robots and operators as
+they were. A
 ``--zenoh-config`` file (Zenoh's JSON5: TLS, user/password, access control)
 is read first; the command line wins over it, and the file wins over the
 defaults; the mode, the lease and scouting (off) are always this module's.
@@ -41,8 +50,9 @@ from ..extras import require
 from ..link.loopback import is_loopback
 from .keys import DEFAULT_ENDPOINT
 
-#: Zenoh's transport lease, ms: a peer silent this long is gone (its tokens deleted).
-LEASE_MS = 1000
+#: Zenoh's transport lease, ms: a peer silent this long is gone (its tokens deleted). Long enough that a
+#: loaded machine's stall does not drop a live session, short beside Zenoh's 10 s; the deadman stops first.
+LEASE_MS = 3000
 #: What a peer listens on when not told: loopback, a free port.
 LOOPBACK_ANY = "tcp/127.0.0.1:0"
 ROUTER, PEER, CLIENT = "router", "peer", "client"
