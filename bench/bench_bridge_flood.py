@@ -414,8 +414,8 @@ def flood_main(kind: str, port: int) -> int:
 
 def frames_channel() -> int:
     """The bridge's channel id of /hcr/frames: channels are numbered from 1 in the topics' order."""
-    from hcrctl.feeds.source import Feed
     from hcrctl.protocol.topics import all_topics
+    from hcrctl.served.feed import Feed
 
     return 1 + [t.name for t in all_topics(Feed.counters)].index("/hcr/frames")
 

@@ -10,7 +10,7 @@ at each size, it times in turns (best of N, so load hits all alike):
   --summary`` must do at least);
 - ``export LOG OUT.mcap``, ``export LOG OUT.mcap --encoding cdr``, ``export LOG OUT.csv`` and
   ``export LOG OUT.csv --wide`` (a row per sweep, its rows kept in a temporary file until the
-  end so that only filled columns are written): ``feeds.export.export_log`` into the sink
+  end so that only filled columns are written): ``recording.export.export_log`` into the sink
   ``open_sink`` gives, closed (the command's own code, without Click's start-up).
 
 It prints the ratios, writes ``bench/results/export.json`` and exits 1 if a ratio is >= 2.0.
@@ -33,14 +33,14 @@ from pathlib import Path
 
 from _common import best_of_each, record
 
-from hcrctl.feeds.export import export_log, export_topics
-from hcrctl.feeds.formats import open_sink
 from hcrctl.link.traffic import Traffic
 from hcrctl.link.trafficlog import TrafficLog, log_fields
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import ChecksumRule, encode
 from hcrctl.protocol.profiles import DEFAULT
+from hcrctl.recording.export import export_log, export_topics
+from hcrctl.recording.formats import open_sink
 
 TARGET = 2.0
 RULE = ChecksumRule.HEADER

@@ -70,7 +70,7 @@ from _simpty import hcrctl_exe, sim_pty
 sys.path.insert(0, str(ROOT / "tests"))
 import helpers_netns
 
-from hcrctl.fleet.session import Where, open_session
+from hcrctl.link.zenoh.join import Where, open_session
 from hcrctl.protocol import commands as C
 
 READ_RATIO = 1.5
@@ -392,12 +392,12 @@ def busy_loops(count: int) -> Iterator[None]:
 
 def info_counters(endpoint: str, name: str) -> dict[str, Any]:
     """The robot side's ``info`` counters, asked as any operator asks."""
-    from hcrctl.fleet import keys
+    from hcrctl.link.zenoh import keyspace
 
     session = open_session("client", Where((endpoint,), ()))
     try:
         for _ in range(10):  # a session just opened may not know the route to the robot yet
-            for reply in session.get(keys.info(name), timeout=5.0):
+            for reply in session.get(keyspace.info(name), timeout=5.0):
                 if reply.ok is not None:
                     return dict(json.loads(reply.ok.payload.to_bytes())["counters"])
             time.sleep(0.2)

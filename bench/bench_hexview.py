@@ -28,7 +28,7 @@ from bench_decoder import mixed_stream
 from hcrctl.hex.view import plain_line
 from hcrctl.link.traffic import Traffic
 from hcrctl.link.trafficlog import TrafficLog
-from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import ChecksumRule
 from hcrctl.protocol.records import event_dict
 

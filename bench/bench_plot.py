@@ -28,9 +28,9 @@ from rich.console import Console
 from hcrctl.live.plot import plot_screen
 from hcrctl.live.plotdata import PlotState
 from hcrctl.live.screens import dashboard
-from hcrctl.live.state import LiveState
+from hcrctl.ops.livestate import LiveState
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import encode
 from hcrctl.protocol.series import find
 from hcrctl.sim.options import SimOptions

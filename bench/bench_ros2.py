@@ -40,7 +40,7 @@ from cyclonedds.pub import DataWriter
 from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 
-from hcrctl.fleet.session import Where, open_session
+from hcrctl.link.zenoh.join import Where, open_session
 from hcrctl.protocol import commands as C
 from hcrctl.protocol import ros2conv
 from hcrctl.protocol import ros2types as R

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from helpers import TIMEOUT, DevicePty, clean_env, hcrctl_exe, sim_process, sleeping, wait_until
 
-from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import Frame
 
 __all__ = [

@@ -25,7 +25,7 @@ from helpers import TIMEOUT, clean_env, hcrctl_exe, wait_until
 from helpers_netns import OPERATOR_HOST, ROBOT_HOST, ROUTER_HOST, Topology
 
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import Frame
 
 #: Motor power 0x80 0x80: what stop puts on the wire.

@@ -31,7 +31,7 @@ from typing import Any
 from helpers import TIMEOUT, hcrctl_exe, wait_until
 from helpers_netns import OPERATOR_HOST, ROBOT_HOST, ROUTER_HOST, Topology
 
-from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import Frame
 
 
@@ -249,8 +249,8 @@ class Operator:
     def __init__(self, endpoint: str, robot: str, op: str, config: str | None = None) -> None:
         import zenoh
 
-        from hcrctl.fleet import keys
-        from hcrctl.fleet.session import Where, open_session
+        from hcrctl.link.zenoh import keyspace as keys
+        from hcrctl.link.zenoh.join import Where, open_session
 
         self.zenoh, self.keys = zenoh, keys
         self.robot, self.seq = robot, 0

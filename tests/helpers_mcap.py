@@ -22,7 +22,7 @@ from helpers import wait_until
 
 RECORDINGS = Path(__file__).resolve().parent.parent / "docs" / "recordings.md"
 RECIPE = "## Reading a recording cut short"
-#: ``record`` and the bridge finish a chunk at least every ``feeds.record.FLUSH_EVERY`` s, so a kill -9
+#: ``record`` and the bridge finish a chunk at least every ``recording.record.FLUSH_EVERY`` s, so a kill -9
 #: loses the messages of at most the last FLUSH_EVERY seconds, plus those of the flush under way at the
 #: kill: the first write after the deadline starts it (a few ms later at --rate 20), then one chunk is
 #: compressed and written. LOSS_MARGIN covers that, generously for a loaded CI machine (a flush can wait

@@ -27,9 +27,9 @@ from jsonschema import Draft202012Validator
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 
-from hcrctl.feeds.source import Feed
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.topics import all_topics
+from hcrctl.served.feed import Feed
 
 SUBPROTOCOL = "foxglove.sdk.v1"
 TOPICS = {t.name: t for t in all_topics(Feed.counters)}

@@ -24,11 +24,11 @@ from helpers_ros2 import expected, mismatches, qos_of
 from mcap_ros2._dynamic import generate_dynamic
 from test_bridge import TOPICS, Viewer, bridge
 
-from hcrctl.feeds.source import Feed
 from hcrctl.protocol import ros2msg
 from hcrctl.protocol import topics as T
 from hcrctl.protocol.decoder import FrameDecoder
 from hcrctl.protocol.frames import ChecksumRule
+from hcrctl.served.feed import Feed
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 #: The simulated robot's ROS topics by their type: what docs/ros2.md's table lists for it.
@@ -291,7 +291,7 @@ def test_the_cdr_sink_records_a_message_or_the_bytes_served_and_the_decoder_fact
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
 
-    from hcrctl.feeds.mcapsink import McapSink
+    from hcrctl.recording.mcapsink import McapSink
 
     first = {"time": 1.5, **{name: i for i, name in enumerate(Feed.counters)}}
     second = first | {"time": 2.25, Feed.counters[0]: 99}

@@ -9,9 +9,9 @@ import pytest
 from helpers_live import FakeRobot, is_stop
 from test_bridge import CMD_VEL, TWIST, bridge, viewer
 
-from hcrctl.feeds.cmdvel import parse_twist, twist_wheels, wheel_limits
 from hcrctl.motion.governor import Lease
 from hcrctl.protocol import commands as C
+from hcrctl.served.cmdvel import parse_twist, twist_wheels, wheel_limits
 from hcrctl.sim.body import WHEEL_BASE_CM
 
 

@@ -31,8 +31,8 @@ from test_bridge_drive import velocity_of
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 
-from hcrctl.feeds.foxglove_ws import MAX_ITEMS, MAX_MESSAGE, MAX_PER_CHANNEL, MAX_SUBSCRIPTIONS
-from hcrctl.feeds.wssession import STALLED_S
+from hcrctl.foxglove.client import STALLED_S
+from hcrctl.foxglove.websocket import MAX_ITEMS, MAX_MESSAGE, MAX_PER_CHANNEL, MAX_SUBSCRIPTIONS
 from hcrctl.motion.governor import RESEND
 from hcrctl.protocol import commands as C
 
@@ -396,7 +396,7 @@ def test_a_bad_bridge_table_is_a_usage_error_naming_the_key(
 
 
 def test_one_client_too_many_is_told_so_at_the_handshake(env: dict[str, str]) -> None:
-    from hcrctl.feeds.foxglove_ws import MAX_CLIENTS
+    from hcrctl.foxglove.websocket import MAX_CLIENTS
 
     with running_bridge(env) as (robot, running), contextlib.ExitStack() as stack:
         clients = [stack.enter_context(viewer(running.port)) for _ in range(MAX_CLIENTS)]

@@ -18,8 +18,8 @@ from helpers import TIMEOUT
 from helpers_mcap import LOSS_MARGIN, last_log_time, messages, small_tmpfs, worst_lag
 from test_bridge import bridge, viewer
 
-from hcrctl.feeds.record import FLUSH_EVERY
 from hcrctl.protocol import topics as T
+from hcrctl.recording.record import FLUSH_EVERY
 
 
 @pytest.mark.parametrize(

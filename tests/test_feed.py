@@ -8,9 +8,9 @@ from typing import Any
 import pytest
 from helpers import wait_until
 
-from hcrctl.feeds.source import COUNTERS, Feed
 from hcrctl.link.client import Robot
 from hcrctl.protocol import topics as T
+from hcrctl.served.feed import COUNTERS, Feed
 
 
 def test_a_feed_publishes_requests_replies_readings_and_counters() -> None:

@@ -22,7 +22,7 @@ pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip instal
 from helpers import clean_env, wait_until
 from helpers_fleet_robot import POWER, Fleet, Serve, fleet, is_stop, operator, readline
 
-from hcrctl.fleet import keys
+from hcrctl.link.zenoh import keyspace
 from hcrctl.protocol import commands as C
 
 #: The access control of docs/fleet.md: the visitor may read and stop, never drive nor write.
@@ -116,9 +116,11 @@ def test_a_visitors_raw_cmd_vel_never_reaches_the_robot(acl: Any) -> None:
         raw.open()
         data = json.dumps({"address": 1, "command": POWER, "content": C.MotorPower(44, 44).content().hex()})
         for seq in range(1, 51):
-            raw.session.put(keys.cmd_vel("r1"), data.encode(), attachment=keys.attachment(raw.op, seq))
+            raw.session.put(
+                keyspace.cmd_vel("r1"), data.encode(), attachment=keyspace.attachment(raw.op, seq)
+            )
         raw.stop()  # anyone may stop: the visitor too
         wait_until(lambda: any(is_stop(f) for f in served.sent_codes({POWER})), what="the visitor's stop")
-        ok, info = raw.query(keys.info("r1"))
+        ok, info = raw.query(keyspace.info("r1"))
     assert ok and info["counters"]["cmd_vel"] == 0 and info["counters"]["ignored"] == 0, info["counters"]
     assert not powered(served, 44, 44)

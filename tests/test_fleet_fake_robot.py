@@ -26,8 +26,8 @@ pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip instal
 from helpers import clean_env, terminal, terminal_env, wait_until
 from helpers_fleet_robot import Fleet, fleet, readline
 
-from hcrctl.fleet import keys
-from hcrctl.fleet.session import Where, open_session
+from hcrctl.link.zenoh import keyspace
+from hcrctl.link.zenoh.join import Where, open_session
 
 ESCAPES = "\x1b[2J\x1b]0;pwned\x07"
 HUGE = 10**400
@@ -63,15 +63,15 @@ def fake_robot(endpoint: str, info: bytes, name: str = "evil") -> Iterator[Any]:
     error = json.dumps({"error": (ESCAPES + "\n") * 80_000, "hint": ESCAPES * 1000}).encode()
 
     def answer(query: Any) -> None:
-        query.reply(keys.info(name), info)
+        query.reply(keyspace.info(name), info)
 
     def refuse(query: Any) -> None:
         query.reply_err(error)
 
     held = [
-        session.declare_queryable(keys.info(name), answer),
-        session.declare_queryable(keys.read(name, "compass"), refuse),
-        session.liveliness().declare_token(keys.alive(name)),
+        session.declare_queryable(keyspace.info(name), answer),
+        session.declare_queryable(keyspace.read(name, "compass"), refuse),
+        session.liveliness().declare_token(keyspace.alive(name)),
     ]
     try:
         yield session

@@ -21,8 +21,8 @@ pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip instal
 from helpers import clean_env, wait_until
 from helpers_fleet_robot import VELOCITY, Fleet, attacker, fleet, is_stop, operator, readline, twist
 
-from hcrctl.fleet import keys
 from hcrctl.fleet.refusals import MAX_LINES, WINDOW
+from hcrctl.link.zenoh import keyspace
 from hcrctl.motion.bumpers import freshness_bound
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.frames import Frame
@@ -65,7 +65,7 @@ def test_a_read_flood_while_driving_forward_cannot_blind_the_bumpers(lab: Fleet,
     serve = served(lab, tmp_path, "--deadman", "10")
     with operator(lab.endpoint, "r1", "op1") as op, attacker(lab.endpoint) as peer:
         op.open()
-        peer.reads([(keys.read("r1", "compass"), None)], rate=FLOOD_RATE)
+        peer.reads([(keyspace.read("r1", "compass"), None)], rate=FLOOD_RATE)
         wait_until(lambda: peer.sent >= 200, what="the flood under way")
 
         def driven_into_the_wall() -> bool:
@@ -99,7 +99,7 @@ def test_ten_third_party_stops_go_through_a_read_flood(lab: Fleet, tmp_path: Pat
     """
     serve = served(lab, tmp_path, "--deadman", "10")
     silent = json.dumps({"address": 7}).encode()
-    flood = [(keys.read("r1", "compass"), None), (keys.read("r1", "bump"), silent)]
+    flood = [(keyspace.read("r1", "compass"), None), (keyspace.read("r1", "bump"), silent)]
     with operator(lab.endpoint, "r1", "op1") as op, attacker(lab.endpoint) as peer:
         op.open()
         op.cmd_vel(twist(0.2))
@@ -123,7 +123,9 @@ def test_a_new_driver_drives_through_a_read_flood(lab: Fleet, tmp_path: Path) ->
     serve = served(lab, tmp_path, "--deadman", "10")
     silent = json.dumps({"address": 7}).encode()
     with attacker(lab.endpoint) as peer:
-        peer.reads([(keys.read("r1", "compass"), None), (keys.read("r1", "bump"), silent)], rate=FLOOD_RATE)
+        peer.reads(
+            [(keyspace.read("r1", "compass"), None), (keyspace.read("r1", "bump"), silent)], rate=FLOOD_RATE
+        )
         wait_until(lambda: peer.sent >= 200, what="the flood under way")
         done = lab.run(
             [
@@ -159,7 +161,7 @@ def test_a_servo_write_needs_the_lease_while_someone_drives(lab: Fleet, tmp_path
         wait_until(lambda: serve.sent_codes({VELOCITY}), what="op1 driving")
         done = lab.run(servo)
         refused, body = other.query(
-            keys.write("r1"),
+            keyspace.write("r1"),
             {"op": "op2", "session": other.op.session, "address": 1, "command": SERVO, "content": "015A"},
         )
         said = wait_until(
@@ -186,9 +188,9 @@ def test_refusals_of_alternating_names_are_said_on_a_budget(lab: Fleet, tmp_path
         op.wait_said("op1 drives r1")
         payload = json.dumps(twist(-0.5)).encode()
         peer.puts(
-            keys.cmd_vel("r1"),
+            keyspace.cmd_vel("r1"),
             payload,
-            lambda n: keys.attachment(keys.Who(f"evil{n % 500}", f"{n:016x}"), n),
+            lambda n: keyspace.attachment(keyspace.Who(f"evil{n % 500}", f"{n:016x}"), n),
             rate=2000,
         )
         wait_until(lambda: peer.sent >= 3000, what="3000 refused messages sent")
@@ -215,7 +217,7 @@ def _accounted(serve: Any, sent: int) -> tuple[list[str], int, float] | None:
 
 
 def _refused(op: Any) -> int:
-    ok, body = op.query(keys.info("r1"))
+    ok, body = op.query(keyspace.info("r1"))
     return int(body["counters"]["refused"]) if ok else 0
 
 

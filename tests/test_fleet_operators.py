@@ -25,7 +25,7 @@ from helpers import TIMEOUT, clean_env, wait_until
 from helpers_fleet_robot import POWER, Fleet, Operator, Serve, fleet, is_stop, operator
 from zenoh import CongestionControl
 
-from hcrctl.fleet import keys
+from hcrctl.link.zenoh import keyspace
 from hcrctl.protocol import commands as C
 
 
@@ -79,7 +79,7 @@ def until_said(op: Operator, text: str, send: Callable[[], None]) -> dict[str, A
 
 
 def info(op: Operator, robot: str = "r1") -> dict[str, Any]:
-    ok, body = op.query(keys.info(robot))
+    ok, body = op.query(keyspace.info(robot))
     assert ok, body
     return body
 
@@ -106,19 +106,21 @@ def test_an_exact_replay_moves_nothing_while_the_driver_is_there_or_after_it_lef
         op1.open()
         op1.claim()
         data = json.dumps(power(40, 40)).encode()
-        copied = op1.put(keys.cmd_vel("r1"), data)  # what anyone subscribed to cmd_vel sees
+        copied = op1.put(keyspace.cmd_vel("r1"), data)  # what anyone subscribed to cmd_vel sees
         wait_until(lambda: powered(serve, 40, 40), what="op1's power 40 40")
         op1.stop()
         first_stop = stopped_after(serve, powered(serve, 40, 40)[-1])
-        eve.session.put(keys.cmd_vel("r1"), data, attachment=copied)  # op1 still there
+        eve.session.put(keyspace.cmd_vel("r1"), data, attachment=copied)  # op1 still there
         said = until_said(
             eve,
             "replayed or out of order",
-            lambda: eve.session.put(keys.cmd_vel("r1"), data, attachment=copied),
+            lambda: eve.session.put(keyspace.cmd_vel("r1"), data, attachment=copied),
         )
         op1.gone()
         until_said(
-            eve, "no liveliness token", lambda: eve.session.put(keys.cmd_vel("r1"), data, attachment=copied)
+            eve,
+            "no liveliness token",
+            lambda: eve.session.put(keyspace.cmd_vel("r1"), data, attachment=copied),
         )
         assert info(eve)["driver"] is None
     assert said["op"] == "op1" and said["text"].startswith("ignored cmd_vel #1 from op1")
@@ -135,8 +137,8 @@ def test_a_forged_higher_sequence_under_the_drivers_session_moves_nothing_and_en
         wait_until(lambda: powered(serve, 10, -10), what="op1's power 10 -10")
         spin = json.dumps(power(100, -100)).encode()
         for signature in ("", "0" * 32):  # no signature, and one that is not the key's
-            forged = keys.attachment(op1.op, op1.seq + 1000, signature)
-            eve.session.put(keys.cmd_vel("r1"), spin, attachment=forged)
+            forged = keyspace.attachment(op1.op, op1.seq + 1000, signature)
+            eve.session.put(keyspace.cmd_vel("r1"), spin, attachment=forged)
         said = op1.wait_said("stopped: a second sender under op1's session")
         stop = stopped_after(serve, powered(serve, 10, -10)[-1])
         assert info(eve)["driver"] is None
@@ -155,8 +157,8 @@ def test_a_replayed_claim_does_not_hold_a_silent_drivers_lease(lab: Fleet, tmp_p
         op1.cmd_vel(power(35, 35))
         wait_until(lambda: powered(serve, 35, 35), what="op1's power 35 35")
         signed = op1.asking()
-        assert op1.query(keys.drive("r1"), signed)[0]  # the original renews
-        said = until_said(op1, "stopped: deadman", lambda: eve.query(keys.drive("r1"), signed) and None)
+        assert op1.query(keyspace.drive("r1"), signed)[0]  # the original renews
+        said = until_said(op1, "stopped: deadman", lambda: eve.query(keyspace.drive("r1"), signed) and None)
     assert said["session"] == op1.op.session
     stopped_after(serve, powered(serve, 35, 35)[-1])
 
@@ -167,24 +169,24 @@ def test_300_fresh_names_evict_nobody_and_readmit_no_old_message(lab: Fleet, tmp
         op1.open()
         op1.claim()
         old = json.dumps(power(30, 30)).encode()
-        copied = op1.put(keys.cmd_vel("r1"), old)
+        copied = op1.put(keyspace.cmd_vel("r1"), old)
         wait_until(lambda: powered(serve, 30, 30), what="op1's power 30 30")
         op1.cmd_vel(power(15, 15))
         wait_until(lambda: powered(serve, 15, 15), what="op1's power 15 15")
         tokens = []
         for n in range(300):
-            fresh = keys.Who(f"fresh{n}", keys.new_session())
+            fresh = keyspace.Who(f"fresh{n}", keyspace.new_session())
             tokens.append(
-                eve.session.liveliness().declare_token(keys.operator("r1", fresh.name, fresh.session))
+                eve.session.liveliness().declare_token(keyspace.operator("r1", fresh.name, fresh.session))
             )
-            eve.session.put(keys.cmd_vel("r1"), old, attachment=keys.attachment(fresh, 1))
+            eve.session.put(keyspace.cmd_vel("r1"), old, attachment=keyspace.attachment(fresh, 1))
         wait_until(
             lambda: info(eve)["counters"]["unadmitted"] >= 300 - 255, what="the tokens past 256 refused"
         )
         said = until_said(
             op1,
             "replayed or out of order",
-            lambda: eve.session.put(keys.cmd_vel("r1"), old, attachment=copied),
+            lambda: eve.session.put(keyspace.cmd_vel("r1"), old, attachment=copied),
         )
         body = info(eve)
     assert body["driver"] == "op1"  # the driver's record and lease were never evicted
@@ -214,7 +216,7 @@ def test_a_flood_of_bad_messages_is_counted_and_said_a_few_times(lab: Fleet, tmp
         data = json.dumps(power(50, 50)).encode()
         for n in range(2000):
             eve.session.put(
-                keys.cmd_vel("r1"), data, attachment=f"eve{n % 2} {n}".encode(), congestion_control=BLOCK
+                keyspace.cmd_vel("r1"), data, attachment=f"eve{n % 2} {n}".encode(), congestion_control=BLOCK
             )
         wait_until(lambda: info(eve)["counters"]["ignored"] >= 2000, what="2000 ignored")
         heard = len(listener.status)

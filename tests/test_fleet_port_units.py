@@ -12,13 +12,13 @@ from pathlib import Path
 import pytest
 
 from hcrctl.errors import BadPortUrl
-from hcrctl.fleet import keys
-from hcrctl.fleet.remote.link import robot_name
 from hcrctl.link.carrier import is_stop, requests_in
+from hcrctl.link.zenoh import keyspace
+from hcrctl.link.zenoh.remote import robot_name
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.dialect import decode_all
 
-OP = keys.Who("op1", "0123456789abcdef")
+OP = keyspace.Who("op1", "0123456789abcdef")
 
 
 @pytest.mark.parametrize(
@@ -56,7 +56,7 @@ def test_a_good_name_is_the_robots() -> None:
     ],
 )
 def test_a_stop_carries_the_reason_a_program_compares(why: str, reason: str) -> None:
-    said = keys.stopped_status(OP, why)
+    said = keyspace.stopped_status(OP, why)
     assert json.loads(said.to_bytes()) == {
         "event": "stopped",
         "text": f"stopped: {why}",
@@ -64,21 +64,21 @@ def test_a_stop_carries_the_reason_a_program_compares(why: str, reason: str) -> 
         "session": OP.session,
         "reason": reason,
     }
-    assert keys.parse_status(said.to_bytes()) == said
+    assert keyspace.parse_status(said.to_bytes()) == said
 
 
 def test_status_messages_are_for_one_session_and_say_their_event() -> None:
-    drives = keys.parse_status(keys.drives_status(OP, "r1").to_bytes())
+    drives = keyspace.parse_status(keyspace.drives_status(OP, "r1").to_bytes())
     assert drives is not None and drives.event == "drives" and drives.text == "op1 drives r1"
-    assert drives.is_for(OP) and not drives.is_for(keys.Who("op1", "f" * 16))
-    refused = keys.parse_status(keys.refused_status(OP, "cmd_vel refused: bumper hit", 7).to_bytes())
+    assert drives.is_for(OP) and not drives.is_for(keyspace.Who("op1", "f" * 16))
+    refused = keyspace.parse_status(keyspace.refused_status(OP, "cmd_vel refused: bumper hit", 7).to_bytes())
     assert refused is not None and (refused.event, refused.seq) == ("refused", 7)
-    assert json.loads(keys.refused_status(None, "x").to_bytes()) == {
+    assert json.loads(keyspace.refused_status(None, "x").to_bytes()) == {
         "event": "refused",
         "text": "x",
         "op": None,
     }
-    nobody = keys.parse_status(keys.refused_status(None, "ignored a cmd_vel").to_bytes())
+    nobody = keyspace.parse_status(keyspace.refused_status(None, "ignored a cmd_vel").to_bytes())
     assert nobody is not None and nobody.op is None and not nobody.is_for(OP)
 
 
@@ -97,7 +97,7 @@ def test_status_messages_are_for_one_session_and_say_their_event() -> None:
     ],
 )
 def test_what_is_no_status_message_is_none(data: bytes) -> None:
-    assert keys.parse_status(data) is None
+    assert keyspace.parse_status(data) is None
 
 
 def _events(data: bytes) -> list[object]:
@@ -150,17 +150,17 @@ class _Session:
 
 def test_the_word_of_this_sessions_own_stop_never_halts_its_next_motion() -> None:
     pytest.importorskip("zenoh", reason="the lease's puts name Zenoh's encodings")
-    from hcrctl.fleet.remote.lease import HALT_HINTS, DriveLease
+    from hcrctl.link.zenoh.lease import HALT_HINTS, DriveLease
 
-    assert set(HALT_HINTS) <= set(keys.REASONS)
+    assert set(HALT_HINTS) <= set(keyspace.REASONS)
     session = _Session()
     lease = DriveLease(session, "r1", OP, 0.5)
     lease.held = True  # driving
     lease.stop()
-    assert session.puts == [keys.stop("r1")]
+    assert session.puts == [keyspace.stop("r1")]
     lease.held = True  # the next motion claimed before the robot side's word of that stop came
-    lease.heard(keys.stopped_status(OP, "stop from op1"))
+    lease.heard(keyspace.stopped_status(OP, "stop from op1"))
     assert lease.halted is None and lease.held
-    lease.heard(keys.stopped_status(OP, "stop from op2"))  # another's stop, after it
+    lease.heard(keyspace.stopped_status(OP, "stop from op2"))  # another's stop, after it
     assert lease.halted is not None and not lease.held
     assert lease.halted.message == "r1 stopped: stop from op2" and lease.halted.hint == HALT_HINTS["stop"]

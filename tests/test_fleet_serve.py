@@ -37,9 +37,9 @@ from helpers_fleet_robot import (
     twist,
 )
 
-from hcrctl.fleet import keys
+from hcrctl.link.zenoh import keyspace
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import Frame
 
 
@@ -140,7 +140,7 @@ def test_a_renewal_after_half_its_lease_is_said_with_a_count_and_counted_in_info
         time.sleep(5.5)
         assert op.claim()[0]
         text = serve.wait_err("late so far)")
-        taken, info = op.query(keys.info("r1"))
+        taken, info = op.query(keyspace.info("r1"))
     assert re.search(
         r"late renewal: op1's came \d+\.\d\d s after its last word, of a 10 s lease \(1 late so far\)", text
     )
@@ -169,15 +169,15 @@ def test_a_turn_is_written_once_and_held_under_the_lease(lab: Fleet, tmp_path: P
 
 
 def _info(op: Any, check: Any) -> dict[str, Any] | None:
-    ok, body = op.query(keys.info("r1"))
+    ok, body = op.query(keyspace.info("r1"))
     return body if ok and check(body) else None
 
 
 def test_a_message_without_its_operator_is_ignored(lab: Fleet, tmp_path: Path) -> None:
     serve = served(lab, tmp_path)
     with operator(lab.endpoint, "r1", "op1") as op:
-        op.session.put(keys.cmd_vel("r1"), json.dumps(twist(0.3)).encode())  # no attachment
-        op.session.put(keys.cmd_vel("r1"), json.dumps(twist(0.3)).encode(), attachment=b"op1 x")
+        op.session.put(keyspace.cmd_vel("r1"), json.dumps(twist(0.3)).encode())  # no attachment
+        op.session.put(keyspace.cmd_vel("r1"), json.dumps(twist(0.3)).encode(), attachment=b"op1 x")
         info = wait_until(lambda: _info(op, lambda i: i["counters"]["ignored"] >= 2), what="2 ignored")
     assert info["counters"]["cmd_vel"] == 0 and info["driver"] is None
     assert not serve.sent_codes({VELOCITY})
@@ -192,11 +192,12 @@ def test_a_read_through_the_queryable_is_the_frame_on_the_wire(lab: Fleet, tmp_p
     with operator(lab.endpoint, "r1", "op1") as op:
         broadcasts: list[dict[str, Any]] = []
         frames = op.session.declare_subscriber(
-            keys.topic("r1", "frames"), lambda sample: broadcasts.append(json.loads(bytes(sample.payload)))
+            keyspace.topic("r1", "frames"),
+            lambda sample: broadcasts.append(json.loads(bytes(sample.payload))),
         )
-        ok, body = op.query(keys.read("r1", "compass"))
+        ok, body = op.query(keyspace.read("r1", "compass"))
         assert ok, body
-        bad_ok, bad = op.query(keys.read("r1", "compass"), {"address": 300})
+        bad_ok, bad = op.query(keyspace.read("r1", "compass"), {"address": 300})
         wait_until(
             lambda: [m for m in list(broadcasts) if m.get("name") == "compass"], what="a compass frame"
         )
@@ -221,9 +222,11 @@ def test_a_read_through_the_queryable_is_the_frame_on_the_wire(lab: Fleet, tmp_p
 def test_a_write_is_decoded_through_the_table_and_motion_is_refused(lab: Fleet, tmp_path: Path) -> None:
     serve = served(lab, tmp_path)
     with operator(lab.endpoint, "r1", "op1") as op:
-        ok, body = op.query(keys.write("r1"), {"op": "op1", "address": 1, "command": 0x41, "content": "1020"})
+        ok, body = op.query(
+            keyspace.write("r1"), {"op": "op1", "address": 1, "command": 0x41, "content": "1020"}
+        )
         refused, why = op.query(
-            keys.write("r1"), {"op": "op1", "address": 1, "command": 1, "content": "9090"}
+            keyspace.write("r1"), {"op": "op1", "address": 1, "command": 1, "content": "9090"}
         )
     assert (
         ok
@@ -242,10 +245,10 @@ def test_cdr_topics_at_the_asked_rate(lab: Fleet, tmp_path: Path) -> None:
     got: list[Any] = []
     statics: list[Any] = []
     with operator(lab.endpoint, "r1", "op1") as op:
-        op.session.declare_subscriber(keys.topic("r1", "imu"), got.append)
-        op.session.declare_subscriber(keys.topic("r1", "tf_static"), statics.append)
+        op.session.declare_subscriber(keyspace.topic("r1", "imu"), got.append)
+        op.session.declare_subscriber(keyspace.topic("r1", "tf_static"), statics.append)
         wait_until(lambda: len(got) >= 2 and statics, what="two compass readings and the static frames")
-        ok, info = op.query(keys.info("r1"))
+        ok, info = op.query(keyspace.info("r1"))
     assert ok, info
     sample = got[0]
     assert str(sample.encoding) == "application/cdr;sensor_msgs/msg/Imu"
@@ -301,7 +304,7 @@ def test_a_bad_name_is_a_usage_error_naming_the_rule(env: dict[str, str], name: 
     with fleet(env) as group:
         done = group.run(["--port", "sim://", *group.zenoh, "fleet", "serve", name])
     assert done.returncode == 2
-    assert "NAME" in done.stderr and keys.NAME_RULE in done.stderr
+    assert "NAME" in done.stderr and keyspace.NAME_RULE in done.stderr
     assert "Traceback" not in done.stderr
 
 

@@ -28,8 +28,8 @@ pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip instal
 from helpers import TIMEOUT, clean_env, wait_until
 from helpers_fleet_robot import MOTION, VELOCITY, Fleet, Operator, fleet, is_stop, operator, twist
 
-from hcrctl.fleet import keys
 from hcrctl.fleet.publish import Publishers
+from hcrctl.link.zenoh import keyspace
 from hcrctl.protocol import topics as T
 
 
@@ -130,7 +130,7 @@ def test_a_topic_nobody_subscribes_to_is_neither_encoded_nor_put() -> None:
 
 def _flood(op: Operator, robot: str, done: threading.Event) -> None:
     """cmd_vel and read queries, as fast as they go, none waited for, until ``done``."""
-    reads = [keys.read(robot, sensor) for sensor in ("compass", "battery", "sonar")]
+    reads = [keyspace.read(robot, sensor) for sensor in ("compass", "battery", "sonar")]
     while not done.is_set():
         with contextlib.suppress(Exception):  # the robot gone mid-flood: the loop ends with the test
             op.cmd_vel(twist(0.2))
@@ -215,7 +215,7 @@ def _wait_for_answers(op: Operator, robot: str) -> None:
             answered.set()
 
     def asked() -> bool:
-        op.session.get(keys.read(robot, "compass"), got, payload=b"{}", timeout=2.0)
+        op.session.get(keyspace.read(robot, "compass"), got, payload=b"{}", timeout=2.0)
         return answered.wait(0.1)
 
     wait_until(asked, what=f"an answer to a read of {robot}")

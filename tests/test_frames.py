@@ -16,7 +16,8 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from hcrctl.protocol import frames, runs
-from hcrctl.protocol.decoder import FrameDecoder, decode_all
+from hcrctl.protocol.decoder import FrameDecoder
+from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import (
     HEADER,
     MAX_CONTENT,

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from hcrctl.protocol.decoder import FrameDecoder, decode_all
+from hcrctl.protocol.decoder import FrameDecoder
+from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import (
     HEADER,
     MAX_FRAME,

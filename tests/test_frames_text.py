@@ -16,7 +16,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hcrctl.protocol.decoder import FrameDecoder, decode_all
+from hcrctl.protocol.decoder import FrameDecoder
+from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import MAX_KEPT, ChecksumRule, Event, Frame, Junk, TextLine, encode
 
 COMPASS = encode(0x01, 0x14, b"\x01\x02")

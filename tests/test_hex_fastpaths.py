@@ -17,12 +17,13 @@ import pytest
 from hcrctl.hex import decoding
 from hcrctl.hex.decoding import FrameText, decode_to
 from hcrctl.hex.frameline import frame_plain
-from hcrctl.hex.sinks import JsonArraySink, PlainSink
+from hcrctl.hex.rowsinks import JsonArraySink, PlainSink
 from hcrctl.hex.summary import Summary
 from hcrctl.hex.traffic import CACHE_RECORDS, FrameFilter, TrafficPrinter, rows_of
 from hcrctl.hex.view import FrameTally, plain_line
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.decoder import FrameDecoder, decode_all
+from hcrctl.protocol.decoder import FrameDecoder
+from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import HEADER, ChecksumRule, Frame, encode
 from hcrctl.protocol.jsontext import flat_dict_encoder, json_encoder
 from hcrctl.protocol.records import event_dict, frame_json, is_good

@@ -7,7 +7,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from hcrctl.errors import FrameRefused
-from hcrctl.hex.frames import complete_frame
+from hcrctl.hex.typedframe import complete_frame
 from hcrctl.protocol.frames import ChecksumRule, encode
 
 H = bytes.fromhex

@@ -12,7 +12,7 @@ import pytest
 from rich.console import Console
 
 from hcrctl.hex.view import FrameTally, decode_table, fields_text, plain_line, verdict_text
-from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import ChecksumRule, encode
 from hcrctl.protocol.records import event_dict, is_good
 

@@ -37,7 +37,13 @@ LAYERS: list[tuple[str, ...]] = [
     ("hcrctl.protocol",),
     ("hcrctl.sim",),
     # the fleet's key layout, session and remote link are links; its serving process is a feed.
-    ("hcrctl.link", "hcrctl.urlhandler", "hcrctl.fleet.keys", "hcrctl.fleet.session", "hcrctl.fleet.remote"),
+    (
+        "hcrctl.link",
+        "hcrctl.urlhandler",
+        "hcrctl.link.zenoh.keyspace",
+        "hcrctl.link.zenoh.join",
+        "hcrctl.link.zenoh",
+    ),
     ("hcrctl.hex", "hcrctl.render", "hcrctl.ops", "hcrctl.motion"),
     ("hcrctl.live", "hcrctl.served", "hcrctl.feeds", "hcrctl.fleet", "hcrctl.ros2"),
     ("hcrctl.cli",),
@@ -195,9 +201,9 @@ def test_the_checks_see_modules_named_in_strings() -> None:
 
 
 #: The processes that serve a robot to the network: they import no terminal UI, shell or CLI.
-SERVERS = ("hcrctl.served", "hcrctl.feeds.bridge", "hcrctl.fleet.serve", "hcrctl.ros2")
+SERVERS = ("hcrctl.served", "hcrctl.foxglove.bridge", "hcrctl.fleet.server", "hcrctl.ros2")
 #: What a server may use of live/: the poller and its state (what the feed polls with), nothing drawn.
-LIVE_FOR_SERVERS = {"hcrctl.live", "hcrctl.live.poller", "hcrctl.live.state"}
+LIVE_FOR_SERVERS = {"hcrctl.live", "hcrctl.ops.poller", "hcrctl.ops.livestate"}
 
 
 def reached(name: str) -> set[str]:

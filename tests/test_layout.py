@@ -24,7 +24,7 @@ from rich.screen import Screen
 from test_panels import Clock, broadcast, full_state
 
 from hcrctl.live import screens
-from hcrctl.live.state import DriveStatus, LiveState, View
+from hcrctl.ops.livestate import DriveStatus, LiveState, View
 from hcrctl.protocol import commands as C
 
 WATCH_PANELS = (

@@ -21,7 +21,7 @@ from hcrctl.hex.summary import Summary
 from hcrctl.hex.traffic import CACHE_RECORDS, Stamper, by_the_second, iso_stamp, rows_of
 from hcrctl.hex.view import plain_line
 from hcrctl.link.trafficlog import iso_time
-from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import ChecksumRule, encode
 from hcrctl.protocol.records import hexs
 

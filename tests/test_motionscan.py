@@ -245,7 +245,7 @@ def test_an_open_frame_owes_the_bytes_that_complete_it(cut: int) -> None:
 def test_stops_after_an_open_frame_fill_it_first_then_stand_whole() -> None:
     """The stops a robot sends after half a frame: enough of them to fill it, then every stop whole."""
     from hcrctl.link.dialects import stop_frames
-    from hcrctl.protocol.decoder import decode_all
+    from hcrctl.protocol.dialect import decode_all
 
     class Robot:
         address, rule, motion = 1, ChecksumRule.HEADER, MotionScan()

@@ -36,9 +36,9 @@ from hcrctl.cli.settings import ENV_PREFIX, config_keys
 from hcrctl.cli.sim import parse_tcp
 from hcrctl.config import option_defaults
 from hcrctl.errors import ConfigError
-from hcrctl.feeds.formats import suffixes
-from hcrctl.feeds.outfile import OutFile
 from hcrctl.protocol import commands as C
+from hcrctl.recording.formats import suffixes
+from hcrctl.recording.outfile import OutFile
 from hcrctl.shell.builtins import builtins
 from hcrctl.sim.options import SimOptions
 

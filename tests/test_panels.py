@@ -11,9 +11,9 @@ from rich.console import Console
 
 from hcrctl.live import panels, screens
 from hcrctl.live.keys import KeyDecoder
-from hcrctl.live.state import DriveStatus, LiveState, Reading
+from hcrctl.ops.livestate import DriveStatus, LiveState, Reading
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import encode
 from hcrctl.render.readings import cardinal
 
@@ -433,7 +433,7 @@ def test_rtt_ends_at_the_last_reply_not_at_a_timeout() -> None:
     from types import SimpleNamespace
 
     from hcrctl.errors import DeviceTimeout
-    from hcrctl.live.poller import _reply_time
+    from hcrctl.ops.poller import _reply_time
 
     lost = DeviceTimeout("sonar", 1, "sim://", 0.5, 1)
     results = {"compass": C.Compass(1.0), "sonar": lost, "env": C.Environment(40, 20)}

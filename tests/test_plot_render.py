@@ -302,7 +302,7 @@ def test_the_too_small_hint_counts_the_rows_a_plot_takes() -> None:
 
     from hcrctl.live.plotchart import PlotPanel
     from hcrctl.live.screens import dashboard
-    from hcrctl.live.state import LiveState
+    from hcrctl.ops.livestate import LiveState
 
     state = LiveState(C.SENSORS, clock=lambda: NOW)
     plot = PlotPanel([trace("compass.heading", every(30, 0, 90.0))], NOW, WINDOW)

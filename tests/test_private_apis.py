@@ -145,7 +145,7 @@ def test_each_kind_of_use_is_found(source: str) -> None:
         "from __future__ import annotations",
         "import os\nos._exit(0)",
         "from . import _private\n_private._x",
-        "from hcrctl.feeds import sinks\nsinks._open",
+        "from hcrctl.recording import sinks\nsinks._open",
         "class A:\n    def f(self):\n        self._x = self.__y",
         "from mcap import __version__",
     ],

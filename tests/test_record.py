@@ -25,8 +25,8 @@ from helpers_mcap import LOSS_MARGIN, last_log_time, small_tmpfs, worst_lag
 from helpers_mcap import messages as flushed
 from mcap.reader import make_reader
 
-from hcrctl.feeds.record import FLUSH_EVERY
 from hcrctl.protocol import topics as T
+from hcrctl.recording.record import FLUSH_EVERY
 
 
 @pytest.fixture(scope="module")

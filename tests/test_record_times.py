@@ -12,7 +12,7 @@ from datetime import datetime, timedelta, timezone
 from hypothesis import given
 from hypothesis import strategies as st
 
-from hcrctl.feeds.sinks import microseconds, seconds
+from hcrctl.recording.sinks import microseconds, seconds
 
 EPOCH = datetime(1970, 1, 1, tzinfo=timezone.utc)
 #: Epoch seconds from now to a century on, and any float from 0 to there.

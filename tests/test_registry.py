@@ -21,9 +21,9 @@ from helpers_shell import shell
 from rich.console import Console
 
 from hcrctl.live import screens, sensorpanels
-from hcrctl.live.state import LiveState
+from hcrctl.ops.livestate import LiveState
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.fields import READ_REQUEST
 from hcrctl.protocol.frames import encode
 from hcrctl.render import readings as render

@@ -160,7 +160,7 @@ def test_an_answered_request_is_no_longer_owed() -> None:
     """Once every reply is in, nothing is owed: --ignore-timestamps sends on, no timeout wait."""
     from hcrctl.link.traffic import Traffic
     from hcrctl.ops.replay import Pending
-    from hcrctl.protocol.decoder import decode_all
+    from hcrctl.protocol.dialect import decode_all
     from hcrctl.protocol.frames import ChecksumRule
 
     pending = Pending()

@@ -18,7 +18,7 @@ from prompt_toolkit.output import DummyOutput
 from hcrctl.cli.settings import Settings
 from hcrctl.errors import PortError
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import Frame, encode
 from hcrctl.shell.broadcasts import NEW_MARK, Broadcasts, describe
 from hcrctl.shell.dispatch import COMMANDS, run_line, usage_line

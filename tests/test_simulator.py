@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import BadChecksum, ChecksumRule, Frame, Junk, encode
 from hcrctl.sim.body import MAX_SPEED_CM_S, ROBOT_RADIUS_CM, START_POSE, WHEEL_TIME_CONSTANT_S
 from hcrctl.sim.options import SimOptions

@@ -10,7 +10,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from hcrctl.hex.decoding import decode_rows
-from hcrctl.hex.sinks import JsonArraySink, PlainSink
+from hcrctl.hex.rowsinks import JsonArraySink, PlainSink
 from hcrctl.hex.view import FrameTally
 from hcrctl.protocol.frames import HEADER, ChecksumRule, encode
 

@@ -15,10 +15,10 @@ from helpers_live import FakeRobot, Terminal, is_stop, speed_of, terminal, termi
 
 from hcrctl.link.client import Robot
 from hcrctl.link.context import Connection
-from hcrctl.live.state import LiveState
 from hcrctl.live.teleop import HOLD_GRACE, POLL_HZ, Drive, press, run_teleop, teleop_governor
 from hcrctl.motion.bumpers import freshness_bound
 from hcrctl.motion.governor import Governor
+from hcrctl.ops.livestate import LiveState
 from hcrctl.protocol import commands as C
 
 UP, DOWN, LEFT, RIGHT = "\x1b[A", "\x1b[B", "\x1b[D", "\x1b[C"

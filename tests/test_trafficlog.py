@@ -18,7 +18,7 @@ from hcrctl.errors import LogFormatError
 from hcrctl.link.client import Robot
 from hcrctl.link.traffic import Traffic
 from hcrctl.link.trafficlog import TrafficLog, attach, read_log
-from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import Frame, encode
 
 ISO_MICRO = re.compile(r"^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{6}[+-]\d\d:\d\d$")

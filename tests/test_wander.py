@@ -17,7 +17,7 @@ import pytest
 from helpers import TIMEOUT, clean_env, hcrctl_exe, sim_process, terminal, wait_until
 
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.decoder import decode_all
+from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import Frame
 from hcrctl.sim.body import ROBOT_RADIUS_CM
 from hcrctl.sim.options import SimOptions

@@ -1,4 +1,4 @@
-"""Adding a recording format is one entry in ``feeds.formats.WRITERS``, and nothing else changes.
+"""Adding a recording format is one entry in ``recording.formats.WRITERS``, and nothing else changes.
 
 A plugin module (named in ``HCRCTL_PLUGINS``, as a user would add one) makes
 a ``.tsv`` writer of topic messages and registers it with one call. Then the
@@ -22,17 +22,17 @@ import pytest
 from helpers_cli import clean_env, one_line, run
 
 from hcrctl.extras import MissingExtra
-from hcrctl.feeds import formats
-from hcrctl.feeds.formats import Writer, register
 from hcrctl.link.context import Connection
 from hcrctl.link.trafficlog import TrafficLog
+from hcrctl.recording import formats
+from hcrctl.recording.formats import Writer, register
 
 PLUGIN = '''
 """A TSV writer: one line per topic message, topic TAB time TAB the message as JSON (without its time)."""
 import json
 
-from hcrctl.feeds.formats import Writer, register
-from hcrctl.feeds.sinks import Sink, seconds
+from hcrctl.recording.formats import Writer, register
+from hcrctl.recording.sinks import Sink, seconds
 
 
 class TsvSink(Sink):
@@ -196,10 +196,8 @@ def test_a_missing_package_names_its_extra_and_a_broken_one_is_its_own_error(
 
 
 def test_importing_the_table_imports_no_writer(tmp_path: Path) -> None:
-    code = (
-        "import sys, hcrctl.feeds.formats; print(sorted(m for m in sys.modules if m.split('.')[0] == 'mcap'"
-    )
-    code += " or m in ('hcrctl.feeds.mcapsink', 'hcrctl.feeds.csvsink')))"
+    code = "import sys, hcrctl.recording.formats; print(sorted(m for m in sys.modules if m.split('.')[0] == 'mcap'"
+    code += " or m in ('hcrctl.recording.mcapsink', 'hcrctl.recording.csvsink')))"
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "[]"

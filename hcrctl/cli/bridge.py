@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import click
 
-from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
-from ..feeds.outfile import force_option
 from ..protocol.encodings import ENCODINGS
+from ..recording.outfile import force_option
+from ..served.cmdvel import DEFAULT_TIMEOUT_S
 from .params import HostPort, allow_origin_option, deadman_option, duration_option, rate_option
 from .serverend import ServerEnd
 from .settings import Settings
@@ -65,16 +65,16 @@ def bridge(
     written (a full disk), that is said once, serving goes on, and the exit
     status is 1.
     """
-    from ..feeds.outputs import check_outputs
     from ..link.claims import claimed
+    from ..recording.outputs import check_outputs
 
     check_outputs([("--mcap", mcap)], appended=[("--log", settings.log)], force=force)
-    from ..feeds.bridge import Options, require_foxglove, run_bridge, summary_line
+    from ..foxglove.bridge import BridgeOptions, require_foxglove, run_bridge, summary_line
 
     require_foxglove("hcrctl bridge", mcap=mcap is not None)
 
     timeout = settings.deadman_or(deadman, DEFAULT_TIMEOUT_S)
-    options = Options(listen[0], listen[1], mcap, rate, duration, timeout, encoding, allow_origins)
+    options = BridgeOptions(listen[0], listen[1], mcap, rate, duration, timeout, encoding, allow_origins)
     with (
         claimed("--mcap", mcap, force=force),
         ServerEnd("bridge", as_json=settings.as_json, bounded=duration is not None) as end,

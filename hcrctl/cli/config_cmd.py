@@ -202,7 +202,7 @@ def toml_value(value: Any) -> str:
 
 def write_new(where: str, text: str, force: bool) -> None:
     """Write ``text`` at ``where``: only if nothing is there (created exclusively), or over it with ``force``."""
-    from ..feeds.outputs import check_outputs, written_whole
+    from ..recording.outputs import check_outputs, written_whole
 
     label = "config file"
     check_outputs([(label, where)], force=force)

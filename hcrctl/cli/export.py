@@ -1,8 +1,8 @@
-"""``hcrctl export LOG OUT`` (OUT.mcap, OUT.csv: ``feeds.formats``): a traffic log as a file other tools open.
+"""``hcrctl export LOG OUT`` (OUT.mcap, OUT.csv: ``recording.formats``): a traffic log as a file other tools open.
 
 The log is streamed (constant memory whatever its size) and decoded under the
 global ``--checksum-from``/``--protocol``, as ``monitor --from`` decodes it.
-The work is ``feeds.export``'s; this module is the command line around it.
+The work is ``recording.export``'s; this module is the command line around it.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import sys
 
 import click
 
-from ..feeds.outfile import (
+from ..recording.outfile import (
     FormatsCommand,
     OutFile,
     encoding_option,
@@ -71,11 +71,11 @@ def export(
     wide: bool,
     force: bool,
 ) -> None:
-    from ..feeds.export import export_log, export_topics
-    from ..feeds.formats import open_sink
-    from ..feeds.outputs import check_outputs, written_whole
-    from ..feeds.progress import per_topic, size
     from ..protocol.profiles import profile
+    from ..recording.export import export_log, export_topics
+    from ..recording.formats import open_sink
+    from ..recording.outputs import check_outputs, written_whole
+    from ..recording.progress import per_topic, size
 
     refuse_encoding(out, encoding, wide=wide)
     # --log is never written by export, but a command line naming one file twice is a mistake

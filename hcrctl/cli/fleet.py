@@ -14,8 +14,8 @@ from typing import Any
 
 import click
 
-from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
 from ..protocol.encodings import ENCODINGS
+from ..served.cmdvel import DEFAULT_TIMEOUT_S
 from .params import (
     Endpoint,
     FloatRange,
@@ -31,7 +31,7 @@ from .settings import Settings, json_option, stdout_is_terminal
 
 
 def _name(ctx: click.Context, param: click.Parameter, value: str) -> str:
-    from ..fleet.keys import check_name
+    from ..link.zenoh.keyspace import check_name
 
     try:
         return check_name(value)
@@ -71,7 +71,7 @@ def router(settings: Settings, listen: tuple[str, ...]) -> None:
     and user/password).
     """
     from ..fleet.router import run_router, where
-    from ..fleet.session import import_zenoh
+    from ..link.zenoh.join import import_zenoh
 
     import_zenoh()
 
@@ -143,11 +143,11 @@ def serve(
     on a stop from anyone, and when this command ends. NAME is 1-64 letters,
     digits, '_', '.' or '-'. With --json a summary is printed at the end.
     """
-    from ..fleet.serve import Options, run_serve, summary_line
+    from ..fleet.server import ServeOptions, run_serve, summary_line
 
     if ros2:
         _ros2_name(name)
-    options = Options(
+    options = ServeOptions(
         name,
         connect,
         listen,
@@ -190,7 +190,7 @@ def list_robots(settings: Settings, watch: bool, timeout: float) -> None:
     With --json a list of objects (each robot's info); with --watch one line
     (with --json one JSON object) per robot joining or leaving, until Ctrl-C.
     """
-    from ..fleet.session import Where
+    from ..link.zenoh.join import Where
 
     where = Where(settings.zenoh, (), settings.zenoh_config)
     if watch:

@@ -24,7 +24,7 @@ from .params import NamedArgument, hold_option, request_value, table_command
 from .settings import Settings, json_option, stdout_is_terminal
 
 if TYPE_CHECKING:
-    from ..hex.sinks import RowSink
+    from ..hex.rowsinks import RowSink
     from ..link.client import Robot
 
 STDIN_HINT = "for a binary capture use --file"
@@ -184,13 +184,13 @@ def _stdin_hex() -> Iterator[bytes]:
 
 
 def _row_sink(settings: Settings) -> RowSink:
-    from ..hex import sinks
+    from ..hex import rowsinks
 
     if settings.as_json:
-        return sinks.JsonArraySink()
+        return rowsinks.JsonArraySink()
     if stdout_is_terminal():
-        return sinks.TableSink()
-    return sinks.PlainSink()
+        return rowsinks.TableSink()
+    return rowsinks.PlainSink()
 
 
 # -- encode -------------------------------------------------------------------------
@@ -293,7 +293,7 @@ def send(ctx: click.Context, hex_text: tuple[str, ...], force: bool, hold_for: f
     frame is held like 'hcrctl drive': until --for SECONDS or Ctrl-C, then
     stop is sent.
     """
-    from ..hex.frames import complete_frame
+    from ..hex.typedframe import complete_frame
     from ..ops.hexsend import holds_motion, retries_set, send_frame, traffic_row
 
     settings: Settings = ctx.obj

@@ -1,6 +1,6 @@
-"""``hcrctl record OUT [SENSOR]...`` (OUT.mcap, OUT.csv: ``feeds.formats``): poll the robot and record what crosses the link.
+"""``hcrctl record OUT [SENSOR]...`` (OUT.mcap, OUT.csv: ``recording.formats``): poll the robot and record what crosses the link.
 
-The recording itself is ``feeds.record``'s; this is its command line. It
+The recording itself is ``recording.record``'s; this is its command line. It
 sends no motion: only the reads ``watch`` sends.
 """
 
@@ -11,7 +11,8 @@ from typing import Any
 
 import click
 
-from ..feeds.outfile import (
+from ..protocol import commands as C
+from ..recording.outfile import (
     FormatsCommand,
     OutFile,
     encoding_option,
@@ -19,7 +20,6 @@ from ..feeds.outfile import (
     refuse_encoding,
     wide_option,
 )
-from ..protocol import commands as C
 from .params import duration_option, rate_option
 from .serverend import ServerEnd
 from .settings import Settings, json_option
@@ -78,10 +78,10 @@ def record(
     wide: bool,
     force: bool,
 ) -> None:
-    from ..feeds.outputs import check_outputs
-    from ..feeds.progress import per_topic, size
-    from ..feeds.record import reraise, run_record
     from ..link.claims import appended, claimed
+    from ..recording.outputs import check_outputs
+    from ..recording.progress import per_topic, size
+    from ..recording.record import reraise, run_record
 
     refuse_encoding(out, encoding, wide=wide)
     # written under its own name as it goes (readable after a kill -9), so only the refusals apply

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import click
 
-from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
+from ..served.cmdvel import DEFAULT_TIMEOUT_S
 from .params import deadman_option, domain_option, namespace_param, rate_option
 from .serverend import ServerEnd
 from .settings import Settings

@@ -90,6 +90,6 @@ def watch(
 
 def summary_line(summary: dict[str, Any]) -> str:
     """``watch: 41 sweeps in 4.1 s (10 sweeps/s), 0 timeouts, 0 bad replies``: its closing line."""
-    from ..feeds.progress import sweeps
+    from ..recording.progress import sweeps
 
     return f"watch: {sweeps(summary)}, {summary['timeouts']} timeouts, {summary['bad_replies']} bad replies"

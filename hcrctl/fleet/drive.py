@@ -3,7 +3,7 @@
 This is a *source* of motion, as the bridge's ``/cmd_vel`` is: it reads each
 message on a budget and offers it to the motion governor, which alone
 decides, writes and stops. Who sent a message is its attachment
-(``keys.parse_attachment``): an operator *session* (a name and a random id).
+(``keyspace.parse_attachment``): an operator *session* (a name and a random id).
 A message from anyone but the driver is refused before its payload is read,
 so a second operator cannot make the driver's messages cost more.
 
@@ -15,7 +15,7 @@ Who may drive, and which messages count:
   ``MAX_OPERATORS``; a token beyond that is not admitted, and none is ever
   forgotten while its token stays, the driver's least of all);
 - the first claim granted to a session answers it a key; every motion of that
-  session must be signed with it (``keys.signature``) and carry a sequence
+  session must be signed with it (``keyspace.signature``) and carry a sequence
   number higher than the last one taken. An exact copy of a message is older;
   a message under the session that the key did not sign is a second sender
   under one name: when that session drives, the robot stops, the lease ends
@@ -50,11 +50,11 @@ from dataclasses import dataclass
 from typing import Any, SupportsBytes
 
 from ..errors import ProtocolError
-from ..feeds.cmdvel import MAX_NESTING, BadTwist, parse_twist, twist_wheels
+from ..link.zenoh import keyspace
 from ..motion.governor import Governor, Kind, Source, Verdict, Wheels, refusal
 from ..protocol import commands as C
 from ..protocol.profiles import Profile
-from . import keys
+from ..served.cmdvel import MAX_NESTING, BadTwist, parse_twist, twist_wheels
 from .queries import code_text
 from .refusals import Refusals
 
@@ -65,10 +65,10 @@ _DIGITS = re.compile(r"\d+")
 MAX_OPERATORS = 256
 #: Say = (operator a refusal is for or about, its text or a built status, the sequence number it is
 #: about): a put on ``status``.
-Say = Callable[[keys.Who | None, "str | keys.Status", int | None], None]
+Say = Callable[[keyspace.Who | None, "str | keyspace.Status", int | None], None]
 
 
-def operator_source(op: keys.Who) -> Source:
+def operator_source(op: keyspace.Who) -> Source:
     """An operator session as the governor knows it: equal only to the same session, said by its name."""
     return Source(Kind.OPERATOR, op, op.name)
 
@@ -148,7 +148,7 @@ class FleetDrive:
         self._say = say
         self._profile = profile
         self.refusals = Refusals(say)
-        self._present: dict[keys.Who, Present] = {}
+        self._present: dict[keyspace.Who, Present] = {}
         self._lock = threading.Lock()
 
     # -- messages ---------------------------------------------------------------
@@ -157,7 +157,7 @@ class FleetDrive:
         """One motion message; ``payload`` is made bytes only once it is read (Zenoh's ZBytes copies)."""
         if self._not_the_drivers(attachment):
             return
-        parsed = keys.parse_attachment(attachment)
+        parsed = keyspace.parse_attachment(attachment)
         if parsed is None:
             self.counters.ignored += 1
             self._tell(
@@ -186,7 +186,7 @@ class FleetDrive:
         if not verdict:
             self._dropped(op, seq, f"cmd_vel {verdict.why}")
         elif not drove:
-            self._say(op, keys.drives_status(op, self.robot), None)
+            self._say(op, keyspace.drives_status(op, self.robot), None)
 
     def _not_the_drivers(self, attachment: bytes | None) -> bool:
         """While one drives, a message whose attachment does not start with the driver's session is refused
@@ -196,14 +196,14 @@ class FleetDrive:
         if driver is None or driver.kind is not Kind.OPERATOR or attachment is None:
             return False
         who = driver.id
-        if isinstance(who, keys.Who) and attachment.startswith(f"{who.name} {who.session} ".encode()):
+        if isinstance(who, keyspace.Who) and attachment.startswith(f"{who.name} {who.session} ".encode()):
             return False
         self.counters.cmd_vel += 1
-        parsed = keys.parse_attachment(attachment) if self.refusals.may_say() else None
+        parsed = keyspace.parse_attachment(attachment) if self.refusals.may_say() else None
         self.refused(parsed.who if parsed else None, self.refusal(driver), parsed.seq if parsed else None)
         return True
 
-    def _admitted(self, parsed: keys.Attachment, payload: bytes, drives: bool) -> str | None:
+    def _admitted(self, parsed: keyspace.Attachment, payload: bytes, drives: bool) -> str | None:
         """None if the message counts (its sequence then taken); otherwise why it is ignored."""
         op, seq = parsed.who, parsed.seq
         with self._lock:
@@ -212,7 +212,7 @@ class FleetDrive:
                 return self._no_token(op)
             if present.key is None:
                 return f"ignored cmd_vel #{seq} from {op}: its session has no granted claim (claim the drive first)"
-            if not keys.signed(present.key, self.robot, op, seq, payload, parsed.signature):
+            if not keyspace.signed(present.key, self.robot, op, seq, payload, parsed.signature):
                 forged = True
             elif seq <= present.seq:
                 return f"ignored cmd_vel #{seq} from {op}: replayed or out of order (the last taken was #{present.seq})"
@@ -222,20 +222,20 @@ class FleetDrive:
             return self._second_sender(op, f"cmd_vel #{seq}", drives)
         return None
 
-    def _second_sender(self, op: keys.Who, what: str, drives: bool) -> str:
+    def _second_sender(self, op: keyspace.Who, what: str, drives: bool) -> str:
         """A message under ``op``'s session not signed with its key: if it drives, stop and end the lease."""
         why = f"a second sender under {op}'s session: {what} was not signed with its key"
         if drives:
             self.governor.release(operator_source(op), f"{why}; the lease is ended")
         return f"ignored: {why}"
 
-    def _no_token(self, op: keys.Who) -> str:
+    def _no_token(self, op: keyspace.Who) -> str:
         return (
             f"refused: {op} has no liveliness token on {self.robot} "
-            f"(an operator declares {keys.operator(self.robot, op.name, op.session)} first)"
+            f"(an operator declares {keyspace.operator(self.robot, op.name, op.session)} first)"
         )
 
-    def _offer(self, op: keys.Who, payload: bytes) -> Verdict:
+    def _offer(self, op: keyspace.Who, payload: bytes) -> Verdict:
         message = parse_motion(payload)
         profile, address = self._profile()
         source = operator_source(op)
@@ -248,7 +248,7 @@ class FleetDrive:
 
     def stop(self, attachment: bytes | None) -> None:
         """Anyone may stop; the lease is freed. A bad attachment still stops (it only names nobody)."""
-        parsed = keys.parse_attachment(attachment)
+        parsed = keyspace.parse_attachment(attachment)
         who = parsed.who.name if parsed else "an operator"
         self.counters.stops += 1
         self.governor.stop(f"stop from {who}")
@@ -256,7 +256,7 @@ class FleetDrive:
     def drive(self, payload: bytes) -> tuple[bool, dict[str, Any]]:
         """A claim or release: (taken, the reply's object)."""
         message = parse_motion(payload)
-        op, do = keys.who(message.get("op"), message.get("session")), message.get("do")
+        op, do = keyspace.who(message.get("op"), message.get("session")), message.get("do")
         if op is None or do not in ("claim", "release"):
             raise BadMotion('drive takes {"op": OPERATOR, "session": SESSION, "do": "claim" or "release"}')
         if do == "release":
@@ -264,7 +264,7 @@ class FleetDrive:
             return True, {"driver": named(self.governor.driver)}
         return self._claim(op, message)
 
-    def _claim(self, op: keys.Who, message: dict[str, Any]) -> tuple[bool, dict[str, Any]]:
+    def _claim(self, op: keyspace.Who, message: dict[str, Any]) -> tuple[bool, dict[str, Any]]:
         """A claim: granted to a present session, signed once it has a key; the answer says what it must know.
 
         A signed claim numbered no higher than the session's last claim (a copy
@@ -290,7 +290,7 @@ class FleetDrive:
             good = (
                 isinstance(seq, int)
                 and isinstance(given, str)
-                and keys.signed(key, self.robot, op, seq, keys.CLAIM, given)
+                and keyspace.signed(key, self.robot, op, seq, keyspace.CLAIM, given)
             )
             fresh = not good or seq > present.claimed
             if good and fresh:
@@ -303,24 +303,24 @@ class FleetDrive:
         answer: dict[str, Any] = {"driver": op.name}
         with self._lock:
             if present.key is None:
-                present.key = keys.new_key()
+                present.key = keyspace.new_key()
                 answer["key"] = present.key.hex()
             answer["seen"] = present.seq
             asked = message.get("confirm")
             if present.dropped is not None and present.dropped[0] == asked:
                 answer["dropped"] = present.dropped[1]
         if not drove and fresh:
-            self._say(op, keys.drives_status(op, self.robot), None)
+            self._say(op, keyspace.drives_status(op, self.robot), None)
         return True, answer
 
-    def _claim_refused(self, op: keys.Who, why: str) -> tuple[bool, dict[str, Any]]:
+    def _claim_refused(self, op: keyspace.Who, why: str) -> tuple[bool, dict[str, Any]]:
         """A claim refused because another drives: answered, counted, and said (on the budget)."""
         self.refused(op, why)
         return False, {"error": why, "driver": named(self.governor.driver)}
 
     def operator_here(self, key: str) -> None:
         """An operator's token appeared: its session may claim (if fewer than MAX_OPERATORS are present)."""
-        op = keys.operator_of(key)
+        op = keyspace.operator_of(key)
         if op is None:
             return
         with self._lock:
@@ -337,7 +337,7 @@ class FleetDrive:
 
     def operator_gone(self, key: str) -> None:
         """An operator's token went (a killed laptop, a closed session): forgotten; if it drove, stop at once."""
-        op = keys.operator_of(key)
+        op = keyspace.operator_of(key)
         if op is None:
             return
         with self._lock:
@@ -348,12 +348,12 @@ class FleetDrive:
     def refusal(self, driver: Source | None) -> str:
         return refusal(driver, self.robot)
 
-    def refused(self, op: keys.Who | None, text: str, seq: int | None = None) -> None:
+    def refused(self, op: keyspace.Who | None, text: str, seq: int | None = None) -> None:
         """Counted every time, said on the budget (``refusals``: a flood of refusals is a few lines a second)."""
         self.counters.refused += 1
         self._tell(op, text, seq)
 
-    def _dropped(self, op: keys.Who, seq: int, text: str) -> None:
+    def _dropped(self, op: keyspace.Who, seq: int, text: str) -> None:
         """A message taken from its sender but not made motion: kept for its claim, counted and said."""
         self.counters.refused += 1
         with self._lock:
@@ -362,7 +362,9 @@ class FleetDrive:
                 present.dropped = (seq, text)
         self._tell(op, text, seq)
 
-    def _tell(self, op: keys.Who | None, text: str, seq: int | None = None, kind: str | None = None) -> None:
+    def _tell(
+        self, op: keyspace.Who | None, text: str, seq: int | None = None, kind: str | None = None
+    ) -> None:
         """A word about a dropped message to its sender, on the budget (``refusals``)."""
         self.refusals.refused(op, text, seq, kind)
 
@@ -370,7 +372,7 @@ class FleetDrive:
 def _seq_of(message: dict[str, Any]) -> int:
     """A claim's sequence number, 0 when it has none in range (0 is never signed: numbers start at 1)."""
     seq = message.get("seq")
-    return seq if isinstance(seq, int) and keys.number_in(seq, 1, keys.MAX_SEQ) else 0
+    return seq if isinstance(seq, int) and keyspace.number_in(seq, 1, keyspace.MAX_SEQ) else 0
 
 
 def named(driver: Source | None) -> str | None:

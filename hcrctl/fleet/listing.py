@@ -12,7 +12,7 @@ Zenoh callbacks only queue the change, and the main thread asks for the
 newcomer's ``info`` (a query from inside a callback could wait on itself).
 
 Any peer may declare a robot's token and answer its ``info``: an answer that
-is not JSON, holds NaN, or has a number out of its range (``keys.check_info``)
+is not JSON, holds NaN, or has a number out of its range (``keyspace.check_info``)
 is refused for that robot alone, which is then listed by name with an
 ``error``; the other robots are listed as ever.
 """
@@ -24,8 +24,8 @@ import time
 from collections.abc import Callable, Iterable
 from typing import Any
 
-from . import keys
-from .session import Where, import_zenoh, join
+from ..link.zenoh import keyspace
+from ..link.zenoh.join import Where, import_zenoh, join
 
 #: How long ``list`` waits for tokens and for each robot's ``info``.
 DEFAULT_TIMEOUT_S = 2.0
@@ -35,15 +35,15 @@ Event = tuple[str, str]
 def names(session: Any, timeout: float) -> list[str]:
     """The robots whose serve's token is present."""
     found = set()
-    for reply in session.liveliness().get(keys.ALL_ALIVE, timeout=timeout):
-        if reply.ok is not None and (name := keys.robot_of(str(reply.ok.key_expr))) is not None:
+    for reply in session.liveliness().get(keyspace.ALL_ALIVE, timeout=timeout):
+        if reply.ok is not None and (name := keyspace.robot_of(str(reply.ok.key_expr))) is not None:
             found.add(name)
     return sorted(found)
 
 
 def infos(session: Any, robots: Iterable[str], timeout: float) -> list[dict[str, Any]]:
     """Each robot's ``info``, asked of all at once; one that does not answer is listed by name only."""
-    asked = [(name, session.get(keys.info(name), timeout=timeout)) for name in robots]
+    asked = [(name, session.get(keyspace.info(name), timeout=timeout)) for name in robots]
     return [_info(name, replies) for name, replies in asked]
 
 
@@ -53,12 +53,12 @@ def _info(name: str, replies: Any) -> dict[str, Any]:
     for reply in replies:
         if reply.ok is None:
             continue
-        body = keys.loads(bytes(reply.ok.payload))
+        body = keyspace.loads(bytes(reply.ok.payload))
         if not isinstance(body, dict):
             return {"name": name, "error": f"{name}'s info is not a JSON object of finite numbers"}
         try:
-            found.update(keys.check_info(body), name=name)
-        except keys.BadInfo as exc:
+            found.update(keyspace.check_info(body), name=name)
+        except keyspace.BadInfo as exc:
             return {"name": name, "error": f"{name}'s info is refused: {exc}"}
     started = found.get("started")
     if started is not None:
@@ -79,12 +79,12 @@ def watch(
     gone = import_zenoh().SampleKind.DELETE
 
     def changed(sample: Any) -> None:
-        name = keys.robot_of(str(sample.key_expr))
+        name = keyspace.robot_of(str(sample.key_expr))
         if name is not None:
             changes.put(("left" if sample.kind == gone else "joined", name))
 
     with join(where) as session:
-        subscriber = session.liveliness().declare_subscriber(keys.ALL_ALIVE, changed, history=True)
+        subscriber = session.liveliness().declare_subscriber(keyspace.ALL_ALIVE, changed, history=True)
         try:
             while not done():
                 try:

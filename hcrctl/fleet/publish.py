@@ -1,6 +1,6 @@
 """The readings on Zenoh: each channel as ``hcr/<robot>/<topic>``, JSON or CDR, one publisher each.
 
-The messages are the bridge's (``protocol.topics``, fed by ``feeds.source.Feed``)
+The messages are the bridge's (``protocol.topics``, fed by ``served.feed.Feed``)
 and so are the encodings and their channels (``protocol.encodings``): JSON
 with Zenoh's ``application/json``, a key per topic (``hcr/r1/compass``); or
 the ROS 2 messages of ``protocol.ros2conv`` as ``application/cdr`` with the
@@ -31,9 +31,9 @@ import threading
 from collections.abc import Callable, Iterable
 from typing import Any
 
+from ..link.zenoh import keyspace
 from ..protocol.encodings import ENCODINGS, Encode
 from ..protocol.topics import LINK, PREFIX, Topic
-from . import keys
 
 
 def key_name(topic: Topic | str) -> str:
@@ -60,7 +60,7 @@ class Publishers:
         self._listeners: list[Any] = []
         for topic in self._channels.topics:
             publisher = session.declare_publisher(
-                keys.topic(robot, key_name(topic)), encoding=zenoh_encoding(zenoh, encoding, topic)
+                keyspace.topic(robot, key_name(topic)), encoding=zenoh_encoding(zenoh, encoding, topic)
             )
             self._served[topic.name] = (publisher, kind.encoder(topic))
             self._listeners.append(publisher.declare_matching_listener(self._matching(topic.name)))

@@ -32,13 +32,13 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 from ..errors import HcrError, ProtocolError, describe
-from ..feeds.source import Heard
-from ..feeds.untrusted import shown
 from ..link.client import Robot
 from ..protocol import commands as C
 from ..protocol import topics as T
 from ..protocol.frames import Frame
 from ..protocol.records import hexs
+from ..served.feed import Heard
+from ..served.untrusted import shown
 
 #: Queries answered at once; the serial link takes one at a time anyway.
 WORKERS = 2

@@ -20,7 +20,7 @@ import threading
 import time
 from collections.abc import Callable
 
-from .keys import Who
+from ..link.zenoh.keyspace import Who
 
 #: Words said per window, at most.
 MAX_LINES = 5

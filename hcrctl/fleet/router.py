@@ -17,8 +17,8 @@ from collections.abc import Callable, Sequence
 
 from ..link.rescue import warn
 from ..link.signals import stop_signals_handled
-from .keys import DEFAULT_ENDPOINT
-from .session import Where, beyond_loopback, config, open_session
+from ..link.zenoh.join import Where, beyond_loopback, config, open_session
+from ..link.zenoh.keyspace import DEFAULT_ENDPOINT
 
 
 def where(listen: Sequence[str], zenoh: Sequence[str], config_file: str | None) -> Where:

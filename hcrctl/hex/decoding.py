@@ -20,7 +20,7 @@ from ..protocol.records import event_dict
 from ..protocol.runs import FrameRun
 
 if TYPE_CHECKING:
-    from .sinks import RowSink, TextSink
+    from .rowsinks import RowSink, TextSink
     from .view import FrameTally
 
 Row = dict[str, Any]
@@ -221,7 +221,7 @@ def decode_to(
     chunks: Iterable[bytes], rule: ChecksumRule, tally: FrameTally, sink: RowSink, profile: Profile = DEFAULT
 ) -> int:
     """``decode_rows`` into ``tally`` and ``sink``, through ``FrameText`` when the sink writes text."""
-    from .sinks import TextSink
+    from .rowsinks import TextSink
 
     if profile is not DEFAULT or not isinstance(sink, TextSink):
         return decode_rows(chunks, rule, tally.add, sink.add, profile=profile)

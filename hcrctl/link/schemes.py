@@ -13,7 +13,7 @@ from typing import cast
 from .carrier import Opener
 
 #: URL scheme (lower case, with ``://``) to the ``module:function`` that opens its carrier.
-CARRIERS: dict[str, str] = {"zenoh://": "hcrctl.fleet.remote.link:open_carrier"}
+CARRIERS: dict[str, str] = {"zenoh://": "hcrctl.link.zenoh.remote:open_carrier"}
 
 
 def opener(url: str) -> Opener | None:

@@ -16,7 +16,7 @@ stdin), each whole, between the command's own lines.
 ``monitor --from`` and ``replay`` read it back with ``read_log``. The log
 is one of ``Robot``'s traffic hooks, beside a monitor and the shell's toolbar.
 
-``TrafficLog`` is the ``.jsonl`` entry of ``feeds.formats.WRITERS``, the
+``TrafficLog`` is the ``.jsonl`` entry of ``recording.formats.WRITERS``, the
 writer of the ``traffic`` kind: opened with the path, ``write`` a piece of
 traffic, ``close``, as every recording's writer. ``Connection`` (this layer)
 opens it for ``--log`` whatever the file is called, before the port, so it

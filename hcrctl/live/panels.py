@@ -20,9 +20,9 @@ from rich.panel import Panel
 from rich.styled import Styled
 from rich.text import Text
 
+from ..ops.livestate import Counters, Reading, View
 from ..protocol import commands as C
 from ..render.readings import cardinal, degrees, unit_text
-from .state import Counters, Reading, View
 
 SPARKS = "▁▂▃▄▅▆▇█"
 ARROWS = "↑↗→↘↓↙←↖"

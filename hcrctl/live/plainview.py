@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import time
 
+from ..ops.livestate import View
 from ..render.readings import reading_rows
-from .state import View
 
 
 def plain_line(view: View, now: float) -> str:

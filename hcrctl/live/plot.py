@@ -26,8 +26,8 @@ if TYPE_CHECKING:
     from rich.console import Console, RenderableType
 
     from ..link.context import Connection
+    from ..ops.livestate import View
     from ..protocol.series import Series
-    from .state import View
 
 #: Polls a second when nothing is polled (broadcasts only): how often the stream is looked at.
 LISTEN_RATE = 20.0

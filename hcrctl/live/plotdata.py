@@ -23,10 +23,10 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from ..errors import ProtocolError
+from ..ops.livestate import LiveState
 from ..protocol import commands as C
 from ..protocol.frames import Frame
 from ..protocol.series import Series
-from .state import LiveState
 
 #: A line breaks where two samples are further apart than this many expected intervals.
 GAP_FACTOR = 3.0

@@ -23,6 +23,7 @@ from rich.panel import Panel
 from rich.segment import Segment
 from rich.text import Text
 
+from ..ops.livestate import HISTORY, DriveStatus, Reading, View
 from ..protocol import commands as C
 from .panels import (
     _whole_seconds,
@@ -36,7 +37,6 @@ from .panels import (
 )
 from .plotchart import PlotPanel
 from .sensorpanels import PanelSpec, panel_for
-from .state import HISTORY, DriveStatus, Reading, View
 
 #: The narrowest a dashboard column gets before there are fewer columns.
 COLUMN_WIDTH = 38

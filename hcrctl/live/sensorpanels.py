@@ -16,6 +16,7 @@ from typing import Any
 from rich.panel import Panel
 from rich.text import Text
 
+from ..ops.livestate import Reading
 from ..protocol import commands as C
 from ..render.readings import field_text
 from .panels import (
@@ -31,7 +32,6 @@ from .panels import (
     waiting,
     wheels_panel,
 )
-from .state import Reading
 
 #: The recent values of a sensor (``state.View.history``), for panels that plot them.
 History = tuple[tuple[int, ...], ...]

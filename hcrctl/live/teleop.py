@@ -37,11 +37,11 @@ from typing import TYPE_CHECKING
 from ..link.rescue import stopping
 from ..motion.bumpers import bumper_rule
 from ..motion.governor import Governor, Kind, Source
+from ..ops.livestate import DriveStatus, LiveState
+from ..ops.poller import Poller
 from ..protocol import commands as C
 from .keys import KeyReader
 from .painter import Painter, Redrawer, can_redraw, full_screen
-from .poller import Poller
-from .state import DriveStatus, LiveState
 from .watch import default_console, raise_from
 
 if TYPE_CHECKING:

@@ -28,11 +28,11 @@ from ..link.context import Reconnect
 from ..link.dialects import supported_sensors
 from ..link.handoff import quick_handoff
 from ..link.rescue import OwedStop
+from ..ops.livestate import LiveState
+from ..ops.poller import Poller
 from .keys import KeyReader
 from .painter import FPS, TICK, Painter, Redrawer, can_redraw, full_screen, live_screen, plain_lines
 from .plotdata import PlotState, sensors_of
-from .poller import Poller
-from .state import LiveState
 
 if TYPE_CHECKING:
     from rich.console import Console, RenderableType

@@ -23,7 +23,7 @@ from ..protocol import commands as C
 
 
 class Reading(Protocol):
-    """One sensor's last good value and its age (``live.state.Reading`` is one)."""
+    """One sensor's last good value and its age (``ops.livestate.Reading`` is one)."""
 
     @property
     def value(self) -> object: ...

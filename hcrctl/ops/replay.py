@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 from ..errors import HcrError, LogFormatError
 from ..hex.traffic import TrafficPrinter, traffic_rows
 from ..protocol import commands as C
-from ..protocol.decoder import decode_all
+from ..protocol.dialect import decode_all
 from ..protocol.fields import fields_of
 from ..protocol.frames import ChecksumRule, Frame
 from ..protocol.motionscan import MotionScan

@@ -51,7 +51,7 @@ RULES: dict[str, RuleFn] = {
 
 
 @dataclass(frozen=True)
-class Verdict:
+class ChecksumVerdict:
     """A frame's checksum judged under a profile: which rule matched, or what was expected."""
 
     ok: bool
@@ -109,13 +109,13 @@ class Profile:
             return [own]
         return [rule.value] if self is V015 else [rule.value, rule.other.value]
 
-    def verdict(self, body: bytes, received: int, rule: ChecksumRule) -> Verdict:
+    def verdict(self, body: bytes, received: int, rule: ChecksumRule) -> ChecksumVerdict:
         """Judge a frame's checksum by the rules this firmware really uses, naming the one that matched."""
         names = self.rules_for(body[4], rule, bytes(body[5:]))
         for name in names:
             if RULES[name](bytes(body)) == received:
-                return Verdict(True, name, received, names[0])
-        return Verdict(False, None, RULES[names[0]](bytes(body)), names[0])
+                return ChecksumVerdict(True, name, received, names[0])
+        return ChecksumVerdict(False, None, RULES[names[0]](bytes(body)), names[0])
 
     def encode(
         self, address: int, command: int, content: bytes, rule: ChecksumRule = ChecksumRule.HEADER

@@ -1,6 +1,6 @@
 """ROS 2 message types: their ``.msg`` definitions, and CDR to write and read them.
 
-A type is a ``Message``: its fields (primitives, strings, fixed arrays,
+A type is a ``MessageType``: its fields (primitives, strings, fixed arrays,
 sequences, nested messages) and constants, in the order its ``.msg`` file has
 them. Types come from two places, and both land in one registry (``TYPES``)
 that the definitions and codecs look names up in:
@@ -96,7 +96,7 @@ class Field:
 
 
 @dataclass(frozen=True)
-class Message:
+class MessageType:
     """A ROS 2 message type: ``lines`` is its ``.msg`` text (fields and constants, in order)."""
 
     name: str  # ``sensor_msgs/msg/Range``
@@ -122,10 +122,10 @@ def full_name(name: str, package: str) -> str:
 
 
 #: Every type the definitions and codecs can name: the standard ones and those made from schemas.
-TYPES: dict[str, Message] = {}
+TYPES: dict[str, MessageType] = {}
 
 
-def register(message: Message, replace: bool = False) -> Message:
+def register(message: MessageType, replace: bool = False) -> MessageType:
     """Add ``message`` to ``TYPES`` (the one already there under its name stays, if equal).
 
     ``replace``: a different one under that name gives way (its encoder is made again), as a type made
@@ -140,7 +140,7 @@ def register(message: Message, replace: bool = False) -> Message:
     return found
 
 
-def parse(name: str, text: str) -> Message:
+def parse(name: str, text: str) -> MessageType:
     """A type from its ``.msg`` text (comments and blank lines are dropped); registered in ``TYPES``."""
     package = name.split("/")[0]
     fields, constants, lines = [], [], []
@@ -164,7 +164,7 @@ def parse(name: str, text: str) -> Message:
         )
         fields.append(field)
         lines.append(field.line)
-    return register(Message(name, tuple(fields), tuple(lines), constants=tuple(constants)))
+    return register(MessageType(name, tuple(fields), tuple(lines), constants=tuple(constants)))
 
 
 def definition(name: str) -> str:
@@ -178,7 +178,7 @@ def definition(name: str) -> str:
     return "".join(parts).rstrip("\n")
 
 
-def _used(msg: Message) -> list[str]:
+def _used(msg: MessageType) -> list[str]:
     out = []
     for f in msg.fields:
         if f.nested:
@@ -218,7 +218,7 @@ def _kind(prop: dict[str, Any]) -> str:
     return "string"
 
 
-def from_schema(name: str, schema: dict[str, Any], stamped: bool = True) -> Message:
+def from_schema(name: str, schema: dict[str, Any], stamped: bool = True) -> MessageType:
     """The type a JSON Schema object describes, registered; ``stamped``: its ``time`` is a ``Time stamp`` first.
 
     Nested objects become nested types of their own (``FrameFields``).
@@ -236,7 +236,7 @@ def from_schema(name: str, schema: dict[str, Any], stamped: bool = True) -> Mess
     required = set(schema.get("required", schema.get("properties", {})))
     rest = required != set(schema.get("properties", {}))
     lines = [f.line for f in fields] + ([f"string {REST}"] if rest else [])
-    return register(Message(name, tuple(fields), tuple(lines), rest=rest), replace=True)
+    return register(MessageType(name, tuple(fields), tuple(lines), rest=rest), replace=True)
 
 
 # -- CDR: writing ----------------------------------------------------------------------------

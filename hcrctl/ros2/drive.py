@@ -21,9 +21,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from ..feeds.bursts import BurstNotes
-from ..feeds.cmdvel import BadTwist, speed, twist_wheels
 from ..motion.governor import Governor, Kind, Source
+from ..served.bursts import BurstNotes
+from ..served.cmdvel import BadTwist, speed, twist_wheels
 
 TOPIC = "cmd_vel"
 AXES = ("x", "y", "z")

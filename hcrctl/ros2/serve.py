@@ -21,10 +21,10 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from ..feeds.cmdvel import DEFAULT_TIMEOUT_S
-from ..feeds.progress import sweeps
 from ..protocol import ros2conv
 from ..protocol import ros2types as R
+from ..recording.progress import sweeps
+from ..served.cmdvel import DEFAULT_TIMEOUT_S
 from ..served.notes import Notes
 from ..served.runtime import FrontEnd, Report, ServedRobot
 from .drive import TOPIC, RosCmdVel

@@ -3,7 +3,7 @@
 Every server front end says what happens through one ``Notes``: a line is
 written whole under a lock, so two threads never interleave, and a stderr
 that is gone costs the server nothing (it serves on, unheard). ``Notes``
-with a redrawn status line on a terminal is ``feeds.bridge_status.Status``.
+with a redrawn status line on a terminal is ``foxglove.statusline.BridgeStatus``.
 """
 
 from __future__ import annotations

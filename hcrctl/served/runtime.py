@@ -39,10 +39,6 @@ import time
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
-from ..feeds.bridge_stop import stopping_driven
-from ..feeds.linkwatch import LinkWatch
-from ..feeds.source import Feed
-from ..feeds.untrusted import shown
 from ..link.context import Connection, Reconnect
 from ..link.dialects import supported_sensors
 from ..link.handoff import quick_handoff
@@ -53,7 +49,11 @@ from ..motion.governor import Governor, Source
 from ..protocol import commands as C
 from ..protocol.profiles import profile
 from ..protocol.topics import Topic, all_topics
+from .endstop import stopping_driven
+from .feed import Feed
+from .linkwatch import LinkWatch
 from .notes import Notes
+from .untrusted import shown
 
 if TYPE_CHECKING:
     from ..link.client import Robot

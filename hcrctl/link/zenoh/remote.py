@@ -39,11 +39,12 @@ import time
 from typing import Any
 
 from ...errors import BadPortUrl, DeviceRefused, HcrError, quoted
-from ...link.carrier import Carrier, Deliver, Lost, Settings, Timeout, is_stop
 from ...protocol import commands as C
 from ...protocol.profiles import DEFAULT, Profile, profile
 from ...protocol.records import hexs
-from ..keys import (
+from ..carrier import Carrier, Deliver, Lost, Settings, Timeout, is_stop
+from .join import FleetError, Where, import_zenoh, join, looked_at
+from .keyspace import (
     NAME_RULE,
     BadInfo,
     Who,
@@ -58,10 +59,9 @@ from ..keys import (
     status,
     topic,
 )
-from ..keys import info as info_key
-from ..keys import read as read_key
-from ..keys import write as write_key
-from ..session import FleetError, Where, import_zenoh, join, looked_at
+from .keyspace import info as info_key
+from .keyspace import read as read_key
+from .keyspace import write as write_key
 from .lease import DriveLease
 
 SCHEME = "zenoh://"

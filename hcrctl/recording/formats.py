@@ -88,7 +88,7 @@ WRITERS: dict[str, Writer] = {
     ".mcap": Writer(
         "messages",
         "MCAP (Foxglove, Lichtblick, PlotJuggler)",
-        "hcrctl.feeds.mcapsink:McapSink",
+        "hcrctl.recording.mcapsink:McapSink",
         needs="mcap",
         extra="mcap",
         encodes=True,
@@ -96,7 +96,7 @@ WRITERS: dict[str, Writer] = {
     ".csv": Writer(
         "messages",
         "CSV (one row per reading; --wide: one per sweep)",
-        "hcrctl.feeds.csvsink:CsvSink",
+        "hcrctl.recording.csvsink:CsvSink",
         options=frozenset({"wide"}),
     ),
     ".jsonl": Writer(

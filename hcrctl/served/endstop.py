@@ -23,7 +23,7 @@ from collections.abc import Callable, Iterator
 from ..link.client import Robot
 from ..link.dialects import stop_frames
 from ..link.rescue import rescue, stopping
-from .source import Feed
+from .feed import Feed
 
 
 @contextlib.contextmanager

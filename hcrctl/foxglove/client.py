@@ -47,12 +47,12 @@ class Channel:
     advert: dict[str, Any]
     encode: Callable[[dict[str, Any]], bytes]
     #: session -> its subscription ids on this channel
-    subscribers: dict[Session, set[int]] = field(default_factory=dict)
+    subscribers: dict[Client, set[int]] = field(default_factory=dict)
     #: A latched channel's message (log time, then payload), sent to each new subscription (``/tf_static``).
     latched: bytes = b""
 
 
-class Session:
+class Client:
     """One connected client: its subscriptions and outgoing queue (data drops oldest; control never)."""
 
     def __init__(self, number: int, ws: ServerConnection) -> None:

@@ -27,10 +27,10 @@ from ..link.dialects import supported_sensors
 from ..link.signals import Terminated, stop_signals_handled
 from ..link.traffic import Relay
 from ..protocol.topics import all_topics
+from ..served.feed import Feed
 from .formats import DEFAULT_ENCODING, open_sink
 from .progress import Progress, size
 from .sinks import Sink
-from .source import Feed
 
 #: Seconds of recording a crash (or kill -9) may lose at most.
 FLUSH_EVERY = 1.0

@@ -45,10 +45,10 @@ from dataclasses import dataclass, field
 from types import ModuleType
 from typing import Any
 
-from ..errors import HcrError
-from ..extras import require
-from ..link.loopback import is_loopback
-from .keys import DEFAULT_ENDPOINT
+from ...errors import HcrError
+from ...extras import require
+from ..loopback import is_loopback
+from .keyspace import DEFAULT_ENDPOINT
 
 #: Zenoh's transport lease, ms: a peer silent this long is gone (its tokens deleted). Long enough that a
 #: loaded machine's stall does not drop a live session, short beside Zenoh's 10 s; the deadman stops first.

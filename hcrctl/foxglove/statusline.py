@@ -19,7 +19,7 @@ PERIOD = 0.5
 PREFIX = "hcrctl: bridge: "
 
 
-class Status(Notes):
+class BridgeStatus(Notes):
     """``Notes`` whose ``watch`` redraws a status line under the events, on a terminal only."""
 
     def __init__(self, stream: TextIO, prefix: str = PREFIX) -> None:

@@ -23,7 +23,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from ..motion.governor import Governor
-from .source import Feed
+from .feed import Feed
 
 if TYPE_CHECKING:
     from ..link.client import Robot

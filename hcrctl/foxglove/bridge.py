@@ -24,21 +24,21 @@ from typing import TYPE_CHECKING, Any
 from ..link.context import Connection
 from ..link.loopback import is_loopback
 from ..motion.governor import Kind, Source
+from ..recording.progress import sweeps
+from ..served.cmdvel import DEFAULT_TIMEOUT_S, TOPIC
 from ..served.notes import Notes
 from ..served.runtime import FrontEnd, Report, ServedRobot, exposed, status_line, ws_url
-from .bridge_status import Status
-from .cmdvel import DEFAULT_TIMEOUT_S, TOPIC
-from .progress import sweeps
+from .statusline import BridgeStatus
 
 if TYPE_CHECKING:
-    from .bridge_server import Server
+    from .publish import Server
 
 #: What a Foxglove client is told, in the one "serving ..." line, when the bridge serves alone.
 PROTOCOLS = "Foxglove WebSocket: foxglove.sdk.v1 or foxglove.websocket.v1"
 
 
 @dataclass
-class Options:
+class BridgeOptions:
     """What ``hcrctl bridge`` was asked for (validated by the CLI)."""
 
     host: str = "127.0.0.1"
@@ -57,7 +57,7 @@ def require_foxglove(needed_by: str, *, mcap: bool = False) -> None:
     """The server (websockets) and, for a recording, the MCAP writer are the foxglove extra: without
     them, one line naming it, before anything is opened."""
     from ..extras import require
-    from .formats import WRITERS
+    from ..recording.formats import WRITERS
 
     mcap_needs = WRITERS[".mcap"].needs if mcap else None  # what the table's MCAP writer imports
     for package in ["websockets"] + ([mcap_needs] if mcap_needs else []):
@@ -73,9 +73,11 @@ class Foxglove(FrontEnd):
 
     label = "Foxglove server"
 
-    def __init__(self, served: ServedRobot, options: Options, notes: Notes, *, beside: bool = False) -> None:
-        from .bridge_drive import CmdVelSource
-        from .bridge_server import Server
+    def __init__(
+        self, served: ServedRobot, options: BridgeOptions, notes: Notes, *, beside: bool = False
+    ) -> None:
+        from .drive import CmdVelSource
+        from .publish import Server
 
         if not is_loopback(options.host):
             exposed(options.host)
@@ -132,9 +134,11 @@ class Foxglove(FrontEnd):
         }
 
 
-def run_bridge(settings: Connection, options: Options, *, report: Report | None = None) -> dict[str, Any]:
+def run_bridge(
+    settings: Connection, options: BridgeOptions, *, report: Report | None = None
+) -> dict[str, Any]:
     """Serve until the duration ends or a signal; the summary (also given to ``report``, however it ends)."""
-    status = Status(sys.stderr)
+    status = BridgeStatus(sys.stderr)
     served = ServedRobot(
         settings,
         status,

@@ -28,7 +28,7 @@ from ..errors import DeviceTimeout, HcrError, ImpossibleReply, PortError
 from ..link.client import Robot
 from ..protocol import commands as C
 from ..protocol.frames import Frame
-from .state import LiveState
+from .livestate import LiveState
 
 #: Seconds between attempts to reopen a port that disappeared.
 RETRY_EVERY = 1.0

@@ -39,10 +39,10 @@ from typing import Any
 from ...errors import HcrError, quoted
 from ...protocol import commands as C
 from ...protocol.records import hexs
-from ..keys import CLAIM, Status, Who, attachment, cmd_vel, loads, signature
-from ..keys import drive as drive_key
-from ..keys import stop as stop_key
-from ..session import FleetError
+from .join import FleetError
+from .keyspace import CLAIM, Status, Who, attachment, cmd_vel, loads, signature
+from .keyspace import drive as drive_key
+from .keyspace import stop as stop_key
 
 #: The longest wait for the robot side's answer to a claim or release.
 CLAIM_TIMEOUT_S = 2.0
@@ -313,6 +313,6 @@ def _refusal(answer: dict[str, Any], robot: str) -> str:
 
 
 def _zenoh() -> Any:
-    from ..session import import_zenoh
+    from .join import import_zenoh
 
     return import_zenoh()

@@ -30,8 +30,8 @@ from typing import Any
 
 from ..link.client import Robot
 from ..link.traffic import LinkStats, Relay, Traffic, decode_sent
-from ..live.poller import Poller
-from ..live.state import LiveState
+from ..ops.livestate import LiveState
+from ..ops.poller import Poller
 from ..protocol import topics as T
 from ..protocol.frames import Frame
 

@@ -17,7 +17,7 @@ beyond that), a slow reader loses its oldest data (``OUTBOX``). A client
 holds at most ``MAX_SUBSCRIPTIONS`` subscriptions, ``MAX_PER_CHANNEL`` of them
 on one channel, since every message is sent once per subscription: the work
 of one message is bounded whatever the clients ask, as is what a client's
-control messages may cost (``Session.spend``; ``MAX_ITEMS`` items of each). The fan-out sends
+control messages may cost (``Client.spend``; ``MAX_ITEMS`` items of each). The fan-out sends
 ``FAN_OUT_BATCH`` messages a turn of the event loop and then lets it serve
 everything else (handshakes, the driver's messages) before the rest, and at
 most ``PENDING`` messages wait for it (the oldest are dropped). At the
@@ -46,10 +46,10 @@ from websockets.datastructures import MultipleValuesError
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
-from .bridge_drive import CmdVelSource
-from .bursts import BurstNotes
-from .untrusted import origin_allowed, shown
-from .wssession import CONTROL_RATE, ERROR, STALLED_S, WARNING, Channel, Session
+from ..served.bursts import BurstNotes
+from ..served.untrusted import origin_allowed, shown
+from .client import CONTROL_RATE, ERROR, STALLED_S, WARNING, Channel, Client
+from .drive import CmdVelSource
 
 #: The current name first: a client offering both gets it.
 SUBPROTOCOLS = ("foxglove.sdk.v1", "foxglove.websocket.v1")
@@ -65,7 +65,7 @@ MAX_PER_CHANNEL = 4
 MAX_ITEMS = 64
 #: Messages fanned out per turn of the event loop before it serves its other work again.
 FAN_OUT_BATCH = 32
-#: How often clients that read nothing are looked for (``Session.stalled``).
+#: How often clients that read nothing are looked for (``Client.stalled``).
 REAP_EVERY = 1.0
 #: Messages waiting for the fan-out; beyond it the oldest are dropped (the loop could not keep up).
 PENDING = 4096
@@ -92,7 +92,7 @@ class FoxgloveServer:
         self._bursts = BurstNotes(note)
         self.allowed = tuple(allowed_origins)
         self.channels: dict[str, Channel] = {}
-        self.sessions: set[Session] = set()
+        self.sessions: set[Client] = set()
         self.most = 0
         self.refused = 0
         self._numbers = 0
@@ -230,7 +230,7 @@ class FoxgloveServer:
         )
 
     def _reap(self) -> None:
-        """Drop the clients that read nothing (``Session.stalled``); again in ``REAP_EVERY`` s."""
+        """Drop the clients that read nothing (``Client.stalled``); again in ``REAP_EVERY`` s."""
         now = time.monotonic()
         for session in [s for s in self.sessions if s.stalled(now)]:
             self._bursts.say(
@@ -273,7 +273,7 @@ class FoxgloveServer:
 
     async def _session(self, ws: ServerConnection) -> None:
         self._numbers += 1
-        session = Session(self._numbers, ws)
+        session = Client(self._numbers, ws)
         self.sessions.add(session)
         self.most = max(self.most, len(self.sessions))
         session.say(self._server_info())
@@ -304,14 +304,14 @@ class FoxgloveServer:
             "sessionId": str(id(self)),
         }
 
-    def _end(self, session: Session) -> None:
+    def _end(self, session: Client) -> None:
         self.sessions.discard(session)
         for channel in self.channels.values():
             channel.subscribers.pop(session, None)
         if self.cmd_vel is not None:
             self.cmd_vel.gone(session.number)
 
-    def _received(self, session: Session, message: str | bytes) -> None:
+    def _received(self, session: Client, message: str | bytes) -> None:
         """One message; whatever is wrong with it is a status to its client, never an exception."""
         try:
             if isinstance(message, bytes):
@@ -321,7 +321,7 @@ class FoxgloveServer:
         except Exception as exc:  # a bug here must cost one message, not the connection or the bridge
             session.status(ERROR, f"message not handled: {type(exc).__name__}")
 
-    def _binary(self, session: Session, data: bytes) -> None:
+    def _binary(self, session: Client, data: bytes) -> None:
         if len(data) < 5 or data[0] != 0x01:
             session.status(ERROR, "binary messages are client message data (opcode 1)")
             return
@@ -333,7 +333,7 @@ class FoxgloveServer:
         if said is not None:
             session.status(WARNING, said)
 
-    def _control(self, session: Session, text: str) -> None:
+    def _control(self, session: Client, text: str) -> None:
         if session.spend(len(text)):
             session.status(
                 WARNING, f"control messages beyond {CONTROL_RATE // 1024} KiB/s are read at that pace"
@@ -355,7 +355,7 @@ class FoxgloveServer:
             return
         handler(session, message)
 
-    def _subscribe(self, session: Session, message: dict[str, Any]) -> None:
+    def _subscribe(self, session: Client, message: dict[str, Any]) -> None:
         """Each subscription taken unless it is wrong or over a bound; what was refused in one status."""
         by_id = {c.id: c for c in self.channels.values()}
         items = _bounded(session, _items(message, "subscriptions"), "subscriptions")
@@ -385,7 +385,7 @@ class FoxgloveServer:
                 f"{MAX_PER_CHANNEL} on one channel",
             )
 
-    def _unsubscribe(self, session: Session, message: dict[str, Any]) -> None:
+    def _unsubscribe(self, session: Client, message: dict[str, Any]) -> None:
         ids = message.get("subscriptionIds")
         for sub in _bounded(session, ids if isinstance(ids, list) else [], "subscription ids"):
             channel = session.subscriptions.pop(sub, None) if isinstance(sub, int) else None
@@ -395,7 +395,7 @@ class FoxgloveServer:
                 if not subs:
                     channel.subscribers.pop(session, None)
 
-    def _advertise(self, session: Session, message: dict[str, Any]) -> None:
+    def _advertise(self, session: Client, message: dict[str, Any]) -> None:
         if self.cmd_vel is None:
             session.status(ERROR, "this server does not take client channels")
             return
@@ -416,7 +416,7 @@ class FoxgloveServer:
             if said is not None:
                 session.status(WARNING, said)
 
-    def _unadvertise(self, session: Session, message: dict[str, Any]) -> None:
+    def _unadvertise(self, session: Client, message: dict[str, Any]) -> None:
         ids = message.get("channelIds")
         for number in _bounded(session, ids if isinstance(ids, list) else [], "channel ids"):
             if isinstance(number, int) and self.cmd_vel is not None:
@@ -438,7 +438,7 @@ class FoxgloveServer:
             self._loop.call_soon_threadsafe(send)
 
 
-def _bounded(session: Session, items: list[_Item], what: str) -> list[_Item]:
+def _bounded(session: Client, items: list[_Item], what: str) -> list[_Item]:
     """The first ``MAX_ITEMS`` of a message's ``items``; the client told, once, that the rest were not read."""
     if len(items) > MAX_ITEMS:
         session.status(WARNING, f"{len(items) - MAX_ITEMS} {what} not read: at most {MAX_ITEMS} per message")

@@ -1,4 +1,4 @@
-"""The bridge's server side: channels served on the Foxglove WebSocket (``foxglove_ws``), and the MCAP file.
+"""The bridge's server side: channels served on the Foxglove WebSocket (``websocket``), and the MCAP file.
 
 Only ``hcrctl bridge`` imports this module, and only after checking that its
 extra is installed. Each message is encoded once per topic, and only when
@@ -30,12 +30,12 @@ from typing import TYPE_CHECKING, Any
 from ..errors import HcrError, printable
 from ..protocol.encodings import ENCODINGS, Encode
 from ..protocol.topics import Topic
-from .bridge_drive import CmdVelSource
-from .foxglove_ws import Channel, FoxgloveServer
-from .sinks import RecordingIncomplete, SinkWriteError, seconds
+from ..recording.sinks import RecordingIncomplete, SinkWriteError, seconds
+from .drive import CmdVelSource
+from .websocket import Channel, FoxgloveServer
 
 if TYPE_CHECKING:
-    from .mcapsink import McapSink
+    from ..recording.mcapsink import McapSink
 
 SERVER_NAME = "hcrctl"
 Note = Callable[[str], None]
@@ -171,8 +171,8 @@ class Server:
 
     def _open_mcap(self, path: str) -> McapSink:
         """``record``'s MCAP writer in this server's encoding, every topic announced, flushed as ``record`` is."""
-        from .formats import open_mcap
-        from .record import FLUSH_EVERY
+        from ..recording.formats import open_mcap
+        from ..recording.record import FLUSH_EVERY
 
         return open_mcap(path, self.topics, flush_every=FLUSH_EVERY, encoding=self.encoding)
 

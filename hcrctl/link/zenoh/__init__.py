@@ -13,6 +13,6 @@ layer, where ``link.carrier`` names it.
 
 from __future__ import annotations
 
-from .link import RemoteLink, open_carrier
+from .remote import RemoteLink, open_carrier
 
 __all__ = ["RemoteLink", "open_carrier"]

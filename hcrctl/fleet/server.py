@@ -6,7 +6,7 @@ robot's queryables (``read/*``, ``write``, ``info``, ``drive``) answer
 through the same link; the fleet's ``cmd_vel`` is offered to the one motion
 governor (one driver at a time, the deadman on the robot's own clock, stop
 when the driver's liveliness token goes). With ``--foxglove`` the bridge's
-front end (``feeds.bridge.Foxglove``) serves beside it, every bridge option
+front end (``foxglove.bridge.Foxglove``) serves beside it, every bridge option
 included, and its clients' ``/cmd_vel`` is one more source of that governor.
 Each front end tells its own sources why they were stopped; the fleet's
 ``status`` also carries the stops that name no source (a bumper, a lost port).
@@ -33,20 +33,21 @@ from typing import TYPE_CHECKING, Any
 
 from .. import __version__
 from ..extras import require
-from ..feeds.progress import sweeps
-from ..feeds.source import Feed
 from ..link.context import Connection
 from ..link.rescue import DEADMAN_S
 from ..link.signals import Terminated
+from ..link.zenoh import keyspace
+from ..link.zenoh.join import FleetError, Where, beyond_loopback, import_zenoh, open_member
 from ..motion.bumpers import freshness_bound
 from ..motion.governor import Kind, Late, Source, refusal
 from ..protocol import commands as C
+from ..recording.progress import sweeps
+from ..served.feed import Feed
 from ..served.notes import Notes
 from ..served.runtime import FrontEnd, Report, ServedRobot, exposed
-from . import keys, queries
+from . import queries
 from .drive import BadMotion, FleetDrive, named, operator_source
 from .publish import Publishers
-from .session import FleetError, Where, beyond_loopback, import_zenoh, open_member
 
 if TYPE_CHECKING:
     from ..link.client import Robot
@@ -63,7 +64,7 @@ LATE_SAY_S = 1.0
 
 
 @dataclass
-class Options:
+class ServeOptions:
     """What ``hcrctl fleet serve`` was asked for (validated by the CLI)."""
 
     name: str
@@ -80,11 +81,11 @@ class Options:
     ros2: int | None = None
 
 
-def where_of(settings: Connection, options: Options) -> Where:
+def where_of(settings: Connection, options: ServeOptions) -> Where:
     return Where(settings.zenoh, (), settings.zenoh_config).joined(options.connect, options.listen)
 
 
-def run_serve(settings: Connection, options: Options, *, report: Report | None = None) -> dict[str, Any]:
+def run_serve(settings: Connection, options: ServeOptions, *, report: Report | None = None) -> dict[str, Any]:
     """Serve until a signal or a failure; the summary (also given to ``report``, however it ends)."""
     notes = Notes(sys.stderr, PREFIX)
     served = ServedRobot(
@@ -98,10 +99,10 @@ def run_serve(settings: Connection, options: Options, *, report: Report | None =
     return served.run(fronts, report=report)
 
 
-def _foxglove(served: ServedRobot, options: Options, at: tuple[str, int], notes: Notes) -> FrontEnd:
+def _foxglove(served: ServedRobot, options: ServeOptions, at: tuple[str, int], notes: Notes) -> FrontEnd:
     """The bridge's front end on the same feed and governor, with the bridge's options."""
-    from ..feeds.bridge import Foxglove, require_foxglove
-    from ..feeds.bridge import Options as BridgeOptions
+    from ..foxglove.bridge import Foxglove, require_foxglove
+    from ..foxglove.bridge import ServeOptions as BridgeOptions
 
     require_foxglove("fleet serve --foxglove")
     bridge = BridgeOptions(
@@ -115,10 +116,10 @@ def _foxglove(served: ServedRobot, options: Options, at: tuple[str, int], notes:
     return Foxglove(served, bridge, notes, beside=True)
 
 
-def _ros2(served: ServedRobot, options: Options, notes: Notes) -> FrontEnd:
+def _ros2(served: ServedRobot, options: ServeOptions, notes: Notes) -> FrontEnd:
     """The ROS 2 node on the same feed and governor, in the robot's name as its namespace."""
-    from ..ros2.serve import Options as Ros2Options
     from ..ros2.serve import Ros2Node
+    from ..ros2.serve import ServeOptions as Ros2Options
 
     require("cyclonedds", "ros2", "fleet serve --ros2")
     assert options.ros2 is not None
@@ -137,10 +138,12 @@ def _refuse_taken(session: Any, name: str) -> None:
     while not (info.routers_zid() or info.peers_zid()) and time.monotonic() < deadline:
         time.sleep(0.01)
     seen = threading.Event()
-    watch = session.liveliness().declare_subscriber(keys.alive(name), lambda sample: seen.set(), history=True)
+    watch = session.liveliness().declare_subscriber(
+        keyspace.alive(name), lambda sample: seen.set(), history=True
+    )
     try:
         for _ in range(NAME_ASKS):  # the routes of a session just connected take a moment to settle
-            replies = session.liveliness().get(keys.alive(name), timeout=NAME_CHECK_S)
+            replies = session.liveliness().get(keyspace.alive(name), timeout=NAME_CHECK_S)
             if seen.is_set() or any(reply.ok is not None for reply in replies) or seen.wait(NAME_SETTLE_S):
                 raise FleetError(
                     f"a robot named {name} is already in the fleet",
@@ -155,7 +158,9 @@ class Fleet(FrontEnd):
 
     label = "fleet"
 
-    def __init__(self, served: ServedRobot, settings: Connection, options: Options, notes: Notes) -> None:
+    def __init__(
+        self, served: ServedRobot, settings: Connection, options: ServeOptions, notes: Notes
+    ) -> None:
         self.zenoh = import_zenoh()
         self.where = where_of(settings, options)
         self.name = options.name
@@ -196,7 +201,7 @@ class Fleet(FrontEnd):
         feed = served.feed
         self.turnstile = queries.Turnstile(feed.poller.paused, lambda: feed.state.last_sweep)
         self.declare(served.sensors)
-        return f"{self.name} ({self.robot.port}) as {keys.ROOT}/{self.name}/..."
+        return f"{self.name} ({self.robot.port}) as {keyspace.ROOT}/{self.name}/..."
 
     def stopped(self, source: Source | None, why: str) -> None:
         """A stop told on ``status``: to the operator that drove, or to all when it names no operator.
@@ -207,9 +212,9 @@ class Fleet(FrontEnd):
         """
         driver = source if source is not None else self.governor.driver
         op = driver.id if driver is not None and driver.kind is Kind.OPERATOR else None
-        if source is not None and not isinstance(op, keys.Who):
+        if source is not None and not isinstance(op, keyspace.Who):
             return
-        self.tell(keys.stopped_status(op if isinstance(op, keys.Who) else None, why))
+        self.tell(keyspace.stopped_status(op if isinstance(op, keyspace.Who) else None, why))
 
     def tick(self) -> None:
         self.drive.refusals.tick()
@@ -260,21 +265,21 @@ class Fleet(FrontEnd):
     def feed(self) -> Feed:
         return self.served.feed
 
-    def say(self, op: keys.Who | None, said: str | keys.Status, seq: int | None = None) -> None:
+    def say(self, op: keyspace.Who | None, said: str | keyspace.Status, seq: int | None = None) -> None:
         """A word to the operators (``status``, built by ``keys``) and a line on stderr.
 
         ``op`` is the operator session a refusal (``said`` as text) is for (its name and session id go in
         the message, so a name used by two sessions is told apart), or nobody; ``seq`` the message it is
-        about. Any other word comes built (``keys.drives_status``).
+        about. Any other word comes built (``keyspace.drives_status``).
         """
-        status = said if isinstance(said, keys.Status) else keys.refused_status(op, said, seq)
+        status = said if isinstance(said, keyspace.Status) else keyspace.refused_status(op, said, seq)
         self.notes.note(status.text)
         self.tell(status)
 
-    def tell(self, status: keys.Status) -> None:
+    def tell(self, status: keyspace.Status) -> None:
         """A word on ``status`` only."""
         with contextlib.suppress(Exception):  # the session is closing: stderr said it
-            self.session.put(keys.status(self.name), status.to_bytes(), encoding="application/json")
+            self.session.put(keyspace.status(self.name), status.to_bytes(), encoding="application/json")
 
     def renewal_late(self, source: Source, late: Late) -> None:
         """A driver's renewal after half its lease: said on stderr (at most once a second, with the count).
@@ -294,18 +299,20 @@ class Fleet(FrontEnd):
     def declare(self, sensors: list[str]) -> None:
         s, name = self.session, self.name
         for sensor in sensors:
-            key = keys.read(name, sensor)
+            key = keyspace.read(name, sensor)
             self.declared.append(s.declare_queryable(key, self._guarded(self._read_query(key, sensor))))
-        self.declared.append(s.declare_queryable(keys.write(name), self._guarded(self._write_query)))
-        self.declared.append(s.declare_queryable(keys.info(name), self._guarded(self._info_query)))
-        self.declared.append(s.declare_queryable(keys.drive(name), self._guarded(self._drive)))
-        self.declared.append(s.declare_subscriber(keys.cmd_vel(name), self._guarded(self._cmd_vel)))
-        self.declared.append(s.declare_subscriber(keys.stop(name), self._guarded(self._stop)))
+        self.declared.append(s.declare_queryable(keyspace.write(name), self._guarded(self._write_query)))
+        self.declared.append(s.declare_queryable(keyspace.info(name), self._guarded(self._info_query)))
+        self.declared.append(s.declare_queryable(keyspace.drive(name), self._guarded(self._drive)))
+        self.declared.append(s.declare_subscriber(keyspace.cmd_vel(name), self._guarded(self._cmd_vel)))
+        self.declared.append(s.declare_subscriber(keyspace.stop(name), self._guarded(self._stop)))
         liveliness = s.liveliness()
         self.declared.append(
-            liveliness.declare_subscriber(keys.operators(name), self._guarded(self._operator), history=True)
+            liveliness.declare_subscriber(
+                keyspace.operators(name), self._guarded(self._operator), history=True
+            )
         )
-        self.declared.append(liveliness.declare_token(keys.alive(name)))
+        self.declared.append(liveliness.declare_token(keyspace.alive(name)))
 
     def undeclare(self) -> None:
         """Subscribers and queryables first (no new offer after this), the token last."""
@@ -357,7 +364,7 @@ class Fleet(FrontEnd):
 
     def _write_query(self, query: Any) -> None:
         """A write (servo, pid): refused at once, on Zenoh's thread, to anyone but the driver while one drives."""
-        key = keys.write(self.name)
+        key = keyspace.write(self.name)
         try:
             self._may_write(queries.payload_object(query))
         except Exception as exc:
@@ -367,7 +374,7 @@ class Fleet(FrontEnd):
 
     def _may_write(self, message: dict[str, Any]) -> None:
         """A write moves an actuator or changes its control: while someone drives, only the driver may."""
-        driver, who = self.governor.driver, keys.who(message.get("op"), message.get("session"))
+        driver, who = self.governor.driver, keyspace.who(message.get("op"), message.get("session"))
         if driver is None or (who is not None and driver == operator_source(who)):
             return
         text = f"write {refusal(driver, self.name)} (servo and pid need the drive lease)"
@@ -381,7 +388,7 @@ class Fleet(FrontEnd):
 
     def _info_query(self, query: Any) -> None:
         """``info`` needs no serial line: answered at once, so a flood of reads never keeps it waiting."""
-        key = keys.info(self.name)
+        key = keyspace.info(self.name)
         try:
             answer: queries.Answer = (True, self._info(queries.payload_object(query)))
         except Exception as exc:
@@ -428,7 +435,7 @@ class Fleet(FrontEnd):
             ok, body = self.drive.drive(bytes(payload) if payload is not None else b"")
         except BadMotion as exc:
             ok, body = False, {"error": str(exc), "driver": named(self.governor.driver)}
-        queries.send_reply(query, keys.drive(self.name), (ok, body))
+        queries.send_reply(query, keyspace.drive(self.name), (ok, body))
 
     def _cmd_vel(self, sample: Any) -> None:
         self.drive.cmd_vel(_bytes(sample.attachment), sample.payload)

@@ -15,9 +15,9 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from ..motion.governor import Governor, Kind, Source
-from .bursts import BurstNotes
-from .cmdvel import SCHEMA_NAMES, TOPIC, BadTwist, parse_twist, twist_wheels
-from .untrusted import shown
+from ..served.bursts import BurstNotes
+from ..served.cmdvel import SCHEMA_NAMES, TOPIC, BadTwist, parse_twist, twist_wheels
+from ..served.untrusted import shown
 
 Note = Callable[[str], None]
 #: (client id, client channel id)

@@ -1,1 +1,0 @@
-"""Where the readings go beyond the terminal: the Foxglove bridge, MCAP and CSV recordings."""

@@ -1,0 +1,1 @@
+"""Recordings: topic messages written to MCAP and CSV files, and logs exported to them."""
