@@ -23,32 +23,26 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parent.parent / "hcrctl"
 
-#: Lowest first. A module may import modules of its own layer or of an earlier one.
+#: Lowest first, packages only: a module may import modules of its own layer or of an earlier one.
+#: ``"hcrctl"`` is the root package's own modules (errors, config, ...); a package's ``__main__`` is a
+#: program, not a layer: it may put any of them together (``python -m hcrctl`` is the CLI plus the shell).
 LAYERS: list[tuple[str, ...]] = [
-    (
-        "hcrctl",
-        "hcrctl.__init__",
-        "hcrctl.errors",
-        "hcrctl.extras",
-        "hcrctl.inputs",
-        "hcrctl.numtext",
-        "hcrctl.config",
-    ),
+    ("hcrctl",),
     ("hcrctl.protocol",),
     ("hcrctl.sim",),
-    # the fleet's key layout, session and remote link are links; its serving process is a feed.
-    (
-        "hcrctl.link",
-        "hcrctl.urlhandler",
-        "hcrctl.link.zenoh.keyspace",
-        "hcrctl.link.zenoh.join",
-        "hcrctl.link.zenoh",
-    ),
+    ("hcrctl.link", "hcrctl.urlhandler"),
     ("hcrctl.hex", "hcrctl.render", "hcrctl.ops", "hcrctl.motion"),
-    ("hcrctl.live", "hcrctl.served", "hcrctl.feeds", "hcrctl.fleet", "hcrctl.ros2"),
+    ("hcrctl.served",),
+    ("hcrctl.recording",),
+    ("hcrctl.foxglove",),
+    ("hcrctl.fleet", "hcrctl.ros2"),
+    ("hcrctl.live",),
     ("hcrctl.cli",),
-    ("hcrctl.shell", "hcrctl.__main__"),
+    ("hcrctl.shell",),
 ]
+#: The processes that serve a robot to the network: they run headless, so they import no terminal UI.
+SERVERS = ("hcrctl.served", "hcrctl.foxglove", "hcrctl.fleet", "hcrctl.ros2")
+TERMINAL = ("hcrctl.live", "hcrctl.shell", "hcrctl.cli", "hcrctl.render")
 STDLIB_ONLY = ("hcrctl.protocol", "hcrctl.sim")
 MAX_TOP_LEVEL = 8
 
@@ -95,7 +89,13 @@ def own(name: str) -> set[str]:
     return {m for m in imports(name) if m in MODULES and m != name}
 
 
+def is_program(name: str) -> bool:
+    return name.rpartition(".")[2] == "__main__"
+
+
 def layer_of(name: str) -> int:
+    if is_program(name):
+        return len(LAYERS)
     best = -1, 0
     for index, prefixes in enumerate(LAYERS):
         for prefix in prefixes:
@@ -115,6 +115,20 @@ def test_every_import_of_the_package_names_a_module_that_exists(name: str) -> No
 def test_every_module_has_a_layer() -> None:
     for name in MODULES:
         layer_of(name)
+
+
+def test_layers_name_packages_only() -> None:
+    """A layer names packages only (no module is an exception to its package's layer)."""
+    for prefixes in LAYERS:
+        for prefix in prefixes:
+            assert prefix not in MODULES or MODULES[prefix].name == "__init__.py", f"{prefix} is a module"
+
+
+@pytest.mark.parametrize("name", sorted(m for m in MODULES if m.startswith(tuple(p + "." for p in SERVERS))))
+def test_servers_import_no_terminal_ui(name: str) -> None:
+    """A server runs headless: importing the bridge must not load teleop's keys, painter or panels."""
+    ui = sorted(m for m in own(name) if any(m == p or m.startswith(p + ".") for p in TERMINAL))
+    assert not ui, f"{name} is a server and imports the terminal UI: {ui}"
 
 
 @pytest.mark.parametrize("name", sorted(MODULES))
@@ -198,31 +212,3 @@ def test_the_checks_see_modules_named_in_strings() -> None:
     assert "hcrctl.cli.read" in own("hcrctl.cli")  # "hcrctl.cli.read:read" in SUBCOMMANDS
     assert "hcrctl.urlhandler" in own("hcrctl.link.transport_sim")  # handed to pyserial by name
     assert not any(m.startswith("hcrctl.shell") for m in own("hcrctl.cli"))
-
-
-#: The processes that serve a robot to the network: they import no terminal UI, shell or CLI.
-SERVERS = ("hcrctl.served", "hcrctl.foxglove.bridge", "hcrctl.fleet.server", "hcrctl.ros2")
-#: What a server may use of live/: the poller and its state (what the feed polls with), nothing drawn.
-LIVE_FOR_SERVERS = {"hcrctl.live", "hcrctl.ops.poller", "hcrctl.ops.livestate"}
-
-
-def reached(name: str) -> set[str]:
-    """Every package module importing ``name`` loads, directly or through others."""
-    seen, todo = set(), [name]
-    while todo:
-        for target in own(todo.pop()) - seen:
-            seen.add(target)
-            todo.append(target)
-    return seen
-
-
-@pytest.mark.parametrize("name", sorted(m for m in MODULES if m.startswith(SERVERS)))
-def test_a_server_loads_no_terminal_ui(name: str) -> None:
-    """Serving loads the feed and the governor, never teleop, watch, keys, the painter or the shell."""
-    ui = sorted(
-        m
-        for m in reached(name)
-        if (m.startswith("hcrctl.live") and m not in LIVE_FOR_SERVERS)
-        or m.startswith(("hcrctl.shell", "hcrctl.cli", "hcrctl.render"))
-    )
-    assert not ui, f"{name} loads {ui}"
