@@ -55,8 +55,10 @@ def ros2(
     from ..extras import require
 
     require("cyclonedds", "ros2", "hcrctl ros2")
-    from ..ros2.serve import Options, run_ros2, summary_line
+    from ..ros2.frontend import Ros2Options, run_ros2, summary_line
 
-    options = Options(namespace, domain_id, rate, settings.deadman_or(deadman, DEFAULT_TIMEOUT_S), stamped)
+    options = Ros2Options(
+        namespace, domain_id, rate, settings.deadman_or(deadman, DEFAULT_TIMEOUT_S), stamped
+    )
     with ServerEnd("ros2", as_json=settings.as_json) as end:
         run_ros2(settings, options, report=end.reporter(summary_line))

@@ -118,8 +118,7 @@ def _foxglove(served: ServedRobot, options: ServeOptions, at: tuple[str, int], n
 
 def _ros2(served: ServedRobot, options: ServeOptions, notes: Notes) -> FrontEnd:
     """The ROS 2 node on the same feed and governor, in the robot's name as its namespace."""
-    from ..ros2.serve import Ros2Node
-    from ..ros2.serve import ServeOptions as Ros2Options
+    from ..ros2.frontend import Ros2Node, Ros2Options
 
     require("cyclonedds", "ros2", "fleet serve --ros2")
     assert options.ros2 is not None

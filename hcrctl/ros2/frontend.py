@@ -34,7 +34,7 @@ PREFIX = "hcrctl: ros2: "
 
 
 @dataclass
-class Options:
+class Ros2Options:
     """What ``hcrctl ros2`` was asked for (validated by the CLI)."""
 
     namespace: str = ""
@@ -45,7 +45,7 @@ class Options:
     stamped: bool = False
 
 
-def run_ros2(settings: Any, options: Options, *, report: Report | None = None) -> dict[str, Any]:
+def run_ros2(settings: Any, options: Ros2Options, *, report: Report | None = None) -> dict[str, Any]:
     """Serve until a signal or a failure; the summary (also given to ``report``, however it ends)."""
     notes = Notes(sys.stderr, PREFIX)
     served = ServedRobot(settings, notes, rate=options.rate, deadman=options.deadman, silence=f"no {TOPIC}")
@@ -57,7 +57,7 @@ class Ros2Node(FrontEnd):
 
     name = "ROS 2 node"
 
-    def __init__(self, served: ServedRobot, options: Options, notes: Notes) -> None:
+    def __init__(self, served: ServedRobot, options: Ros2Options, notes: Notes) -> None:
         self.options = options
         self.notes = notes
         self.converter = ros2conv.Converter(ros2conv.current_layout(), served.topics)
