@@ -49,6 +49,10 @@ from hcrctl.protocol.frames import Frame
 
 #: Seconds any wait may take before it fails the test (generous: loaded machines).
 TIMEOUT = 30.0
+#: The simulator's options for a quiet robot: it answers, and says nothing unasked (no broadcasts, no map).
+QUIET = "broadcast_hz=0&map_hz=0"
+#: A quiet simulated robot as a port.
+QUIET_SIM = f"sim://?{QUIET}"
 
 # -- the installed executable ---------------------------------------------------------
 
@@ -621,3 +625,13 @@ class DevicePty:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class Clock:
+    """A clock the test sets by hand (``clock.now += 0.5``), called as ``time.monotonic`` is."""
+
+    def __init__(self, now: float = 1000.0) -> None:
+        self.now = now
+
+    def __call__(self) -> float:
+        return self.now

@@ -16,11 +16,6 @@ import serial
 from helpers_cli import clean_env, finish, frames_in, one_line, run, sim_pty, spy_tx, start, wire
 
 
-@pytest.fixture
-def env(tmp_path):
-    return clean_env(tmp_path)
-
-
 @pytest.fixture(scope="module")
 def device(tmp_path_factory):
     env = clean_env(tmp_path_factory.mktemp("sim"))

@@ -15,11 +15,6 @@ JSON_KEYS = {"sent", "received", "lost", "rtt_ms", "checksum_errors", "junk_byte
 READ_BUMPERS = bytes.fromhex("55 AA 01 01 11 FF 11 0D 0A")
 
 
-@pytest.fixture
-def env(tmp_path):
-    return clean_env(tmp_path)
-
-
 @pytest.fixture(scope="module")
 def device(tmp_path_factory):
     with sim_pty(clean_env(tmp_path_factory.mktemp("sim")), "--options", "broadcast_hz=0&map_hz=0") as path:

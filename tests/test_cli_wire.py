@@ -12,7 +12,7 @@ import signal
 import time
 
 import pytest
-from helpers_cli import clean_env, finish, run, start, wire
+from helpers_cli import finish, run, start, wire
 
 POWER_60 = "55 AA 01 02 01 CC CC 9B 0D 0A"
 STOP = "55 AA 01 02 01 80 80 03 0D 0A"
@@ -20,11 +20,6 @@ STOP = "55 AA 01 02 01 80 80 03 0D 0A"
 
 def hx(data: bytes) -> str:
     return data.hex(" ").upper()
-
-
-@pytest.fixture
-def env(tmp_path):
-    return clean_env(tmp_path)
 
 
 # args, what arrives (hex) -- drives are held for 0 s, so each is followed by stop

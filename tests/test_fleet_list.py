@@ -23,11 +23,6 @@ from helpers_netns import ROBOT_HOST, ROUTER_HOST, Topology
 
 
 @pytest.fixture
-def env(tmp_path: Path) -> dict[str, str]:
-    return clean_env(tmp_path)
-
-
-@pytest.fixture
 def lab(env: dict[str, str], topology: Topology) -> Any:
     """A router, on loopback, and on a host of its own (robots and the list on hosts of theirs)."""
     with fleet(env, topology=topology) as group:

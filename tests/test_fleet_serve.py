@@ -23,7 +23,7 @@ import pytest
 
 pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip install 'hcrctl[zenoh]')")
 
-from helpers import TIMEOUT, clean_env, wait_until
+from helpers import TIMEOUT, wait_until
 from helpers_fleet_robot import (
     MOTION,
     TURN,
@@ -41,11 +41,6 @@ from hcrctl.link.zenoh import keyspace
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import Frame
-
-
-@pytest.fixture
-def env(tmp_path: Path) -> dict[str, str]:
-    return clean_env(tmp_path)
 
 
 @pytest.fixture

@@ -12,10 +12,9 @@ from __future__ import annotations
 import json
 import os
 import subprocess
-from pathlib import Path
 
 import pytest
-from helpers_cli import clean_env, one_line, run
+from helpers_cli import one_line, run
 from helpers_hex import device_pty
 from helpers_hex import run as hex_run
 from helpers_live import DEFAULT_VALUES, FakeRobot, hcrctl_exe, terminal
@@ -32,11 +31,6 @@ COMPASS_FFFF = C.Compass(6553.5)  # 0xFFFF
 COMPASS_360 = C.Compass(360.0)  # 0x0E10
 HUMIDITY_255 = C.Environment(255, 28)  # 0xFF 0x1C
 KEYS = {"bump", "ir", "sonar", "heading", "wheels", "humidity", "temperature"}
-
-
-@pytest.fixture
-def env(tmp_path: Path) -> dict[str, str]:
-    return clean_env(tmp_path)
 
 
 def hostile(**values: C.Reply | None) -> FakeRobot:

@@ -22,7 +22,7 @@ from typing import TypeVar
 
 import pytest
 from helpers import DevicePty, Terminal
-from helpers_cli import TIMEOUT, clean_env, hcrctl_exe, run
+from helpers_cli import TIMEOUT, hcrctl_exe, run
 from helpers_live import terminal
 from helpers_shell import STOP_FRAME, PtyRobot
 
@@ -30,11 +30,6 @@ WARNING = "while the robot was moving: stop could NOT be delivered"
 DELIVERED = "while the robot was moving: stop delivered after"
 NOT_DELIVERED = "stop NOT delivered: the robot may still be moving"
 UNANSWERED = "but nothing answered: the robot may still be moving"
-
-
-@pytest.fixture
-def env(tmp_path):
-    return clean_env(tmp_path)
 
 
 class Hcrctl:

@@ -17,7 +17,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from helpers_cli import clean_env, readline, run
+from helpers_cli import readline, run
 from helpers_hex import device_pty
 from helpers_live import FakeRobot, hcrctl_exe, is_stop
 
@@ -28,11 +28,6 @@ NO_SPACE = "No space left on device"
 needs_dev_full = pytest.mark.skipif(
     not (sys.platform.startswith("linux") and os.path.exists("/dev/full")), reason="/dev/full is Linux's"
 )
-
-
-@pytest.fixture
-def env(tmp_path: Path) -> dict[str, str]:
-    return clean_env(tmp_path)
 
 
 def log_lines(stderr: str, path: str) -> list[str]:

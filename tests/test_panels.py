@@ -5,6 +5,7 @@ from __future__ import annotations
 import io
 
 import pytest
+from helpers import Clock
 from hypothesis import given
 from hypothesis import strategies as st
 from rich.console import Console
@@ -16,14 +17,6 @@ from hcrctl.protocol import commands as C
 from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import encode
 from hcrctl.render.readings import cardinal
-
-
-class Clock:
-    def __init__(self, now: float = 100.0) -> None:
-        self.now = now
-
-    def __call__(self) -> float:
-        return self.now
 
 
 def text_of(renderable: object, width: int = 120) -> str:

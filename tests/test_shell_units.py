@@ -10,7 +10,7 @@ import threading
 
 import click
 import pytest
-from helpers import wait_until
+from helpers import Clock, wait_until
 from prompt_toolkit import PromptSession
 from prompt_toolkit.input import create_pipe_input
 from prompt_toolkit.output import DummyOutput
@@ -23,7 +23,7 @@ from hcrctl.protocol.frames import Frame, encode
 from hcrctl.shell.broadcasts import NEW_MARK, Broadcasts, describe
 from hcrctl.shell.dispatch import COMMANDS, run_line, usage_line
 from hcrctl.shell.grammar import root_context, split, split_partial
-from hcrctl.shell.history import history_file, state_dir
+from hcrctl.shell.history import base_and_dir, history_file
 from hcrctl.shell.link import Unplugged
 from hcrctl.shell.script import LINE_LIMIT, ScriptInputError, read_lines, script_lines
 from hcrctl.shell.session import Session
@@ -42,14 +42,6 @@ def position(station: int, did: int) -> Frame:
     return frame(station, 0xA0, bytes((did, 120, 98, 200)))
 
 
-class FakeClock:
-    def __init__(self) -> None:
-        self.now = 1000.0
-
-    def __call__(self) -> float:
-        return self.now
-
-
 @pytest.fixture
 def session():
     s = Session(Settings(port="sim://?broadcast_hz=0&map_hz=0"), interactive=True)
@@ -66,7 +58,7 @@ def lines_printed(broadcasts: Broadcasts, frames: list[Frame], mode: str) -> lis
 
 
 def test_changes_prints_each_station_once_however_many_broadcasts():
-    clock = FakeClock()
+    clock = Clock()
     broadcasts = Broadcasts(clock=clock)
     frames = []
     for tick in range(3000):  # 10 minutes at 5 Hz from two stations, the robot's map at 1 Hz
@@ -83,7 +75,7 @@ def test_changes_prints_each_station_once_however_many_broadcasts():
 
 
 def test_changes_prints_a_new_kind_from_a_known_station_once():
-    broadcasts = Broadcasts(clock=FakeClock())
+    broadcasts = Broadcasts(clock=Clock())
     frames = [position(0x50, 1), frame(0x50, 0x77, b"\x01"), position(0x50, 2), frame(0x50, 0x77, b"\x02")]
     printed = lines_printed(broadcasts, frames, "changes")
     assert [line.split("  ")[0] for line in printed] == ["0x50 position", "0x50 0x77"]
@@ -91,12 +83,12 @@ def test_changes_prints_a_new_kind_from_a_known_station_once():
 
 def test_monitor_on_prints_every_frame_and_off_none():
     frames = [position(0x50, did) for did in range(40)]
-    assert lines_printed(Broadcasts(clock=FakeClock()), frames, "on") == [describe(f) for f in frames]
-    assert lines_printed(Broadcasts(clock=FakeClock()), frames, "off") == []
+    assert lines_printed(Broadcasts(clock=Clock()), frames, "on") == [describe(f) for f in frames]
+    assert lines_printed(Broadcasts(clock=Clock()), frames, "off") == []
 
 
 def test_the_latest_per_station_with_count_and_age():
-    clock = FakeClock()
+    clock = Clock()
     broadcasts = Broadcasts(clock=clock)
     assert broadcast_lines(broadcasts) == ["unsolicited: none yet"]
     for did in range(3):
@@ -567,8 +559,8 @@ def test_history_makes_only_its_own_directories_under_an_existing_base(tmp_path)
 
 def test_relative_xdg_state_home_is_ignored(monkeypatch, tmp_path):
     monkeypatch.setenv("HOME", str(tmp_path))
-    assert state_dir({"XDG_STATE_HOME": "relative/dir"}) == tmp_path / ".local" / "state" / "hcrctl"
-    assert state_dir({}) == tmp_path / ".local" / "state" / "hcrctl"
+    assert base_and_dir({"XDG_STATE_HOME": "relative/dir"})[1] == tmp_path / ".local" / "state" / "hcrctl"
+    assert base_and_dir({})[1] == tmp_path / ".local" / "state" / "hcrctl"
 
 
 # -- lazy imports ------------------------------------------------------------------

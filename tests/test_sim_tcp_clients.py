@@ -1,4 +1,4 @@
-"""``hcrctl sim --tcp`` serves several clients at once, all on one robot (issue 16, section 4).
+"""``hcrctl sim --tcp`` serves several clients at once, all on one robot.
 
 One idle client used to lock every other one out for good (they were told
 "no reply ... check the baud rate"). Now each client hears the replies to its
@@ -15,6 +15,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
+from helpers import Clock
 from helpers_cli import clean_env, run
 from helpers_live import sim_server
 
@@ -118,14 +119,6 @@ def test_clients_share_one_robot() -> None:
 # -- the hub in-process, with a fake clock -------------------------------------
 
 
-class Clock:
-    def __init__(self) -> None:
-        self.t = 1000.0
-
-    def __call__(self) -> float:
-        return self.t
-
-
 def heard(data: bytes) -> list[int]:
     return [e.command for e in FrameDecoder().feed(data) if isinstance(e, Frame)]
 
@@ -146,7 +139,7 @@ def test_a_delayed_reply_goes_to_the_client_that_asked() -> None:
     a, b = hub.attach(), hub.attach()
     a.write(COMPASS)
     assert a.read() == b"" and b.read() == b""
-    clock.t += 0.06
+    clock.now += 0.06
     assert heard(b.read()) == []  # b reads first: the reply is still kept for a
     assert heard(a.read()) == [C.Compass.CODE]
 
@@ -159,5 +152,5 @@ def test_a_client_that_leaves_is_forgotten() -> None:
     a.write(COMPASS)
     hub.detach(a)
     assert len(hub) == 1
-    clock.t += 0.2
+    clock.now += 0.2
     assert set(heard(b.read())) == {C.Position.CODE}  # broadcasts only: a's reply is dropped

@@ -20,7 +20,7 @@ from typing import Any
 import pytest
 import serial
 from click.testing import CliRunner
-from helpers import wait_until
+from helpers import QUIET, Clock, wait_until
 
 from hcrctl.cli.sim import parse_tcp, sim
 from hcrctl.link.transport_sim import HANDLER_PACKAGE, register
@@ -32,35 +32,26 @@ from hcrctl.sim.uart import SimLine, open_link
 from hcrctl.urlhandler import protocol_sim
 
 ROOT = Path(__file__).resolve().parents[1]
-QUIET = "broadcast_hz=0&map_hz=0"
 COMPASS = C.encode_request(C.BY_NAME["compass"])
 REPLY_LEN = 10  # a compass reply: 8 bytes of frame plus 2 of content
 JOIN_S = 5.0
 
 
-class FakeClock:
-    def __init__(self, t: float = 1000.0) -> None:
-        self.t = t
-
-    def __call__(self) -> float:
-        return self.t
-
-
 # -- pacing, with a fake clock ---------------------------------------------------
 
 
-def paced(baud: int = 9600) -> tuple[SimLine, FakeClock, float]:
-    clock = FakeClock()
+def paced(baud: int = 9600) -> tuple[SimLine, Clock, float]:
+    clock = Clock()
     link = open_link(SimOptions.from_query(f"{QUIET}&pace=1&baud={baud}"), clock)
     return link, clock, 10 / baud
 
 
 def test_a_paced_request_counts_only_when_its_last_byte_arrives() -> None:
     link, clock, bt = paced()
-    t0 = clock.t
+    t0 = clock.now
     link.write(COMPASS)
     assert link.next_due() == pytest.approx(t0 + len(COMPASS) * bt)
-    clock.t = t0 + (len(COMPASS) - 0.5) * bt
+    clock.now = t0 + (len(COMPASS) - 0.5) * bt
     assert link.read() == b""
     assert len(link.to_device) == 1  # the last byte is still on the line
     assert link.next_due() == pytest.approx(t0 + len(COMPASS) * bt)
@@ -68,24 +59,24 @@ def test_a_paced_request_counts_only_when_its_last_byte_arrives() -> None:
 
 def test_a_paced_reply_leaves_one_byte_time_per_byte() -> None:
     link, clock, bt = paced()
-    t0 = clock.t
+    t0 = clock.now
     link.write(COMPASS)
     end_of_request = t0 + len(COMPASS) * bt
-    clock.t = end_of_request
+    clock.now = end_of_request
     assert link.read() == b""
     assert link.next_due() == pytest.approx(end_of_request + bt)
-    clock.t = end_of_request + 4.5 * bt
+    clock.now = end_of_request + 4.5 * bt
     assert len(link.read()) == 4
-    clock.t = end_of_request + REPLY_LEN * bt
+    clock.now = end_of_request + REPLY_LEN * bt
     assert len(link.read()) == REPLY_LEN - 4
     assert link.next_due() is None
 
 
 def test_a_late_wake_up_still_schedules_from_the_request_end() -> None:
     link, clock, bt = paced()
-    t0 = clock.t
+    t0 = clock.now
     link.write(COMPASS + COMPASS)  # pipelined: the first reply starts when the first request ends
-    clock.t = t0 + 100 * bt  # the transport woke up late
+    clock.now = t0 + 100 * bt  # the transport woke up late
     got = link.read()
     assert len(got) == 2 * REPLY_LEN
     assert link.to_host.end == pytest.approx(t0 + (len(COMPASS) + 2 * REPLY_LEN) * bt)
@@ -95,13 +86,13 @@ def test_clearing_the_line_aborts_unsent_bytes() -> None:
     link, clock, bt = paced()
     link.write(COMPASS)
     link.to_device.clear()
-    clock.t += 100 * bt
+    clock.now += 100 * bt
     assert link.read() == b""
     assert link.next_due() is None
 
 
 def test_unpaced_bytes_move_at_once_even_without_a_reader() -> None:
-    clock = FakeClock()
+    clock = Clock()
     link = open_link(SimOptions.from_query(QUIET), clock)
     link.write(C.encode_request(C.Servo(1, 2)))
     assert link.sim.servos == (1, 2)  # fed on write, not at the next read

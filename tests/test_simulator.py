@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from helpers import QUIET, Clock
 
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.dialect import decode_all
@@ -19,19 +20,10 @@ from hcrctl.sim.simulator import MAX_BACKLOG, STATIONS, Simulator, ir_raw
 from hcrctl.sim.world import ROOM_WIDTH_CM
 
 ROOT = Path(__file__).resolve().parents[1]
-QUIET = "broadcast_hz=0&map_hz=0"
 
 
-class FakeClock:
-    def __init__(self, t: float = 1000.0) -> None:
-        self.t = t
-
-    def __call__(self) -> float:
-        return self.t
-
-
-def make(query: str = QUIET) -> tuple[Simulator, FakeClock]:
-    clock = FakeClock()
+def make(query: str = QUIET) -> tuple[Simulator, Clock]:
+    clock = Clock()
     return Simulator(SimOptions.from_query(query), clock), clock
 
 
@@ -51,17 +43,17 @@ def send(sim: Simulator, request: C.Request) -> bytes:
     return sim.feed(C.encode_request(request))
 
 
-def ticks(clock: FakeClock, seconds: float, step: float) -> list[float]:
+def ticks(clock: Clock, seconds: float, step: float) -> list[float]:
     """Clock readings every ``step`` (computed, not summed, so 100 x 0.01 s is exactly 1 s)."""
-    start = clock.t
+    start = clock.now
     return [start + (i + 1) * step for i in range(round(seconds / step))]
 
 
-def run(sim: Simulator, clock: FakeClock, seconds: float, step: float = 0.05) -> bytes:
+def run(sim: Simulator, clock: Clock, seconds: float, step: float = 0.05) -> bytes:
     """Advance time in steps, polling as a server would; returns what poll produced."""
     out = bytearray()
     for t in ticks(clock, seconds, step):
-        clock.t = t
+        clock.now = t
         out += sim.poll()
     return bytes(out)
 
@@ -146,7 +138,7 @@ def test_wheel_speeds_ramp_with_a_first_order_lag() -> None:
     send(sim, C.Velocity(50, 50))
     seen = []
     for t in (0.05, WHEEL_TIME_CONSTANT_S, 0.5, 2.0):
-        clock.t = 1000.0 + t
+        clock.now = 1000.0 + t
         expected = 50 * (1 - math.exp(-t / WHEEL_TIME_CONSTANT_S))
         left, right = ask(sim, "wheels").wheels
         assert left == right
@@ -212,7 +204,7 @@ def test_a_coarse_clock_gives_the_same_path_as_a_fine_one() -> None:
     for sim in (fine, coarse):
         send(sim, C.Velocity(30, 45))
     run(fine, fine_clock, 3.0, step=0.01)
-    coarse_clock.t += 3.0
+    coarse_clock.now += 3.0
     coarse.advance()
     assert coarse.pose.x == pytest.approx(fine.pose.x, abs=1e-6)
     assert coarse.pose.heading == pytest.approx(fine.pose.heading, abs=1e-6)
@@ -333,11 +325,11 @@ def test_checksum_address_device_uses_the_address_rule_only() -> None:
 
 
 def timed_frames(
-    sim: Simulator, clock: FakeClock, seconds: float, step: float = 0.01
+    sim: Simulator, clock: Clock, seconds: float, step: float = 0.01
 ) -> list[tuple[float, Frame]]:
     out = []
     for t in ticks(clock, seconds, step):
-        clock.t = t
+        clock.now = t
         out += [(t, f) for f in frames(sim.poll())]
     return out
 
@@ -365,16 +357,16 @@ def test_position_distances_are_measured_from_the_transducers() -> None:
 
 def test_next_due_says_when_the_next_broadcast_is() -> None:
     sim, clock = make("broadcast_hz=5&map_hz=0")
-    assert sim.next_due() == pytest.approx(clock.t + 0.2)
-    clock.t = sim.next_due() - 1e-6
+    assert sim.next_due() == pytest.approx(clock.now + 0.2)
+    clock.now = sim.next_due() - 1e-6
     assert sim.poll() == b""
-    clock.t += 1e-6
+    clock.now += 1e-6
     assert len(frames(sim.poll())) == 1
 
 
 def test_a_late_poll_catches_up_a_bounded_backlog() -> None:
     sim, clock = make("broadcast_hz=5&map_hz=0")
-    clock.t += 100.0
+    clock.now += 100.0
     station = [C.Position.from_content(f.content).did for f in frames(sim.poll()) if f.address == 0x50]
     assert len(station) == MAX_BACKLOG
     assert station[-1] == (5 * 100 - 1) & 0xFF
@@ -439,10 +431,10 @@ def test_seed_makes_faults_repeatable() -> None:
 def test_delay_holds_replies_back_until_due() -> None:
     sim, clock = make(QUIET + "&delay_ms=50")
     assert sim.feed(C.encode_request(C.BY_NAME["compass"])) == b""
-    assert sim.next_due() == pytest.approx(clock.t + 0.05)
-    clock.t += 0.049
+    assert sim.next_due() == pytest.approx(clock.now + 0.05)
+    clock.now += 0.049
     assert sim.poll() == b""
-    clock.t += 0.001
+    clock.now += 0.001
     (frame,) = frames(sim.poll())
     assert frame.command == C.Compass.CODE
     assert sim.next_due() is None

@@ -10,15 +10,10 @@ from __future__ import annotations
 import json
 
 import pytest
-from helpers_cli import TIMEOUT, clean_env, run
+from helpers_cli import TIMEOUT, run
 from helpers_shell import STOP_FRAME, PtyRobot
 
 TURN = 0x04
-
-
-@pytest.fixture
-def env(tmp_path):
-    return clean_env(tmp_path)
 
 
 def robot_that_turns_at_most(degrees: float) -> PtyRobot:

@@ -14,7 +14,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from helpers import TIMEOUT, clean_env, hcrctl_exe, sim_process, terminal, wait_until
+from helpers import QUIET, TIMEOUT, Clock, clean_env, hcrctl_exe, sim_process, terminal, wait_until
 
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.dialect import decode_all
@@ -24,19 +24,9 @@ from hcrctl.sim.options import SimOptions
 from hcrctl.sim.simulator import Simulator
 from hcrctl.sim.wander import CRUISE_CM_S
 
-QUIET = "broadcast_hz=0&map_hz=0"
 
-
-class FakeClock:
-    def __init__(self, t: float = 1000.0) -> None:
-        self.t = t
-
-    def __call__(self) -> float:
-        return self.t
-
-
-def wanderer(query: str = f"wander=1&{QUIET}") -> tuple[Simulator, FakeClock]:
-    clock = FakeClock()
+def wanderer(query: str = f"wander=1&{QUIET}") -> tuple[Simulator, Clock]:
+    clock = Clock()
     return Simulator(SimOptions.from_query(query), clock), clock
 
 
@@ -49,13 +39,13 @@ def ask(sim: Simulator, name: str) -> C.Reply:
 
 
 def readings_over(
-    sim: Simulator, clock: FakeClock, seconds: float, step: float = 0.1
+    sim: Simulator, clock: Clock, seconds: float, step: float = 0.1
 ) -> list[dict[str, C.Reply]]:
     """Every sensor read every ``step`` s of simulated time, as a host polling it would."""
     out = []
-    start = clock.t
+    start = clock.now
     for i in range(round(seconds / step)):
-        clock.t = start + (i + 1) * step
+        clock.now = start + (i + 1) * step
         out.append({name: ask(sim, name) for name in ("compass", "wheels", "sonar", "ir", "bump")})
     return out
 
@@ -74,7 +64,7 @@ def test_it_stays_in_the_room_and_clear_of_obstacles_for_ten_minutes() -> None:
     sim, clock = wanderer()
     visited = set()
     for i in range(6000):
-        clock.t += 0.1
+        clock.now += 0.1
         sim.advance()
         pose = sim.pose
         assert not sim.body.world.blocked(pose.x, pose.y, ROBOT_RADIUS_CM - 0.01), (i, pose)
@@ -87,7 +77,7 @@ def test_the_same_seed_drives_the_same_path_and_another_seed_another() -> None:
         sim, clock = wanderer(f"wander=1&seed={seed}&{QUIET}")
         out = []
         for _ in range(600):
-            clock.t += 0.1
+            clock.now += 0.1
             sim.advance()
             out.append((sim.pose.x, sim.pose.y, sim.pose.heading))
         return out

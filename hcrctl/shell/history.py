@@ -36,11 +36,6 @@ def base_and_dir(env: Mapping[str, str] | None = None) -> tuple[Path, Path]:
     return home, home / ".local" / "state" / "hcrctl"
 
 
-def state_dir(env: Mapping[str, str] | None = None) -> Path:
-    """``$XDG_STATE_HOME/hcrctl``, or ``~/.local/state/hcrctl``."""
-    return base_and_dir(env)[1]
-
-
 def history_file(name: str = "history", env: Mapping[str, str] | None = None) -> Path:
     """The history file, created owner-only if missing; raises OSError if impossible.
 
