@@ -58,12 +58,6 @@ MAX_KEY_PARTS = 16
 BOM = b"\xef\xbb\xbf"
 
 
-def load_table(path: str) -> dict[str, Any]:
-    """The file's top-level table; {} when there is no file."""
-    data = read_config(path)
-    return {} if data is None else parse_table(path, data)
-
-
 def read_config(path: str) -> bytes | None:
     """The file's bytes, or None when there is no file.
 

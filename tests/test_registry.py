@@ -188,8 +188,7 @@ def test_every_read_has_a_simulator_behaviour_a_renderer_and_a_panel(cmd: C.Comm
     view = state.view()
     panel = sensorpanels.panel_for(cmd.name).make(cmd.name, view.readings[cmd.name], 1.0, False, ())
     assert panel.title == cmd.panel_title and "waiting" not in text_of(panel)
-    on_dashboard = [item for column in screens.dashboard_columns(view, 1.0) for item in column]
-    assert any(isinstance(item, screens.Keyed) and item.name == cmd.panel_title for item in on_dashboard)
+    assert any(tile.name == cmd.panel_title for tile in screens.dashboard_tiles(view, 1.0))
 
 
 @pytest.mark.parametrize("cmd", [c for c in C.COMMANDS if c.kind == "write"], ids=lambda c: c.name)

@@ -36,7 +36,8 @@ CONTROL_BURST = 256 * 1024
 STATUS_EVERY = 1.0
 #: A send to a client waiting this long for room in its socket: the client reads nothing, and is dropped.
 STALLED_S = 10.0
-INFO, WARNING, ERROR = 0, 1, 2
+#: The levels of a ``status`` message this server sends (the protocol's info, 0, is never sent).
+WARNING, ERROR = 1, 2
 
 
 @dataclass
@@ -46,14 +47,15 @@ class Channel:
     id: int
     advert: dict[str, Any]
     encode: Callable[[dict[str, Any]], bytes]
-    #: session -> its subscription ids on this channel
+    #: client -> its subscription ids on this channel
     subscribers: dict[Client, set[int]] = field(default_factory=dict)
     #: A latched channel's message (log time, then payload), sent to each new subscription (``/tf_static``).
     latched: bytes = b""
 
 
 class Client:
-    """One connected client: its subscriptions and outgoing queue (data drops oldest; control never)."""
+    """One connected client: its subscriptions and two outgoing queues, control first; each keeps its
+    last ``OUTBOX`` messages (a client too slow for its control messages loses the oldest too)."""
 
     def __init__(self, number: int, ws: ServerConnection) -> None:
         self.number = number

@@ -179,11 +179,6 @@ class KeyReader:
     def __exit__(self, *exc: object) -> None:
         self.restore()
 
-    @property
-    def kitty(self) -> bool:
-        """Whether the terminal reports key releases (the kitty keyboard protocol is on)."""
-        return self._kitty is not None
-
     def use_kitty(self, out: int, wait: float = PROBE_WAIT) -> bool:
         """Probe the terminal on ``out``; switch the kitty protocol on if it answers. Keys typed meanwhile are kept."""
         if not self.is_terminal or not os.isatty(out):

@@ -216,15 +216,6 @@ def dashboard_tiles(view: View, now: float) -> list[Tile]:
     return tiles
 
 
-def dashboard_columns(view: View, now: float, compact: bool = False) -> list[list[Tile]]:
-    """The dashboard's panels in the columns of a wide screen (drawn compact with ``compact``)."""
-    tiles = dashboard_tiles(view, now)
-    if compact:
-        for tile in tiles:
-            tile.make = functools.partial(tile.draw, tile.size("compact"), 0)
-    return [[t for t in tiles if t.column == c] for c in range(COLUMNS)]
-
-
 #: One panel's lines, and the name to give when it has to be left out.
 Block = tuple[str, list[list[Segment]]]
 

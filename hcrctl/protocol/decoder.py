@@ -10,11 +10,10 @@ reuses it. Standard library only.
 
 One decoder for every dialect, parametrised by the ``Profile``: its terminator
 (v0.11's lone 0A), its checksum verdict (v0.11's per-command rules) and, for a
-firmware that reads any frame, ``lenient``. There used to be a second,
-simpler decoder for v0.11; it restated the header search, the length rule,
-the text lines and the tail, and explained damage less well (a bad length was
-two bytes of header, then junk). One scanner is one set of rules to read and
-test, and v0.11 now gets v0.15's diagnostics; a dialect is data, not code.
+firmware that reads any frame, ``lenient``. A dialect is data, not code: one
+scanner is one set of rules (the header search, the length rule, the text
+lines, the tail) to read and test, and every dialect gets the same
+diagnostics.
 
 The scanner (``_scan``, one header at a time, the checksum by
 ``frames.checksum``) is the reference. Its one fast path,
@@ -444,9 +443,3 @@ class FrameDecoder:
         if pos:
             self._buf = self._buf[pos:]
             self._base += pos
-
-
-def decode_all(data: bytes, rule: ChecksumRule = ChecksumRule.HEADER) -> list[Event]:
-    """Decode a whole capture: every frame and every diagnostic, in order."""
-    decoder = FrameDecoder(rule)
-    return decoder.feed(data) + decoder.flush()
