@@ -347,9 +347,9 @@ class Described(NamedTuple):
 def describe(exc: Exception) -> Described:
     """The message, hint and exit code of ``exc``, the same in the one-shot CLI and the shell.
 
-    Each front end once mapped errors itself, and they drifted: the shell
-    called a full disk an internal error where the CLI said what it was. The
-    front ends keep only what is theirs to word (a usage error's help pointer,
+    Front ends that map errors themselves drift apart (a full disk an
+    internal error in one, said plainly in the other), so the front ends keep
+    only what is theirs to word (a usage error's help pointer,
     Ctrl-C); everything else is described here. Click's own exceptions are
     recognised only when Click is loaded, so this module stays stdlib-only.
     """

@@ -1,4 +1,4 @@
-"""A CSV file's columns are the ones the robot fills, named as Foxglove names them (issue 24).
+"""A CSV file's columns are the ones the robot fills, named as Foxglove names them.
 
 Written by the installed executable (``record`` on the simulator, ``export``
 of a log it wrote) and read back with the csv module. The counts expected

@@ -1,4 +1,4 @@
-"""An error line that echoes user input shows control characters as escapes (issue 16, section 3).
+"""An error line that echoes user input shows control characters as escapes.
 
 Run in a real terminal: Click strips ANSI sequences from output that is not a
 terminal, so a pipe would hide exactly the bytes this is about.

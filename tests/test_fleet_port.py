@@ -1,4 +1,4 @@
-"""``--port zenoh://NAME``: every command against a fleet robot as against a local one (issue 26).
+"""``--port zenoh://NAME``: every command against a fleet robot as against a local one.
 
 Several processes: a router, ``hcrctl fleet serve`` on a simulator, operators
 as the installed ``hcrctl``; on loopback, and again with the router, the

@@ -1,4 +1,4 @@
-"""Runs of noise are one event, whatever the chunking; big feeds and tiny feeds agree (issue 15)."""
+"""Runs of noise are one event, whatever the chunking; big feeds and tiny feeds agree."""
 
 from __future__ import annotations
 

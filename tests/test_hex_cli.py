@@ -142,7 +142,7 @@ def test_file_of_hex_text_is_read_as_hex_and_errors_name_the_file(tmp_path: Path
     assert "reading it as hex" in proc.stderr
     dump.write_text("55 AA\n01 XX\n")
     bad = run("hex", "decode", "--file", str(dump))
-    assert bad.returncode == 1  # a file's content is input, not usage (issue 23)
+    assert bad.returncode == 1  # a file's content is input, not usage
     assert f"{dump}:2: not hex: 'XX' at column 4" in one_line_error(bad)
 
 

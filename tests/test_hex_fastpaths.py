@@ -1,4 +1,4 @@
-"""The fast paths of issue 15 say exactly what the ordinary ones say: frame text made straight from
+"""The decoding fast paths say exactly what the ordinary ones say: frame text made straight from
 the frame, bulk counting for ``--summary``, cached records for ``monitor --from``; and their caches
 stay bounded."""
 

@@ -1,4 +1,4 @@
-"""No input file is an internal error (issue 23): files made as an attacker would, through the installed hcrctl.
+"""No input file is an internal error: files made as an attacker would, through the installed hcrctl.
 
 Every file hcrctl reads (a ``--log`` for ``monitor --from``, ``export`` and
 ``replay``, a capture for ``hex decode --file``, a ``shell --script``, the

@@ -165,7 +165,7 @@ def test_from_rejudges_checksums_under_the_active_rule(tmp_path: Path) -> None:
 
 
 def test_from_a_file_that_is_not_a_log_is_one_line_naming_file_and_line(tmp_path: Path) -> None:
-    """A log is data, not usage: exit 1, as FILE:LINE: what is wrong (issue 23)."""
+    """A log is data, not usage: exit 1, as FILE:LINE: what is wrong."""
     junk = tmp_path / "notes.txt"
     junk.write_text("hello\n")
     proc = run("monitor", "--from", str(junk))

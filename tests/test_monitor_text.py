@@ -207,4 +207,4 @@ def test_a_capture_of_a_device_that_only_printed_text_is_decoded_not_parsed_as_h
     assert "printed text, not hex" in proc.stderr
     typo = tmp_path / "dump.txt"
     typo.write_text("55 AA 01\n02 14 XX\n")  # hex with a typo is still reported as such
-    assert run("hex", "decode", "--file", str(typo)).returncode == 1  # an input file's error (issue 23)
+    assert run("hex", "decode", "--file", str(typo)).returncode == 1  # an input file's error

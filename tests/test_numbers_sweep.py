@@ -1,4 +1,4 @@
-"""Every numeric parameter refuses hostile numbers: exit 2, one line naming it, nothing sent (issue 16, 1).
+"""Every numeric parameter refuses hostile numbers: exit 2, one line naming it, nothing sent.
 
 The parameters are found, not listed: the walk covers the Click tree
 (``hcrctl.cli.cli`` and every lazy subcommand, nested groups included), the

@@ -1,7 +1,7 @@
 """Facts said in two places are held together, so neither can drift from the table.
 
-Issue 25: each message class has a ``CODE`` and each table row a ``code``,
-unchecked; a typo in either would frame requests under one code and name
+Each message class has a ``CODE`` and each table row a ``code``: a typo
+in either would frame requests under one code and name
 their replies under another. The read names typing needs are written out as
 ``Literal`` overloads (a type checker cannot read the table), so a test holds
 them to it. The link defaults are said once (``hcrctl.link.defaults``), and

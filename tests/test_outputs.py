@@ -1,4 +1,4 @@
-"""Nothing a user records is lost or overwritten silently (issue 23): ``record``'s and ``export``'s outputs.
+"""Nothing a user records is lost or overwritten silently: ``record``'s and ``export``'s outputs.
 
 The installed executable is run against files the test made: every refusal
 must exit 2 on one line naming the file(s), leave every file as it was (its

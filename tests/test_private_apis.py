@@ -1,4 +1,4 @@
-"""hcrctl uses other packages through their public APIs only (issue 25).
+"""hcrctl uses other packages through their public APIs only.
 
 A private name (``_chunk_builder``, ``_run_exitfuncs``, a name-mangled
 ``_Writer__chunk_builder``) can change or vanish in any release, under a

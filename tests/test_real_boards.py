@@ -1,4 +1,4 @@
-"""Real HCR boards (issue 12): the installed hcrctl speaking protocol v0.11 to the v0.11 simulator on a pty.
+"""Real HCR boards: the installed hcrctl speaking protocol v0.11 to the v0.11 simulator on a pty.
 
 The simulator plays the published v0.33 firmware: a boot banner, a raw bumper
 byte then an IR frame and a bumper frame every 200 ms, frames ending in a lone

@@ -152,7 +152,7 @@ def test_a_log_without_tx_frames_is_an_input_error(tmp_path: Path) -> None:
     path = tmp_path / "rx.jsonl"
     path.write_text(json.dumps({"time": iso_time(0), "direction": "rx", "hex": "00"}) + "\n")
     proc = run("--port", "sim://", "replay", str(path))
-    assert proc.returncode == 1  # the file's content, not the command line (issue 23)
+    assert proc.returncode == 1  # the file's content, not the command line
     assert "holds no tx frames" in proc.stderr
 
 
@@ -242,7 +242,7 @@ def test_a_log_cut_mid_frame_gets_stops_that_a_length_reading_device_still_sees_
 def test_a_record_stamped_at_the_end_of_time_is_not_waited(tmp_path: Path) -> None:
     """The subprocess timeout (20 s) fails the test if the gap were waited: nothing here times it.
 
-    The end of time is the last second a log may hold (MCAP's 64-bit nanoseconds, issue 23): a
+    The end of time is the last second a log may hold (MCAP's 64-bit nanoseconds): a
     year-9999 stamp is refused by its line, as every reader does."""
     servo = encode(1, 0x41, H("01 01"))
     log = tmp_path / "ages.jsonl"

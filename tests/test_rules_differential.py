@@ -1,4 +1,4 @@
-"""Each rule's fast path says exactly what its plain reference says (issue 25, item 1).
+"""Each rule's fast path says exactly what its plain reference says.
 
 A rule is written once, plainly; where speed needs it, one fast path stands beside it. These tests
 feed both the same random and adversarial input and ask for the same answer:

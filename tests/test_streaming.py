@@ -1,4 +1,4 @@
-"""Captures of any size decode in bounded memory: rows are written as decoded, never kept (issue 15)."""
+"""Captures of any size decode in bounded memory: rows are written as decoded, never kept."""
 
 from __future__ import annotations
 

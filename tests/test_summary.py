@@ -1,4 +1,4 @@
-"""``hex decode --summary`` and ``monitor --summary``: counts only, from the installed executable (issue 15)."""
+"""``hex decode --summary`` and ``monitor --summary``: counts only, from the installed executable."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Issue 17: the terminal is not a safety device. Stalled, dumb, foreign-locale and absent terminals.
+"""The terminal is not a safety device. Stalled, dumb, foreign-locale and absent terminals.
 
 Every test runs the installed ``hcrctl``: in a real pty rendered by pyte, with the robot's
 wire watched from the device side (a scripted robot on a second pty), or with no terminal
@@ -255,7 +255,7 @@ def test_watch_on_a_small_terminal_says_which_panels_it_left_out() -> None:
 
 
 def test_a_frame_that_fails_halfway_still_restores_the_terminal() -> None:
-    """The failure issue 17 saw: an unwritable frame stuck in rich's buffer made Live.stop() fail too."""
+    """An unwritable frame stuck in rich's buffer made Live.stop() fail too."""
     from rich.console import Console
 
     from hcrctl.live.painter import RESTORE, live_screen

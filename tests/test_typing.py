@@ -1,7 +1,7 @@
 """The package stays typed: mypy, configured in pyproject.toml, finds nothing.
 
-Issue 11 asks for ``mypy --check-untyped-defs --disallow-untyped-defs hcrctl``
-to be clean; ``[tool.mypy]`` holds those flags, so this runs plain ``mypy``
+``mypy --check-untyped-defs --disallow-untyped-defs hcrctl`` must be clean;
+``[tool.mypy]`` holds those flags, so this runs plain ``mypy``
 from the project root, on the source tree (not an installed copy), with the
 interpreter running the tests, so it sees the test extra's stubs. Its cache
 lives in pytest's cache directory, which git ignores.

@@ -3,7 +3,7 @@
 A write to a terminal blocks once the pty's buffer is full: an ssh link that
 stalls, a tmux pane in copy mode, a terminal that is not being read. If the
 key loop drew its own frames, the deadman, the stop key and every motion key
-would wait with it (issue 17: a deadman stop 5 s late). So the key loop only
+would wait with it (a deadman stop seconds late). So the key loop only
 changes state, and a ``Painter`` thread draws the latest state whenever the
 terminal takes it: frames that could not be written in time are never
 drawn, and the next one shows what is current then.

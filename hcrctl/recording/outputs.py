@@ -1,4 +1,4 @@
-"""What a command may do to the files it writes: the one policy behind ``--force`` (issue 23).
+"""What a command may do to the files it writes: the one policy behind ``--force``.
 
 Nothing a user records may be lost or overwritten silently, so every command
 that writes a file (``record``, ``export``, the bridge's ``--mcap``) asks

@@ -19,13 +19,12 @@ import time
 import urllib.parse
 from typing import TYPE_CHECKING, Any
 
+# types-pyserial leaves out serialutil.to_bytes, which pyserial 3.5 has and its own handlers use.
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes  # type: ignore[attr-defined]
 
 from ..sim.options import SimOptions
 from ..sim.simulator import Simulator
 from ..sim.uart import SimLine, open_link
-
-# types-pyserial leaves out serialutil.to_bytes, which pyserial 3.5 has and its own handlers use.
 from .cable import HealthyCable
 
 if TYPE_CHECKING:
