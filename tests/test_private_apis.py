@@ -70,6 +70,19 @@ def dotted(node: ast.AST) -> list[str] | None:
     return parts[::-1]
 
 
+def named_by_string(call: ast.Call) -> str | None:
+    """The attribute ``getattr(x, "name")`` (or setattr, hasattr, delattr) reaches; None for other calls."""
+    if (
+        isinstance(call.func, ast.Name)
+        and call.func.id in ("getattr", "setattr", "hasattr", "delattr")
+        and len(call.args) >= 2
+        and isinstance(call.args[1], ast.Constant)
+        and isinstance(call.args[1].value, str)
+    ):
+        return call.args[1].value
+    return None
+
+
 def uses_of_private_names(source: str) -> list[str]:
     """Every private name of another package that ``source`` imports or reaches, as ``line: text``."""
     tree = ast.parse(source)
@@ -97,15 +110,10 @@ def uses_of_private_names(source: str) -> list[str]:
     for node in ast.walk(tree):
         if isinstance(node, ast.Attribute) and node.attr in UNDOCUMENTED_ATTRIBUTES:
             found.append(f"{node.lineno}: .{node.attr} (undocumented)")
-        elif (
-            isinstance(node, ast.Call)
-            and isinstance(node.func, ast.Name)
-            and node.func.id in ("getattr", "setattr", "hasattr", "delattr")
-            and len(node.args) >= 2
-            and isinstance(node.args[1], ast.Constant)
-            and node.args[1].value in UNDOCUMENTED_ATTRIBUTES
-        ):
-            found.append(f"{node.lineno}: {node.func.id}(..., {node.args[1].value!r}) (undocumented)")
+        elif isinstance(node, ast.Call) and named_by_string(node) in UNDOCUMENTED_ATTRIBUTES:
+            found.append(
+                f"{node.lineno}: {ast.unparse(node.func)}(..., {named_by_string(node)!r}) (undocumented)"
+            )
     for node in ast.walk(tree):
         if isinstance(node, ast.Attribute):
             if MANGLED.match(node.attr):
@@ -122,17 +130,11 @@ def uses_of_private_names(source: str) -> list[str]:
             found.append(f"{node.lineno}: {node.value!r} (name-mangled, as a string)")
         elif (
             isinstance(node, ast.Call)
-            and isinstance(node.func, ast.Name)
-            and node.func.id in ("getattr", "setattr", "hasattr", "delattr")
-            and len(node.args) >= 2
+            and (name := named_by_string(node)) is not None
             and (dotted(node.args[0]) or [""])[0] in imported
-            and isinstance(node.args[1], ast.Constant)
-            and isinstance(node.args[1].value, str)
-            and (private(node.args[1].value) or node.args[1].value in UNDOCUMENTED)
+            and (private(name) or name in UNDOCUMENTED)
         ):
-            found.append(
-                f"{node.lineno}: {node.func.id}({ast.unparse(node.args[0])}, {node.args[1].value!r})"
-            )
+            found.append(f"{node.lineno}: {ast.unparse(node.func)}({ast.unparse(node.args[0])}, {name!r})")
     return sorted(set(found), key=lambda text: int(text.split(":")[0]))
 
 
