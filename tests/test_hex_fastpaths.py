@@ -11,6 +11,7 @@ import tracemalloc
 from collections import Counter
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -283,11 +284,14 @@ def test_the_caches_stay_bounded() -> None:
     assert text.tally.frames == len(frames)
 
     printer = TrafficPrinter(False, "none", FrameFilter())
-    printer.live = False
-    for n, frame in enumerate(frames[: 2 * CACHE_RECORDS]):
-        printer.show_record(float(n), "rx", frame, 0, ChecksumRule.HEADER)
-        printer._lines.clear()
-        assert len(printer._records) <= CACHE_RECORDS
+
+    def records() -> Iterator[tuple[int, dict[str, Any], float, str, bytes]]:
+        for n, frame in enumerate(frames[: 2 * CACHE_RECORDS]):
+            assert len(printer._records) <= CACHE_RECORDS
+            yield n, {}, float(n), "rx", frame
+
+    printer.show_log(records(), ChecksumRule.HEADER)
+    assert len(printer._records) <= CACHE_RECORDS
 
 
 def test_decoding_to_a_text_sink_memory_does_not_grow_with_the_input(monkeypatch: pytest.MonkeyPatch) -> None:

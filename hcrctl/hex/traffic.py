@@ -20,12 +20,12 @@ from ..protocol.profiles import DEFAULT, Profile
 if TYPE_CHECKING:
     from ..link.traffic import Traffic
 
-#: Distinct records whose rows ``show_record`` remembers; past this it starts afresh (bounded).
+#: Distinct records whose rows ``show_log`` remembers; past this it starts afresh (bounded).
 CACHE_RECORDS = 4096
 #: Only a record of at most this many rows is remembered: what repeats in a log is a frame or two, and
 #: records of many rows (each of them carries the record's hex) would make that bound a gigabyte.
 CACHE_ROWS = 2
-#: Lines ``show_record`` holds before writing them at once (when not live).
+#: Lines ``show_log`` holds before writing them at once.
 WRITE_LINES = 512
 
 #: The colours of a line on a terminal (as click.style writes them).
@@ -154,7 +154,7 @@ class TrafficPrinter:
         self._hexs: Callable[[bytes], str]
         self._is_good: Callable[[dict[str, Any]], bool]
         self._is_text: Callable[[dict[str, Any]], bool]
-        #: ``show_record``'s rows and text per distinct record, and its lines not yet written.
+        #: ``show_log``'s rows and text per distinct record, and its lines not yet written.
         self._records: dict[tuple[str, bytes, int], list[tuple[dict[str, Any], bool, str, str | None]]] = {}
         self._lines: list[str] = []
 
@@ -169,39 +169,6 @@ class TrafficPrinter:
         if self.live:
             sys.stdout.flush()
 
-    def show_record(
-        self,
-        t: float,
-        direction: str,
-        data: bytes,
-        offset: int,
-        rule: ChecksumRule,
-        profile: Profile = DEFAULT,
-    ) -> None:
-        """``show`` for a logged record (decoded here, its rows moved to ``offset``), as ``monitor --from`` does.
-
-        A log repeats itself (the same request, the same reply), so a record's
-        rows and their text, all but the time stamp, are made once per distinct
-        record and remembered (a bounded number of them).
-        """
-        key = (direction, data, offset)
-        made = self._records.get(key)
-        if made is None:
-            made = self._made_record(direction, data, offset, rule, profile)
-        count = direction == "rx"
-        lines = self._lines
-        for row, simple, head, tail in made:
-            if not count:
-                self.sent += 1
-            elif simple:
-                self.tally.frames += 1
-            else:
-                self.tally.add(row)
-            if tail is not None:
-                lines.append(f"{head}{self._iso(t) if self.as_json else self.stamp(t)}{tail}")
-        if len(lines) >= WRITE_LINES or self.live:
-            self.flush_lines()
-
     def show_log(
         self,
         records: Iterable[tuple[int, dict[str, Any], float, str, bytes]],
@@ -209,9 +176,12 @@ class TrafficPrinter:
         profile: Profile = DEFAULT,
         duration: float | None = None,
     ) -> None:
-        """``show_record`` for each record of a log (``trafficlog.log_fields``) up to ``duration``
-        seconds after the first: ``monitor --from``'s loop, with what it looks up per record held
-        in locals (a day-long log has millions of records)."""
+        """Each record of a log (``trafficlog.log_fields``) up to ``duration`` seconds after the first,
+        as ``show`` shows a frame (decoded here, its rows moved to the record's offset): ``monitor
+        --from``'s loop. A log repeats itself (the same request, the same reply), so a record's rows
+        and their text, all but the time stamp, are made once per distinct record and remembered (at
+        most ``CACHE_RECORDS``); what it looks up per record is held in locals (a day-long log has
+        millions of records)."""
         self._import_once()
         self.live = False
         get, make, lines, tally = self._records.get, self._made_record, self._lines, self.tally
@@ -244,7 +214,7 @@ class TrafficPrinter:
             self.flush_lines()
 
     def flush_lines(self) -> None:
-        """Write the lines ``show_record`` holds back (a few hundred at a time)."""
+        """Write the lines ``show_log`` holds back (a few hundred at a time)."""
         if self._lines:
             sys.stdout.write("".join(self._lines))
             self._lines.clear()
