@@ -9,11 +9,13 @@ at the cut).
 from __future__ import annotations
 
 import functools
+import json
 import os
 import subprocess
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Collection, Iterator
 from contextlib import contextmanager
+from datetime import datetime, timedelta, timezone
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +31,29 @@ RECIPE = "## Reading a recording cut short"
 #: for a core). It bounds lost data, not speed: a slower machine makes fewer messages, and loses no more
 #: seconds of them; a writer that does not flush every second shows nothing for the whole 3 s watched.
 LOSS_MARGIN = 1.0
+EPOCH = datetime(1970, 1, 1, tzinfo=timezone.utc)
+
+
+def us_of(when: str | datetime) -> int:
+    """A time of the log (ISO text) or a datetime, as integer microseconds since the epoch (no float on the way)."""
+    moment = datetime.fromisoformat(when) if isinstance(when, str) else when
+    return (moment - EPOCH) // timedelta(microseconds=1)
+
+
+def log_lines(log: Path) -> list[dict[str, Any]]:
+    """The records of a ``--log`` file."""
+    return [json.loads(line) for line in log.read_text().splitlines() if line.strip()]
+
+
+def is_reading(line: dict[str, Any], names: Collection[str]) -> bool:
+    """A good reply or broadcast of one of the reads ``names``, as the log line says."""
+    return (
+        line["direction"] == "rx"
+        and line.get("checksum_ok") is True
+        and "error" not in line
+        and line.get("kind") in ("reply", "broadcast")
+        and line.get("name") in names
+    )
 
 
 @functools.cache

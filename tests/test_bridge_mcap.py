@@ -10,12 +10,12 @@ from __future__ import annotations
 import json
 import struct
 import time
-from datetime import datetime, timedelta, timezone
+from datetime import datetime, timezone
 from pathlib import Path
 
 import pytest
 from helpers import TIMEOUT
-from helpers_mcap import LOSS_MARGIN, last_log_time, messages, small_tmpfs, worst_lag
+from helpers_mcap import LOSS_MARGIN, last_log_time, messages, small_tmpfs, us_of, worst_lag
 from test_bridge import bridge, viewer
 
 from hcrctl.protocol import topics as T
@@ -45,9 +45,6 @@ def test_kill_9_loses_at_most_the_last_second_of_the_recording(
     assert max(lag, lost) <= FLUSH_EVERY + LOSS_MARGIN, f"{lag:.2f} s behind while running, {lost:.2f} s lost"
 
 
-EPOCH = datetime(1970, 1, 1, tzinfo=timezone.utc)
-
-
 def test_the_file_holds_the_bytes_served_at_the_same_log_time(env: dict[str, str], tmp_path: Path) -> None:
     out = tmp_path / "served.mcap"
     with bridge("sim://", "--mcap", str(out), "--rate", "20", env=env) as running:
@@ -63,7 +60,7 @@ def test_the_file_holds_the_bytes_served_at_the_same_log_time(env: dict[str, str
     assert served in recorded
     # to the µs, rounded as the traffic log's own time stamp (datetime) rounds it, as record writes
     when = datetime.fromtimestamp(json.loads(served[2])["time"], timezone.utc)
-    assert log_time == (when - EPOCH) // timedelta(microseconds=1) * 1000
+    assert log_time == us_of(when) * 1000
 
 
 def test_a_full_disk_stops_the_recording_once_and_the_bridge_serves_on_exit_1(

@@ -14,26 +14,20 @@ import json
 import os
 import subprocess
 import sys
-from datetime import datetime, timedelta, timezone
 from pathlib import Path
 from typing import Any
 
 import pytest
 from helpers import checkout_extra
 from helpers_cli import clean_env, run
+from helpers_mcap import is_reading, log_lines, us_of
 from jsonschema import Draft202012Validator
 from mcap.reader import make_reader
 
 from hcrctl.protocol import series as S
 from hcrctl.protocol import topics as T
 
-EPOCH = datetime(1970, 1, 1, tzinfo=timezone.utc)
 READINGS = {t.name.removeprefix("/hcr/"): t.name for t in T.reading_topics()}
-
-
-def ns_of(stamp: str) -> int:
-    """An ISO time of the log, as integer nanoseconds since the epoch (exact: no float on the way)."""
-    return (datetime.fromisoformat(stamp) - EPOCH) // timedelta(microseconds=1) * 1000
 
 
 @pytest.fixture(scope="module")
@@ -47,21 +41,6 @@ def log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     done = run(["--port", "sim://", "--log", str(path), "read"], env)
     assert done.returncode == 0, done.stderr
     return path
-
-
-def lines_of(log: Path) -> list[dict[str, Any]]:
-    return [json.loads(line) for line in log.read_text().splitlines() if line.strip()]
-
-
-def is_reading(line: dict[str, Any]) -> bool:
-    """A good reply or broadcast of a read, as the log line says."""
-    return (
-        line["direction"] == "rx"
-        and line.get("checksum_ok") is True
-        and "error" not in line
-        and line.get("kind") in ("reply", "broadcast")
-        and line.get("name") in READINGS
-    )
 
 
 def check_message(schema: dict[str, Any], message: dict[str, Any]) -> None:
@@ -81,7 +60,7 @@ def export(
 
 
 def test_mcap_holds_every_frame_and_reading_with_the_logs_times(log: Path, tmp_path: Path) -> None:
-    lines = lines_of(log)
+    lines = log_lines(log)
     out = tmp_path / "session.mcap"
     done = export(log, out)
     assert f"{len(lines)} records -> {out}" in done.stderr
@@ -111,12 +90,12 @@ def test_mcap_holds_every_frame_and_reading_with_the_logs_times(log: Path, tmp_p
         assert document["type"] == "object" and isinstance(document["properties"], dict), schema.name
         assert all(isinstance(p, dict) for p in document["properties"].values())
     frames = [m for topic, m in messages if topic == T.FRAMES]
-    assert [m.log_time for m in frames] == [ns_of(line["time"]) for line in lines]
+    assert [m.log_time for m in frames] == [us_of(line["time"]) * 1000 for line in lines]
     assert all(m.publish_time == m.log_time for m in frames)
     assert [json.loads(m.data)["hex"] for m in frames] == [line["hex"] for line in lines]
-    wanted = [line for line in lines if is_reading(line)]
+    wanted = [line for line in lines if is_reading(line, READINGS)]
     readings = [(topic, m) for topic, m in messages if topic != T.FRAMES]
-    assert [(READINGS[line["name"]], ns_of(line["time"])) for line in wanted] == [
+    assert [(READINGS[line["name"]], us_of(line["time"]) * 1000) for line in wanted] == [
         (topic, m.log_time) for topic, m in readings
     ]
     assert {topic for topic, _ in readings} >= {"/hcr/compass", "/hcr/sonar", "/hcr/position"}
@@ -129,7 +108,7 @@ def test_mcap_holds_every_frame_and_reading_with_the_logs_times(log: Path, tmp_p
 def test_mcap_reading_values_are_the_logs_fields(log: Path, tmp_path: Path) -> None:
     out = tmp_path / "values.mcap"
     export(log, out)
-    wanted = [line for line in lines_of(log) if is_reading(line) and line["name"] == "compass"]
+    wanted = [line for line in log_lines(log) if is_reading(line, READINGS) and line["name"] == "compass"]
     with out.open("rb") as handle:
         got = [json.loads(m.data) for _, _, m in make_reader(handle).iter_messages(topics=["/hcr/compass"])]
     assert wanted and [m["heading"] for m in got] == [line["fields"]["heading"] for line in wanted]
@@ -144,7 +123,7 @@ def test_csv_has_one_row_per_reading_and_every_series_column(log: Path, tmp_path
     with out.open(newline="") as handle:
         rows = list(csv.reader(handle))
     numeric = {S.find(path).command.name for path in S.paths()}
-    wanted = [line for line in lines_of(log) if is_reading(line) and line["name"] in numeric]
+    wanted = [line for line in log_lines(log) if is_reading(line, READINGS) and line["name"] in numeric]
     most = {"sonar": 0, "ir": 0}  # the items the log's lists have, at most: the columns they fill
     for line in wanted:
         for name in most.keys() & line["fields"].keys():
@@ -159,7 +138,7 @@ def test_csv_has_one_row_per_reading_and_every_series_column(log: Path, tmp_path
         (line["time"], "rx", line["command"], line["name"]) for line in wanted
     ]  # the command's number and name, as the log (and /hcr/frames) give them
     for row, line in zip(body, wanted, strict=True):
-        assert round(float(row["t"]) * 1e6) * 1000 == ns_of(line["time"])
+        assert round(float(row["t"]) * 1e6) == us_of(line["time"])
         assert int(row["address"]) == line["address"]
         filled = {
             k
@@ -177,10 +156,10 @@ def test_json_summary_counts_records_and_messages(log: Path, tmp_path: Path) -> 
     out = tmp_path / "summary.mcap"
     done = export(log, out, "--json")
     report = json.loads(done.stdout)
-    lines = lines_of(log)
+    lines = log_lines(log)
     assert report["records"] == len(lines)
     assert report["topics"][T.FRAMES] == len(lines)
-    assert report["messages"] == len(lines) + sum(is_reading(line) for line in lines)
+    assert report["messages"] == len(lines) + sum(is_reading(line, READINGS) for line in lines)
     assert report["bytes"] == out.stat().st_size
 
 
@@ -237,7 +216,7 @@ def test_the_checksum_rule_is_the_global_options(log: Path, tmp_path: Path) -> N
     """Decoded as ``monitor --from`` decodes: under another rule every frame fails, so nothing is a reading."""
     out = tmp_path / "other.mcap"
     report = json.loads(export(log, out, "--json", "--checksum-from", "address").stdout)
-    assert report["topics"] == {T.FRAMES: len(lines_of(log))}
+    assert report["topics"] == {T.FRAMES: len(log_lines(log))}
     with out.open("rb") as handle:
         frames = [json.loads(m.data) for _, _, m in make_reader(handle).iter_messages()]
     good = [f for f in frames if "checksum_ok" in f]
@@ -246,9 +225,9 @@ def test_the_checksum_rule_is_the_global_options(log: Path, tmp_path: Path) -> N
 
 
 def test_duration_takes_the_first_seconds_of_the_log(log: Path, tmp_path: Path) -> None:
-    lines = lines_of(log)
-    start = ns_of(lines[0]["time"])
-    within = [line for line in lines if ns_of(line["time"]) - start <= 500_000_000]
+    lines = log_lines(log)
+    start = us_of(lines[0]["time"])
+    within = [line for line in lines if us_of(line["time"]) - start <= 500_000]
     assert 0 < len(within) < len(lines)
     report = json.loads(export(log, tmp_path / "half.mcap", "--json", after=("--duration", "0.5")).stdout)
     assert report["records"] == len(within)

@@ -10,27 +10,20 @@ were logged, never with hcrctl's own encoder.
 from __future__ import annotations
 
 import csv
-import json
-from datetime import datetime, timedelta, timezone
 from pathlib import Path
 from typing import Any
 
 import pytest
 from helpers_cli import clean_env, one_line, run, wire
+from helpers_mcap import is_reading, log_lines, us_of
 from helpers_ros2 import expected, mismatches
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
-EPOCH = datetime(1970, 1, 1, tzinfo=timezone.utc)
 #: Every reading the simulator answers or broadcasts, by its log name.
 READINGS = ("bump", "ir", "sonar", "compass", "wheels", "env", "position", "map")
-
-
-def us_of(stamp: str) -> int:
-    """An ISO time of the log as integer microseconds since the epoch (exact: no float on the way)."""
-    return (datetime.fromisoformat(stamp) - EPOCH) // timedelta(microseconds=1)
 
 
 def plain(value: Any) -> Any:
@@ -54,21 +47,6 @@ def flat(values: Any) -> list[Any]:
     if isinstance(values, str):
         return list(bytes.fromhex(values))
     return [values]
-
-
-def lines_of(log: Path) -> list[dict[str, Any]]:
-    return [json.loads(line) for line in log.read_text().splitlines() if line.strip()]
-
-
-def is_reading(line: dict[str, Any]) -> bool:
-    """A good reply or broadcast of a read, as the log line says."""
-    return (
-        line["direction"] == "rx"
-        and line.get("checksum_ok") is True
-        and "error" not in line
-        and line.get("kind") in ("reply", "broadcast")
-        and line.get("name") in READINGS
-    )
 
 
 def decoded(path: Path) -> tuple[Any, list[tuple[str, Any, Any]]]:
@@ -111,7 +89,7 @@ def check_against_log(found: list[tuple[str, Any, Any]], lines: list[dict[str, A
     assert [m.log_time for m, _ in frames] == [us_of(line["time"]) * 1000 for line in lines]
     assert all(stamp_us(d) * 1000 == m.log_time for m, d in frames)
     wanted: list[tuple[str, int, Any]] = []  # (ROS topic, stamp, what it holds) in the log's order
-    for line in (line for line in lines if is_reading(line)):
+    for line in (line for line in lines if is_reading(line, READINGS)):
         us = us_of(line["time"])
         if line["name"] in CUSTOM:
             wanted.append((CUSTOM[line["name"]], us, [line["address"], *flat(line["fields"])]))
@@ -152,7 +130,7 @@ def test_export_cdr_is_a_ros2_file_holding_the_logs_frames_and_readings(log: Pat
     assert done.returncode == 0, done.stderr
     header, found = decoded(out)
     assert header.profile == "ros2"
-    check_against_log(found, lines_of(log))
+    check_against_log(found, log_lines(log))
 
 
 def test_record_cdr_holds_what_its_log_says_crossed_the_link(tmp_path: Path) -> None:
@@ -163,7 +141,7 @@ def test_record_cdr_holds_what_its_log_says_crossed_the_link(tmp_path: Path) -> 
     assert done.returncode == 0, done.stderr
     header, found = decoded(out)
     assert header.profile == "ros2"
-    check_against_log([item for item in found if item[0] != "/hcrctl/link"], lines_of(log))
+    check_against_log([item for item in found if item[0] != "/hcrctl/link"], log_lines(log))
     link = [plain(d) for topic, _, d in found if topic == "/hcrctl/link"]
     assert len(link) >= 2 and link[-1]["tx_frames"] > 0  # the counters are decoded too, and count
 
@@ -204,7 +182,7 @@ def test_a_recording_holds_the_frames_in_the_logs_order_while_the_log_is_slow(tm
     assert done.returncode == 0, done.stderr
     assert "warning" not in done.stderr, done.stderr  # the plugin was loaded
     _, found = decoded(out)
-    check_against_log([item for item in found if item[0] != "/hcrctl/link"], lines_of(log))
+    check_against_log([item for item in found if item[0] != "/hcrctl/link"], log_lines(log))
     times = [m.log_time for _, m, _ in found]  # the link counters too: in order with the frames
     assert times == sorted(times) and any(topic == "/hcrctl/link" for topic, _, _ in found)
 
@@ -218,7 +196,7 @@ def test_a_csv_recording_holds_the_readings_in_the_logs_order_while_the_log_is_s
     assert "warning" not in done.stderr, done.stderr
     with out.open(newline="") as handle:
         rows = [(r["time"], r["direction"], int(r["address"]), r["name"]) for r in csv.DictReader(handle)]
-    wanted = [line for line in lines_of(log) if is_reading(line) and line["name"] != "map"]
+    wanted = [line for line in log_lines(log) if is_reading(line, READINGS) and line["name"] != "map"]
     assert rows == [(line["time"], line["direction"], line["address"], line["name"]) for line in wanted]
     assert {"compass", "sonar", "position"} <= {name for *_, name in rows}
 

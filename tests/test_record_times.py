@@ -7,21 +7,21 @@ Rounding ``t * 1e6`` put one live time in eight a microsecond off the log's.
 
 from __future__ import annotations
 
-from datetime import datetime, timedelta, timezone
+from datetime import datetime, timezone
 
+from helpers_mcap import us_of
 from hypothesis import given
 from hypothesis import strategies as st
 
 from hcrctl.recording.sinks import microseconds, seconds
 
-EPOCH = datetime(1970, 1, 1, tzinfo=timezone.utc)
 #: Epoch seconds from now to a century on, and any float from 0 to there.
 TIMES = st.floats(1.7e9, 4.9e9) | st.floats(0, 4.9e9)
 
 
 def log_microseconds(t: float) -> int:
     """What the traffic log's time says, in whole microseconds: ``datetime``'s own rounding."""
-    return (datetime.fromtimestamp(t, timezone.utc) - EPOCH) // timedelta(microseconds=1)
+    return us_of(datetime.fromtimestamp(t, timezone.utc))
 
 
 @given(TIMES)
