@@ -101,8 +101,7 @@ def run_serve(settings: Connection, options: ServeOptions, *, report: Report | N
 
 def _foxglove(served: ServedRobot, options: ServeOptions, at: tuple[str, int], notes: Notes) -> FrontEnd:
     """The bridge's front end on the same feed and governor, with the bridge's options."""
-    from ..foxglove.bridge import Foxglove, require_foxglove
-    from ..foxglove.bridge import ServeOptions as BridgeOptions
+    from ..foxglove.bridge import BridgeOptions, Foxglove, require_foxglove
 
     require_foxglove("fleet serve --foxglove")
     bridge = BridgeOptions(

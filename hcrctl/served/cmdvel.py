@@ -1,4 +1,4 @@
-"""``/cmd_vel`` from a Foxglove client: Twist-shaped JSON to wheel velocities, with teleop's rules.
+"""``cmd_vel`` from the network (Foxglove, the fleet, ROS 2): a Twist to wheel velocities, by teleop's rules.
 
 The Foxglove Teleop panel (and anything that speaks ROS) asks for motion as a
 ``geometry_msgs/Twist``: ``linear.x`` in m/s forward, ``angular.z`` in rad/s

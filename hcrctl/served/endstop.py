@@ -1,6 +1,6 @@
-"""The bridge's end-of-run stop, sent to the robot it drives *then*, not the one it opened.
+"""A served robot's end-of-run stop, sent to the robot driven *then*, not the one first opened.
 
-The bridge's poller re-opens a port that vanished and came back (a USB
+A server's poller re-opens a port that vanished and came back (a USB
 adapter re-plugged), and the driver then writes to that new ``Robot``. So the
 robot to stop is only known when the run ends: the poller's current one when
 the link is up (``stopping()`` on it, as every command does), and when the
