@@ -51,7 +51,6 @@ import contextlib
 import json
 import os
 import signal
-import socket
 import statistics
 import subprocess
 import sys
@@ -63,7 +62,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from _common import ROOT, record
+from _common import ROOT, TICK, cpu_ticks, free_endpoint, record, rss_mb
 from _simpty import hcrctl_exe, sim_pty
 
 # The tests' hosts (network namespaces): one way to make them, for the tests and for this.
@@ -77,15 +76,8 @@ READ_RATIO = 1.5
 KILL_STOP_S = 0.5
 DEADMAN_S = 0.5
 FREEZE_STOP_S = DEADMAN_S + 0.2
-TICK = os.sysconf("SC_CLK_TCK")
 STOP = C.encode_request(C.STOP)
 POWER = C.encode_request(C.MotorPower(30, 30))
-
-
-def free_endpoint() -> str:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return f"tcp/127.0.0.1:{sock.getsockname()[1]}"
 
 
 class Procs:
@@ -169,18 +161,6 @@ def serve(
 
 
 # -- 1. many robots, one operator ---------------------------------------------------------------
-
-
-def cpu_ticks(pid: int) -> int:
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return int(fields[11]) + int(fields[12])  # utime, stime (fields 14 and 15 of stat)
-
-
-def rss_mb(pid: int) -> float:
-    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        if line.startswith("VmRSS:"):
-            return int(line.split()[1]) / 1024
-    return float("nan")
 
 
 def percentile(values: list[float], q: float) -> float:

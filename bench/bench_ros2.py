@@ -33,8 +33,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from _common import record
-from bench_fleet import TICK, Procs, cpu_ticks, fleet, rss_mb, serve, wait_for, wire
+from _common import TICK, cpu_ticks, record, rss_mb
+from bench_fleet import Procs, fleet, serve, wait_for, wire
 from cyclonedds.domain import DomainParticipant
 from cyclonedds.pub import DataWriter
 from cyclonedds.sub import DataReader

@@ -37,7 +37,6 @@ import argparse
 import contextlib
 import os
 import signal
-import socket
 import statistics
 import subprocess
 import sys
@@ -46,17 +45,10 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-from _common import ROOT, record
+from _common import ROOT, TICK, cpu_ticks, free_endpoint, record
 
-TICK = os.sysconf("SC_CLK_TCK")
 CPU_TARGET = 2.0
 RSS_TARGET = 30.0
-
-
-def free_endpoint() -> str:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return f"tcp/127.0.0.1:{sock.getsockname()[1]}"
 
 
 class Procs:
@@ -115,11 +107,6 @@ def wait_said(proc: subprocess.Popen[bytes], text: str, timeout: float = 60.0) -
         if proc.poll() is not None or time.monotonic() > deadline:
             raise RuntimeError(f"never said {text!r}: {err.read_text()!r}")
         time.sleep(0.05)
-
-
-def cpu_ticks(pid: int) -> int:
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return int(fields[11]) + int(fields[12])  # utime, stime
 
 
 def memory_mb(pid: int) -> tuple[float, float, float]:

@@ -39,7 +39,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import check, record
+from _common import TICK, check, cpu_ticks, record
 from _simpty import hcrctl_exe, sim_pty
 
 from hcrctl.link.client import Robot
@@ -53,7 +53,6 @@ SWEEP_TARGET = 0.90
 CPU_TARGET = 0.10
 ROWS, COLS = 40, 120
 BROADCAST_BYTES_PER_S = 2 * 5 * (8 + 4) + 1 * (8 + 16)  # two 0xA0 stations at 5 Hz, one 0xB0 at 1 Hz
-TICKS = os.sysconf("SC_CLK_TCK")
 
 
 def sweep_bytes(path: str) -> tuple[int, int]:
@@ -170,16 +169,11 @@ def cpu_share(path: str, seconds: float, warmup: float = 2.0) -> float:
     args = ["--port", path, "watch", "--rate", "10", "--duration", str(seconds + warmup + 1)]
     with on_terminal(args) as (proc, _):
         time.sleep(warmup)
-        cpu0, wall0 = _cpu_seconds(proc.pid), time.monotonic()
+        cpu0, wall0 = cpu_ticks(proc.pid) / TICK, time.monotonic()
         time.sleep(seconds)
-        cpu1, wall1 = _cpu_seconds(proc.pid), time.monotonic()
+        cpu1, wall1 = cpu_ticks(proc.pid) / TICK, time.monotonic()
         proc.wait(timeout=30)
     return (cpu1 - cpu0) / (wall1 - wall0)
-
-
-def _cpu_seconds(pid: int) -> float:
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / TICKS  # utime, stime
 
 
 def main() -> int:
