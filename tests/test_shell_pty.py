@@ -5,7 +5,9 @@ from __future__ import annotations
 import re
 import signal
 import stat
+import tempfile
 import time
+from pathlib import Path
 
 import pytest
 from helpers_shell import STOP_FRAME, PtyRobot, shell, stop_after_motion
@@ -177,7 +179,13 @@ def test_hex_mode_completes_sends_decodes_and_exit_returns(tmp_path):
 
 
 def test_a_device_that_disappears_shows_disconnected_and_is_reconnected(tmp_path):
-    link = tmp_path / "robot"
+    # the path is in the prompt: a short one keeps the prompt on one line of the 100-column screen
+    # (tmp_path under pytest-xdist, /tmp/pytest-of-USER/pytest-NNNN/popen-gwN/..., is too long for it)
+    with tempfile.TemporaryDirectory(prefix="hcr-") as short:
+        _disappear_and_return(Path(short) / "robot", tmp_path)
+
+
+def _disappear_and_return(link: Path, tmp_path: Path) -> None:
     first = PtyRobot(link)
     second = None
     try:
