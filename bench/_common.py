@@ -6,11 +6,14 @@ exit non-zero when a target is missed, and the test suite never asserts on time.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
 import platform
+import signal
 import socket
+import subprocess
 import sys
 import time
 from collections.abc import Callable
@@ -113,3 +116,12 @@ def free_endpoint() -> str:
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
         return f"tcp/127.0.0.1:{sock.getsockname()[1]}"
+
+
+def kill_groups(procs: list[subprocess.Popen[bytes]]) -> None:
+    """Kill each child's whole session (it was started with one of its own) and reap it."""
+    for proc in procs:
+        if proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()

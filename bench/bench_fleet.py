@@ -62,7 +62,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from _common import ROOT, TICK, cpu_ticks, free_endpoint, record, rss_mb
+from _common import ROOT, TICK, cpu_ticks, free_endpoint, kill_groups, record, rss_mb
 from _simpty import hcrctl_exe, sim_pty
 
 # The tests' hosts (network namespaces): one way to make them, for the tests and for this.
@@ -102,11 +102,7 @@ class Procs:
         return proc, err
 
     def close(self) -> None:
-        for proc in self.all:
-            if proc.poll() is None:
-                with contextlib.suppress(ProcessLookupError):
-                    os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
+        kill_groups(self.all)
 
 
 def wait_for(check: Any, timeout: float = 60.0, what: str = "condition") -> Any:

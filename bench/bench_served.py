@@ -45,7 +45,7 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-from _common import ROOT, TICK, cpu_ticks, free_endpoint, record
+from _common import ROOT, TICK, cpu_ticks, free_endpoint, kill_groups, record
 
 CPU_TARGET = 2.0
 RSS_TARGET = 30.0
@@ -83,11 +83,7 @@ class Procs:
         return proc.stdout.readline().decode().strip()
 
     def close(self) -> None:
-        for proc in self.all:
-            if proc.poll() is None:
-                with contextlib.suppress(ProcessLookupError):
-                    os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
+        kill_groups(self.all)
 
 
 @contextlib.contextmanager
