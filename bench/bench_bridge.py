@@ -84,8 +84,8 @@ def bridge_rate(path: str, seconds: float, encoding: str = "json") -> tuple[floa
     if proc.returncode != 0:
         raise RuntimeError(f"bridge --json failed: {err.strip()}")
     summary = json.loads(out)
-    if summary["clients_most"] < CLIENTS:
-        raise RuntimeError(f"only {summary['clients_most']} clients subscribed")
+    if summary["foxglove"]["clients_most"] < CLIENTS:
+        raise RuntimeError(f"only {summary['foxglove']['clients_most']} clients subscribed")
     return float(summary["sweeps_per_s"]), received, int(summary["messages"])
 
 

@@ -23,25 +23,33 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parent.parent / "hcrctl"
 
+DOC = PACKAGE.parent / "docs" / "development.md"
+#: The one statement of the layer order, in docs/development.md: "Layers: `a < b, c < d`".
+LAYER_LINE = re.compile(r"^Layers: `(?P<order>[^`]+)`$", re.MULTILINE)
+
+
+def stated_layers(text: str) -> list[tuple[str, ...]]:
+    """The layers as the docs state them, lowest first: package folders to dotted names."""
+    found = LAYER_LINE.findall(text)
+    assert len(found) == 1, f"docs/development.md states the layer order {len(found)} times, not once"
+    return [
+        tuple(
+            "hcrctl" if p == "hcrctl" else "hcrctl." + p.replace("/", ".")
+            for p in map(str.strip, layer.split(","))
+        )
+        for layer in found[0].split("<")
+    ]
+
+
 #: Lowest first, packages only: a module may import modules of its own layer or of an earlier one.
 #: ``"hcrctl"`` is the root package's own modules (errors, config, ...); a package's ``__main__`` is a
 #: program, not a layer: it may put any of them together (``python -m hcrctl`` is the CLI plus the shell).
-LAYERS: list[tuple[str, ...]] = [
-    ("hcrctl",),
-    ("hcrctl.protocol",),
-    ("hcrctl.sim",),
-    ("hcrctl.link", "hcrctl.urlhandler"),
-    ("hcrctl.hex", "hcrctl.render", "hcrctl.ops", "hcrctl.motion"),
-    ("hcrctl.served",),
-    ("hcrctl.recording",),
-    ("hcrctl.foxglove",),
-    ("hcrctl.fleet", "hcrctl.ros2"),
-    ("hcrctl.live",),
-    ("hcrctl.cli",),
-    ("hcrctl.shell",),
-]
+#: Read from docs/development.md, the one place the order is written.
+LAYERS: list[tuple[str, ...]] = stated_layers(DOC.read_text())
 #: The processes that serve a robot to the network: they run headless, so they import no terminal UI.
 SERVERS = ("hcrctl.served", "hcrctl.foxglove", "hcrctl.fleet", "hcrctl.ros2")
+#: The front ends of a served robot: peers, composed by the table above them (``served.frontends``).
+FRONT_ENDS = ("hcrctl.foxglove", "hcrctl.fleet", "hcrctl.ros2")
 TERMINAL = ("hcrctl.live", "hcrctl.shell", "hcrctl.cli", "hcrctl.render")
 STDLIB_ONLY = ("hcrctl.protocol", "hcrctl.sim")
 MAX_TOP_LEVEL = 8
@@ -212,3 +220,25 @@ def test_the_checks_see_modules_named_in_strings() -> None:
     assert "hcrctl.cli.read" in own("hcrctl.cli")  # "hcrctl.cli.read:read" in SUBCOMMANDS
     assert "hcrctl.urlhandler" in own("hcrctl.link.transport_sim")  # handed to pyserial by name
     assert not any(m.startswith("hcrctl.shell") for m in own("hcrctl.cli"))
+
+
+def test_the_front_ends_are_peers_on_one_layer_and_none_imports_another() -> None:
+    """A fourth front end is a row in ``served.frontends``, never an edit to the fleet that builds the others."""
+    assert len({layer_of(front) for front in FRONT_ENDS}) == 1, [layer_of(f) for f in FRONT_ENDS]
+    reaches = {
+        name: sorted(
+            m for m in own(name) if m.startswith(tuple(f + "." for f in FRONT_ENDS if not name.startswith(f)))
+        )
+        for name in MODULES
+        if name.startswith(tuple(f + "." for f in FRONT_ENDS))
+    }
+    assert not {name: found for name, found in reaches.items() if found}
+    assert layer_of("hcrctl.served.frontends") > layer_of("hcrctl.fleet") > layer_of("hcrctl.served.runtime")
+
+
+def test_the_code_map_lists_the_packages_in_the_stated_layer_order() -> None:
+    """The docs' code map and the layer line say one order: the map's packages, read top down, never go down."""
+    from test_codemap import MAP
+
+    order = [layer_of("hcrctl" if folder == "" else "hcrctl." + folder.replace("/", ".")) for folder in MAP]
+    assert order == sorted(order), list(zip(MAP, order, strict=True))

@@ -172,7 +172,7 @@ def test_a_twist_no_one_meant_moves_nothing_and_the_node_lives_on(
         out, _ = node.proc.communicate(timeout=30)
     assert node.proc.returncode == 0
     summary = json.loads(out)
-    assert summary["ros2_cmd_vel_refused"] >= 1 and summary["ros2_cmd_vel"] >= 1
+    assert summary["ros2"]["cmd_vel_refused"] >= 1 and summary["ros2"]["cmd_vel"] >= 1
 
 
 def test_tf_static_and_the_node_reach_a_late_reader(env: dict[str, str], tmp_path: Path) -> None:

@@ -65,22 +65,27 @@ def bridge(
     written (a full disk), that is said once, serving goes on, and the exit
     status is 1.
     """
+    from ..foxglove.bridge import require_foxglove
     from ..link.claims import claimed
     from ..recording.outputs import check_outputs
+    from ..served.frontends import serve, summary_line
 
     check_outputs([("--mcap", mcap)], appended=[("--log", settings.log)], force=force)
-    from ..foxglove.bridge import BridgeOptions, require_foxglove, run_bridge, summary_line
-
     require_foxglove("hcrctl bridge", mcap=mcap is not None)
 
-    timeout = settings.deadman_or(deadman, DEFAULT_TIMEOUT_S)
-    options = BridgeOptions(listen[0], listen[1], mcap, rate, duration, timeout, encoding, allow_origins)
+    foxglove = dict(host=listen[0], port=listen[1], mcap=mcap, encoding=encoding, allow_origins=allow_origins)
     with (
         claimed("--mcap", mcap, force=force),
         ServerEnd("bridge", as_json=settings.as_json, bounded=duration is not None) as end,
     ):
-        run_bridge(settings, options, report=end.reporter(summary_line))
-    if (end.summary or {}).get(
-        "recording_incomplete"
-    ):  # said on stderr when it happened: only the status is left
-        click.get_current_context().exit(1)
+        serve(
+            settings,
+            {"foxglove": foxglove},
+            rate=rate,
+            deadman=settings.deadman_or(deadman, DEFAULT_TIMEOUT_S),
+            duration=duration,
+            needed_by="hcrctl bridge",
+            report=end.reporter(summary_line("foxglove")),
+        )
+    if ((end.summary or {}).get("foxglove") or {}).get("recording_incomplete"):
+        click.get_current_context().exit(1)  # said on stderr when it happened: only the status is left

@@ -143,23 +143,39 @@ def serve(
     on a stop from anyone, and when this command ends. NAME is 1-64 letters,
     digits, '_', '.' or '-'. With --json a summary is printed at the end.
     """
-    from ..fleet.server import ServeOptions, run_serve, summary_line
+    from ..served.frontends import require_front_end, summary_line
+    from ..served.frontends import serve as serve_robot
 
     if ros2:
         _ros2_name(name)
-    options = ServeOptions(
-        name,
-        connect,
-        listen,
-        rate,
-        encoding,
-        settings.deadman_or(deadman, DEFAULT_TIMEOUT_S),
-        foxglove,
-        allow_origins,
-        domain_id if ros2 else None,
-    )
+    fronts: dict[str, dict[str, Any]] = {
+        "fleet": dict(
+            name=name,
+            zenoh=settings.zenoh,
+            zenoh_config=settings.zenoh_config,
+            connect=connect,
+            listen=listen,
+            encoding=encoding,
+        )
+    }
+    if foxglove is not None:
+        fronts["foxglove"] = dict(
+            host=foxglove[0], port=foxglove[1], encoding=encoding, allow_origins=allow_origins, beside=True
+        )
+    if ros2:
+        fronts["ros2"] = dict(namespace=f"/{name}", domain_id=domain_id)
+    for front in fronts:  # each absent package said before anything opens, the flag that needs it named
+        require_front_end(front, "the fleet" if front == "fleet" else f"fleet serve --{front}")
     with ServerEnd(f"fleet serve {name}", as_json=settings.as_json) as end:
-        run_serve(settings, options, report=end.reporter(summary_line))
+        serve_robot(
+            settings,
+            fronts,
+            rate=rate,
+            deadman=settings.deadman_or(deadman, DEFAULT_TIMEOUT_S),
+            robot=name,
+            needed_by=f"fleet serve {name}",
+            report=end.reporter(summary_line("fleet")),
+        )
 
 
 def _ros2_name(name: str) -> None:

@@ -52,13 +52,15 @@ def ros2(
     the pip command). Runs until Ctrl-C; with --json a summary is printed
     at the end.
     """
-    from ..extras import require
+    from ..served.frontends import require_front_end, serve, summary_line
 
-    require("cyclonedds", "ros2", "hcrctl ros2")
-    from ..ros2.frontend import Ros2Options, run_ros2, summary_line
-
-    options = Ros2Options(
-        namespace, domain_id, rate, settings.deadman_or(deadman, DEFAULT_TIMEOUT_S), stamped
-    )
+    require_front_end("ros2", "hcrctl ros2")
     with ServerEnd("ros2", as_json=settings.as_json) as end:
-        run_ros2(settings, options, report=end.reporter(summary_line))
+        serve(
+            settings,
+            {"ros2": dict(namespace=namespace, domain_id=domain_id, stamped=stamped)},
+            rate=rate,
+            deadman=settings.deadman_or(deadman, DEFAULT_TIMEOUT_S),
+            needed_by="hcrctl ros2",
+            report=end.reporter(summary_line("ros2")),
+        )

@@ -5,11 +5,11 @@ message the feed yields goes to Zenoh as its topic (``Publishers``); the
 robot's queryables (``read/*``, ``write``, ``info``, ``drive``) answer
 through the same link; the fleet's ``cmd_vel`` is offered to the one motion
 governor (one driver at a time, the deadman on the robot's own clock, stop
-when the driver's liveliness token goes). With ``--foxglove`` the bridge's
-front end (``foxglove.bridge.Foxglove``) serves beside it, every bridge option
-included, and its clients' ``/cmd_vel`` is one more source of that governor.
-Each front end tells its own sources why they were stopped; the fleet's
-``status`` also carries the stops that name no source (a bumper, a lost port).
+when the driver's liveliness token goes). With ``--foxglove`` or ``--ros2``
+the CLI composes those front ends beside this one (``served.frontends``); this
+module knows none of them. Each front end tells its own sources why they
+were stopped; the fleet's ``status`` also carries the stops that name no
+source (a bumper, a lost port).
 
 How it ends is the runtime's: Ctrl-C, SIGTERM or SIGHUP (a flag the loop
 reads, so the subscribers go first, then the governor, then the final stop),
@@ -24,7 +24,6 @@ publishing a late reply while the main thread undeclares them).
 from __future__ import annotations
 
 import contextlib
-import sys
 import threading
 import time
 from collections.abc import Callable
@@ -32,9 +31,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from .. import __version__
-from ..extras import require
-from ..link.context import Connection
-from ..link.rescue import DEADMAN_S
 from ..link.signals import Terminated
 from ..link.zenoh import keyspace
 from ..link.zenoh.join import FleetError, Where, beyond_loopback, import_zenoh, open_member
@@ -42,9 +38,9 @@ from ..motion.bumpers import freshness_bound
 from ..motion.governor import Kind, Late, Source, refusal
 from ..protocol import commands as C
 from ..recording.progress import sweeps
-from ..served.feed import Feed
 from ..served.notes import Notes
-from ..served.runtime import FrontEnd, Report, ServedRobot, exposed
+from ..served.runtime import FrontEnd, exposed
+from ..served.view import RuntimeView
 from . import queries
 from .drive import BadMotion, FleetDrive, named, operator_source
 from .publish import Publishers
@@ -52,7 +48,6 @@ from .publish import Publishers
 if TYPE_CHECKING:
     from ..link.client import Robot
 
-PREFIX = "hcrctl: fleet: "
 #: How long to look for another process serving the same name before declaring ours.
 NAME_CHECK_S = 2.0
 #: How many times it is asked (a reply can miss a session connected a moment ago).
@@ -63,66 +58,21 @@ NAME_SETTLE_S = 0.1
 LATE_SAY_S = 1.0
 
 
-@dataclass
-class ServeOptions:
-    """What ``hcrctl fleet serve`` was asked for (validated by the CLI)."""
+@dataclass(frozen=True, kw_only=True)
+class FleetOptions:
+    """The fleet's options (validated by the CLI); the rate and the deadman are the runtime's."""
 
     name: str
+    #: Where the fleet is (the global ``--zenoh``, ``--zenoh-config``) and this serve's own endpoints.
+    zenoh: tuple[str, ...] = ()
+    zenoh_config: str | None = None
     connect: tuple[str, ...] = ()
     listen: tuple[str, ...] = ()
-    rate: float | None = 10.0
     encoding: str = "json"
-    deadman: float = DEADMAN_S
-    #: Also serve the Foxglove bridge here (host, port).
-    foxglove: tuple[str, int] | None = None
-    #: Web pages beyond loopback and Foxglove's app that may connect to ``foxglove``.
-    allow_origins: tuple[str, ...] = ()
-    #: Also be a ROS 2 node on this DDS domain, the robot's name its namespace.
-    ros2: int | None = None
 
-
-def where_of(settings: Connection, options: ServeOptions) -> Where:
-    return Where(settings.zenoh, (), settings.zenoh_config).joined(options.connect, options.listen)
-
-
-def run_serve(settings: Connection, options: ServeOptions, *, report: Report | None = None) -> dict[str, Any]:
-    """Serve until a signal or a failure; the summary (also given to ``report``, however it ends)."""
-    notes = Notes(sys.stderr, PREFIX)
-    served = ServedRobot(
-        settings, notes, rate=options.rate, deadman=options.deadman, silence="no cmd_vel", name=options.name
-    )
-    fronts: list[FrontEnd] = [Fleet(served, settings, options, notes)]
-    if options.foxglove is not None:
-        fronts.append(_foxglove(served, options, options.foxglove, notes))
-    if options.ros2 is not None:
-        fronts.append(_ros2(served, options, notes))
-    return served.run(fronts, report=report)
-
-
-def _foxglove(served: ServedRobot, options: ServeOptions, at: tuple[str, int], notes: Notes) -> FrontEnd:
-    """The bridge's front end on the same feed and governor, with the bridge's options."""
-    from ..foxglove.bridge import BridgeOptions, Foxglove, require_foxglove
-
-    require_foxglove("fleet serve --foxglove")
-    bridge = BridgeOptions(
-        host=at[0],
-        port=at[1],
-        rate=options.rate,
-        timeout=options.deadman,
-        encoding=options.encoding,
-        allow_origins=options.allow_origins,
-    )
-    return Foxglove(served, bridge, notes, beside=True)
-
-
-def _ros2(served: ServedRobot, options: ServeOptions, notes: Notes) -> FrontEnd:
-    """The ROS 2 node on the same feed and governor, in the robot's name as its namespace."""
-    from ..ros2.frontend import Ros2Node, Ros2Options
-
-    require("cyclonedds", "ros2", "fleet serve --ros2")
-    assert options.ros2 is not None
-    ros2 = Ros2Options(f"/{options.name}", options.ros2, options.rate, options.deadman)
-    return Ros2Node(served, ros2, notes)
+    @property
+    def where(self) -> Where:
+        return Where(self.zenoh, (), self.zenoh_config).joined(self.connect, self.listen)
 
 
 def _refuse_taken(session: Any, name: str) -> None:
@@ -156,49 +106,44 @@ class Fleet(FrontEnd):
 
     label = "fleet"
 
-    def __init__(
-        self, served: ServedRobot, settings: Connection, options: ServeOptions, notes: Notes
-    ) -> None:
+    def __init__(self, view: RuntimeView, notes: Notes, options: FleetOptions) -> None:
         self.zenoh = import_zenoh()
-        self.where = where_of(settings, options)
+        self.where = options.where
         self.name = options.name
         self.options = options
         self.notes = notes
-        self.governor = served.governor
-        self.served = served
+        self.governor = view.governor
+        self.view = view
         self.started = time.time()
         self.answers = queries.Answers()
         #: A read is answered from the sweep when its reply is at most this old (the bumper rule's bound).
-        self.fresh = freshness_bound(options.rate)
-        self.drive = FleetDrive(self.name, served.governor, self.say, self._profile)
+        self.fresh = freshness_bound(view.rate)
+        self.drive = FleetDrive(self.name, view.governor, self.say, self._profile)
         self.declared: list[Any] = []
         self.session: Any = None
         self.publishers: Publishers | None = None
         self._late_said = -LATE_SAY_S
-        served.governor.attach(on_late=self.renewal_late)
+        view.governor.attach(on_late=self.renewal_late)
 
     # -- the front end's hooks --------------------------------------------------------
 
-    def open(self, served: ServedRobot) -> None:
+    def open(self, view: RuntimeView) -> None:
         """Join the fleet (refused if the name is served already) and declare the publishers."""
         for endpoint in beyond_loopback(self.where.listen):
             exposed(endpoint)
-        self.session = open_member(self.where, lambda: bool(served.signalled), self.notes.note)
+        self.session = open_member(self.where, lambda: view.signum is not None, self.notes.note)
         if self.session is None:
-            raise Terminated(served.signalled.signum or 0)
+            raise Terminated(view.signum or 0)
         _refuse_taken(self.session, self.name)
-        self.publishers = Publishers(
-            self.zenoh, self.session, self.name, served.topics, self.options.encoding
-        )
+        self.publishers = Publishers(self.zenoh, self.session, self.name, view.topics, self.options.encoding)
 
     def publish(self, topic: str, message: dict[str, Any], at: float) -> None:
         if self.publishers is not None:
             self.publishers.publish(topic, message, at)
 
-    def start(self, served: ServedRobot) -> str:
-        feed = served.feed
-        self.turnstile = queries.Turnstile(feed.poller.paused, lambda: feed.state.last_sweep)
-        self.declare(served.sensors)
+    def start(self, view: RuntimeView) -> str:
+        self.turnstile = queries.Turnstile(view.poller_pause, view.last_sweep)
+        self.declare(list(view.sensors))
         return f"{self.name} ({self.robot.port}) as {keyspace.ROOT}/{self.name}/..."
 
     def stopped(self, source: Source | None, why: str) -> None:
@@ -239,7 +184,7 @@ class Fleet(FrontEnd):
             "ignored": drive.ignored,
             "refused": drive.refused,
             "stops": drive.stops,
-            "late_renewals": self.governor.lease.late,
+            "late_renewals": self.view.counters()["late_renewals"],
         }
 
     def _quietly(self, what: str, step: Callable[[], None]) -> None:
@@ -257,11 +202,7 @@ class Fleet(FrontEnd):
 
     @property
     def robot(self) -> Robot:
-        return self.served.robot
-
-    @property
-    def feed(self) -> Feed:
-        return self.served.feed
+        return self.view.robot
 
     def say(self, op: keyspace.Who | None, said: str | keyspace.Status, seq: int | None = None) -> None:
         """A word to the operators (``status``, built by ``keys``) and a line on stderr.
@@ -342,7 +283,7 @@ class Fleet(FrontEnd):
                 message = queries.payload_object(query)
                 robot = self.robot
                 address = queries.address_of(message, robot)
-                body = queries.swept(robot, cmd, self.feed.heard(address, cmd.code), self.fresh)
+                body = queries.swept(robot, cmd, self.view.heard(address, cmd.code), self.fresh)
             except Exception as exc:  # a bad payload, an impossible reply: the querier's answer
                 queries.send_reply(query, key, (False, queries.error_body(exc)))
                 return
@@ -394,20 +335,15 @@ class Fleet(FrontEnd):
         queries.send_reply(query, key, answer)
 
     def _info(self, message: dict[str, Any]) -> dict[str, Any]:
-        robot, options = self.robot, self.options
-        counters: dict[str, Any] = {name: getattr(robot.stats, name) for name in Feed.counters}
+        robot, options, view = self.robot, self.options, self.view
+        counters = view.counters()
         drive = self.drive.counters
         counters.update(
-            sweeps=self.feed.state.summary().get("sweeps", 0),
-            messages=self.feed.messages,
             cmd_vel=drive.cmd_vel,
             ignored=drive.ignored,
             refused=drive.refused,
             stops=drive.stops,
             unadmitted=drive.unadmitted,
-            drive_frames=self.governor.frames,
-            late_renewals=self.governor.lease.late,
-            longest_renewal_gap_ms=round(self.governor.lease.longest_gap * 1e3, 1),
             queries=self.answers.answered,
             queries_failed=self.answers.failed,
         )
@@ -418,10 +354,10 @@ class Fleet(FrontEnd):
             "baud": getattr(robot.serial, "baudrate", None),
             "address": robot.address,
             "driver": named(self.governor.driver),
-            "deadman": self.governor.lease.deadman,
+            "deadman": view.deadman,
             "encoding": options.encoding,
-            "rate": options.rate,
-            "sensors": list(self.feed.state.sensors),
+            "rate": view.rate,
+            "sensors": list(view.sensors),
             "started": self.started,
             "hcrctl": __version__,
             "counters": counters,
@@ -453,8 +389,10 @@ def _bytes(data: Any) -> bytes | None:
 
 
 def summary_line(summary: dict[str, Any]) -> str:
+    """The closing line of a run the fleet spoke for (``fleet serve``)."""
+    fleet = summary["fleet"]
     return (
-        f"fleet serve {summary['name']}: {sweeps(summary)}, {summary['published']} messages published, {summary['queries']} queries answered, "
-        f"{summary['cmd_vel']} cmd_vel ({summary['ignored']} ignored, {summary['refused']} refused), "
+        f"fleet serve {fleet['name']}: {sweeps(summary)}, {fleet['published']} messages published, {fleet['queries']} queries answered, "
+        f"{fleet['cmd_vel']} cmd_vel ({fleet['ignored']} ignored, {fleet['refused']} refused), "
         f"{summary['drive_frames']} drive frame(s)"
     )

@@ -7,7 +7,8 @@ file. A client may drive through ``/cmd_vel`` (``CmdVelSource``): its
 messages are offers to the motion governor, which alone writes motion, runs
 the deadman on its own clock and stops; a client stopped for any reason but
 its own message is told why on its ``status``. ``hcrctl bridge`` is this
-front end alone; ``fleet serve --foxglove`` is it beside the fleet's.
+front end alone; ``fleet serve --foxglove`` is it beside the fleet's (both
+composed from the table of front ends, ``served.frontends``).
 
 How it ends is the runtime's: ``--duration``, Ctrl-C, SIGTERM or SIGHUP, or a
 failure; stop goes out whenever motion was sent, and the run's summary is
@@ -17,18 +18,16 @@ printed however it ends, so the bench can compare the sweep rate with
 
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from ..link.context import Connection
 from ..link.loopback import is_loopback
 from ..motion.governor import Kind, Source
 from ..recording.progress import sweeps
-from ..served.cmdvel import DEFAULT_TIMEOUT_S, TOPIC
 from ..served.notes import Notes
-from ..served.runtime import FrontEnd, Report, ServedRobot, exposed, status_line, ws_url
-from .statusline import BridgeStatus
+from ..served.runtime import FrontEnd, exposed
+from ..served.view import RuntimeView
+from .statusline import status_line, ws_url
 
 if TYPE_CHECKING:
     from .publish import Server
@@ -37,20 +36,19 @@ if TYPE_CHECKING:
 PROTOCOLS = "Foxglove WebSocket: foxglove.sdk.v1 or foxglove.websocket.v1"
 
 
-@dataclass
+@dataclass(frozen=True, kw_only=True)
 class BridgeOptions:
-    """What ``hcrctl bridge`` was asked for (validated by the CLI)."""
+    """The Foxglove server's options (validated by the CLI); the rate and the deadman are the runtime's."""
 
     host: str = "127.0.0.1"
     port: int = 8765
     mcap: str | None = None
-    rate: float | None = 10.0
-    duration: float | None = None
-    timeout: float = DEFAULT_TIMEOUT_S
     #: ``json`` (JSON Schema) or ``cdr`` (ROS 2 message definitions, for PlotJuggler).
     encoding: str = "json"
     #: Web pages beyond loopback and Foxglove's app that may connect (``untrusted.origin_allowed``).
     allow_origins: tuple[str, ...] = ()
+    #: Serving beside another front end: its part of the serving line is ``Foxglove on URL``.
+    beside: bool = False
 
 
 def require_foxglove(needed_by: str, *, mcap: bool = False) -> None:
@@ -67,25 +65,23 @@ def require_foxglove(needed_by: str, *, mcap: bool = False) -> None:
 class Foxglove(FrontEnd):
     """The Foxglove WebSocket server (and the ``--mcap`` recording) as a front end of a served robot.
 
-    ``beside``: serving beside another front end, its part of the serving line
-    is ``Foxglove on URL``; alone, ``on URL (the protocols)``.
+    ``options.beside``: serving beside another front end, its part of the
+    serving line is ``Foxglove on URL``; alone, ``on URL (the protocols)``.
     """
 
     label = "Foxglove server"
 
-    def __init__(
-        self, served: ServedRobot, options: BridgeOptions, notes: Notes, *, beside: bool = False
-    ) -> None:
+    def __init__(self, view: RuntimeView, notes: Notes, options: BridgeOptions) -> None:
         from .drive import CmdVelSource
         from .publish import Server
 
         if not is_loopback(options.host):
             exposed(options.host)
-        self.beside = beside
+        self.beside = options.beside
         self.notes = notes
-        cmd_vel = CmdVelSource(served.governor, notes.note) if served.drives else None
+        cmd_vel = CmdVelSource(view.governor, notes.note) if view.drives else None
         self.server: Server = Server(
-            served.topics,
+            view.topics,
             options.host,
             options.port,
             options.mcap,
@@ -99,15 +95,15 @@ class Foxglove(FrontEnd):
     def url(self) -> str:
         return ws_url(self.server.host, self.server.bound_port)
 
-    def open(self, served: ServedRobot) -> None:
+    def open(self, view: RuntimeView) -> None:
         """Bind before the robot's port opens: an address in use fails at once with nothing sent."""
         self.server.__enter__()
 
     def publish(self, topic: str, message: dict[str, Any], at: float) -> None:
         self.server.publish(topic, message, at)
 
-    def start(self, served: ServedRobot) -> str:
-        self.notes.watch(status_line(served, lambda: len(self.server.ws.sessions)))
+    def start(self, view: RuntimeView) -> str:
+        self.notes.watch(status_line(view, lambda: len(self.server.ws.sessions)))
         if self.beside:
             return f"Foxglove on {self.url}"
         return f"on {self.url} ({PROTOCOLS})"
@@ -134,25 +130,10 @@ class Foxglove(FrontEnd):
         }
 
 
-def run_bridge(
-    settings: Connection, options: BridgeOptions, *, report: Report | None = None
-) -> dict[str, Any]:
-    """Serve until the duration ends or a signal; the summary (also given to ``report``, however it ends)."""
-    status = BridgeStatus(sys.stderr)
-    served = ServedRobot(
-        settings,
-        status,
-        rate=options.rate,
-        deadman=options.timeout,
-        silence=f"no {TOPIC}",
-        duration=options.duration,
-    )
-    return served.run([Foxglove(served, options, status)], report=report)
-
-
 def summary_line(summary: dict[str, Any]) -> str:
+    """The closing line of a run the Foxglove server spoke for (``bridge``)."""
     return (
         f"bridge: {sweeps(summary)}, "
-        f"{summary['messages']} messages, at most {summary['clients_most']} client(s), "
+        f"{summary['messages']} messages, at most {summary['foxglove']['clients_most']} client(s), "
         f"{summary['drive_frames']} drive frame(s)"
     )

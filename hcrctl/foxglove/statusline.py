@@ -11,18 +11,20 @@ the poll loop, so a terminal that stops reading delays this text and nothing els
 from __future__ import annotations
 
 import threading
+import time
+from collections.abc import Callable
 from typing import TextIO
 
 from ..served.notes import Notes, StatusLine
+from ..served.view import RuntimeView
 
 PERIOD = 0.5
-PREFIX = "hcrctl: bridge: "
 
 
 class BridgeStatus(Notes):
     """``Notes`` whose ``watch`` redraws a status line under the events, on a terminal only."""
 
-    def __init__(self, stream: TextIO, prefix: str = PREFIX) -> None:
+    def __init__(self, stream: TextIO, prefix: str) -> None:
         super().__init__(stream, prefix)
         self.live = stream.isatty()
         self._done = threading.Event()
@@ -59,3 +61,23 @@ class BridgeStatus(Notes):
                 self.stream.flush()
             except (OSError, ValueError):
                 pass  # stderr gone: the bridge carries on without its status
+
+
+def ws_url(host: str, port: int) -> str:
+    """A WebSocket URL as a client types it: an IPv6 host in brackets."""
+    return f"ws://[{host}]:{port}" if ":" in host else f"ws://{host}:{port}"
+
+
+def status_line(view: RuntimeView, clients: Callable[[], int]) -> StatusLine:
+    """A terminal's status line: clients, messages a second, who drives."""
+    last = [time.monotonic(), 0]
+
+    def line() -> str:
+        now, messages = time.monotonic(), view.messages
+        rate = (messages - last[1]) / max(now - float(last[0]), 1e-9)
+        last[:] = [now, messages]
+        driver = view.governor.driver
+        who = f"{driver} driving" if driver else "not driving"
+        return f"{clients()} client(s) · {rate:,.0f} messages/s · {messages:,} sent · {who}"
+
+    return line

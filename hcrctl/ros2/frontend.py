@@ -16,7 +16,6 @@ runtime's stderr line is the only word of it.
 
 from __future__ import annotations
 
-import sys
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -24,51 +23,40 @@ from typing import Any
 from ..protocol import ros2conv
 from ..protocol import ros2types as R
 from ..recording.progress import sweeps
-from ..served.cmdvel import DEFAULT_TIMEOUT_S
 from ..served.notes import Notes
-from ..served.runtime import FrontEnd, Report, ServedRobot
+from ..served.runtime import FrontEnd
+from ..served.view import RuntimeView
 from .drive import TOPIC, RosCmdVel
 from .node import Node
 
-PREFIX = "hcrctl: ros2: "
 
-
-@dataclass
+@dataclass(frozen=True, kw_only=True)
 class Ros2Options:
-    """What ``hcrctl ros2`` was asked for (validated by the CLI)."""
+    """The node's options (validated by the CLI); the rate and the deadman are the runtime's."""
 
     namespace: str = ""
     domain_id: int = 0
-    rate: float | None = 10.0
-    deadman: float = DEFAULT_TIMEOUT_S
     #: cmd_vel as geometry_msgs/msg/TwistStamped (teleop_twist_keyboard's ``stamped``), else Twist.
     stamped: bool = False
-
-
-def run_ros2(settings: Any, options: Ros2Options, *, report: Report | None = None) -> dict[str, Any]:
-    """Serve until a signal or a failure; the summary (also given to ``report``, however it ends)."""
-    notes = Notes(sys.stderr, PREFIX)
-    served = ServedRobot(settings, notes, rate=options.rate, deadman=options.deadman, silence=f"no {TOPIC}")
-    return served.run([Ros2Node(served, options, notes)], report=report)
 
 
 class Ros2Node(FrontEnd):
     """The served robot on DDS: readings out as ROS 2 messages, ``cmd_vel`` in as offers."""
 
-    name = "ROS 2 node"
+    label = "ROS 2 node"
 
-    def __init__(self, served: ServedRobot, options: Ros2Options, notes: Notes) -> None:
+    def __init__(self, view: RuntimeView, notes: Notes, options: Ros2Options) -> None:
         self.options = options
         self.notes = notes
-        self.converter = ros2conv.Converter(ros2conv.current_layout(), served.topics)
+        self.converter = ros2conv.Converter(ros2conv.current_layout(), view.topics)
         #: The standard topics only: what has no standard type stays off DDS (see the module).
         self.topics = [t for t in self.converter.topics if not t.type.startswith("hcrctl_msgs/")]
         self._published = {t.name for t in self.topics}
-        self.cmd_vel = RosCmdVel(served.governor, notes.note)
+        self.cmd_vel = RosCmdVel(view.governor, notes.note)
         self.node: Node | None = None
         self.messages = 0
 
-    def open(self, served: ServedRobot) -> None:
+    def open(self, view: RuntimeView) -> None:
         """Join the DDS domain, make every writer and latch ``/tf_static``: before the port opens."""
         self.node = node = Node(self.options.domain_id, self.options.namespace)
         node.advertise(self.topics)
@@ -80,15 +68,13 @@ class Ros2Node(FrontEnd):
             if name in self._published and self.node.publish(name, fields):
                 self.messages += 1
 
-    def start(self, served: ServedRobot) -> str:
+    def start(self, view: RuntimeView) -> str:
         assert self.node is not None
-        if served.drives:
+        if view.drives:
             kind = R.TWIST_STAMPED if self.options.stamped else R.TWIST
             topic = ros2conv.RosTopic(TOPIC, kind, ros2conv.CMD_VEL_QOS)
             self.node.subscribe(topic, self.cmd_vel.message, self.cmd_vel.gone, self.notes.note)
-        return (
-            f"{served.robot.port} as ROS 2 node {self.node.fullname} on DDS domain {self.options.domain_id}"
-        )
+        return f"{view.robot.port} as ROS 2 node {self.node.fullname} on DDS domain {self.options.domain_id}"
 
     def close(self) -> None:
         if self.node is not None:
@@ -100,17 +86,18 @@ class Ros2Node(FrontEnd):
             self.node.close()
 
     def summary(self) -> dict[str, Any]:
-        """Its own keys, ``ros2_`` first: beside ``fleet serve``'s in one summary, none may clash."""
         return {
-            "ros2_messages": self.messages,
-            "ros2_cmd_vel": self.cmd_vel.taken,
-            "ros2_cmd_vel_refused": self.cmd_vel.refused,
+            "messages": self.messages,
+            "cmd_vel": self.cmd_vel.taken,
+            "cmd_vel_refused": self.cmd_vel.refused,
         }
 
 
 def summary_line(summary: dict[str, Any]) -> str:
+    """The closing line of a run the node spoke for (``hcrctl ros2``)."""
+    ros2 = summary["ros2"]
     return (
-        f"ros2: {sweeps(summary)}, {summary['ros2_messages']} ROS 2 messages, "
-        f"{summary['ros2_cmd_vel']} cmd_vel taken, {summary['ros2_cmd_vel_refused']} refused, "
+        f"ros2: {sweeps(summary)}, {ros2['messages']} ROS 2 messages, "
+        f"{ros2['cmd_vel']} cmd_vel taken, {ros2['cmd_vel_refused']} refused, "
         f"{summary['drive_frames']} drive frame(s)"
     )

@@ -1,19 +1,22 @@
 """``ServedRobot``: one robot served to the network, whatever front ends reach it.
 
-How a front end plugs in: subclass ``FrontEnd`` and override only what it
-needs, then hand it to ``ServedRobot.run``::
+How a front end plugs in: subclass ``FrontEnd`` (its ``label`` is required),
+override only what it needs, and hand it to ``ServedRobot.run`` under the
+name its summary goes under (the table ``served.frontends`` does this for
+the commands)::
 
     served = ServedRobot(settings, notes, rate=10.0, deadman=0.5, silence="no /cmd_vel")
-    node = MyNode(served.governor, notes)        # its sources offer to served.governor
-    summary = served.run([node], report=report)
+    node = MyNode(served.view, notes)        # its sources offer to view.governor
+    summary = served.run({"mine": node}, report=report)
 
+A front end sees the runtime only through ``served.view`` (``view.RuntimeView``).
 ``run`` calls each front end, in order:
 
-- ``open(served)`` before the robot's port opens (bind a socket, join a
+- ``open(view)`` before the robot's port opens (bind a socket, join a
   network): a failure there fails the run with nothing sent;
 - ``publish(topic, message, at)`` for every message the feed yields, from the
   link's threads, one call at a time (the feed holds a lock);
-- ``start(served)`` after the first sweep (the bumper rule has a reading):
+- ``start(view)`` after the first sweep (the bumper rule has a reading):
   declare what clients may use; it returns its part of the one "serving ..."
   line ("" for none);
 - ``stopped(source, why)`` on the governor's thread, for every stop but a new
@@ -24,19 +27,22 @@ needs, then hand it to ``ServedRobot.run``::
   its sources offer nothing;
 - ``finish()`` last, however the run ended (a failure there is a note: the
   robot is stopped by then);
-- ``summary()`` what it adds to the run's summary.
+- ``summary()`` its part of the run's summary, under its name (its keys
+  never meet another's).
 
 The runtime owns the rest: the signals (a flag the loop reads; a second
 signal, or one once closing, raises ``Terminated``), the governor (the bumper
 rule, the stop listeners, the link watch as where it writes), the final stop
 to the robot driven then (``stopping_driven``), the governor's error, and the
 summary, handed to ``report`` however the run ends once the robot was open.
+A failure in ``close`` or ``finish`` is a note naming the front end by its
+``label``: the robot is stopped regardless.
 """
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable, Sequence
+import contextlib
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 from ..link.context import Connection, Reconnect
@@ -54,6 +60,7 @@ from .feed import Feed
 from .linkwatch import LinkWatch
 from .notes import Notes
 from .untrusted import shown
+from .view import RuntimeView
 
 if TYPE_CHECKING:
     from ..link.client import Robot
@@ -87,24 +94,29 @@ def exposed(where: str, what: str = "can drive the robot") -> None:
     warn(f"listening on {where}: anyone on the network who can reach it {what}")
 
 
-def ws_url(host: str, port: int) -> str:
-    """A WebSocket URL as a client types it: an IPv6 host in brackets."""
-    return f"ws://[{host}]:{port}" if ":" in host else f"ws://{host}:{port}"
-
-
 class FrontEnd:
-    """One way the served robot is reached; every hook does nothing unless overridden (see the module)."""
+    """One way the served robot is reached; every hook does nothing unless overridden (see the module).
+
+    ``label`` is required of every subclass, as a class attribute: it names
+    the front end in a note about its own failure ("closing the Foxglove
+    server failed"), so a class without one is refused when it is defined.
+    """
 
     #: How it is named in a note about its own failure.
-    label = "front end"
+    label: str
 
-    def open(self, served: ServedRobot) -> None:
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if not isinstance(getattr(cls, "label", None), str) or not cls.label:
+            raise TypeError(f"front end {cls.__name__} has no label (a class attribute naming it)")
+
+    def open(self, view: RuntimeView) -> None:
         """Before the robot's port opens."""
 
     def publish(self, topic: str, message: dict[str, Any], at: float) -> None:
         """One message of the feed; ``at`` in seconds since the epoch."""
 
-    def start(self, served: ServedRobot) -> str:
+    def start(self, view: RuntimeView) -> str:
         """After the first sweep; its part of the "serving ..." line ("" for none)."""
         return ""
 
@@ -121,6 +133,7 @@ class FrontEnd:
         """Last, however the run ended: release what ``open`` took."""
 
     def summary(self) -> dict[str, Any]:
+        """Its part of the run's summary (under its name there)."""
         return {}
 
 
@@ -142,14 +155,17 @@ class ServedRobot:
         self.notes = notes
         self.rate = rate
         self.duration = duration
+        self.name = name
         self.governor = Governor(C.Velocity, deadman=deadman, silence=silence, robot=name)
         self.signalled = Signalled()
         self.sensors: list[str] = supported_sensors(settings.protocol, [])
         #: Whether the firmware has the velocity command a Twist becomes.
         self.drives = profile(settings.protocol).has(C.BY_NAME["velocity"].code)
         self.topics: tuple[Topic, ...] = tuple(all_topics(Feed.counters))
+        #: All a front end sees of this runtime.
+        self.view = RuntimeView(self)
         self._feed: Feed | None = None
-        self._fronts: Sequence[FrontEnd] = ()
+        self._fronts: dict[str, FrontEnd] = {}
 
     @property
     def feed(self) -> Feed:
@@ -162,35 +178,31 @@ class ServedRobot:
         """The robot polled now (after a reconnect, the new one; the first while the port is gone)."""
         return self.feed.current or self.feed.robot
 
-    def run(self, fronts: Sequence[FrontEnd], *, report: Report | None = None) -> dict[str, Any]:
-        """Serve until the duration, a signal or a failure; the summary (also to ``report``, however it ends)."""
-        self._fronts = fronts
+    def run(self, fronts: Mapping[str, FrontEnd], *, report: Report | None = None) -> dict[str, Any]:
+        """Serve until the duration, a signal or a failure; the summary (also to ``report``, however it ends).
+
+        ``fronts``: each front end under the name its part of the summary goes under.
+        """
+        self._fronts = dict(fronts)
         summary: dict[str, Any] = {}
-        opened: list[FrontEnd] = []
-        with stop_signals_handled(self.signalled):
-            try:
-                self._open(opened)
-                self._serve()
-            finally:
-                try:
-                    for front in reversed(opened):
-                        self._quietly(f"closing the {front.label}", front.finish)
-                finally:  # the summary however it ends, even at a second signal during the closing
-                    if self._feed is not None:
-                        summary = self.summary()
-                        if report is not None:
-                            report(summary)
+
+        def summed() -> None:  # however it ends, even at a second signal during the closing
+            if self._feed is not None:
+                summary.update(self.summary())
+                if report is not None:
+                    report(summary)
+
+        with stop_signals_handled(self.signalled), contextlib.ExitStack() as ending:
+            ending.callback(summed)
+            for front in self._fronts.values():
+                front.open(self.view)
+                ending.callback(self._quietly, front, front.finish)
+                if self.signalled:
+                    raise Terminated(self.signalled.signum or 0)
+            self._serve()
         if self.signalled.signum is not None:
             raise Terminated(self.signalled.signum)
         return summary
-
-    def _open(self, opened: list[FrontEnd]) -> None:
-        """Each front end opened in turn (kept in ``opened`` to be finished); a signal meanwhile ends it."""
-        for front in self._fronts:
-            front.open(self)
-            opened.append(front)
-            if self.signalled:
-                raise Terminated(self.signalled.signum or 0)
 
     def _serve(self) -> None:
         """Poll and publish, drive when asked, until the end; stop goes out however it ends."""
@@ -200,7 +212,7 @@ class ServedRobot:
                 robot, self.sensors, self.rate, self._publish, reconnect=Reconnect(self.settings, robot)
             )
             governor.attach(bumpers=bumper_rule(feed.state, self.rate), on_stop=self._said_stop)
-            for front in self._fronts:
+            for front in self._fronts.values():
                 governor.attach(on_stop=front.stopped)
             try:
                 with feed, stopping_driven(feed, robot, lambda: governor.driven), governor:
@@ -217,7 +229,7 @@ class ServedRobot:
 
         def ended() -> bool:
             watch.check()
-            for front in self._fronts:
+            for front in self._fronts.values():
                 front.tick()
             return bool(self.signalled) or self.governor.error is not None
 
@@ -225,49 +237,37 @@ class ServedRobot:
             self.feed.run(self.duration, ended)
         finally:
             self.signalled.closing = True
-            for front in self._fronts:
-                self._quietly(f"closing the {front.label}", front.close)
+            for front in self._fronts.values():
+                self._quietly(front, front.close)
 
     def _started(self, robot: Robot) -> None:
-        parts = [part for part in (front.start(self) for front in self._fronts) if part]
+        parts = [part for part in (front.start(self.view) for front in self._fronts.values()) if part]
         self.notes.note(f"serving {'; '.join(parts)}; Ctrl-C ends it")
         if not self.drives:
             self.notes.note(f"this firmware ({robot.profile.name}) has no velocity command: nobody can drive")
 
     def _publish(self, topic: str, message: dict[str, Any], at: float) -> None:
-        for front in self._fronts:
+        for front in self._fronts.values():
             front.publish(topic, message, at)
 
     def _said_stop(self, source: Source | None, why: str) -> None:
         self.notes.note(f"stopped: {shown(why, 120)}")
 
-    def _quietly(self, what: str, step: Callable[[], None]) -> None:
-        """A step of the closing: a failure is a note (stop has gone out, or goes out regardless)."""
+    def _quietly(self, front: FrontEnd, step: Callable[[], None]) -> None:
+        """A step of the closing: a failure is a note naming the front end (stop has gone out, or goes out
+        regardless)."""
         try:
             step()
         except Exception as exc:
-            self.notes.note(f"{what} failed (ignored): {exc!r}")
+            self.notes.note(f"closing the {front.label} failed (ignored): {exc!r}")
 
     def summary(self) -> dict[str, Any]:
-        """The feed's summary (sweeps, sweeps_per_s...), the messages and drive frames, and each front end's."""
+        """The feed's summary (sweeps, sweeps_per_s...), the messages and drive frames; each front end's
+        part under its name, so no front end's key can meet another's or the runtime's."""
         feed = self.feed
         summary = dict(feed.state.summary())
         summary.update(messages=feed.messages, drive_frames=self.governor.frames)
-        for front in self._fronts:
-            summary.update(front.summary())
+        for name, front in self._fronts.items():
+            assert name not in summary, f"a front end named {name!r} would hide the runtime's {name!r}"
+            summary[name] = front.summary()
         return summary
-
-
-def status_line(served: ServedRobot, clients: Callable[[], int]) -> Callable[[], str]:
-    """A terminal's status line: clients, messages a second, who drives."""
-    last = [time.monotonic(), 0]
-
-    def line() -> str:
-        now, messages = time.monotonic(), served.feed.messages
-        rate = (messages - last[1]) / max(now - float(last[0]), 1e-9)
-        last[:] = [now, messages]
-        driver = served.governor.driver
-        who = f"{driver} driving" if driver else "not driving"
-        return f"{clients()} client(s) · {rate:,.0f} messages/s · {messages:,} sent · {who}"
-
-    return line

@@ -1,0 +1,146 @@
+"""What a front end may see of the runtime it serves: the readings and their age, the lease, the counters.
+
+A front end (``runtime.FrontEnd``) is handed a ``RuntimeView``, never the
+``ServedRobot``: the feed, the poller and the signal flag are the runtime's
+to run, and a front end that reached into them (set the flag, read a
+counter the poller is writing as a field of its own) would tie the runtime's
+insides to every front end. What a front end needs is here, read-only, plus
+the two things it acts through: the motion governor its sources offer to,
+and the poller's pause a query on the serial link holds (``fleet.queries``).
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any, Protocol
+
+from ..motion.governor import Governor
+from ..protocol.topics import Topic
+from .feed import Feed, Heard
+
+if TYPE_CHECKING:
+    from ..link.client import Robot
+
+
+class Flag(Protocol):
+    """The runtime's signal flag, as read here: which stop signal arrived (None: none yet)."""
+
+    @property
+    def signum(self) -> int | None: ...
+
+
+class Served(Protocol):
+    """What the view reads of the runtime (``runtime.ServedRobot``), and nothing a front end reaches."""
+
+    @property
+    def governor(self) -> Governor: ...
+
+    @property
+    def rate(self) -> float | None: ...
+
+    @property
+    def drives(self) -> bool: ...
+
+    @property
+    def topics(self) -> tuple[Topic, ...]: ...
+
+    @property
+    def sensors(self) -> Sequence[str]: ...
+
+    @property
+    def signalled(self) -> Flag: ...
+
+    @property
+    def feed(self) -> Feed: ...
+
+    @property
+    def robot(self) -> Robot: ...
+
+
+class RuntimeView:
+    """The served robot as its front ends see it (``served`` is read through, never handed out)."""
+
+    def __init__(self, served: Served) -> None:
+        self._served = served
+
+    # -- what is served, fixed for the run ------------------------------------------
+
+    @property
+    def name(self) -> str:
+        """The robot's name in what is said about it ("the robot" unless the command named it)."""
+        return self._served.governor.lease.robot
+
+    @property
+    def topics(self) -> tuple[Topic, ...]:
+        return self._served.topics
+
+    @property
+    def sensors(self) -> tuple[str, ...]:
+        return tuple(self._served.sensors)
+
+    @property
+    def rate(self) -> float | None:
+        """The poll rate asked for, Hz (None: as fast as replies come)."""
+        return self._served.rate
+
+    @property
+    def drives(self) -> bool:
+        """Whether the firmware has the velocity command a Twist becomes."""
+        return self._served.drives
+
+    @property
+    def governor(self) -> Governor:
+        """The one motion governor: what a front end's sources offer to (and who drives)."""
+        return self._served.governor
+
+    # -- the run, as it goes ---------------------------------------------------------
+
+    @property
+    def signum(self) -> int | None:
+        """The stop signal that arrived (SIGTERM, SIGHUP), None while none has."""
+        return self._served.signalled.signum
+
+    @property
+    def robot(self) -> Robot:
+        """The robot polled now (after a reconnect, the new one), from ``start`` on."""
+        return self._served.robot
+
+    def heard(self, address: int, command: int) -> Heard | None:
+        """The last reply heard from ``address`` to ``command``: (when, monotonic; its wire bytes; the frame)."""
+        return self._feed.heard(address, command)
+
+    def last_sweep(self) -> float | None:
+        """When the poller's last sweep ended (monotonic; None before the first)."""
+        return self._feed.state.last_sweep
+
+    @property
+    def poller_pause(self) -> threading.Event:
+        """Set while a query holds the serial link: the poller waits (``fleet.queries.Turnstile``)."""
+        return self._feed.poller.paused
+
+    @property
+    def messages(self) -> int:
+        """Messages the feed has published so far."""
+        return self._feed.messages
+
+    @property
+    def deadman(self) -> float:
+        return self._served.governor.lease.deadman
+
+    def counters(self) -> dict[str, Any]:
+        """The link's counters (``Feed.counters``), the sweeps, messages, drive frames and the lease's."""
+        feed, governor = self._feed, self._served.governor
+        counters: dict[str, Any] = {name: getattr(self.robot.stats, name) for name in Feed.counters}
+        counters.update(
+            sweeps=feed.state.summary().get("sweeps", 0),
+            messages=feed.messages,
+            drive_frames=governor.frames,
+            late_renewals=governor.lease.late,
+            longest_renewal_gap_ms=round(governor.lease.longest_gap * 1e3, 1),
+        )
+        return counters
+
+    @property
+    def _feed(self) -> Feed:
+        return self._served.feed
