@@ -148,4 +148,8 @@ def test_fleet_serve_json_summary_is_the_runtimes(lab: Fleet, tmp_path: Path) ->
     assert proc.wait(timeout=TIMEOUT) == 0
     assert proc.stdout is not None
     summary = json.loads(proc.stdout.read())
-    assert summary["fleet"]["name"] == "r1" and summary["foxglove"]["clients_most"] == 1 and summary["sweeps"] > 0
+    assert (
+        summary["fleet"]["name"] == "r1"
+        and summary["foxglove"]["clients_most"] == 1
+        and summary["sweeps"] > 0
+    )

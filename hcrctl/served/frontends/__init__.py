@@ -128,4 +128,3 @@ def serve(
     )
     built = {name: build(name, served, notes, options) for name, options in fronts.items()}
     return served.run(built, report=report)
-
