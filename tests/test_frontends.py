@@ -10,6 +10,7 @@ put in a row, builds it with the options each command was given.
 
 from __future__ import annotations
 
+import ast
 import dataclasses
 import io
 import json
@@ -337,3 +338,28 @@ def test_every_rows_options_are_keyword_only() -> None:
         options: Callable[..., Any] = named(row.options)
         assert dataclasses.is_dataclass(options), name
         assert all(f.kw_only for f in dataclasses.fields(options)), name
+
+
+# -- what a front end may see -----------------------------------------------------------------------------
+
+#: The runtime's insides: a front end reads what it needs through ``RuntimeView``, never these.
+INSIDES = {"signalled", "poller", "feed", "stats", "served", "lease"}
+FRONT_END_PACKAGES = ("foxglove", "fleet", "ros2")
+
+
+def _reaches(path: Path) -> list[str]:
+    """Each ``x.<inside>`` in the module, but ``late.lease`` (a late renewal's lease, handed to a listener)."""
+    return [
+        f"{path.name}:{node.lineno} .{node.attr}"
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.Attribute)
+        and node.attr in INSIDES
+        and not (node.attr == "lease" and isinstance(node.value, ast.Name) and node.value.id == "late")
+    ]
+
+
+@pytest.mark.parametrize("package", FRONT_END_PACKAGES)
+def test_front_ends_reach_no_insides_of_the_runtime(package: str) -> None:
+    root = Path(__file__).resolve().parent.parent / "hcrctl" / package
+    reaches = [reach for path in sorted(root.glob("*.py")) for reach in _reaches(path)]
+    assert not reaches, f"hcrctl/{package} reaches into the runtime (use served.view.RuntimeView): {reaches}"
