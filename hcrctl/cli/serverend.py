@@ -45,7 +45,7 @@ PREFIX = "hcrctl: "
 
 
 class ServerEnd:
-    """``with ServerEnd("bridge") as end: run_bridge(..., report=end.reporter(summary_line))``."""
+    """``with ServerEnd("bridge") as end: serve(..., report=end.reporter(summary_line("foxglove")))``."""
 
     def __init__(self, name: str, *, as_json: bool = False, bounded: bool = False) -> None:
         self.name = name
