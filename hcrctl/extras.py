@@ -1,5 +1,6 @@
 """Optional extras: the packages only some commands need, imported by ``require``, and the one hint that
-says how to install one where this hcrctl came from.
+says how to install one where this hcrctl came from; ``imported``, what a table names as ``module:attr``
+for a later import (a carrier, a writer, a front end).
 
 A missing extra is one line (exit 1) naming what needs it and a pip command
 that works for this installation: hcrctl is on no package index, so
@@ -17,6 +18,7 @@ from __future__ import annotations
 import importlib
 import os
 from types import ModuleType
+from typing import Any
 
 from .errors import HcrError
 
@@ -25,6 +27,12 @@ DISTRIBUTION = "hcrctl"
 
 class MissingExtra(HcrError):
     """An optional package is not installed: exit 1, the install command as the hint."""
+
+
+def imported(target: str) -> Any:
+    """What ``target`` names as ``module:attr``, its module imported now (a table's rows load only when used)."""
+    module, _, attr = target.partition(":")
+    return getattr(importlib.import_module(module), attr)
 
 
 def require(package: str, extra: str, needed_by: str) -> ModuleType:

@@ -200,9 +200,9 @@ def test_a_front_end_must_have_a_label() -> None:
 
 
 def test_the_front_ends_label_themselves() -> None:
-    from hcrctl.served.frontends import named
+    from hcrctl.extras import imported
 
-    labels = {name: named(row.front_end).label for name, row in FRONT_ENDS.items()}
+    labels = {name: imported(row.front_end).label for name, row in FRONT_ENDS.items()}
     assert labels == {"foxglove": "Foxglove server", "fleet": "fleet", "ros2": "ROS 2 node"}
 
 
@@ -330,12 +330,12 @@ def test_importing_the_table_loads_no_front_end() -> None:
 
 def test_every_rows_options_are_keyword_only() -> None:
     """Options by keyword: a row's options class refuses positional arguments."""
-    from hcrctl.served.frontends import named
+    from hcrctl.extras import imported
 
     for name, row in FRONT_ENDS.items():
         if name == "ros2":
             pytest.importorskip("cyclonedds", reason="the ros2 extra is not installed")
-        options: Callable[..., Any] = named(row.options)
+        options: Callable[..., Any] = imported(row.options)
         assert dataclasses.is_dataclass(options), name
         assert all(f.kw_only for f in dataclasses.fields(options)), name
 

@@ -7,9 +7,9 @@ other port is pyserial's (``transport``).
 
 from __future__ import annotations
 
-import importlib
 from typing import cast
 
+from ..extras import imported
 from .carrier import Opener
 
 #: URL scheme (lower case, with ``://``) to the ``module:function`` that opens its carrier.
@@ -20,6 +20,5 @@ def opener(url: str) -> Opener | None:
     """The carrier opener for ``url``'s scheme, or None for a port of bytes."""
     for scheme, target in CARRIERS.items():
         if url.lower().startswith(scheme):
-            module, _, name = target.partition(":")
-            return cast(Opener, getattr(importlib.import_module(module), name))
+            return cast(Opener, imported(target))
     return None

@@ -35,14 +35,13 @@ says it on stderr at once and makes the exit status 1.
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal, cast
 
 from ..errors import HcrError
-from ..extras import require
+from ..extras import imported, require
 from ..protocol.encodings import ENCODINGS, JSON
 from ..protocol.topics import Topic
 from .sinks import Sink
@@ -77,10 +76,9 @@ class Writer:
 
     def load(self, path: str) -> type:
         """The writer class (imported now); MissingExtra if the package it needs is not installed."""
-        module, _, name = self.target.partition(":")
         if self.needs is not None:
             require(self.needs, self.extra or self.needs, f"writing {path}")
-        return cast(type, getattr(importlib.import_module(module), name))
+        return cast(type, imported(self.target))
 
 
 #: Every format, by suffix (lower case, with its dot).

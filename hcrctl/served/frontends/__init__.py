@@ -18,13 +18,12 @@ is the runtime's, given to ``serve``.
 
 from __future__ import annotations
 
-import importlib
 import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, cast
 
-from ...extras import require
+from ...extras import imported, require
 from ...link.context import Connection
 from ..notes import Notes
 from ..runtime import FrontEnd, Report, ServedRobot
@@ -83,12 +82,6 @@ FRONT_ENDS: dict[str, Row] = {
 }
 
 
-def named(target: str) -> Any:
-    """The attribute a ``module:attr`` names, its module imported now."""
-    module, _, attr = target.partition(":")
-    return getattr(importlib.import_module(module), attr)
-
-
 def require_front_end(name: str, needed_by: str) -> None:
     """The package front end ``name`` needs, or one line naming its extra (``MissingExtra``)."""
     row = FRONT_ENDS[name]
@@ -97,13 +90,13 @@ def require_front_end(name: str, needed_by: str) -> None:
 
 def summary_line(name: str) -> Callable[[dict[str, Any]], str]:
     """How front end ``name`` words a run's summary in its closing line."""
-    return cast(Callable[[dict[str, Any]], str], named(FRONT_ENDS[name].summary_line))
+    return cast(Callable[[dict[str, Any]], str], imported(FRONT_ENDS[name].summary_line))
 
 
 def build(name: str, served: ServedRobot, notes: Notes, options: Mapping[str, Any]) -> FrontEnd:
     """Front end ``name`` of ``served``, its options given by keyword."""
     row = FRONT_ENDS[name]
-    return cast(FrontEnd, named(row.front_end)(served.view, notes, named(row.options)(**options)))
+    return cast(FrontEnd, imported(row.front_end)(served.view, notes, imported(row.options)(**options)))
 
 
 def serve(
@@ -122,7 +115,7 @@ def serve(
     for name in fronts:
         require_front_end(name, needed_by)
     first = FRONT_ENDS[next(iter(fronts))]
-    notes = (named(first.notes) if first.notes else Notes)(sys.stderr, first.prefix)
+    notes = (imported(first.notes) if first.notes else Notes)(sys.stderr, first.prefix)
     served = ServedRobot(
         settings, notes, rate=rate, deadman=deadman, silence=first.silence, duration=duration, name=robot
     )
