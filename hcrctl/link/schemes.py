@@ -9,7 +9,6 @@ from __future__ import annotations
 
 from typing import cast
 
-from ..extras import imported
 from .carrier import Opener
 
 #: URL scheme (lower case, with ``://``) to the ``module:function`` that opens its carrier.
@@ -20,5 +19,7 @@ def opener(url: str) -> Opener | None:
     """The carrier opener for ``url``'s scheme, or None for a port of bytes."""
     for scheme, target in CARRIERS.items():
         if url.lower().startswith(scheme):
+            from ..extras import imported  # not before: a serial port's start-up loads nothing more
+
             return cast(Opener, imported(target))
     return None
