@@ -45,13 +45,15 @@ class Recorder(FrontEnd):
     """A front end that writes down each hook it is called by, and fails in the one it is told to.
 
     ``drive``: it offers motion at ``start`` and, once the motion is on the wire, raises SIGTERM at
-    itself, so the run ends by the runtime's own signal path with a robot that moved.
+    itself, so the run ends by the runtime's own signal path with a robot that moved; unless it is to
+    fail while serving (``publish``, ``tick``): then that failure alone ends the run.
     """
 
     label = "recorder"
 
     def __init__(self, log: list[str], tag: str, *, fail: str = "", drive: bool = False) -> None:
         self.log, self.tag, self.fail, self.drive = log, tag, fail, drive
+        self.ends = drive and fail not in ("publish", "tick")
         self.view: RuntimeView | None = None
         self.frames: list[dict[str, Any]] = []
         self.serving = False
@@ -82,7 +84,7 @@ class Recorder(FrontEnd):
     def tick(self) -> None:
         self._call("tick")
         assert self.view is not None
-        if self.drive and self.view.counters()["drive_frames"] > 0 and not self.signalled:
+        if self.ends and self.view.counters()["drive_frames"] > 0 and not self.signalled:
             self.signalled = True
             signal.raise_signal(signal.SIGTERM)
 

@@ -155,7 +155,6 @@ class ServedRobot:
         self.notes = notes
         self.rate = rate
         self.duration = duration
-        self.name = name
         self.governor = Governor(C.Velocity, deadman=deadman, silence=silence, robot=name)
         self.signalled = Signalled()
         self.sensors: list[str] = supported_sensors(settings.protocol, [])

@@ -67,11 +67,6 @@ class RuntimeView:
     # -- what is served, fixed for the run ------------------------------------------
 
     @property
-    def name(self) -> str:
-        """The robot's name in what is said about it ("the robot" unless the command named it)."""
-        return self._served.governor.lease.robot
-
-    @property
     def topics(self) -> tuple[Topic, ...]:
         return self._served.topics
 
