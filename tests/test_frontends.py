@@ -156,7 +156,8 @@ def test_each_front_end_is_called_in_the_hooks_order_and_closed_in_reverse(tmp_p
     assert first("b.start") < first("a.tick") and last("b.tick") < first("a.close")
     assert "test: serving a serving; b serving; Ctrl-C ends it" in said, said
     assert stopped_after_moving(tmp_path)
-    assert [frame["name"] for frame in a.frames][-1] in ("power", "stop")  # the stop was published too
+    published = [(f["name"], f["fields"]) for f in a.frames if f["name"] in ("velocity", "power", "stop")]
+    assert published[0] == ("velocity", {"left": 10, "right": 10}) and _still(published[-1])  # published too
     (summary,) = reports
     assert summary["a"] == {"tag": "a"} and summary["b"] == {"tag": "b"} and summary["sweeps"] > 0
 
