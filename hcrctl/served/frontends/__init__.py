@@ -25,6 +25,7 @@ from typing import Any, cast
 
 from ...extras import imported, require
 from ...link.context import Connection
+from ..cmdvel import TOPIC
 from ..notes import Notes
 from ..runtime import FrontEnd, Report, ServedRobot
 
@@ -56,7 +57,7 @@ FRONT_ENDS: dict[str, Row] = {
         options="hcrctl.foxglove.bridge:BridgeOptions",
         package="websockets",
         extra="foxglove",
-        silence="no /cmd_vel",
+        silence=f"no {TOPIC}",
         summary_line="hcrctl.foxglove.bridge:summary_line",
         prefix="hcrctl: bridge: ",
         notes="hcrctl.foxglove.statusline:BridgeStatus",
