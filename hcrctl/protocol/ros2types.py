@@ -101,3 +101,80 @@ def dds_type_name(name: str) -> str:
 
 for _name, _text in MSG_TEXT.items():
     ros2msg.parse(_name, _text)
+
+
+# -- the ROS 2 node's own topics: odometry, diagnostics, rosout -------------------------------------------
+#
+# A separate block (the node's topics beside the readings'): parsed after the types above, which they use.
+
+POINT = "geometry_msgs/msg/Point"
+POSE = "geometry_msgs/msg/Pose"
+POSE_WITH_COVARIANCE = "geometry_msgs/msg/PoseWithCovariance"
+TWIST_WITH_COVARIANCE = "geometry_msgs/msg/TwistWithCovariance"
+ODOMETRY = "nav_msgs/msg/Odometry"
+KEY_VALUE = "diagnostic_msgs/msg/KeyValue"
+DIAGNOSTIC_STATUS = "diagnostic_msgs/msg/DiagnosticStatus"
+DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
+LOG = "rcl_interfaces/msg/Log"
+
+#: ``diagnostic_msgs/DiagnosticStatus``'s levels.
+DIAG_OK, DIAG_WARN, DIAG_ERROR, DIAG_STALE = 0, 1, 2, 3
+#: ``rcl_interfaces/Log``'s severities.
+LOG_DEBUG, LOG_INFO, LOG_WARN, LOG_ERROR, LOG_FATAL = 10, 20, 30, 40, 50
+
+NODE_MSG_TEXT: dict[str, str] = {
+    POINT: "float64 x\nfloat64 y\nfloat64 z\n",
+    POSE: "Point position\nQuaternion orientation\n",
+    POSE_WITH_COVARIANCE: "Pose pose\nfloat64[36] covariance\n",
+    TWIST_WITH_COVARIANCE: "Twist twist\nfloat64[36] covariance\n",
+    ODOMETRY: (
+        "std_msgs/Header header\n"
+        "string child_frame_id\n"
+        "geometry_msgs/PoseWithCovariance pose\n"
+        "geometry_msgs/TwistWithCovariance twist\n"
+    ),
+    KEY_VALUE: "string key\nstring value\n",
+    DIAGNOSTIC_STATUS: (
+        f"byte OK={DIAG_OK}\n"
+        f"byte WARN={DIAG_WARN}\n"
+        f"byte ERROR={DIAG_ERROR}\n"
+        f"byte STALE={DIAG_STALE}\n"
+        "byte level\n"
+        "string name\n"
+        "string message\n"
+        "string hardware_id\n"
+        "KeyValue[] values\n"
+    ),
+    DIAGNOSTIC_ARRAY: "std_msgs/Header header\nDiagnosticStatus[] status\n",
+    LOG: (
+        f"uint8 DEBUG={LOG_DEBUG}\n"
+        f"uint8 INFO={LOG_INFO}\n"
+        f"uint8 WARN={LOG_WARN}\n"
+        f"uint8 ERROR={LOG_ERROR}\n"
+        f"uint8 FATAL={LOG_FATAL}\n"
+        "builtin_interfaces/Time stamp\n"
+        "uint8 level\n"
+        "string name\n"
+        "string msg\n"
+        "string file\n"
+        "string function\n"
+        "uint32 line\n"
+    ),
+}
+
+NODE_TYPE_HASHES: dict[str, str] = {
+    POINT: "RIHS01_6963084842a9b04494d6b2941d11444708d892da2f4b09843b9c43f42a7f6881",
+    POSE: "RIHS01_d501954e9476cea2996984e812054b68026ae0bfae789d9a10b23daf35cc90fa",
+    POSE_WITH_COVARIANCE: "RIHS01_9a7c0fd234b7f45c6098745ecccd773ca1085670e64107135397aee31c02e1bb",
+    TWIST_WITH_COVARIANCE: "RIHS01_49f574f033f095d8b6cd1beaca5ca7925e296e84af1716d16c89d38b059c8c18",
+    ODOMETRY: "RIHS01_3cc97dc7fb7502f8714462c526d369e35b603cfc34d946e3f2eda2766dfec6e0",
+    KEY_VALUE: "RIHS01_d68081eaa540288c5440753baecef0c4e16e81a5f78ad68902ded5100413bb42",
+    DIAGNOSTIC_STATUS: "RIHS01_b0e3e692ea2d54a8af2f4ef1930e81556a2db55216b771f8a7d2724ed47bf0e4",
+    DIAGNOSTIC_ARRAY: "RIHS01_5a8a36efb05fb25070fa0fb3810290c0e6cd4862b54a8fb975a1ee8dc55a333e",
+    LOG: "RIHS01_e28ce254ca8abc06abf92773b74602cdbf116ed34fbaf294fb9f81da9f318eac",
+}
+
+for _name, _text in NODE_MSG_TEXT.items():
+    ros2msg.parse(_name, _text)
+MSG_TEXT.update(NODE_MSG_TEXT)
+TYPE_HASHES.update(NODE_TYPE_HASHES)
