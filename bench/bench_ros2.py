@@ -1,7 +1,7 @@
 """``hcrctl ros2``: a Twist to motion on the wire, and a robot's CPU and memory beside ``fleet serve``.
 
-Run from the repository root: ``python bench/bench_ros2.py [--rounds 21] [--seconds 10]``. Needs the ros2
-and zenoh extras.
+Run from the repository root: ``python bench/bench_ros2.py [--rounds 21] [--seconds 10] [--source DIR]``.
+Needs the ros2 and zenoh extras.
 
 1. Twist to motion: ``hcrctl --port sim:// --log LOG ros2`` (deadman 10 s) and
    a Cyclone DDS writer in this process on its ``cmd_vel`` (reliable, keep
@@ -16,6 +16,11 @@ and zenoh extras.
    per ROS topic; a Zenoh subscriber to ``hcr/NAME/**``). CPU (utime + stime
    over the window, % of one core) and VmRSS at the end, from /proc. Target:
    the node's CPU <= 1.2x the serve's.
+3. With ``--source DIR`` (a tree holding an older ``hcrctl`` package, e.g.
+   ``git archive a6e516b hcrctl | tar -x -C DIR``): this tree's node and that
+   tree's, side by side at 10 Hz for ``--seconds``, each with a reader of
+   every topic it publishes (this one's odometry, /tf and /diagnostics too).
+   Target: this node's CPU <= 1.2x the baseline's.
 
 It prints the figures, writes ``bench/results/bench_ros2.json`` and exits 1 if a target is missed.
 """
@@ -52,10 +57,28 @@ MOTION_MS = 2.0
 CPU_RATIO = 1.2
 
 
-def node(procs: Procs, domain: int, namespace: str, *options: str, log: Path | None = None) -> Any:
+def node(
+    procs: Procs,
+    domain: int,
+    namespace: str,
+    *options: str,
+    log: Path | None = None,
+    tree: Path | None = None,
+) -> Any:
+    """``hcrctl ros2`` on ``sim://``: this tree's, or the ``hcrctl`` package under ``tree``."""
     logging = ["--log", str(log)] if log else []
+    older = ["env", f"PYTHONPATH={tree}", sys.executable] if tree else None
     proc, err = procs.start(
-        "--port", "sim://", *logging, "ros2", "--domain-id", str(domain), "--namespace", namespace, *options
+        "--port",
+        "sim://",
+        *logging,
+        "ros2",
+        "--domain-id",
+        str(domain),
+        "--namespace",
+        namespace,
+        *options,
+        on=older,
     )
     wait_for(lambda: "serving " in err.read_text(), what="hcrctl ros2")
     return proc
@@ -107,10 +130,18 @@ def to_motion(rounds: int, tmp: Path) -> dict[str, Any]:
 # -- 2. CPU and memory beside fleet serve ---------------------------------------------------------
 
 
-def ros_readers(participant: DomainParticipant, namespace: str) -> list[DataReader]:
+#: The node's own topics beside the readings' (this tree's, not a baseline's).
+OWN_TOPICS = (
+    ros2conv.RosTopic("odom", R.ODOMETRY, ros2conv.DEFAULT_QOS),
+    ros2conv.RosTopic("/tf", R.TF_MESSAGE, ros2conv.TF_QOS),
+    ros2conv.RosTopic("/diagnostics", R.DIAGNOSTIC_ARRAY, ros2conv.DEFAULT_QOS),
+)
+
+
+def ros_readers(participant: DomainParticipant, namespace: str, own: bool = True) -> list[DataReader]:
     converter = ros2conv.Converter(ros2conv.DEFAULT_LAYOUT, all_topics())
     readers = []
-    for ros_topic in converter.topics:
+    for ros_topic in (*converter.topics, *(OWN_TOPICS if own else ())):
         if ros_topic.type.startswith("hcrctl_msgs/"):
             continue
         kind = idl.dds_type(ros_topic.type)
@@ -153,14 +184,68 @@ def side_by_side(seconds: float, tmp: Path) -> dict[str, Any]:
     }
 
 
+def against_baseline(seconds: float, tmp: Path, tree: Path) -> dict[str, Any]:
+    """This tree's node and ``tree``'s, side by side, each read in full."""
+    procs = Procs(tmp)
+    try:
+        places = {"ros2": place(), "baseline": place()}
+        pids = {
+            name: node(procs, domain, namespace, tree=tree if name == "baseline" else None).pid
+            for name, (domain, namespace) in places.items()
+        }
+        participants = {name: DomainParticipant(domain) for name, (domain, _) in places.items()}
+        readers = {
+            name: ros_readers(participants[name], namespace, own=name == "ros2")
+            for name, (_, namespace) in places.items()
+        }
+        for name in readers:
+            wait_for(lambda name=name: any(r.take(N=100) for r in readers[name]), what=f"{name} publishing")
+        before = {name: cpu_ticks(pid) for name, pid in pids.items()}
+        start = time.monotonic()
+        heard = dict.fromkeys(pids, 0)
+        while time.monotonic() - start < seconds:
+            time.sleep(0.2)
+            for name, found in readers.items():
+                heard[name] += sum(len(r.take(N=1000)) for r in found)
+        wall = time.monotonic() - start
+        cpu = {name: (cpu_ticks(pid) - before[name]) / TICK / wall * 100 for name, pid in pids.items()}
+    finally:
+        procs.close()
+    return {
+        "ros2_vs_baseline_cpu_pct": round(cpu["ros2"], 2),
+        "baseline_cpu_pct": round(cpu["baseline"], 2),
+        "baseline_cpu_ratio": round(cpu["ros2"] / cpu["baseline"], 2),
+        "ros2_vs_baseline_messages_per_s": round(heard["ros2"] / wall, 1),
+        "baseline_messages_per_s": round(heard["baseline"] / wall, 1),
+    }
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=21)
     parser.add_argument("--seconds", type=float, default=10.0)
+    parser.add_argument(
+        "--source", type=Path, help="another checkout's hcrctl ros2, measured beside (part 3)"
+    )
+    parser.add_argument("--source-only", action="store_true", help="with --source: only part 3")
     args = parser.parse_args()
     ok = True
+    metrics: dict[str, Any] = {}
     with tempfile.TemporaryDirectory(prefix="bench_ros2_") as tmp_dir:
         tmp = Path(tmp_dir)
+        if args.source:
+            base = against_baseline(args.seconds, tmp, args.source.resolve())
+            print(
+                f"at 10 Hz: ros2 {base['ros2_vs_baseline_cpu_pct']} % CPU "
+                f"({base['ros2_vs_baseline_messages_per_s']} messages/s read), baseline "
+                f"{base['baseline_cpu_pct']} % ({base['baseline_messages_per_s']} messages/s): "
+                f"ratio {base['baseline_cpu_ratio']}x"
+            )
+            ok &= base["baseline_cpu_ratio"] <= CPU_RATIO
+            metrics.update(base)
+            if args.source_only:
+                record("bench_ros2", {**metrics, "load": round(os.getloadavg()[0], 2)})
+                return 0 if ok else 1
         motion = to_motion(args.rounds, tmp)
         print(
             f"Twist to motion: median {motion['twist_to_motion_median_ms']} ms, "
@@ -174,7 +259,7 @@ def main() -> int:
             f"CPU ratio {cost['cpu_ratio']}x ({cost['ros2_messages_per_s']} ROS 2 messages/s read)"
         )
         ok &= cost["cpu_ratio"] <= CPU_RATIO
-    metrics = {**motion, **cost, "load": round(os.getloadavg()[0], 2)}
+    metrics.update({**motion, **cost, "load": round(os.getloadavg()[0], 2)})
     record("bench_ros2", metrics)
     return 0 if ok else 1
 

@@ -21,11 +21,11 @@ pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip instal
 from helpers import clean_env, wait_until
 from helpers_fleet_robot import VELOCITY, Fleet, attacker, fleet, is_stop, operator, readline, twist
 
-from hcrctl.fleet.refusals import MAX_LINES, WINDOW
 from hcrctl.link.zenoh import keyspace
 from hcrctl.motion.bumpers import freshness_bound
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.frames import Frame
+from hcrctl.served.refusals import MAX_LINES, WINDOW
 
 BUMP = C.BY_NAME["bump"].code
 SERVO = C.BY_NAME["servo"].code

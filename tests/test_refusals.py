@@ -6,7 +6,7 @@ import threading
 import time
 
 from hcrctl.fleet.queries import Turnstile
-from hcrctl.fleet.refusals import MAX_LINES, Refusals
+from hcrctl.served.refusals import MAX_LINES, Refusals
 
 
 def test_refusals_beyond_the_budget_are_one_line_with_their_count() -> None:

@@ -10,14 +10,18 @@ without a sign), ten sweeps a second on a fake clock.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import pytest
 from helpers import QUIET, Clock
 
 from hcrctl.protocol import commands as C
+from hcrctl.protocol import ros2conv, ros2msg
+from hcrctl.protocol import topics as T
 from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import ChecksumRule, Frame
 from hcrctl.protocol.ros2conv import yaw_of_heading
+from hcrctl.ros2.odom import OdomTopics
 from hcrctl.ros2.odometry import DOUBT_S, MAX_GAP, SLIP, SPEED_STEP, Odometry
 from hcrctl.sim.options import SimOptions
 from hcrctl.sim.simulator import Simulator
@@ -26,12 +30,21 @@ RADIUS = 0.035
 EAST, NORTH = 0.0, math.pi / 2
 
 
-def test_nothing_before_the_first_heading_then_the_pose_starts_at_zero_with_the_compass_yaw() -> None:
+def test_before_the_first_heading_the_wheels_turn_but_there_is_no_pose() -> None:
     odo = Odometry(RADIUS)
-    assert odo.wheels(0.0, 0.2, 0.2) is None
+    odo.wheels(0.0, 0.2, 0.2)
+    blind = odo.wheels(1.0, 0.2, 0.2)
+    assert blind.yaw is None and (blind.x, blind.y) == (0.0, 0.0)
+    assert blind.wheel_angles == pytest.approx((0.2 / RADIUS,) * 2)
     odo.heading(NORTH)
-    state = odo.wheels(0.1, 0.2, 0.2)
-    assert state is not None and (state.x, state.y, state.yaw) == (0.0, 0.0, NORTH)
+    state = odo.wheels(1.1, 0.2, 0.2)
+    assert (state.x, state.y, state.yaw) == (0.0, 0.0, NORTH)  # the pose starts at the first heading
+
+
+def test_without_a_compass_joint_states_alone_are_published() -> None:
+    odom = OdomTopics(ros2conv.DEFAULT_LAYOUT)
+    published = odom.feed(T.PREFIX + "wheels", {"time": 1.0, "left": 10, "right": 10})
+    assert [name for name, _, _ in published] == [ros2conv.JOINT_STATES]
 
 
 def test_forward_along_the_yaw_trapezoid_between_readings() -> None:
@@ -115,7 +128,11 @@ def test_a_gap_in_the_readings_is_not_integrated_across() -> None:
 
 
 def replies(sim: Simulator, request: C.Request) -> list[Frame]:
-    return [e for e in decode_all(sim.feed(C.encode_request(request)), ChecksumRule.HEADER) if isinstance(e, Frame)]
+    return [
+        e
+        for e in decode_all(sim.feed(C.encode_request(request)), ChecksumRule.HEADER)
+        if isinstance(e, Frame)
+    ]
 
 
 def read(sim: Simulator, name: str) -> C.Reply:
@@ -182,3 +199,48 @@ def test_a_square_driven_in_the_simulator_agrees_with_its_own_pose(ccw: bool) ->
     assert drive.worst <= SQUARE_TOLERANCE_M, drive.worst
     yaw_error = math.degrees(abs(math.remainder(state.yaw - yaw_of_heading(pose.heading), math.tau)))
     assert yaw_error <= YAW_TOLERANCE_DEG
+
+
+# -- as ROS 2 messages --------------------------------------------------------------------------
+
+
+def _sent(t: float, request: C.Request) -> tuple[str, dict[str, Any]]:
+    """The feed's message of a frame the governor wrote (as ``protocol.topics`` makes it)."""
+    data = C.encode_request(request)
+    (event,) = decode_all(data, ChecksumRule.HEADER)
+    ((topic, message),) = T.messages(t, "tx", data, event, ChecksumRule.HEADER)
+    return topic, message
+
+
+def test_the_messages_decode_as_jazzy_s_and_follow_the_frames_sent() -> None:
+    """A turn, then a velocity backwards, as frames on the wire: the signs come from them."""
+    from helpers_ros2 import jazzy, plain
+
+    odom = OdomTopics(ros2conv.DEFAULT_LAYOUT)
+    t = 1_700_000_000.0
+    assert odom.feed(T.PREFIX + "compass", {"time": t, "heading": 0.0}) == []  # north: yaw 90 degrees
+    odom.feed(*_sent(t, C.Turn(90, True, 255)))
+    odom.feed(T.PREFIX + "wheels", {"time": t, "left": 10, "right": 10})
+    turning = dict(
+        (n, f) for n, _, f in odom.feed(T.PREFIX + "wheels", {"time": t + 0.1, "left": 10, "right": 10})
+    )
+    assert turning[ros2conv.JOINT_STATES]["velocity"] == pytest.approx([-0.1 / RADIUS, 0.1 / RADIUS])
+    odom.feed(*_sent(t + 0.1, C.Velocity(-20, -20)))
+    converted = odom.feed(T.PREFIX + "wheels", {"time": t + 1.1, "left": 20, "right": 20})
+    store = jazzy()
+    decoded = {
+        name: plain(store.deserialize_cdr(ros2msg.encoder(kind)(f), kind)) for name, kind, f in converted
+    }
+    pose = decoded["odom"]["pose"]
+    # facing north; over 1 s the left wheel went from -0.1 to -0.2 m/s, the right from +0.1 to -0.2: the
+    # trapezoids' mean is -0.1 m
+    assert pose["pose"]["position"]["y"] == pytest.approx(-0.1)
+    assert abs(pose["pose"]["position"]["x"]) < 1e-9
+    assert decoded["odom"]["twist"]["twist"]["linear"]["x"] == pytest.approx(-0.2)
+    assert (
+        decoded["odom"]["header"]["frame_id"] == "odom" and decoded["odom"]["child_frame_id"] == "base_link"
+    )
+    (tf,) = decoded["/tf"]["transforms"]
+    assert tf["transform"]["translation"] == pose["pose"]["position"]
+    assert tf["transform"]["rotation"] == pose["pose"]["orientation"]
+    assert decoded[ros2conv.JOINT_STATES]["position"][0] < 0

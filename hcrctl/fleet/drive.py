@@ -55,8 +55,8 @@ from ..motion.governor import Governor, Kind, Source, Verdict, Wheels, refusal
 from ..protocol import commands as C
 from ..protocol.profiles import Profile
 from ..served.cmdvel import MAX_NESTING, BadTwist, parse_twist, twist_wheels
+from ..served.refusals import Refusals
 from .queries import code_text
-from .refusals import Refusals
 
 #: What a motion message may weigh: a Twist or a table request is under 200 bytes.
 MAX_MESSAGE = 4096

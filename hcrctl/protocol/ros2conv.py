@@ -72,6 +72,8 @@ class Qos:
     reliable: bool
     transient_local: bool
     depth: int
+    #: How long a sample stays deliverable to a late reader (s); 0 is for ever (rmw's default).
+    lifespan: float = 0.0
 
     def yaml(self) -> str:
         """This profile as rosbag2 writes a channel's ``offered_qos_profiles`` (a list of one), Jazzy's form."""
@@ -93,8 +95,15 @@ class Qos:
 SENSOR_QOS = Qos(reliable=False, transient_local=False, depth=5)
 #: ``/tf_static``: late joiners get the layout.
 TF_STATIC_QOS = Qos(reliable=True, transient_local=True, depth=1)
+#: ROS 2's default profile (``rclcpp::QoS(10)``): what a reader that asks for nothing special gets.
+DEFAULT_QOS = Qos(reliable=True, transient_local=False, depth=10)
 #: The default profile, as teleop_twist_keyboard publishes ``cmd_vel``.
-CMD_VEL_QOS = Qos(reliable=True, transient_local=False, depth=10)
+CMD_VEL_QOS = DEFAULT_QOS
+#: tf2's ``/tf`` (``tf2_ros::DynamicBroadcasterQoS``): reliable, volatile, keep last 100.
+TF_QOS = Qos(reliable=True, transient_local=False, depth=100)
+#: rcl's ``/rosout`` (``rcl_qos_profile_rosout_default``): reliable, transient local, keep last 1000,
+#: each line deliverable for 10 s, so a console started a moment later still gets the start-up lines.
+ROSOUT_QOS = Qos(reliable=True, transient_local=True, depth=1000, lifespan=10.0)
 
 
 @dataclass(frozen=True)
@@ -186,6 +195,8 @@ class Layout:
     wheel_radius: float = 0.035
     wheel_joints: tuple[str, str] = ("left_wheel_joint", "right_wheel_joint")
     imu_frame: str = "imu_link"
+    #: The frame the odometry is in (REP 105), parent of ``base_frame`` on ``/tf``.
+    odom_frame: str = "odom"
     #: The compass's yaw variance (rad^2): a 2 deg standard deviation, not a measured figure.
     heading_variance: float = math.radians(2.0) ** 2
 

@@ -2,7 +2,9 @@
 
 This is a *source* of motion, as the bridge's ``/cmd_vel`` is: the governor
 alone decides, writes, runs the deadman and stops. Each DDS writer is a
-driver of its own (named by its instance handle), so the first writer to send
+driver of its own (its instance handle is its id; it is named by its ROS node,
+``ROS 2 node /teleop``, where ``ros_discovery_info`` says which node owns it,
+else ``ROS 2 writer <handle>``), so the first writer to send
 motion holds the lease and another is refused until the first stops sending
 for the deadman, or goes away (unmatched). A twist_mux in front of the robot
 is then the one writer, and its own priorities decide which input reaches
@@ -14,6 +16,11 @@ finite number within ±1000 m/s or rad/s, for all six components): NaN, an
 infinity or 1e308 is refused and counted, said once per burst, and never
 reaches the wire. Only ``linear.x`` and ``angular.z`` move a differential
 drive; the others must still be numbers.
+
+Refusals are counted every time and said on one budget for all writers
+(``served.refusals``: each writer and reason once a second, five lines a
+second in all, then one line with how many more), so a hundred writers cost
+a few lines a second, not one each.
 """
 
 from __future__ import annotations
@@ -22,16 +29,20 @@ from collections.abc import Callable
 from typing import Any
 
 from ..motion.governor import Governor, Kind, Source
-from ..served.bursts import BurstNotes
 from ..served.cmdvel import BadTwist, speed, twist_wheels
+from ..served.refusals import Refusals
 
 TOPIC = "cmd_vel"
 AXES = ("x", "y", "z")
 
 
-def writer_source(writer: str) -> Source:
-    """A DDS writer as a source of motion: its instance handle is its id."""
-    return Source(Kind.NODE, writer, f"ROS 2 writer {writer}")
+#: The node (``/ns/name``) that owns a writer, if known.
+Names = Callable[[str], "str | None"]
+
+
+def writer_source(writer: str, node: str | None = None) -> Source:
+    """A DDS writer as a source of motion: its instance handle is its id, its node (if known) its name."""
+    return Source(Kind.NODE, writer, f"ROS 2 node {node}" if node else f"ROS 2 writer {writer}")
 
 
 def twist_of(message: Any) -> Any:
@@ -50,16 +61,19 @@ def checked(twist: Any) -> tuple[float, float]:
 class RosCmdVel:
     """Twists from DDS writers, turned into offers to ``governor``; counts of what was taken and refused."""
 
-    def __init__(self, governor: Governor, note: Callable[[str], None]) -> None:
+    def __init__(
+        self, governor: Governor, note: Callable[[str], None], names: Names = lambda writer: None
+    ) -> None:
         self.governor = governor
         self.taken = 0
         self.refused = 0
         self._note = note
-        self._bursts = BurstNotes(note)
+        self._names = names
+        self._refusals: Refusals[Source] = Refusals(lambda source, text, seq: note(text))
 
     def message(self, writer: str, message: Any) -> None:
-        """One sample from ``writer``: offered, or refused and counted (said once per burst)."""
-        source = writer_source(writer)
+        """One sample from ``writer``: offered, or refused and counted (said on the budget)."""
+        source = writer_source(writer, self._names(writer))
         refused = self.governor.would_refuse(source)
         if refused is not None:
             self._refused(source, "busy", refused)
@@ -80,12 +94,13 @@ class RosCmdVel:
 
     def _refused(self, source: Source, kind: str, why: str) -> None:
         self.refused += 1
-        self._bursts.say(f"{TOPIC} from {source} {kind}", f"{TOPIC} from {source} {why}")
+        self._refusals.refused(source, f"{TOPIC} from {source} {why}", kind=kind)
 
     def gone(self, writer: str) -> None:
         """``writer`` went away: if it drove, stop."""
-        source = writer_source(writer)
+        source = writer_source(writer, self._names(writer))
         self.governor.release(source, f"{source} left {TOPIC}")
 
-    def flush(self) -> None:
-        self._bursts.flush()
+    def tick(self) -> None:
+        """What the budget held back, said once its window is over."""
+        self._refusals.tick()

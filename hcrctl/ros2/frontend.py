@@ -8,10 +8,16 @@ so a late rviz2 still gets it. What has no standard type (the raw frames,
 the link counters, the positioning broadcasts, the map) is left to the
 Foxglove and fleet topics and to recordings.
 
+Besides the readings, what a ROS 2 driver of a robot like this publishes:
+``odom`` and ``/tf`` ``odom -> base_link`` (``odom.OdomTopics``; its
+``joint_states``, with the wheels' positions, replaces the conversion's),
+``/diagnostics`` once a second (``diagnostics``) and every stderr line also
+on ``/rosout`` (``rosout``).
+
 ``cmd_vel`` is a source of the one motion governor (``RosCmdVel``): one
 writer drives at a time, the deadman on the governor's clock, stop however
 it ends; a ROS writer has no channel to be told why it was stopped, so the
-runtime's stderr line is the only word of it.
+runtime's stderr line (and its ``/rosout`` copy) is the only word of it.
 """
 
 from __future__ import annotations
@@ -20,14 +26,17 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
+from ..motion.bumpers import BUMP, freshness_bound
 from ..protocol import ros2conv
 from ..protocol import ros2types as R
 from ..recording.progress import sweeps
 from ..served.notes import Notes
 from ..served.runtime import FrontEnd
 from ..served.view import RuntimeView
+from . import diagnostics, rosout
 from .drive import TOPIC, RosCmdVel
 from .node import Node
+from .odom import OdomTopics
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -48,25 +57,69 @@ class Ros2Node(FrontEnd):
     def __init__(self, view: RuntimeView, notes: Notes, options: Ros2Options) -> None:
         self.options = options
         self.notes = notes
-        self.converter = ros2conv.Converter(ros2conv.current_layout(), view.topics)
-        #: The standard topics only: what has no standard type stays off DDS (see the module).
-        self.topics = [t for t in self.converter.topics if not t.type.startswith("hcrctl_msgs/")]
+        layout = ros2conv.current_layout()
+        self.converter = ros2conv.Converter(layout, view.topics)
+        self.odom = OdomTopics(layout)
+        #: The standard topics only: what has no standard type stays off DDS (see the module);
+        #: joint_states is the odometry's.
+        self.topics = [
+            t
+            for t in self.converter.topics
+            if not t.type.startswith("hcrctl_msgs/") and t.name != ros2conv.JOINT_STATES
+        ]
         self._published = {t.name for t in self.topics}
-        self.cmd_vel = RosCmdVel(view.governor, notes.note)
+        self.cmd_vel = RosCmdVel(view.governor, notes.note, self._writer_name)
         self.node: Node | None = None
         self.messages = 0
+        self._view = view
+        self._health = Health()
+        self._next_diagnostics = 0.0
+        self._logger = ""
 
     def open(self, view: RuntimeView) -> None:
         """Join the DDS domain, make every writer and latch ``/tf_static``: before the port opens."""
         self.node = node = Node(self.options.domain_id, self.options.namespace)
-        node.advertise(self.topics)
+        node.advertise(
+            [
+                *self.topics,
+                *self.odom.topics,
+                ros2conv.RosTopic(diagnostics.TOPIC, R.DIAGNOSTIC_ARRAY, ros2conv.DEFAULT_QOS),
+                rosout.TOPIC_QOS,
+            ]
+        )
         node.publish(ros2conv.TF_STATIC, self.converter.tf_static(time.time()))
+        self._logger = rosout.logger_name(node.fullname)
+        self.notes.listen(self._rosout)
 
     def publish(self, topic: str, message: dict[str, Any], at: float) -> None:
-        assert self.node is not None
-        for name, _, fields in self.converter.convert(topic, message):
-            if name in self._published and self.node.publish(name, fields):
-                self.messages += 1
+        node = self.node
+        assert node is not None
+        for name, _, key, make in self.converter.keyed(topic, message):
+            if name not in self._published:
+                continue  # never made
+            if key is None:
+                node.publish(name, make())
+            else:
+                node.publish_stamped(name, key, message["time"], make)
+            self.messages += 1
+        for name, _, fields in self.odom.feed(topic, message):
+            node.publish(name, fields)
+            self.messages += 1
+
+    def _rosout(self, text: str) -> None:
+        if self.node is not None:
+            self.node.publish(rosout.TOPIC, rosout.log(text, self._logger))
+
+    def _writer_name(self, writer: str) -> str | None:
+        return self.node.writer_name(writer) if self.node is not None else None
+
+    def tick(self) -> None:
+        self.cmd_vel.tick()
+        now = time.monotonic()
+        if self.node is not None and now >= self._next_diagnostics:
+            self._next_diagnostics = now + diagnostics.PERIOD
+            array = self._health.array(self.node.fullname, self._view, self.cmd_vel)
+            self.node.publish(diagnostics.TOPIC, array)
 
     def start(self, view: RuntimeView) -> str:
         assert self.node is not None
@@ -79,7 +132,7 @@ class Ros2Node(FrontEnd):
     def close(self) -> None:
         if self.node is not None:
             self.node.unsubscribe()
-        self.cmd_vel.flush()
+        self.cmd_vel.tick()
 
     def finish(self) -> None:
         if self.node is not None:
@@ -91,6 +144,44 @@ class Ros2Node(FrontEnd):
             "cmd_vel": self.cmd_vel.taken,
             "cmd_vel_refused": self.cmd_vel.refused,
         }
+
+
+class Health:
+    """The figures ``/diagnostics`` reports, read from the runtime's view; counts since the last report."""
+
+    def __init__(self) -> None:
+        self._last = (0, 0, 0)  # timeouts, checksum errors, refusals at the last report
+
+    def array(self, node: str, view: RuntimeView, cmd_vel: RosCmdVel) -> dict[str, Any]:
+        status, rate, timeouts, checksum = view.link_state()
+        refused = cmd_vel.refused
+        last, self._last = self._last, (timeouts, checksum, refused)
+        driver = view.governor.driver
+        link = diagnostics.Link(
+            port=view.robot.port,
+            status=status,
+            sweeps_per_s=rate,
+            target_rate=view.rate,
+            timeouts=timeouts,
+            checksum_errors=checksum,
+            new_timeouts=_since(timeouts, last[0]),
+            new_checksum_errors=_since(checksum, last[1]),
+            bumper_age=view.reading_age(BUMP),
+            bumper_bound=freshness_bound(view.rate),
+        )
+        drive = diagnostics.Driver(
+            driver=str(driver) if driver is not None else "",
+            taken=cmd_vel.taken,
+            refused=refused,
+            new_refused=_since(refused, last[2]),
+            drives=view.drives,
+        )
+        return diagnostics.array(time.time(), node, link, drive)
+
+
+def _since(count: int, last: int) -> int:
+    """How much a counter grew since ``last`` (all of it if the counter started again)."""
+    return count - last if count >= last else count
 
 
 def summary_line(summary: dict[str, Any]) -> str:

@@ -17,8 +17,9 @@ node and the GUIDs of its readers and writers, so ``ros2 node list`` and
 
 from __future__ import annotations
 
+import contextlib
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
 from typing import Any
 
 from cyclonedds.core import DDSException, Listener
@@ -29,14 +30,20 @@ from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 
 from ..errors import HcrError
-from ..protocol import ros2conv
+from ..protocol import ros2conv, ros2msg
 from ..protocol.ros2types import TYPE_HASHES
+from ..protocol.topics import microseconds
 from . import idl
+from .graph import Graph
 
 DISCOVERY_TOPIC = "ros_discovery_info"
 #: rmw's own topic: reliable, transient local, keep last 1, so a tool started later learns the node.
 DISCOVERY_QOS = ros2conv.Qos(reliable=True, transient_local=True, depth=1)
 NODE_NAME = "hcrctl"
+#: Writers' GUIDs remembered (by instance handle) before the memo starts afresh.
+MAX_GUIDS = 4096
+#: Messages kept built for their next stamp (``publish_stamped``) before the memo starts afresh.
+MAX_BUILT = 256
 
 #: (the writer that sent it; its message) for every valid sample a reader takes.
 OnMessage = Callable[[str, Any], None]
@@ -57,6 +64,8 @@ def dds_qos(qos: ros2conv.Qos, ros_type: str) -> Qos:
     )
     durability = Policy.Durability.TransientLocal if qos.transient_local else Policy.Durability.Volatile
     policies = [reliability, durability, Policy.History.KeepLast(qos.depth)]
+    if qos.lifespan:
+        policies.append(Policy.Lifespan(int(qos.lifespan * 1e9)))
     if ros_type in TYPE_HASHES:
         policies.append(Policy.Userdata(f"typehash={TYPE_HASHES[ros_type]};".encode()))
     return Qos(*policies)
@@ -83,10 +92,17 @@ class Node:
         self.namespace = namespace
         self.participant = _participant(domain)
         self._writers: dict[str, tuple[DataWriter, str]] = {}
+        self._built: dict[Hashable, Any] = {}
         self._readers: list[DataReader] = []
         self._lock = threading.Lock()
         discovery = Topic(self.participant, DISCOVERY_TOPIC, idl.dds_type(idl.PARTICIPANT_ENTITIES))
         self._discovery = DataWriter(self.participant, discovery, qos=dds_qos(DISCOVERY_QOS, ""))
+        #: Which node each writer of the domain belongs to, from the other participants' announcements.
+        self.graph = Graph(self.participant.guid.bytes)
+        self._guids: dict[str, bytes] = {}
+        self._graph_reader = DataReader(
+            self.participant, discovery, qos=dds_qos(DISCOVERY_QOS, ""), listener=_Announcements(self.graph)
+        )
 
     @property
     def fullname(self) -> str:
@@ -112,6 +128,25 @@ class Node:
         writer.write(idl.build(kind, fields))
         return True
 
+    def publish_stamped(self, name: str, key: Hashable, t: float, make: Callable[[], dict[str, Any]]) -> bool:
+        """``publish`` for a message with a header that equals one published before but for its stamp
+        (``key``, ``Converter.keyed``'s): the message built then is written again with the stamp of ``t``,
+        so a reading that stands still costs a write, not a build. From one thread at a time (the feed's)."""
+        found = self._writers.get(name)
+        if found is None:
+            return False
+        writer, kind = found
+        built = self._built.get(key)
+        if built is None:
+            built = idl.build(kind, make())
+            if len(self._built) >= MAX_BUILT:
+                self._built.clear()
+            self._built[key] = built
+        else:
+            built.header.stamp = idl.build(ros2msg.TIME_TYPE, ros2msg.stamp(microseconds(t)))
+        writer.write(built)
+        return True
+
     def subscribe(self, topic: ros2conv.RosTopic, on_message: OnMessage, on_gone: OnGone, note: Note) -> None:
         """Read ``topic`` into ``on_message``, on Cyclone's listener thread."""
         dds = Topic(self.participant, dds_topic(topic.name, self.namespace), idl.dds_type(topic.type))
@@ -120,6 +155,30 @@ class Node:
         with self._lock:
             self._readers.append(reader)
         self.announce()
+
+    def writer_name(self, writer: str) -> str | None:
+        """The node (``/ns/name``) that owns ``writer`` (a reader's instance handle of it), if rmw said."""
+        guid = self._guids.get(writer)
+        if guid is None:
+            guid = self._guid(int(writer, 16))
+            if guid is None:
+                return None
+            if len(self._guids) >= MAX_GUIDS:
+                self._guids.clear()
+            self._guids[writer] = guid
+        return self.graph.node_of(guid)
+
+    def _guid(self, handle: int) -> bytes | None:
+        with self._lock:
+            readers = list(self._readers)
+        for reader in readers:
+            try:
+                found = reader.get_matched_publication_data(handle)
+            except DDSException:
+                continue
+            if found is not None:
+                return bytes(found.key.bytes)
+        return None
 
     def announce(self) -> None:
         """Say on ``ros_discovery_info`` what this node reads and writes, as rmw does after each change."""
@@ -137,7 +196,7 @@ class Node:
 
     def unsubscribe(self) -> None:
         """No reader calls back after this (the writers stay, so late readings still go out)."""
-        for reader in self._readers:
+        for reader in [*self._readers, self._graph_reader]:
             reader.set_listener(None)
 
     def close(self) -> None:
@@ -181,3 +240,22 @@ class _Reading(Listener):
 def _writer(handle: int) -> str:
     """A DDS writer as this reader knows it: its instance handle."""
     return f"{handle:x}"
+
+
+class _Announcements(Listener):
+    """``ros_discovery_info`` samples into the graph, on Cyclone's listener thread; a bad one is skipped."""
+
+    def __init__(self, graph: Graph) -> None:
+        super().__init__()
+        self._graph = graph
+
+    def on_data_available(self, reader: DataReader) -> None:
+        try:
+            samples = reader.take(N=64)
+        except Exception:  # a sample that does not decode: the next announcement will do
+            return
+        for sample in samples:
+            info = getattr(sample, "sample_info", None)
+            if info is None or info.valid_data:
+                with contextlib.suppress(Exception):
+                    self._graph.update(sample)

@@ -19,7 +19,9 @@ yaws and speeds, whatever link they came from.
   velocity's variance is the speed squared, and the distance covered then adds
   to the position's standard deviation in full).
 - **Wheel angles** (``joint_states``'s positions) are each wheel's signed
-  distance over the wheel radius, integrated the same way.
+  distance over the wheel radius, integrated the same way. They need no
+  compass: before the first heading (or with none) the wheels turn and the
+  pose is unknown (``State.yaw`` None).
 """
 
 from __future__ import annotations
@@ -47,12 +49,15 @@ def wrap(angle: float) -> float:
 
 @dataclass(frozen=True)
 class State:
-    """The odometry at one wheel reading: pose (m, rad), velocities (m/s, rad/s), wheel angles (rad)."""
+    """The odometry at one wheel reading: pose (m, rad), velocities (m/s, rad/s), wheel angles (rad).
+
+    ``yaw`` None: no heading yet, so no pose (x, y, the speed's direction and the turn rate mean nothing).
+    """
 
     t: float
     x: float
     y: float
-    yaw: float
+    yaw: float | None
     speed: float
     turn_rate: float
     wheel_angles: tuple[float, float]
@@ -74,7 +79,7 @@ class Odometry:
         self._signs = [1.0, 1.0]
         self._flipped = [-math.inf, -math.inf]
         self._yaw: float | None = None
-        self._last: tuple[float, float, tuple[float, float]] | None = None  # (t, yaw, signed speeds)
+        self._last: tuple[float, float | None, tuple[float, float]] | None = None  # (t, yaw, signed speeds)
 
     def heading(self, yaw: float) -> None:
         """The compass's latest yaw (radians, REP 103)."""
@@ -87,10 +92,8 @@ class Odometry:
             if sign != self._signs[i]:
                 self._signs[i], self._flipped[i] = sign, t
 
-    def wheels(self, t: float, left: float, right: float) -> State | None:
-        """A wheel reading (magnitudes, m/s) at ``t``: the odometry then (None before the first heading)."""
-        if self._yaw is None:
-            return None
+    def wheels(self, t: float, left: float, right: float) -> State:
+        """A wheel reading (magnitudes, m/s) at ``t``: the odometry then."""
         signed = (self._signs[0] * abs(left), self._signs[1] * abs(right))
         doubt = any(t - flipped < DOUBT_S for flipped in self._flipped)
         last, self._last = self._last, (t, self._yaw, signed)
@@ -100,25 +103,31 @@ class Odometry:
         return self._state(t, signed, rate, doubt)
 
     def _integrate(
-        self, dt: float, yaw0: float, before: tuple[float, float], now: tuple[float, float], doubt: bool
+        self,
+        dt: float,
+        yaw0: float | None,
+        before: tuple[float, float],
+        now: tuple[float, float],
+        doubt: bool,
     ) -> float:
-        """Move along the mid yaw; turn the wheels; the yaw rate over ``dt``."""
-        turned = wrap(self._yaw - yaw0) if self._yaw is not None else 0.0
-        mid = yaw0 + turned / 2
+        """Turn the wheels; move along the mid yaw (when both yaws are known); the yaw rate over ``dt``."""
         wheel = [(a + b) / 2 * dt for a, b in zip(before, now, strict=True)]
+        for i in (0, 1):
+            self.angles[i] += wheel[i] / self.wheel_radius
+        if yaw0 is None or self._yaw is None:
+            return 0.0
+        turned = wrap(self._yaw - yaw0)
+        mid = yaw0 + turned / 2
         distance = (wheel[0] + wheel[1]) / 2
         self.x += distance * math.cos(mid)
         self.y += distance * math.sin(mid)
         self.travelled += abs(distance)
         if doubt:
             self.doubtful += abs(distance)
-        for i in (0, 1):
-            self.angles[i] += wheel[i] / self.wheel_radius
         return turned / dt
 
     def _state(self, t: float, signed: tuple[float, float], rate: float, doubt: bool) -> State:
         speed = (signed[0] + signed[1]) / 2
-        assert self._yaw is not None
         return State(
             t=t,
             x=self.x,

@@ -2,18 +2,22 @@
 
 Every server front end says what happens through one ``Notes``: a line is
 written whole under a lock, so two threads never interleave, and a stderr
-that is gone costs the server nothing (it serves on, unheard). ``Notes``
+that is gone costs the server nothing (it serves on, unheard). A front end
+that carries the lines elsewhere too (a ROS 2 node's ``/rosout``) ``listen``s. ``Notes``
 with a redrawn status line on a terminal is ``foxglove.statusline.BridgeStatus``.
 """
 
 from __future__ import annotations
 
+import contextlib
 import threading
 from collections.abc import Callable
 from typing import TextIO
 
 #: A status line for a terminal, made when it is redrawn.
 StatusLine = Callable[[], str]
+#: Told each line's text (without the prefix) after it is written.
+Listener = Callable[[str], None]
 
 
 class Notes:
@@ -23,9 +27,17 @@ class Notes:
         self.stream = stream
         self.prefix = prefix
         self._lock = threading.Lock()
+        self._listeners: list[Listener] = []
 
     def note(self, text: str) -> None:
         self._write(f"{self.prefix}{text}\n")
+        for listener in self._listeners:
+            with contextlib.suppress(Exception):  # a copy of the line: losing it never costs the server
+                listener(text)
+
+    def listen(self, listener: Listener) -> None:
+        """``listener`` hears every line from now on (it must not write a note itself)."""
+        self._listeners.append(listener)
 
     def watch(self, line: StatusLine) -> None:
         """A status line to redraw on a terminal: none here (only events are written)."""

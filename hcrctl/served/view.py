@@ -119,6 +119,17 @@ class RuntimeView:
         """Messages the feed has published so far."""
         return self._feed.messages
 
+    def link_state(self) -> tuple[str, float | None, int, int]:
+        """The link as the poller sees it: its status (connecting, ok, no reply, disconnected), the sweeps a
+        second achieved lately (None before two), and the timeouts and checksum errors counted so far."""
+        view = self._feed.state.view()
+        return view.status, view.poll_rate, view.counters.timeouts, view.counters.checksum_errors
+
+    def reading_age(self, name: str) -> float | None:
+        """Seconds since sensor ``name``'s last good reading (None: none yet)."""
+        state = self._feed.state
+        return state.reading(name).age(state.clock())
+
     @property
     def deadman(self) -> float:
         return self._served.governor.lease.deadman

@@ -1,5 +1,5 @@
 """Words about dropped messages on a budget: what the robot side says when it refuses or ignores a message,
-however many peers send.
+however many peers send (a fleet's operators, a ROS 2 node's writers).
 
 Every refusal is counted (``DriveCounters``), but only so many are said (on
 ``status`` to its sender, and on stderr): a word is said once per window for
@@ -18,26 +18,25 @@ from __future__ import annotations
 import re
 import threading
 import time
-from collections.abc import Callable
-
-from ..link.zenoh.keyspace import Who
+from collections.abc import Callable, Hashable
+from typing import Generic, TypeVar
 
 #: Words said per window, at most.
 MAX_LINES = 5
 #: The window, in seconds.
 WINDOW = 1.0
-#: (operator the word is for, text, the sequence number it answers): a put on ``status`` and a line on stderr.
-Say = Callable[["Who | None", str, "int | None"], None]
+#: Who a word is for: a fleet operator, a ROS 2 writer (None: everyone, the summary of what was held back).
+Op = TypeVar("Op", bound=Hashable)
 
 _DIGITS = re.compile(r"\d+")
 
 
-class Refusals:
+class Refusals(Generic[Op]):
     """Says words through ``say``: each (sender, kind) once per ``window`` s, ``max_lines`` in all per window."""
 
     def __init__(
         self,
-        say: Say,
+        say: Callable[[Op | None, str, int | None], None],
         *,
         max_lines: int = MAX_LINES,
         window: float = WINDOW,
@@ -49,10 +48,10 @@ class Refusals:
         self._clock = clock
         self._lock = threading.Lock()
         self._start = clock()
-        self._said: set[tuple[Who | None, str]] = set()
+        self._said: set[tuple[Op | None, str]] = set()
         self._held = 0
 
-    def refused(self, op: Who | None, text: str, seq: int | None = None, kind: str | None = None) -> None:
+    def refused(self, op: Op | None, text: str, seq: int | None = None, kind: str | None = None) -> None:
         """One word for ``op``: said unless already said to it this window or over the budget (then counted)."""
         told = (op, kind or _DIGITS.sub("#", text))
         with self._lock:

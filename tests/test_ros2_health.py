@@ -1,0 +1,119 @@
+"""The node's own topics, unit by unit: diagnostics levels, rosout levels and names, the graph's bounds,
+and their messages as rosbags (Jazzy) decodes them."""
+
+from __future__ import annotations
+
+import dataclasses
+from types import SimpleNamespace
+from typing import Any
+
+import pytest
+from helpers_ros2 import jazzy, plain
+
+from hcrctl.protocol import ros2msg
+from hcrctl.protocol import ros2types as R
+from hcrctl.ros2 import diagnostics as D
+from hcrctl.ros2 import rosout
+from hcrctl.ros2.graph import MAX_WRITERS, Graph
+
+pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
+HEALTHY = D.Link("/dev/ttyUSB0", "ok", 9.9, 10.0, 0, 0, 0, 0, 0.05, 0.5)
+NOBODY = D.Driver("", 0, 0, 0, True)
+
+
+@pytest.mark.parametrize(
+    ("change", "level", "words"),
+    [
+        ({}, R.DIAG_OK, "ok"),
+        ({"status": "no reply"}, R.DIAG_ERROR, "no reply on /dev/ttyUSB0"),
+        ({"status": "disconnected"}, R.DIAG_ERROR, "disconnected"),
+        ({"bumper_age": 0.7}, R.DIAG_ERROR, "forward motion refused"),
+        ({"bumper_age": None}, R.DIAG_ERROR, "no fresh bumper reading"),
+        ({"sweeps_per_s": 7.9}, R.DIAG_WARN, "7.9 sweeps/s of 10 asked"),
+        ({"sweeps_per_s": 8.1}, R.DIAG_OK, "ok"),
+        ({"new_timeouts": 1}, R.DIAG_WARN, "1 timeout(s)"),
+        ({"new_checksum_errors": 2, "checksum_errors": 9}, R.DIAG_WARN, "2 checksum error(s)"),
+        ({"timeouts": 40}, R.DIAG_OK, "ok"),  # old timeouts, none in the last period
+    ],
+)
+def test_link_levels(change: dict[str, Any], level: int, words: str) -> None:
+    got, message = D.link_level(dataclasses.replace(HEALTHY, **change))
+    assert got == level and words in message
+
+
+@pytest.mark.parametrize(
+    ("change", "level", "words"),
+    [
+        ({}, R.DIAG_OK, "nobody drives"),
+        ({"driver": "ROS 2 node /teleop"}, R.DIAG_OK, "ROS 2 node /teleop drives"),
+        ({"new_refused": 3, "refused": 10}, R.DIAG_WARN, "3 cmd_vel refused"),
+        ({"drives": False}, R.DIAG_WARN, "no velocity command"),
+    ],
+)
+def test_driver_levels(change: dict[str, Any], level: int, words: str) -> None:
+    got, message = D.driver_level(dataclasses.replace(NOBODY, **change))
+    assert got == level and words in message
+
+
+def test_the_array_decodes_as_jazzy_s() -> None:
+    fields = D.array(1_700_000_000.5, "/hcr/hcrctl", HEALTHY, NOBODY)
+    decoded = plain(jazzy().deserialize_cdr(ros2msg.encoder(R.DIAGNOSTIC_ARRAY)(fields), R.DIAGNOSTIC_ARRAY))
+    link, driver = decoded["status"]
+    assert (link["name"], driver["name"]) == ("/hcr/hcrctl: link", "/hcr/hcrctl: driver")
+    assert link["hardware_id"] == "/dev/ttyUSB0" and link["level"] == R.DIAG_OK
+    assert {"key": "sweeps per second", "value": "9.90"} in link["values"]
+
+
+@pytest.mark.parametrize(
+    ("text", "level"),
+    [
+        ("serving /dev/pts/3 as ROS 2 node /hcr/hcrctl on DDS domain 0; Ctrl-C ends it", R.LOG_INFO),
+        ("stopped: deadman: no cmd_vel for 0.5 s", R.LOG_WARN),
+        ("cmd_vel from ROS 2 writer 1a refused: ROS 2 node /t drives the robot", R.LOG_WARN),
+        ("closing the ROS 2 node failed (ignored): OSError()", R.LOG_ERROR),
+    ],
+)
+def test_rosout_levels_and_logger_name(text: str, level: int) -> None:
+    fields = rosout.log(text, rosout.logger_name("/hcr/hcrctl"), at=1_700_000_000.25)
+    decoded = plain(jazzy().deserialize_cdr(ros2msg.encoder(R.LOG)(fields), R.LOG))
+    assert decoded["level"] == level and decoded["name"] == "hcr.hcrctl" and decoded["msg"] == text
+    assert decoded["stamp"] == {"sec": 1_700_000_000, "nanosec": 250_000_000}
+
+
+def test_a_ten_megabyte_line_is_cut_on_rosout() -> None:
+    assert len(rosout.log("x" * 10_000_000, "hcrctl")["msg"]) == rosout.MAX_CHARS
+
+
+def _info(participant: int, nodes: list[tuple[str, str, list[int]]]) -> Any:
+    def gid(n: int) -> Any:
+        return SimpleNamespace(data=list(n.to_bytes(16, "big")))
+
+    return SimpleNamespace(
+        gid=gid(participant),
+        node_entities_info_seq=[
+            SimpleNamespace(node_namespace=ns, node_name=name, writer_gid_seq=[gid(w) for w in writers])
+            for ns, name, writers in nodes
+        ],
+    )
+
+
+def test_the_graph_names_writers_by_node_and_forgets_what_a_participant_no_longer_says() -> None:
+    graph = Graph(own=(1).to_bytes(16, "big"))
+    graph.update(_info(1, [("/", "itself", [10])]))
+    graph.update(_info(2, [("/", "teleop", [20, 21]), ("/ns", "mux", [22])]))
+    assert graph.node_of((10).to_bytes(16, "big")) is None
+    assert graph.node_of((21).to_bytes(16, "big")) == "/teleop"
+    assert graph.node_of((22).to_bytes(16, "big")) == "/ns/mux"
+    graph.update(_info(2, [("/", "teleop", [20])]))
+    assert graph.node_of((21).to_bytes(16, "big")) is None
+
+
+def test_a_peer_cannot_fill_the_graph_or_the_terminal() -> None:
+    graph = Graph()
+    graph.update(_info(2, [("/", "flood", list(range(MAX_WRITERS + 500)))]))
+    graph.update(_info(3, [("/", "late\x1b[2J", [MAX_WRITERS + 1000])]))
+    assert graph.node_of((MAX_WRITERS + 1000).to_bytes(16, "big")) is None  # no room left
+    graph.update(_info(2, []))
+    graph.update(_info(3, [("/", "late\x1b[2J", [MAX_WRITERS + 1000])]))
+    name = graph.node_of((MAX_WRITERS + 1000).to_bytes(16, "big"))
+    assert name is not None and "\x1b" not in name
