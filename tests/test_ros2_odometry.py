@@ -43,7 +43,7 @@ def test_before_the_first_heading_the_wheels_turn_but_there_is_no_pose() -> None
 
 def test_without_a_compass_joint_states_alone_are_published() -> None:
     odom = OdomTopics(ros2conv.DEFAULT_LAYOUT)
-    published = odom.feed(T.PREFIX + "wheels", {"time": 1.0, "left": 10, "right": 10})
+    published = odom.convert(T.PREFIX + "wheels", {"time": 1.0, "left": 10, "right": 10})
     assert [name for name, _, _ in published] == [ros2conv.JOINT_STATES]
 
 
@@ -218,15 +218,15 @@ def test_the_messages_decode_as_jazzy_s_and_follow_the_frames_sent() -> None:
 
     odom = OdomTopics(ros2conv.DEFAULT_LAYOUT)
     t = 1_700_000_000.0
-    assert odom.feed(T.PREFIX + "compass", {"time": t, "heading": 0.0}) == []  # north: yaw 90 degrees
-    odom.feed(*_sent(t, C.Turn(90, True, 255)))
-    odom.feed(T.PREFIX + "wheels", {"time": t, "left": 10, "right": 10})
+    assert odom.convert(T.PREFIX + "compass", {"time": t, "heading": 0.0}) == []  # north: yaw 90 degrees
+    odom.convert(*_sent(t, C.Turn(90, True, 255)))
+    odom.convert(T.PREFIX + "wheels", {"time": t, "left": 10, "right": 10})
     turning = dict(
-        (n, f) for n, _, f in odom.feed(T.PREFIX + "wheels", {"time": t + 0.1, "left": 10, "right": 10})
+        (n, f) for n, _, f in odom.convert(T.PREFIX + "wheels", {"time": t + 0.1, "left": 10, "right": 10})
     )
     assert turning[ros2conv.JOINT_STATES]["velocity"] == pytest.approx([-0.1 / RADIUS, 0.1 / RADIUS])
-    odom.feed(*_sent(t + 0.1, C.Velocity(-20, -20)))
-    converted = odom.feed(T.PREFIX + "wheels", {"time": t + 1.1, "left": 20, "right": 20})
+    odom.convert(*_sent(t + 0.1, C.Velocity(-20, -20)))
+    converted = odom.convert(T.PREFIX + "wheels", {"time": t + 1.1, "left": 20, "right": 20})
     store = jazzy()
     decoded = {
         name: plain(store.deserialize_cdr(ros2msg.encoder(kind)(f), kind)) for name, kind, f in converted

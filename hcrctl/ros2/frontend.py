@@ -102,7 +102,7 @@ class Ros2Node(FrontEnd):
             else:
                 node.publish_stamped(name, key, message["time"], make)
             self.messages += 1
-        for name, _, fields in self.odom.feed(topic, message):
+        for name, _, fields in self.odom.convert(topic, message):
             node.publish(name, fields)
             self.messages += 1
 

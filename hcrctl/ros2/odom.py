@@ -48,7 +48,7 @@ def _covariance(diagonal: tuple[float, ...]) -> list[float]:
 
 
 class OdomTopics:
-    """The odometry of one robot, as ROS 2 messages: ``topics`` to advertise, ``feed`` for each message."""
+    """The odometry of one robot, as ROS 2 messages: ``topics`` to advertise, ``convert`` for each message."""
 
     def __init__(self, layout: ros2conv.Layout) -> None:
         self.layout = layout
@@ -62,7 +62,7 @@ class OdomTopics:
             ros2conv.RosTopic(ros2conv.JOINT_STATES, R.JOINT_STATE),
         )
 
-    def feed(self, topic: str, message: Mapping[str, Any]) -> Converted:
+    def convert(self, topic: str, message: Mapping[str, Any]) -> Converted:
         """What one feed message publishes (most publish nothing, and only change the odometry)."""
         if topic == FRAMES:
             self._sent(message)
