@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 
 import click
 
-from .. import __version__
+from .. import __version__, stdout
 from ..errors import describe, printable
 from ..link.signals import Terminated, stop_signals_raise
 from ..protocol import commands as C
@@ -197,7 +197,12 @@ def entry() -> None:
     one-shot command; mypy exits the same way. Output is flushed, threads are
     waited for and atexit handlers run first (``fast_exit``).
     Tests and library users call ``main()``, which raises SystemExit as usual.
+    A closed stdout is refused first (``stdout.guard``).
     """
+    try:
+        stdout.guard()
+    except stdout.StdoutClosed as exc:
+        fast_exit(exit_code_for(exc))
     try:
         main()
     except SystemExit as exc:
@@ -287,8 +292,14 @@ def main(argv: list[str] | None = None) -> None:
         # click.Abort (Ctrl-C at a prompt or in a command) is a RuntimeError: an interruption, never a bug
         if debug and isinstance(exc, Exception) and not isinstance(exc, (click.ClickException, click.Abort)):
             raise
-        code = exit_code_for(exc, args)
+        code = 1 if _said_by_log(exc) else exit_code_for(exc, args)
     sys.exit(with_log_status(code if isinstance(code, int) else 0))
+
+
+def _said_by_log(exc: BaseException) -> bool:
+    """Stdout failed as a ``--log -`` on it already said, at once: one line is enough."""
+    trafficlog = sys.modules.get("hcrctl.link.trafficlog")  # never imported: no log was written
+    return trafficlog is not None and trafficlog.said_already(exc)
 
 
 def with_log_status(code: int) -> int:

@@ -70,6 +70,13 @@ def incomplete() -> list[LogIncomplete]:
         return list(_INCOMPLETE)
 
 
+def said_already(exc: BaseException) -> bool:
+    """``exc`` is stdout failing as a ``--log -`` already said it did: the same stream, the same reason."""
+    if not isinstance(exc, OSError) or exc.filename is not None:
+        return False
+    return any(lost.path == STDOUT and lost.reason == exc.strerror for lost in incomplete())
+
+
 def iso_time(t: float) -> str:
     """Local time with its UTC offset and microseconds: sortable, and unambiguous across zones."""
     return datetime.fromtimestamp(t).astimezone().isoformat(timespec="microseconds")
