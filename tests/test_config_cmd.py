@@ -9,6 +9,7 @@ one table (``settings.global_options``), never listed here again.
 from __future__ import annotations
 
 import json
+import os
 import re
 from pathlib import Path
 from typing import Any
@@ -117,6 +118,37 @@ def test_init_refuses_an_existing_file_and_force_replaces_it(tmp_path):
     forced = run(["config", "init", "--force"], clean_env(tmp_path))
     assert forced.returncode == 0, forced.stderr
     assert path.read_text().startswith("# hcrctl's config file")
+
+
+@pytest.mark.parametrize("to_existing", [True, False], ids=["to a file", "dangling"])
+@pytest.mark.parametrize("force", [[], ["--force"]], ids=["", "force"])
+def test_init_refuses_a_symlinked_file(tmp_path, to_existing, force):
+    """Through a link it would overwrite, or make, a file elsewhere: one line instead, nothing written."""
+    path, real = config_file(tmp_path), tmp_path / "dotfiles" / "hcrctl.toml"
+    path.parent.mkdir(parents=True)
+    real.parent.mkdir()
+    if to_existing:
+        real.write_text("retries = 3\n")
+    path.symlink_to(real)
+    refused = run(["config", "init", *force], clean_env(tmp_path))
+    assert refused.returncode == 2 and refused.stdout == ""
+    assert one_line(refused.stderr) == (
+        f"hcrctl: error: config file {path} is a symbolic link, not a file"
+        " (hint: remove the link, or write elsewhere)"
+    )
+    assert (real.read_text() if to_existing else real.exists()) == ("retries = 3\n" if to_existing else False)
+
+
+def test_init_force_refuses_a_fifo_at_once(tmp_path):
+    """A FIFO would hold ``config init`` waiting for a reader, silently: refused in one line."""
+    path = config_file(tmp_path)
+    path.parent.mkdir(parents=True)
+    os.mkfifo(path)
+    refused = run(["config", "init", "--force"], clean_env(tmp_path))
+    assert refused.returncode == 2 and refused.stdout == ""
+    assert one_line(refused.stderr) == (
+        f"hcrctl: error: config file {path} is a FIFO, not a regular file (hint: remove it, or write elsewhere)"
+    )
 
 
 def test_a_broken_file_is_named_by_config_and_path_and_init_force_still_work(tmp_path):

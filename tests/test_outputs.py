@@ -146,8 +146,8 @@ def test_export_refuses_to_write_its_own_input(log: Path, tmp_path: Path, kind: 
     source, out = input_as_out(kind, log, tmp_path)
     before, names = state(source), listing(tmp_path)
     args = ["export", str(source), str(out), *(["--force"] if force else [])]
-    line = refused(run(args, clean_env(tmp_path)), source, out)
-    assert "same file" in line
+    line = refused(run(args, clean_env(tmp_path)), out)
+    assert ("is a symbolic link" if kind == "symlink" else "same file") in line  # the true reason
     assert state(source) == before
     assert listing(tmp_path) == names
 
@@ -165,7 +165,7 @@ def test_record_refuses_an_out_that_is_its_log(tmp_path: Path, force: bool) -> N
 
 
 def test_record_refuses_an_existing_log_linked_to_its_out(tmp_path: Path) -> None:
-    """An existing --log is fine (it is appended to); one that is the recording's file is not."""
+    """An existing --log is fine (it is appended to); a link to it as the recording's file is not."""
     log, out = tmp_path / "wire.jsonl", tmp_path / "run.mcap"
     before = existing(log)
     out.symlink_to(log.name)
@@ -173,7 +173,7 @@ def test_record_refuses_an_existing_log_linked_to_its_out(tmp_path: Path) -> Non
         args = ["--port", tap.path, "--log", str(log), "record", str(out), "--force"]
         done = run(args, clean_env(tmp_path))
         assert tap.read(quiet=0.3) == b""
-    refused(done, out, log)
+    assert "is a symbolic link" in refused(done, out)
     assert state(log) == before
 
 
@@ -257,18 +257,68 @@ def test_a_disk_that_fills_up_mid_export_keeps_the_old_out(log: Path, tmp_path: 
     assert names == [out.name]
 
 
-def test_force_through_a_symlink_replaces_the_file_it_points_at(log: Path, tmp_path: Path) -> None:
-    real = tmp_path / "real.csv"
-    existing(real)
-    real.chmod(0o640)
-    link = tmp_path / "link.csv"
+# -- an output given as a symbolic link: refused, whatever it points at but a stream ----------
+
+SYMLINKED = "is a symbolic link, not a file"
+
+
+def symlinked(folder: Path, to_existing: bool) -> tuple[Path, Path]:
+    """(link.csv, what it points at): an existing file (kept), or nothing (a dangling link)."""
+    real, link = folder / "real.csv", folder / "link.csv"
+    if to_existing:
+        existing(real)
     link.symlink_to(real.name)
-    done = run(["export", str(log), str(link), "--force"], clean_env(tmp_path))
+    return link, real
+
+
+def outcome_of(real: Path) -> tuple[bytes, int] | None:
+    return state(real) if real.exists() else None
+
+
+@pytest.mark.parametrize("to_existing", [True, False], ids=["to a file", "dangling"])
+@pytest.mark.parametrize("force", [False, True])
+def test_export_refuses_a_symlinked_out(log: Path, tmp_path: Path, to_existing: bool, force: bool) -> None:
+    link, real = symlinked(tmp_path, to_existing)
+    before = outcome_of(real)
+    done = run(["export", str(log), str(link), *(["--force"] if force else [])], clean_env(tmp_path))
+    assert SYMLINKED in refused(done, link)
+    assert outcome_of(real) == before  # not overwritten, not made
+    assert link.is_symlink()
+
+
+@pytest.mark.parametrize("to_existing", [True, False], ids=["to a file", "dangling"])
+@pytest.mark.parametrize("force", [False, True])
+def test_record_refuses_a_symlinked_out_before_the_port(
+    tmp_path: Path, to_existing: bool, force: bool
+) -> None:
+    link, real = symlinked(tmp_path, to_existing)
+    before = outcome_of(real)
+    with wire() as tap:
+        done = run(
+            ["--port", tap.path, "record", str(link), *(["--force"] if force else [])], clean_env(tmp_path)
+        )
+        assert tap.read(quiet=0.3) == b""
+    assert SYMLINKED in refused(done, link)
+    assert outcome_of(real) == before
+
+
+@pytest.mark.parametrize("to_existing", [True, False], ids=["to a file", "dangling"])
+def test_a_symlinked_log_is_refused_before_the_port(tmp_path: Path, to_existing: bool) -> None:
+    link, real = symlinked(tmp_path, to_existing)
+    before = outcome_of(real)
+    with wire() as tap:
+        done = run(["--port", tap.path, "--log", str(link), "ping"], clean_env(tmp_path))
+        assert tap.read(quiet=0.3) == b""
+    assert SYMLINKED in refused(done, link)
+    assert outcome_of(real) == before
+
+
+def test_a_symlink_to_a_stream_is_written(log: Path, tmp_path: Path) -> None:
+    """``/dev/null`` (a stream) holds nothing to lose: a link to it is an output like it."""
+    out = tmp_path / "null.csv"
+    out.symlink_to(os.devnull)
+    done = run(["export", str(log), str(out)], clean_env(tmp_path))
     assert done.returncode == 0, done.stderr
-    assert link.is_symlink() and link.resolve() == real
-    assert real.read_text().startswith("time,t,")
-    assert real.stat().st_mode & 0o777 == 0o640  # the replaced file's permissions
-    assert listing(tmp_path) == ["link.csv", "real.csv"]
 
 
 # -- export, caught mid-way: its log is a FIFO the test writes ------------------------------

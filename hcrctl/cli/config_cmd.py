@@ -205,7 +205,7 @@ def write_new(where: str, text: str, force: bool) -> None:
     from ..recording.outputs import check_outputs, written_whole
 
     label = "config file"
-    check_outputs([(label, where)], force=force)
+    check_outputs([(label, where)], force=force, regular_only=True)
     try:
         os.makedirs(os.path.dirname(where), exist_ok=True)
         with (

@@ -62,8 +62,10 @@ FORCE_HINT = "--force overwrites it"
 READER_POLL_S = 0.05
 #: How many times a file replaced under a writer that was about to lock it is claimed again.
 _ATTEMPTS = 8
-#: What every write-only open here adds: no controlling terminal, not inherited by children.
-_FLAGS = os.O_WRONLY | os.O_NOCTTY | getattr(os, "O_CLOEXEC", 0)
+#: What every write-only open of a stream adds: no controlling terminal, not inherited by children.
+_STREAM_FLAGS = os.O_WRONLY | os.O_NOCTTY | getattr(os, "O_CLOEXEC", 0)
+#: A file's: the same, never through a symbolic link (ELOOP instead).
+_FLAGS = _STREAM_FLAGS | os.O_NOFOLLOW
 #: A new file's permissions before the umask, as ``open()`` gives them.
 _NEW_MODE = 0o666
 
@@ -77,6 +79,30 @@ class OutputRefused(HcrError):
 def exists_error(label: str, path: str) -> OutputRefused:
     """The refusal of an output that exists: the file named, and how to overwrite it on purpose."""
     return OutputRefused(f"{label} {path} already exists", hint=FORCE_HINT)
+
+
+def symlink_error(label: str, path: str) -> OutputRefused:
+    """The refusal of an output that is a symbolic link: what it points at was never named as an output."""
+    return OutputRefused(
+        f"{label} {path} is a symbolic link, not a file", hint="remove the link, or write elsewhere"
+    )
+
+
+def refuse_symlink(label: str, path: str) -> None:
+    """``symlink_error`` if ``path`` is a symbolic link to a file, or to nothing; a link to a stream is not."""
+    if os.path.islink(path) and _kind(path) == "file":
+        raise symlink_error(label, path)
+
+
+@contextlib.contextmanager
+def _no_symlink(label: str, path: str) -> Iterator[None]:
+    """A file open of ``path`` that met a symbolic link (O_NOFOLLOW's ELOOP) is ``symlink_error``."""
+    try:
+        yield
+    except OSError as exc:
+        if exc.errno == errno.ELOOP and os.path.islink(path):
+            raise symlink_error(label, path) from None
+        raise
 
 
 def in_use_error(label: str, path: str) -> OutputRefused:
@@ -151,18 +177,24 @@ def _holding(fd: int) -> Iterator[tuple[int, int]]:
         os.close(fd)
 
 
-def open_appended(path: str) -> int:
+def open_appended(path: str, label: str = "--log") -> int:
     """A descriptor appending to ``path`` (made if missing): this process's hold on it, or opened now.
 
     ``O_APPEND``: each ``write`` lands whole at the end, whoever else appends.
-    A FIFO is waited for as ``claimed`` waits. OSError as ``open``.
+    A FIFO is waited for as ``claimed`` waits. A symbolic link is refused
+    (``OutputRefused``); any other failure is OSError as ``open``.
     """
     held = _held(path)
     if held is not None:
         return os.dup(held)
-    if _kind(path) == "fifo":
+    kind = _kind(path)
+    if kind == "fifo":
         return open_fifo(path, path)
-    return os.open(path, _FLAGS | os.O_APPEND | os.O_CREAT, _NEW_MODE)
+    if kind == "device":
+        return os.open(path, _STREAM_FLAGS | os.O_APPEND)
+    refuse_symlink(label, path)
+    with _no_symlink(label, path):
+        return os.open(path, _FLAGS | os.O_APPEND | os.O_CREAT, _NEW_MODE)
 
 
 @contextlib.contextmanager
@@ -209,20 +241,30 @@ def _held(path: str) -> int | None:
 
 
 def _open_unclaimed(path: str) -> int:
-    if _kind(path) == "fifo":
+    kind = _kind(path)
+    if kind == "fifo":
         return open_fifo(path, path)
-    return os.open(path, _FLAGS | os.O_CREAT | os.O_TRUNC, _NEW_MODE)
+    if kind == "device":
+        return os.open(path, _STREAM_FLAGS | os.O_TRUNC)
+    with _no_symlink("OUT", path):
+        return os.open(path, _FLAGS | os.O_CREAT | os.O_TRUNC, _NEW_MODE)
 
 
 def _claim(label: str, path: str, force: bool) -> _Claim | None:
     """``path`` held (locked, emptied if forced), or None if it cannot be opened at all."""
-    target = os.path.realpath(path)  # a dangling symlink makes the file it points at, as open() would
+    refuse_symlink(label, path)
+    target = os.path.realpath(path)  # the folders resolved; a link here is one to a stream
     for _ in range(_ATTEMPTS):
         kind = _kind(target)
         if kind == "fifo":
             return _Claim(open_fifo(target, f"{label} {path}"), target, created=False)
         try:
-            opened = (os.open(target, _FLAGS), False) if kind == "device" else _open_claimed(target, force)
+            with _no_symlink(label, target):
+                opened = (
+                    (os.open(target, _STREAM_FLAGS), False)
+                    if kind == "device"
+                    else _open_claimed(target, force)
+                )
         except FileExistsError:
             raise exists_error(label, path) from None
         except OSError:
@@ -288,7 +330,7 @@ def open_fifo(path: str, named: str) -> int:
     said = False
     while True:
         try:
-            fd = os.open(path, _FLAGS | os.O_NONBLOCK)
+            fd = os.open(path, _STREAM_FLAGS | os.O_NONBLOCK)
         except OSError as exc:
             if exc.errno != errno.ENXIO:
                 raise

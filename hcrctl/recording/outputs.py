@@ -11,7 +11,10 @@ or that two outputs of one command share is refused, with or without
 
 An output that is a character device or a FIFO (``/dev/null``, a named
 pipe another program reads) holds nothing to lose: it is written as it is.
-A directory is never an output.
+A directory is never an output, nor a symbolic link to a file
+(``claims.refuse_symlink``: writing through it would overwrite a file the user
+never named); a command that writes only files (``config init``) refuses a
+stream too (``regular_only``), since a FIFO would hold it waiting for a reader.
 
 ``written_whole`` is for a command that makes a file in one go (``export``):
 it writes beside the target and renames over it only once everything is
@@ -55,6 +58,7 @@ def check_outputs(
     *,
     appended: Sequence[Named] = (),
     force: bool = False,
+    regular_only: bool = False,
 ) -> None:
     """Refuse (``OutputRefused``) what writing ``outputs`` would destroy; call it before opening anything.
 
@@ -66,7 +70,11 @@ def check_outputs(
     its ``--log`` (``export``) may well read that very log.
     """
     written, added = _given(outputs), _given(appended)
+    for label, path in written + added:
+        claims.refuse_symlink(label, path)
     _refuse_directories(written + added)
+    if regular_only:
+        _refuse_streams(written)
     _refuse_inputs(written, _given(inputs))
     _refuse_shared(written + added)
     if not force:
@@ -79,6 +87,20 @@ def _refuse_directories(outputs: list[tuple[str, str]]) -> None:
     for label, path in outputs:
         if os.path.isdir(path):
             raise OutputRefused(f"{label} {path} is a directory", hint="give a file name")
+
+
+#: What a path that is not a regular file is, as a refusal names it.
+_KINDS = ((stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"), (stat.S_ISSOCK, "a socket"))
+
+
+def _refuse_streams(outputs: list[tuple[str, str]]) -> None:
+    for label, path in outputs:
+        mode = _mode_of(path)
+        if mode is not None and not stat.S_ISREG(mode):
+            kind = next((name for test, name in _KINDS if test(mode)), "a special file")
+            raise OutputRefused(
+                f"{label} {path} is {kind}, not a regular file", hint="remove it, or write elsewhere"
+            )
 
 
 def _refuse_inputs(outputs: list[tuple[str, str]], inputs: list[tuple[str, str]]) -> None:
@@ -149,15 +171,15 @@ def written_whole(path: str, label: str = "OUT", *, force: bool = False) -> Iter
 
     The temporary file keeps ``path``'s suffix (it may choose the format)
     and is hidden (``.NAME.XXXX.part.SUFFIX``); it is removed if the block
-    raises, whatever it raises, and an error that names it names ``path``. A symlink is followed, so the file it points
-    at is replaced and the link stays; a stream (``/dev/null``, a FIFO) is
-    written directly. Without ``force``, a file that appeared at ``path``
+    raises, whatever it raises, and an error that names it names ``path``. A symbolic link to a file is
+    refused (``claims.refuse_symlink``); a stream (``/dev/null``, a FIFO) is written directly. Without ``force``, a file that appeared at ``path``
     meanwhile is not replaced (``OutputRefused``, as ``check_outputs``
     would have said); with ``force`` the file to be replaced is locked as
     a writer's (``claims.locked``) until it is, so a live recording of it
     is not swept away (this is refused instead). A temporary file that cannot be made is ``SinkWriteError`` naming ``path``.
     The result has the mode the replaced file had, or the one a new file gets.
     """
+    claims.refuse_symlink(label, path)
     target = os.path.realpath(path)
     mode = _mode_of(target)
     if mode is not None and _is_stream(mode):
