@@ -8,6 +8,7 @@ line that only arrived at the end would fail the ``poll() is None`` checks.
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import signal
 import subprocess
@@ -15,8 +16,10 @@ from typing import Any
 
 import pytest
 from helpers import hcrctl_exe
-from helpers_cli import finish, readline, start
+from helpers_cli import finish, readline, start, stderr_until
 from helpers_live import usage_error
+
+from hcrctl.live.jsonlines import MAX_QUEUED
 
 
 def strict(line: str) -> dict[str, Any]:
@@ -107,3 +110,31 @@ def test_jsonl_and_a_plot_are_refused_together() -> None:
     assert "--plot draws a chart and --jsonl draws nothing" in usage_error(
         "watch", "--jsonl", "--plot", "compass.heading"
     )
+
+
+def test_a_stalled_reader_costs_a_bounded_queue_and_the_drops_are_said_and_counted(
+    env: dict[str, str],
+) -> None:
+    """Nobody reads stdout: the sweeps wait, at most ``MAX_QUEUED``; then the oldest go, said at once and counted.
+
+    Every sweep is either a line the reader finally gets or one of the dropped:
+    nothing is lost without being counted, and nothing grows without bound.
+    """
+    proc = start(["--port", "sim://", "watch", "--jsonl", "--rate", "max", "compass"], env)
+    try:
+        said = stderr_until(proc, "dropped from now on")
+        assert f"the reader of --jsonl is {MAX_QUEUED} sweeps behind" in said, said
+        assert proc.poll() is None  # the polling went on, the reader stalled only the writing
+        proc.send_signal(signal.SIGTERM)
+        out, err = finish(proc)  # reads everything: the reader is back
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    summary = err.strip().splitlines()[-1]
+    found = re.search(r"watch: (\d+) sweeps .*, (\d+) sweeps? dropped \(the reader was behind\)$", summary)
+    assert found, summary
+    sweeps, dropped = int(found[1]), int(found[2])
+    received = [strict(line) for line in out.splitlines()]
+    assert dropped > 0 and received
+    assert len(received) + dropped == sweeps, (len(received), dropped, sweeps)

@@ -74,6 +74,7 @@ def watch(
     if jsonl and plot:
         raise click.UsageError("--plot draws a chart and --jsonl draws nothing: give one of them")
     # the stream is stdout's: --json's summary would be one more line in it, so it goes to stderr as text
+    lines = SweepLines(sys.stdout) if jsonl else None
     with ServerEnd("watch", as_json=settings.as_json and not jsonl, bounded=duration is not None) as end:
         run_watch(
             settings,
@@ -81,10 +82,12 @@ def watch(
             rate,
             duration,
             pipeline=pipeline,
-            report=end.reporter(summary_line),
+            report=end.reporter(
+                lambda summary: summary_line(summary) + (lines.dropped_text() if lines else "")
+            ),
             as_json=settings.as_json,
             plot=plot,
-            lines=SweepLines(sys.stdout) if jsonl else None,
+            lines=lines,
         )
 
 
