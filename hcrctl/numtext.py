@@ -16,7 +16,8 @@ number of every parameter, option, environment variable, config key, shell
 
 Standard library only, so the simulator's query parser shares the rules with
 the CLI's Click types (``hcrctl.cli.params``), which turn ``NumberError`` into
-a usage error naming the parameter.
+a usage error naming the parameter. The other way, a count written for a
+person, is here too (``plural``).
 """
 
 from __future__ import annotations
@@ -103,3 +104,11 @@ def _checked(text: str, hex_ok: bool) -> str:
 
 
 _PREFIX_KINDS = {"x": "a hex", "b": "a binary", "o": "an octal"}
+
+
+def plural(count: int, noun: str, many: str | None = None) -> str:
+    """``1 frame``, ``2 frames``, ``0 frames``: a count and its noun, agreeing (``many``: an irregular plural).
+
+    The one rule every summary and message counts by, so none says "1 messages".
+    """
+    return f"{count} {noun if count == 1 else many or noun + 's'}"

@@ -183,6 +183,14 @@ class Serve:
             self.err += chunk
         return self.err.decode()
 
+    def summary(self) -> str:
+        """SIGTERM, then the closing summary line (``hcrctl: fleet serve NAME: ...``)."""
+        self.proc.send_signal(signal.SIGTERM)
+        assert self.proc.wait(timeout=TIMEOUT) == 0, self.said()
+        err = self.wait_err(" drive frame")
+        (line,) = [line for line in err.splitlines() if line.startswith(f"hcrctl: fleet serve {self.name}: ")]
+        return line
+
     def said(self) -> str:
         """Stderr so far: everything there is to read now, added to ``err``."""
         assert self.proc.stderr is not None

@@ -232,3 +232,13 @@ def test_duration_takes_the_first_seconds_of_the_log(log: Path, tmp_path: Path) 
     report = json.loads(export(log, tmp_path / "half.mcap", "--json", after=("--duration", "0.5")).stdout)
     assert report["records"] == len(within)
     assert report["topics"][T.FRAMES] == len(within)
+
+
+def test_the_summary_counts_one_message_in_the_singular(tmp_path: Path) -> None:
+    """One read (its request and its reply): ``2 records -> OUT: 1 message``, as a person writes it."""
+    log = tmp_path / "one.jsonl"
+    read = run(["--port", "sim://", "--log", str(log), "read", "compass"], clean_env(tmp_path))
+    assert read.returncode == 0, read.stderr
+    out = tmp_path / "one.csv"
+    done = export(log, out)
+    assert f"hcrctl: export: 2 records -> {out}: 1 message (/hcr/compass 1), " in done.stderr, done.stderr

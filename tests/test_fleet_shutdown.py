@@ -140,7 +140,7 @@ def _flood(op: Operator, robot: str, done: threading.Event) -> None:
 
 def _stderr_to_end(serve: Any) -> str:
     """Everything the ended serve wrote on stderr."""
-    serve.wait_err("drive frame(s)")  # the summary is printed however it ends
+    serve.wait_err(" drive frame")  # the summary is printed however it ends
     assert serve.proc.stderr is not None
     return (serve.err + serve.proc.stderr.read()).decode()
 

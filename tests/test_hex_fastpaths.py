@@ -15,6 +15,7 @@ from typing import Any
 
 import pytest
 
+from hcrctl.numtext import plural
 from hcrctl.hex import decoding
 from hcrctl.hex.decoding import FrameText, decode_to
 from hcrctl.hex.frameline import frame_plain
@@ -264,7 +265,7 @@ def test_monitor_from_writes_what_the_ordinary_rows_say(
             hcrctl, env, "--checksum-from", rule.value, "monitor", "--from", str(log), "--timestamps", "none"
         )
         assert shown.stdout == "".join(expected)
-        assert f"{tally.text()}, {sent} sent" in shown.stderr
+        assert f"{plural(sent, 'frame')} sent, {tally.text(received=True)}" in shown.stderr
 
 
 def test_the_caches_stay_bounded() -> None:

@@ -147,7 +147,7 @@ def test_from_renders_a_recorded_log_in_both_directions(tmp_path: Path) -> None:
     for rec in read_log(str(log)):
         if rec.direction == "rx":
             tally.add(rec.fields)
-    assert f"monitor: {tally.text()}" in proc.stderr
+    assert f"monitor: 2 frames sent, {tally.text(received=True)}" in proc.stderr  # the two requests
 
 
 def test_from_rejudges_checksums_under_the_active_rule(tmp_path: Path) -> None:

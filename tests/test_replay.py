@@ -76,6 +76,13 @@ def test_replay_prints_the_replies_decoded(session_log: Path) -> None:
     assert lines[1].startswith("rx  @01  compass") and "heading=" in lines[1]
     assert lines[2].startswith("tx  @01  power") and "left=30 %" in lines[2]
     assert lines[3].startswith("tx  @01  power") and "left=0 %" in lines[3]
+    sent = sum(line.startswith("tx ") for line in lines)
+    received = len(lines) - sent
+    summary = proc.stderr.strip().splitlines()[
+        -1
+    ]  # the closing line counts what was printed, each by its side
+    assert summary.startswith(f"hcrctl: replay: {sent} frames sent, {received} frame received, "), summary
+    assert received == 1  # the one read's reply: "1 frame", not "1 frames"
 
 
 def test_replay_json_lines(session_log: Path) -> None:

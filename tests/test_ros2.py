@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import subprocess
 from pathlib import Path
 
@@ -281,6 +282,9 @@ def test_fleet_serve_with_ros2_is_the_same_node_in_the_robots_name(
 
         wait_until(moving, what="a velocity frame from ROS 2 through fleet serve")
         assert {w for _, w in velocities(serve)} == {(20, 20)}
+        line = serve.summary()
+    over_ros2 = re.search(r", (\d+) over ROS 2 \(0 refused\)", line)
+    assert over_ros2 and int(over_ros2[1]) >= 1, line  # the cmd_vel that drove, counted where it came from
 
 
 def test_fleet_serve_with_ros2_needs_a_name_that_is_a_namespace(env: dict[str, str]) -> None:

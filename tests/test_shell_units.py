@@ -17,6 +17,7 @@ from prompt_toolkit.output import DummyOutput
 
 from hcrctl.cli.settings import Settings
 from hcrctl.errors import PortError
+from hcrctl.numtext import plural
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import Frame, encode
@@ -27,7 +28,7 @@ from hcrctl.shell.history import base_and_dir, history_file
 from hcrctl.shell.link import Unplugged
 from hcrctl.shell.script import LINE_LIMIT, ScriptInputError, read_lines, script_lines
 from hcrctl.shell.session import Session
-from hcrctl.shell.status import broadcast_lines, plural, status_lines
+from hcrctl.shell.status import broadcast_lines, status_lines
 from hcrctl.shell.toolbar import ELLIPSIS, argument_hint, cells, fit, prompt_fragments, toolbar_fragments
 from hcrctl.shell.tree import candidates, locate
 

@@ -12,6 +12,7 @@ import sys
 
 import click
 
+from ..numtext import plural
 from ..recording.outfile import (
     FormatsCommand,
     OutFile,
@@ -92,7 +93,7 @@ def export(
     sys.stdout.flush()
     topics = per_topic(report["topics"]) or "no readings"
     click.echo(
-        f"hcrctl: export: {report['records']} records -> {out}: {report['messages']} messages "
+        f"hcrctl: export: {plural(report['records'], 'record')} -> {out}: {plural(report['messages'], 'message')} "
         f"({topics}), {size(report['bytes'])}",
         err=True,
     )

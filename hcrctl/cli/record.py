@@ -11,6 +11,7 @@ from typing import Any
 
 import click
 
+from ..numtext import plural
 from ..protocol import commands as C
 from ..recording.outfile import (
     FormatsCommand,
@@ -90,7 +91,7 @@ def record(
     def line(summary: dict[str, Any]) -> str:
         topics = per_topic(summary["topics"]) or "nothing"
         return (
-            f"record: {out}: {summary['messages']} messages ({topics}), "
+            f"record: {out}: {plural(summary['messages'], 'message')} ({topics}), "
             f"{size(summary['bytes'])} in {summary['seconds']:.1f} s"
         )
 

@@ -17,6 +17,7 @@ import click
 
 from ..errors import HcrError
 from ..hex.traffic import FrameFilter, TrafficPrinter
+from ..numtext import plural
 from ..ops.replay import Pending, Timing, run_replay, tx_records
 from .params import FloatRange, IntRange
 from .settings import Settings, json_option
@@ -87,7 +88,6 @@ def replay(
     click.echo(f"hcrctl: replay: {printer.counters()}", err=True)
     if pending.missed:
         raise HcrError(
-            f"{pending.missed} request{'s' if pending.missed != 1 else ''} got no reply within "
-            f"{settings.timeout:g} s on {robot.port}",
+            f"{plural(pending.missed, 'request')} got no reply within {settings.timeout:g} s on {robot.port}",
             hint="compare with the log: did the original session get replies?",
         )

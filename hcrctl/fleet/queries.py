@@ -204,7 +204,7 @@ class Turnstile:
 
 
 class Answers:
-    """Queries answered off Zenoh's threads, at most ``MAX_PENDING`` waiting; counted."""
+    """Queries answered off Zenoh's threads, at most ``MAX_PENDING`` waiting; every answer counted (``reply``)."""
 
     def __init__(self) -> None:
         self.pool = ThreadPoolExecutor(WORKERS, thread_name_prefix="hcrctl-fleet-query")
@@ -225,16 +225,22 @@ class Answers:
         except RuntimeError:  # shutting down
             self._pending.release()
 
+    def reply(self, query: Any, key: str, answer: Answer) -> None:
+        """Send ``answer`` to ``query``, counted: every query answered is, at once or off the pool."""
+        if answer[0]:
+            self.answered += 1
+        else:
+            self.failed += 1
+        send_reply(query, key, answer)
+
     def _answer(self, query: Any, key: str, work: Work) -> None:
         try:
             answer: Answer = (True, work(payload_object(query)))
-            self.answered += 1
         except Exception as exc:  # every failure is the operator's answer, never a dead worker
             answer = (False, error_body(exc))
-            self.failed += 1
         finally:
             self._pending.release()
-        send_reply(query, key, answer)
+        self.reply(query, key, answer)
 
     def close(self) -> None:
         self.pool.shutdown(wait=True, cancel_futures=True)

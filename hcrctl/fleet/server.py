@@ -36,6 +36,7 @@ from ..link.zenoh import keyspace
 from ..link.zenoh.join import FleetError, Where, beyond_loopback, import_zenoh, open_member
 from ..motion.bumpers import freshness_bound
 from ..motion.governor import Kind, Late, Source, refusal
+from ..numtext import plural
 from ..protocol import commands as C
 from ..recording.progress import sweeps
 from ..served.notes import Notes
@@ -285,10 +286,10 @@ class Fleet(FrontEnd):
                 address = queries.address_of(message, robot)
                 body = queries.swept(robot, cmd, self.view.heard(address, cmd.code), self.fresh)
             except Exception as exc:  # a bad payload, an impossible reply: the querier's answer
-                queries.send_reply(query, key, (False, queries.error_body(exc)))
+                self.answers.reply(query, key, (False, queries.error_body(exc)))
                 return
             if body is not None:
-                queries.send_reply(query, key, (True, body))
+                self.answers.reply(query, key, (True, body))
             else:
                 self.answers.submit(query, key, self._read(sensor))
 
@@ -307,7 +308,7 @@ class Fleet(FrontEnd):
         try:
             self._may_write(queries.payload_object(query))
         except Exception as exc:
-            queries.send_reply(query, key, (False, queries.error_body(exc)))
+            self.answers.reply(query, key, (False, queries.error_body(exc)))
             return
         self.answers.submit(query, key, self._write)
 
@@ -332,7 +333,7 @@ class Fleet(FrontEnd):
             answer: queries.Answer = (True, self._info(queries.payload_object(query)))
         except Exception as exc:
             answer = (False, queries.error_body(exc))
-        queries.send_reply(query, key, answer)
+        self.answers.reply(query, key, answer)
 
     def _info(self, message: dict[str, Any]) -> dict[str, Any]:
         robot, options, view = self.robot, self.options, self.view
@@ -369,7 +370,7 @@ class Fleet(FrontEnd):
             ok, body = self.drive.drive(bytes(payload) if payload is not None else b"")
         except BadMotion as exc:
             ok, body = False, {"error": str(exc), "driver": named(self.governor.driver)}
-        queries.send_reply(query, keyspace.drive(self.name), (ok, body))
+        self.answers.reply(query, keyspace.drive(self.name), (ok, body))
 
     def _cmd_vel(self, sample: Any) -> None:
         self.drive.cmd_vel(_bytes(sample.attachment), sample.payload)
@@ -389,10 +390,14 @@ def _bytes(data: Any) -> bytes | None:
 
 
 def summary_line(summary: dict[str, Any]) -> str:
-    """The closing line of a run the fleet spoke for (``fleet serve``)."""
+    """The closing line of a run the fleet spoke for (``fleet serve``): each count says where it was
+    counted (cmd_vel over Zenoh, and over ROS 2 when the node is served beside it)."""
     fleet = summary["fleet"]
+    ros2 = summary.get("ros2")
+    over_ros2 = f", {ros2['cmd_vel']} over ROS 2 ({ros2['cmd_vel_refused']} refused)" if ros2 else ""
     return (
-        f"fleet serve {fleet['name']}: {sweeps(summary)}, {fleet['published']} messages published, {fleet['queries']} queries answered, "
-        f"{fleet['cmd_vel']} cmd_vel ({fleet['ignored']} ignored, {fleet['refused']} refused), "
-        f"{summary['drive_frames']} drive frame(s)"
+        f"fleet serve {fleet['name']}: {sweeps(summary)}, {plural(fleet['published'], 'message')} published, "
+        f"{plural(fleet['queries'], 'query', 'queries')} answered, "
+        f"{fleet['cmd_vel']} cmd_vel over Zenoh ({fleet['ignored']} ignored, {fleet['refused']} refused){over_ros2}, "
+        f"{plural(summary['drive_frames'], 'drive frame')}"
     )

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from math import modf
 from typing import TYPE_CHECKING, Any
 
+from ..numtext import plural
 from ..protocol.dialect import decode_all
 from ..protocol.frames import ChecksumRule, Event
 from ..protocol.profiles import DEFAULT, Profile
@@ -286,9 +287,11 @@ class TrafficPrinter:
     def counters(self, seconds: float | None = None) -> str:
         """The closing tally; when checksums failed the rule but pass the other one, the fix too."""
         span = f" in {seconds:.1f} s" if seconds is not None else ""
-        sent = f", {self.sent} sent" if self.sent else ""
+        sent = f"{plural(self.sent, 'frame')} sent, " if self.sent else ""
         hint = self.tally.hint()
-        return f"{self.tally.text()}{sent}{span}" + (f" (hint: {hint})" if hint else "")
+        return f"{sent}{self.tally.text(received=bool(self.sent))}{span}" + (
+            f" (hint: {hint})" if hint else ""
+        )
 
 
 def rows_of(

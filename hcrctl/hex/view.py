@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 from ..errors import other_rule_hint, printable
+from ..numtext import plural
 from ..protocol import commands as C
 from ..protocol.frames import (
     ChecksumRule,
@@ -159,9 +160,9 @@ def problem_text(row: dict[str, Any]) -> str:
     if problem == "raw_byte":
         return f"raw bumper byte ({row['note']})"
     if problem == "junk":
-        return f"{row['size']} byte{'s' if row['size'] != 1 else ''} skipped, no frame"
+        return f"{plural(row['size'], 'byte')} skipped, no frame"
     if problem == "truncated":
-        detail = f"input ends inside a frame, {row['needed']} byte{'s' if row['needed'] != 1 else ''} short"
+        detail = f"input ends inside a frame, {plural(row['needed'], 'byte')} short"
     else:
         detail = row["reason"]
         if "name" in row:
@@ -267,26 +268,27 @@ class FrameTally:
     def all_good(self) -> bool:
         return not (self.bad_frames or self.malformed or self.junk_bytes or self.truncated)
 
-    def text(self) -> str:
+    def text(self, received: bool = False) -> str:
         """``3 frames, 0 checksum errors, ...``; beside a checksum error the count is of ``good frames``.
 
         A frame that failed its checksum is still printed as a row, so ``0
-        frames`` under it would read as "nothing found".
+        frames`` under it would read as "nothing found". ``received``: the
+        frames are those heard, beside others sent (``3 frames received``).
         """
-        good = " good" if self.checksum_errors else ""
+        good = "good frame" if self.checksum_errors else "frame"
         parts = [
-            f"{self.frames}{good} frame{'s' if self.frames != 1 else ''}",
-            f"{self.checksum_errors} checksum error{'s' if self.checksum_errors != 1 else ''}",
-            f"{self.junk_bytes} junk byte{'s' if self.junk_bytes != 1 else ''}",
+            plural(self.frames, good) + (" received" if received else ""),
+            plural(self.checksum_errors, "checksum error"),
+            plural(self.junk_bytes, "junk byte"),
         ]
         if self.malformed:
             parts.append(f"{self.malformed} malformed")
         if self.truncated:
             parts.append("truncated tail")
         if self.raw_bytes:
-            parts.append(f"{self.raw_bytes} raw bumper byte{'s' if self.raw_bytes != 1 else ''}")
+            parts.append(plural(self.raw_bytes, "raw bumper byte"))
         if self.text_lines:
-            parts.append(f"{self.text_lines} text line{'s' if self.text_lines != 1 else ''}")
+            parts.append(plural(self.text_lines, "text line"))
         return ", ".join(parts)
 
     def hint(self) -> str | None:
@@ -296,5 +298,5 @@ class FrameTally:
         if not self.other_rule:
             return None
         errors = self.checksum_errors
-        what = f"{self.other_rule} of {errors} checksum error{'s' if errors != 1 else ''}"
+        what = f"{self.other_rule} of {plural(errors, 'checksum error')}"
         return other_rule_hint(self.other_rule_name, what, one=self.other_rule == 1)

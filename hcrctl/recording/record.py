@@ -26,6 +26,7 @@ from ..link.context import Connection, Reconnect
 from ..link.dialects import supported_sensors
 from ..link.signals import Terminated, stop_signals_handled
 from ..link.traffic import Relay
+from ..numtext import plural
 from ..protocol.topics import all_topics
 from ..served.feed import Feed
 from .formats import DEFAULT_ENCODING, open_sink
@@ -75,7 +76,7 @@ def reraise(signum: int | None) -> None:
 def progress_line(out: str, sink: Sink) -> Callable[[float, float], str]:
     def line(elapsed: float, rate: float) -> str:
         count = sum(sink.counts.values())
-        figures = f"{elapsed:.1f} s, {count} messages, {size(sink.bytes_written)}, {rate:.0f} msg/s"
+        figures = f"{elapsed:.1f} s, {plural(count, 'message')}, {size(sink.bytes_written)}, {rate:.0f} msg/s"
         return f"recording: {figures} -> {out}"  # the figures first: a narrow terminal cuts the path
 
     return line

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from ..numtext import plural
 from ..protocol import commands as C
 from .broadcasts import Broadcasts, latest_text
 from .session import Session
@@ -74,11 +75,6 @@ def broadcast_summary(broadcasts: Broadcasts) -> str:
     return " · ".join(
         f"0x{item.address:02X} {C.name_of(item.frame.command)} ×{item.total}" for item in latest
     )
-
-
-def plural(count: int, noun: str) -> str:
-    """``1 frame``, ``2 frames``: the count and its noun, agreeing."""
-    return f"{count} {noun}" if count == 1 else f"{count} {noun}s"
 
 
 def status_lines(session: Session) -> list[str]:
