@@ -15,7 +15,6 @@ from typing import Any
 
 import pytest
 
-from hcrctl.numtext import plural
 from hcrctl.hex import decoding
 from hcrctl.hex.decoding import FrameText, decode_to
 from hcrctl.hex.frameline import frame_plain
@@ -23,6 +22,7 @@ from hcrctl.hex.rowsinks import JsonArraySink, PlainSink
 from hcrctl.hex.summary import Summary
 from hcrctl.hex.traffic import CACHE_RECORDS, FrameFilter, TrafficPrinter, rows_of
 from hcrctl.hex.view import FrameTally, plain_line
+from hcrctl.numtext import plural
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.decoder import FrameDecoder
 from hcrctl.protocol.dialect import decode_all
