@@ -114,3 +114,18 @@ def test_pandas_reads_a_wide_file_as_a_table(tmp_path: Path) -> None:
     assert str(frame["bump.front"].dtype) == "int64" and str(frame["compass.heading"].dtype) == "float64"
     with (tmp_path / "wide.csv").open(newline="") as handle:
         assert len(frame) == sum(1 for _ in csv.reader(handle)) - 1
+
+
+def test_pandas_keeps_a_bumper_column_with_gaps_integer_with_the_nullable_hint(tmp_path: Path) -> None:
+    """A station's position rows leave the bumper cells empty: plain ``read_csv`` makes the column float64
+    (NaN in the gaps), ``dtype_backend="numpy_nullable"`` keeps it integers, as docs/recordings.md says."""
+    pandas = pytest.importorskip("pandas", minversion="2.0")
+    log = sim_log(tmp_path, "sim://?map_hz=0", "watch", "bump", "compass", "--duration", "1")
+    export(log, tmp_path / "wide.csv", "--wide")
+    plain = pandas.read_csv(tmp_path / "wide.csv")
+    assert (plain["address"] != 1).any(), "no station's position row: the gap this test is about is missing"
+    assert plain["bump.front"].isna().any() and str(plain["bump.front"].dtype) == "float64"
+    nullable = pandas.read_csv(tmp_path / "wide.csv", dtype_backend="numpy_nullable")
+    assert {str(nullable[f"bump.{side}"].dtype) for side in ("left", "front", "right")} == {"Int64"}
+    robot = nullable[nullable["address"] == 1]
+    assert not robot["bump.front"].isna().any() and set(robot["bump.front"]) <= {0, 1}

@@ -38,8 +38,10 @@ warning line. An export (no ``flush_every``: nothing reads the file until it
 is whole) keeps its rows in a temporary file until the end and writes only
 the columns some row fills, so no column is empty all the way down.
 
-Booleans (a bumper) are 1 or 0 in both layouts, so a column is one type:
-pandas reads a wide bumper column as integers. Standard library only.
+Booleans (a bumper) are 1 or 0 in both layouts, so a column is one type;
+a wide row that leaves a cell empty (a station's position row) makes pandas
+read that column as float64 unless it is asked for nullable integers
+(``dtype_backend="numpy_nullable"``). Standard library only.
 """
 
 from __future__ import annotations
