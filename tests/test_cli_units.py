@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import math
-import time
 
 import click
 import pytest
+from helpers import Clock
 
 from hcrctl.cli.params import FieldRange, command_help, field_param, request_value
 from hcrctl.ops.ping import PingStats, cheapest_read, probe_once
@@ -134,27 +134,31 @@ def test_ping_statistics_follow_ping():
 
 
 class ProbeRobot:
-    """transact() 'decodes' the reply at a chosen moment, as the reader thread would."""
+    """transact() 'decodes' the reply at a chosen moment, as the reader thread would, on a clock the test moves."""
 
     address, timeout = 1, 0.5
 
     def __init__(self, decoded_after: float | None) -> None:
         self.decoded_after = decoded_after
         self.last_reply_at: float | None = None
+        self.clock = Clock()
 
     def transact(self, frame, expect, what):
-        began = time.monotonic()
-        time.sleep(0.02)
+        began = self.clock()
+        self.clock.now += 0.02
         if self.decoded_after is not None:
             self.last_reply_at = began + self.decoded_after
-        time.sleep(0.02)  # the caller wakes up later than the reply arrived
+        self.clock.now += 0.02  # the caller wakes up later than the reply arrived
+
+
+def probe(robot: ProbeRobot) -> float | None:
+    return probe_once(robot, b"", C.BY_NAME["bump"], clock=robot.clock)
 
 
 def test_ping_rtt_ends_when_the_reply_was_decoded():
-    rtt = probe_once(ProbeRobot(decoded_after=0.02), b"", C.BY_NAME["bump"])
-    assert 0.02 <= rtt < 0.04
+    assert probe(ProbeRobot(decoded_after=0.02)) == pytest.approx(0.02, abs=1e-9)
 
 
 def test_ping_rtt_ignores_a_stale_or_missing_receive_time():
     for robot in (ProbeRobot(decoded_after=None), ProbeRobot(decoded_after=-5.0)):
-        assert probe_once(robot, b"", C.BY_NAME["bump"]) >= 0.04
+        assert probe(robot) == pytest.approx(0.04, abs=1e-9)  # when the caller returned

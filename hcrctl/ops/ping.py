@@ -146,22 +146,27 @@ def probe_loop(
 
 
 def probe_once(
-    robot: Robot, frame: bytes, probe: C.Command, lost: list[DeviceTimeout] | None = None
+    robot: Robot,
+    frame: bytes,
+    probe: C.Command,
+    lost: list[DeviceTimeout] | None = None,
+    clock: Callable[[], float] = time.monotonic,
 ) -> float | None:
     """One request, one attempt: the round trip in seconds, or None if lost (the error goes to ``lost``).
 
     The round trip ends when the reader thread decoded the reply
-    (``robot.last_reply_at``), not when this thread wakes up to see it: like
-    ping's kernel timestamps, it measures the link rather than scheduling.
+    (``robot.last_reply_at``, on ``clock``: the robot's ``time.monotonic``), not
+    when this thread wakes up to see it: like ping's kernel timestamps, it
+    measures the link rather than scheduling.
     """
-    began = time.monotonic()
+    began = clock()
     try:
         robot.transact(frame, (robot.address, probe.code), probe.name)
     except DeviceTimeout as exc:
         if lost is not None:
             lost.append(exc)
         return None
-    returned = time.monotonic()
+    returned = clock()
     arrived = robot.last_reply_at
     ended = arrived if arrived is not None and began <= arrived <= returned else returned
     return ended - began
