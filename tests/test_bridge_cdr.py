@@ -21,7 +21,8 @@ from typing import Any
 import pytest
 from helpers import TIMEOUT, hcrctl_exe
 from helpers_ros2 import expected, mismatches, qos_of
-from mcap_ros2._dynamic import generate_dynamic
+from mcap.records import Schema
+from mcap_ros2.decoder import DecoderFactory
 from test_bridge import TOPICS, Viewer, bridge
 
 from hcrctl.protocol import ros2msg
@@ -67,6 +68,14 @@ def plain(value: Any) -> Any:
     return value
 
 
+def cdr_decoder(name: str, definition: str) -> Any:
+    """The decoder mcap_ros2's public factory makes for the ros2msg ``definition`` of ``name``: CDR -> message."""
+    schema = Schema(id=1, name=name, encoding="ros2msg", data=definition.encode())
+    decoder = DecoderFactory().decoder_for("cdr", schema)
+    assert decoder is not None, name
+    return decoder
+
+
 class CdrViewer(Viewer):
     """A viewer of the ROS 2 channels that decodes each one's CDR with the decoder its advertised definition makes."""
 
@@ -75,8 +84,7 @@ class CdrViewer(Viewer):
     def decoders(self) -> dict[str, Any]:
         out = {}
         for topic, channel in self.channels.items():
-            parsed = generate_dynamic(channel["schemaName"], channel["schema"])
-            out[topic] = parsed[channel["schemaName"]]
+            out[topic] = cdr_decoder(channel["schemaName"], channel["schema"])
         return out
 
     def raw(self) -> tuple[int, int, bytes]:
@@ -277,7 +285,7 @@ def test_a_named_field_of_a_many_field_reply_becomes_a_nested_type() -> None:
         "mode": -2,
         "samples": [0.5, 1.5],
     }
-    decode = generate_dynamic(name, text)[name]
+    decode = cdr_decoder(name, text)
     assert plain(decode(ros2msg.encoder(name)(message))) == message
     assert ros2msg.decoder(name)(ros2msg.encoder(name)(message)) == message
 

@@ -4,7 +4,10 @@ A private name (``_chunk_builder``, ``_run_exitfuncs``, a name-mangled
 ``_Writer__chunk_builder``) can change or vanish in any release, under a
 version bound that was tested with the old one; the speed work once leaned on
 three. This walks every module of the package and fails on any use of one, so
-a new one is a decision to argue for here, not an accident.
+a new one is a decision to argue for here, not an accident. The suite is held
+to the same rule: a test that reads another package's insides (CPython's
+``Condition._waiters`` through a port's ``_cond``) breaks with a release as
+the package would.
 """
 
 from __future__ import annotations
@@ -116,6 +119,10 @@ def uses_of_private_names(source: str) -> list[str]:
             )
     for node in ast.walk(tree):
         if isinstance(node, ast.Attribute):
+            if private(node.attr) and isinstance(node.value, ast.Attribute) and private(node.value.attr):
+                found.append(
+                    f"{node.lineno}: {ast.unparse(node)} (a private attribute of a private attribute)"
+                )
             if MANGLED.match(node.attr):
                 found.append(f"{node.lineno}: .{node.attr} (name-mangled)")
             chain = dotted(node)
@@ -158,6 +165,15 @@ def test_each_decision_is_still_needed(module: str) -> None:
         assert re.search(rf"\b{re.escape(name)}\b", found), f"{module} no longer uses {name}: drop it"
 
 
+#: The suite's own modules: a test reaches other packages' insides no more than the package does.
+TESTS = sorted(Path(__file__).parent.glob("*.py"))
+
+
+@pytest.mark.parametrize("path", TESTS, ids=lambda p: p.name)
+def test_no_test_uses_a_private_api_of_another_package(path: Path) -> None:
+    assert uses_of_private_names(path.read_text(encoding="utf-8")) == []
+
+
 def test_the_package_is_all_there() -> None:
     assert len(modules()) > 50  # walking an empty or wrong directory would pass everything
 
@@ -181,6 +197,7 @@ def test_the_package_is_all_there() -> None:
         "import json\njson.decoder.JSONDecoder().scan_once('{}', 0)",
         "def f(): pass\nf.__click_params__ = []",
         "def f(): pass\ngetattr(f, '__click_params__', [])",
+        "port = None\nport._cond._waiters",
     ],
 )
 def test_each_kind_of_use_is_found(source: str) -> None:

@@ -198,11 +198,35 @@ def test_read_with_timeout_0_returns_what_there_is(open_sim: Callable[..., Any])
     assert finish(lambda: port.read(100)) == C.encode(1, C.Compass.CODE, b"\x03\x84")
 
 
+def waits_on_a_condition(called: threading.Event) -> Callable[..., None]:
+    """A ``threading.settrace`` function that sets ``called`` when its thread enters ``Condition.wait``.
+
+    ``wait`` is entered holding the condition's lock and gives it up only once its
+    waiter is queued, so a write (which notifies under that lock) after ``called``
+    is set reaches a reader that is waiting, never one about to.
+    """
+
+    def trace(frame: Any, event: str, arg: Any) -> None:
+        if (
+            event == "call"
+            and frame.f_code.co_name == "wait"
+            and frame.f_globals.get("__name__") == "threading"
+        ):
+            called.set()
+
+    return trace
+
+
 def test_a_reader_blocked_without_timeout_wakes_for_a_write(open_sim: Callable[..., Any]) -> None:
     port = open_sim(f"sim://?{QUIET}", timeout=None)
-    thread, result = in_thread(lambda: port.read(REPLY_LEN))
-    # The reader has found nothing and waits on the port's condition (its waiter is queued there).
-    wait_until(lambda: port._cond._waiters, what="the reader to wait")
+    waiting = threading.Event()
+    threading.settrace(waits_on_a_condition(waiting))  # for the threads started from now on
+    try:
+        thread, result = in_thread(lambda: port.read(REPLY_LEN))
+    finally:
+        threading.settrace(None)
+    # The reader has found nothing and waits on the port's condition.
+    wait_until(waiting.is_set, what="the reader to wait")
     assert thread.is_alive() and result == []  # nothing to read yet, so it must still be waiting
     port.write(COMPASS)
     thread.join(JOIN_S)
