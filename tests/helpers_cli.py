@@ -17,7 +17,15 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from helpers import TIMEOUT, DevicePty, clean_env, hcrctl_exe, sim_process, sleeping, wait_until
+from helpers import (
+    TIMEOUT,
+    DevicePty,
+    clean_env,
+    hcrctl_exe,
+    sim_process,
+    sleeping,
+    wait_until,
+)
 
 from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import Frame
@@ -154,3 +162,13 @@ def one_line(text: str) -> str:
     lines = [line for line in text.splitlines() if line.strip()]
     assert len(lines) == 1, f"expected one line, got {lines!r}"
     return lines[0]
+
+
+def complete(tmp_path: Path, words: str) -> list[str]:
+    """What bash would offer for ``words`` (the last word is the one being completed)."""
+    cword = len(words.split()) - (0 if words.endswith(" ") else 1)
+    env = clean_env(tmp_path, COMP_WORDS=words, COMP_CWORD=str(cword), _HCRCTL_COMPLETE="bash_complete")
+    out = subprocess.run(
+        [hcrctl_exe()], env=env, capture_output=True, text=True, timeout=30, check=True
+    ).stdout
+    return [line.split(",", 1)[1] for line in out.splitlines() if line.startswith("plain,")]

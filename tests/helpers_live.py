@@ -15,9 +15,22 @@ import subprocess
 import time
 from collections.abc import Callable, Iterator
 
-from helpers import COLS, ROWS, TIMEOUT, DevicePty, Terminal, hcrctl_exe, sim_process, terminal, terminal_env
+from helpers import (
+    COLS,
+    ROWS,
+    TIMEOUT,
+    Clock,
+    DevicePty,
+    Terminal,
+    hcrctl_exe,
+    sim_process,
+    terminal,
+    terminal_env,
+)
 
+from hcrctl.ops.livestate import LiveState
 from hcrctl.protocol import commands as C
+from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import Frame, encode
 
 __all__ = [
@@ -147,3 +160,24 @@ def sim_server(*args: str) -> Iterator[tuple[subprocess.Popen[str], str]]:
     """``hcrctl sim ARGS``: yields the process and the first line it printed (the port)."""
     with sim_process(["sim", *args]) as (proc, port):
         yield proc, port
+
+
+def full_state(clock: Clock) -> LiveState:
+    state = LiveState(C.SENSORS, target_rate=10, clock=clock)
+    state.connected("/dev/ttyUSB0")
+    values = {
+        "bump": C.Bumpers((False, True, False)),
+        "ir": C.Infrared((0, 64, 128, 192, 255)),
+        "sonar": C.Ultrasonic((25, 128, 255)),
+        "compass": C.Compass(212.5),
+        "wheels": C.WheelSpeed((12, 30)),
+        "env": C.Environment(48, -3),
+    }
+    for name, value in values.items():
+        state.record(name, value, 0.004)
+    return state
+
+
+def broadcast(state: LiveState, address: int, code: int, content: bytes) -> None:
+    (frame,) = decode_all(encode(address, code, content))
+    state.broadcast(frame)

@@ -8,6 +8,7 @@ at the cut).
 
 from __future__ import annotations
 
+import csv
 import functools
 import json
 import os
@@ -128,3 +129,13 @@ def small_tmpfs(where: Path, size: str = "256k") -> Iterator[Path]:
         yield where
     finally:
         subprocess.run(["umount", str(where)], check=True)
+
+
+def rows_of(path: Path) -> list[list[str]]:
+    with path.open(newline="") as handle:
+        return list(csv.reader(handle))
+
+
+def no_empty_column(rows: list[list[str]]) -> list[str]:
+    """The columns no row has a value in (the empty ``sonar.4`` of old)."""
+    return [name for i, name in enumerate(rows[0]) if not any(row[i] for row in rows[1:])]

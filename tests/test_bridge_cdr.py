@@ -20,10 +20,10 @@ from typing import Any
 
 import pytest
 from helpers import TIMEOUT, hcrctl_exe
+from helpers_bridge import TOPICS, Viewer, bridge
 from helpers_ros2 import expected, mismatches, qos_of
 from mcap.records import Schema
 from mcap_ros2.decoder import DecoderFactory
-from test_bridge import TOPICS, Viewer, bridge
 
 from hcrctl.protocol import ros2msg
 from hcrctl.protocol import topics as T

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 from helpers import TIMEOUT, checkout_extra, hcrctl_exe, terminal
-from test_bridge import viewer
+from helpers_bridge import viewer
 
 
 def run(args: list[str], env: dict[str, str], cwd: Path | None = None) -> subprocess.CompletedProcess[str]:

@@ -6,22 +6,13 @@ import json
 import math
 
 import pytest
+from helpers_bridge import CMD_VEL, TWIST, bridge, velocity_of, viewer
 from helpers_live import FakeRobot, is_stop
-from test_bridge import CMD_VEL, TWIST, bridge, viewer
 
 from hcrctl.motion.governor import Lease
 from hcrctl.protocol import commands as C
 from hcrctl.served.cmdvel import parse_twist, twist_wheels, wheel_limits
 from hcrctl.sim.body import WHEEL_BASE_CM
-
-
-def velocity_of(frame: object) -> tuple[int, int] | None:
-    if getattr(frame, "command", None) != C.Velocity.CODE:
-        return None
-    value = C.Velocity.from_content(frame.content)  # type: ignore[attr-defined]
-    assert isinstance(value, C.Velocity)
-    return value.left, value.right
-
 
 # -- Twist to wheels (pure) ------------------------------------------------------------------
 

@@ -24,10 +24,9 @@ from pathlib import Path
 
 import pytest
 from helpers import TIMEOUT, hcrctl_exe, wait_until
+from helpers_bridge import CMD_VEL, TWIST, Bridge, bridge, velocity_of, viewer
 from helpers_live import FakeRobot, is_stop
 from helpers_ws import NeverReads, subscribe_all
-from test_bridge import CMD_VEL, TWIST, Bridge, bridge, viewer
-from test_bridge_drive import velocity_of
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 

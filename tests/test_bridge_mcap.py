@@ -15,8 +15,8 @@ from pathlib import Path
 
 import pytest
 from helpers import TIMEOUT
+from helpers_bridge import bridge, viewer
 from helpers_mcap import LOSS_MARGIN, last_log_time, messages, small_tmpfs, us_of, worst_lag
-from test_bridge import bridge, viewer
 
 from hcrctl.protocol import topics as T
 from hcrctl.recording.record import FLUSH_EVERY

@@ -17,8 +17,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from helpers import DevicePty
+from helpers_bridge import TWIST, Bridge, bridge, drive_until_moving, viewer
 from helpers_shell import STOP_FRAME, PtyRobot
-from test_bridge import TWIST, Bridge, bridge, drive_until_moving, viewer
 
 DELIVERED = "while the robot was moving: stop delivered after"
 

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 from helpers import REPO, PtySpawn
-from helpers_cli import clean_env, hcrctl_exe, one_line, run
+from helpers_cli import clean_env, complete, hcrctl_exe, one_line, run
 from serial.tools import list_ports as pyserial_ports
 
 SHELLS = ["bash", "zsh", "fish"]
@@ -86,16 +86,6 @@ def test_completion_wants_a_shell_it_knows(tmp_path, args, needle):
     assert result.returncode == 2
     assert needle in one_line(result.stderr)
     assert result.stdout == ""
-
-
-def complete(tmp_path: Path, words: str) -> list[str]:
-    """What bash would offer for ``words`` (the last word is the one being completed)."""
-    cword = len(words.split()) - (0 if words.endswith(" ") else 1)
-    env = clean_env(tmp_path, COMP_WORDS=words, COMP_CWORD=str(cword), _HCRCTL_COMPLETE="bash_complete")
-    out = subprocess.run(
-        [hcrctl_exe()], env=env, capture_output=True, text=True, timeout=30, check=True
-    ).stdout
-    return [line.split(",", 1)[1] for line in out.splitlines() if line.startswith("plain,")]
 
 
 def test_subcommands(tmp_path):

@@ -8,7 +8,6 @@ log's own lines where there is a log.
 
 from __future__ import annotations
 
-import csv
 import json
 import signal
 from datetime import datetime, timedelta
@@ -16,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from helpers_cli import clean_env, finish, run, start, wait_until
+from helpers_mcap import no_empty_column, rows_of
 
 from hcrctl.protocol import commands as C
 from hcrctl.protocol import series as S
@@ -28,16 +28,6 @@ SIM_LISTS = [*(f"ir[{i}]" for i in range(5)), *(f"sonar[{i}]" for i in range(3))
 def columns(lists: list[str]) -> list[str]:
     """The header of a file whose lists filled ``lists``: every other series as the table orders them."""
     return [*HEAD, *(p for p in S.paths() if not S.find(p).is_list_item or p in lists)]
-
-
-def rows_of(path: Path) -> list[list[str]]:
-    with path.open(newline="") as handle:
-        return list(csv.reader(handle))
-
-
-def no_empty_column(rows: list[list[str]]) -> list[str]:
-    """The columns no row has a value in (the empty ``sonar.4`` of old)."""
-    return [name for i, name in enumerate(rows[0]) if not any(row[i] for row in rows[1:])]
 
 
 def sim_log(folder: Path, *args: str) -> Path:

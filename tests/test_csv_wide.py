@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 from helpers_cli import clean_env, run
-from test_csv_columns import no_empty_column, rows_of
+from helpers_mcap import no_empty_column, rows_of
 
 WIDE_HEAD = ["time", "t", "address"]
 #: In the table's order, whatever order the command line named them in.

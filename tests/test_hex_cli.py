@@ -16,8 +16,18 @@ from pathlib import Path
 
 import pytest
 from helpers import TIMEOUT, sleeping, wait_until
-from helpers_hex import device_pty, hcrctl_exe, read_for, read_until, run, sim_pty
-from test_hexview import DOCUMENT_FRAMES, expected_verdict, printed, verdict_of
+from helpers_hex import (
+    DOCUMENT_FRAMES,
+    device_pty,
+    expected_verdict,
+    hcrctl_exe,
+    printed,
+    read_for,
+    read_until,
+    run,
+    sim_pty,
+    verdict_of,
+)
 
 from hcrctl.protocol.frames import encode
 

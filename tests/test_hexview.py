@@ -9,44 +9,13 @@ from __future__ import annotations
 import json
 
 import pytest
+from helpers_hex import DOCUMENT_FRAMES, H, expected_verdict, printed, verdict_of
 from rich.console import Console
 
 from hcrctl.hex.view import FrameTally, decode_table, fields_text, plain_line, verdict_text
 from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import ChecksumRule, encode
 from hcrctl.protocol.records import event_dict, is_good
-
-H = bytes.fromhex
-
-#: protocol.md, "The document's example frames": (example, frame as printed
-#: without checksum and end, printed checksum, text rule, address rule).
-DOCUMENT_FRAMES = [
-    ("power +60 %", "55 AA 01 02 01 CC CC", 0x9D, 0x9B, 0x9C),
-    ("power -50 %", "55 AA 01 02 01 40 40", 0x84, 0x83, 0x84),
-    ("speed +60 %", "55 AA 01 02 02 CC CC", 0x9C, 0x9C, 0x9D),
-    ("speed -50 %", "55 AA 01 02 02 40 40", 0x84, 0x84, 0x85),
-    ("velocity +50 cm/s", "55 AA 01 03 03 32 32 00", 0x9C, 0x6A, 0x6B),
-    ("velocity -30 cm/s", "55 AA 01 03 03 1E 1E 11", 0x84, 0x53, 0x54),
-    ("read bumpers", "55 AA 01 01 11 FF", 0x11, 0x11, 0x12),
-    ("read IR", "55 AA 01 01 12 FF", 0x24, 0x12, 0x13),
-    ("read ultrasonic", "55 AA 01 01 13 FF", 0x15, 0x13, 0x14),
-    ("read compass", "55 AA 01 01 14 FF", 0x16, 0x14, 0x15),
-    ("read wheels (length printed 00)", "55 AA 01 00 15 FF", 0x17, 0x14, 0x15),
-    ("read temp/humidity (length printed 00)", "55 AA 01 00 16 FF", 0x18, 0x15, 0x16),
-]
-
-
-def printed(body: str, ck: int) -> bytes:
-    return H(body) + bytes((ck,)) + H("0D 0A")
-
-
-def expected_verdict(ck: int, text: int, address: int) -> str:
-    return "text" if ck == text else "address" if ck == address else "neither"
-
-
-def verdict_of(row: dict) -> str:
-    """What a row says about the printed checksum, under the header (text) rule."""
-    return "text" if row["checksum_ok"] else "address" if row["other_ok"] else "neither"
 
 
 def rows(data: bytes, rule: ChecksumRule = ChecksumRule.HEADER) -> list[dict]:

@@ -238,7 +238,27 @@ def test_the_front_ends_are_peers_on_one_layer_and_none_imports_another() -> Non
 
 def test_the_code_map_lists_the_packages_in_the_stated_layer_order() -> None:
     """The docs' code map and the layer line say one order: the map's packages, read top down, never go down."""
-    from test_codemap import MAP
+    from helpers_codemap import MAP
 
     order = [layer_of("hcrctl" if folder == "" else "hcrctl." + folder.replace("/", ".")) for folder in MAP]
     assert order == sorted(order), list(zip(MAP, order, strict=True))
+
+
+def test_no_test_module_imports_another() -> None:
+    """What tests share lives in ``tests/helpers*.py``: a test module imported by another runs its module-level
+    code (skips, fixtures, marks) twice, and a helper hidden in a test is found by nobody looking for helpers."""
+    tests = Path(__file__).parent
+    found = [
+        f"{path.name}: {node.module or ''}"
+        for path in sorted(tests.glob("*.py"))
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("test_")
+    ] + [
+        f"{path.name}: {alias.name}"
+        for path in sorted(tests.glob("*.py"))
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+        if isinstance(node, ast.Import)
+        for alias in node.names
+        if alias.name.startswith("test_")
+    ]
+    assert found == []

@@ -17,12 +17,11 @@ from dataclasses import dataclass
 
 import pytest
 from helpers import Clock
-from helpers_live import FakeRobot, is_stop, terminal
+from helpers_live import FakeRobot, broadcast, full_state, is_stop, terminal
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from rich.console import Console
 from rich.screen import Screen
-from test_panels import broadcast, full_state
 
 from hcrctl.live import screens
 from hcrctl.ops.livestate import DriveStatus, LiveState, View

@@ -6,6 +6,7 @@ import io
 
 import pytest
 from helpers import Clock
+from helpers_live import broadcast, full_state
 from hypothesis import given
 from hypothesis import strategies as st
 from rich.console import Console
@@ -14,8 +15,6 @@ from hcrctl.live import panels, screens
 from hcrctl.live.keys import KeyDecoder
 from hcrctl.ops.livestate import DriveStatus, LiveState, Reading
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.dialect import decode_all
-from hcrctl.protocol.frames import encode
 from hcrctl.render.readings import cardinal
 
 
@@ -23,27 +22,6 @@ def text_of(renderable: object, width: int = 120) -> str:
     console = Console(width=width, record=True, file=io.StringIO(), color_system=None)
     console.print(renderable)
     return console.export_text()
-
-
-def full_state(clock: Clock) -> LiveState:
-    state = LiveState(C.SENSORS, target_rate=10, clock=clock)
-    state.connected("/dev/ttyUSB0")
-    values = {
-        "bump": C.Bumpers((False, True, False)),
-        "ir": C.Infrared((0, 64, 128, 192, 255)),
-        "sonar": C.Ultrasonic((25, 128, 255)),
-        "compass": C.Compass(212.5),
-        "wheels": C.WheelSpeed((12, 30)),
-        "env": C.Environment(48, -3),
-    }
-    for name, value in values.items():
-        state.record(name, value, 0.004)
-    return state
-
-
-def broadcast(state: LiveState, address: int, code: int, content: bytes) -> None:
-    (frame,) = decode_all(encode(address, code, content))
-    state.broadcast(frame)
 
 
 # -- panels --------------------------------------------------------------------

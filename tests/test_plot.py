@@ -7,9 +7,9 @@ import subprocess
 import threading
 
 from helpers import DevicePty
+from helpers_cli import complete
 from helpers_live import FakeRobot, hcrctl_exe, press_stop, terminal, terminal_env, usage_error
 from helpers_shell import shell
-from test_completions import complete
 
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.frames import encode

@@ -18,6 +18,7 @@ pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip instal
 pytest.importorskip("websockets", reason="--foxglove needs the foxglove extra")
 
 from helpers import TIMEOUT, clean_env, wait_until
+from helpers_bridge import viewer
 from helpers_fleet_robot import (
     MOTION,
     VELOCITY,
@@ -30,7 +31,6 @@ from helpers_fleet_robot import (
     readline,
     twist,
 )
-from test_bridge import viewer
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
