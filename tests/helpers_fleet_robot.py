@@ -247,23 +247,25 @@ def is_stop(frame: Frame) -> bool:
 
 
 class Operator:
-    """A Zenoh client speaking the fleet contract by hand: its token, claims, signed cmd_vel, stop, status.
+    """A Zenoh client speaking the fleet contract by hand: its token, signed claims, cmd_vel, writes, stop, status.
 
-    ``cmd_vel`` claims first when this session has no key yet (the key the
-    robot side answers a first granted claim), and signs with it; a refused
-    claim leaves the message unsigned, so the robot side says why it is refused.
+    Its session id is its own key pair's (``identity``); every claim, motion,
+    write and stop is numbered and signed over the robot's challenge (read from
+    its ``info`` on first need), and a claim names the public key.
     """
 
     def __init__(self, endpoint: str, robot: str, op: str, config: str | None = None) -> None:
         import zenoh
 
+        from hcrctl.link.zenoh import identity
         from hcrctl.link.zenoh import keyspace as keys
         from hcrctl.link.zenoh.join import Where, open_session
 
-        self.zenoh, self.keys = zenoh, keys
+        self.zenoh, self.keys, self.identities = zenoh, keys, identity
         self.robot, self.seq = robot, 0
-        self.op = keys.Who(op, keys.new_session())
-        self.key: bytes | None = None
+        self.identity = identity.Identity()
+        self.op = keys.Who(op, self.identity.session)
+        self.challenge: str | None = None
         self.session = open_session("client", Where((endpoint,), (), config))
         self.status: list[dict[str, Any]] = []
         self._status = self.session.declare_subscriber(keys.status(robot), self._heard)
@@ -282,51 +284,72 @@ class Operator:
         self.token.undeclare()
         self.token = None
 
-    def query(self, key: str, payload: Any = None) -> tuple[bool, dict[str, Any]]:
+    def query(
+        self, key: str, payload: Any = None, sign: str | None = None, attachment: bytes | None = None
+    ) -> tuple[bool, dict[str, Any]]:
+        """A query of ``key`` (``sign``: numbered and signed as that kind of message): (ok, its answer)."""
         data = json.dumps(payload).encode() if payload is not None else None
-        replies = list(self.session.get(key, payload=data, timeout=TIMEOUT / 3))
+        if sign is not None:
+            attachment = self.attachment(sign, data or b"")
+        replies = list(self.session.get(key, payload=data, attachment=attachment, timeout=TIMEOUT / 3))
         assert replies, f"no reply from {key}"
         reply = replies[0]
         if reply.ok is not None:
             return True, json.loads(bytes(reply.ok.payload))
         return False, json.loads(bytes(reply.err.payload))
 
+    def attachment(self, what: str, data: bytes) -> bytes:
+        """The next number, signed over ``data`` as a ``what`` message for this robot's serving process."""
+        if self.challenge is None:
+            ok, body = self.query(self.keys.info(self.robot))
+            self.challenge = body["challenge"]
+        self.seq += 1
+        signed = self.identities.signed_bytes(self.challenge, self.robot, what, self.op, self.seq, data)
+        found: bytes = self.keys.attachment(self.op, self.seq, self.identity.sign(signed))
+        return found
+
     def claim(self) -> tuple[bool, dict[str, Any]]:
-        """A claim (signed once a key is held), asked again while the robot side has not seen the token yet."""
+        """A signed claim, asked again while the robot side has not seen the token yet."""
         deadline = time.monotonic() + TIMEOUT
         while True:
-            taken, body = self.query(self.keys.drive(self.robot), self.asking())
+            taken, body = self.query(self.keys.drive(self.robot), self.asking(), sign="claim")
             if taken or body.get("token") is not False or self.token is None or time.monotonic() > deadline:
                 break
             time.sleep(0.05)
-        if taken and "key" in body:
-            self.key = bytes.fromhex(body["key"])
         return taken, body
 
-    def asking(self) -> dict[str, Any]:
-        """A claim's payload: numbered and signed once this session holds a key."""
-        asked: dict[str, Any] = {"op": self.op.name, "session": self.op.session, "do": "claim"}
-        if self.key is not None:
-            self.seq += 1
-            signed = self.keys.signature(self.key, self.robot, self.op, self.seq, self.keys.CLAIM)
-            asked.update(seq=self.seq, signature=signed)
+    def asking(self, do: str = "claim") -> dict[str, Any]:
+        """A claim's (or release's) payload: a claim names this session's public key."""
+        asked: dict[str, Any] = {"op": self.op.name, "session": self.op.session, "do": do}
+        if do == "claim":
+            asked["key"] = self.identity.public_hex
         return asked
 
+    def write(self, message: dict[str, Any]) -> tuple[bool, dict[str, Any]]:
+        """A signed write (``message``: address, command, content), naming this session and its key."""
+        asked = {"op": self.op.name, "session": self.op.session, "key": self.identity.public_hex, **message}
+        deadline = time.monotonic() + TIMEOUT
+        while True:  # asked again while this session's token is on its way to the robot side
+            ok, body = self.query(self.keys.write(self.robot), asked, sign="write")
+            if ok or "no liveliness token" not in body.get("error", "") or self.token is None:
+                return ok, body
+            if time.monotonic() > deadline:
+                return ok, body
+            time.sleep(0.05)
+
     def cmd_vel(self, message: dict[str, Any]) -> None:
-        if self.key is None:
+        if self.seq == 0:
             self.claim()
         self.put(self.keys.cmd_vel(self.robot), json.dumps(message).encode())
 
-    def put(self, key: str, data: bytes) -> bytes:
-        """``data`` put on ``key`` with this session's next attachment (signed when a key is held); the attachment."""
-        self.seq += 1
-        signed = self.keys.signature(self.key, self.robot, self.op, self.seq, data) if self.key else ""
-        attachment: bytes = self.keys.attachment(self.op, self.seq, signed)
+    def put(self, key: str, data: bytes, what: str = "cmd_vel") -> bytes:
+        """``data`` put on ``key`` with this session's next signed attachment; the attachment."""
+        attachment = self.attachment(what, data)
         self.session.put(key, data, attachment=attachment)
         return attachment
 
     def stop(self) -> None:
-        self.put(self.keys.stop(self.robot), b"")
+        self.put(self.keys.stop(self.robot), json.dumps({"key": self.identity.public_hex}).encode(), "stop")
 
     def said(self, text: str) -> dict[str, Any] | None:
         return next((s for s in list(self.status) if text in s.get("text", "")), None)

@@ -12,6 +12,7 @@ fixed time.
 from __future__ import annotations
 
 import json
+import secrets
 import re
 from collections.abc import Callable
 from pathlib import Path
@@ -94,7 +95,7 @@ def test_a_claim_without_a_liveliness_token_is_refused_and_its_cmd_vel_moves_not
         said = ghost.wait_said("no liveliness token")
         assert info(ghost)["driver"] is None
     assert not taken and "refused: ghost has no liveliness token on r1" in body["error"]
-    assert said["op"] == "ghost" and said["session"] == ghost.op.session and said["seq"] == 1
+    assert said["op"] == "ghost" and said["session"] == ghost.op.session and said["seq"] == ghost.seq
     assert not powered(serve, 60, 60)
 
 
@@ -123,7 +124,9 @@ def test_an_exact_replay_moves_nothing_while_the_driver_is_there_or_after_it_lef
             lambda: eve.session.put(keyspace.cmd_vel("r1"), data, attachment=copied),
         )
         assert info(eve)["driver"] is None
-    assert said["op"] == "op1" and said["text"].startswith("ignored cmd_vel #1 from op1")
+    assert said["op"] == "op1" and said["text"].startswith(
+        f"ignored cmd_vel #{copied.split()[2].decode()} from op1"
+    )
     assert not [i for i in powered(serve, 40, 40) if i > first_stop], "a replay moved the robot"
 
 
@@ -156,9 +159,14 @@ def test_a_replayed_claim_does_not_hold_a_silent_drivers_lease(lab: Fleet, tmp_p
         op1.open()
         op1.cmd_vel(power(35, 35))
         wait_until(lambda: powered(serve, 35, 35), what="op1's power 35 35")
-        signed = op1.asking()
-        assert op1.query(keyspace.drive("r1"), signed)[0]  # the original renews
-        said = until_said(op1, "stopped: deadman", lambda: eve.query(keyspace.drive("r1"), signed) and None)
+        asked = op1.asking()
+        signed = op1.attachment("claim", json.dumps(asked).encode())
+        assert op1.query(keyspace.drive("r1"), asked, attachment=signed)[0]  # the original renews
+        said = until_said(
+            op1,
+            "stopped: deadman",
+            lambda: eve.query(keyspace.drive("r1"), asked, attachment=signed) and None,
+        )
     assert said["session"] == op1.op.session
     stopped_after(serve, powered(serve, 35, 35)[-1])
 
@@ -175,7 +183,7 @@ def test_300_fresh_names_evict_nobody_and_readmit_no_old_message(lab: Fleet, tmp
         wait_until(lambda: powered(serve, 15, 15), what="op1's power 15 15")
         tokens = []
         for n in range(300):
-            fresh = keyspace.Who(f"fresh{n}", keyspace.new_session())
+            fresh = keyspace.Who(f"fresh{n}", secrets.token_hex(8))
             tokens.append(
                 eve.session.liveliness().declare_token(keyspace.operator("r1", fresh.name, fresh.session))
             )
@@ -190,7 +198,7 @@ def test_300_fresh_names_evict_nobody_and_readmit_no_old_message(lab: Fleet, tmp
         )
         body = info(eve)
     assert body["driver"] == "op1"  # the driver's record and lease were never evicted
-    assert said["text"].startswith("ignored cmd_vel #1 from op1")
+    assert said["text"].startswith(f"ignored cmd_vel #{copied.split()[2].decode()} from op1")
     last_15 = powered(serve, 15, 15)[-1]
     assert not [i for i in powered(serve, 30, 30) if i > last_15], "the old message moved the robot again"
     assert len(tokens) == 300

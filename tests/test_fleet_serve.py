@@ -69,7 +69,7 @@ def test_motion_arrives_and_stops_when_the_drivers_token_goes(lab: Fleet, tmp_pa
     with operator(lab.endpoint, "r1", "op1") as op:
         op.open()
         taken, body = op.claim()
-        assert taken and body["driver"] == "op1" and len(body["key"]) == 32
+        assert taken and body["driver"] == "op1" and body["new"] is True
         op.cmd_vel(twist(0.2))
         frames = wait_until(lambda: serve.sent_codes({VELOCITY}), what="velocity on the wire")
         assert C.BY_CODE[VELOCITY].request.from_content(frames[0].content) == C.Velocity(20, 20)  # type: ignore[union-attr]
@@ -107,8 +107,11 @@ def test_a_second_operator_is_refused_and_a_third_may_stop(lab: Fleet, tmp_path:
         assert not taken and body == {"error": "refused: op1 drives r1", "driver": "op1"}
         op2.cmd_vel(twist(-0.5))
         assert op2.wait_said("refused")["text"] == "refused: op1 drives r1"
-        op3.stop()
-        said = op1.wait_said("stop from op3")
+        op3.session.put(keyspace.stop("r1"), b"", attachment=keyspace.attachment(op1.op, 99))
+        unverified = op1.wait_said("stop from someone unverified calling itself op1")
+        op1.cmd_vel(twist(0.2))
+        op3.open()  # a session there, whose signature says who it is (once its token is there)
+        said = wait_until(lambda: op3.stop() or op1.said("stop from op3"), what="op3's stop said as its")
         wait_until(lambda: motion_then_stop(serve)[1], what="stop after the motion")
     assert said == {
         "event": "stopped",
@@ -117,6 +120,7 @@ def test_a_second_operator_is_refused_and_a_third_may_stop(lab: Fleet, tmp_path:
         "reason": "stop",
         "text": "stopped: stop from op3",
     }
+    assert unverified["reason"] == "stop"
     backwards = [f for f in serve.sent_codes({VELOCITY}) if f.content[0]]
     assert not backwards, "op2's reverse reached the wire"
 
@@ -218,12 +222,9 @@ def test_a_read_through_the_queryable_is_the_frame_on_the_wire(lab: Fleet, tmp_p
 def test_a_write_is_decoded_through_the_table_and_motion_is_refused(lab: Fleet, tmp_path: Path) -> None:
     serve = served(lab, tmp_path)
     with operator(lab.endpoint, "r1", "op1") as op:
-        ok, body = op.query(
-            keyspace.write("r1"), {"op": "op1", "address": 1, "command": 0x41, "content": "1020"}
-        )
-        refused, why = op.query(
-            keyspace.write("r1"), {"op": "op1", "address": 1, "command": 1, "content": "9090"}
-        )
+        op.open()
+        ok, body = op.write({"address": 1, "command": 0x41, "content": "1020"})
+        refused, why = op.write({"address": 1, "command": 1, "content": "9090"})
     assert (
         ok
         and wait_until(lambda: serve.sent_codes({0x41}), what="servo on the wire")[0].content == b"\x10\x20"

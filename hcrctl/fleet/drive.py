@@ -10,16 +10,22 @@ so a second operator cannot make the driver's messages cost more.
 Who may drive, and which messages count:
 
 - only a session whose liveliness token (``hcr/R/op/OP/SESSION``) is present
-  may claim or drive: a replay of a departed operator's messages names a
-  session that is gone. The sessions present are remembered (at most
+  may claim or drive. The sessions present are remembered (at most
   ``MAX_OPERATORS``; a token beyond that is not admitted, and none is ever
   forgotten while its token stays, the driver's least of all);
-- the first claim granted to a session answers it a key; every motion of that
-  session must be signed with it (``keyspace.signature``) and carry a sequence
-  number higher than the last one taken. An exact copy of a message is older;
-  a message under the session that the key did not sign is a second sender
-  under one name: when that session drives, the robot stops, the lease ends
-  and the status says why;
+- a session proves it is itself (``link.zenoh.identity``): its first claim (or
+  write) names its public key, which must be the one its session id was
+  derived from, and every claim, release, motion and write must be signed with
+  that key over this serve's ``challenge`` and carry a sequence number higher
+  than the last one taken of its kind. Knowing a session's id (anyone can list
+  the tokens) is not enough, and nothing signed for another serving process is
+  good here. An exact copy of a message is older; a message under the session
+  that the key did not sign is a second sender under one name: when that
+  session drives, the robot stops, the lease ends and the status says why;
+- a session whose token went is remembered (``MAX_GONE``, its key and its
+  numbers): a copy of its token declared later gives its old messages no
+  second life, and a dead session's lease cannot be claimed again;
+- a stop is anyone's, and is said as the sender's only when signed by it;
 - every message ignored or refused is said on ``status`` to its sender, on
   a budget (``refusals``: one word per sender and reason a window, a few
   lines a second in all, and a count of what was held back), and the last one dropped of a session is kept for its
@@ -45,12 +51,13 @@ from __future__ import annotations
 import json
 import re
 import threading
+from collections import OrderedDict
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Any, SupportsBytes
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple, SupportsBytes
 
 from ..errors import ProtocolError
-from ..link.zenoh import keyspace
+from ..link.zenoh import identity, keyspace
 from ..motion.governor import Governor, Kind, Source, Verdict, Wheels, refusal
 from ..protocol import commands as C
 from ..protocol.profiles import Profile
@@ -63,6 +70,8 @@ MAX_MESSAGE = 4096
 _DIGITS = re.compile(r"\d+")
 #: Operator sessions present at once (their tokens); a token beyond this is not admitted.
 MAX_OPERATORS = 256
+#: Sessions gone remembered with their keys and numbers, the oldest forgotten first.
+MAX_GONE = 16384
 #: Say = (operator a refusal is for or about, its text or a built status, the sequence number it is
 #: about): a put on ``status``.
 Say = Callable[[keyspace.Who | None, "str | keyspace.Status", int | None], None]
@@ -75,6 +84,10 @@ def operator_source(op: keyspace.Who) -> Source:
 
 class BadMotion(ValueError):
     """A motion message that is not a Twist nor a motion request of the table; refused and said."""
+
+
+class WriteRefused(ValueError):
+    """A write not taken (unsigned, not the sender's, another drives): its error reply says why."""
 
 
 @dataclass
@@ -91,13 +104,29 @@ class DriveCounters:
 
 @dataclass
 class Present:
-    """An operator session whose token is present: its key once granted, its last sequence, its last drop."""
+    """An operator session whose token is present: its public key once named, its numbers, its last drop."""
 
-    key: bytes | None = None
-    #: The last sequence number taken: of a motion, and of a claim.
-    seq: int = 0
-    claimed: int = 0
+    #: The verifying key, once a signed claim or write named it (``identity.public_key``).
+    key: Any = None
+    #: The last sequence number taken, by kind of message (``identity.WHATS``).
+    taken: dict[str, int] = field(default_factory=dict)
     dropped: tuple[int, str] | None = None
+
+    @property
+    def seq(self) -> int:
+        """The last motion's number: what a claim's answer says was ``seen``."""
+        return self.taken.get("cmd_vel", 0)
+
+
+class Checked(NamedTuple):
+    """What became of a signed message: ``why`` None when it counts; ``forged`` when its key did not sign it."""
+
+    why: str | None
+    forged: bool = False
+    #: The session has no token here: its claim is told so (``"token": false``), to ask again.
+    tokenless: bool = False
+    #: Signed, but numbered no higher than the last of its kind taken: a copy, or overtaken on the way.
+    stale: bool = False
 
 
 def motion_request(message: dict[str, Any], profile: Profile, address: int) -> tuple[Wheels, C.Request, bool]:
@@ -149,6 +178,11 @@ class FleetDrive:
         self._profile = profile
         self.refusals = Refusals(say)
         self._present: dict[keyspace.Who, Present] = {}
+        #: Sessions whose tokens went, with their keys and numbers: a token of one declared again (the session
+        #: back after a network cut, or a copy) brings them back, never a fresh start.
+        self._gone: OrderedDict[keyspace.Who, Present] = OrderedDict()
+        #: This serving process's challenge (in its ``info``): every signature taken here covers it.
+        self.challenge = keyspace.new_challenge()
         self._lock = threading.Lock()
 
     # -- messages ---------------------------------------------------------------
@@ -173,7 +207,7 @@ class FleetDrive:
             return
         drove = self.governor.driver == source
         data = bytes(payload)
-        why = self._admitted(parsed, data, drove)
+        why = self._admitted("cmd_vel", parsed, data, drove)
         if why is not None:
             self.counters.ignored += 1
             self._tell(op, why, seq)
@@ -203,24 +237,40 @@ class FleetDrive:
         self.refused(parsed.who if parsed else None, self.refusal(driver), parsed.seq if parsed else None)
         return True
 
-    def _admitted(self, parsed: keyspace.Attachment, payload: bytes, drives: bool) -> str | None:
-        """None if the message counts (its sequence then taken); otherwise why it is ignored."""
+    def _admitted(self, what: str, parsed: keyspace.Attachment, payload: bytes, drives: bool) -> str | None:
+        """None if the message counts (its number then taken); otherwise why it is ignored, a forgery
+        under the driver's session ending its lease."""
+        checked = self.check(what, parsed, payload)
+        if checked.forged:
+            return self._second_sender(parsed.who, f"{what} #{parsed.seq}", drives)
+        return checked.why
+
+    def check(self, what: str, parsed: keyspace.Attachment, payload: bytes, key: object = None) -> Checked:
+        """Whether ``payload`` is ``parsed.who``'s, signed with its session's key (``key``: the public key
+        a claim or write names, taken if the session has none yet) and numbered above the last ``what``
+        taken from it; if so, its number is taken."""
         op, seq = parsed.who, parsed.seq
         with self._lock:
             present = self._present.get(op)
             if present is None:
-                return self._no_token(op)
-            if present.key is None:
-                return f"ignored cmd_vel #{seq} from {op}: its session has no granted claim (claim the drive first)"
-            if not keyspace.signed(present.key, self.robot, op, seq, payload, parsed.signature):
-                forged = True
-            elif seq <= present.seq:
-                return f"ignored cmd_vel #{seq} from {op}: replayed or out of order (the last taken was #{present.seq})"
-            else:
-                present.seq, forged = seq, False
-        if forged:
-            return self._second_sender(op, f"cmd_vel #{seq}", drives)
-        return None
+                return Checked(self._no_token(op), tokenless=True)
+            verifier = present.key if present.key is not None else identity.public_key(key, op.session)
+            if verifier is None:
+                return Checked(
+                    f"ignored {what} #{seq} from {op}: no public key of its session is known here "
+                    f'(a claim names it: {{"key": HEX}}, whose SHA-256 begins with the session id)'
+                )
+            signed = identity.signed_bytes(self.challenge, self.robot, what, op, seq, payload)
+            if not identity.verified(verifier, signed, parsed.signature):
+                return Checked(f"ignored {what} #{seq} from {op}: not signed with its session's key", True)
+            last = present.taken.get(what, 0)
+            if seq <= last:
+                return Checked(
+                    f"ignored {what} #{seq} from {op}: replayed or out of order (the last taken was #{last})",
+                    stale=True,
+                )
+            present.key, present.taken[what] = verifier, seq
+        return Checked(None)
 
     def _second_sender(self, op: keyspace.Who, what: str, drives: bool) -> str:
         """A message under ``op``'s session not signed with its key: if it drives, stop and end the lease."""
@@ -246,72 +296,104 @@ class FleetDrive:
             raise BadMotion(f"this firmware ({profile.name}) has no velocity command for a Twist")
         return self.governor.offer(source, twist_wheels(*parse_twist(payload)))
 
-    def stop(self, attachment: bytes | None) -> None:
-        """Anyone may stop; the lease is freed. A bad attachment still stops (it only names nobody)."""
+    def stop(self, attachment: bytes | None, payload: bytes = b"") -> None:
+        """Anyone may stop; the lease is freed. Said as its sender's only when that session signed it."""
         parsed = keyspace.parse_attachment(attachment)
-        who = parsed.who.name if parsed else "an operator"
+        if parsed is not None and self.check("stop", parsed, payload, _named_key(payload)).why is None:
+            who = str(parsed.who)
+        elif parsed is not None:
+            who = f"someone unverified calling itself {parsed.who}"  # a name: letters, digits, _ . -
+        else:
+            who = "someone unverified"
         self.counters.stops += 1
         self.governor.stop(f"stop from {who}")
 
-    def drive(self, payload: bytes) -> tuple[bool, dict[str, Any]]:
-        """A claim or release: (taken, the reply's object)."""
+    def drive(self, payload: bytes, attachment: bytes | None = None) -> tuple[bool, dict[str, Any]]:
+        """A claim or release, signed by the session it names: (taken, the reply's object)."""
         message = parse_motion(payload)
         op, do = keyspace.who(message.get("op"), message.get("session")), message.get("do")
         if op is None or do not in ("claim", "release"):
             raise BadMotion('drive takes {"op": OPERATOR, "session": SESSION, "do": "claim" or "release"}')
-        if do == "release":
-            self.governor.release(operator_source(op), f"{op} released {self.robot}")
-            return True, {"driver": named(self.governor.driver)}
-        return self._claim(op, message)
-
-    def _claim(self, op: keyspace.Who, message: dict[str, Any]) -> tuple[bool, dict[str, Any]]:
-        """A claim: granted to a present session, signed once it has a key; the answer says what it must know.
-
-        A signed claim numbered no higher than the session's last claim (a copy
-        of one, or one overtaken on the way) renews nothing: a replayed claim
-        cannot keep a frozen driver's lease alive past its deadman.
-        """
+        parsed = keyspace.parse_attachment(attachment)
+        if parsed is None or parsed.who != op or not parsed.signature:
+            raise BadMotion(
+                f"a {do} is signed: its attachment is OP SESSION SEQ SIGNATURE, of its op and session"
+            )
         source = operator_source(op)
-        refused = self.governor.would_refuse(source)
-        if refused is not None:
+        if do == "claim" and (refused := self.governor.would_refuse(source)) is not None:
             return self._claim_refused(op, refused)
         drove = self.governor.driver == source
-        given = message.get("signature")
-        seq = _seq_of(message)
+        checked = self.check(do, parsed, payload, message.get("key"))
+        if checked.forged:
+            why = self._second_sender(op, f"a {do}", drove)
+            return False, {"error": why, "driver": named(self.governor.driver)}
+        if checked.why is not None and (do == "release" or not checked.stale):
+            return False, {"error": checked.why, "driver": named(self.governor.driver)} | (
+                {"token": False} if checked.tokenless else {}
+            )
+        if do == "release":
+            self.governor.release(source, f"{op} released {self.robot}")
+            return True, {"driver": named(self.governor.driver)}
+        return self._claim(op, message, fresh=not checked.stale, drove=drove)
+
+    def _claim(
+        self, op: keyspace.Who, message: dict[str, Any], fresh: bool, drove: bool
+    ) -> tuple[bool, dict[str, Any]]:
+        """A signed claim of a present session: granted unless another drives; the answer says what it must know.
+
+        A claim numbered no higher than the session's last claim (a copy of
+        one, or one overtaken on the way) renews nothing: a replayed claim
+        cannot keep a frozen driver's lease alive past its deadman.
+        """
         with self._lock:
             present = self._present.get(op)
-            if present is None:
-                return False, {
-                    "error": self._no_token(op),
-                    "driver": named(self.governor.driver),
-                    "token": False,
-                }
-            key = present.key
-            good = (
-                isinstance(seq, int)
-                and isinstance(given, str)
-                and keyspace.signed(key, self.robot, op, seq, keyspace.CLAIM, given)
-            )
-            fresh = not good or seq > present.claimed
-            if good and fresh:
-                present.claimed = seq
-        if key is not None and not good:
-            why = self._second_sender(op, "a claim", drove)
-            return False, {"error": why, "driver": named(self.governor.driver)}
-        if fresh and not (verdict := self.governor.claim(source)):
+        if present is None or present.key is None:  # its token went while it was checked
+            return False, {"error": self._no_token(op), "driver": named(self.governor.driver), "token": False}
+        if fresh and not (verdict := self.governor.claim(operator_source(op))):
             return self._claim_refused(op, verdict.why)
         answer: dict[str, Any] = {"driver": op.name}
         with self._lock:
-            if present.key is None:
-                present.key = keyspace.new_key()
-                answer["key"] = present.key.hex()
             answer["seen"] = present.seq
             asked = message.get("confirm")
             if present.dropped is not None and present.dropped[0] == asked:
                 answer["dropped"] = present.dropped[1]
         if not drove and fresh:
+            answer["new"] = True  # the lease is new: a renewal answered so had lost it unheard
             self._say(op, keyspace.drives_status(op, self.robot), None)
         return True, answer
+
+    def may_write(self, payload: bytes, attachment: bytes | None) -> keyspace.Who:
+        """The session a write is from, if it signed it and may write now; WriteRefused why not.
+
+        A write moves an actuator or changes its control: it is signed like a
+        motion, and while someone drives only the driver may write.
+        """
+        message = parse_motion(payload)
+        op = keyspace.who(message.get("op"), message.get("session"))
+        parsed = keyspace.parse_attachment(attachment)
+        if op is None or parsed is None or parsed.who != op or not parsed.signature:
+            self.refused(
+                op,
+                "write refused: a write is signed (attachment OP SESSION SEQ SIGNATURE, of its op and session)",
+            )
+            raise WriteRefused(
+                "write refused: a write is signed: its attachment is OP SESSION SEQ SIGNATURE, of its op and session"
+            )
+        checked = self.check("write", parsed, payload, message.get("key"))
+        if checked.why is not None:
+            self.refused(op, f"write {checked.why}", parsed.seq)
+            raise WriteRefused(f"write {checked.why}")
+        self.may_write_now(op)
+        return op
+
+    def may_write_now(self, op: keyspace.Who) -> None:
+        """WriteRefused while someone but ``op`` drives (a write waits its turn: the driver may change)."""
+        driver = self.governor.driver
+        if driver is None or driver == operator_source(op):
+            return
+        text = f"write {self.refusal(driver)} (servo and pid need the drive lease)"
+        self.refused(op, text)
+        raise WriteRefused(text)
 
     def _claim_refused(self, op: keyspace.Who, why: str) -> tuple[bool, dict[str, Any]]:
         """A claim refused because another drives: answered, counted, and said (on the budget)."""
@@ -330,7 +412,7 @@ class FleetDrive:
                 self.counters.unadmitted += 1
                 admitted = False
             else:
-                self._present[op] = Present()
+                self._present[op] = self._gone.pop(op) if op in self._gone else Present()
                 admitted = True
         if not admitted:
             self._tell(op, f"refused: {MAX_OPERATORS} operator sessions are present on {self.robot} already")
@@ -341,7 +423,11 @@ class FleetDrive:
         if op is None:
             return
         with self._lock:
-            self._present.pop(op, None)
+            present = self._present.pop(op, None)
+            if present is not None and present.key is not None:
+                self._gone[op] = present
+                while len(self._gone) > MAX_GONE:
+                    self._gone.popitem(last=False)
         if operator_source(op) == self.governor.driver:
             self.governor.release(operator_source(op), f"operator {op} gone")
 
@@ -369,10 +455,10 @@ class FleetDrive:
         self.refusals.refused(op, text, seq, kind)
 
 
-def _seq_of(message: dict[str, Any]) -> int:
-    """A claim's sequence number, 0 when it has none in range (0 is never signed: numbers start at 1)."""
-    seq = message.get("seq")
-    return seq if isinstance(seq, int) and keyspace.number_in(seq, 1, keyspace.MAX_SEQ) else 0
+def _named_key(payload: bytes) -> object:
+    """The public key a stop's payload names (``{"key": HEX}``, as a claim's does), or None."""
+    message = keyspace.loads(payload) if len(payload) <= MAX_MESSAGE else None
+    return message.get("key") if isinstance(message, dict) else None
 
 
 def named(driver: Source | None) -> str | None:

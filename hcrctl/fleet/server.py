@@ -35,7 +35,7 @@ from ..link.signals import Terminated
 from ..link.zenoh import keyspace
 from ..link.zenoh.join import FleetError, Where, beyond_loopback, import_zenoh, open_member
 from ..motion.bumpers import freshness_bound
-from ..motion.governor import Kind, Late, Source, refusal
+from ..motion.governor import Kind, Late, Source
 from ..numtext import plural
 from ..protocol import commands as C
 from ..recording.progress import sweeps
@@ -43,7 +43,7 @@ from ..served.notes import Notes
 from ..served.runtime import FrontEnd, exposed
 from ..served.view import RuntimeView
 from . import queries
-from .drive import BadMotion, FleetDrive, named, operator_source
+from .drive import BadMotion, FleetDrive, named
 from .publish import Publishers
 
 if TYPE_CHECKING:
@@ -303,26 +303,18 @@ class Fleet(FrontEnd):
         return read
 
     def _write_query(self, query: Any) -> None:
-        """A write (servo, pid): refused at once, on Zenoh's thread, to anyone but the driver while one drives."""
+        """A write (servo, pid): signed by its session, and refused at once, on Zenoh's thread, to anyone
+        but the driver while one drives."""
         key = keyspace.write(self.name)
         try:
-            self._may_write(queries.payload_object(query))
+            op = self.drive.may_write(_bytes(query.payload) or b"", _bytes(query.attachment))
         except Exception as exc:
             self.answers.reply(query, key, (False, queries.error_body(exc)))
             return
-        self.answers.submit(query, key, self._write)
+        self.answers.submit(query, key, lambda message: self._write(op, message))
 
-    def _may_write(self, message: dict[str, Any]) -> None:
-        """A write moves an actuator or changes its control: while someone drives, only the driver may."""
-        driver, who = self.governor.driver, keyspace.who(message.get("op"), message.get("session"))
-        if driver is None or (who is not None and driver == operator_source(who)):
-            return
-        text = f"write {refusal(driver, self.name)} (servo and pid need the drive lease)"
-        self.drive.refused(who, text)
-        raise queries.QueryError(text)
-
-    def _write(self, message: dict[str, Any]) -> dict[str, Any]:
-        self._may_write(message)  # the driver may have changed while it waited
+    def _write(self, op: keyspace.Who, message: dict[str, Any]) -> dict[str, Any]:
+        self.drive.may_write_now(op)  # the driver may have changed while it waited
         with self.turnstile():
             return queries.write(self.robot, message)
 
@@ -360,6 +352,7 @@ class Fleet(FrontEnd):
             "rate": view.rate,
             "sensors": list(view.sensors),
             "started": self.started,
+            "challenge": self.drive.challenge,
             "hcrctl": __version__,
             "counters": counters,
         }
@@ -367,7 +360,9 @@ class Fleet(FrontEnd):
     def _drive(self, query: Any) -> None:
         payload = query.payload
         try:
-            ok, body = self.drive.drive(bytes(payload) if payload is not None else b"")
+            ok, body = self.drive.drive(
+                bytes(payload) if payload is not None else b"", _bytes(query.attachment)
+            )
         except BadMotion as exc:
             ok, body = False, {"error": str(exc), "driver": named(self.governor.driver)}
         self.answers.reply(query, keyspace.drive(self.name), (ok, body))
@@ -376,7 +371,7 @@ class Fleet(FrontEnd):
         self.drive.cmd_vel(_bytes(sample.attachment), sample.payload)
 
     def _stop(self, sample: Any) -> None:
-        self.drive.stop(_bytes(sample.attachment))
+        self.drive.stop(_bytes(sample.attachment), bytes(sample.payload))
 
     def _operator(self, sample: Any) -> None:
         if sample.kind == import_zenoh().SampleKind.DELETE:

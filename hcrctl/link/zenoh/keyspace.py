@@ -19,21 +19,18 @@ and a bad one is a usage error, not a Zenoh exception.
     hcr/<robot>/op/<operator>/<session>  liveliness token of each operator session that opened the robot
 
 Messages are JSON objects (readings may be CDR with ``--encoding cdr``); see
-``docs/fleet.md`` for each one's fields. Who sent a ``cmd_vel`` or ``stop`` is
-in its attachment (``attachment``/``parse_attachment``): Zenoh's own
-``source_info`` is unstable, and a robot must know its driver. An operator is
-a name *and a session* (a random id each time hcrctl opens a robot), so a
-name used again later is a new operator with its own sequence numbers; and
-once a claim is granted, the robot side has given that session a key
-(``signature``): a message under the session's name that the key did not
-sign is someone else's.
+``docs/fleet.md`` for each one's fields. Who sent a ``cmd_vel``, ``stop``,
+``drive`` or ``write`` is in its attachment (``attachment``/``parse_attachment``):
+Zenoh's own ``source_info`` is unstable, and a robot must know its driver. An
+operator is a name *and a session* (a fresh key pair each time hcrctl opens a
+robot, the session id derived from its public key: ``identity``), so a name
+used again later is a new operator with its own sequence numbers; and a
+message under the session's name that its key did not sign is someone else's.
 """
 
 from __future__ import annotations
 
 import getpass
-import hashlib
-import hmac
 import json
 import math
 import os
@@ -47,14 +44,14 @@ ROOT = "hcr"
 #: A robot's or an operator's name: one key chunk, no Zenoh wildcard or separator, not "@"-led.
 NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}")
 NAME_RULE = "1-64 letters, digits, '_', '.' or '-', not starting with '.' or '-'"
-#: An operator session's id: 16 lowercase hex digits, drawn at random each time a robot is opened.
+#: An operator session's id: 16 lowercase hex digits, derived from the session's public key (``identity``).
 SESSION = re.compile(r"[0-9a-f]{16}")
-#: A signature: the first 32 hex digits of an HMAC-SHA256 under the key the robot side gave the session.
-SIGNATURE = re.compile(r"[0-9a-f]{32}")
+#: A signature: the 128 lower-case hex digits of an Ed25519 signature (``identity``).
+SIGNATURE = re.compile(r"[0-9a-f]{128}")
 #: The longest attachment read: name, session, sequence number and signature, spaces between.
-MAX_ATTACHMENT = 160
-#: What a claim is signed over, in place of a motion's payload.
-CLAIM = b"claim"
+MAX_ATTACHMENT = 256
+#: A serving process's challenge: 32 lower-case hex digits (``new_challenge``).
+CHALLENGE = re.compile(r"[0-9a-f]{32}")
 #: The longest sequence number: 19 digits stay below 2**63.
 MAX_SEQ_DIGITS = 19
 MAX_SEQ = 10**MAX_SEQ_DIGITS - 1
@@ -155,11 +152,6 @@ def who(name: object, session: object) -> Who | None:
     return None
 
 
-def new_session() -> str:
-    """A fresh session id: 64 random bits, so no two openings of a robot share one."""
-    return secrets.token_hex(8)
-
-
 def operator_id() -> str:
     """This process as an operator: ``user.host.pid``, made a valid name (so a key chunk)."""
     try:
@@ -203,25 +195,9 @@ def parse_attachment(data: bytes | None) -> Attachment | None:
     return Attachment(op, int(seq), signature)
 
 
-def new_key() -> bytes:
-    """A session's signing key, drawn by the robot side when it first grants that session the drive."""
-    return secrets.token_bytes(16)
-
-
-def signature(key: bytes, robot: str, op: Who, seq: int, payload: bytes) -> str:
-    """What signs one message: the robot, the session, the sequence number and the payload, under ``key``.
-
-    Anyone on the fleet can read an attachment and copy it; only the session
-    that was answered the key (a query's reply goes to the querier alone) can
-    sign a new message, so a forged or replayed one is told from the driver's.
-    """
-    head = f"{robot}\n{op.name}\n{op.session}\n{seq}\n".encode("ascii")
-    return hmac.new(key, head + payload, hashlib.sha256).hexdigest()[:32]
-
-
-def signed(key: bytes | None, robot: str, op: Who, seq: int, payload: bytes, given: str) -> bool:
-    """Whether ``given`` is the signature ``key`` makes (compared in constant time)."""
-    return key is not None and hmac.compare_digest(given, signature(key, robot, op, seq, payload))
+def new_challenge() -> str:
+    """A serving process's challenge (in its ``info``): what every signature for it covers."""
+    return secrets.token_hex(16)
 
 
 # -- what a peer says: parsed and checked before anything uses or shows it ----------------------
@@ -236,7 +212,7 @@ INFO_NUMBERS: dict[str, tuple[float, float]] = {
     "baud": (0.0, 100_000_000.0),
     "address": (0.0, 255.0),
 }
-INFO_TEXTS = ("name", "port", "protocol", "driver", "encoding", "hcrctl")
+INFO_TEXTS = ("name", "port", "protocol", "driver", "encoding", "hcrctl", "challenge")
 
 
 class BadInfo(ValueError):
@@ -277,6 +253,9 @@ def check_info(info: dict[str, Any]) -> dict[str, Any]:
         value = info.get(field)
         if value is not None and (not isinstance(value, str) or len(value) > MAX_INFO_TEXT):
             raise BadInfo(f"its {field} is not a text of at most {MAX_INFO_TEXT} characters")
+    challenge = info.get("challenge")
+    if challenge is not None and not CHALLENGE.fullmatch(challenge):
+        raise BadInfo("its challenge is not 32 lower-case hex digits")
     sensors = info.get("sensors")
     if sensors is not None and (
         not isinstance(sensors, list) or not all(isinstance(s, str) and NAME.fullmatch(s) for s in sensors)

@@ -6,10 +6,11 @@ laptop stops the robot), the robot stopped at once when the driver's
 liveliness token goes (a killed one). This side only asks and keeps asking:
 
 - before the first motion, ``claim`` (a query, answered at once): refused
-  means the command fails saying who drives, and nothing moves. The first
-  claim granted answers this session its key; every later message (motion,
-  stop, claim) is signed with it (``keys.signature``), so nobody else on the
-  fleet can send as this operator;
+  means the command fails saying who drives, and nothing moves. Every message
+  (claim, release, motion, write, stop) is numbered and signed with this
+  session's private key over the robot's challenge (``identity``), and a claim
+  names the public key, so nobody else on the fleet can send as this operator
+  and nothing signed for one serving process is good for the next;
 - each motion is a ``cmd_vel`` put with ``attachment(op, seq, signature)``,
   then confirmed by a claim naming its sequence number: when the robot side
   dropped it (another drives, a bumper is pressed, its firmware lacks the
@@ -39,8 +40,9 @@ from typing import Any
 from ...errors import HcrError, quoted
 from ...protocol import commands as C
 from ...protocol.records import hexs
+from .identity import Identity, signed_bytes
 from .join import FleetError
-from .keyspace import CLAIM, Status, Who, attachment, cmd_vel, loads, signature
+from .keyspace import Status, Who, attachment, cmd_vel, loads
 from .keyspace import drive as drive_key
 from .keyspace import stop as stop_key
 
@@ -80,15 +82,16 @@ class MotionHalted(HcrError):
 class DriveLease:
     """This operator's claim on one robot's motion, over a Zenoh session."""
 
-    def __init__(self, session: Any, robot: str, op: Who, deadman: float) -> None:
+    def __init__(self, session: Any, robot: str, op: Who, identity: Identity, deadman: float) -> None:
         self._session = session
         self._robot = robot
         self._op = op
+        self._identity = identity
         self.interval = RENEW_S
         self.pace(deadman)
         self._seq = 0
-        #: The key the robot side answered this session's first granted claim (None before).
-        self._key: bytes | None = None
+        #: The robot side's challenge, from its info (None before): every signature covers it.
+        self.challenge: str | None = None
         # Reentrant: a renewal, under it, numbers and signs its claim under it too.
         self._lock = threading.RLock()
         self.held = False
@@ -120,7 +123,7 @@ class DriveLease:
         if not self.held:
             self.claim()
         payload = {"address": address, "command": cmd.code, "content": hexs(content)}
-        seq = self._put(cmd_vel(self._robot), payload)
+        seq = self._put(cmd_vel(self._robot), "cmd_vel", payload)
         answer = self.claim(confirm=seq)
         for _ in range(CONFIRM_ASKS):  # the motion still on its way when the claim was answered
             seen = answer.get("seen")
@@ -139,7 +142,7 @@ class DriveLease:
         with self._lock:
             self._own_stops += 1 if self.held else 0
             self.held = False
-            self._put(stop_key(self._robot), {})
+            self._put(stop_key(self._robot), "stop", {"key": self._identity.public_hex})
 
     def claim(self, confirm: int | None = None) -> dict[str, Any]:
         """Take the lease now (``confirm``: and say whether that motion was taken); the robot side's answer.
@@ -158,23 +161,10 @@ class DriveLease:
             raise DriveRefused(
                 _refusal(answer, self._robot), hint="wait until they stop, or anyone may: hcrctl stop"
             )
-        self._keep(answer)
         with self._lock:
             self.held, self.refused, self.claimed_ever = True, False, True
         self._start()
         return answer
-
-    def _keep(self, answer: dict[str, Any]) -> None:
-        """The key of a first grant; a grant without one to a session that has none was someone else's."""
-        key = answer.get("key")
-        if self._key is None and isinstance(key, str):
-            with contextlib.suppress(ValueError):
-                self._key = bytes.fromhex(key)
-        if self._key is None:
-            raise DriveRefused(
-                f"{self._robot} gave this session's key to another sender under the name {self._op}: nothing was sent",
-                hint="someone on the fleet sends as you; restrict who may drive with Zenoh's access control",
-            )
 
     def lost(self) -> None:
         """The robot side no longer counts this operator as its driver: stop renewing."""
@@ -228,43 +218,62 @@ class DriveLease:
     def _claim_later(self) -> None:
         """A renewal: a claim whose answer is read on Zenoh's thread (a refusal means the lease was lost)."""
         zenoh = _zenoh()
+        payload, signed = self._asking("claim")
         self._session.get(
             drive_key(self._robot),
             zenoh.handlers.Callback(self._renewed),
-            payload=json.dumps(self._asking("claim")),
+            payload=payload,
+            attachment=signed,
             encoding=zenoh.Encoding.APPLICATION_JSON,
             timeout=CLAIM_TIMEOUT_S,
         )
 
     def _renewed(self, reply: Any) -> None:
-        """A renewal's answer: refused, the lease is lost; granted with a new key, the robot side forgot this
-        session (its token went, and with it the motion it drove) and took it for a new one."""
+        """A renewal's answer: refused, the lease is lost; granted as a new lease, the robot side had ended
+        this session's (its token went for a while, and with it the motion it drove) unheard here."""
         if reply.err is not None:
             self.lost()
-        elif "key" in _object(reply.ok.payload.to_bytes()):
+        elif _object(reply.ok.payload.to_bytes()).get("new") is True:
             self._halt(
                 f"stopped: it lost {self._op}'s liveliness token, and the motion with it", "operator gone"
             )
 
     # -- the wire -------------------------------------------------------------------------
 
-    def _asking(self, do: str, confirm: int | None = None) -> dict[str, Any]:
-        """A ``drive`` query's payload: who asks, signed once this session has its key."""
+    def _asking(self, do: str, confirm: int | None = None) -> tuple[bytes, bytes]:
+        """A ``drive`` query's payload (who asks, and a claim names this session's public key) and its
+        signed attachment."""
         asked: dict[str, Any] = {"op": self._op.name, "session": self._op.session, "do": do}
+        if do == "claim":
+            asked["key"] = self._identity.public_hex
         if confirm is not None:
             asked["confirm"] = confirm
+        payload = json.dumps(asked).encode()
+        return payload, self.sign(do, payload)
+
+    def sign(self, what: str, payload: bytes) -> bytes:
+        """The attachment of a ``what`` message (``identity.WHATS``) of ``payload``: numbered, then signed.
+
+        FleetError before the robot's challenge is known (its info not read), or when it has none.
+        """
+        if self.challenge is None:
+            raise FleetError(
+                f"{self._robot}'s info names no challenge to sign for: nothing was sent",
+                hint=f"{self._robot}'s fleet serve may be an older hcrctl; upgrade it",
+            )
         with self._lock:
-            if self._key is not None:
-                seq = self._next()
-                asked.update(seq=seq, signature=signature(self._key, self._robot, self._op, seq, CLAIM))
-        return asked
+            seq = self._next()
+            data = signed_bytes(self.challenge, self._robot, what, self._op, seq, payload)
+            return attachment(self._op, seq, self._identity.sign(data))
 
     def _ask(self, do: str, confirm: int | None = None) -> tuple[bool, dict[str, Any]]:
         """A ``drive`` query: (granted, the robot side's answer); FleetError when nobody answers."""
         zenoh = _zenoh()
+        payload, signed = self._asking(do, confirm)
         replies = self._session.get(
             drive_key(self._robot),
-            payload=json.dumps(self._asking(do, confirm)),
+            payload=payload,
+            attachment=signed,
             encoding=zenoh.Encoding.APPLICATION_JSON,
             timeout=CLAIM_TIMEOUT_S,
         )
@@ -281,22 +290,27 @@ class DriveLease:
         self._seq += 1
         return self._seq
 
-    def _put(self, key: str, payload: dict[str, Any]) -> int:
-        """Put ``payload`` numbered and signed; its sequence number. Under the lock: put in numbering order."""
+    def _put(self, key: str, what: str, payload: dict[str, Any]) -> int:
+        """Put ``payload`` numbered and signed; its sequence number. Under the lock: put in numbering order.
+
+        A stop before the robot's challenge is known goes unsigned (numbered 0): a stop is anyone's.
+        """
         zenoh = _zenoh()
         data = json.dumps(payload).encode()
         with self._lock:
-            seq = self._next()
-            signed = signature(self._key, self._robot, self._op, seq, data) if self._key is not None else ""
+            if what == "stop" and self.challenge is None:
+                signed = attachment(self._op, 0)
+            else:
+                signed = self.sign(what, data)
             self._session.put(
                 key,
                 data,
                 encoding=zenoh.Encoding.APPLICATION_JSON,
-                attachment=attachment(self._op, seq, signed),
+                attachment=signed,
                 congestion_control=zenoh.CongestionControl.BLOCK,
                 express=True,
             )
-        return seq
+        return self._seq
 
 
 def _object(data: bytes) -> dict[str, Any]:

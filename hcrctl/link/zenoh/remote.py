@@ -43,6 +43,7 @@ from ...protocol import commands as C
 from ...protocol.profiles import DEFAULT, Profile, profile
 from ...protocol.records import hexs
 from ..carrier import Carrier, Deliver, Lost, Settings, Timeout, is_stop
+from .identity import Identity
 from .join import FleetError, Where, import_zenoh, join, looked_at
 from .keyspace import (
     NAME_RULE,
@@ -52,7 +53,6 @@ from .keyspace import (
     check_info,
     check_name,
     loads,
-    new_session,
     operator,
     operator_id,
     parse_status,
@@ -104,8 +104,10 @@ class RemoteLink(Carrier):
         self.name = name
         self.port = url or f"{SCHEME}{name}"
         self.where = where
-        #: This operator: its name, and a session id of its own (a name used again later is another operator).
-        self.op = Who(operator_id(), new_session())
+        #: This session's key pair (``identity``): the session id is its public key's, and it signs what is sent.
+        self.identity = Identity()
+        #: This operator: its name, and its session's id (a name used again later is another operator).
+        self.op = Who(operator_id(), self.identity.session)
         self.remote: Profile = DEFAULT
         self.info: dict[str, Any] = {}
         self._informed = threading.Lock()
@@ -144,7 +146,7 @@ class RemoteLink(Carrier):
         )
         if not self._here.wait(ASK_TIMEOUT_S):
             raise FleetError(f"no robot {self.name} in the fleet at {self._where()}", hint=LIST_HINT)
-        self.lease = DriveLease(session, self.name, self.op, _deadman(self.info))
+        self.lease = DriveLease(session, self.name, self.op, self.identity, _deadman(self.info))
         self._held += [
             session.declare_subscriber(topic(self.name, "frames"), zenoh.handlers.Callback(self._frame)),
             session.declare_subscriber(status(self.name), zenoh.handlers.Callback(self._status)),
@@ -162,6 +164,8 @@ class RemoteLink(Carrier):
             self.remote = _profile_of(self.info)
             assert self.lease is not None  # set by open()
             self.lease.pace(_deadman(self.info))
+            challenge = self.info.get("challenge")
+            self.lease.challenge = challenge if isinstance(challenge, str) else None
             self._asked_info = True
 
     def _ask_info(self, session: Any) -> dict[str, Any]:
@@ -323,16 +327,20 @@ class RemoteLink(Carrier):
     def _write(self, address: int, cmd: C.Command, content: bytes) -> None:
         """A non-motion write, through the robot side's table; waited for, so a refusal is this write's error."""
         zenoh = import_zenoh()
+        assert self.lease is not None  # set by open(): it numbers and signs this session's messages
         payload = {
             "op": self.op.name,
             "session": self.op.session,
+            "key": self.identity.public_hex,
             "address": address,
             "command": cmd.code,
             "content": hexs(content),
         }
+        data = json.dumps(payload).encode()
         replies = self._session.get(
             write_key(self.name),
-            payload=json.dumps(payload),
+            payload=data,
+            attachment=self.lease.sign("write", data),
             encoding=zenoh.Encoding.APPLICATION_JSON,
             timeout=ASK_TIMEOUT_S,
         )
