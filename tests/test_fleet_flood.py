@@ -160,10 +160,8 @@ def test_a_servo_write_needs_the_lease_while_someone_drives(lab: Fleet, tmp_path
         op.cmd_vel(twist(0.2))
         wait_until(lambda: serve.sent_codes({VELOCITY}), what="op1 driving")
         done = lab.run(servo)
-        refused, body = other.query(
-            keyspace.write("r1"),
-            {"op": "op2", "session": other.op.session, "address": 1, "command": SERVO, "content": "015A"},
-        )
+        other.open()
+        refused, body = other.write({"address": 1, "command": SERVO, "content": "015A"})
         said = wait_until(
             lambda: next((s for s in list(other.status) if s.get("op") == "op2"), None), what="op2 told"
         )

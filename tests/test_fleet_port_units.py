@@ -150,11 +150,12 @@ class _Session:
 
 def test_the_word_of_this_sessions_own_stop_never_halts_its_next_motion() -> None:
     pytest.importorskip("zenoh", reason="the lease's puts name Zenoh's encodings")
+    from hcrctl.link.zenoh.identity import Identity
     from hcrctl.link.zenoh.lease import HALT_HINTS, DriveLease
 
     assert set(HALT_HINTS) <= set(keyspace.REASONS)
     session = _Session()
-    lease = DriveLease(session, "r1", OP, 0.5)
+    lease = DriveLease(session, "r1", OP, Identity(), 0.5)
     lease.held = True  # driving
     lease.stop()
     assert session.puts == [keyspace.stop("r1")]

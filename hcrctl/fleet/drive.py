@@ -63,7 +63,7 @@ from ..protocol import commands as C
 from ..protocol.profiles import Profile
 from ..served.cmdvel import MAX_NESTING, BadTwist, parse_twist, twist_wheels
 from ..served.refusals import Refusals
-from .queries import code_text
+from .queries import QueryError, code_text
 
 #: What a motion message may weigh: a Twist or a table request is under 200 bytes.
 MAX_MESSAGE = 4096
@@ -86,7 +86,7 @@ class BadMotion(ValueError):
     """A motion message that is not a Twist nor a motion request of the table; refused and said."""
 
 
-class WriteRefused(ValueError):
+class WriteRefused(QueryError):
     """A write not taken (unsigned, not the sender's, another drives): its error reply says why."""
 
 
