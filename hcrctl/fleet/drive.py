@@ -50,11 +50,12 @@ from __future__ import annotations
 
 import json
 import re
+import secrets
 import threading
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple, SupportsBytes
+from typing import Any, NamedTuple, Protocol, SupportsBytes
 
 from ..errors import ProtocolError
 from ..link.zenoh import identity, keyspace
@@ -75,6 +76,13 @@ MAX_GONE = 16384
 #: Say = (operator a refusal is for or about, its text or a built status, the sequence number it is
 #: about): a put on ``status``.
 Say = Callable[[keyspace.Who | None, "str | keyspace.Status", int | None], None]
+
+
+class Holds(Protocol):
+    """Where the drivers' holds are watched (``fleet.hold``)."""
+
+    def watch(self, key: str, gone: Callable[[], None]) -> None: ...
+    def drop(self, key: str) -> None: ...
 
 
 def operator_source(op: keyspace.Who) -> Source:
@@ -111,6 +119,8 @@ class Present:
     #: The last sequence number taken, by kind of message (``identity.WHATS``).
     taken: dict[str, int] = field(default_factory=dict)
     dropped: tuple[int, str] | None = None
+    #: The secret of its hold (``fleet.hold``), drawn when it is first granted the drive.
+    hold: str | None = None
 
     @property
     def seq(self) -> int:
@@ -169,9 +179,15 @@ class FleetDrive:
     """The robot side of ``cmd_vel``/``stop``/``drive`` and the operators' tokens, for ``governor``."""
 
     def __init__(
-        self, robot: str, governor: Governor, say: Say, profile: Callable[[], tuple[Profile, int]]
+        self,
+        robot: str,
+        governor: Governor,
+        say: Say,
+        profile: Callable[[], tuple[Profile, int]],
+        holds: Holds | None = None,
     ) -> None:
         self.robot = robot
+        self._holds = holds
         self.governor = governor
         self.counters = DriveCounters()
         self._say = say
@@ -353,6 +369,11 @@ class FleetDrive:
             return self._claim_refused(op, verdict.why)
         answer: dict[str, Any] = {"driver": op.name}
         with self._lock:
+            if present.hold is None and self._holds is not None:
+                present.hold = secrets.token_hex(16)
+                self._holds.watch(keyspace.hold(self.robot, present.hold), lambda: self._hold_gone(op))
+            if present.hold is not None:
+                answer["hold"] = present.hold
             answer["seen"] = present.seq
             asked = message.get("confirm")
             if present.dropped is not None and present.dropped[0] == asked:
@@ -420,14 +441,27 @@ class FleetDrive:
     def operator_gone(self, key: str) -> None:
         """An operator's token went (a killed laptop, a closed session): forgotten; if it drove, stop at once."""
         op = keyspace.operator_of(key)
-        if op is None:
-            return
+        if op is not None:
+            self._gone_now(op)
+
+    def _hold_gone(self, op: keyspace.Who) -> None:
+        """The driver's hold has no subscriber any more: its session is gone, whatever token copies say."""
+        self._gone_now(op)
+
+    def _gone_now(self, op: keyspace.Who) -> None:
+        """``op``'s session is gone: remembered as gone (its key, its numbers), its hold let go; if it drove,
+        the robot stops at once."""
         with self._lock:
             present = self._present.pop(op, None)
             if present is not None and present.key is not None:
                 self._gone[op] = present
                 while len(self._gone) > MAX_GONE:
                     self._gone.popitem(last=False)
+            hold = None
+            if present is not None:
+                hold, present.hold = present.hold, None
+        if hold is not None and self._holds is not None:
+            self._holds.drop(keyspace.hold(self.robot, hold))
         if operator_source(op) == self.governor.driver:
             self.governor.release(operator_source(op), f"operator {op} gone")
 

@@ -44,6 +44,7 @@ from ..served.runtime import FrontEnd, exposed
 from ..served.view import RuntimeView
 from . import queries
 from .drive import BadMotion, FleetDrive, named
+from .hold import Holds
 from .publish import Publishers
 
 if TYPE_CHECKING:
@@ -119,7 +120,8 @@ class Fleet(FrontEnd):
         self.answers = queries.Answers()
         #: A read is answered from the sweep when its reply is at most this old (the bumper rule's bound).
         self.fresh = freshness_bound(view.rate)
-        self.drive = FleetDrive(self.name, view.governor, self.say, self._profile)
+        self.holds = Holds(lambda: self.session)
+        self.drive = FleetDrive(self.name, view.governor, self.say, self._profile, self.holds)
         self.declared: list[Any] = []
         self.session: Any = None
         self.publishers: Publishers | None = None
@@ -260,6 +262,7 @@ class Fleet(FrontEnd):
             with contextlib.suppress(Exception):
                 thing.undeclare()
         self.declared.clear()
+        self.holds.close()
         self.answers.close()
 
     def _guarded(self, callback: Callable[[Any], None]) -> Callable[[Any], None]:

@@ -17,6 +17,7 @@ and a bad one is a usage error, not a Zenoh exception.
     hcr/<robot>/stop             anyone may stop
     hcr/<robot>/status           the robot's word to operators: a refusal, a deadman stop, who drives
     hcr/<robot>/op/<operator>/<session>  liveliness token of each operator session that opened the robot
+    hcr/<robot>/hold/<secret>    subscribed to by the driver: its going stops the robot (``fleet.hold``)
 
 Messages are JSON objects (readings may be CDR with ``--encoding cdr``); see
 ``docs/fleet.md`` for each one's fields. Who sent a ``cmd_vel``, ``stop``,
@@ -52,6 +53,8 @@ SIGNATURE = re.compile(r"[0-9a-f]{128}")
 MAX_ATTACHMENT = 256
 #: A serving process's challenge: 32 lower-case hex digits (``new_challenge``).
 CHALLENGE = re.compile(r"[0-9a-f]{32}")
+#: A hold's secret (``hold``): 32 lower-case hex digits, as a challenge.
+HOLD = CHALLENGE
 #: The longest sequence number: 19 digits stay below 2**63.
 MAX_SEQ_DIGITS = 19
 MAX_SEQ = 10**MAX_SEQ_DIGITS - 1
@@ -114,6 +117,11 @@ def operator(robot: str, op: str, session: str) -> str:
 def operators(robot: str) -> str:
     """Every operator token of ``robot``: what its server watches to stop when a driver vanishes."""
     return f"{ROOT}/{robot}/op/*/*"
+
+
+def hold(robot: str, secret: str) -> str:
+    """The key a driver subscribes to while it drives, ``secret`` the robot side's answer to its claim."""
+    return f"{ROOT}/{robot}/hold/{secret}"
 
 
 def robot_of(key: str) -> str | None:

@@ -42,8 +42,9 @@ from ...protocol import commands as C
 from ...protocol.records import hexs
 from .identity import Identity, signed_bytes
 from .join import FleetError
-from .keyspace import Status, Who, attachment, cmd_vel, loads
+from .keyspace import HOLD, Status, Who, attachment, cmd_vel, loads
 from .keyspace import drive as drive_key
+from .keyspace import hold as hold_key
 from .keyspace import stop as stop_key
 
 #: The longest wait for the robot side's answer to a claim or release.
@@ -92,6 +93,8 @@ class DriveLease:
         self._seq = 0
         #: The robot side's challenge, from its info (None before): every signature covers it.
         self.challenge: str | None = None
+        #: This session's subscriber of the hold the robot side answered its claim (``fleet.hold``).
+        self._hold: Any = None
         # Reentrant: a renewal, under it, numbers and signs its claim under it too.
         self._lock = threading.RLock()
         self.held = False
@@ -163,8 +166,14 @@ class DriveLease:
             )
         with self._lock:
             self.held, self.refused, self.claimed_ever = True, False, True
+        self._subscribe_hold(answer.get("hold"))
         self._start()
         return answer
+
+    def _subscribe_hold(self, secret: object) -> None:
+        """Subscribe to the hold the robot side answered: while this process lives, so does the subscriber."""
+        if self._hold is None and isinstance(secret, str) and HOLD.fullmatch(secret):
+            self._hold = self._session.declare_subscriber(hold_key(self._robot, secret), lambda sample: None)
 
     def lost(self) -> None:
         """The robot side no longer counts this operator as its driver: stop renewing."""
@@ -196,6 +205,9 @@ class DriveLease:
         if self.claimed_ever:
             with contextlib.suppress(Exception):
                 self._ask("release")
+        if self._hold is not None:
+            with contextlib.suppress(Exception):
+                self._hold.undeclare()
         self.held = False
 
     # -- the renewing thread ------------------------------------------------------------

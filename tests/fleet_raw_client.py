@@ -1,0 +1,218 @@
+"""A fleet client written from docs/fleet.md's "Writing a client" alone: a raw Zenoh session and pyca's
+cryptography, nothing of hcrctl. Run as a program (on any host of a test's topology); it prints one JSON
+object a line for the test to read.
+
+    python fleet_raw_client.py ENDPOINT ROBOT drive        list, read, claim, drive, stop, release
+    python fleet_raw_client.py ENDPOINT ROBOT stranger     claim and drive under another's listed session
+    python fleet_raw_client.py ENDPOINT ROBOT capture FILE a signed claim granted, saved to FILE
+    python fleet_raw_client.py ENDPOINT ROBOT replay FILE  that claim sent again, under a copy of its token
+    python fleet_raw_client.py ENDPOINT ROBOT copy         copy every operator token, hold them until killed
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sys
+import time
+from typing import Any
+
+import zenoh
+from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
+
+WAIT_S = 10.0
+
+
+def say(**fields: Any) -> None:
+    print(json.dumps(fields), flush=True)
+
+
+def open_session(endpoint: str) -> Any:
+    """Step 1: client mode, the router's endpoint, scouting off, the fleet's 3 s link lease."""
+    cfg = zenoh.Config()
+    cfg.insert_json5("mode", '"client"')
+    cfg.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    cfg.insert_json5("scouting/multicast/enabled", "false")
+    cfg.insert_json5("scouting/gossip/enabled", "false")
+    cfg.insert_json5("transport/link/tx/lease", "3000")
+    return zenoh.open(cfg)
+
+
+class Client:
+    """One operator session: its key pair, its token, its numbered and signed messages."""
+
+    def __init__(self, session: Any, robot: str, name: str, private: Ed25519PrivateKey | None = None) -> None:
+        self.s, self.robot, self.name = session, robot, name
+        self.private = private or Ed25519PrivateKey.generate()
+        raw = self.private.public_key().public_bytes_raw()
+        self.key = raw.hex()  # step 2: 64 lower-case hex digits
+        self.session = hashlib.sha256(raw).hexdigest()[:16]
+        self.seq = 0
+        self.challenge = ""
+        self.token: Any = None
+
+    def declare(self) -> None:
+        self.token = self.s.liveliness().declare_token(f"hcr/{self.robot}/op/{self.name}/{self.session}")
+
+    def info(self) -> dict[str, Any]:
+        """Step 3: the robot's info, with the challenge every signature covers."""
+        for reply in self.s.get(f"hcr/{self.robot}/info", timeout=WAIT_S):
+            info: dict[str, Any] = json.loads(reply.ok.payload.to_bytes())
+            self.challenge = info["challenge"]
+            return info
+        raise SystemExit("no info")
+
+    def attachment(self, what: str, payload: bytes, seq: int | None = None) -> bytes:
+        """Step 5: ``OP SESSION SEQ SIGNATURE``, signed over the head lines and the payload as sent."""
+        if seq is None:
+            self.seq += 1
+            seq = self.seq
+        head = f"hcr-fleet-1\n{self.challenge}\n{self.robot}\n{what}\n{self.name}\n{self.session}\n{seq}\n"
+        signature = self.private.sign(head.encode("ascii") + payload).hex()
+        return f"{self.name} {self.session} {seq} {signature}".encode("ascii")
+
+    def ask(self, key: str, message: dict[str, Any], what: str) -> tuple[bool, dict[str, Any], bytes, bytes]:
+        """A signed query: (ok, the answer, the payload and attachment sent)."""
+        payload = json.dumps(message).encode()
+        attachment = self.attachment(what, payload)
+        return (*self.send(key, payload, attachment), payload, attachment)
+
+    def send(self, key: str, payload: bytes, attachment: bytes) -> tuple[bool, dict[str, Any]]:
+        for reply in self.s.get(key, payload=payload, attachment=attachment, timeout=WAIT_S):
+            if reply.ok is not None:
+                return True, json.loads(reply.ok.payload.to_bytes())
+            return False, json.loads(reply.err.payload.to_bytes())
+        return False, {"error": "no answer"}
+
+    def claim(self) -> tuple[bool, dict[str, Any], bytes, bytes]:
+        """Step 4: a claim naming the key, asked again while the answer says the token is not there yet."""
+        deadline = time.monotonic() + WAIT_S
+        while True:
+            message = {"op": self.name, "session": self.session, "do": "claim", "key": self.key}
+            found = self.ask(f"hcr/{self.robot}/drive", message, "claim")
+            if found[0] or found[1].get("token") is not False or time.monotonic() > deadline:
+                return found
+            time.sleep(0.05)
+
+    def put(self, key: str, message: dict[str, Any], what: str) -> None:
+        payload = json.dumps(message).encode()
+        self.s.put(key, payload, attachment=self.attachment(what, payload))
+
+
+def robots(s: Any) -> list[str]:
+    return sorted(str(r.ok.key_expr).split("/")[1] for r in s.liveliness().get("hcr/*/alive", timeout=WAIT_S))
+
+
+def operators(s: Any, robot: str) -> list[tuple[str, str]]:
+    """Every operator session's token on ``robot``, as (OP, SESSION): what anyone on the fleet can list."""
+    found = []
+    for reply in s.liveliness().get(f"hcr/{robot}/op/*/*", timeout=WAIT_S):
+        parts = str(reply.ok.key_expr).split("/")
+        found.append((parts[3], parts[4]))
+    return found
+
+
+def drive(s: Any, robot: str) -> None:
+    say(robots=robots(s))
+    me = Client(s, robot, "rawclient")
+    me.declare()
+    info = me.info()
+    say(deadman=info["deadman"], challenge=len(me.challenge))
+    for reply in s.get(f"hcr/{robot}/read/compass", timeout=WAIT_S):
+        say(read=json.loads(reply.ok.payload.to_bytes())["reading"])
+    ok, answer, _, _ = me.claim()
+    say(claimed=ok, answer=answer)
+    hold = s.declare_subscriber(f"hcr/{robot}/hold/{answer['hold']}", lambda sample: None)
+    me.put(f"hcr/{robot}/cmd_vel", {"address": 1, "command": 1, "content": "B3 B3"}, "cmd_vel")
+    for _ in range(5):  # step 5: renew by claiming again, signed, never by repeating the motion
+        time.sleep(0.05)
+        ok, answer, _, _ = me.claim()
+    say(renewed=ok, seen=answer.get("seen"))
+    sys.stdin.readline()  # the test has seen the motion on the wire
+    me.put(f"hcr/{robot}/stop", {"key": me.key}, "stop")
+    ok, answer, _, _ = me.ask(
+        f"hcr/{robot}/drive", {"op": me.name, "session": me.session, "do": "release"}, "release"
+    )
+    say(stopped=True, released=ok, driver=answer.get("driver"))
+    hold.undeclare()
+    me.token.undeclare()
+
+
+def stranger(s: Any, robot: str) -> None:
+    """A claim and motion under a session listed on the fleet, signed with a key of the stranger's own."""
+    deadline = time.monotonic() + WAIT_S
+    while not (listed := operators(s, robot)) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    name, session = listed[0]
+    me = Client(s, robot, name)
+    me.info()
+    me.session = session  # the victim's: anyone can list it
+    ok, answer, _, _ = me.claim()
+    unsigned = me.send(
+        f"hcr/{robot}/drive",
+        json.dumps({"op": name, "session": session, "do": "claim"}).encode(),
+        f"{name} {session} 1".encode(),
+    )
+    for _ in range(20):
+        me.put(f"hcr/{robot}/cmd_vel", {"address": 1, "command": 1, "content": "E6 E6"}, "cmd_vel")
+    servo = {"op": name, "session": session, "key": me.key, "address": 1, "command": 0x41, "content": "11 22"}
+    wrote, why, _, _ = me.ask(f"hcr/{robot}/write", servo, "write")
+    say(
+        victim=name,
+        claimed=ok,
+        answer=answer,
+        unsigned_claimed=unsigned[0],
+        unsigned=unsigned[1],
+        wrote=wrote,
+        why=why,
+    )
+
+
+def capture(s: Any, robot: str, path: str) -> None:
+    me = Client(s, robot, "captured")
+    me.declare()
+    me.info()
+    ok, answer, payload, attachment = me.claim()
+    with open(path, "w") as out:
+        json.dump({"session": me.session, "payload": payload.hex(), "attachment": attachment.hex()}, out)
+    say(claimed=ok, answer=answer)
+
+
+def replay(s: Any, robot: str, path: str) -> None:
+    with open(path) as saved:
+        was = json.load(saved)
+    token = s.liveliness().declare_token(f"hcr/{robot}/op/captured/{was['session']}")  # a copy of its token
+    deadline = time.monotonic() + WAIT_S
+    while True:
+        ok, answer = Client(s, robot, "x").send(
+            f"hcr/{robot}/drive", bytes.fromhex(was["payload"]), bytes.fromhex(was["attachment"])
+        )
+        if ok or answer.get("token") is not False or time.monotonic() > deadline:
+            break
+        time.sleep(0.05)
+    say(claimed=ok, answer=answer)
+    token.undeclare()
+
+
+def copy(s: Any, robot: str) -> None:
+    deadline = time.monotonic() + WAIT_S
+    while not (listed := operators(s, robot)) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    tokens = [s.liveliness().declare_token(f"hcr/{robot}/op/{name}/{sid}") for name, sid in listed]
+    say(copied=len(tokens))
+    time.sleep(3600)
+
+
+def main() -> None:
+    endpoint, robot, what, *rest = sys.argv[1:]
+    s = open_session(endpoint)
+    try:
+        {"drive": drive, "stranger": stranger, "capture": capture, "replay": replay, "copy": copy}[what](
+            s, robot, *rest
+        )
+    finally:
+        s.close()
+
+
+if __name__ == "__main__":
+    main()
