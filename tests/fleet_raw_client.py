@@ -58,7 +58,7 @@ class Client:
         """Step 3: the robot's info, with the challenge every signature covers."""
         for reply in self.s.get(f"hcr/{self.robot}/info", timeout=WAIT_S):
             info: dict[str, Any] = json.loads(reply.ok.payload.to_bytes())
-            self.challenge = info["challenge"]
+            self.challenge = info.get("challenge", "")  # an older serve has none: its failure is the test's
             return info
         raise SystemExit("no info")
 
