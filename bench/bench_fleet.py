@@ -1,7 +1,7 @@
 """A fleet on Zenoh: readings' latency and each robot's cost as robots are added; zenoh:// reads; safety stops.
 
 Run from the repository root: ``python bench/bench_fleet.py [--robots 1,5,20] [--seconds 10] [--rounds 7]
-[--parts scaling,reads,lost,hosts,floods,renewals]``.
+[--parts scaling,reads,lost,hosts,floods,renewals,copied]``.
 
 1. For each N: a router on a free loopback port and N ``hcrctl fleet serve rK``
    on ``sim://``, each polling at 10 Hz, and one operator (this process, a
@@ -39,6 +39,11 @@ Run from the repository root: ``python bench/bench_fleet.py [--robots 1,5,20] [-
    (``longest_renewal_gap_ms``); the driver spins on the spot, so no wall
    stops it, and any stop on the wire is a miss. Target: no stop, and the
    longest gap under load within half the deadman.
+
+7. A driver killed with ``kill -9`` while a raw Zenoh peer
+   (``tests/fleet_raw_client.py copy``) holds a copy of its liveliness
+   token, to the stop on the wire, on the default 0.5 s deadman: the stop
+   must be the driver's hold going, not the deadman. Target 0.1 s.
 
 It prints the figures, writes ``bench/results/bench_fleet.json`` and exits 1
 if a target is missed. Needs the zenoh extra.
@@ -274,8 +279,10 @@ def lost_operator(
     rounds: int,
     tmp: Path,
     where: helpers_netns.Topology | None = None,
+    copied: bool = False,
 ) -> list[float]:
-    """Seconds from ``sig`` (or the cable cut) to the stop on the wire, per round."""
+    """Seconds from ``sig`` (or the cable cut) to the stop on the wire, per round; ``copied``: a raw peer
+    holds a copy of the driver's token meanwhile."""
     figures = []
     name = sig if isinstance(sig, str) else sig.name
     with fleet(tmp, where) as (procs, endpoint):
@@ -295,6 +302,7 @@ def lost_operator(
             )
             start = len(wire(log))
             moved = wait_for(lambda start=start: moving_since(log, start), what="motion")
+            copier = copy_tokens(procs, endpoint) if copied else None
             at = time.time()
             if isinstance(sig, str):
                 assert where is not None, "a cable is cut on hosts only"
@@ -307,7 +315,18 @@ def lost_operator(
                 where.apart().mend(helpers_netns.OPERATOR_HOST)
             os.killpg(op.pid, signal.SIGKILL)
             op.wait()
+            if copier is not None:
+                copier.kill()
+                copier.wait()
     return figures
+
+
+def copy_tokens(procs: Procs, endpoint: str) -> subprocess.Popen[str]:
+    """A raw Zenoh peer holding a copy of every operator token on r1, once it says it holds them."""
+    raw = [sys.executable, str(ROOT / "tests" / "fleet_raw_client.py"), endpoint, "r1", "copy"]
+    copier = subprocess.Popen(raw, stdout=subprocess.PIPE, text=True, start_new_session=True)
+    assert copier.stdout is not None and json.loads(copier.stdout.readline())["copied"] >= 1
+    return copier
 
 
 # -- 4. the same on hosts of their own -------------------------------------------------------------
@@ -494,6 +513,18 @@ def part_lost(rounds: int, tmp: Path, metrics: dict[str, Any]) -> bool:
     return ok
 
 
+#: A killed driver whose token a peer copied: stopped within this, its hold's going, not the deadman.
+COPIED_STOP_S = 0.1
+
+
+def part_copied(rounds: int, tmp: Path, metrics: dict[str, Any]) -> bool:
+    deadman = str(DEADMAN_S)
+    figures = lost_operator(signal.SIGKILL, deadman, rounds, tmp, copied=True)
+    return stop_figures(
+        "kill -9, token copied,", figures, deadman, COPIED_STOP_S, metrics, "copied_kill_stop"
+    )
+
+
 def part_renewals(seconds: float, tmp: Path, metrics: dict[str, Any]) -> bool:
     quiet, loaded = renewals(seconds, 0, tmp), renewals(seconds, 2, tmp)
     ratio = round(loaded["longest_gap_ms"] / quiet["longest_gap_ms"], 2)
@@ -537,7 +568,7 @@ def main() -> int:
     parser.add_argument("--flood-rounds", type=int, default=5, help="rounds of each flood kind (0: none)")
     parser.add_argument(
         "--parts",
-        default="scaling,reads,lost,hosts,floods,renewals",
+        default="scaling,reads,lost,hosts,floods,renewals,copied",
         help="which parts to run (comma-separated)",
     )
     args = parser.parse_args()
@@ -558,6 +589,8 @@ def main() -> int:
             ok &= part_floods(args.flood_rounds, tmp, metrics)
         if "renewals" in parts:
             ok &= part_renewals(args.seconds, tmp, metrics)
+        if "copied" in parts:
+            ok &= part_copied(args.rounds, tmp, metrics)
     metrics["load"] = round(os.getloadavg()[0], 2)
     record("bench_fleet", metrics)
     return 0 if ok else 1
