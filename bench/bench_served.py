@@ -166,8 +166,18 @@ def sigterm_end(root: Path) -> tuple[float, int, bool]:
             "--stop-wait", "5", "--port", port, "--zenoh", endpoint, "fleet", "serve", "r1", root=root
         )
         wait_said(serve, "serving ")
-        drive = group.start(
-            "--zenoh", endpoint, "--port", "zenoh://r1", "drive", "power", "30", "30", "--for", "0.3"
+        drive = group.start(  # the operator from the same tree: the fleet's contract may differ between trees
+            "--zenoh",
+            endpoint,
+            "--port",
+            "zenoh://r1",
+            "drive",
+            "power",
+            "30",
+            "30",
+            "--for",
+            "0.3",
+            root=root,
         )
         if drive.wait(timeout=60) != 0:  # the one-shot ends with stop delivered: the robot stands still
             raise RuntimeError(f"the drive failed: {drive.err.read_text()!r}")  # type: ignore[attr-defined]
