@@ -301,7 +301,7 @@ class Operator:
     def attachment(self, what: str, data: bytes) -> bytes:
         """The next number, signed over ``data`` as a ``what`` message for this robot's serving process."""
         if self.challenge is None:
-            ok, body = self.query(self.keys.info(self.robot))
+            _, body = self.query(self.keys.info(self.robot))
             self.challenge = body["challenge"]
         self.seq += 1
         signed = self.identities.signed_bytes(self.challenge, self.robot, what, self.op, self.seq, data)

@@ -12,8 +12,8 @@ fixed time.
 from __future__ import annotations
 
 import json
-import secrets
 import re
+import secrets
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
