@@ -186,6 +186,7 @@ class FleetDrive:
         profile: Callable[[], tuple[Profile, int]],
         holds: Holds | None = None,
     ) -> None:
+        identity.check_installed()
         self.robot = robot
         self._holds = holds
         self.governor = governor

@@ -29,6 +29,7 @@ only, so nothing outside the fleet loads it.
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import re
 from typing import Any
 
@@ -49,6 +50,13 @@ def _ed25519() -> Any:
     from cryptography.hazmat.primitives.asymmetric import ed25519
 
     return ed25519
+
+
+def check_installed() -> None:
+    """MissingExtra (the zenoh extra named) now if cryptography is absent, without importing it: a serve
+    that loaded it at start would carry its 7 MB before anyone claims."""
+    if importlib.util.find_spec("cryptography") is None:
+        _ed25519()
 
 
 def session_of(public: bytes) -> str:
