@@ -147,10 +147,8 @@ class Driver:
     def publish(self, way: int) -> float:
         """One Twist, forward (``way`` 1) or back (-1); when it was put (wall clock, taken just before)."""
         twist = {"linear": {"x": SPEED * way}, "angular": {"z": 0.0}}
-        if self.op.key is None:
-            self.op.claim()
         at = time.time()
-        self.op.cmd_vel(twist)
+        self.op.cmd_vel(twist)  # claims first, the first time
         return at
 
     def close(self) -> None:
