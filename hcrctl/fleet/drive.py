@@ -370,10 +370,12 @@ class FleetDrive:
             return self._claim_refused(op, verdict.why)
         answer: dict[str, Any] = {"driver": op.name}
         with self._lock:
-            if present.hold is None and self._holds is not None:
+            if fresh and present.hold is None and self._holds is not None:
                 present.hold = secrets.token_hex(16)
                 self._holds.watch(keyspace.hold(self.robot, present.hold), lambda: self._hold_gone(op))
-            if present.hold is not None:
+            if (
+                fresh and present.hold is not None
+            ):  # never to a copy of a claim: whoever sent it may not be its session
                 answer["hold"] = present.hold
             answer["seen"] = present.seq
             asked = message.get("confirm")
@@ -394,13 +396,9 @@ class FleetDrive:
         op = keyspace.who(message.get("op"), message.get("session"))
         parsed = keyspace.parse_attachment(attachment)
         if op is None or parsed is None or parsed.who != op or not parsed.signature:
-            self.refused(
-                op,
-                "write refused: a write is signed (attachment OP SESSION SEQ SIGNATURE, of its op and session)",
-            )
-            raise WriteRefused(
-                "write refused: a write is signed: its attachment is OP SESSION SEQ SIGNATURE, of its op and session"
-            )
+            text = "write refused: a write is signed: its attachment is OP SESSION SEQ SIGNATURE, of its op and session"
+            self.refused(op, text)
+            raise WriteRefused(text)
         checked = self.check("write", parsed, payload, message.get("key"))
         if checked.why is not None:
             self.refused(op, f"write {checked.why}", parsed.seq)
