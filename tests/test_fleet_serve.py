@@ -69,7 +69,7 @@ def test_motion_arrives_and_stops_when_the_drivers_token_goes(lab: Fleet, tmp_pa
     with operator(lab.endpoint, "r1", "op1") as op:
         op.open()
         taken, body = op.claim()
-        assert taken and body["driver"] == "op1" and body["new"] is True
+        assert taken and body["driver"] == "op1" and len(body["hold"]) == 32 and "rejoined" not in body
         op.cmd_vel(twist(0.2))
         frames = wait_until(lambda: serve.sent_codes({VELOCITY}), what="velocity on the wire")
         assert C.BY_CODE[VELOCITY].request.from_content(frames[0].content) == C.Velocity(20, 20)  # type: ignore[union-attr]

@@ -121,6 +121,8 @@ class Present:
     dropped: tuple[int, str] | None = None
     #: The secret of its hold (``fleet.hold``), drawn when it is first granted the drive.
     hold: str | None = None
+    #: Its token went and came back since it was last granted the drive: whatever it drove was stopped.
+    rejoined: bool = False
 
     @property
     def seq(self) -> int:
@@ -381,8 +383,10 @@ class FleetDrive:
             asked = message.get("confirm")
             if present.dropped is not None and present.dropped[0] == asked:
                 answer["dropped"] = present.dropped[1]
+            if fresh and present.rejoined:
+                present.rejoined = False
+                answer["rejoined"] = True  # a renewal answered so lost its motion with its token, unheard
         if not drove and fresh:
-            answer["new"] = True  # the lease is new: a renewal answered so had lost it unheard
             self._say(op, keyspace.drives_status(op, self.robot), None)
         return True, answer
 
@@ -432,7 +436,10 @@ class FleetDrive:
                 self.counters.unadmitted += 1
                 admitted = False
             else:
-                self._present[op] = self._gone.pop(op) if op in self._gone else Present()
+                back = self._gone.pop(op) if op in self._gone else None
+                if back is not None:
+                    back.rejoined = True
+                self._present[op] = back if back is not None else Present()
                 admitted = True
         if not admitted:
             self._tell(op, f"refused: {MAX_OPERATORS} operator sessions are present on {self.robot} already")

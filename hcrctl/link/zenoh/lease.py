@@ -241,11 +241,11 @@ class DriveLease:
         )
 
     def _renewed(self, reply: Any) -> None:
-        """A renewal's answer: refused, the lease is lost; granted as a new lease, the robot side had ended
-        this session's (its token went for a while, and with it the motion it drove) unheard here."""
+        """A renewal's answer: refused, the lease is lost; granted to a session that ``rejoined``, the robot
+        side had lost its token for a while, and with it the motion it drove, unheard here."""
         if reply.err is not None:
             self.lost()
-        elif _object(reply.ok.payload.to_bytes()).get("new") is True:
+        elif _object(reply.ok.payload.to_bytes()).get("rejoined") is True:
             self._halt(
                 f"stopped: it lost {self._op}'s liveliness token, and the motion with it", "operator gone"
             )
