@@ -20,7 +20,6 @@ from typing import IO, Any
 import pytest
 
 pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip install 'hcrctl[zenoh]')")
-pytest.importorskip("cryptography", reason="the fleet needs the zenoh extra (pip install 'hcrctl[zenoh]')")
 
 from helpers import TIMEOUT
 from helpers_fleet_port import Fleet, fleet, is_motion, is_stop
