@@ -231,5 +231,5 @@ def test_a_bumper_reading_older_than_the_bound_stops_forward_motion(lab: Fleet, 
             return op.said("forward blocked")
 
         said = wait_until(refused, what=f"forward refused (status {op.status})")
-    assert re.search(r"(no bumper reading yet|bumper reading [\d.]+ s old)", said["text"]), said
+    assert re.search(r"(no bumper reading yet|bumper reading stale \(\d+ ms old)", said["text"]), said
     assert not [f for f in serve.sent_codes({VELOCITY}) if forward(f)]

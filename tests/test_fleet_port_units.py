@@ -41,7 +41,8 @@ def test_a_good_name_is_the_robots() -> None:
     [
         ("bumper hit", "bumper"),
         ("bumper hit: forward blocked", "bumper"),
-        ("bumper reading 0.61 s old (over 0.6 s)", "bumper"),
+        ("bumper reading stale (610 ms old, over 600 ms)", "stale"),
+        ("no bumper reading yet", "stale"),
         ("deadman: no cmd_vel for 0.5 s", "deadman"),
         ("stop from op2", "stop"),
         ("operator op1 gone", "operator gone"),

@@ -274,7 +274,9 @@ def test_step_a_bumper_reading_too_old_stops_forward_and_allows_reverse() -> Non
     assert wire.sent == [C.MotorSpeed(50, 50)]
     clock[0] = freshness_bound(POLL_HZ) + 0.01  # no sweep since: the poller is starved
     step(drive, governor, None, now=1.1)
-    assert wire.sent[-1] == "stop" and drive.why_stopped.startswith("bumper reading 0.51 s old (over 0.5 s)")
+    assert wire.sent[-1] == "stop" and drive.why_stopped.startswith(
+        "bumper reading stale (510 ms old, over 500 ms)"
+    )
     step(drive, governor, "w", now=1.2)
     assert wire.sent[-1] == "stop" and "forward blocked" in drive.why_stopped
     step(drive, governor, "s", now=1.3)

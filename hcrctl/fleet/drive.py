@@ -11,8 +11,10 @@ Who may drive, and which messages count:
 
 - only a session whose liveliness token (``hcr/R/op/OP/SESSION``) is present
   may claim or drive. The sessions present are remembered (at most
-  ``MAX_OPERATORS``; a token beyond that is not admitted, and none is ever
-  forgotten while its token stays, the driver's least of all);
+  ``MAX_OPERATORS``, and none is ever forgotten while its token stays, the
+  driver's least of all); a token that comes while they are all there waits
+  for room, first come first admitted (at most ``MAX_WAITING``), and a claim
+  meanwhile is told so, never that it has no token;
 - a session proves it is itself (``link.zenoh.identity``): its first claim (or
   write) names its public key, which must be the one its session id was
   derived from, and every claim, release, motion and write must be signed with
@@ -28,7 +30,9 @@ Who may drive, and which messages count:
 - a stop is anyone's, and is said as the sender's only when signed by it;
 - every message ignored or refused is said on ``status`` to its sender, on
   a budget (``refusals``: one word per sender and reason a window, a few
-  lines a second in all, and a count of what was held back), and the last one dropped of a session is kept for its
+  lines a second for each session present and a few for all the others
+  together, so no flood of names crowds out the words meant for a session,
+  and a count of what was held back), and the last one dropped of a session is kept for its
   next claim's answer, so the sender learns which of its commands did not
   count.
 
@@ -69,10 +73,12 @@ from .queries import QueryError, code_text
 #: What a motion message may weigh: a Twist or a table request is under 200 bytes.
 MAX_MESSAGE = 4096
 _DIGITS = re.compile(r"\d+")
-#: Operator sessions present at once (their tokens); a token beyond this is not admitted.
+#: Operator sessions present at once (their tokens); a token beyond this waits for room.
 MAX_OPERATORS = 256
 #: Sessions gone remembered with their keys and numbers, the oldest forgotten first.
 MAX_GONE = 16384
+#: Tokens that wait for room, at most (first come, first admitted); one beyond this is counted and forgotten.
+MAX_WAITING = 256
 #: Say = (operator a refusal is for or about, its text or a built status, the sequence number it is
 #: about): a put on ``status``.
 Say = Callable[[keyspace.Who | None, "str | keyspace.Status", int | None], None]
@@ -106,7 +112,7 @@ class DriveCounters:
     ignored: int = 0
     refused: int = 0
     stops: int = 0
-    #: Operator tokens not admitted: ``MAX_OPERATORS`` sessions were present already.
+    #: Operator tokens not admitted when they came: ``MAX_OPERATORS`` sessions were present already.
     unadmitted: int = 0
 
 
@@ -195,13 +201,15 @@ class FleetDrive:
         self.counters = DriveCounters()
         self._say = say
         self._profile = profile
-        self.refusals = Refusals(say)
         self._present: dict[keyspace.Who, Present] = {}
         #: Sessions whose tokens went, with their keys and numbers: a token of one declared again (the session
         #: back after a network cut, or a copy) brings them back, never a fresh start.
         self._gone: OrderedDict[keyspace.Who, Present] = OrderedDict()
         #: This serving process's challenge (in its ``info``): every signature taken here covers it.
         self.challenge = keyspace.new_challenge()
+        #: Sessions whose token came while ``MAX_OPERATORS`` were present, in the order they came.
+        self._waiting: dict[keyspace.Who, None] = {}
+        self.refusals = Refusals(say, known=self._present.__contains__)
         self._lock = threading.Lock()
 
     # -- messages ---------------------------------------------------------------
@@ -252,7 +260,9 @@ class FleetDrive:
         if isinstance(who, keyspace.Who) and attachment.startswith(f"{who.name} {who.session} ".encode()):
             return False
         self.counters.cmd_vel += 1
-        parsed = keyspace.parse_attachment(attachment) if self.refusals.may_say() else None
+        # Read only when a word could be said: to a session present (its own budget), or to another.
+        readable = self.refusals.may_say() or len(self._present) > 1
+        parsed = keyspace.parse_attachment(attachment) if readable else None
         self.refused(parsed.who if parsed else None, self.refusal(driver), parsed.seq if parsed else None)
         return True
 
@@ -272,7 +282,7 @@ class FleetDrive:
         with self._lock:
             present = self._present.get(op)
             if present is None:
-                return Checked(self._no_token(op), tokenless=True)
+                return Checked(self._not_admitted(op), tokenless=op not in self._waiting)
             verifier = present.key if present.key is not None else identity.public_key(key, op.session)
             if verifier is None:
                 return Checked(
@@ -298,11 +308,19 @@ class FleetDrive:
             self.governor.release(operator_source(op), f"{why}; the lease is ended")
         return f"ignored: {why}"
 
-    def _no_token(self, op: keyspace.Who) -> str:
-        return (
+    def _not_admitted(self, op: keyspace.Who) -> str:
+        """Why a session is not admitted, truly: its token waits for room, or none was admitted."""
+        full = f"{len(self._present)} operator sessions are present on {self.robot}"
+        if op in self._waiting:
+            place = list(self._waiting).index(op) + 1
+            return f"refused: {full}, the most it admits; {op}'s token waits for room (#{place} in line)"
+        said = (
             f"refused: {op} has no liveliness token on {self.robot} "
             f"(an operator declares {keyspace.operator(self.robot, op.name, op.session)} first)"
         )
+        if len(self._waiting) >= MAX_WAITING:
+            return f"{said}, or its token came while {full} and {len(self._waiting)} waited"
+        return said
 
     def _offer(self, op: keyspace.Who, payload: bytes) -> Verdict:
         message = parse_motion(payload)
@@ -349,7 +367,7 @@ class FleetDrive:
         if checked.why is not None and (do == "release" or not checked.stale):
             return False, {"error": checked.why, "driver": named(self.governor.driver)} | (
                 {"token": False} if checked.tokenless else {}
-            )
+            ) | ({"token": True, "waiting": True} if op in self._waiting else {})
         if do == "release":
             self.governor.release(source, f"{op} released {self.robot}")
             return True, {"driver": named(self.governor.driver)}
@@ -367,7 +385,11 @@ class FleetDrive:
         with self._lock:
             present = self._present.get(op)
         if present is None or present.key is None:  # its token went while it was checked
-            return False, {"error": self._no_token(op), "driver": named(self.governor.driver), "token": False}
+            return False, {
+                "error": self._not_admitted(op),
+                "driver": named(self.governor.driver),
+                "token": False,
+            }
         if fresh and not (verdict := self.governor.claim(operator_source(op))):
             return self._claim_refused(op, verdict.why)
         answer: dict[str, Any] = {"driver": op.name}
@@ -425,27 +447,33 @@ class FleetDrive:
         return False, {"error": why, "driver": named(self.governor.driver)}
 
     def operator_here(self, key: str) -> None:
-        """An operator's token appeared: its session may claim (if fewer than MAX_OPERATORS are present)."""
+        """An operator's token appeared: its session may claim, or, with MAX_OPERATORS present, it waits
+        for room (at most MAX_WAITING wait; one beyond them is counted and forgotten)."""
         op = keyspace.operator_of(key)
         if op is None:
             return
         with self._lock:
-            if op in self._present:
+            if op in self._present or op in self._waiting:
                 return
-            if len(self._present) >= MAX_OPERATORS:
-                self.counters.unadmitted += 1
-                admitted = False
-            else:
-                back = self._gone.pop(op) if op in self._gone else None
-                if back is not None:
-                    back.rejoined = True
-                self._present[op] = back if back is not None else Present()
-                admitted = True
-        if not admitted:
-            self._tell(op, f"refused: {MAX_OPERATORS} operator sessions are present on {self.robot} already")
+            if len(self._present) < MAX_OPERATORS:
+                self._admit(op)
+                return
+            self.counters.unadmitted += 1
+            if len(self._waiting) < MAX_WAITING:
+                self._waiting[op] = None
+            why = self._not_admitted(op)
+        self._tell(op, why)
+
+    def _admit(self, op: keyspace.Who) -> None:
+        """``op``'s session present (under the lock): back with its key and numbers if it was here before."""
+        back = self._gone.pop(op) if op in self._gone else None
+        if back is not None:
+            back.rejoined = True
+        self._present[op] = back if back is not None else Present()
 
     def operator_gone(self, key: str) -> None:
-        """An operator's token went (a killed laptop, a closed session): forgotten; if it drove, stop at once."""
+        """An operator's token went (a killed laptop, a closed session): forgotten, its room given to the
+        first session waiting; if it drove, stop at once."""
         op = keyspace.operator_of(key)
         if op is not None:
             self._gone_now(op)
@@ -466,6 +494,11 @@ class FleetDrive:
             hold = None
             if present is not None:
                 hold, present.hold = present.hold, None
+            self._waiting.pop(op, None)
+            while self._waiting and len(self._present) < MAX_OPERATORS:
+                first = next(iter(self._waiting))
+                del self._waiting[first]
+                self._admit(first)
         if hold is not None and self._holds is not None:
             self._holds.drop(keyspace.hold(self.robot, hold))
         if operator_source(op) == self.governor.driver:

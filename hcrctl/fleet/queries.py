@@ -162,7 +162,7 @@ def write(robot: Robot, message: dict[str, Any]) -> dict[str, Any]:
         raise QueryError(f"{cmd.name}: {exc}") from exc
     address = address_of(message, robot)
     frame = robot.frame_for(request, address)
-    answer = robot.send(request, address=address)
+    answer = robot.send(request, address=address, timeout=QUERY_REPLY_S)
     body: dict[str, Any] = {"frame": hexs(frame)}
     if answer is not None:
         body["reply"] = answer.fields()

@@ -178,14 +178,16 @@ class Robot(TypedReads, Dialect):
 
     # -- sending -------------------------------------------------------------
 
-    def send(self, value: C.Request, *, address: int | None = None) -> C.Reply | None:
-        """Send a request; wait for its reply if the command has one."""
+    def send(
+        self, value: C.Request, *, address: int | None = None, timeout: float | None = None
+    ) -> C.Reply | None:
+        """Send a request; wait for its reply if the command has one (``timeout``: as ``transact``'s)."""
         cmd = self.check_supported(C.command_for(value))
         frame = self.frame_for(value, address)
         if cmd.reply is None:
             self.write(frame)
             return None
-        reply = self.transact(frame, (self._address(address), cmd.code), cmd.name)
+        reply = self.transact(frame, (self._address(address), cmd.code), cmd.name, timeout=timeout)
         return cmd.reply.decode(self.profile.to_document(cmd.code, reply.content))
 
     def sweep(
@@ -218,7 +220,7 @@ class Robot(TypedReads, Dialect):
     def _silent(self, cmds: list[C.Command], addr: int) -> DeviceSilent:
         """Nothing at all has come back: asking the other sensors would only wait longer."""
         first, *rest = cmds
-        attempts = 1 + max(self.retries, 0)
+        attempts = self._tries(None)
         return self._port_says(
             DeviceSilent(first.name, addr, self.port, self.timeout, attempts, [c.name for c in rest])
         )
@@ -339,18 +341,22 @@ class Robot(TypedReads, Dialect):
     ) -> Frame:
         """Write ``frame`` and return the frame answering it, retrying on timeout.
 
-        ``timeout``: this exchange's wait for each reply, when shorter than the link's (a query that
-        must not hold the line long); None: the link's ``timeout``.
+        ``timeout``: the longest this exchange may hold the line, its one try's wait for the reply (a
+        peer's query, which must not keep the poller from the bumpers: no retry, the peer may ask
+        again); None: the link's ``timeout`` for each of its tries.
         """
         wait = self.timeout if timeout is None else min(timeout, self.timeout)
-        reply = self._exchange({expect: (frame, what)}, wait).get(expect)
+        tries = None if timeout is None else 1
+        reply = self._exchange({expect: (frame, what)}, wait, tries).get(expect)
         if reply is None:
-            raise self._no_reply(what, expect, wait)
+            raise self._no_reply(what, expect, wait, tries)
         return reply
 
-    def _no_reply(self, what: str, key: tuple[int, int], timeout: float | None = None) -> DeviceTimeout:
+    def _no_reply(
+        self, what: str, key: tuple[int, int], timeout: float | None = None, tries: int | None = None
+    ) -> DeviceTimeout:
         """The timeout error; when the reply came but failed the rule and passes the other, it says so."""
-        attempts = 1 + max(self.retries, 0)
+        attempts = self._tries(tries)
         waited = self.timeout if timeout is None else timeout
         seen = self._other_rule_keys
         if key not in seen and ON_THE_LINE not in seen:
@@ -365,15 +371,22 @@ class Robot(TypedReads, Dialect):
             seen="replies" if key in seen else "frames on the line",
         )
 
+    def _tries(self, tries: int | None) -> int:
+        """How many times an exchange is tried: ``tries``, or the link's retries and the first."""
+        return 1 + max(self.retries, 0) if tries is None else tries
+
     def _exchange(
-        self, batch: dict[tuple[int, int], tuple[bytes, str]], timeout: float | None = None
+        self,
+        batch: dict[tuple[int, int], tuple[bytes, str]],
+        timeout: float | None = None,
+        tries: int | None = None,
     ) -> dict[tuple[int, int], Frame]:
         """Send every frame of ``batch``; collect replies by key (each waited for ``timeout``, default the
-        link's), retrying the missing."""
+        link's), retrying the missing (``tries`` in all, default the link's retries and the first)."""
         got: dict[tuple[int, int], Frame] = {}
         with self._io:
             self._other_rule_keys.difference_update((*batch, ON_THE_LINE))  # only this exchange counts
-            for attempt in range(1 + max(self.retries, 0)):
+            for attempt in range(self._tries(tries)):
                 missing = {key: frame for key, (frame, _) in batch.items() if key not in got}
                 if not missing:
                     break

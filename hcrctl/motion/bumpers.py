@@ -4,7 +4,9 @@ Freshness is part of safety. A bumper reading has an age (since the last
 good reply), and a reading older than ``bound`` says nothing about the
 bumpers now: whatever kept the poller from sweeping (a flood of queries, a
 lost reply, a stalled thread), forward motion is then refused, and stopped
-if it runs, exactly as when a bumper is pressed. The bound is ``FRESH_SWEEPS``
+if it runs, as when a bumper is pressed, and said as what it is: the reading
+is stale (``bumper reading stale (620 ms old, over 500 ms)``), never that a
+bumper is pressed when none was. The bound is ``FRESH_SWEEPS``
 sweeps of the poll rate, never less than ``MIN_FRESH_S`` (one reply timeout,
 so a single late sweep on a healthy link is not a stop): 0.5 s at 10 or 20 Hz,
 1.5 s at 2 Hz. A reading whose last try failed keeps its last good value
@@ -52,13 +54,14 @@ def freshness_bound(rate: float | None) -> float:
 
 
 def forward_blocked(state: Readings, bound: float) -> str:
-    """Why forward motion is not allowed now ("" when it is): a bumper pressed, or no fresh reading."""
+    """Why forward motion is not allowed now ("" when it is): a bumper pressed, or no fresh reading (said
+    as stale, with its age: nothing is known of the bumpers then, pressed or not)."""
     reading = state.reading(BUMP)
     age = reading.age(state.clock())
     if age is None:
         return "no bumper reading yet"
     if age > bound:
-        return f"bumper reading {age:.2f} s old (over {bound:g} s)"
+        return f"bumper reading stale ({age * 1e3:.0f} ms old, over {bound * 1e3:.0f} ms)"
     if isinstance(reading.value, C.Bumpers) and any(reading.value.bump):
         return "bumper hit"
     return ""

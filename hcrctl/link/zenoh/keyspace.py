@@ -281,6 +281,7 @@ EVENTS = ("drives", "stopped", "refused", "note")
 #: Why motion stopped, a word a program compares (the ``text`` beside it is for people).
 REASONS = (
     "bumper",
+    "stale",
     "deadman",
     "stop",
     "operator gone",
@@ -292,6 +293,7 @@ REASONS = (
 )
 #: The governor's words for a stop, first match wins: (what the words start with or contain, the reason).
 _REASON_WORDS = (
+    ("bumper reading", "stale"),
     ("bumper", "bumper"),
     ("deadman", "deadman"),
     ("stop from ", "stop"),

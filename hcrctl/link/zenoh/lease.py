@@ -64,6 +64,7 @@ SAID_CHARS = 200
 #: What to do about each reason the robot side gives for stopping this session's motion.
 HALT_HINTS = {
     "bumper": "a bumper is pressed: back away (drive power -40 -40 --for 1) or clear the obstacle",
+    "stale": "the robot side had no fresh bumper reading (its serial line slow or busy): drive again once it reads",
     "deadman": "this operator's renewals stopped reaching the robot within its deadman: a slow or cut network",
     "stop": "someone on the fleet sent stop; drive again once it is safe",
     "port lost": "the robot's serial port went away: check its cable and power on the robot's side",
