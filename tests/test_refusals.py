@@ -54,3 +54,36 @@ def test_a_serial_query_waits_for_a_sweep_after_the_last_one_left() -> None:
     swept[0] = time.monotonic()  # the poller's sweep
     assert entered.wait(30.0)
     thread.join()
+
+
+def test_a_flood_of_fake_names_crowds_out_no_sessions_words_and_is_bounded() -> None:
+    """100,000 refusals under names with no token share one budget: the driver and another session present
+    are still told, each on a budget of its own, and the words remembered stay few."""
+    clock, said = [0.0], []
+    present = {"op1", "op2"}
+    refusals = Refusals(
+        lambda op, text, seq: said.append((op, text)), known=present.__contains__, clock=lambda: clock[0]
+    )
+    for n in range(100_000):
+        refusals.refused(f"fake{n}", "refused: op1 drives r1")
+    refusals.refused("op1", "cmd_vel refused: forward blocked", 7)
+    refusals.refused("op2", "refused: op1 drives r1")
+    assert said[-2:] == [("op1", "cmd_vel refused: forward blocked"), ("op2", "refused: op1 drives r1")]
+    assert len(said) == MAX_LINES + 2 and refusals.remembered == MAX_LINES + 2
+    assert not refusals.may_say()  # the others' budget is spent: their attachments need not be read
+    clock[0] = 1.0
+    refusals.tick()
+    assert said[-1] == (None, f"... and {100_000 - MAX_LINES} more refusals in the last 1.0 s")
+    assert refusals.remembered == 0
+
+
+def test_a_sessions_own_budget_is_its_own() -> None:
+    """A session present that floods uses up its own budget only: another session is still told."""
+    clock, said = [0.0], []
+    refusals = Refusals(
+        lambda op, text, seq: said.append((op, text)), known={"op1", "op2"}.__contains__, clock=lambda: clock[0]
+    )
+    for n in range(1000):
+        refusals.refused("op2", f"cmd_vel refused: kind {chr(65 + n % 26)}")
+    refusals.refused("op1", "cmd_vel refused: forward blocked")
+    assert [op for op, _ in said].count("op2") == MAX_LINES and said[-1][0] == "op1"

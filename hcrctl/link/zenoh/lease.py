@@ -73,6 +73,13 @@ HALT_HINTS = {
 }
 
 
+def _refused_hint(answer: dict[str, Any]) -> str:
+    """What to do about a refused claim: wait for room when this session waits for it, else for the driver."""
+    if answer.get("waiting"):
+        return "the robot side admits this session once another leaves: ask again then"
+    return "wait until they stop, or anyone may: hcrctl stop"
+
+
 class DriveRefused(HcrError):
     """Another operator drives the robot (exit 1, nothing sent): the message names who."""
 
@@ -162,9 +169,7 @@ class DriveLease:
             self.refused = True
             with self._lock:
                 self.held = False
-            raise DriveRefused(
-                _refusal(answer, self._robot), hint="wait until they stop, or anyone may: hcrctl stop"
-            )
+            raise DriveRefused(_refusal(answer, self._robot), hint=_refused_hint(answer))
         with self._lock:
             self.held, self.refused, self.claimed_ever = True, False, True
         self._subscribe_hold(answer.get("hold"))
