@@ -64,7 +64,9 @@ def flood(s: Any, robot: str, rate: float, done: threading.Event) -> None:
 
 def main(endpoint: str, robot: str) -> None:
     s = session(endpoint)
-    s.declare_subscriber(f"hcr/{robot}/status", lambda sample: say(f"status {bytes(sample.payload).decode()}"))
+    s.declare_subscriber(
+        f"hcr/{robot}/status", lambda sample: say(f"status {bytes(sample.payload).decode()}")
+    )
     tokens: list[Any] = []
     done, flooding = threading.Event(), None
     for line in sys.stdin:

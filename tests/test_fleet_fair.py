@@ -25,12 +25,11 @@ pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip instal
 
 from helpers import TIMEOUT, hcrctl_exe, wait_until
 from helpers_fleet_port import Fleet, Served, fleet, is_stop
-from helpers_netns import OPERATOR_HOST, ROBOT_HOST, Topology
+from helpers_netns import ROBOT_HOST, Topology
 
 from hcrctl.fleet.drive import MAX_OPERATORS
 from hcrctl.fleet.queries import QUERY_REPLY_S
 from hcrctl.protocol import commands as C
-from hcrctl.protocol.frames import Frame
 
 PEER = Path(__file__).with_name("helpers_fleet_peer.py")
 #: An address nobody answers on the simulated line.

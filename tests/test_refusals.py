@@ -81,7 +81,9 @@ def test_a_sessions_own_budget_is_its_own() -> None:
     """A session present that floods uses up its own budget only: another session is still told."""
     clock, said = [0.0], []
     refusals = Refusals(
-        lambda op, text, seq: said.append((op, text)), known={"op1", "op2"}.__contains__, clock=lambda: clock[0]
+        lambda op, text, seq: said.append((op, text)),
+        known={"op1", "op2"}.__contains__,
+        clock=lambda: clock[0],
     )
     for n in range(1000):
         refusals.refused("op2", f"cmd_vel refused: kind {chr(65 + n % 26)}")
