@@ -98,11 +98,6 @@ class Refusals(Generic[Op]):
         """How many words of this window are remembered (bounded whatever the flood)."""
         return sum(len(said) for said in self._said.values())
 
-    @property
-    def remembered(self) -> int:
-        """How many words of this window are remembered (bounded whatever the flood)."""
-        return sum(len(said) for said in self._said.values())
-
     def tick(self) -> None:
         """Close the window if it is over: what it held back is said now, not at the next word."""
         with self._lock:
