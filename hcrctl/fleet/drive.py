@@ -260,11 +260,21 @@ class FleetDrive:
         if isinstance(who, keyspace.Who) and attachment.startswith(f"{who.name} {who.session} ".encode()):
             return False
         self.counters.cmd_vel += 1
-        # Read only when a word could be said: to a session present (its own budget), or to another.
-        readable = self.refusals.may_say() or len(self._present) > 1
+        # Read only when a word could be said: to another sender, or to a session present (its own budget).
+        readable = self.refusals.may_say() or self._names_present(attachment)
         parsed = keyspace.parse_attachment(attachment) if readable else None
         self.refused(parsed.who if parsed else None, self.refusal(driver), parsed.seq if parsed else None)
         return True
+
+    def _names_present(self, attachment: bytes) -> bool:
+        """Whether an attachment starts with a session present besides the driver: a lookup, not a parse."""
+        if len(self._present) < 2:
+            return False
+        head = attachment.split(b" ", 2)
+        if len(head) < 3:
+            return False
+        name, session = (part.decode("ascii", "replace") for part in head[:2])
+        return keyspace.Who(name, session) in self._present
 
     def _admitted(self, what: str, parsed: keyspace.Attachment, payload: bytes, drives: bool) -> str | None:
         """None if the message counts (its number then taken); otherwise why it is ignored, a forgery
