@@ -7,9 +7,10 @@ number of peers reading cost the poller nothing. Anything else that needs
 the serial link (a read of another address, one whose reply is too old, a
 write) takes its turn (``Turnstile``): one query at a time, each only after
 the poller has swept since the previous one left (at most ``TURN_WAIT_S``),
-with the poller's pause held only while that one query is on the link, and a
-read's reply waited for ``QUERY_REPLY_S`` at most: a read of a silent address
-keeps the bumper reading from ageing past its bound.
+with the poller's pause held only while that one query is on the link, and
+its reply (a read's, a pid's) waited for once, ``QUERY_REPLY_S`` at most,
+never the link's timeout nor its retries: a read or write to a silent
+address keeps the bumper reading from ageing past its bound.
 Zenoh calls a queryable on its own threads, which must not wait on a serial
 line, so those queries are answered from a small pool (``Answers``); more
 than ``MAX_PENDING`` waiting is a busy robot, said at once. ``info``, a
@@ -42,7 +43,7 @@ from ..served.untrusted import shown
 
 #: Queries answered at once; the serial link takes one at a time anyway.
 WORKERS = 2
-#: The longest a peer's read holds the serial line waiting for its reply: a sweep waits for it,
+#: The longest a peer's read or write holds the serial line waiting for its reply (one try): a sweep waits for it,
 #: so this, with a sweep period, must stay well inside the bumper rule's bound (``motion.bumpers``).
 QUERY_REPLY_S = 0.15
 #: The longest a serial query waits for the poller's sweep before it takes the link anyway.
