@@ -10,6 +10,7 @@ is its wire (the serve's ``--log``); every wait is for something seen.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -81,7 +82,8 @@ def robot(tmp_path: Path, topology: Topology) -> Iterator[tuple[Fleet, subproces
         try:
             yield running, sim
         finally:
-            os.kill(sim.pid, signal.SIGCONT)
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(sim.pid, signal.SIGCONT)
 
 
 def velocity(left: int, right: int) -> Any:
