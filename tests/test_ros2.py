@@ -203,7 +203,9 @@ def test_tf_static_and_the_node_reach_a_late_reader(env: dict[str, str], tmp_pat
 
         node = wait_until(announced, what="the node on ros_discovery_info")
         assert node["node_name"] == "hcrctl"
-        assert len(node["writer_gid_seq"]) >= 1 + 3 + 5 + 3 + 4 and len(node["reader_gid_seq"]) == 1
+        assert (
+            len(node["writer_gid_seq"]) >= 1 + 3 + 5 + 3 + 4 and len(node["reader_gid_seq"]) == 1 + 7
+        )  # cmd_vel, each service's requests
 
 
 @pytest.mark.parametrize(

@@ -107,8 +107,6 @@ class FloatRange(click.FloatRange):
         return f"{low}x{high}{unit}{words}"
 
 
-#: The fastest ``--rate`` of the live views (watch, plot).
-MAX_RATE = 1000.0
 #: The longest ``--duration``: ten days.
 MAX_DURATION_S = 864_000
 
@@ -119,6 +117,9 @@ class Rate(FloatRange):
     name = "HZ|max"
 
     def __init__(self) -> None:
+        # here, not at the top: the poller loads the link, which start-up must not
+        from ..ops.poller import MAX_RATE
+
         super().__init__(0, MAX_RATE, min_open=True, unit="Hz", words={"max": None})
 
 
@@ -134,10 +135,6 @@ def duration_option(help: str = "Exit by itself after S seconds (for scripts and
     )
 
 
-#: The deadman's range: below it a terminal's own key repeat could not keep up; above it, no deadman.
-DEADMAN_RANGE = (0.05, 10.0)
-
-
 def deadman_option(default: float, help: str) -> Callable:
     """``--deadman S`` for the commands that drive continuously (teleop, bridge), and ``--timeout`` refused.
 
@@ -145,6 +142,8 @@ def deadman_option(default: float, help: str) -> Callable:
     ``--timeout`` once named this; it is the global reply timeout now, so the old spelling is refused
     with the new name instead of silently setting the wrong thing.
     """
+
+    from ..served.cmdvel import DEADMAN_RANGE  # here: served loads the link, which start-up must not
 
     def decorate(func: Callable) -> Callable:
         func = click.option(

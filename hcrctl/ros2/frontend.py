@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..motion.bumpers import BUMP, freshness_bound
-from ..protocol import ros2conv
+from ..protocol import ros2conv, ros2msg, ros2srv
 from ..protocol import ros2types as R
 from ..recording.progress import sweeps
 from ..served.notes import Notes
@@ -37,6 +37,15 @@ from . import diagnostics, rosout
 from .drive import TOPIC, RosCmdVel
 from .node import Node
 from .odom import OdomTopics
+from .params import SERVICES, Parameters
+from .services import Services
+
+#: Every node's parameter changes, as rclcpp's ParameterEventsQoS offers them.
+PARAMETER_EVENTS = ros2conv.RosTopic(
+    "/parameter_events",
+    ros2srv.PARAMETER_EVENT,
+    ros2conv.Qos(reliable=True, transient_local=False, depth=1000),
+)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -70,6 +79,7 @@ class Ros2Node(FrontEnd):
         self._published = {t.name for t in self.topics}
         self.cmd_vel = RosCmdVel(view.governor, notes.note, self._writer_name)
         self.node: Node | None = None
+        self.services: Services | None = None
         self.messages = 0
         self._view = view
         self._health = Health()
@@ -85,6 +95,7 @@ class Ros2Node(FrontEnd):
                 *self.odom.topics,
                 ros2conv.RosTopic(diagnostics.TOPIC, R.DIAGNOSTIC_ARRAY, ros2conv.DEFAULT_QOS),
                 rosout.TOPIC_QOS,
+                PARAMETER_EVENTS,
             ]
         )
         node.publish(ros2conv.TF_STATIC, self.converter.tf_static(time.time()))
@@ -127,9 +138,26 @@ class Ros2Node(FrontEnd):
             kind = R.TWIST_STAMPED if self.options.stamped else R.TWIST
             topic = ros2conv.RosTopic(TOPIC, kind, ros2conv.CMD_VEL_QOS)
             self.node.subscribe(topic, self.cmd_vel.message, self.cmd_vel.gone, self.notes.note)
+        self._serve_parameters(view)
         return f"{view.robot.port} as ROS 2 node {self.node.fullname} on DDS domain {self.options.domain_id}"
 
+    def _serve_parameters(self, view: RuntimeView) -> None:
+        """The parameters and ``~/stop`` on their services; the parameters said once on ``/parameter_events``."""
+        assert self.node is not None
+        params = Parameters(view, lambda changed: self._parameter_event("changed_parameters", changed))
+        self.services = Services(self.node, self.notes.note)
+        for name, (kind, method) in SERVICES.items():
+            self.services.serve(name, kind, getattr(params, method))
+        self._parameter_event("new_parameters", params.all())
+
+    def _parameter_event(self, key: str, parameters: list[dict[str, Any]]) -> None:
+        assert self.node is not None
+        event = {"stamp": ros2msg.stamp(int(time.time() * 1e6)), "node": self.node.fullname, key: parameters}
+        self.node.publish(PARAMETER_EVENTS.name, event)
+
     def close(self) -> None:
+        if self.services is not None:
+            self.services.close()
         if self.node is not None:
             self.node.unsubscribe()
         self.cmd_vel.tick()

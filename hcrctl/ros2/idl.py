@@ -71,6 +71,28 @@ def dds_type(name: str) -> type[IdlStruct]:
     return make_idl_struct(name.rpartition("/")[2], R.dds_type_name(name), fields)
 
 
+#: rmw_cyclonedds's request header, before a request's or a reply's fields: the client's id and the
+#: request's number, which the reply carries back so the client knows it for its own.
+SERVICE_HEADER: dict[str, Any] = {"client_guid": T.uint64, "sequence_number": T.int64}
+
+
+@functools.cache
+def service_type(name: str) -> type[IdlStruct]:
+    """A service's request or reply type on DDS as rmw_cyclonedds lays it out: the header, then its fields."""
+    message = ros2msg.TYPES[name]
+    fields = {**SERVICE_HEADER, **{field.name: _field_type(field) for field in message.fields}}
+    return make_idl_struct(name.rpartition("/")[2], R.dds_type_name(name), fields)
+
+
+def build_service(name: str, header: tuple[int, int], fields: dict[str, Any]) -> IdlStruct:
+    """A reply (or request) ``name`` with rmw_cyclonedds's header (client id, sequence number) first."""
+    message = ros2msg.TYPES[name]
+    values = {field.name: _value(field, fields.get(field.name)) for field in message.fields}
+    client, sequence = header
+    kind: Any = service_type(name)
+    return kind(client_guid=client, sequence_number=sequence, **values)
+
+
 def _field_type(field: ros2msg.Field) -> Any:
     item = dds_type(field.kind) if field.nested else PRIMITIVES[field.kind]
     if field.sequence:
@@ -102,6 +124,8 @@ def _zero(field: ros2msg.Field) -> Any:
     one: Any
     if field.nested:
         one = build(field.kind, {})
+    elif field.kind == "bool" and field.default:
+        one = field.default == "true"
     elif field.default:
         one = float(field.default) if field.kind.startswith("float") else int(field.default)
     else:

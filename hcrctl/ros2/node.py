@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import threading
-from collections.abc import Callable, Hashable
+from collections.abc import Callable, Hashable, Mapping
 from typing import Any
 
 from cyclonedds.core import DDSException, Listener
@@ -30,7 +30,7 @@ from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 
 from ..errors import HcrError
-from ..protocol import ros2conv, ros2msg
+from ..protocol import ros2conv, ros2msg, ros2srv
 from ..protocol.ros2types import TYPE_HASHES
 from ..protocol.topics import microseconds
 from . import idl
@@ -40,6 +40,8 @@ DISCOVERY_TOPIC = "ros_discovery_info"
 #: rmw's own topic: reliable, transient local, keep last 1, so a tool started later learns the node.
 DISCOVERY_QOS = ros2conv.Qos(reliable=True, transient_local=True, depth=1)
 NODE_NAME = "hcrctl"
+#: Every type hash the node may announce: the messages' and the services'.
+HASHES = {**TYPE_HASHES, **ros2srv.TYPE_HASHES}
 #: Writers' GUIDs remembered (by instance handle) before the memo starts afresh.
 MAX_GUIDS = 4096
 #: Messages kept built for their next stamp (``publish_stamped``) before the memo starts afresh.
@@ -57,8 +59,8 @@ def dds_topic(name: str, namespace: str) -> str:
     return "rt" + ros2conv.RosTopic(name, "").full_name(namespace)
 
 
-def dds_qos(qos: ros2conv.Qos, ros_type: str) -> Qos:
-    """Cyclone's QoS for a ROS one, with the type's hash in USER_DATA as rmw puts it there."""
+def dds_qos(qos: ros2conv.Qos, ros_type: str, hashes: Mapping[str, str] = HASHES) -> Qos:
+    """Cyclone's QoS for a ROS one, with the type's hash (from ``hashes``) in USER_DATA as rmw puts it there."""
     reliability = (
         Policy.Reliability.Reliable(max_blocking_time=0) if qos.reliable else Policy.Reliability.BestEffort
     )
@@ -66,8 +68,8 @@ def dds_qos(qos: ros2conv.Qos, ros_type: str) -> Qos:
     policies = [reliability, durability, Policy.History.KeepLast(qos.depth)]
     if qos.lifespan:
         policies.append(Policy.Lifespan(int(qos.lifespan * 1e9)))
-    if ros_type in TYPE_HASHES:
-        policies.append(Policy.Userdata(f"typehash={TYPE_HASHES[ros_type]};".encode()))
+    if ros_type in hashes:
+        policies.append(Policy.Userdata(f"typehash={hashes[ros_type]};".encode()))
     return Qos(*policies)
 
 
@@ -94,6 +96,9 @@ class Node:
         self._writers: dict[str, tuple[DataWriter, str]] = {}
         self._built: dict[Hashable, Any] = {}
         self._readers: list[DataReader] = []
+        #: Endpoints of others (the services, ``/parameter_events``), announced with the node's own.
+        self._more_readers: list[DataReader] = []
+        self._more_writers: list[DataWriter] = []
         self._lock = threading.Lock()
         discovery = Topic(self.participant, DISCOVERY_TOPIC, idl.dds_type(idl.PARTICIPANT_ENTITIES))
         self._discovery = DataWriter(self.participant, discovery, qos=dds_qos(DISCOVERY_QOS, ""))
@@ -156,6 +161,13 @@ class Node:
             self._readers.append(reader)
         self.announce()
 
+    def add_endpoints(self, readers: list[DataReader], writers: list[DataWriter]) -> None:
+        """Readers and writers made elsewhere on this participant, announced as the node's."""
+        with self._lock:
+            self._more_readers += readers
+            self._more_writers += writers
+        self.announce()
+
     def writer_name(self, writer: str) -> str | None:
         """The node (``/ns/name``) that owns ``writer`` (a reader's instance handle of it), if rmw said."""
         guid = self._guids.get(writer)
@@ -183,8 +195,8 @@ class Node:
     def announce(self) -> None:
         """Say on ``ros_discovery_info`` what this node reads and writes, as rmw does after each change."""
         with self._lock:
-            writers = [writer for writer, _ in self._writers.values()]
-            readers = list(self._readers)
+            writers = [writer for writer, _ in self._writers.values()] + self._more_writers
+            readers = self._readers + self._more_readers
         node = {
             "node_namespace": self.namespace or "/",
             "node_name": NODE_NAME,
@@ -207,6 +219,8 @@ class Node:
         self.participant.__del__()
         self._readers.clear()
         self._writers.clear()
+        self._more_readers.clear()
+        self._more_writers.clear()
 
 
 def _gid(guid: Any) -> dict[str, list[int]]:

@@ -32,6 +32,8 @@ TOPIC = "/cmd_vel"
 SCHEMA_NAMES = ("geometry_msgs/Twist", "geometry_msgs/msg/Twist")
 #: The deadman's default: teleop's (``hcrctl teleop --timeout``).
 DEFAULT_TIMEOUT_S = DEADMAN_S
+#: The deadman's range: below it a terminal's own key repeat could not keep up; above it, no deadman.
+DEADMAN_RANGE = (0.05, 10.0)
 #: A Twist is about 100 bytes of JSON; a viewer's with every field and spaces, a few hundred.
 MAX_TWIST_BYTES = 4096
 #: Objects and arrays in one message: a Twist has three.

@@ -134,6 +134,16 @@ class RuntimeView:
     def deadman(self) -> float:
         return self._served.governor.lease.deadman
 
+    def set_deadman(self, seconds: float) -> None:
+        """A new deadman for the leases from now on (the ROS 2 node's ``deadman`` parameter)."""
+        self._served.governor.lease.deadman = seconds
+
+    def set_rate(self, hz: float) -> None:
+        """Sweep at ``hz`` from the next sweep on (the ROS 2 node's ``rate`` parameter); ``rate`` stays as asked."""
+        feed = self._feed
+        feed.poller.period = 1.0 / hz
+        feed.state.target_rate = hz
+
     def counters(self) -> dict[str, Any]:
         """The link's counters (``Feed.counters``), the sweeps, messages, drive frames and the lease's."""
         feed, governor = self._feed, self._served.governor

@@ -1,0 +1,276 @@
+"""The node's ROS 2 parameters (``rate``, ``deadman``, ``pid.p/i/d``) and its ``~/stop``, as services answer them.
+
+The parameters are a table (``PARAMETERS``): each its type, its range (from
+where the rest of hcrctl keeps it: the poller's ``MAX_RATE``, the deadman's
+``DEADMAN_RANGE``, the pid request's fields in the command table), how to
+read it and how to set it. ``ros2 param get/set/describe/list`` reach it
+through rcl_interfaces' six services; each change is also said on
+``/parameter_events``, as every ROS 2 node says its own.
+
+A value is refused, never applied in part, with a reason a person can act
+on: an unknown name, another type (an integer is taken for a double, as
+``ros2 param set`` sends ``5``), outside the range, NaN or an infinity. The
+robot's PID gains cannot be read (the protocol has no such request), so they
+are unset until set, the first time all three together: a setting sends the
+pid frame and counts only when the robot answered 0x01.
+
+``~/stop`` (std_srvs/Trigger) stops the robot through the governor, and is
+successful only when the stop was written and the robot answered a read
+after it: what a stop's truth is everywhere in hcrctl.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, fields
+from typing import Any
+
+from ..errors import HcrError
+from ..ops.poller import MAX_RATE
+from ..protocol import commands as C
+from ..protocol import ros2srv as S
+from ..served.cmdvel import DEADMAN_RANGE
+from ..served.view import RuntimeView
+
+#: The longest parameter name a reason repeats (a refused name may be megabytes long).
+SHOWN = 64
+#: How long ``~/stop`` waits for the stop to be written, then for the robot's next answer (seconds).
+STOP_WAIT = 2.0
+
+
+class Refused(Exception):
+    """A value that cannot be set; its text is the ``SetParametersResult``'s reason."""
+
+
+@dataclass(frozen=True)
+class Param:
+    """One parameter: ``kind`` a ``ParameterType``, its range ``lo``..``hi`` (``lo`` excluded if ``open``)."""
+
+    name: str
+    kind: int
+    description: str
+    lo: float
+    hi: float
+    open: bool = False
+
+
+def _pid_range(gain: str) -> tuple[int, int]:
+    meta = next(f.metadata for f in fields(C.Pid) if f.name == gain)
+    return int(meta["lo"]), int(meta["hi"])
+
+
+PID_GAINS = ("p", "i", "d")
+PARAMETERS: dict[str, Param] = {
+    p.name: p
+    for p in (
+        Param("rate", S.DOUBLE, "sweeps of the sensors per second (Hz)", 0.0, MAX_RATE, open=True),
+        Param("deadman", S.DOUBLE, "stop when cmd_vel is silent this long (s)", *DEADMAN_RANGE),
+        *(
+            Param(
+                f"pid.{g}",
+                S.INTEGER,
+                f"the speed controller's {g.upper()} gain (the pid request)",
+                *_pid_range(g),
+            )
+            for g in PID_GAINS
+        ),
+    )
+}
+
+
+def shown(name: str) -> str:
+    return name if len(name) <= SHOWN else f"{name[:SHOWN]}... ({len(name)} characters)"
+
+
+def value_of(kind: int, value: float | None) -> dict[str, Any]:
+    """A ``ParameterValue``: NOT_SET for None."""
+    if value is None:
+        return {"type": S.NOT_SET}
+    key = "double_value" if kind == S.DOUBLE else "integer_value"
+    return {"type": kind, key: float(value) if kind == S.DOUBLE else int(value)}
+
+
+def checked(param: Param, value: Any) -> float:
+    """The number a ``ParameterValue`` holds for ``param``, or Refused saying why."""
+    kind = getattr(value, "type", None)
+    if kind == S.INTEGER:
+        number: float = int(value.integer_value)
+    elif kind == S.DOUBLE and param.kind == S.DOUBLE:
+        number = float(value.double_value)
+    else:
+        want = "a double" if param.kind == S.DOUBLE else "an integer"
+        raise Refused(f"{param.name} takes {want}, not a value of type {kind}")
+    low = number > param.lo if param.open else number >= param.lo
+    if not (math.isfinite(number) and low and number <= param.hi):
+        sign = "<" if param.open else "<="
+        raise Refused(f"{param.name} must be {param.lo:g}{sign}x<={param.hi:g}, not {number!r}")
+    return number
+
+
+class Parameters:
+    """The table over one served robot; ``announce`` is called with each change (``/parameter_events``)."""
+
+    def __init__(self, view: RuntimeView, announce: Callable[[list[dict[str, Any]]], None]) -> None:
+        self.view = view
+        #: The rate set here; the one asked at start until then.
+        self.rate = view.rate
+        self.announce = announce
+        self.pid: dict[str, int] = {}
+        self._lock = threading.Lock()
+
+    # -- values -------------------------------------------------------------------------------
+
+    def get(self, name: str) -> float | None:
+        if name == "rate":
+            return self.rate
+        if name == "deadman":
+            return float(self.view.deadman)
+        return self.pid.get(name.removeprefix("pid."))
+
+    def all(self) -> list[dict[str, Any]]:
+        return [{"name": p.name, "value": value_of(p.kind, self.get(p.name))} for p in PARAMETERS.values()]
+
+    def set_all(self, parameters: list[Any]) -> str:
+        """Apply every one or none; '' when applied, else why not."""
+        with self._lock:
+            try:
+                wanted = {self._param(p.name).name: checked(self._param(p.name), p.value) for p in parameters}
+                gains = {k.removeprefix("pid."): int(v) for k, v in wanted.items() if k.startswith("pid.")}
+                if gains:
+                    self._set_pid(gains)
+                for name, number in wanted.items():
+                    if not name.startswith("pid."):
+                        self._apply(name, number)
+            except Refused as exc:
+                return str(exc)
+        if wanted:
+            self.announce([{"name": n, "value": value_of(PARAMETERS[n].kind, v)} for n, v in wanted.items()])
+        return ""
+
+    def _param(self, name: str) -> Param:
+        found = PARAMETERS.get(name)
+        if found is None:
+            raise Refused(f"no parameter {shown(name)!r} (this node has {', '.join(PARAMETERS)})")
+        return found
+
+    def _apply(self, name: str, number: float) -> None:
+        if name == "rate":
+            self.view.set_rate(number)
+            self.rate = number
+        elif name == "deadman":
+            self.view.set_deadman(number)
+
+    def _set_pid(self, gains: dict[str, int]) -> None:
+        merged = {**self.pid, **gains}
+        if set(merged) != set(PID_GAINS):
+            raise Refused(
+                "the robot's gains cannot be read: set pid.p, pid.i and pid.d together the first time"
+            )
+        robot = self.view.robot
+        try:
+            robot.set_pid(merged["p"], merged["i"], merged["d"])
+        except HcrError as exc:
+            raise Refused(f"pid not set: {exc.message}") from None
+        self.pid = merged
+
+    # -- the services -----------------------------------------------------------------------
+
+    def list_parameters(self, request: dict[str, Any]) -> dict[str, Any]:
+        prefixes = [str(p) for p in request.get("prefixes") or []]
+        names = [
+            n for n in PARAMETERS if not prefixes or any(n.startswith(f"{p}.") or n == p for p in prefixes)
+        ]
+        groups = sorted({n.rpartition(".")[0] for n in names if "." in n})
+        return {"result": {"names": names, "prefixes": groups}}
+
+    def get_parameters(self, request: dict[str, Any]) -> dict[str, Any]:
+        return {"values": [self._value(str(n)) for n in request.get("names") or []]}
+
+    def _value(self, name: str) -> dict[str, Any]:
+        param = PARAMETERS.get(name)
+        return value_of(param.kind, self.get(name)) if param is not None else value_of(S.NOT_SET, None)
+
+    def get_parameter_types(self, request: dict[str, Any]) -> dict[str, Any]:
+        return {
+            "types": [getattr(PARAMETERS.get(str(n)), "kind", S.NOT_SET) for n in request.get("names") or []]
+        }
+
+    def describe_parameters(self, request: dict[str, Any]) -> dict[str, Any]:
+        return {"descriptors": [self._descriptor(str(n)) for n in request.get("names") or []]}
+
+    def _descriptor(self, name: str) -> dict[str, Any]:
+        param = PARAMETERS.get(name)
+        if param is None:
+            return {"name": shown(name), "read_only": False, "dynamic_typing": False}
+        span = {"from_value": param.lo, "to_value": param.hi, "step": 0}
+        ranged = {"floating_point_range": [span]} if param.kind == S.DOUBLE else {"integer_range": [span]}
+        constraint = f"above {param.lo:g}" if param.open else ""
+        return {
+            "name": name,
+            "type": param.kind,
+            "description": param.description,
+            "additional_constraints": constraint,
+            "read_only": False,
+            "dynamic_typing": False,
+            **ranged,
+        }
+
+    def set_parameters(self, request: dict[str, Any]) -> dict[str, Any]:
+        results = []
+        for parameter in request.get("parameters") or []:
+            why = self.set_all([parameter])
+            results.append({"successful": not why, "reason": why})
+        return {"results": results}
+
+    def set_parameters_atomically(self, request: dict[str, Any]) -> dict[str, Any]:
+        why = self.set_all(list(request.get("parameters") or []))
+        return {"result": {"successful": not why, "reason": why}}
+
+    def stop(self, request: dict[str, Any]) -> dict[str, Any]:
+        """Stop now; successful only when it was written and the robot answered after it."""
+        view, asked = self.view, time.monotonic()
+        view.governor.stop("the ~/stop service was called")
+        port = view.robot.port
+        if _until(lambda: (view.governor.sent_at or 0) >= asked) is None:
+            return {"success": False, "message": f"stop NOT written: the link to {port} is down"}
+        written = view.governor.sent_at or asked
+        if _until(lambda: self._answered_since(written)) is None:
+            return {
+                "success": False,
+                "message": f"stop written to {port}, but nothing answered: the robot may still be moving",
+            }
+        return {"success": True, "message": f"stopped: the robot on {port} answered after the stop"}
+
+    def _answered_since(self, since: float) -> bool:
+        view = self.view
+        address = view.robot.address
+        for sensor in view.sensors:
+            heard = view.heard(address, C.BY_NAME[sensor].code)
+            if heard is not None and heard[0] > since:
+                return True
+        return False
+
+
+#: The services, by name relative to the node, and the method of ``Parameters`` that answers each.
+SERVICES: dict[str, tuple[str, str]] = {
+    "list_parameters": (S.LIST_PARAMETERS, "list_parameters"),
+    "get_parameters": (S.GET_PARAMETERS, "get_parameters"),
+    "get_parameter_types": (S.GET_PARAMETER_TYPES, "get_parameter_types"),
+    "describe_parameters": (S.DESCRIBE_PARAMETERS, "describe_parameters"),
+    "set_parameters": (S.SET_PARAMETERS, "set_parameters"),
+    "set_parameters_atomically": (S.SET_PARAMETERS_ATOMICALLY, "set_parameters_atomically"),
+    "stop": (S.TRIGGER, "stop"),
+}
+
+
+def _until(ready: Callable[[], bool], wait: float = STOP_WAIT) -> bool | None:
+    """True once ``ready()``; None if it never was within ``wait`` seconds."""
+    deadline = time.monotonic() + wait
+    while not ready():
+        if time.monotonic() > deadline:
+            return None
+        time.sleep(0.01)
+    return True
