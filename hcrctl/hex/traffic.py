@@ -29,6 +29,11 @@ CACHE_ROWS = 2
 #: Lines ``show_log`` holds before writing them at once.
 WRITE_LINES = 512
 
+#: A row of a record as ``show_log`` remembers it: the row (offset within the record), whether the tally
+#: just counts it as a frame, and its line around the time stamp: head, tail (None when the filter hides
+#: the row) and, for a JSON line, the row's offset and the rest of the line after the record's offset.
+Made = tuple[dict[str, Any], bool, str, "str | None", int, "str | None"]
+
 #: The colours of a line on a terminal (as click.style writes them).
 ANSI = {"cyan": "\x1b[36m", "red": "\x1b[31m"}
 RESET = "\x1b[0m"
@@ -156,7 +161,7 @@ class TrafficPrinter:
         self._is_good: Callable[[dict[str, Any]], bool]
         self._is_text: Callable[[dict[str, Any]], bool]
         #: ``show_log``'s rows and text per distinct record, and its lines not yet written.
-        self._records: dict[tuple[str, bytes, int], list[tuple[dict[str, Any], bool, str, str | None]]] = {}
+        self._records: dict[tuple[str, bytes] | tuple[str, bytes, int], list[Made]] = {}
         self._lines: list[str] = []
 
     def show(self, t: float, direction: str, data: bytes, rows: list[dict[str, Any]]) -> None:
@@ -180,9 +185,9 @@ class TrafficPrinter:
         """Each record of a log (``trafficlog.log_fields``) up to ``duration`` seconds after the first,
         as ``show`` shows a frame (decoded here, its rows moved to the record's offset): ``monitor
         --from``'s loop. A log repeats itself (the same request, the same reply), so a record's rows
-        and their text, all but the time stamp, are made once per distinct record and remembered (at
-        most ``CACHE_RECORDS``); what it looks up per record is held in locals (a day-long log has
-        millions of records)."""
+        and their text, all but the time stamp and the offset, are made once per distinct record
+        and remembered (at most ``CACHE_RECORDS``); what it looks up per record is held in locals
+        (a day-long log has millions of records)."""
         self._import_once()
         self.live = False
         get, make, lines, tally = self._records.get, self._made_record, self._lines, self.tally
@@ -196,16 +201,20 @@ class TrafficPrinter:
                 if duration is not None and moment - first > duration:
                     break
                 offset = fields.get("offset", 0)
-                made = get((direction, data, offset)) or make(direction, data, offset, rule, profile)
+                made = get((direction, data)) or get((direction, data, offset))
+                if made is None:
+                    made = make(direction, data, offset, rule, profile)
                 rx = direction == "rx"
-                for row, simple, head, tail in made:
+                for row, simple, head, tail, at, rest in made:
                     if not rx:
                         sent += 1
                     elif simple:
                         frames += 1
                     else:
                         tally.add(row)
-                    if tail is not None:
+                    if rest is not None:
+                        lines.append(f"{head}{stamp(moment)}{tail}{at + offset}{rest}")
+                    elif tail is not None:
                         lines.append(f"{head}{stamp(moment)}{tail}")
                 if len(lines) >= WRITE_LINES:
                     self.flush_lines()
@@ -224,34 +233,42 @@ class TrafficPrinter:
 
     def _made_record(
         self, direction: str, data: bytes, offset: int, rule: ChecksumRule, profile: Profile
-    ) -> list[tuple[dict[str, Any], bool, str, str | None]]:
-        """Each row of a record: the row, whether the tally just counts it as a frame, and its line
-        around the time stamp (None when the filter hides it)."""
+    ) -> list[Made]:
+        """Each row of a record (``Made``), remembered by the record's direction and bytes: a text line
+        has no offset, and a JSON line's offset is the row's own plus the record's, written between
+        the two halves of its text. A JSON row whose offset comes anywhere but first (none so far)
+        is remembered with the record's offset in its key instead."""
         self._import_once()
         rows = rows_of(decode_all(data, rule, profile), rule, direction, profile)
-        made = []
+        made: list[Made] = []
+        per_offset = False
         for row in rows:
-            row["offset"] += offset
+            at = row["offset"]
             simple = self._is_good(row) and "problem" not in row and "as_v0.11" not in row
-            head, tail = "", None
+            head, tail, rest = "", None, None
             if self.keep(row):
                 if self.as_json:
-                    rest = json.dumps(row)
                     head = '{"time": "'
-                    tail = f'", "direction": {json.dumps(direction)}, "hex": {json.dumps(self._hexs(data))}'
-                    tail += f", {rest[1:]}\n" if rest != "{}" else "}\n"
+                    tail = f'", "direction": {json.dumps(direction)}, "hex": {json.dumps(self._hexs(data))}, '
+                    text = json.dumps(row)
+                    lead = f'{{"offset": {at}'
+                    if text.startswith(lead):
+                        tail, rest = tail + '"offset": ', text[len(lead) :] + "\n"
+                    else:
+                        row["offset"] += offset
+                        tail, per_offset = tail + json.dumps(row)[1:] + "\n", True
                 else:
                     colour = "cyan" if self._is_text(row) else None if self._is_good(row) else "red"
                     tail = f"{direction}  {self._plain(row, offset=False)}"
                     if self.color and colour:
                         head, tail = ANSI[colour], tail + RESET
                     tail += "\n"
-            made.append((row, simple, head, tail))
+            made.append((row, simple, head, tail, at, rest))
         if len(made) > CACHE_ROWS:
             return made
         if len(self._records) >= CACHE_RECORDS:
             self._records.clear()
-        self._records[direction, data, offset] = made
+        self._records[(direction, data, offset) if per_offset else (direction, data)] = made
         return made
 
     def show_traffic(self, traffic: Traffic, rule: ChecksumRule, profile: Profile = DEFAULT) -> None:

@@ -260,7 +260,7 @@ def _line_reader(handle: BinaryIO, limit: int) -> Callable[[], bytes]:
     return readline
 
 
-def log_fields(path: str) -> Iterator[tuple[int, dict[str, Any], float, str, bytes]]:
+def log_fields(path: str, *, fast: bool = True) -> Iterator[tuple[int, dict[str, Any], float, str, bytes]]:
     """``read_log``'s records as plain tuples (line number, fields, time, direction, bytes).
 
     For a reader that goes through a day-long log once (``monitor --from``): a
@@ -275,66 +275,189 @@ def log_fields(path: str) -> Iterator[tuple[int, dict[str, Any], float, str, byt
     record of more than ``RECORD_BYTES``, and a time stamp or offset outside
     what the readers and writers can hold (``TIME_RANGE``: MCAP's unsigned
     nanoseconds), are refused, not converted.
+
+    The rule is ``_plain_line``; a line in the writer's own shape whose
+    record was seen before is taken by ``LineShapes`` instead, which says the
+    same (``tests/test_log_lines_fast.py`` holds the two to it); ``fast=False``
+    leaves the rule alone (for the tests).
     """
     try:
         handle = open(path, "rb")  # noqa: SIM115 - closed below, lazily iterated
     except OSError as exc:
         raise LogFormatError(path, None, f"cannot read the log ({exc.strerror})", hint=LOG_HINT) from exc
-    scan = json.decoder.JSONDecoder().scan_once  # type: ignore[attr-defined]  # set in __init__, untyped
-    parse_time, fromhex = datetime.fromisoformat, bytes.fromhex
-    low, high = TIME_RANGE
-    obj: Any
+    plain = _plain_reader()
+    quick = LineShapes(plain).take if fast else lambda raw: None
     number = 0
     lines = iter(_line_reader(handle, LINE_LIMIT + 1), b"")  # never more than a line's cap
     with handle:
         try:
             for number, raw in enumerate(lines, 1):
-                if len(raw) > LINE_LIMIT and raw[-1] != 0x0A:
-                    raise _bad(
-                        path, number, f"longer than {LINE_LIMIT >> 10} KiB, the most a log line may be"
-                    )
-                try:
-                    text = raw.decode("utf-8")
-                    # too_deep's own first test, inline: it runs on every line of a day-long log
-                    if raw.count(b"[") + raw.count(b"{") > MAX_DEPTH and too_deep(raw) >= 0:
-                        raise _Refused(f"nested deeper than {MAX_DEPTH} arrays or objects")
-                    # json.loads(text): the C scanner alone for a line as the log writes them (an object,
-                    # then the line end); json.loads for anything else (its result or its error)
-                    try:
-                        obj, end = scan(text, 0) if text[:1] == "{" else (None, -1)
-                    except StopIteration:
-                        end = -1
-                    if end != len(text) and (end != len(text) - 1 or text[end] != "\n"):
-                        obj = json.loads(text)
-                    when = parse_time(obj["time"])
-                    try:
-                        moment = when.timestamp()
-                    except (ValueError, OverflowError, OSError):  # a local time past year 1..9999
-                        moment = -1.0  # refused below, as any time out of range
-                    direction, data, offset = obj["direction"], fromhex(obj["hex"]), obj.get("offset", 0)
-                    if not (
-                        low <= moment <= high
-                        and direction in ("tx", "rx")
-                        and len(data) <= RECORD_BYTES
-                        and type(offset) is int
-                        and 0 <= offset <= MAX_OFFSET
-                    ):
-                        raise _Refused(_refusal(obj, moment, direction, data, offset))
-                except _Refused as refused:
-                    why = refused.args[0]
-                except UnicodeDecodeError as exc:
-                    why = f"not UTF-8 text: byte 0x{raw[exc.start]:02X} at column {exc.start + 1}"
-                except (ValueError, KeyError, TypeError) as exc:
-                    why = f"not a traffic log record ({quoted(exc)})"
-                else:
-                    yield number, obj, moment, direction, data
-                    continue
-                if raw[-1] != 0x0A:
-                    return  # the last line, cut short: the process died while writing it
-                if raw.strip():
-                    raise _bad(path, number, why)
+                got = quick(raw)
+                if got is None:
+                    got = plain(raw)
+                    if type(got) is str:
+                        if raw[-1] != 0x0A:
+                            return  # the last line, cut short: the process died while writing it
+                        if raw.strip():
+                            raise _bad(path, number, got)
+                        continue
+                yield number, *got  # type: ignore[misc]
         except OSError as exc:
             raise _bad(path, number + 1, f"cannot be read ({exc.strerror})") from exc
+
+
+#: A line's record: its fields, time (seconds), direction and bytes.
+LineRecord = tuple[dict[str, Any], float, str, bytes]
+
+
+def _plain_reader() -> Callable[[bytes], LineRecord | str]:
+    """The rule for one line of a log (``log_fields``): its record, or why it is refused."""
+    scan = json.decoder.JSONDecoder().scan_once  # type: ignore[attr-defined]  # set in __init__, untyped
+    parse_time, fromhex = datetime.fromisoformat, bytes.fromhex
+    low, high = TIME_RANGE
+
+    def read(raw: bytes) -> LineRecord | str:
+        obj: Any
+        if len(raw) > LINE_LIMIT and raw[-1] != 0x0A:
+            return f"longer than {LINE_LIMIT >> 10} KiB, the most a log line may be"
+        try:
+            text = raw.decode("utf-8")
+            # too_deep's own first test, inline: it runs on every line of a day-long log
+            if raw.count(b"[") + raw.count(b"{") > MAX_DEPTH and too_deep(raw) >= 0:
+                return f"nested deeper than {MAX_DEPTH} arrays or objects"
+            # json.loads(text): the C scanner alone for a line as the log writes them (an object,
+            # then the line end); json.loads for anything else (its result or its error)
+            try:
+                obj, end = scan(text, 0) if text[:1] == "{" else (None, -1)
+            except StopIteration:
+                end = -1
+            if end != len(text) and (end != len(text) - 1 or text[end] != "\n"):
+                obj = json.loads(text)
+            when = parse_time(obj["time"])
+            try:
+                moment = when.timestamp()
+            except (ValueError, OverflowError, OSError):  # a local time past year 1..9999
+                moment = -1.0  # refused below, as any time out of range
+            direction, data, offset = obj["direction"], fromhex(obj["hex"]), obj.get("offset", 0)
+            if not (
+                low <= moment <= high
+                and direction in ("tx", "rx")
+                and len(data) <= RECORD_BYTES
+                and type(offset) is int
+                and 0 <= offset <= MAX_OFFSET
+            ):
+                return _refusal(obj, moment, direction, data, offset)
+        except UnicodeDecodeError as exc:
+            return f"not UTF-8 text: byte 0x{raw[exc.start]:02X} at column {exc.start + 1}"
+        except (ValueError, KeyError, TypeError) as exc:
+            return f"not a traffic log record ({quoted(exc)})"
+        return obj, moment, direction, data
+
+    return read
+
+
+class LineShapes:
+    """``_plain_reader``'s records of the lines ``--log`` writes, each shape parsed once.
+
+    A log repeats itself: the same request, the same reply, only the time
+    and the offset change. A line as ``TrafficLog`` writes it is
+    ``{"time": "T", REST`` with the offset, if any, a run of digits after
+    ``"offset": `` in REST. So a line is cut into its two holes (T, made of
+    ISO 8601 characters only, and the digits) and its shape (the rest), and
+    a shape seen before gives its record at the cost of reading the holes.
+
+    Why it says what the rule says: a shape is remembered only after the
+    rule took a line of it, and took it again with other values in the
+    holes (``_probe``), giving those values as ``time`` and ``offset`` and
+    the same fields otherwise; a hole holds no quote, backslash, bracket or
+    non-ASCII byte, so any value of its kind leaves the line's JSON, depth and
+    UTF-8 as they were. The checks that depend on a hole's value (the time's
+    range, the offset's) are made per line; a line failing any goes to the
+    rule, which says why. Shapes are remembered up to ``SHAPES``, each at
+    most ``SHAPE_BYTES`` long (bounded).
+    """
+
+    def __init__(self, plain: Callable[[bytes], LineRecord | str]) -> None:
+        self._plain = plain
+        self._shapes: dict[bytes | tuple[bytes, bytes], tuple[dict[str, Any], str, bytes]] = {}
+        self._parse_time = datetime.fromisoformat
+
+    def take(self, raw: bytes) -> LineRecord | None:
+        """The record of ``raw`` if its shape is known (or learnt now); None: ask the rule."""
+        if not raw.startswith(_TIME_KEY):
+            return None
+        close = raw.find(b'"', _TIME_AT)
+        stamp = raw[_TIME_AT:close]
+        if close < 0 or stamp.translate(None, _ISO_BYTES):
+            return None
+        rest = raw[close:]
+        before, sep, after = rest.partition(_OFFSET_KEY)
+        offset = 0
+        key: bytes | tuple[bytes, bytes] = rest
+        if sep:
+            digits, comma, after = after.partition(b", ")
+            if not (
+                comma and digits.isdigit() and len(digits) <= 19 and (digits[0] != 0x30 or len(digits) == 1)
+            ):
+                return None
+            offset = int(digits)
+            key = (before, after)
+        known = self._shapes.get(key)
+        if known is None:
+            if len(raw) > SHAPE_BYTES or not self._learn(raw, key, sep):
+                return None
+            known = self._shapes[key]
+        template, direction, data = known
+        time_text = stamp.decode()
+        try:
+            moment = self._parse_time(time_text).timestamp()
+        except (ValueError, OverflowError, OSError):
+            return None
+        if not (TIME_RANGE[0] <= moment <= TIME_RANGE[1] and offset <= MAX_OFFSET):
+            return None
+        fields = template.copy()
+        fields["time"] = time_text
+        if sep:
+            fields["offset"] = offset
+        return fields, moment, direction, data
+
+    def _learn(self, raw: bytes, key: bytes | tuple[bytes, bytes], offset: bytes) -> bool:
+        """Remember the shape of ``raw`` if the rule takes it, and takes it alike with other holes."""
+        got = self._plain(raw)
+        if type(got) is str:
+            return False
+        fields, _, direction, data = got  # type: ignore[misc]
+        before, after = key if isinstance(key, tuple) else (key, b"")
+        probe = _TIME_KEY + _PROBE_TIME + before + (offset + _PROBE_OFFSET + b", " + after if offset else b"")
+        again = self._plain(probe)
+        if type(again) is str or not _alike(fields, again[0], bool(offset)):  # type: ignore[index]
+            return False
+        if len(self._shapes) >= SHAPES:
+            self._shapes.clear()
+        self._shapes[key] = (fields, direction, data)
+        return True
+
+
+def _alike(fields: dict[str, Any], probed: dict[str, Any], offset: bool) -> bool:
+    """Whether the probe's fields are ``fields`` with the probe's values in the holes."""
+    if probed.get("time") != _PROBE_TIME.decode() or (offset and probed.get("offset") != int(_PROBE_OFFSET)):
+        return False
+    holes = ("time", "offset") if offset else ("time",)
+    return list(fields) == list(probed) and all(fields[k] == probed[k] for k in fields if k not in holes)
+
+
+#: How a line ``TrafficLog`` writes begins, and where its time's characters start.
+_TIME_KEY = b'{"time": "'
+_TIME_AT = len(_TIME_KEY)
+#: What an ISO 8601 time as ``iso_time`` writes it is made of (and any other value of the hole).
+_ISO_BYTES = b"0123456789-:T.+ Z"
+_OFFSET_KEY = b', "offset": '
+#: The holes' values the rule is asked to take again before a shape is remembered.
+_PROBE_TIME = b"2001-02-03T04:05:06.789012+01:00"
+_PROBE_OFFSET = b"1234567"
+#: Shapes remembered, and the longest line whose shape is (bounded: at most ~4 MiB of lines).
+SHAPES = 4096
+SHAPE_BYTES = 1024
 
 
 def _refusal(obj: dict[str, Any], moment: float, direction: object, data: bytes, offset: object) -> str:
@@ -347,10 +470,6 @@ def _refusal(obj: dict[str, Any], moment: float, direction: object, data: bytes,
     if len(data) > RECORD_BYTES:
         return f"a record of {len(data)} bytes: at most {RECORD_BYTES} (--log writes no more per line)"
     return f"not a traffic log record (offset {quoted(repr(offset))})"
-
-
-class _Refused(Exception):
-    """A line that parses, but holds what no log record does."""
 
 
 #: The most bytes one record carries (``hex``): a frame is at most 263, and the decoder keeps at most
