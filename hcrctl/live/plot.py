@@ -64,8 +64,9 @@ def plot_screen(
     """The header, one chart per unit filling the height, the keys on the last line."""
     from rich.console import Group
 
+    from .layout import Fitted
     from .plotchart import Charts
-    from .screens import PLOT_KEYS, Fitted, footer, header
+    from .screens import PLOT_KEYS, footer, header
 
     parts = header("hcrctl plot", view), Charts(traces, now, window), footer(PLOT_KEYS, view.note)
     return Fitted(*parts) if fit else Group(*parts)
