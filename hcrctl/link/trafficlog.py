@@ -292,16 +292,16 @@ def log_fields(path: str, *, fast: bool = True) -> Iterator[tuple[int, dict[str,
     with handle:
         try:
             for number, raw in enumerate(lines, 1):
-                got = quick(raw)
+                got: LineRecord | str | None = quick(raw)
                 if got is None:
                     got = plain(raw)
-                    if type(got) is str:
-                        if raw[-1] != 0x0A:
-                            return  # the last line, cut short: the process died while writing it
-                        if raw.strip():
-                            raise _bad(path, number, got)
-                        continue
-                yield number, *got  # type: ignore[misc]
+                if isinstance(got, str):
+                    if raw[-1] != 0x0A:
+                        return  # the last line, cut short: the process died while writing it
+                    if raw.strip():
+                        raise _bad(path, number, got)
+                    continue
+                yield number, *got
         except OSError as exc:
             raise _bad(path, number + 1, f"cannot be read ({exc.strerror})") from exc
 
@@ -424,13 +424,13 @@ class LineShapes:
     def _learn(self, raw: bytes, key: bytes | tuple[bytes, bytes], offset: bytes) -> bool:
         """Remember the shape of ``raw`` if the rule takes it, and takes it alike with other holes."""
         got = self._plain(raw)
-        if type(got) is str:
+        if isinstance(got, str):
             return False
-        fields, _, direction, data = got  # type: ignore[misc]
+        fields, _, direction, data = got
         before, after = key if isinstance(key, tuple) else (key, b"")
         probe = _TIME_KEY + _PROBE_TIME + before + (offset + _PROBE_OFFSET + b", " + after if offset else b"")
         again = self._plain(probe)
-        if type(again) is str or not _alike(fields, again[0], bool(offset)):  # type: ignore[index]
+        if isinstance(again, str) or not _alike(fields, again[0], bool(offset)):
             return False
         if len(self._shapes) >= SHAPES:
             self._shapes.clear()

@@ -124,6 +124,10 @@ class Board:
         self._once: dict = {}
 
     def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
+        yield from _lines_of(self.lines(console, options))
+
+    def lines(self, console: Console, options: ConsoleOptions, pad: bool = False) -> list[list[Segment]]:
+        """The board's lines; ``pad``: each exactly the width (as ``Console.render_lines`` pads them)."""
         self._fresh, self._once = {}, {}
         width = options.max_width
         notice: list[list[Segment]] = []
@@ -145,19 +149,16 @@ class Board:
         if self.cache is not None:  # keep only what this frame used, and a later frame could use
             self.cache.clear()
             self.cache.update(self._fresh)
-        lines = 0
+        out: list[list[Segment]] = []
         if plan is not None:
             for _, block in plan.top:
-                yield from _lines_of(block)
-            yield from _stitch(
-                [[line for _, b in col for line in b] for col in plan.columns], plan.width, self.gap
-            )
-            lines = plan.height
-        blank = Segment(" " * width)
-        for _ in range(room - lines - len(notice)):
-            yield blank
-            yield Segment.line()
-        yield from _lines_of(notice[: max(0, room - lines)])
+                out += block
+            columns = [[line for _, b in col for line in b] for col in plan.columns]
+            out += _stitch(columns, plan.width, self.gap, width if pad else 0)
+        blank = [Segment(" " * width)]
+        out += [blank] * (room - len(out) - len(notice))
+        notice = notice[: max(0, room - len(out))]
+        return out + ([Segment.adjust_line_length(line, width) for line in notice] if pad else notice)
 
     def _leave_out(
         self, console: Console, options: ConsoleOptions, room: int
@@ -300,14 +301,45 @@ def _fill(blocks: list[Block], height: int) -> list[list[Block]]:
     return columns
 
 
-def _stitch(columns: list[list[list[Segment]]], width: int, gap: int) -> Iterator[Segment]:
+def _stitch(columns: list[list[list[Segment]]], width: int, gap: int, pad_to: int = 0) -> list[list[Segment]]:
+    """Columns of lines ``width`` wide side by side, ``gap`` apart; each line padded to ``pad_to``."""
     blank, spacer = Segment(" " * width), Segment(" " * gap)
+    n = len(columns)
+    rest = pad_to - (n * width + gap * (n - 1))
+    tail = [Segment(" " * rest)] if rest > 0 else []
+    out = []
     for row in range(max(map(len, columns), default=0)):
+        line: list[Segment] = []
         for i, lines in enumerate(columns):
             if i:
-                yield spacer
-            yield from lines[row] if row < len(lines) else (blank,)
-        yield Segment.line()
+                line.append(spacer)
+            line += lines[row] if row < len(lines) else (blank,)
+        out.append(line + tail)
+    return out
+
+
+class Stack:
+    """Renderables one under another, as ``rich.console.Group`` stacks them, that can also hand over
+    their lines each exactly the width (``lines``), measured by whoever made them rather than again
+    segment by segment: what ``painter.Lines`` draws a frame from."""
+
+    def __init__(self, *parts: RenderableType) -> None:
+        self.parts = parts
+
+    def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
+        yield from self.parts
+
+    def lines(self, console: Console, options: ConsoleOptions) -> list[list[Segment]]:
+        """Each part's lines, padded to the width: a ``Board`` pads its own; any other part is
+        rendered on its own lines (it takes the height it needs, as in a group)."""
+        out: list[list[Segment]] = []
+        free = options.update(height=None)
+        for part in self.parts:
+            if isinstance(part, Board):
+                out += part.lines(console, options, pad=True)
+            else:
+                out += console.render_lines(part, free, pad=True)
+        return out
 
 
 class Fitted:

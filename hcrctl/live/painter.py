@@ -27,6 +27,7 @@ from typing import IO, TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from rich.console import Console, RenderableType
     from rich.live import Live
+    from rich.segment import Segment
 
 #: The most frames drawn per second, and the longest gap between two frames.
 FPS = 20
@@ -91,7 +92,7 @@ class Redrawer:
 
     def __init__(
         self,
-        live: Live | None,
+        live: Live | Lines | None,
         render: Callable[[float], RenderableType] | None,
         version: Callable[[], object],
         tick: float = TICK,
@@ -118,13 +119,76 @@ class Redrawer:
 
 @contextlib.contextmanager
 def full_screen(console: Console, redraw: Redrawer) -> Iterator[Callable[[], None]]:
-    """The alternate screen with ``redraw`` drawing in it; restored however it ends."""
+    """The alternate screen with ``redraw`` drawing in it (a line at a time: ``Lines``); restored
+    however it ends."""
     with live_screen(console) as live:
-        redraw.live = live
+        redraw.live = Lines(console) if live is not None else None
         try:
             yield redraw
         finally:
             redraw.live = None
+
+
+class Lines:
+    """Frames on the alternate screen, each line written only when it differs from the one on screen.
+
+    What ``Live(screen=True).update(renderable, refresh=True)`` shows, at a
+    fraction of the cost: rich renders the whole screen, measures every
+    segment again to shape it (``Screen``, ``LiveRender``) and writes every
+    line, every frame; at 10 frames a second that was most of ``watch``'s
+    CPU. Here the frame is rendered to lines of the terminal's size once,
+    each line made text as rich's console makes it (``Style.render``; no
+    colour under ``NO_COLOR``), and only the lines that changed are written,
+    each after a cursor move to its row, and the last line, so that the
+    cursor is left after it as rich leaves it (what is printed after the
+    screen, on a terminal that keeps no alternate screen, comes below it).
+    A frame with no change writes nothing. A new size redraws every line.
+    ``live_screen`` still owns the alternate screen and the cursor.
+    """
+
+    def __init__(self, console: Console) -> None:
+        from rich.console import COLOR_SYSTEMS
+
+        self.console = console
+        self._color = COLOR_SYSTEMS.get(console.color_system or "")
+        self._shown: list[str] = []
+        self._size = (0, 0)
+
+    def update(self, renderable: RenderableType, refresh: bool = True) -> None:
+        from rich.segment import Segment
+
+        console = self.console
+        width, height = size = console.size
+        options = console.options.update(width=width, height=height)
+        made = getattr(renderable, "lines", None)  # ``layout.Stack``: lines already the width
+        if made is not None:
+            lines = made(console, options)[:height]
+            lines += [[Segment(" " * width)]] * (height - len(lines))
+        else:
+            lines = Segment.set_shape(console.render_lines(renderable, options, pad=True), width, height)
+        if size != self._size:
+            self._size, self._shown = size, []
+        texts = [self._text(line) for line in lines]
+        shown = self._shown
+        last = len(texts) - 1  # written every frame, so the cursor ends where rich's leaves it: after it
+        out = [
+            f"\x1b[{row + 1};1H{text}"
+            for row, text in enumerate(texts)
+            if row >= len(shown) or shown[row] != text or row == last
+        ]
+        self._shown = texts
+        if out and (len(out) > 1 or texts != shown):
+            console.file.write("".join(out))
+            console.file.flush()
+
+    def _text(self, line: list[Segment]) -> str:
+        """A line as ``Console._render_buffer`` writes it to a terminal."""
+        color = self._color
+        if self.console.no_color and color:
+            from rich.segment import Segment
+
+            line = list(Segment.remove_color(line))
+        return "".join(style.render(text, color_system=color) if style else text for text, style, _ in line)
 
 
 @contextlib.contextmanager

@@ -15,13 +15,13 @@ from collections.abc import Callable, Iterator
 from contextvars import ContextVar
 
 from rich.cells import cell_len
-from rich.console import Console, ConsoleOptions, Group, RenderableType, RenderResult
+from rich.console import Console, ConsoleOptions, RenderableType, RenderResult
 from rich.panel import Panel
 from rich.text import Text
 
 from ..ops.livestate import HISTORY, DriveStatus, Reading, View
 from ..protocol import commands as C
-from .layout import SIZES, Board, Tile
+from .layout import SIZES, Board, Stack, Tile
 from .panels import (
     _whole_seconds,
     age_text,
@@ -111,7 +111,7 @@ def dashboard(
     cache: dict | None = None,
     fit: bool = False,
     plot: PlotPanel | None = None,
-) -> Group:
+) -> Stack:
     """The ``watch`` screen: columns of panels between a header and a footer.
 
     ``cache`` (a dict the caller keeps between frames) lets unchanged panels
@@ -128,7 +128,7 @@ def dashboard(
             0, Tile(None, lambda _size, _width: plot, "plot", priority=-1, wide=True, sizes=("full",))
         )
     board = Board(tiles, cache=cache, fit=fit)
-    return Group(header("hcrctl watch", view), board, footer(keys, view.note))
+    return Stack(header("hcrctl watch", view), board, footer(keys, view.note))
 
 
 def dashboard_tiles(view: View, now: float) -> list[Tile]:
@@ -293,4 +293,4 @@ def teleop_screen(drive: DriveStatus, view: View, now: float, fit: bool = False)
     for tile in tiles:
         tile.priority = ranks.get(tile.name, len(ranks))
     board = Board(tiles, fit=fit)
-    return Group(header("hcrctl teleop", view), board, footer(TELEOP_KEYS, view.note))
+    return Stack(header("hcrctl teleop", view), board, footer(TELEOP_KEYS, view.note))
