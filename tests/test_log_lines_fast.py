@@ -58,6 +58,21 @@ OFFSETS = [
 ]
 
 
+def random_times(rng: random.Random, n: int) -> list[str]:
+    """Times as ``iso_time`` writes them, anywhere in years 1..9999, any offset: a second read once
+    for many of its records must give each the time the whole text gives."""
+    out = []
+    for _ in range(n):
+        sign = rng.choice("+-")
+        offset = f"{sign}{rng.randrange(24):02d}:{rng.choice((0, 30, 45, rng.randrange(60))):02d}"
+        year = rng.choice((1, 1969, 1970, 2026, 2554, 9999, rng.randrange(1, 10000)))
+        second = (
+            f"{year:04d}-{rng.randrange(1, 13):02d}-{rng.randrange(1, 29):02d}T{rng.randrange(24):02d}:00:0"
+        )
+        out += [f"{second}{rng.randrange(10)}.{rng.randrange(10**6):06d}{offset}" for _ in range(3)]
+    return out
+
+
 def written(tmp_path: Path) -> list[bytes]:
     """Lines as ``TrafficLog`` writes them: both directions, offsets, a text record, junk."""
     path = tmp_path / "written.jsonl"
@@ -76,6 +91,7 @@ def variants(line: bytes, rng: random.Random) -> list[bytes]:
     stamp = head[len(b'{"time": "') :]
     out = [line]
     out += [line.replace(stamp, t.encode(), 1) for t in TIMES]
+    out += [line.replace(stamp, t.encode(), 1) for t in random_times(rng, 5)]
     if b'"offset": ' in line:
         before, _, after = line.partition(b'"offset": ')
         digits, _, after = after.partition(b", ")
