@@ -148,4 +148,4 @@ def test_the_shapes_remembered_are_bounded(tmp_path: Path) -> None:
     line = written(tmp_path)[0]
     for n in range(trafficlog.SHAPES + 10):
         shapes.take(line.replace(b'"rule": "header"', f'"rule": "header", "n": {n}'.encode()))
-    assert 0 < len(shapes._shapes) <= trafficlog.SHAPES
+    assert 0 < len(shapes) <= trafficlog.SHAPES

@@ -28,7 +28,7 @@ from hcrctl.protocol.frames import encode
 class Terminal:
     """A console writing to an emulated terminal of a size that can change."""
 
-    def __init__(self, width: int, height: int) -> None:
+    def __init__(self, width: int, height: int, colour: str | None = "truecolor") -> None:
         self.screen = pyte.Screen(width, height)
         self.stream = pyte.Stream(self.screen)
         self.file = io.StringIO()
@@ -37,7 +37,7 @@ class Terminal:
             force_terminal=True,
             width=width,
             height=height,
-            color_system="truecolor",
+            color_system=colour,
             _environ={"TERM": "xterm-256color"},  # whatever the suite's own TERM (a dumb one draws nothing)
         )
 
@@ -96,9 +96,7 @@ def _first_difference(want: list[list[tuple]], got: list[list[tuple]]) -> str:
 def test_lines_show_what_live_shows_frame_by_frame(colour: str | None) -> None:
     clock = Clock()
     shown = 0
-    rich_side, ours = Terminal(120, 40), Terminal(120, 40)
-    for term in (rich_side, ours):
-        term.console._color_system = None if colour is None else term.console._color_system
+    rich_side, ours = Terminal(120, 40, colour), Terminal(120, 40, colour)
     live = Live(console=rich_side.console, auto_refresh=False, screen=True)
     mine = Live(console=ours.console, auto_refresh=False, screen=True)
     live.start()

@@ -408,6 +408,10 @@ class LineShapes:
         except (ValueError, OverflowError, OSError):
             return None
 
+    def __len__(self) -> int:
+        """How many shapes are remembered."""
+        return len(self._shapes)
+
     def take(self, raw: bytes) -> LineRecord | None:
         """The record of ``raw`` if its shape is known (or learnt now); None: ask the rule."""
         if not raw.startswith(_TIME_KEY):
