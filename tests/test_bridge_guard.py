@@ -470,6 +470,19 @@ def test_a_burst_of_advertises_is_one_stderr_line_and_its_count(env: dict[str, s
     assert len(lines) <= 2 * 10, lines  # two lines a burst; a burst lasts a second
 
 
+def test_a_control_message_too_deep_is_refused_by_the_rule_for_every_peers_json(env: dict[str, str]) -> None:
+    from hcrctl.inputs import MAX_DEPTH, PeerJsonError, peer_json
+
+    deep = "[" * (MAX_DEPTH + 1) + "]" * (MAX_DEPTH + 1)
+    with pytest.raises(PeerJsonError) as caught:
+        peer_json(deep)
+    with running_bridge(env) as (_, running), viewer(running.port) as client:
+        client.ws.send(deep)
+        assert client.control("status")["message"] == str(caught.value)
+        client.subscribe("/hcr/compass", 1)
+        assert "heading" in client.data(1)[1]  # still served
+
+
 def test_a_client_gets_at_most_its_share_of_subscriptions_and_is_told(env: dict[str, str]) -> None:
     with running_bridge(env) as (_, running), viewer(running.port) as client:
         frames_id = client.channels["/hcr/frames"]["id"]

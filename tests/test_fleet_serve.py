@@ -37,6 +37,7 @@ from helpers_fleet_robot import (
     twist,
 )
 
+from hcrctl.inputs import MAX_PEER_JSON
 from hcrctl.link.zenoh import keyspace
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.dialect import decode_all
@@ -317,7 +318,7 @@ def test_a_port_that_will_not_open_is_one_line_and_no_robot(lab: Fleet, tmp_path
 @pytest.mark.parametrize(
     ("message", "why"),
     [
-        (b"x" * 5000, "at most 4,096"),
+        (b"x" * (MAX_PEER_JSON + 1), f"at most {MAX_PEER_JSON:,}"),
         (b"[" * 20 + b"]" * 20, "more than 16"),
         (b"{not json", "not JSON"),
         (b"[1, 2]", "not a JSON object"),

@@ -52,7 +52,6 @@ never written through. A turn is written once and held under the lease.
 
 from __future__ import annotations
 
-import json
 import re
 import secrets
 import threading
@@ -62,16 +61,15 @@ from dataclasses import dataclass, field
 from typing import Any, NamedTuple, Protocol, SupportsBytes
 
 from ..errors import ProtocolError
+from ..inputs import PeerJsonError, peer_json
 from ..link.zenoh import identity, keyspace
 from ..motion.governor import Governor, Kind, Source, Verdict, Wheels, refusal
 from ..protocol import commands as C
 from ..protocol.profiles import Profile
-from ..served.cmdvel import MAX_NESTING, BadTwist, parse_twist, twist_wheels
+from ..served.cmdvel import BadTwist, parse_twist, twist_wheels
 from ..served.refusals import Refusals
 from .queries import QueryError, code_text
 
-#: What a motion message may weigh: a Twist or a table request is under 200 bytes.
-MAX_MESSAGE = 4096
 _DIGITS = re.compile(r"\d+")
 #: Operator sessions present at once (their tokens); a token beyond this waits for room.
 MAX_OPERATORS = 256
@@ -169,15 +167,11 @@ def motion_request(message: dict[str, Any], profile: Profile, address: int) -> t
 
 
 def parse_motion(data: bytes) -> dict[str, Any]:
-    """A message's JSON object, read on the Twist's budget (size and nesting checked before parsing)."""
-    if len(data) > MAX_MESSAGE:
-        raise BadMotion(f"{len(data):,} bytes: a motion message is at most {MAX_MESSAGE:,}")
-    if data.count(b"{") + data.count(b"[") > MAX_NESTING:
-        raise BadMotion(f"more than {MAX_NESTING} objects or arrays")
+    """A message's JSON object, read on every peer's budget (``inputs.peer_json``)."""
     try:
-        message = json.loads(data)
-    except (ValueError, RecursionError) as exc:
-        raise BadMotion(f"not JSON ({type(exc).__name__})") from exc
+        message = peer_json(data)
+    except PeerJsonError as exc:
+        raise BadMotion(str(exc)) from exc
     if not isinstance(message, dict):
         raise BadMotion("not a JSON object")
     return message
@@ -540,7 +534,7 @@ class FleetDrive:
 
 def _named_key(payload: bytes) -> object:
     """The public key a stop's payload names (``{"key": HEX}``, as a claim's does), or None."""
-    message = keyspace.loads(payload) if len(payload) <= MAX_MESSAGE else None
+    message = keyspace.loads(payload)  # its size and nesting bounded, as every peer's JSON
     return message.get("key") if isinstance(message, dict) else None
 
 

@@ -33,6 +33,7 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 from ..errors import HcrError, ProtocolError, describe
+from ..inputs import PeerJsonError, peer_json
 from ..link.client import Robot
 from ..protocol import commands as C
 from ..protocol import topics as T
@@ -52,7 +53,6 @@ TURN_WAIT_S = 0.5
 SWEEP_POLL_S = 0.005
 #: Queries waiting beyond which a new one is told the robot is busy.
 MAX_PENDING = 32
-MAX_QUERY = 4096
 
 Answer = tuple[bool, dict[str, Any]]
 Work = Callable[[dict[str, Any]], dict[str, Any]]
@@ -70,15 +70,13 @@ def error_body(exc: BaseException) -> dict[str, Any]:
 
 
 def query_object(payload: bytes | None) -> dict[str, Any]:
-    """A query's JSON object; an empty payload is ``{}``."""
+    """A query's JSON object, read on every peer's budget (``inputs.peer_json``); an empty payload is ``{}``."""
     if not payload:
         return {}
-    if len(payload) > MAX_QUERY:
-        raise QueryError(f"a query of {len(payload):,} bytes: at most {MAX_QUERY:,}")
     try:
-        found = json.loads(payload)
-    except (ValueError, RecursionError) as exc:
-        raise QueryError("the query's payload is not JSON") from exc
+        found = peer_json(payload)
+    except PeerJsonError as exc:
+        raise QueryError(f"the query's payload: {exc}") from exc
     if not isinstance(found, dict):
         raise QueryError("the query's payload is not a JSON object")
     return found

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import json
 import logging
 import struct
 import threading
@@ -46,6 +45,7 @@ from websockets.datastructures import MultipleValuesError
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
+from ..inputs import MAX_PEER_JSON, PeerJsonError, peer_json
 from ..served.bursts import BurstNotes
 from ..served.untrusted import origin_allowed, shown
 from .client import CONTROL_RATE, ERROR, STALLED_S, WARNING, Channel, Client
@@ -55,7 +55,8 @@ from .drive import CmdVelSource
 SUBPROTOCOLS = ("foxglove.sdk.v1", "foxglove.websocket.v1")
 OPEN_TIMEOUT = 3.0
 MAX_CLIENTS = 32
-MAX_MESSAGE = 64 * 1024
+#: A WebSocket message, binary or text: the bound on any JSON from a peer (``inputs.peer_json``).
+MAX_MESSAGE = MAX_PEER_JSON
 INBOX = 16
 #: Subscriptions one client may hold, and on one channel: a viewer needs one per channel.
 MAX_SUBSCRIPTIONS = 64
@@ -339,9 +340,9 @@ class FoxgloveServer:
                 WARNING, f"control messages beyond {CONTROL_RATE // 1024} KiB/s are read at that pace"
             )
         try:
-            message = json.loads(text)
-        except (ValueError, RecursionError):
-            session.status(ERROR, "not JSON")
+            message = peer_json(text)
+        except PeerJsonError as exc:
+            session.status(ERROR, str(exc))
             return
         op = message.get("op") if isinstance(message, dict) else None
         handler = {

@@ -9,8 +9,9 @@ Velocity field ranges; a request beyond them is scaled down as a whole, so
 the robot still follows the arc it was asked for, only slower.
 
 A message comes from the network, so it is read as untrusted input, on a
-budget: at most ``MAX_TWIST_BYTES``, ``MAX_NESTING`` objects or arrays, numbers
-of at most ``MAX_DIGITS`` digits and at most ``LIMIT`` in size. Anything else
+budget: the one every peer's JSON is held to (``inputs.peer_json``: its size
+and nesting), numbers of at most ``MAX_DIGITS`` digits and at most ``LIMIT``
+in size. Anything else
 is a ``BadTwist``, refused and said, never an exception in someone's thread.
 Who may drive, the deadman and the bumpers are the motion governor's
 (``motion.governor``).
@@ -18,11 +19,11 @@ Who may drive, the deadman and the bumpers are the motion governor's
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from typing import Any
 
+from ..inputs import PeerJsonError, peer_json
 from ..link.rescue import DEADMAN_S
 from ..protocol import commands as C
 from ..sim.body import WHEEL_BASE_CM
@@ -34,10 +35,6 @@ SCHEMA_NAMES = ("geometry_msgs/Twist", "geometry_msgs/msg/Twist")
 DEFAULT_TIMEOUT_S = DEADMAN_S
 #: The deadman's range: below it a terminal's own key repeat could not keep up; above it, no deadman.
 DEADMAN_RANGE = (0.05, 10.0)
-#: A Twist is about 100 bytes of JSON; a viewer's with every field and spaces, a few hundred.
-MAX_TWIST_BYTES = 4096
-#: Objects and arrays in one message: a Twist has three.
-MAX_NESTING = 16
 #: Digits in one integer: more is no speed anyone meant (and 10**400 does not fit a float).
 MAX_DIGITS = 15
 #: m/s or rad/s beyond which a number is refused rather than scaled down: no robot's intent.
@@ -87,19 +84,12 @@ def _constant(text: str) -> float:
 def parse_twist(data: bytes) -> tuple[float, float]:
     """(linear.x m/s, angular.z rad/s) from a JSON Twist; missing parts count as 0, as in ROS.
 
-    The budget is checked before the JSON is read, so no message costs more
-    than a few kilobytes of parsing, whatever it holds.
+    The budget is checked before the JSON is read (``inputs.peer_json``).
     """
-    if len(data) > MAX_TWIST_BYTES:
-        raise BadTwist(f"{len(data):,} bytes: a Twist is at most {MAX_TWIST_BYTES:,}")
-    if data.count(b"{") + data.count(b"[") > MAX_NESTING:
-        raise BadTwist(f"more than {MAX_NESTING} objects or arrays")
     try:
-        message = json.loads(data, parse_int=_integer, parse_constant=_constant)
-    except BadTwist:
-        raise
-    except (ValueError, RecursionError) as exc:  # UnicodeDecodeError is a ValueError
-        raise BadTwist(f"not JSON ({type(exc).__name__})") from exc
+        message = peer_json(data, parse_int=_integer)
+    except PeerJsonError as exc:
+        raise BadTwist(str(exc)) from exc
     if not isinstance(message, Mapping):
         raise BadTwist("not a JSON object")
     return _number(message, "linear", "x"), _number(message, "angular", "z")

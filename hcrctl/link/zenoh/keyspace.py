@@ -41,6 +41,8 @@ import socket
 from collections.abc import Hashable
 from typing import Any, NamedTuple
 
+from ...inputs import PeerJsonError, peer_json
+
 ROOT = "hcr"
 #: A robot's or an operator's name: one key chunk, no Zenoh wildcard or separator, not "@"-led.
 NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}")
@@ -227,15 +229,11 @@ class BadInfo(ValueError):
     """An ``info`` that is not what a robot serves: a number out of its range, a text that is not one."""
 
 
-def _no_constant(name: str) -> Any:
-    raise ValueError(f"{name} is not JSON")
-
-
 def loads(data: bytes) -> object:
-    """A peer's JSON, or None when it is none: ``NaN`` and ``Infinity`` are refused, as JSON does."""
+    """A peer's JSON (``inputs.peer_json``: its size and nesting bounded, no ``NaN``), or None when refused."""
     try:
-        return json.loads(data, parse_constant=_no_constant)
-    except (ValueError, RecursionError):
+        return peer_json(data)
+    except PeerJsonError:
         return None
 
 

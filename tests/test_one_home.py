@@ -1,0 +1,99 @@
+"""Rules every part of hcrctl keeps, each written in one place and used everywhere.
+
+A rule written twice drifts: five readers of a peer's JSON had five limits.
+Each rule here has one home; a test per user shows it keeps that home's
+rule, and a search of the package's source shows no second definition has
+crept back.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+import hcrctl
+from hcrctl.inputs import MAX_DEPTH, MAX_PEER_JSON, PeerJsonError, peer_json
+
+PACKAGE = Path(hcrctl.__file__).parent
+
+
+def sources() -> dict[str, str]:
+    """Each module of the package (its path under hcrctl/) -> its text."""
+    return {str(p.relative_to(PACKAGE)): p.read_text(encoding="utf-8") for p in sorted(PACKAGE.rglob("*.py"))}
+
+
+def modules_matching(pattern: str) -> set[str]:
+    """The modules whose source matches the regular expression ``pattern``."""
+    found = re.compile(pattern, re.MULTILINE)
+    return {name for name, text in sources().items() if found.search(text)}
+
+
+# -- JSON from a peer ------------------------------------------------------------------------
+
+TOO_LONG = b'{"pad": "' + b"x" * MAX_PEER_JSON + b'"}'
+TOO_DEEP = b"[" * (MAX_DEPTH + 1) + b"]" * (MAX_DEPTH + 1)
+
+
+def refusal(data: bytes) -> str:
+    with pytest.raises(PeerJsonError) as caught:
+        peer_json(data)
+    return str(caught.value)
+
+
+def test_the_peer_json_reader_refuses_a_long_a_deep_and_a_non_json_document_saying_which() -> None:
+    assert refusal(TOO_LONG) == f"{len(TOO_LONG):,} bytes: a message is at most {MAX_PEER_JSON:,}"
+    assert refusal(TOO_DEEP) == f"nested in more than {MAX_DEPTH} arrays or objects"
+    assert refusal(b'{"x": NaN}') == "NaN is not JSON"
+    assert refusal(b"\xff") == "not JSON (UnicodeDecodeError)"
+    deepest = b"[" * MAX_DEPTH + b"]" * MAX_DEPTH
+    assert peer_json(deepest) is not None and peer_json(b'{"a": 1}') == {"a": 1}
+
+
+def twist(data: bytes) -> str:
+    from hcrctl.served.cmdvel import BadTwist, parse_twist
+
+    with pytest.raises(BadTwist) as caught:
+        parse_twist(data)
+    return str(caught.value)
+
+
+def motion(data: bytes) -> str:
+    from hcrctl.fleet.drive import BadMotion, parse_motion
+
+    with pytest.raises(BadMotion) as caught:
+        parse_motion(data)
+    return str(caught.value)
+
+
+def query(data: bytes) -> str:
+    from hcrctl.fleet.queries import QueryError, query_object
+
+    with pytest.raises(QueryError) as caught:
+        query_object(data)
+    return str(caught.value).removeprefix("the query's payload: ")
+
+
+READERS: dict[str, Callable[[bytes], str]] = {"cmd_vel": twist, "fleet motion": motion, "fleet query": query}
+
+
+@pytest.mark.parametrize("name", sorted(READERS))
+@pytest.mark.parametrize("data", [TOO_LONG, TOO_DEEP], ids=["too long", "too deep"])
+def test_every_reader_of_a_peers_json_refuses_it_as_the_one_reader_does(name: str, data: bytes) -> None:
+    assert READERS[name](data) == refusal(data)
+
+
+@pytest.mark.parametrize("data", [TOO_LONG, TOO_DEEP], ids=["too long", "too deep"])
+def test_the_fleets_key_space_reads_a_peers_json_by_the_same_rule(data: bytes) -> None:
+    from hcrctl.link.zenoh import keyspace
+
+    assert keyspace.loads(data) is None
+    assert keyspace.loads(b'{"a": [1]}') == {"a": [1]}
+
+
+def test_no_module_reads_json_from_a_peer_but_through_the_one_reader() -> None:
+    """``json.loads`` only in the reader itself and in readers of this machine's own files."""
+    own_files = {"link/trafficlog.py", "link/zenoh/join.py", "fleet/router.py", "extras.py"}
+    assert modules_matching(r"json\.loads?\(") == {"inputs.py", *own_files}
