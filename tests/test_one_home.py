@@ -97,3 +97,19 @@ def test_no_module_reads_json_from_a_peer_but_through_the_one_reader() -> None:
     """``json.loads`` only in the reader itself and in readers of this machine's own files."""
     own_files = {"link/trafficlog.py", "link/zenoh/join.py", "fleet/router.py", "extras.py"}
     assert modules_matching(r"json\.loads?\(") == {"inputs.py", *own_files}
+
+
+# -- a frame's layout --------------------------------------------------------------------------
+
+
+def test_a_frames_parts_are_read_at_the_offsets_the_layout_names() -> None:
+    from hcrctl.protocol.frames import ADDRESS_AT, COMMAND_AT, CONTENT_AT, LENGTH_AT, encode
+
+    frame = encode(0x21, 0x14, b"\x01\x02\x03")
+    assert (frame[ADDRESS_AT], frame[LENGTH_AT], frame[COMMAND_AT]) == (0x21, 3, 0x14)
+    assert frame[CONTENT_AT : CONTENT_AT + frame[LENGTH_AT]] == b"\x01\x02\x03"
+
+
+def test_no_module_reads_a_frames_length_byte_by_a_bare_offset() -> None:
+    """``data[3]`` or ``buf[at + 3]`` for the length: the layout is ``frames.LENGTH_AT``."""
+    assert modules_matching(r"\b(data|buf|body|_tail)\[(\w+ \+ )?3\]") == set()

@@ -11,11 +11,11 @@ under both rules, and ``force`` sends anything exactly as typed.
 from __future__ import annotations
 
 from ..errors import FrameRefused
-from ..protocol.frames import HEADER, TERMINATOR, ChecksumRule, checksum
+from ..protocol.frames import CONTENT_AT, HEADER, LENGTH_AT, TERMINATOR, ChecksumRule, checksum
 from ..protocol.profiles import DEFAULT, Profile
 
-#: header (2) + address + length + command
-HEAD = 5
+#: header (2) + address + length + command: where the content starts
+HEAD = CONTENT_AT
 FORCE_HINT = "--force sends the bytes exactly as typed"
 
 
@@ -43,7 +43,7 @@ def complete_frame(
 
 def _complete(data: bytes, rule: ChecksumRule) -> tuple[bytes, str | None]:
     _check_head(data)
-    body = data[: HEAD + data[3]]
+    body = data[: HEAD + data[LENGTH_AT]]
     tail = data[len(body) :]
     if len(tail) == 0:
         ck = checksum(body, rule)
@@ -68,7 +68,7 @@ def _complete(data: bytes, rule: ChecksumRule) -> tuple[bytes, str | None]:
 
 def _in_profile(data: bytes, rule: ChecksumRule, profile: Profile) -> tuple[bytes, str | None]:
     """``_complete`` for a profile whose frames end otherwise: typed with that end, or completed to it."""
-    whole = len(data) >= HEAD and len(data) == HEAD + data[3] + 1 + len(profile.terminator)
+    whole = len(data) >= HEAD and len(data) == HEAD + data[LENGTH_AT] + 1 + len(profile.terminator)
     if whole and data.endswith(profile.terminator):
         data = data[: -len(profile.terminator)] + TERMINATOR
     frame, note = _complete(data, rule)
@@ -89,10 +89,10 @@ def _check_head(data: bytes) -> None:
             "55 AA, address, length and command",
             hint=FORCE_HINT,
         )
-    have = len(data) - HEAD
-    if have < data[3]:
+    have, length = len(data) - HEAD, data[LENGTH_AT]
+    if have < length:
         raise FrameRefused(
-            f"the length field says {data[3]} content byte{'s' if data[3] != 1 else ''}, "
+            f"the length field says {length} content byte{'s' if length != 1 else ''}, "
             f"but {have} stand{'s' if have == 1 else ''} after the command",
             hint=FORCE_HINT,
         )
@@ -111,7 +111,8 @@ def _check_checksum(body: bytes, received: int, rule: ChecksumRule, maybe_conten
     if received == other:
         message += f"; it matches the {_rule_text(rule.other)}, try --checksum-from {rule.other.value}"
     elif maybe_content:
-        message += f"; if {received:02X} is content, the length field 0x{body[3]:02X} does not count it"
+        length = body[LENGTH_AT]
+        message += f"; if {received:02X} is content, the length field 0x{length:02X} does not count it"
     raise FrameRefused(message, hint=FORCE_HINT)
 
 

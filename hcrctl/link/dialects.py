@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 from ..errors import DeviceTimeout, HcrError, NotInProtocol
 from ..protocol import commands as C
 from ..protocol.dialect import make_decoder
-from ..protocol.frames import TERMINATOR, ChecksumRule, Frame
+from ..protocol.frames import LENGTH_AT, TERMINATOR, ChecksumRule, Frame
 from ..protocol.profiles import (
     CRLF_HINT,
     DEFAULT,
@@ -129,7 +129,7 @@ def lone_lf_frames(data: bytes) -> int:
     while at != -1:
         if lone_lf_frame(data[at:]):
             found += 1
-            at += data[at + 3] + V011.overhead - 1  # on from its end
+            at += data[at + LENGTH_AT] + V011.overhead - 1  # on from its end
         at = data.find(b"\x55\xaa", at + 1)
     return found
 

@@ -15,6 +15,9 @@ from typing import NamedTuple
 
 HEADER = b"\x55\xaa"
 TERMINATOR = b"\x0d\x0a"
+#: Where a frame's parts are, counted from its header's first byte: the one statement of the layout
+#: every reader of raw bytes indexes by (``data[at + LENGTH_AT]`` is the length of the content).
+ADDRESS_AT, LENGTH_AT, COMMAND_AT, CONTENT_AT = 2, 3, 4, 5
 #: header (2) + address + length + command + checksum + terminator (2)
 OVERHEAD = 8
 MAX_CONTENT = 255

@@ -17,10 +17,20 @@ bridge) is covered by the one place bytes leave.
 from __future__ import annotations
 
 from . import commands as C
-from .frames import HEADER, MAX_FRAME, TERMINATOR, ChecksumRule, checksum
+from .frames import (
+    ADDRESS_AT,
+    COMMAND_AT,
+    CONTENT_AT,
+    HEADER,
+    LENGTH_AT,
+    MAX_FRAME,
+    TERMINATOR,
+    ChecksumRule,
+    checksum,
+)
 
 #: Header, address, length, command: what must be seen before a frame's kind is known.
-_HEAD = 5
+_HEAD = CONTENT_AT
 
 
 class MotionScan:
@@ -47,18 +57,18 @@ class MotionScan:
             if at + _HEAD > len(buf):
                 keep = min(keep, at)  # the command byte is still to come
                 break
-            if C.is_motion(buf[at + 4]):
+            if C.is_motion(buf[at + COMMAND_AT]):
                 found = True
                 self._note(buf, at)
-            if at + _HEAD + buf[at + 3] + 1 + len(self.terminator) > len(buf):
+            if at + _HEAD + buf[at + LENGTH_AT] + 1 + len(self.terminator) > len(buf):
                 keep = min(keep, at)  # still open: its checksum or terminator is to come
             at = buf.find(HEADER, at + 1)
         self._tail = buf[keep:][-MAX_FRAME:]
         return found
 
     def _note(self, buf: bytes, at: int) -> None:
-        rules = self.moved.setdefault(buf[at + 2], set())
-        end = at + _HEAD + buf[at + 3]
+        rules = self.moved.setdefault(buf[at + ADDRESS_AT], set())
+        end = at + _HEAD + buf[at + LENGTH_AT]
         if end < len(buf):
             frame = buf[at:end]
             rules.update(rule for rule in ChecksumRule if checksum(frame, rule) == buf[end])
@@ -74,7 +84,7 @@ class MotionScan:
             return 0
         if at + 4 > len(self._tail):
             return MAX_FRAME  # its length is not even known: assume the longest
-        return max(0, at + _HEAD + self._tail[at + 3] + 1 + len(self.terminator) - len(self._tail))
+        return max(0, at + _HEAD + self._tail[at + LENGTH_AT] + 1 + len(self.terminator) - len(self._tail))
 
     def stops(self, rule: ChecksumRule) -> list[tuple[int, ChecksumRule]]:
         """(address, rule) pairs to stop, in the order moved: under the rules its frames passed (a log

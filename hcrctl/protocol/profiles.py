@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from .frames import TERMINATOR, ChecksumRule, checksum
+from .frames import COMMAND_AT, CONTENT_AT, LENGTH_AT, TERMINATOR, ChecksumRule, checksum
 
 #: A read request's content (``messages.READ_REQUEST``; that module is not imported here to stay small).
 READ_REQUEST = b"\xff"
@@ -111,7 +111,7 @@ class Profile:
 
     def verdict(self, body: bytes, received: int, rule: ChecksumRule) -> ChecksumVerdict:
         """Judge a frame's checksum by the rules this firmware really uses, naming the one that matched."""
-        names = self.rules_for(body[4], rule, bytes(body[5:]))
+        names = self.rules_for(body[COMMAND_AT], rule, bytes(body[CONTENT_AT:]))
         for name in names:
             if RULES[name](bytes(body)) == received:
                 return ChecksumVerdict(True, name, received, names[0])
@@ -199,7 +199,7 @@ def lone_lf_frame(data: bytes) -> bool:
     """Whether ``data`` starts with a whole frame ending in a lone 0A, as v0.11 firmware sends."""
     if len(data) < V011.overhead or data[:2] != b"\x55\xaa":
         return False
-    end = data[3] + V011.overhead
+    end = data[LENGTH_AT] + V011.overhead
     return len(data) >= end and data[end - 1] == 0x0A
 
 
@@ -214,7 +214,7 @@ def crlf_frame_in(data: bytes) -> bool:
     the 0D would be)."""
     at = data.find(b"\x55\xaa")
     while at != -1 and at + 4 <= len(data):
-        end = at + data[at + 3] + V015.overhead
+        end = at + data[at + LENGTH_AT] + V015.overhead
         if end <= len(data) and data[end - 2 : end] == b"\r\n":
             return True
         at = data.find(b"\x55\xaa", at + 1)

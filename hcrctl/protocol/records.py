@@ -16,7 +16,11 @@ from ..errors import ImpossibleReply, ProtocolError
 from . import commands as C
 from .fields import values_getter
 from .frames import (
+    ADDRESS_AT,
+    COMMAND_AT,
+    CONTENT_AT,
     HEADER,
+    LENGTH_AT,
     BadChecksum,
     ChecksumRule,
     Event,
@@ -72,7 +76,7 @@ def _lone_lf(
     """A v0.11 frame met while speaking v0.15: say so, and what it reads as under v0.11."""
     if profile is DEFAULT and lone_lf_frame(data):
         out["hint"] = LONE_LF_HINT
-        body = data[: data[3] + 5]
+        body = data[: data[LENGTH_AT] + CONTENT_AT]
         out["as_v0.11"] = frame_dict(body, data[len(body)], rule, direction, V011)
     return out
 
@@ -107,7 +111,7 @@ def frame_dict(
     """
     if profile is not DEFAULT:
         return _profile_frame_dict(body, received, rule, direction, profile)
-    address, command, content = body[2], body[4], body[5:]
+    address, command, content = body[ADDRESS_AT], body[COMMAND_AT], body[CONTENT_AT:]
     expected, other = checksum(body, rule), checksum(body, rule.other)
     cmd = C.BY_CODE.get(command)
     out: dict[str, Any] = {
@@ -270,8 +274,8 @@ def _profile_frame_dict(
 ) -> dict[str, Any]:
     """``frame_dict`` under a dialect: its checksum verdict, and its content re-laid as v0.15 for the fields."""
     verdict = profile.verdict(body, received, rule)
-    command = body[4]
-    doc = body[:5] + profile.to_document(command, body[5:])
+    command = body[COMMAND_AT]
+    doc = body[:CONTENT_AT] + profile.to_document(command, body[CONTENT_AT:])
     out = frame_dict(doc, received, rule, direction)
     out["payload"] = hexs(body[5:])
     out.update(
