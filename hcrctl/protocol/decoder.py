@@ -28,7 +28,9 @@ from collections import Counter
 from typing import Any
 
 from .frames import (
+    CONTENT_AT,
     HEADER,
+    LENGTH_AT,
     MAX_KEPT,
     BadChecksum,
     ChecksumRule,
@@ -116,7 +118,7 @@ class FrameDecoder:
         instead of waking once per byte while a frame trickles in at line speed."""
         buf, overhead = self._buf, self._overhead
         if len(buf) >= 4 and buf[:2] == HEADER:
-            return max(1, buf[3] + overhead - len(buf))
+            return max(1, buf[LENGTH_AT] + overhead - len(buf))
         return max(1, overhead - len(buf))
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[Event]:
@@ -163,7 +165,7 @@ class FrameDecoder:
             buf = b""
         self._close_pending(out)
         if buf:
-            size = buf[3] + self._overhead if len(buf) >= 4 else self._overhead
+            size = buf[LENGTH_AT] + self._overhead if len(buf) > LENGTH_AT else self._overhead
             out.append(Truncated(self._base, bytes(buf), size - len(buf)))
         self._base += len(self._buf)
         self._buf = b""
@@ -231,7 +233,7 @@ class FrameDecoder:
                 pos, h = bulk_runs(buf, h, self._rule, self._runs or events_to(out.extend, self._base))
                 if h != pos or n - h < overhead:
                     continue
-            ck = h + buf[h + 3] + 5
+            ck = h + buf[h + LENGTH_AT] + CONTENT_AT
             end = ck + tail
             if end > n:  # wait for the rest, unless a later header starts a frame that is whole already
                 resync = -1 if find(HEADER, h + 1) < 0 else self._complete_frame_after(h, n)
@@ -259,7 +261,7 @@ class FrameDecoder:
                     continue
                 pending = self._open_bad_checksum(out, h, ck)
             else:
-                pending = self._open_malformed(out, h, buf[h + 3])
+                pending = self._open_malformed(out, h, buf[h + LENGTH_AT])
             pending.add(raw, h, h + 1)
             pos = h + 1
             h = find(HEADER, pos)
@@ -393,7 +395,7 @@ class FrameDecoder:
                 out.append(Malformed(p.offset, declared, data, p.size))
                 return p.size
             out.append(Malformed(p.offset, declared, data[:mark], mark))
-            event = self._malformed(p.offset + mark, data[mark + 3], data[mark:], p.size - mark)
+            event = self._malformed(p.offset + mark, data[mark + LENGTH_AT], data[mark:], p.size - mark)
             out.append(event)
             return mark + event.size
         event = self._malformed(p.offset, declared, data, p.size)
@@ -432,7 +434,7 @@ class FrameDecoder:
         best, best_end = -1, limit + 1
         at = buf.find(HEADER, h + 1)
         while at >= 0 and at + overhead < best_end:
-            ck = at + buf[at + 3] + 5
+            ck = at + buf[at + LENGTH_AT] + CONTENT_AT
             end = ck + 1 + len(self._term)
             if end < best_end and buf.endswith(self._term, at, end) and self._checks_out(buf, at, ck):
                 best, best_end = at, end

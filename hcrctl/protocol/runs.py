@@ -22,7 +22,7 @@ from operator import add, gt, itemgetter, ne
 from typing import NamedTuple
 from zlib import adler32
 
-from .frames import HEADER, OVERHEAD, TERMINATOR, ChecksumRule, Event, Frame, _new_frame, checksum
+from .frames import HEADER, LENGTH_AT, OVERHEAD, TERMINATOR, ChecksumRule, Event, Frame, _new_frame, checksum
 
 #: A buffer this short (from its first header) is left to the scanner: the check's set-up costs more
 #: than it saves on a few frames, as a serial port delivers them.
@@ -72,7 +72,7 @@ def bulk_runs(buf: bytes, h: int, rule: ChecksumRule, take: TakeParts) -> tuple[
     """
     pos, n = h, len(buf)
     while True:
-        if n - pos < OVERHEAD or not buf.startswith(TERMINATOR, pos + buf[pos + 3] + OVERHEAD - 2):
+        if n - pos < OVERHEAD or not buf.startswith(TERMINATOR, pos + buf[pos + LENGTH_AT] + OVERHEAD - 2):
             return pos, pos  # no terminator where the first length puts it (noise, false headers): no split
         parts, taken = valid_parts(buf[pos : pos + COUNT_WINDOW], rule)
         if parts:
