@@ -25,7 +25,7 @@ import pytest
 from helpers import TIMEOUT, clean_env
 
 from hcrctl.link.context import Connection
-from hcrctl.link.signals import Terminated
+from hcrctl.signals import Terminated
 from hcrctl.motion.governor import Kind, Source
 from hcrctl.protocol.topics import FRAMES
 from hcrctl.served.frontends import FRONT_ENDS

@@ -113,3 +113,61 @@ def test_a_frames_parts_are_read_at_the_offsets_the_layout_names() -> None:
 def test_no_module_reads_a_frames_length_byte_by_a_bare_offset() -> None:
     """``data[3]`` or ``buf[at + 3]`` for the length: the layout is ``frames.LENGTH_AT``."""
     assert modules_matching(r"\b(data|buf|body|_tail)\[(\w+ \+ )?3\]") == set()
+
+
+# -- signals and stop ------------------------------------------------------------------------
+
+
+def test_the_stop_signals_are_named_once_and_set_handlers_only_there() -> None:
+    """Every other module takes them from ``hcrctl.signals``; besides, the shell's Ctrl-C note chains SIGINT
+    to the handler before it, and the firmware harness's child gets SIGTERM's default back."""
+    assert modules_matching(r"\"SIGHUP\"") == {"signals.py"}
+    others = {"shell/dispatch.py", "sim/firmware/harness.py"}
+    assert modules_matching(r"signal\.signal\(|pthread_sigmask\(") == {"signals.py", *others}
+
+
+def test_a_signal_sets_a_flag_that_remembers_which() -> None:
+    import signal
+
+    from hcrctl.signals import STOP_SIGNALS, TERMINATING, SignalFlag
+
+    assert set(STOP_SIGNALS) == {signal.SIGINT, signal.SIGTERM, signal.SIGHUP}
+    assert set(TERMINATING) == {signal.SIGTERM, signal.SIGHUP}
+    flag = SignalFlag()
+    before = signal.getsignal(signal.SIGTERM)
+    with flag.catching():
+        assert not flag
+        signal.raise_signal(signal.SIGTERM)
+        assert flag and flag.signum == signal.SIGTERM and flag.event.is_set()
+    assert signal.getsignal(signal.SIGTERM) is before
+
+
+def test_every_stop_goes_out_through_robot_stop_with_the_signals_held() -> None:
+    import signal
+
+    from hcrctl.link.client import Robot
+    from hcrctl.link.dialects import frame_of, stop_frames
+    from hcrctl.protocol import commands as C
+
+    held: list[set[int]] = []
+    with Robot("sim://?seed=1&broadcast_hz=0&map_hz=0") as robot:
+        put = robot._put
+
+        def recording(frame: bytes) -> None:
+            held.append(set(signal.pthread_sigmask(signal.SIG_BLOCK, [])))
+            put(frame)
+
+        robot._put = recording  # type: ignore[method-assign]
+        robot.write(frame_of(robot, C.Velocity(10, 10)))
+        robot.write(frame_of(robot, C.Velocity(10, 10), robot.address + 1))  # another address moved too
+        held.clear()
+        robot.stop()
+        assert robot.moved, "a stop to one address leaves the other it moved"
+        robot.stop(stop_frames(robot))
+        assert not robot.moved
+    assert held and all({signal.SIGINT, signal.SIGTERM, signal.SIGHUP} <= mask for mask in held)
+
+
+def test_no_module_writes_a_stop_but_robot_stop() -> None:
+    assert modules_matching(r"def write_stops|signals_deferred\(\)") == {"signals.py", "link/client.py"}
+

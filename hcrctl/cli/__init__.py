@@ -18,8 +18,8 @@ import click
 
 from .. import __version__, stdout
 from ..errors import describe, printable
-from ..link.signals import Terminated, stop_signals_raise
 from ..protocol import commands as C
+from ..signals import Terminated, stop_signals_raise
 from .settings import GLOBAL_OPTIONS, Settings, config_defaults
 
 if TYPE_CHECKING:

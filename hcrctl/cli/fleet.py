@@ -241,11 +241,10 @@ def _refused(robot: dict[str, Any]) -> None:
 
 
 def _watch(settings: Settings, where: Any, timeout: float) -> None:
-    import threading
 
     from ..fleet.listing import watch
-    from ..link.signals import stop_signals_handled
     from ..render.fleet import fleet_row
+    from ..signals import TERMINATING, SignalFlag
 
     def shown(event: str, info: dict[str, Any]) -> None:
         if settings.as_json:
@@ -256,6 +255,6 @@ def _watch(settings: Settings, where: Any, timeout: float) -> None:
         else:
             click.echo(f"- {info['name']} left")
 
-    done = threading.Event()
-    with stop_signals_handled(lambda signum, frame: done.set()), contextlib.suppress(KeyboardInterrupt):
+    done = SignalFlag()
+    with done.catching(TERMINATING), contextlib.suppress(KeyboardInterrupt):
         watch(where, shown, timeout, done.is_set)

@@ -29,7 +29,6 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import signal
 import sys
 import time
 from collections.abc import Callable
@@ -37,10 +36,10 @@ from typing import Any
 
 import click
 
-from ..link.signals import STOP_SIGNALS, Terminated
+from ..signals import STOP_SIGNALS, Terminated
 
 #: The signals that end an open-ended server normally.
-NORMAL_END = (signal.SIGINT, *STOP_SIGNALS)
+NORMAL_END = STOP_SIGNALS
 PREFIX = "hcrctl: "
 
 

@@ -12,13 +12,12 @@ to nobody unless a ``--zenoh-config`` says so.
 from __future__ import annotations
 
 import json
-import threading
 from collections.abc import Callable, Sequence
 
 from ..link.rescue import warn
-from ..link.signals import stop_signals_handled
 from ..link.zenoh.join import Where, beyond_loopback, config, open_session
 from ..link.zenoh.keyspace import DEFAULT_ENDPOINT
+from ..signals import TERMINATING, SignalFlag
 
 
 def where(listen: Sequence[str], zenoh: Sequence[str], config_file: str | None) -> Where:
@@ -37,13 +36,13 @@ def run_router(at: Where, on_ready: Callable[[str], None]) -> None:
     endpoints = listening(at)
     for endpoint in beyond_loopback(endpoints):
         warn(f"listening on {endpoint}: anyone on the network who can reach it joins the fleet")
-    done = threading.Event()
-    with stop_signals_handled(lambda signum, frame: done.set()):
+    done = SignalFlag()
+    with done.catching(TERMINATING):
         session = open_session("router", at)
         try:
             on_ready(" ".join(endpoints))
             try:
-                while not done.wait(0.5):
+                while not done.event.wait(0.5):
                     pass
             except KeyboardInterrupt:
                 pass

@@ -31,7 +31,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from .. import __version__
-from ..link.signals import Terminated
 from ..link.zenoh import keyspace
 from ..link.zenoh.join import FleetError, Where, beyond_loopback, import_zenoh, open_member
 from ..motion.bumpers import freshness_bound
@@ -42,6 +41,7 @@ from ..recording.progress import sweeps
 from ..served.notes import Notes
 from ..served.runtime import FrontEnd, exposed
 from ..served.view import RuntimeView
+from ..signals import Terminated
 from . import queries
 from .drive import BadMotion, FleetDrive, named
 from .hold import Holds

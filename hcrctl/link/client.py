@@ -35,9 +35,19 @@ from ..errors import (
 )
 from ..protocol import commands as C
 from ..protocol.dialect import decode_all, make_decoder
-from ..protocol.frames import MAX_FRAME, BadChecksum, ChecksumRule, Event, Frame, Malformed, Truncated
+from ..protocol.frames import (
+    ADDRESS_AT,
+    MAX_FRAME,
+    BadChecksum,
+    ChecksumRule,
+    Event,
+    Frame,
+    Malformed,
+    Truncated,
+)
 from ..protocol.motionscan import MotionScan
 from ..protocol.profiles import DEFAULT, Profile, profile
+from ..signals import signals_deferred
 from .carrier import Carrier, RawRefused, is_stop, requests_in
 from .defaults import BAUD, REPLY_TIMEOUT_S, RETRIES
 from .dialects import HEAR_FIRST, Dialect, stop_frames
@@ -152,8 +162,7 @@ class Robot(TypedReads, Dialect):
             return
         with contextlib.suppress(Exception):
             if self.moved:
-                for frame in stop_frames(self):
-                    self.write(frame)
+                self.stop(stop_frames(self))
         self._closing.set()
         if self._reader is not None:
             with contextlib.suppress(Exception):
@@ -257,14 +266,20 @@ class Robot(TypedReads, Dialect):
             raise ValueError(f"{cmd.name} is not a sensor")
         return cmd
 
-    def stop(self) -> None:
-        """Motor power 0x80 0x80. Sent even when already stopped: cheap, and safe.
+    def stop(self, frames: Iterable[bytes] | None = None) -> None:
+        """Send stop: ``frames``, by default motor power 0x80 0x80 to this robot's address.
 
-        Once written, a link that moved no other address is at rest (``moved``
-        false), as after ``rescue.write_stops``: losing it later is no alarm.
+        The one way a stop goes out. Sent even when already stopped: cheap, and
+        safe. Each frame is written whole with the stop signals held (a Ctrl-C
+        must not cut a stop frame short; it is delivered after). Once written,
+        the link is at rest (``moved`` false: losing it later is no alarm) when
+        every address it moved was sent a stop.
         """
-        self.write(self.frame_for(C.STOP))
-        if set(self.motion.moved) <= {self.address}:
+        frames = [self.frame_for(C.STOP)] if frames is None else list(frames)
+        with signals_deferred():
+            for frame in frames:
+                self.write(frame)
+        if set(self.motion.moved) <= {frame[ADDRESS_AT] for frame in frames}:
             self.moved = False
 
     def set_pid(self, p: int, i: int, d: int) -> None:

@@ -34,16 +34,15 @@ import os
 import queue
 import signal
 import sys
-import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
 from typing import TYPE_CHECKING
 
 from ..errors import DeviceTimeout, HcrError, LinkLostWhileMoving, PortError
 from ..protocol import commands as C
+from ..signals import Terminated
 from .defaults import BAUD
 from .dialects import frame_of, stop_frames
-from .signals import Terminated
 
 if TYPE_CHECKING:
     from .client import Robot
@@ -54,9 +53,6 @@ RETRY_S = 0.02
 #: How long motion runs without a fresh command before it is stopped, by default: teleop's keys
 #: and the bridge's /cmd_vel messages share this deadman.
 DEADMAN_S = 0.5
-
-#: Signals that would cut a stop frame short; held while it is written.
-_DEFERRED = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
 
 StopFrames = Callable[[], Iterable[bytes]]
 
@@ -93,7 +89,7 @@ def _stop(robot: Robot, frames: StopFrames, *, quiet: bool) -> HcrError | None:
     """Send the stop frames; the rescue's outcome if the link was lost while moving."""
     moved = robot.moved
     try:
-        write_stops(robot, frames())
+        robot.stop(frames())
     except Exception:
         if moved and robot.error is not None:
             return rescue(robot, frames)
@@ -101,14 +97,6 @@ def _stop(robot: Robot, frames: StopFrames, *, quiet: bool) -> HcrError | None:
             return None
         raise
     return None
-
-
-def write_stops(robot: Robot, frames: Iterable[bytes]) -> None:
-    """Write each stop frame with signals held; the robot is then at rest."""
-    with signals_deferred():
-        for frame in frames:
-            robot.write(frame)
-        robot.moved = False
 
 
 def rescue(robot: Robot, frames: StopFrames) -> LinkLostWhileMoving:
@@ -194,7 +182,7 @@ def _send_on(reopen: Callable[[], Robot], frames: list[bytes]) -> tuple[float, b
     """Open, write the stops, drain them to the line; when they were written, and whether the robot answered."""
     robot = reopen()
     try:
-        write_stops(robot, frames)
+        robot.stop(frames)
         at = time.monotonic()
         with contextlib.suppress(Exception):
             robot.serial.flush()
@@ -259,20 +247,6 @@ def warn(message: str) -> None:
     sys.stderr.flush()
 
 
-@contextlib.contextmanager
-def signals_deferred() -> Iterator[None]:
-    """Block Ctrl-C, SIGTERM and SIGHUP for the block; they are delivered after it."""
-    main = threading.current_thread() is threading.main_thread()
-    if not main or not hasattr(signal, "pthread_sigmask"):
-        yield
-        return
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, _DEFERRED)
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
-
-
 class OwedStop:
     """watch's stop key, pressed while the link was down: delivered the moment it is back.
 
@@ -311,7 +285,7 @@ def _send_stop(robot: Robot | None) -> bool:
     if robot is None or not robot.connected:
         return False
     try:
-        write_stops(robot, [stop_frame(robot)])
+        robot.stop()
     except HcrError:
         return False
     return True

@@ -225,10 +225,9 @@ class MotionHold:
     def expire(self, robot: Robot) -> None:
         """Stop every address moved: the log's motion has run its ``max_gap``."""
         from ..link.dialects import stop_frames
-        from ..link.rescue import write_stops
 
         self.until = None
-        write_stops(robot, stop_frames(robot))
+        robot.stop(stop_frames(robot))
         if not self._said:
             self._said = True
             _say(

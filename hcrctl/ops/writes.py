@@ -14,7 +14,7 @@ import dataclasses
 from typing import TYPE_CHECKING, Any
 
 from ..link.dialects import frame_of as _frame_of
-from ..link.rescue import stop_frame, write_stops
+from ..link.rescue import stop_frame
 from ..protocol import commands as C
 
 if TYPE_CHECKING:
@@ -68,7 +68,7 @@ def send_request(robot: Robot, value: C.Request) -> tuple[dict[str, Any], C.Repl
 
 
 def send_stop(robot: Robot) -> bytes:
-    """Stop the motors; the robot is then at rest, so close() need not repeat it."""
+    """Stop the motors (``Robot.stop``); the frame sent."""
     frame = stop_frame(robot)
-    write_stops(robot, [frame])
+    robot.stop([frame])
     return frame

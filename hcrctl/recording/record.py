@@ -15,54 +15,24 @@ from __future__ import annotations
 
 import contextlib
 import signal
-import threading
-from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
 from ..errors import HcrError
 from ..link.context import Connection, Reconnect
 from ..link.dialects import supported_sensors
-from ..link.signals import Terminated, stop_signals_handled
 from ..link.traffic import Relay
 from ..numtext import plural
 from ..protocol.topics import all_topics
 from ..served.feed import Feed
+from ..signals import SignalFlag, Terminated
 from .formats import DEFAULT_ENCODING, open_sink
 from .progress import Progress, size
 from .sinks import Sink
 
 #: Seconds of recording a crash (or kill -9) may lose at most.
 FLUSH_EVERY = 1.0
-
-
-@dataclass
-class StopFlag:
-    """Set by Ctrl-C, SIGTERM or SIGHUP while recording; remembers which."""
-
-    signum: int | None = None
-    event: threading.Event = field(default_factory=threading.Event)
-
-    def __call__(self, signum: int, frame: object) -> None:
-        self.signum = signum
-        self.event.set()
-
-    def is_set(self) -> bool:
-        return self.event.is_set()
-
-    @contextlib.contextmanager
-    def catching(self) -> Iterator[None]:
-        """Within the block the stop signals (and SIGINT) set this flag instead of unwinding."""
-        if threading.current_thread() is not threading.main_thread():
-            yield
-            return
-        previous = signal.signal(signal.SIGINT, self)
-        try:
-            with stop_signals_handled(self):
-                yield
-        finally:
-            signal.signal(signal.SIGINT, previous)
 
 
 def reraise(signum: int | None) -> None:
@@ -100,7 +70,7 @@ def run_record(
     per sweep) for those whose writer has the option (CSV).
     """
     names = supported_sensors(settings.protocol, list(dict.fromkeys(sensors)))
-    stop = StopFlag()
+    stop = SignalFlag()  # Ctrl-C, SIGTERM or SIGHUP end the recording at Feed.run's next look
     with stop.catching():
         topics = all_topics(Feed.counters)
         with open_sink(out, topics, flush_every=FLUSH_EVERY, encoding=encoding, wide=wide) as sink:
@@ -140,7 +110,7 @@ def _poll(
     duration: float | None,
     sink: Sink,
     progress: Progress,
-    stop: StopFlag,
+    stop: SignalFlag,
     pipeline: bool,
 ) -> None:
     relay = Relay()  # the recording hears what the log hears, from the port's opening to its closing

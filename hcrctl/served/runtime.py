@@ -49,12 +49,12 @@ from ..link.context import Connection, Reconnect
 from ..link.dialects import supported_sensors
 from ..link.handoff import quick_handoff
 from ..link.rescue import warn
-from ..link.signals import Terminated, stop_signals_handled
 from ..motion.bumpers import bumper_rule
 from ..motion.governor import Governor, Source
 from ..protocol import commands as C
 from ..protocol.profiles import profile
 from ..protocol.topics import Topic, all_topics
+from ..signals import SignalFlag, Terminated, stop_signals_handled
 from .endstop import stopping_driven
 from .feed import Feed
 from .linkwatch import LinkWatch
@@ -68,7 +68,7 @@ if TYPE_CHECKING:
 Report = Callable[[dict[str, Any]], None]
 
 
-class Signalled:
+class Signalled(SignalFlag):
     """SIGTERM/SIGHUP as a flag: the loop ends and everything closes before the exit status says why.
 
     Once the loop is over (``closing``), or at a second signal, one raises
@@ -77,16 +77,13 @@ class Signalled:
     """
 
     def __init__(self) -> None:
-        self.signum: int | None = None
+        super().__init__()
         self.closing = False
 
     def __call__(self, signum: int, frame: object) -> None:
         if self.closing or self.signum is not None:
             raise Terminated(signum)
-        self.signum = signum
-
-    def __bool__(self) -> bool:
-        return self.signum is not None
+        super().__call__(signum, frame)
 
 
 def exposed(where: str, what: str = "can drive the robot") -> None:

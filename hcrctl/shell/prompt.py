@@ -27,7 +27,7 @@ from prompt_toolkit.patch_stdout import StdoutProxy
 from prompt_toolkit.styles import Style
 
 from ..errors import HcrError
-from ..link.signals import Terminated, stop_signals_handled
+from ..signals import Terminated, stop_signals_handled
 from .builtins import STOP_KEY_LABEL
 from .completion import ShellCompleter
 from .dispatch import run_line

@@ -15,63 +15,54 @@ from __future__ import annotations
 import contextlib
 import os
 import select
-import signal
 import socket
 import tty
 from collections.abc import Callable
-from types import FrameType
-from typing import TYPE_CHECKING
 
+from ..signals import STOP_SIGNALS, SignalFlag
 from .hub import Hub, Tap
 from .options import SimOptions
 from .uart import SimLine, open_link
 
-if TYPE_CHECKING:
-    from typing import Any
 
-    #: What ``signal.signal`` accepts as a handler (it returns that, or None).
-    _Handler = Callable[[int, FrameType | None], Any] | int | signal.Handlers
+class Stopper(SignalFlag):
+    """A stop flag (``SignalFlag``) plus a readable fd, so a select() loop ends cleanly on a signal.
 
-#: Ctrl-C, kill, and a closed terminal all end the server the same clean way.
-_STOP_SIGNALS = tuple(
-    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
-)
-
-
-class Stopper:
-    """A stop flag plus a readable fd, so a select() loop ends cleanly on a signal.
-
-    Signal handlers only set the flag and write the pipe: no exception flies
+    The stop signals only set the flag and write the pipe: no exception flies
     through the loop, so fds are closed and the exit status is 0.
     """
 
     def __init__(self, handle_signals: bool = True) -> None:
-        self.stopped = False
-        self._handle_signals = handle_signals
-        self._previous: dict[int, _Handler | None] = {}
+        super().__init__()
+        self._signals = STOP_SIGNALS if handle_signals else ()
+        self._handling = contextlib.ExitStack()
         self._r, self._w = os.pipe()
         os.set_blocking(self._r, False)
         os.set_blocking(self._w, False)
 
     def __enter__(self) -> Stopper:
-        if self._handle_signals:
-            for sig in _STOP_SIGNALS:
-                self._previous[sig] = signal.signal(sig, self._on_signal)
+        self._handling.enter_context(self.catching(self._signals))
         return self
 
     def __exit__(self, *exc: object) -> None:
-        for sig, handler in self._previous.items():
-            if handler is not None:  # None: a handler set outside Python, which Python cannot put back
-                signal.signal(sig, handler)
+        self._handling.close()
         os.close(self._r)
         os.close(self._w)
 
-    def _on_signal(self, _signum: int, _frame: FrameType | None) -> None:
-        self.stop()
+    def __call__(self, signum: int, frame: object) -> None:
+        super().__call__(signum, frame)
+        self._wake()
+
+    @property
+    def stopped(self) -> bool:
+        return self.is_set()
 
     def stop(self) -> None:
         """Ask the loop to end; safe from a signal handler or another thread."""
-        self.stopped = True
+        self.event.set()
+        self._wake()
+
+    def _wake(self) -> None:
         with contextlib.suppress(OSError):  # a full pipe means a wake-up is already pending
             os.write(self._w, b"\0")
 
