@@ -344,7 +344,8 @@ class FoxgloveServer:
         except PeerJsonError as exc:
             session.status(ERROR, str(exc))
             return
-        op = message.get("op") if isinstance(message, dict) else None
+        fields: dict[str, Any] = message if isinstance(message, dict) else {}
+        op = fields.get("op")
         handler = {
             "subscribe": self._subscribe,
             "unsubscribe": self._unsubscribe,
@@ -354,7 +355,7 @@ class FoxgloveServer:
         if handler is None:
             session.status(ERROR, f"unsupported op {shown(op)}")
             return
-        handler(session, message)
+        handler(session, fields)
 
     def _subscribe(self, session: Client, message: dict[str, Any]) -> None:
         """Each subscription taken unless it is wrong or over a bound; what was refused in one status."""
