@@ -8,6 +8,7 @@ crept back.
 
 from __future__ import annotations
 
+import inspect
 import re
 from collections.abc import Callable
 from pathlib import Path
@@ -171,3 +172,48 @@ def test_every_stop_goes_out_through_robot_stop_with_the_signals_held() -> None:
 def test_no_module_writes_a_stop_but_robot_stop() -> None:
     assert modules_matching(r"def write_stops|signals_deferred\(\)") == {"signals.py", "link/client.py"}
 
+
+# -- the deadman and the poll rate -------------------------------------------------------------
+
+
+def test_the_deadman_and_the_poll_rate_have_one_name_and_one_default() -> None:
+    assert modules_matching(r"^\s*DEADMAN_S\b.*=") == {"link/defaults.py"}
+    assert modules_matching(r"DEFAULT_TIMEOUT_S") == set()
+    assert modules_matching(r"rate: float \| None = \d") == set()
+    from hcrctl.foxglove.bridge import BridgeOptions
+    from hcrctl.link.defaults import DEADMAN_S, RATE_HZ
+    from hcrctl.live.teleop import Drive, run_teleop
+
+    assert BridgeOptions().deadman == DEADMAN_S and BridgeOptions().rate == RATE_HZ
+    assert inspect.signature(run_teleop).parameters["deadman"].default == DEADMAN_S
+    assert "deadman" in Drive.__dataclass_fields__
+
+
+def driving_commands() -> set[str]:
+    """Every (sub)command of the CLI with a ``--deadman`` of its own, by its full name."""
+    import click
+
+    from hcrctl.cli import cli
+
+    found: set[str] = set()
+    ctx = click.Context(cli)
+
+    def walk(group: click.Group, prefix: str) -> None:
+        for name in group.list_commands(ctx):
+            command = group.get_command(ctx, name)
+            if isinstance(command, click.Group):
+                walk(command, f"{prefix}{name} ")
+            elif command is not None and any(p.name == "deadman" for p in command.params):
+                found.add(prefix + name)
+
+    walk(cli, "")
+    return found
+
+
+def test_the_global_deadmans_help_names_every_command_that_drives() -> None:
+    from hcrctl.cli.params import DRIVEN
+    from hcrctl.cli.settings import global_options
+
+    assert set(DRIVEN) == driving_commands()
+    (option,) = [o for o in global_options() if "--deadman" in o.opts]
+    assert all(name in str(option.help) for name in DRIVEN)

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import click
 
+from ..link.defaults import DEADMAN_S
 from ..protocol.encodings import ENCODINGS
 from ..recording.outfile import force_option
-from ..served.cmdvel import DEFAULT_TIMEOUT_S
 from .params import HostPort, allow_origin_option, deadman_option, duration_option, rate_option
 from .serverend import ServerEnd
 from .settings import Settings
@@ -35,7 +35,7 @@ from .settings import Settings
 @force_option("the --mcap FILE")
 @rate_option()
 @duration_option("Exit by itself after S seconds.")
-@deadman_option(DEFAULT_TIMEOUT_S, "Deadman: stop when no /cmd_vel message arrives for S seconds.")
+@deadman_option(DEADMAN_S, "Deadman: stop when no /cmd_vel message arrives for S seconds.")
 @allow_origin_option()
 @click.pass_obj
 def bridge(
@@ -82,7 +82,7 @@ def bridge(
             settings,
             {"foxglove": foxglove},
             rate=rate,
-            deadman=settings.deadman_or(deadman, DEFAULT_TIMEOUT_S),
+            deadman=settings.deadman_or(deadman, DEADMAN_S),
             duration=duration,
             needed_by="hcrctl bridge",
             report=end.reporter(summary_line("foxglove")),

@@ -14,8 +14,9 @@ from typing import Any
 
 import click
 
+from ..fleet.listing import ANSWER_WAIT_S
+from ..link.defaults import DEADMAN_S
 from ..protocol.encodings import ENCODINGS
-from ..served.cmdvel import DEFAULT_TIMEOUT_S
 from .params import (
     Endpoint,
     FloatRange,
@@ -106,7 +107,7 @@ def router(settings: Settings, listen: tuple[str, ...]) -> None:
     show_default=True,
     help="The readings' encoding: json, or cdr (ROS 2 CDR, the bridge's).",
 )
-@deadman_option(DEFAULT_TIMEOUT_S, "Deadman: stop when the driver sends nothing for S seconds.")
+@deadman_option(DEADMAN_S, "Deadman: stop when the driver sends nothing for S seconds.")
 @click.option(
     "--foxglove",
     type=HostPort(),
@@ -171,7 +172,7 @@ def serve(
             settings,
             fronts,
             rate=rate,
-            deadman=settings.deadman_or(deadman, DEFAULT_TIMEOUT_S),
+            deadman=settings.deadman_or(deadman, DEADMAN_S),
             robot=name,
             needed_by=f"fleet serve {name}",
             report=end.reporter(summary_line("fleet")),
@@ -193,7 +194,7 @@ def _ros2_name(name: str) -> None:
 @click.option(
     "--timeout",
     type=FloatRange(0.1, 60),
-    default=2.0,
+    default=ANSWER_WAIT_S,
     show_default=True,
     metavar="S",
     help="How long to wait for the robots' answers.",

@@ -31,6 +31,7 @@ from typing import Any
 
 import click
 
+from ..link.defaults import DEADMAN_RANGE, RATE_HZ
 from ..numtext import NumberError, finite, parse_float, parse_int
 from ..protocol import commands as C
 
@@ -124,8 +125,8 @@ class Rate(FloatRange):
 
 
 def rate_option(help: str = "Sweeps per second, or max.") -> Callable:
-    """``--rate HZ|max``, default 10: how often the polling commands sweep (watch, plot, record, bridge)."""
-    return click.option("--rate", type=Rate(), default="10", show_default=True, help=help)
+    """``--rate HZ|max``, default ``RATE_HZ``: how often the polling commands sweep (watch, plot, record, bridge)."""
+    return click.option("--rate", type=Rate(), default=f"{RATE_HZ:g}", show_default=True, help=help)
 
 
 def duration_option(help: str = "Exit by itself after S seconds (for scripts and tests).") -> Callable:
@@ -135,15 +136,17 @@ def duration_option(help: str = "Exit by itself after S seconds (for scripts and
     )
 
 
+#: The commands that drive continuously, each with its own ``--deadman`` (the global one's help names them).
+DRIVEN = ("teleop", "bridge", "ros2", "fleet serve")
+
+
 def deadman_option(default: float, help: str) -> Callable:
-    """``--deadman S`` for the commands that drive continuously (teleop, bridge), and ``--timeout`` refused.
+    """``--deadman S`` for the commands that drive continuously (``DRIVEN``), and ``--timeout`` refused.
 
     Unset, the global ``--deadman`` (``HCRCTL_DEADMAN``, config ``deadman``) applies, else ``default``.
     ``--timeout`` once named this; it is the global reply timeout now, so the old spelling is refused
     with the new name instead of silently setting the wrong thing.
     """
-
-    from ..served.cmdvel import DEADMAN_RANGE  # here: served loads the link, which start-up must not
 
     def decorate(func: Callable) -> Callable:
         func = click.option(

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import click
 
-from ..served.cmdvel import DEFAULT_TIMEOUT_S
+from ..link.defaults import DEADMAN_S
 from .params import deadman_option, domain_option, namespace_param, rate_option
 from .serverend import ServerEnd
 from .settings import Settings
@@ -24,7 +24,7 @@ from .settings import Settings
 )
 @domain_option()
 @rate_option()
-@deadman_option(DEFAULT_TIMEOUT_S, "Deadman: stop when no cmd_vel message arrives for S seconds.")
+@deadman_option(DEADMAN_S, "Deadman: stop when no cmd_vel message arrives for S seconds.")
 @click.option(
     "--stamped",
     is_flag=True,
@@ -60,7 +60,7 @@ def ros2(
             settings,
             {"ros2": dict(namespace=namespace, domain_id=domain_id, stamped=stamped)},
             rate=rate,
-            deadman=settings.deadman_or(deadman, DEFAULT_TIMEOUT_S),
+            deadman=settings.deadman_or(deadman, DEADMAN_S),
             needed_by="hcrctl ros2",
             report=end.reporter(summary_line("ros2")),
         )

@@ -23,11 +23,11 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import click
 
 from ..link.context import Connection
-from ..link.defaults import REPLY_TIMEOUT_S, RETRIES
+from ..link.defaults import DEADMAN_RANGE, DEADMAN_S, REPLY_TIMEOUT_S, RETRIES
 from ..link.stopwait import DEFAULT_WAIT_S
 from ..protocol.frames import ChecksumRule
 from ..protocol.profiles import DEFAULT, PROFILES
-from .params import ByteNumber, Endpoint, FloatRange, IntRange
+from .params import DRIVEN, ByteNumber, Endpoint, FloatRange, IntRange
 
 if TYPE_CHECKING:
     from click.shell_completion import CompletionItem
@@ -137,11 +137,11 @@ def global_options() -> list[click.Option]:
         ),
         _option(
             "--deadman",
-            type=FloatRange(0.05, 10),
+            type=FloatRange(*DEADMAN_RANGE),
             metavar="S",
-            example=0.5,
-            help="Deadman of teleop and the bridge's /cmd_vel: motion stops S s after the last key or "
-            "message (default 0.5; their own --deadman wins).",
+            example=DEADMAN_S,
+            help=f"Deadman of {', '.join(DRIVEN)}: motion stops S s after the last key or "
+            f"message (default {DEADMAN_S:g}; their own --deadman wins).",
         ),
         _option(
             "--zenoh",
@@ -235,7 +235,7 @@ class Settings(Connection):
 
     as_json: bool = False
     debug: bool = False
-    #: The global --deadman: teleop's and the bridge's unless they are given their own.
+    #: The global --deadman: each driving command's (``params.DRIVEN``) unless it is given its own.
     deadman: float | None = None
 
     def deadman_or(self, own: float | None, default: float) -> float:

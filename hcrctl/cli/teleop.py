@@ -7,7 +7,7 @@ import sys
 
 import click
 
-from ..link.rescue import DEADMAN_S
+from ..link.defaults import DEADMAN_S
 from ..protocol import commands as C
 from .params import IntRange, deadman_option
 from .settings import Settings

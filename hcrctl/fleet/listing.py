@@ -27,8 +27,8 @@ from typing import Any
 from ..link.zenoh import keyspace
 from ..link.zenoh.join import Where, import_zenoh, join
 
-#: How long ``list`` waits for tokens and for each robot's ``info``.
-DEFAULT_TIMEOUT_S = 2.0
+#: How long ``fleet list`` waits, by default, for the robots' tokens and for each one's ``info``.
+ANSWER_WAIT_S = 2.0
 Event = tuple[str, str]
 
 
@@ -66,7 +66,7 @@ def _info(name: str, replies: Any) -> dict[str, Any]:
     return found
 
 
-def robots(where: Where, timeout: float = DEFAULT_TIMEOUT_S) -> list[dict[str, Any]]:
+def robots(where: Where, timeout: float = ANSWER_WAIT_S) -> list[dict[str, Any]]:
     with join(where) as session:
         return infos(session, names(session, timeout), timeout)
 

@@ -1,4 +1,4 @@
-"""The link's defaults, said once: line rate, reply timeout and read retries.
+"""The link's defaults, said once: line rate, reply timeout, read retries, poll rate and the deadman.
 
 The client's keyword defaults, the connection context's fields and the CLI's
 option table each said 115200 / 0.5 / 2 on their own, free to drift apart. A
@@ -15,3 +15,10 @@ BAUD: int = DEFAULT.baud
 REPLY_TIMEOUT_S: float = 0.5
 #: Extra attempts of a read that got no reply (``--retries``).
 RETRIES: int = 2
+#: Sweeps a second of the polling commands (``--rate``: watch, plot, record, bridge, ros2, fleet serve).
+RATE_HZ: float = 10.0
+#: How long motion runs without a fresh command before it is stopped (``--deadman``): teleop's keys, the
+#: bridge's and the ROS 2 node's /cmd_vel and the fleet driver's messages share it.
+DEADMAN_S: float = 0.5
+#: The deadman's range: below it a terminal's own key repeat could not keep up; above it, no deadman.
+DEADMAN_RANGE: tuple[float, float] = (0.05, 10.0)

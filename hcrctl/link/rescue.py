@@ -50,9 +50,6 @@ if TYPE_CHECKING:
 #: Between two attempts to re-open the port: short, since every moment counts
 #: once the device is back, and a missing path is checked without opening it.
 RETRY_S = 0.02
-#: How long motion runs without a fresh command before it is stopped, by default: teleop's keys
-#: and the bridge's /cmd_vel messages share this deadman.
-DEADMAN_S = 0.5
 
 StopFrames = Callable[[], Iterable[bytes]]
 

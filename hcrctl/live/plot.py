@@ -18,6 +18,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
+from ..link.defaults import RATE_HZ
 from ..link.dialects import supported_sensors
 from .plotdata import PlotState, TraceView, sensors_of
 from .watch import run_live
@@ -37,7 +38,7 @@ def run_plot(
     settings: Connection,
     series: Sequence[Series],
     window: float = 30.0,
-    rate: float | None = 10.0,
+    rate: float | None = RATE_HZ,
     duration: float | None = None,
     *,
     console: Console | None = None,

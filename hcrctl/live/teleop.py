@@ -34,6 +34,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from ..link.defaults import DEADMAN_S
 from ..link.rescue import stopping
 from ..motion.bumpers import bumper_rule
 from ..motion.governor import Governor, Kind, Source
@@ -96,7 +97,7 @@ class Drive:
 
     speed: int
     turn: int
-    timeout: float
+    deadman: float
     motion: str = "stop"
     last_key: float = -math.inf
     why_stopped: str = ""
@@ -156,7 +157,7 @@ def press(drive: Drive, governor: Governor, key: str, now: float | None = None) 
         governor.stop("stop key")
     elif drive.motion != "stop":
         first = drive.motion != before
-        lease = max(drive.timeout, HOLD_GRACE) if first else drive.timeout
+        lease = max(drive.deadman, HOLD_GRACE) if first else drive.deadman
         verdict = governor.offer(KEYS, drive.wheels(), now, lease)
         if not verdict:
             drive.halt(governor.lease.why_stopped or verdict.why)
@@ -164,7 +165,7 @@ def press(drive: Drive, governor: Governor, key: str, now: float | None = None) 
 
 def teleop_governor(drive: Drive, state: LiveState) -> Governor:
     """Motor speed (0x02) per key mix, the deadman from ``drive``, the bumpers from ``state``."""
-    governor = Governor(C.MotorSpeed, deadman=drive.timeout, silence="no key")
+    governor = Governor(C.MotorSpeed, deadman=drive.deadman, silence="no key")
     governor.attach(bumpers=bumper_rule(state, POLL_HZ), on_stop=lambda source, why: drive.halt(why))
     return governor
 
@@ -173,12 +174,12 @@ def run_teleop(
     settings: Connection,
     speed: int = 50,
     turn: int = 30,
-    timeout: float = 0.5,
+    deadman: float = DEADMAN_S,
     *,
     console: Console | None = None,
 ) -> None:
     """Drive until ``q``; stop is sent on every way out of here."""
-    drive = Drive(speed, turn, timeout)
+    drive = Drive(speed, turn, deadman)
     console = console or default_console()
     with settings.robot() as robot:
         state = LiveState(["bump", "wheels"], target_rate=POLL_HZ)
@@ -267,7 +268,7 @@ def _screen(drive: Drive, governor: Governor, state: LiveState) -> Callable[[flo
             *drive.wheels(),
             drive.speed,
             drive.turn,
-            drive.timeout,
+            drive.deadman,
             drive.last_key,
             governor.sent_at,
             governor.frames,

@@ -25,6 +25,7 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
 from ..link.context import Reconnect
+from ..link.defaults import RATE_HZ
 from ..link.dialects import supported_sensors
 from ..link.handoff import quick_handoff
 from ..link.rescue import OwedStop
@@ -60,7 +61,7 @@ Frame = Callable[[bool], Callable[[float], "RenderableType"]]
 def run_watch(
     settings: Connection,
     sensors: list[str] | tuple[str, ...] = (),
-    rate: float | None = 10.0,
+    rate: float | None = RATE_HZ,
     duration: float | None = None,
     *,
     console: Console | None = None,

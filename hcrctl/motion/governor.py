@@ -53,7 +53,7 @@ from enum import Enum
 from typing import TYPE_CHECKING
 
 from ..errors import HcrError, PortError
-from ..link.rescue import DEADMAN_S
+from ..link.defaults import DEADMAN_S
 
 if TYPE_CHECKING:
     from ..link.client import Robot

@@ -29,10 +29,10 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 from ..errors import HcrError
+from ..link.defaults import DEADMAN_RANGE
 from ..ops.poller import MAX_RATE
 from ..protocol import commands as C
 from ..protocol import ros2srv as S
-from ..served.cmdvel import DEADMAN_RANGE
 from ..served.view import RuntimeView
 
 #: The longest parameter name a reason repeats (a refused name may be megabytes long).

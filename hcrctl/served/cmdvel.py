@@ -24,17 +24,12 @@ from collections.abc import Mapping
 from typing import Any
 
 from ..inputs import PeerJsonError, peer_json
-from ..link.rescue import DEADMAN_S
 from ..protocol import commands as C
 from ..sim.body import WHEEL_BASE_CM
 
 TOPIC = "/cmd_vel"
 #: What the Teleop panel advertises (ROS 1 spelling; ROS 2 clients say geometry_msgs/msg/Twist).
 SCHEMA_NAMES = ("geometry_msgs/Twist", "geometry_msgs/msg/Twist")
-#: The deadman's default: teleop's (``hcrctl teleop --timeout``).
-DEFAULT_TIMEOUT_S = DEADMAN_S
-#: The deadman's range: below it a terminal's own key repeat could not keep up; above it, no deadman.
-DEADMAN_RANGE = (0.05, 10.0)
 #: Digits in one integer: more is no speed anyone meant (and 10**400 does not fit a float).
 MAX_DIGITS = 15
 #: m/s or rad/s beyond which a number is refused rather than scaled down: no robot's intent.
