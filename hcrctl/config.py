@@ -32,7 +32,8 @@ from typing import Any, NamedTuple
 
 import click
 
-from .errors import ConfigError, quoted
+from .errors import ConfigError
+from .errors.terminal import quoted
 
 APP_DIR = "hcrctl"
 FILE_NAME = "config.toml"

@@ -24,7 +24,7 @@ import re
 from collections.abc import Callable
 from itertools import accumulate, islice
 
-from .errors import quoted as quoted  # re-exported: where a reader of input files finds it
+from .errors.terminal import quoted as quoted  # re-exported: where a reader of input files finds it
 
 #: The deepest nesting of arrays and objects (or inline tables) a file may use: the files hcrctl
 #: writes and reads go three deep, and a parser that recurses must never get near its limit.

@@ -1,4 +1,4 @@
-"""The one-shot CLI and the shell describe every failure the same way (``hcrctl.errors.describe``).
+"""The one-shot CLI and the shell describe every failure the same way (``hcrctl.errors.described.describe``).
 
 They once had a mapper each, and the shell's lacked the full disk: a script
 with its output on ``/dev/full`` said ``internal error: OSError(28, ...)``.
@@ -27,8 +27,8 @@ from hcrctl.errors import (
     NotInProtocol,
     PortError,
     RangeError,
-    describe,
 )
+from hcrctl.errors.described import describe
 from hcrctl.shell import dispatch
 
 NO_SPACE = os.strerror(errno.ENOSPC)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import pytest
 from helpers_live import terminal
 
-from hcrctl.errors import printable
+from hcrctl.errors.terminal import printable
 
 ESC_PORT = "\x1b[31mX\x07\r"
 

@@ -3,7 +3,7 @@
 Subcommands live in their own modules and are imported only when invoked, so
 a one-shot ``hcrctl read compass`` never pays for prompt-toolkit or the hex
 tools. Errors of every layer are turned into exit codes and one-line messages
-here, worded by ``hcrctl.errors.describe``, which the shell uses too.
+here, worded by ``hcrctl.errors.described.describe``, which the shell uses too.
 """
 
 from __future__ import annotations
@@ -17,7 +17,8 @@ from typing import TYPE_CHECKING, Any, NoReturn
 import click
 
 from .. import __version__, stdout
-from ..errors import describe, printable
+from ..errors.described import describe
+from ..errors.terminal import printable
 from ..protocol import commands as C
 from ..signals import Terminated, stop_signals_raise
 from .settings import GLOBAL_OPTIONS, Settings, config_defaults

@@ -15,7 +15,8 @@ from typing import TYPE_CHECKING
 
 import click
 
-from ..errors import HcrError, printable
+from ..errors import HcrError
+from ..errors.terminal import printable
 from ..numtext import NumberError, parse_int
 from ..protocol.profiles import PROFILES
 from ..sim.firmware.pins import MCUS

@@ -32,7 +32,8 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
-from ..errors import HcrError, ProtocolError, describe
+from ..errors import HcrError, ProtocolError
+from ..errors.described import describe
 from ..inputs import PeerJsonError, peer_json
 from ..link.client import Robot
 from ..protocol import commands as C

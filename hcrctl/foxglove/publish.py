@@ -27,7 +27,8 @@ import time
 from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any
 
-from ..errors import HcrError, printable
+from ..errors import HcrError
+from ..errors.terminal import printable
 from ..protocol.encodings import ENCODINGS, Encode
 from ..protocol.topics import Topic
 from ..recording.sinks import RecordingIncomplete, SinkWriteError, seconds

@@ -11,7 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple
 
-from ..errors import other_rule_hint, printable
+from ..errors.hints import other_rule_hint
+from ..errors.terminal import printable
 from ..numtext import plural
 from ..protocol import commands as C
 from ..protocol.frames import (

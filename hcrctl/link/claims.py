@@ -55,7 +55,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import BinaryIO
 
-from ..errors import HcrError, printable
+from ..errors import HcrError
+from ..errors.terminal import printable
 
 FORCE_HINT = "--force overwrites it"
 #: How often a FIFO with no reader is tried again: short enough that a reader is met at once.

@@ -20,7 +20,7 @@ import sys
 from collections.abc import Callable, Container
 from typing import Any, TypeVar
 
-from ..errors import quoted
+from ..errors.terminal import quoted
 from .fields import Reply, Request
 from .messages import ReadRequest, code_mismatch
 

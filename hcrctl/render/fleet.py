@@ -1,14 +1,14 @@
 """The fleet's robots as a rich table (``hcrctl fleet list`` on a terminal or a pipe).
 
 Every cell is what a peer on the network said: each is escaped and cut
-short (``errors.quoted``) before the table or a line shows it.
+short (``errors.terminal.quoted``) before the table or a line shows it.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from ..errors import quoted
+from ..errors.terminal import quoted
 
 #: The most characters of a cell.
 CELL_CHARS = 80

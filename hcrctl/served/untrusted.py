@@ -12,7 +12,7 @@ and Foxglove's web app; any other page only when the user names it
 Text a client sends (a topic, a schema name) reaches the user's terminal,
 where an escape sequence could retitle the window, clear the screen or forge
 a line: ``shown`` escapes control characters and shortens it, by the one rule
-every text from outside follows (``errors.quoted``).
+every text from outside follows (``errors.terminal.quoted``).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from __future__ import annotations
 import re
 from collections.abc import Iterable
 
-from ..errors import quoted
+from ..errors.terminal import quoted
 
 FOXGLOVE_APP = "https://app.foxglove.dev"
 _LOOPBACK = re.compile(r"http://(localhost|127\.0\.0\.1|\[::1\])(:\d{1,5})?", re.IGNORECASE)
@@ -39,5 +39,5 @@ def origin_allowed(origin: str | None, allowed: Iterable[str] = ()) -> bool:
 
 
 def shown(text: object, limit: int = SHOWN_CHARS) -> str:
-    """``text`` fit for a terminal line (``errors.quoted``), at most ``limit`` characters: a client's names are short."""
+    """``text`` fit for a terminal line (``errors.terminal.quoted``), at most ``limit`` characters: a client's names are short."""
     return quoted(text, limit)

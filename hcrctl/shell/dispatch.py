@@ -21,7 +21,8 @@ from typing import Any
 import click
 
 from ..cli.embed import global_options
-from ..errors import describe, printable
+from ..errors.described import describe
+from ..errors.terminal import printable
 from .builtins import SETTABLE, builtins
 from .grammar import ShellCommands, root_context, split
 from .session import Session

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import click
 
-from ..errors import printable
+from ..errors.terminal import printable
 from .dispatch import run_line
 from .session import Session
 

@@ -13,7 +13,8 @@ from typing import TYPE_CHECKING
 
 import click
 
-from ..errors import HcrError, printable
+from ..errors import HcrError
+from ..errors.terminal import printable
 from ..protocol.frames import Frame, TextLine
 from .broadcasts import Broadcasts, news_line
 from .link import SessionLink

@@ -37,7 +37,8 @@ import threading
 import time
 from typing import Any
 
-from ...errors import HcrError, quoted
+from ...errors import HcrError
+from ...errors.terminal import quoted
 from ...protocol import commands as C
 from ...protocol.records import hexs
 from .identity import Identity, signed_bytes

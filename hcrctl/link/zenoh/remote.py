@@ -38,7 +38,8 @@ import threading
 import time
 from typing import Any
 
-from ...errors import BadPortUrl, DeviceRefused, HcrError, quoted
+from ...errors import BadPortUrl, DeviceRefused, HcrError
+from ...errors.terminal import quoted
 from ...protocol import commands as C
 from ...protocol.profiles import DEFAULT, Profile, profile
 from ...protocol.records import hexs

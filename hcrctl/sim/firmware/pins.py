@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ...errors import quoted
+from ...errors.terminal import quoted
 
 #: The MCUs whose Arduino pinout this module knows (and simavr emulates).
 MCUS = ("atmega328p", "atmega328", "atmega168")

@@ -1,13 +1,14 @@
-"""The one error hierarchy, and ``describe``: the one way any front end says what went wrong.
+"""The one error hierarchy: ``HcrError`` and its children, each with its exit status.
 
-Standard library only, so the codec and the simulator can raise these too.
+How a failure is said is ``errors.described``; text from outside is shown
+through ``errors.terminal``; shared hints are ``errors.hints``. Standard
+library only, so the codec and the simulator can raise these too.
 """
 
 from __future__ import annotations
 
-import errno
-import sys
-from typing import NamedTuple
+from .hints import TIMEOUT_HINT, other_rule_hint
+from .terminal import quoted
 
 
 class HcrError(Exception):
@@ -23,51 +24,6 @@ class HcrError(Exception):
     def one_line(self) -> str:
         """The message and the hint, joined for a single stderr line."""
         return f"{self.message} (hint: {self.hint})" if self.hint else self.message
-
-
-def printable(text: str) -> str:
-    """``text`` with every control or invisible character written as an escape (``\\x1b``).
-
-    Error lines echo what the user typed (a ``--port`` value, a file name, an
-    option value), and such text may carry an escape sequence that would
-    recolour, retitle or rewrite the user's terminal, or a newline that would
-    break the one-line promise. Device bytes are only ever shown as hex; user
-    text gets the same protection here, once, where errors are printed.
-    """
-    if text.isprintable():
-        return text
-    return "".join(ch if ch.isprintable() else _escape(ord(ch)) for ch in text)
-
-
-#: The most characters of an input's content an error line quotes.
-QUOTE_CHARS = 100
-
-
-def quoted(text: object, limit: int = QUOTE_CHARS) -> str:
-    """``text`` as a terminal may show it: control characters escaped, at most ``limit`` characters.
-
-    The one rule for every text from outside hcrctl that reaches a terminal
-    or a table: a file's content, a value typed, what a peer on the network
-    says (a robot's info, its error texts, a client's topic name). A file's
-    content may be a 50 MB value, a peer's error a megabyte of escape
-    sequences; an error that quoted it whole would be that much stderr. Only
-    the head is escaped: escaping the whole value would cost as much as the
-    value, to be cut anyway.
-    """
-    try:
-        head = str(text)[: limit + 1]
-    except ValueError:  # an integer past Python's digits limit for str()
-        head = "a number too long to show"
-    shown = printable(head)
-    if len(shown) > limit or len(head) > limit:
-        return shown[: limit - 1] + "…"
-    return shown
-
-
-def _escape(code: int) -> str:
-    if code < 0x100:
-        return f"\\x{code:02x}"
-    return f"\\u{code:04x}" if code < 0x10000 else f"\\U{code:08x}"
 
 
 class RangeError(HcrError, ValueError):
@@ -118,19 +74,6 @@ class ImpossibleReply(ProtocolError):
             "shown": self.shown,
             "expected": self.expected,
         }
-
-
-TIMEOUT_HINT = "check the baud rate, the address and that the robot is powered"
-
-
-def other_rule_hint(rule: str, what: str = "replies", one: bool = False) -> str:
-    """The exact fix when checksums fail the configured rule but pass the other one.
-
-    ``rule`` is the rule they pass (``address`` or ``header``); ``one``: ``what``
-    is singular. A device that sums from the address byte is otherwise told
-    to check its baud rate.
-    """
-    return f"{what} pass{'es' if one else ''} the {rule} rule: use --checksum-from {rule}"
 
 
 class DeviceTimeout(HcrError):
@@ -317,47 +260,3 @@ class NotInProtocol(HcrError):
             hint="drop --protocol (v0.15 is the default) for a board running the protocol document's firmware",
         )
         self.command, self.protocol = command, protocol
-
-
-#: Write errors that mean the disk (or the quota, or the file's size limit) is full.
-FULL_DISK = frozenset((errno.ENOSPC, errno.EDQUOT, errno.EFBIG))
-
-FULL_DISK_HINT = "free some space, or write elsewhere"
-
-
-class Described(NamedTuple):
-    """What a front end says about a failure: its message, hint and exit code.
-
-    ``internal`` marks a bug of ours (an exception no layer meant to raise):
-    the front end says so and points at its own way of getting the traceback.
-    """
-
-    message: str
-    hint: str | None
-    exit_code: int
-    internal: bool = False
-
-    def line(self, traceback_how: str) -> str:
-        """``error: MESSAGE (hint: HINT)``, or ``internal error: REPR (TRACEBACK_HOW)`` for a bug."""
-        if self.internal:
-            return f"internal error: {self.message} ({traceback_how})"
-        return f"error: {self.message} (hint: {self.hint})" if self.hint else f"error: {self.message}"
-
-
-def describe(exc: Exception) -> Described:
-    """The message, hint and exit code of ``exc``, the same in the one-shot CLI and the shell.
-
-    Front ends that map errors themselves drift apart (a full disk an
-    internal error in one, said plainly in the other), so the front ends keep
-    only what is theirs to word (a usage error's help pointer,
-    Ctrl-C); everything else is described here. Click's own exceptions are
-    recognised only when Click is loaded, so this module stays stdlib-only.
-    """
-    if isinstance(exc, HcrError):
-        return Described(exc.message, exc.hint, exc.exit_code)
-    click = sys.modules.get("click")
-    if click is not None and isinstance(exc, click.ClickException):
-        return Described(exc.format_message(), None, exc.exit_code)
-    if isinstance(exc, OSError) and exc.errno in FULL_DISK:  # stdout (or a file) on a full disk: not our bug
-        return Described(f"cannot write {exc.filename or 'the output'}: {exc.strerror}", FULL_DISK_HINT, 1)
-    return Described(repr(exc), None, 1, internal=True)
