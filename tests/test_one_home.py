@@ -217,3 +217,15 @@ def test_the_global_deadmans_help_names_every_command_that_drives() -> None:
     assert set(DRIVEN) == driving_commands()
     (option,) = [o for o in global_options() if "--deadman" in o.opts]
     assert all(name in str(option.help) for name in DRIVEN)
+
+
+# -- warnings -------------------------------------------------------------------------------
+
+
+def test_a_warning_is_one_line_written_by_one_function(capsys: pytest.CaptureFixture[str]) -> None:
+    from hcrctl.errors.terminal import warn
+
+    warn("port /dev/\x1b[2Jx went away")
+    assert capsys.readouterr().err == "hcrctl: warning: port /dev/\\x1b[2Jx went away\n"
+    assert modules_matching(r"hcrctl: warning:") == {"errors/terminal.py"}
+    assert modules_matching(r"^def warn\(") == {"errors/terminal.py"}

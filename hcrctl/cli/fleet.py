@@ -238,7 +238,9 @@ def list_robots(settings: Settings, watch: bool, timeout: float) -> None:
 def _refused(robot: dict[str, Any]) -> None:
     """A robot whose info was refused (a number out of range...): one warning line naming it, on stderr."""
     if "error" in robot:
-        click.echo(f"hcrctl: warning: {robot['error']}", err=True)
+        from ..errors.terminal import warn
+
+        warn(str(robot["error"]))
 
 
 def _watch(settings: Settings, where: Any, timeout: float) -> None:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 from collections.abc import Callable, Sequence
 
-from ..link.rescue import warn
+from ..errors.terminal import warn
 from ..link.zenoh.join import Where, beyond_loopback, config, open_session
 from ..link.zenoh.keyspace import DEFAULT_ENDPOINT
 from ..signals import TERMINATING, SignalFlag

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import contextlib
 import queue
-import sys
 import threading
 import time
 from collections import deque
@@ -33,6 +32,7 @@ from ..errors import (
     PortError,
     ProtocolError,
 )
+from ..errors.terminal import warn
 from ..protocol import commands as C
 from ..protocol.dialect import decode_all, make_decoder
 from ..protocol.frames import (
@@ -497,9 +497,7 @@ class Robot(TypedReads, Dialect):
                 callback(frame)
             except Exception as exc:  # like a traffic hook: never kill the reader
                 self.on_unsolicited = None
-                sys.stderr.write(
-                    f"hcrctl: warning: on_unsolicited {callback!r} failed and was removed ({exc})\n"
-                )
+                warn(f"on_unsolicited {callback!r} failed and was removed ({exc})")
 
     def _is_echo(self, frame: Frame) -> bool:
         """A half-duplex adapter (or loop://) hands our own requests back.

@@ -33,12 +33,12 @@ import contextlib
 import os
 import queue
 import signal
-import sys
 import time
 from collections.abc import Callable, Iterable, Iterator
 from typing import TYPE_CHECKING
 
 from ..errors import DeviceTimeout, HcrError, LinkLostWhileMoving, PortError
+from ..errors.terminal import warn
 from ..protocol import commands as C
 from ..signals import Terminated
 from .defaults import BAUD
@@ -236,12 +236,6 @@ def _same_port(robot: Robot) -> Callable[[], Robot]:
         return again
 
     return reopen
-
-
-def warn(message: str) -> None:
-    """A line on stderr now, whatever else is buffered."""
-    sys.stderr.write(f"hcrctl: warning: {message}\n")
-    sys.stderr.flush()
 
 
 class OwedStop:

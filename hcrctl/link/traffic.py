@@ -11,13 +11,13 @@ thread telling it.
 from __future__ import annotations
 
 import functools
-import sys
 import threading
 import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from ..errors.terminal import warn
 from ..protocol.dialect import make_decoder
 from ..protocol.frames import BadChecksum, ChecksumRule, Event, Frame, Junk, Malformed, TextLine, Truncated
 from ..protocol.profiles import DEFAULT, Profile
@@ -179,14 +179,14 @@ class Watchers:
                 hook(traffic)
             except Exception as exc:
                 self.remove(hook)
-                sys.stderr.write(f"hcrctl: warning: traffic hook {hook!r} failed and was removed ({exc})\n")
+                warn(f"traffic hook {hook!r} failed and was removed ({exc})")
 
     @staticmethod
     def _run(turn: Callable[[], None]) -> None:
         try:
             turn()
         except Exception as exc:
-            sys.stderr.write(f"hcrctl: warning: {turn!r} failed in the link's order ({exc})\n")
+            warn(f"{turn!r} failed in the link's order ({exc})")
 
 
 class Relay:

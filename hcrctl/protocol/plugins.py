@@ -16,11 +16,10 @@ from __future__ import annotations
 
 import importlib
 import re
-import sys
 from collections.abc import Callable, Container
 from typing import Any, TypeVar
 
-from ..errors.terminal import quoted
+from ..errors.terminal import quoted, warn
 from .fields import Reply, Request
 from .messages import ReadRequest, code_mismatch
 
@@ -47,9 +46,7 @@ def load(
             importlib.import_module(module)
         except BaseException as exc:  # SystemExit and KeyboardInterrupt from a plugin too: see above
             restore(before)
-            sys.stderr.write(
-                f"hcrctl: warning: plugin {quoted(module)} not loaded ({_why(exc)}); check {env_name}\n"
-            )
+            warn(f"plugin {quoted(module)} not loaded ({_why(exc)}); check {env_name}")
         else:
             loaded.append(module)
     return loaded

@@ -52,7 +52,7 @@ import tempfile
 from collections.abc import Iterable, Iterator, Sequence
 from typing import IO, Any
 
-from ..link.rescue import warn
+from ..errors.terminal import warn
 from ..link.trafficlog import iso_time
 from ..protocol import series as S
 from ..protocol.commands import Command

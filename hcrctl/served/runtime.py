@@ -45,10 +45,10 @@ import contextlib
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
+from ..errors.terminal import warn
 from ..link.context import Connection, Reconnect
 from ..link.dialects import supported_sensors
 from ..link.handoff import quick_handoff
-from ..link.rescue import warn
 from ..motion.bumpers import bumper_rule
 from ..motion.governor import Governor, Source
 from ..protocol import commands as C
