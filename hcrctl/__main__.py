@@ -14,6 +14,8 @@ import os
 import sys
 from typing import NoReturn
 
+from .errors.status import ExitStatus
+
 
 def compose() -> None:
     """Add the shell's subcommand to the CLI's table (by name: nothing is imported until it runs)."""
@@ -50,7 +52,7 @@ def entry() -> None:
 def _interrupted() -> NoReturn:
     sys.stderr.write("hcrctl: interrupted\n")
     sys.stderr.flush()
-    os._exit(130)
+    os._exit(ExitStatus.INTERRUPTED)
 
 
 if __name__ == "__main__":

@@ -22,6 +22,8 @@ import signal
 import threading
 from collections.abc import Callable, Iterator
 
+from .errors.status import signalled
+
 #: Every signal that asks a run to end: Ctrl-C, a kill, a closed terminal.
 STOP_SIGNALS = tuple(
     getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
@@ -45,7 +47,7 @@ class Terminated(BaseException):
 
     @property
     def exit_code(self) -> int:
-        return 128 + self.signum
+        return signalled(self.signum)
 
 
 def _raise(signum: int, frame: object) -> None:

@@ -229,3 +229,18 @@ def test_a_warning_is_one_line_written_by_one_function(capsys: pytest.CaptureFix
     assert capsys.readouterr().err == "hcrctl: warning: port /dev/\\x1b[2Jx went away\n"
     assert modules_matching(r"hcrctl: warning:") == {"errors/terminal.py"}
     assert modules_matching(r"^def warn\(") == {"errors/terminal.py"}
+
+
+# -- exit statuses ----------------------------------------------------------------------------
+
+
+def test_the_exit_statuses_are_one_table() -> None:
+    import signal
+
+    from hcrctl.errors.status import ExitStatus, signalled
+
+    assert [int(s) for s in ExitStatus] == [0, 1, 2, 130]
+    assert signalled(signal.SIGINT) == ExitStatus.INTERRUPTED and str(ExitStatus.USAGE) == "2"
+    status = r"(exit_code\s*=|exit_code: int =|ctx\.exit\(|_exit\(|sys\.exit\(|\bcode =)\s*(0|1|2|130)\b"
+    assert modules_matching(status) == set(), "an exit status by number: name it (errors.status)"
+    assert modules_matching(r", 130\)|= 130\b|128 \+ ") == {"errors/status.py"}

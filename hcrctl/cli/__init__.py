@@ -18,6 +18,7 @@ import click
 
 from .. import __version__, stdout
 from ..errors.described import describe
+from ..errors.status import ExitStatus
 from ..errors.terminal import printable
 from ..protocol import commands as C
 from ..signals import Terminated, stop_signals_raise
@@ -210,11 +211,11 @@ def entry() -> None:
         code = exc.code
     except KeyboardInterrupt:  # before main's own handler is in place (start-up, completion)
         say_error("hcrctl: interrupted")
-        code = 130
+        code = ExitStatus.INTERRUPTED
     if not isinstance(code, int):
         if code is not None:
             click.echo(code, err=True)
-        code = 0 if code is None else 1
+        code = ExitStatus.OK if code is None else ExitStatus.FAILED
     fast_exit(code)
 
 
@@ -293,8 +294,8 @@ def main(argv: list[str] | None = None) -> None:
         # click.Abort (Ctrl-C at a prompt or in a command) is a RuntimeError: an interruption, never a bug
         if debug and isinstance(exc, Exception) and not isinstance(exc, (click.ClickException, click.Abort)):
             raise
-        code = 1 if _said_by_log(exc) else exit_code_for(exc, args)
-    sys.exit(with_log_status(code if isinstance(code, int) else 0))
+        code = ExitStatus.FAILED if _said_by_log(exc) else exit_code_for(exc, args)
+    sys.exit(with_log_status(code if isinstance(code, int) else ExitStatus.OK))
 
 
 def _said_by_log(exc: BaseException) -> bool:
@@ -306,8 +307,8 @@ def _said_by_log(exc: BaseException) -> bool:
 def with_log_status(code: int) -> int:
     """1 instead of success when a --log lost a write: said at once on stderr, the status says it too."""
     trafficlog = sys.modules.get("hcrctl.link.trafficlog")  # never imported: no log was written
-    if code == 0 and trafficlog is not None and trafficlog.incomplete():
-        return 1
+    if code == ExitStatus.OK and trafficlog is not None and trafficlog.incomplete():
+        return ExitStatus.FAILED
     return code
 
 
@@ -343,7 +344,7 @@ def exit_code_for(exc: BaseException, args: list[str] | None = None) -> int:
         return _usage_error(exc, args)
     if isinstance(exc, (click.Abort, KeyboardInterrupt)):
         say_error("hcrctl: interrupted")
-        return 130
+        return ExitStatus.INTERRUPTED
     if not isinstance(exc, Exception):
         raise exc
     described = describe(exc)  # shared with the shell, so both say the same

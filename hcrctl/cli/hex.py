@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any, BinaryIO
 import click
 
 from ..errors import HexSyntaxError, InputFileError
+from ..errors.status import ExitStatus
 from ..hex.parse import STYLES, format_hex, parse_hex, parse_hex_args
 from ..ops.motion import DRIVE_COMMANDS
 from ..protocol import commands as C
@@ -75,7 +76,7 @@ def decode(ctx: click.Context, hex_text: tuple[str, ...], capture: str | None, s
     sink.close()
     hint = tally.hint()
     click.echo(f"hcrctl: {size} bytes: {tally.text()}{f' (hint: {hint})' if hint else ''}", err=True)
-    ctx.exit(0 if tally.all_good else 1)
+    ctx.exit(ExitStatus.OK if tally.all_good else ExitStatus.FAILED)
 
 
 def _encoded(settings: Settings, request: C.Request | C.Command) -> bytes:
@@ -95,7 +96,7 @@ def _summarise(ctx: click.Context, settings: Settings, chunks: Iterator[bytes]) 
         counts.add(decoder.count(chunk, counts.heads))
     counts.add(decoder.flush())
     click.echo(_json(counts.as_dict()) if settings.as_json else counts.text())
-    ctx.exit(0 if counts.all_good else 1)
+    ctx.exit(ExitStatus.OK if counts.all_good else ExitStatus.FAILED)
 
 
 def _decode_input(hex_text: tuple[str, ...], capture: str | None) -> Iterator[bytes]:

@@ -12,37 +12,43 @@ from __future__ import annotations
 
 import inspect
 import re
+import signal
 from collections.abc import Iterator
 
 import click
 
 from .. import __version__
 from ..config import APP_DIR, FILE_NAME
+from ..errors.status import ExitStatus, signalled
 from ..protocol.commands import PLUGINS_ENV
 
 #: What the exit status means, for every command (docs/commands.md: "Exit codes").
 EXIT_STATUS = [
     (
-        "0",
+        str(ExitStatus.OK),
         "Success; also a server (watch, bridge, fleet serve, fleet router, sim, an open-ended record) "
         "ended by Ctrl-C, SIGTERM or SIGHUP: its normal end, after its closing line.",
     ),
     (
-        "1",
+        str(ExitStatus.FAILED),
         "The device or the link failed (no reply, a refused or impossible reply, a lost port), "
         "a sensor did not answer, or a --log file lost a write. One line on stderr says what, "
         "on which port, with a hint.",
     ),
     (
-        "2",
+        str(ExitStatus.USAGE),
         "A usage error: an unknown command or option, a value out of its range, a --port URL that "
         "cannot be right, a bad config file. One line on stderr names it; nothing is sent.",
     ),
     (
-        "130",
+        str(ExitStatus.INTERRUPTED),
         "Interrupted by Ctrl-C (SIGINT), a one-shot or a --duration cut short; a moving robot is sent stop first.",
     ),
-    ("128+N", "Ended by signal N: 143 for SIGTERM, 129 for SIGHUP; stop is sent first."),
+    (
+        f"{signalled(0)}+N",
+        f"Ended by signal N: {signalled(signal.SIGTERM)} for SIGTERM, {signalled(signal.SIGHUP)} for SIGHUP; "
+        "stop is sent first.",
+    ),
 ]
 
 

@@ -8,13 +8,14 @@ library only, so the codec and the simulator can raise these too.
 from __future__ import annotations
 
 from .hints import TIMEOUT_HINT, other_rule_hint
+from .status import ExitStatus
 from .terminal import quoted
 
 
 class HcrError(Exception):
     """Anything hcrctl reports to the user as one line (exit code 1 unless noted)."""
 
-    exit_code = 1
+    exit_code: int = ExitStatus.FAILED
 
     def __init__(self, message: str, hint: str | None = None) -> None:
         super().__init__(message)
@@ -29,7 +30,7 @@ class HcrError(Exception):
 class RangeError(HcrError, ValueError):
     """A value outside its field's range: a usage error, so nothing is ever sent."""
 
-    exit_code = 2
+    exit_code = ExitStatus.USAGE
 
     def __init__(self, field: str, value: object, lo: float, hi: float, unit: str = "") -> None:
         unit_text = f" {unit}" if unit else ""
@@ -179,7 +180,7 @@ def _num(x: float) -> str:
 class HexSyntaxError(HcrError):
     """Input that should be hex is not: a usage error, so nothing is decoded or sent."""
 
-    exit_code = 2
+    exit_code = ExitStatus.USAGE
 
     def __init__(
         self, token: str, where: str, hint: str | None = None, line: int = 1, column: int = 1
@@ -222,13 +223,13 @@ class LogFormatError(InputFileError):
 class LogOpenError(HcrError):
     """The ``--log FILE`` to write cannot be opened: the option's value is wrong, a usage error."""
 
-    exit_code = 2
+    exit_code = ExitStatus.USAGE
 
 
 class ConfigError(HcrError):
     """A bad config file: a usage error (exit 2) naming the file, the line when known, and the key."""
 
-    exit_code = 2
+    exit_code = ExitStatus.USAGE
 
     def __init__(self, path: object, key: str | None, problem: str, line: int | None = None) -> None:
         where = f"{path}:{line}" if line else f"{path}"
@@ -241,7 +242,7 @@ class ConfigError(HcrError):
 class BadPortUrl(PortError):
     """A --port value that is wrong whatever is attached (a sim:// option, a malformed URL): exit 2."""
 
-    exit_code = 2
+    exit_code = ExitStatus.USAGE
 
     def __init__(self, url: str, problem: str, hint: str | None = None) -> None:
         HcrError.__init__(self, f"Invalid value for '--port': {url}: {problem}", hint=hint)
@@ -251,7 +252,7 @@ class BadPortUrl(PortError):
 class NotInProtocol(HcrError):
     """A command the firmware of the chosen protocol profile does not have: a usage error, nothing sent."""
 
-    exit_code = 2
+    exit_code = ExitStatus.USAGE
 
     def __init__(self, command: str, protocol: str, offered: list[str], instead: str | None = None) -> None:
         does = f" (that code {instead} there)" if instead else ""

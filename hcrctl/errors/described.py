@@ -11,6 +11,7 @@ from typing import NamedTuple
 
 from . import HcrError
 from .hints import FULL_DISK_HINT
+from .status import ExitStatus
 
 #: Write errors that mean the disk (or the quota, or the file's size limit) is full.
 FULL_DISK = frozenset((errno.ENOSPC, errno.EDQUOT, errno.EFBIG))
@@ -50,5 +51,7 @@ def describe(exc: Exception) -> Described:
     if click is not None and isinstance(exc, click.ClickException):
         return Described(exc.format_message(), None, exc.exit_code)
     if isinstance(exc, OSError) and exc.errno in FULL_DISK:  # stdout (or a file) on a full disk: not our bug
-        return Described(f"cannot write {exc.filename or 'the output'}: {exc.strerror}", FULL_DISK_HINT, 1)
-    return Described(repr(exc), None, 1, internal=True)
+        return Described(
+            f"cannot write {exc.filename or 'the output'}: {exc.strerror}", FULL_DISK_HINT, ExitStatus.FAILED
+        )
+    return Described(repr(exc), None, ExitStatus.FAILED, internal=True)

@@ -56,6 +56,7 @@ from dataclasses import dataclass
 from typing import BinaryIO
 
 from ..errors import HcrError
+from ..errors.status import ExitStatus
 from ..errors.terminal import printable
 
 FORCE_HINT = "--force overwrites it"
@@ -74,7 +75,7 @@ _NEW_MODE = 0o666
 class OutputRefused(HcrError):
     """An output that would destroy a file the user did not give up: a usage error, nothing opened."""
 
-    exit_code = 2
+    exit_code = ExitStatus.USAGE
 
 
 def exists_error(label: str, path: str) -> OutputRefused:

@@ -38,6 +38,7 @@ from collections.abc import Callable, Iterable, Iterator
 from typing import TYPE_CHECKING
 
 from ..errors import DeviceTimeout, HcrError, LinkLostWhileMoving, PortError
+from ..errors.status import ExitStatus
 from ..errors.terminal import warn
 from ..protocol import commands as C
 from ..signals import Terminated
@@ -111,11 +112,11 @@ def rescue(robot: Robot, frames: StopFrames) -> LinkLostWhileMoving:
             robot.close()  # release the dead port (nothing can be sent on it) before re-opening
         took, written = _wait_and_stop(robot.port, reopen, list(frames()), started + wait)
     except KeyboardInterrupt:
-        return _not_delivered(cause, "gave up on Ctrl-C", 130)
+        return _not_delivered(cause, "gave up on Ctrl-C", ExitStatus.INTERRUPTED)
     except Terminated as exc:
         return _not_delivered(cause, f"gave up on {signal.Signals(exc.signum).name}", exc.exit_code)
     if took is None and not written:
-        return _not_delivered(cause, f"{robot.port} did not come back within {wait:g} s", 1)
+        return _not_delivered(cause, f"{robot.port} did not come back within {wait:g} s", ExitStatus.FAILED)
     if took is None:
         return _not_delivered(
             cause,

@@ -41,6 +41,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Literal, cast
 
 from ..errors import HcrError
+from ..errors.status import ExitStatus
 from ..extras import imported, require
 from ..protocol.encodings import ENCODINGS, JSON
 from ..protocol.topics import Topic
@@ -116,13 +117,13 @@ def register(suffix: str, writer: Writer) -> None:
 class BadSuffix(HcrError):
     """An output whose suffix names no format: a usage error, nothing opened."""
 
-    exit_code = 2
+    exit_code = ExitStatus.USAGE
 
 
 class BadEncoding(HcrError):
     """An ``--encoding`` the output's format does not write: a usage error, nothing opened."""
 
-    exit_code = 2
+    exit_code = ExitStatus.USAGE
 
 
 def suffixes(kind: str = "messages") -> tuple[str, ...]:

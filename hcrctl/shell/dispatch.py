@@ -22,6 +22,7 @@ import click
 
 from ..cli.embed import global_options
 from ..errors.described import describe
+from ..errors.status import ExitStatus
 from ..errors.terminal import printable
 from .builtins import SETTABLE, builtins
 from .grammar import ShellCommands, root_context, split
@@ -29,7 +30,6 @@ from .session import Session
 
 #: The shell's namespace; stateless, so one serves every session.
 COMMANDS = ShellCommands(builtins())
-INTERRUPTED = 130
 
 
 def run_line(session: Session, line: str) -> int:
@@ -40,7 +40,7 @@ def run_line(session: Session, line: str) -> int:
     """
     with _ctrl_c_noted() as pressed:
         code = _run_line(session, line)
-    if pressed and code != INTERRUPTED and session.link.moved:
+    if pressed and code != ExitStatus.INTERRUPTED and session.link.moved:
         click.echo(f"interrupted; {session.send_stop()}", err=True)
     return code
 
@@ -169,7 +169,7 @@ def _failure_line(session: Session, exc: Exception) -> tuple[str | None, int]:
     if isinstance(exc, click.UsageError):
         return usage_line(exc), exc.exit_code
     if isinstance(exc, click.Abort):
-        return None, INTERRUPTED
+        return None, ExitStatus.INTERRUPTED
     described = describe(exc)  # shared with the one-shot CLI, so both say the same
     if described.internal and session.settings.debug:
         traceback.print_exc()
@@ -192,4 +192,4 @@ def _interrupted(session: Session) -> int:
         note = "; " + session.send_stop()
     where = f"{session.where}: " if session.where else ""
     click.echo(f"{where}interrupted{note}", err=True)
-    return INTERRUPTED
+    return ExitStatus.INTERRUPTED

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import click
 
+from ..errors.status import ExitStatus
 from ..errors.terminal import printable
 from .dispatch import run_line
 from .session import Session
@@ -32,13 +33,12 @@ LINE_LIMIT = 64 * 1024
 #: Bytes asked of the file per read.
 CHUNK = 64 * 1024
 BOM = b"\xef\xbb\xbf"
-USAGE = 2
 
 
 class ScriptInputError(Exception):
     """A script that cannot be read as lines of text: one line, naming file and line."""
 
-    exit_code = USAGE
+    exit_code = ExitStatus.USAGE
 
 
 def read_lines(fd: int, name: str) -> Iterator[tuple[int, str]]:
@@ -121,7 +121,7 @@ def run_script_file(session: Session, path: str | None, *, keep_going: bool = Fa
         fd = os.open(path, os.O_RDONLY)
     except OSError as exc:
         click.echo(f"{path}: cannot open the script: {exc.strerror or exc}", err=True)
-        return USAGE
+        return ExitStatus.USAGE
     try:
         if stat.S_ISREG(os.fstat(fd).st_mode):
             try:
