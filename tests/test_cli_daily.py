@@ -13,7 +13,8 @@ from helpers_cli import clean_env, one_line, run, wire
 from helpers_shell import shell_env
 
 from hcrctl import __version__
-from hcrctl.cli import SUBCOMMANDS, no_such_command
+from hcrctl.cli import SUBCOMMANDS
+from hcrctl.cli.didyoumean import no_such_command
 from hcrctl.cli.settings import global_options
 from hcrctl.shell.hexmode import HELP, banner
 

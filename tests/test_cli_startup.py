@@ -85,7 +85,8 @@ def test_printing_a_completion_script_imports_no_subcommand(tmp_path):
     assert code == 0
     assert "hcrctl.cli.completion" in modules  # the harness really ran it
     subcommands = {m for m in modules if m.startswith("hcrctl.cli.")} - {"hcrctl.cli.completion"}
-    assert subcommands <= {"hcrctl.cli.params", "hcrctl.cli.settings"}
+    group = {"hcrctl.cli.table", "hcrctl.cli.fastexit", "hcrctl.cli.errormap"}  # the group's own parts
+    assert subcommands <= {"hcrctl.cli.params", "hcrctl.cli.settings", *group}
     assert not loaded(modules, "prompt_toolkit")
 
 
@@ -99,7 +100,7 @@ def test_the_config_parser_loads_only_when_there_is_a_file(tmp_path, device):
 
 FAST_EXIT = """
 import atexit, sys, threading
-from hcrctl.cli import fast_exit
+from hcrctl.cli.fastexit import fast_exit
 atexit.register(lambda: print("atexit ran", flush=True))
 print("unflushed output", end="")
 if sys.argv[1] == "thread":

@@ -18,7 +18,7 @@ import click
 import pytest
 from helpers_shell import hcrctl_exe, shell_env
 
-from hcrctl.cli import exit_code_for
+from hcrctl.cli.errormap import exit_code_for
 from hcrctl.errors import (
     ConfigError,
     DeviceTimeout,
