@@ -86,7 +86,7 @@ def imports(name: str) -> set[str]:
         elif isinstance(node, ast.Constant) and isinstance(node.value, str):
             named = MODULE_STRING.fullmatch(node.value)
             # "module:attr" is always an import (a stale one must fail); a bare dotted name only when
-            # it is a module (a logger's "hcrctl.bridge.websocket" is not)
+            # it is a module (a dotted name that is no module, as a logger's may be, is not)
             if named and (named["attr"] or named["module"] in MODULES):
                 found.add(named["module"])
     return found

@@ -105,7 +105,7 @@ class FoxgloveServer:
         self._thread: threading.Thread | None = None
         self._reaper: asyncio.TimerHandle | None = None
         self._told_full = 0.0
-        self._logger = logging.getLogger("hcrctl.bridge.websocket")
+        self._logger = logging.getLogger(__name__)  # hcrctl.foxglove.websocket: its module, wherever it moves
         self._logger.addHandler(logging.NullHandler())
         self._logger.propagate = False
 
