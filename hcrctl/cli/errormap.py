@@ -12,7 +12,6 @@ import sys
 
 import click
 
-from ..errors.described import describe
 from ..errors.status import ExitStatus
 from ..errors.terminal import printable
 from ..signals import Terminated
@@ -39,6 +38,8 @@ def exit_code_for(exc: BaseException, args: list[str] | None = None) -> int:
         return ExitStatus.INTERRUPTED
     if not isinstance(exc, Exception):
         raise exc
+    from ..errors.described import describe  # the error path's own: a run that succeeds never loads it
+
     described = describe(exc)  # shared with the shell, so both say the same
     say_error(f"hcrctl: {described.line('run with --debug for the traceback')}")
     return described.exit_code
