@@ -25,13 +25,13 @@ import pytest
 from helpers import TIMEOUT, clean_env
 
 from hcrctl.link.context import Connection
-from hcrctl.signals import Terminated
 from hcrctl.motion.governor import Kind, Source
 from hcrctl.protocol.topics import FRAMES
 from hcrctl.served.frontends import FRONT_ENDS
 from hcrctl.served.notes import Notes
 from hcrctl.served.runtime import FrontEnd, ServedRobot
 from hcrctl.served.view import RuntimeView
+from hcrctl.signals import Terminated
 
 #: The hooks called once each per front end, in the order a run calls them (``publish`` and ``tick`` are many).
 PHASES = ("open", "start", "close", "finish", "summary")

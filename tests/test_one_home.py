@@ -180,11 +180,15 @@ def test_the_deadman_and_the_poll_rate_have_one_name_and_one_default() -> None:
     assert modules_matching(r"^\s*DEADMAN_S\b.*=") == {"link/defaults.py"}
     assert modules_matching(r"DEFAULT_TIMEOUT_S") == set()
     assert modules_matching(r"rate: float \| None = \d") == set()
-    from hcrctl.foxglove.bridge import BridgeOptions
+    from hcrctl.cli.bridge import bridge
     from hcrctl.link.defaults import DEADMAN_S, RATE_HZ
     from hcrctl.live.teleop import Drive, run_teleop
+    from hcrctl.live.watch import run_watch
 
-    assert BridgeOptions().deadman == DEADMAN_S and BridgeOptions().rate == RATE_HZ
+    (rate,) = [p for p in bridge.params if p.name == "rate"]
+    assert (
+        rate.default == f"{RATE_HZ:g}" and inspect.signature(run_watch).parameters["rate"].default == RATE_HZ
+    )
     assert inspect.signature(run_teleop).parameters["deadman"].default == DEADMAN_S
     assert "deadman" in Drive.__dataclass_fields__
 
