@@ -40,6 +40,7 @@ from typing import Any
 
 from ...errors import BadPortUrl, DeviceRefused, HcrError
 from ...errors.terminal import quoted
+from ...inputs import PeerJsonError, peer_json
 from ...protocol import commands as C
 from ...protocol.profiles import DEFAULT, Profile, profile
 from ...protocol.records import hexs
@@ -287,7 +288,7 @@ class RemoteLink(Carrier):
             if content is not None:
                 self._deliver(address, cmd, content)
             return
-        said = _json(reply.err.payload.to_bytes())
+        said = _error_of(reply.err.payload.to_bytes())
         if isinstance(said, dict) and isinstance(said.get("error"), str):
             hint = said.get("hint")
             with self._cond:
@@ -388,6 +389,14 @@ def _byte(value: object) -> bool:
 def _json(data: bytes) -> object:
     """What the robot side sent, as JSON (NaN and Infinity refused), or None."""
     return loads(data)
+
+
+def _error_of(data: bytes) -> object:
+    """The robot side's error as JSON; one it sent beyond every peer's budget is said as refused, by why."""
+    try:
+        return peer_json(data)
+    except PeerJsonError as exc:
+        return {"error": f"its error refused: {exc}"}
 
 
 def _profile_of(info: dict[str, Any]) -> Profile:
