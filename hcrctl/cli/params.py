@@ -31,7 +31,7 @@ from typing import Any
 
 import click
 
-from ..link.defaults import DEADMAN_RANGE, RATE_HZ
+from ..link.defaults import DEADMAN_RANGE, MAX_RATE, RATE_HZ
 from ..numtext import NumberError, finite, parse_float, parse_int
 from ..protocol import commands as C
 
@@ -118,9 +118,6 @@ class Rate(FloatRange):
     name = "HZ|max"
 
     def __init__(self) -> None:
-        # here, not at the top: the poller loads the link, which start-up must not
-        from ..ops.poller import MAX_RATE
-
         super().__init__(0, MAX_RATE, min_open=True, unit="Hz", words={"max": None})
 
 

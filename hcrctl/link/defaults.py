@@ -17,6 +17,8 @@ REPLY_TIMEOUT_S: float = 0.5
 RETRIES: int = 2
 #: Sweeps a second of the polling commands (``--rate``: watch, plot, record, bridge, ros2, fleet serve).
 RATE_HZ: float = 10.0
+#: The fastest sweep rate asked of a poller (watch, plot, ``--rate``, the ROS 2 node's ``rate`` parameter).
+MAX_RATE: float = 1000.0
 #: How long motion runs without a fresh command before it is stopped (``--deadman``): teleop's keys, the
 #: bridge's and the ROS 2 node's /cmd_vel and the fleet driver's messages share it.
 DEADMAN_S: float = 0.5

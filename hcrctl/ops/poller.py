@@ -30,8 +30,6 @@ from ..protocol import commands as C
 from ..protocol.frames import Frame
 from .livestate import LiveState
 
-#: The fastest sweep rate asked of a poller (watch, plot, ``--rate``, the ROS 2 node's ``rate`` parameter).
-MAX_RATE = 1000.0
 #: Seconds between attempts to reopen a port that disappeared.
 RETRY_EVERY = 1.0
 #: Longest single wait, so stop() and pause are noticed promptly.

@@ -1,7 +1,7 @@
 """The node's ROS 2 parameters (``rate``, ``deadman``, ``pid.p/i/d``) and its ``~/stop``, as services answer them.
 
 The parameters are a table (``PARAMETERS``): each its type, its range (from
-where the rest of hcrctl keeps it: the poller's ``MAX_RATE``, the deadman's
+where the rest of hcrctl keeps it: the link's defaults ``MAX_RATE`` and
 ``DEADMAN_RANGE``, the pid request's fields in the command table), how to
 read it and how to set it. ``ros2 param get/set/describe/list`` reach it
 through rcl_interfaces' six services; each change is also said on
@@ -29,8 +29,7 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 from ..errors import HcrError
-from ..link.defaults import DEADMAN_RANGE
-from ..ops.poller import MAX_RATE
+from ..link.defaults import DEADMAN_RANGE, MAX_RATE
 from ..protocol import commands as C
 from ..protocol import ros2srv as S
 from ..served.view import RuntimeView
