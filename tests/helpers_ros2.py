@@ -10,8 +10,12 @@ documentation. Messages are decoded by rosbags with its own Jazzy type store
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
+import subprocess
 from typing import Any
+
+from helpers import hcrctl_exe
 
 #: The default layout's constants (docs/ros2.md).
 SONAR = {"radiation_type": 0, "min_range": 0.02, "max_range": 2.55, "field_of_view": math.radians(15)}
@@ -136,3 +140,25 @@ def qos_of(yaml_text: str) -> list[dict[str, Any]]:
     from ruamel.yaml import YAML
 
     return list(YAML(typ="safe").load(yaml_text))
+
+
+def read_json(port: str, env: dict[str, str]) -> dict[str, object]:
+    """What ``hcrctl --json read`` says on ``port``: the values every ROS 2 topic is checked against."""
+    done = subprocess.run(
+        [hcrctl_exe(), "--port", port, "--json", "read"], env=env, capture_output=True, text=True, check=True
+    )
+    return dict(json.loads(done.stdout))
+
+
+#: The ROS type of each topic a reading becomes (docs/ros2.md's table).
+TYPES = {
+    "range/": "sensor_msgs/msg/Range",
+    "imu": "sensor_msgs/msg/Imu",
+    "temperature": "sensor_msgs/msg/Temperature",
+    "humidity": "sensor_msgs/msg/RelativeHumidity",
+    "joint_states": "sensor_msgs/msg/JointState",
+}
+
+
+def ros_type(topic: str) -> str:
+    return next(kind for prefix, kind in TYPES.items() if topic.startswith(prefix))

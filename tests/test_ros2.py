@@ -13,20 +13,13 @@ from helpers import checkout_extra, clean_env, hcrctl_exe, wait_until
 from helpers_cli import sim_pty
 from helpers_dds import LATCHED_QOS, SENSOR_QOS, Place, RosSide, as_dict, place, ros2_node, ros_side
 from helpers_fleet_robot import VELOCITY, is_stop
-from helpers_ros2 import expected, mismatches
+from helpers_ros2 import expected, mismatches, read_json, ros_type
 
 from hcrctl.motion.governor import RESEND
 from hcrctl.protocol import commands as C
 
 TWIST = "geometry_msgs/msg/Twist"
 QUIET = ("--options", "noise=0&broadcast_hz=0&map_hz=0")
-
-
-def read_json(port: str, env: dict[str, str]) -> dict[str, object]:
-    done = subprocess.run(
-        [hcrctl_exe(), "--port", port, "--json", "read"], env=env, capture_output=True, text=True, check=True
-    )
-    return dict(json.loads(done.stdout))
 
 
 def velocities(node: object) -> list[tuple[float, tuple[int, int]]]:
@@ -37,20 +30,6 @@ def velocities(node: object) -> list[tuple[float, tuple[int, int]]]:
             value = C.Velocity.from_content(frame.content)
             found.append((at, (value.left, value.right)))
     return found
-
-
-#: The ROS type of each topic a reading becomes (docs/ros2.md's table).
-TYPES = {
-    "range/": "sensor_msgs/msg/Range",
-    "imu": "sensor_msgs/msg/Imu",
-    "temperature": "sensor_msgs/msg/Temperature",
-    "humidity": "sensor_msgs/msg/RelativeHumidity",
-    "joint_states": "sensor_msgs/msg/JointState",
-}
-
-
-def ros_type(topic: str) -> str:
-    return next(kind for prefix, kind in TYPES.items() if topic.startswith(prefix))
 
 
 def wait_agreeing(ros: RosSide, topic: str, want: dict[str, object]) -> None:

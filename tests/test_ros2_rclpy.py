@@ -27,8 +27,7 @@ from helpers_cli import sim_pty
 from helpers_dds import Place, place, ros2_node
 from helpers_fleet_robot import VELOCITY, is_stop
 from helpers_rclpy import LOOPBACK, Peer, numbers, rclpy_peer, rclpy_python
-from helpers_ros2 import expected, mismatches
-from test_ros2 import read_json, ros_type
+from helpers_ros2 import expected, mismatches, read_json, ros_type
 
 from hcrctl.protocol import commands as C
 from hcrctl.protocol import ros2srv as S
