@@ -296,7 +296,7 @@ def log_fields(path: str, *, fast: bool = True) -> Iterator[tuple[int, dict[str,
                 if got is None:
                     got = plain(raw)
                 if isinstance(got, str):
-                    if raw[-1] != 0x0A:
+                    if raw[-1] != 0x0A and len(raw) <= LINE_LIMIT:
                         return  # the last line, cut short: the process died while writing it
                     if raw.strip():
                         raise _bad(path, number, got)
