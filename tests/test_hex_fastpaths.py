@@ -329,3 +329,23 @@ def test_bulk_counting_counts_heads_by_address_length_and_command() -> None:
     events = FrameDecoder().count((frames[0] * 3 + frames[1] * 2) * 100, heads)
     assert events == []
     assert heads == {b"\x01\x02\x14": 300, b"\x50\x04\xa0": 200}
+
+
+def test_a_printer_whose_first_imports_were_interrupted_prints_later(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A Ctrl-C that lands inside the printer's first-use imports must not leave it half made: the
+    rows a replay drains after the interrupt are still printed, not an AttributeError."""
+    import sys
+    import types
+
+    printer = TrafficPrinter(False, "none", FrameFilter())
+    frame = encode(1, 0x13, b"\x01\x02\x03")
+    rows = rows_of(decode_all(frame, ChecksumRule.HEADER), ChecksumRule.HEADER, "rx")
+    with monkeypatch.context() as patched:
+        patched.setitem(sys.modules, "hcrctl.hex.view", types.ModuleType("hcrctl.hex.view"))
+        with pytest.raises(ImportError):
+            printer.show(0.0, "rx", frame, rows)
+    capsys.readouterr()
+    printer.show(0.0, "rx", frame, rows)
+    assert plain_line(rows[0], offset=False) in capsys.readouterr().out

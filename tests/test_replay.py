@@ -142,7 +142,7 @@ def test_interrupted_replay_sends_stop(tmp_path: Path, sig: signal.Signals) -> N
             proc.kill()
     assert first == drive
     assert rest == STOP
-    assert proc.returncode == (130 if sig == signal.SIGINT else 128 + sig)
+    assert proc.returncode == (130 if sig == signal.SIGINT else 128 + sig), proc.stderr.read()
 
 
 def test_stop_goes_to_every_address_moved_under_its_rule(tmp_path: Path) -> None:

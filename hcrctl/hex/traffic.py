@@ -276,7 +276,6 @@ class TrafficPrinter:
 
     def _import_once(self) -> None:
         if not self._imported:  # imported on first use, once (not per row): start-up stays lean
-            self._imported = True
             from ..link.trafficlog import iso_time
             from ..protocol.records import hexs, is_good, is_text
             from .view import plain_line
@@ -288,6 +287,8 @@ class TrafficPrinter:
                 is_text,
                 plain_line,
             )
+            # Marked only once all are bound: a Ctrl-C inside the imports leaves them to be done again.
+            self._imported = True
 
     def _line(self, t: float, direction: str, data: bytes, row: dict[str, Any]) -> None:
         self._import_once()
