@@ -166,15 +166,20 @@ def velocities(node: Any) -> list[tuple[int, int]]:
     ]
 
 
+def drive_until_moving(here: Any, node: Any, peer: Any, what: str) -> None:
+    """Publish 0.2 m/s forward from rclpy until a velocity frame of 20 cm/s per wheel is on the wire."""
+    topic = f"{here.namespace}/cmd_vel"
+
+    def moving() -> bool:
+        peer.ask("pub", topic=topic, type=TWIST, values={"linear": {"x": 0.2}})
+        return (20, 20) in velocities(node)
+
+    wait_until(moving, what=what)
+
+
 def test_an_rclpy_twist_drives_and_the_deadman_stops(loop_env: dict[str, str], tmp_path: Path) -> None:
     with served(loop_env, tmp_path, "--deadman", "0.5") as (here, node, peer):
-        topic = f"{here.namespace}/cmd_vel"
-
-        def moving() -> bool:
-            peer.ask("pub", topic=topic, type=TWIST, values={"linear": {"x": 0.2}})
-            return (20, 20) in velocities(node)
-
-        wait_until(moving, what="a velocity frame of 20 cm/s per wheel from rclpy")
+        drive_until_moving(here, node, peer, "a velocity frame of 20 cm/s per wheel from rclpy")
         node.wait_err("stopped: deadman: no cmd_vel for 0.5 s")
         wait_until(lambda: any(is_stop(f) for _, f in node.sent()), what="the stop frame on the wire")
 
@@ -285,13 +290,7 @@ def test_the_stop_service_stops_and_says_the_robot_answered(
 ) -> None:
     monkeypatch.setenv("CYCLONEDDS_URI", LOOPBACK)
     with served(loop_env, tmp_path, "--deadman", "5") as (here, node, peer):
-        topic = f"{here.namespace}/cmd_vel"
-
-        def moving() -> bool:
-            peer.ask("pub", topic=topic, type=TWIST, values={"linear": {"x": 0.2}})
-            return (20, 20) in velocities(node)
-
-        wait_until(moving, what="driving")
+        drive_until_moving(here, node, peer, "driving")
         stop = CycloneClient(here.domain, f"{here.namespace}/hcrctl/stop", S.TRIGGER)
         reply = stop.call({})
         assert reply.success and "answered" in reply.message, reply.message
