@@ -20,7 +20,7 @@ from ..protocol import commands as C
 from ..protocol.frames import ChecksumRule
 from ..protocol.records import fields_reader
 from ..protocol.runs import frame_part
-from .view import SHOW_BYTES, units, value_text
+from .view import _AS_STR, SHOW_BYTES, units, value_text
 
 #: Content shown in full up to this many characters of hex; past it, cut and marked.
 _CUT = SHOW_BYTES * 3 - 1
@@ -104,7 +104,24 @@ def _details(cmd: C.Command, request: bool) -> Details:
             parts.append(f"{head}{value if type(value) is int else value_text(value)}{unit}")
         return "  " + "  ".join(parts)
 
-    return fields_reader(cmd, request, text)
+    def values_text(names: tuple[str, ...]) -> Callable[[tuple[Any, ...]], str]:
+        """``text`` of several fields handed as their values: a number's text is its ``str``
+        (``value_text``), which ``format`` writes into the labels joined once; anything else
+        goes to ``text``."""
+        fill = "".join(f"  {_braces(head)}{{}}{_braces(unit)}" for head, unit in map(label, names)).format
+
+        def values_text(values: tuple[Any, ...]) -> str:
+            if set(map(type, values)) <= _AS_STR:
+                return fill(*values)
+            return text(dict(zip(names, values, strict=True)))
+
+        return values_text
+
+    return fields_reader(cmd, request, text, values_text)
+
+
+def _braces(text: str) -> str:
+    return text.replace("{", "{{").replace("}", "}}")
 
 
 def _unknown(content: bytes) -> str:

@@ -62,4 +62,30 @@ def flat_dict_encoder(encode: Callable[[Any], str]) -> Callable[[dict[str, Any]]
     return encode_flat
 
 
+def flat_values_encoder(
+    encode_flat: Callable[[dict[str, Any]], str], encode: Callable[[Any], str]
+) -> Callable[[tuple[str, ...]], Callable[[tuple[Any, ...]], str]]:
+    """``encode_flat`` (a ``flat_dict_encoder``) of a message's fields handed as their values, for the
+    names given: the same text. Ints, the common case, fill a format made once for the names (an
+    int's JSON is its ``repr``, which ``format`` writes); anything else goes to ``encode_flat``."""
+
+    def for_names(names: tuple[str, ...]) -> Callable[[tuple[Any, ...]], str]:
+        keys = [_braces(f"{encode(name)}: ") + "{}" for name in names]
+        fill = ("{{" + ", ".join(keys) + "}}").format
+
+        def encode_values(values: tuple[Any, ...]) -> str:
+            if set(map(type, values)) <= _INT:
+                return fill(*values)
+            return encode_flat(dict(zip(names, values, strict=True)))
+
+        return encode_values
+
+    return for_names
+
+
+def _braces(text: str) -> str:
+    """``text`` as a literal part of a format string."""
+    return text.replace("{", "{{").replace("}", "}}")
+
+
 _INT = frozenset((int,))
