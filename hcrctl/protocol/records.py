@@ -15,7 +15,7 @@ from typing import Any, TypeVar
 
 from ..errors import ImpossibleReply, ProtocolError
 from . import commands as C
-from .fields import fields_of, values_getter
+from .fields import fields_of, reply_decoder, values_getter
 from .frames import (
     ADDRESS_AT,
     COMMAND_AT,
@@ -273,7 +273,7 @@ def fields_reader(
     if request and cmd.request is not None:
         return _declared(cmd.request, cmd.request.from_content, then, then_values)
     if not request and cmd.reply is not None:
-        decode = cmd.reply.decode
+        decode = reply_decoder(cmd.reply)
         if cmd.reply.fields is C.Reply.fields:  # the base's: the fields as declared
             return _declared(cmd.reply, decode, then, then_values)
         return lambda content: then(decode(content).fields())
