@@ -37,7 +37,7 @@ def flat_dict_encoder(encode: Callable[[Any], str]) -> Callable[[dict[str, Any]]
             ((name, value),) = fields.items()
             key = keys.get(name)
             kind = type(value)
-            if key is not None and (kind is int or (kind is list and set(map(type, value)) <= _INT)):
+            if key is not None and (kind is int or (kind is list and _INT.issuperset(map(type, value)))):
                 return f"{{{key}{value!r}}}"
             return f"{{{item(name, value)}}}"
         parts = []
@@ -54,7 +54,7 @@ def flat_dict_encoder(encode: Callable[[Any], str]) -> Callable[[dict[str, Any]]
         if (
             kind is int
             or (kind is float and value - value == 0)  # finite: NaN and infinities are not
-            or (kind is list and set(map(type, value)) <= _INT)
+            or (kind is list and _INT.issuperset(map(type, value)))
         ):
             return f"{key}{value!r}"
         return key + encode(value)
@@ -74,7 +74,7 @@ def flat_values_encoder(
         fill = ("{{" + ", ".join(keys) + "}}").format
 
         def encode_values(values: tuple[Any, ...]) -> str:
-            if set(map(type, values)) <= _INT:
+            if _INT.issuperset(map(type, values)):
                 return fill(*values)
             return encode_flat(dict(zip(names, values, strict=True)))
 
