@@ -10,11 +10,13 @@ import subprocess
 import tracemalloc
 from collections import Counter
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import pytest
 
+from hcrctl.errors import ProtocolError
 from hcrctl.hex import decoding
 from hcrctl.hex.decoding import FrameText, decode_to
 from hcrctl.hex.frameline import frame_plain
@@ -26,8 +28,9 @@ from hcrctl.numtext import plural
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.decoder import FrameDecoder
 from hcrctl.protocol.dialect import decode_all
+from hcrctl.protocol.fields import spec
 from hcrctl.protocol.frames import HEADER, ChecksumRule, Frame, encode
-from hcrctl.protocol.jsontext import flat_dict_encoder, json_encoder
+from hcrctl.protocol.jsontext import flat_dict_encoder, flat_values_encoder, json_encoder
 from hcrctl.protocol.records import event_dict, frame_json, is_good
 from hcrctl.protocol.runs import FrameRun
 
@@ -349,3 +352,90 @@ def test_a_printer_whose_first_imports_were_interrupted_prints_later(
     capsys.readouterr()
     printer.show(0.0, "rx", frame, rows)
     assert plain_line(rows[0], offset=False) in capsys.readouterr().out
+
+
+def test_flat_values_encoder_is_the_flat_dict_encoders_text() -> None:
+    """Several fields handed as their values say what the same fields as a dict say, whatever they hold."""
+    encode = json_encoder()
+    flat = flat_dict_encoder(encode)
+    for_names = flat_values_encoder(flat, encode)
+    values = (0, -7, 2**70, 2.5, float("nan"), True, None, "{x}", [1, 2], (1, 2), [True])
+    rng = random.Random(4)
+    for names in (("a", "b"), ("é", "z", "{0}"), ("left", "right", "rate", "x")):
+        encode_values = for_names(names)
+        for _ in range(200):
+            picked = tuple(rng.choice(values) for _ in names)
+            fields = dict(zip(names, picked, strict=True))
+            assert encode_values(picked) == flat(fields) == json.dumps(fields, ensure_ascii=False), fields
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class Odd(C.Reply):
+    """A reply of several fields of every kind a view shows, braces in its units: a plugin's."""
+
+    CODE: ClassVar[int] = 0x7E
+    count: int = spec(0, 200, "{n}", "an int, impossible past 200")
+    level: float = spec(0, 20, "°{C}", "a float, impossible past 20")
+    flag: int = spec(0, 255, "", "a flag when 0 or 1, else an int")
+
+    @classmethod
+    def from_content(cls, content: bytes) -> C.Reply:
+        if len(content) != 3:
+            raise ProtocolError(f"odd reply carries 3 bytes, got {len(content)}")
+        return cls(content[0], content[1] / 10, bool(content[2]) if content[2] < 2 else content[2])
+
+    def content(self) -> bytes:
+        return bytes((self.count, round(self.level * 10), int(self.flag)))
+
+
+@pytest.fixture
+def odd_command() -> Iterator[None]:
+    state = C._table_state()
+    C.register_command(C.Command(0x7E, "odd", "odd", "read", C.ReadRequest, Odd, "A reply of odd fields."))
+    try:
+        yield
+    finally:
+        C._restore_table(state)
+
+
+@pytest.mark.usefixtures("odd_command")
+def test_several_fields_of_any_kind_are_shown_as_their_row_says() -> None:
+    """The text and JSON made from a message's values (not a dict) are the row's, for every kind of
+    value, a unit holding braces, impossible readings and wrong lengths, under both rules."""
+    rng = random.Random(6)
+    contents = [bytes((rng.randrange(256), rng.randrange(256), rng.choice((0, 1, 7)))) for _ in range(300)]
+    contents += [b"", b"\xff", b"\x01\x02", b"\x01\x02\x03\x04"]
+    encode = json_encoder()
+    seen = set()
+    for content in contents:
+        for rule in RULES:
+            (event,) = decode_all(encode_frame := encode_odd(content, rule), rule)
+            assert type(event) is Frame, encode_frame
+            row = event_dict(event, rule)
+            assert frame_plain(rule, event) == (plain_line(row, offset=False), is_good(row)), row
+            del row["offset"]
+            assert frame_json(rule, event, encode) == (
+                json.dumps(row, ensure_ascii=False)[1:],
+                "error" not in row,
+            )
+            seen.add("error" in row or str(row["fields"]))
+    assert True in seen and len(seen) > 100  # good readings of many shapes, and impossible ones
+
+
+def encode_odd(content: bytes, rule: ChecksumRule) -> bytes:
+    return encode(1, 0x7E, content, rule)
+
+
+def test_a_frame_met_once_is_not_remembered_one_met_again_is() -> None:
+    """Distinct frames (most of a random capture) leave the remembered texts to frames that repeat."""
+    frames = b"".join(encode(1, 0x13, bytes((n, n, 1))) for n in range(60))
+    out: list[str] = []
+    text = FrameText(ChecksumRule.HEADER, FrameTally(), PlainSink(out.append))
+    decoder = FrameDecoder()
+    text.events(decoder.feed_runs(frames))
+    assert len(text._texts) == 0
+    text.events(decoder.feed_runs(frames))
+    assert len(text._texts) == 60
+    text.events(decoder.feed_runs(frames))
+    rows = [event_dict(e, ChecksumRule.HEADER) for e in decode_all(frames * 3, ChecksumRule.HEADER)]
+    assert "".join(out) == "".join(plain_line(row) + "\n" for row in rows)

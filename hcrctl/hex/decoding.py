@@ -119,6 +119,9 @@ class FrameText:
         self.sink = sink
         self.make = RowMaker(rule)
         self._texts = Bounded()
+        #: Hashes of good frames made once lately: such a frame's text is remembered when it comes
+        #: again, so frames met only once (most of a random mix) do not push out those that repeat.
+        self._seen: set[int] = set()
         self._odd = False  # whether an entry with a row has been remembered (then runs look at each)
 
     def events(self, events: Sequence[Event | FrameRun]) -> None:
@@ -187,15 +190,21 @@ class FrameText:
 
     def _fill(self, parts: list[bytes], entries: list[str | tuple[str, Row] | None]) -> None:
         """Make the entries of the frames not seen lately, from their parts (address .. 0D 0A)."""
-        rule, made_of, texts = self.rule, self.sink.part_text, self._texts
+        rule, made_of, texts, seen = self.rule, self.sink.part_text, self._texts, self._seen
         misses = [at for at, entry in enumerate(entries) if entry is None]
         if len(texts) + len(misses) > TEXT_FRAMES:
             texts.forget_half()
+        if len(seen) + len(misses) > TEXT_FRAMES:
+            seen.clear()
         for at in misses:
             part = parts[at]
             made = made_of(rule, part) if made_of is not None else None
             if made is not None and made[1]:  # the common case: a good frame, remembered as its text alone
-                entries[at] = texts[part] = made[0]
+                entries[at] = made[0]
+                if hash(part) in seen:  # met before: one that comes back, worth its room
+                    texts[part] = made[0]
+                else:
+                    seen.add(hash(part))
                 continue
             event = Frame._make((part[0], part[2], part[3:-3], part[-3], 0))  # the text leaves the offset out
             entries[at] = self._remember(part, self._entry(event, made))

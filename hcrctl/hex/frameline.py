@@ -20,7 +20,7 @@ from ..protocol import commands as C
 from ..protocol.frames import ChecksumRule
 from ..protocol.records import fields_reader
 from ..protocol.runs import frame_part
-from .view import SHOW_BYTES, units, value_text
+from .view import _AS_REPR, _AS_STR, SHOW_BYTES, units, value_text
 
 #: Content shown in full up to this many characters of hex; past it, cut and marked.
 _CUT = SHOW_BYTES * 3 - 1
@@ -46,9 +46,9 @@ def frame_plain(rule: ChecksumRule, frame: tuple[int, int, bytes, int, int]) -> 
 def part_plain(_rule: ChecksumRule, part: bytes) -> tuple[str, bool]:
     """``frame_plain`` of a frame known to be valid, from its bytes after the header (``FrameRun``)."""
     command, content = part[2], part[3:-3]
-    request = C.is_request(command, content)
+    request = _is_request(command, content)
     known = _LINES.get((command, request))
-    if known is None or known[0] is not C.BY_CODE.get(command):  # a command registered later replaces it
+    if known is None or known[0] is not _BY_CODE.get(command):  # a command registered later replaces it
         known = _prepare(command, request)
     payload = content.hex(" ").upper()
     if len(content) > SHOW_BYTES:
@@ -59,6 +59,9 @@ def part_plain(_rule: ChecksumRule, part: bytes) -> tuple[str, bool]:
         return f"{_AT[part[0]]}{known[1]}{payload}  ? {exc.message}{_OK[part[-3]]}", False
     return f"{_AT[part[0]]}{known[1]}{payload}{detail}{_OK[part[-3]]}", True
 
+
+#: The table's dict (refilled in place, never replaced) and its side rule, bound once for every new frame.
+_BY_CODE, _is_request = C.BY_CODE, C.is_request
 
 #: A line's address column and its checksum verdict, for each byte: formatted once, not per frame.
 _AT = tuple(f"@{b:02X}" for b in range(256))
@@ -95,7 +98,10 @@ def _details(cmd: C.Command, request: bool) -> Details:
         if len(fields) == 1:  # most readings: one field
             ((name, value),) = fields.items()
             head, unit = labels.get(name) or label(name)
-            return f"  {head}{value if type(value) is int else value_text(value)}{unit}"
+            kind = type(value)
+            if kind is int or (kind is list and _AS_REPR.issuperset(map(type, value))):
+                return f"  {head}{value}{unit}"  # ``value_text``'s own text of these, its ``str``
+            return f"  {head}{value_text(value)}{unit}"
         if not fields:
             return empty
         parts = []
@@ -104,7 +110,24 @@ def _details(cmd: C.Command, request: bool) -> Details:
             parts.append(f"{head}{value if type(value) is int else value_text(value)}{unit}")
         return "  " + "  ".join(parts)
 
-    return fields_reader(cmd, request, text)
+    def values_text(names: tuple[str, ...]) -> Callable[[tuple[Any, ...]], str]:
+        """``text`` of several fields handed as their values: a number's text is its ``str``
+        (``value_text``), which ``format`` writes into the labels joined once; anything else
+        goes to ``text``."""
+        fill = "".join(f"  {_braces(head)}{{}}{_braces(unit)}" for head, unit in map(label, names)).format
+
+        def values_text(values: tuple[Any, ...]) -> str:
+            if _AS_STR.issuperset(map(type, values)):
+                return fill(*values)
+            return text(dict(zip(names, values, strict=True)))
+
+        return values_text
+
+    return fields_reader(cmd, request, text, values_text)
+
+
+def _braces(text: str) -> str:
+    return text.replace("{", "{{").replace("}", "}}")
 
 
 def _unknown(content: bytes) -> str:

@@ -74,9 +74,9 @@ def value_text(value: Any) -> str:
     if kind is int or kind is float or kind is str:  # the common case, first
         return str(value)
     if kind is list or kind is tuple:
-        kinds = set(map(type, value))
-        if kinds <= _AS_REPR:  # numbers only: a list's own text is the same, made in C
+        if _AS_REPR.issuperset(map(type, value)):  # numbers only: a list's own text is the same, made in C
             return str(value if kind is list else list(value))
+        kinds = set(map(type, value))
         if kinds <= _AS_STR:  # no flags, no nesting: each item is its str
             return "[" + ", ".join(map(str, value)) + "]"
         return "[" + ", ".join(map(value_text, value)) + "]"

@@ -231,10 +231,7 @@ class Reply(Message):
         Raises ``ProtocolError`` when the bytes do not parse and its subclass
         ``ImpossibleReply`` when they parse to a value the field cannot have.
         """
-        value = cls.from_content(content)
-        if not _plainly_in_range(value):  # the common case costs one call
-            check_reply(value, content)
-        return value
+        return (_DECODERS.get(cls) or _decoder_of(cls))(content)
 
     @classmethod
     def from_content(cls, content: bytes) -> Reply:
@@ -247,6 +244,38 @@ class Reply(Message):
     def fields(self) -> dict[str, Any]:
         value: Any = self  # every reply is a dataclass; the base only promises it
         return field_values(value)
+
+
+def reply_decoder(cls: type[Reply]) -> Callable[[bytes], Reply]:
+    """``cls.decode`` as one plain function, made once for the class: a view of many frames calls it.
+
+    A class with a ``decode`` of its own keeps it.
+    """
+    if getattr(cls.decode, "__func__", None) is not Reply.decode.__func__:  # type: ignore[attr-defined]
+        return cls.decode
+    return _DECODERS.get(cls) or _decoder_of(cls)
+
+
+def _decoder_of(cls: type[Reply]) -> Callable[[bytes], Reply]:
+    """``Reply.decode``'s rule for one class: parse, then hold to the declared ranges.
+
+    The common case costs one call (``_plainly_in_range``'s check for the
+    class, made once); ``check_reply`` decides and words the rest.
+    """
+    from_content, in_range = cls.from_content, _range_check_of(cls)
+
+    def decode(content: bytes) -> Reply:
+        value = from_content(content)
+        if not (in_range(value) if type(value) is cls else _plainly_in_range(value)):
+            check_reply(value, content)
+        return value
+
+    _DECODERS[cls] = decode
+    return decode
+
+
+#: Reply class -> its ``_decoder_of``.
+_DECODERS: dict[type, Callable[[bytes], Reply]] = {}
 
 
 def check_reply(value: Reply, content: bytes) -> None:
@@ -275,10 +304,15 @@ def _plainly_in_range(value: Reply) -> bool:
     error), never "out of range". ``tests/test_rules_differential.py`` holds
     the two to it.
     """
-    check = _IN_RANGE.get(type(value))
+    return _range_check_of(type(value))(value)
+
+
+def _range_check_of(cls: type) -> Callable[[Any], bool]:
+    """``_plainly_in_range`` for the replies of ``cls``, made once."""
+    check = _IN_RANGE.get(cls)
     if check is None:
-        check = _IN_RANGE[type(value)] = _range_check(fields_of(type(value)))
-    return check(value)
+        check = _IN_RANGE[cls] = _range_check(fields_of(cls))
+    return check
 
 
 def _range_check(infos: tuple[FieldInfo, ...]) -> Callable[[Any], bool]:
@@ -291,8 +325,10 @@ def _range_check(infos: tuple[FieldInfo, ...]) -> Callable[[Any], bool]:
 
         def one_in_range(value: Any) -> bool:
             item = getattr(value, name)
-            if type(item) is tuple:
-                return _tuple_in_range(item, lo, hi, count)
+            if type(item) is tuple:  # ``_tuple_in_range``, inline: most list replies are checked here
+                if count is not None and not count[0] <= len(item) <= count[1]:
+                    return False
+                return not item or (lo <= min(item) and max(item) <= hi)
             return (type(item) is int or type(item) is float) and count is None and lo <= item <= hi
 
         return one_in_range

@@ -37,7 +37,7 @@ def flat_dict_encoder(encode: Callable[[Any], str]) -> Callable[[dict[str, Any]]
             ((name, value),) = fields.items()
             key = keys.get(name)
             kind = type(value)
-            if key is not None and (kind is int or (kind is list and set(map(type, value)) <= _INT)):
+            if key is not None and (kind is int or (kind is list and _INT.issuperset(map(type, value)))):
                 return f"{{{key}{value!r}}}"
             return f"{{{item(name, value)}}}"
         parts = []
@@ -54,12 +54,38 @@ def flat_dict_encoder(encode: Callable[[Any], str]) -> Callable[[dict[str, Any]]
         if (
             kind is int
             or (kind is float and value - value == 0)  # finite: NaN and infinities are not
-            or (kind is list and set(map(type, value)) <= _INT)
+            or (kind is list and _INT.issuperset(map(type, value)))
         ):
             return f"{key}{value!r}"
         return key + encode(value)
 
     return encode_flat
+
+
+def flat_values_encoder(
+    encode_flat: Callable[[dict[str, Any]], str], encode: Callable[[Any], str]
+) -> Callable[[tuple[str, ...]], Callable[[tuple[Any, ...]], str]]:
+    """``encode_flat`` (a ``flat_dict_encoder``) of a message's fields handed as their values, for the
+    names given: the same text. Ints, the common case, fill a format made once for the names (an
+    int's JSON is its ``repr``, which ``format`` writes); anything else goes to ``encode_flat``."""
+
+    def for_names(names: tuple[str, ...]) -> Callable[[tuple[Any, ...]], str]:
+        keys = [_braces(f"{encode(name)}: ") + "{}" for name in names]
+        fill = ("{{" + ", ".join(keys) + "}}").format
+
+        def encode_values(values: tuple[Any, ...]) -> str:
+            if _INT.issuperset(map(type, values)):
+                return fill(*values)
+            return encode_flat(dict(zip(names, values, strict=True)))
+
+        return encode_values
+
+    return for_names
+
+
+def _braces(text: str) -> str:
+    """``text`` as a literal part of a format string."""
+    return text.replace("{", "{{").replace("}", "}}")
 
 
 _INT = frozenset((int,))
