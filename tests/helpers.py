@@ -95,6 +95,34 @@ def wait_until(check: Callable[[], Any], timeout: float = TIMEOUT, what: str = "
         time.sleep(0.02)
 
 
+#: Pty numbers are the machine's, shared by every worker: a test that frees one for hcrctl's rescue to
+#: find again (the /dev/pts node recreated) must get it back before any other test's device is handed it,
+#: or hcrctl writes stop and its probe read (bump) to that device and the other test counts them.
+PTY_LOCK = Path("/tmp") / f"hcrctl-tests-pty-{os.getuid()}.lock"
+_freeing = threading.local()
+
+
+def open_pty() -> tuple[int, int]:
+    """``os.openpty()``, never while another worker holds a freed pty number (``pty_number_freed``)."""
+    if getattr(_freeing, "held", False):  # this thread freed the number: it is the one recreating it
+        return os.openpty()
+    with open(PTY_LOCK, "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_SH)
+        return os.openpty()
+
+
+@contextlib.contextmanager
+def pty_number_freed() -> Iterator[None]:
+    """While a test frees a pty number and takes it back, no other worker's helper opens a pty."""
+    with open(PTY_LOCK, "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        _freeing.held = True
+        try:
+            yield
+        finally:
+            _freeing.held = False
+
+
 #: Where ``time.sleep`` waits (Linux wait channels): clock_nanosleep from Python 3.11, select() before.
 SLEEP_CHANNELS = ("nanosleep", "poll_schedule_timeout")
 
@@ -165,7 +193,7 @@ class PtySpawn(pexpect.spawn):
         rows, cols = kwargs.get("dimensions") or (24, 80)
         env = kwargs.get("env")
         env = dict(os.environ if env is None else env)
-        master, slave = os.openpty()
+        master, slave = open_pty()
         try:
             fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", rows, cols, 0, 0))
             actions = [
@@ -502,7 +530,7 @@ class DevicePty:
     """
 
     def __init__(self, link: Path | None = None) -> None:
-        self.master, self.slave = os.openpty()
+        self.master, self.slave = open_pty()
         tty.setraw(self.slave)
         tty.setraw(self.master)
         self.path = os.ttyname(self.slave)

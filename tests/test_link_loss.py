@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import TypeVar
 
 import pytest
-from helpers import DevicePty, Terminal
+from helpers import DevicePty, Terminal, pty_number_freed
 from helpers_cli import TIMEOUT, hcrctl_exe, run
 from helpers_live import terminal
 from helpers_shell import STOP_FRAME, PtyRobot
@@ -202,10 +202,11 @@ def test_stop_is_delivered_when_the_device_node_is_recreated(env, tmp_path):
         hcr = Hcrctl(["--port", node, "drive", "power", "40", "40"], env)
         try:
             plugged[0].wait_for(moving, timeout=TIMEOUT)
-            plugged[0].close()
-            hcr.wait_err(WARNING)
-            _wait_released(hcr.proc.pid, node)
-            again = _robot_at(node, plugged)
+            with pty_number_freed():
+                plugged[0].close()
+                hcr.wait_err(WARNING)
+                _wait_released(hcr.proc.pid, node)
+                again = _robot_at(node, plugged)
             assert_stop_delivered(hcr, again)
         finally:
             hcr.kill()
@@ -261,10 +262,11 @@ def test_a_stranger_that_took_the_robots_pty_number_is_not_called_the_robot(env,
         hcr = Hcrctl(["--port", node, "--stop-wait", "2", "drive", "power", "40", "40"], env)
         try:
             plugged[0].wait_for(moving, timeout=TIMEOUT)
-            plugged[0].close()
-            hcr.wait_err(WARNING)
-            _wait_released(hcr.proc.pid, node)
-            stranger = _device_at(node, lambda: DevicePty().serve())
+            with pty_number_freed():
+                plugged[0].close()
+                hcr.wait_err(WARNING)
+                _wait_released(hcr.proc.pid, node)
+                stranger = _device_at(node, lambda: DevicePty().serve())
             try:
                 status, _, err = hcr.finish()
                 got = stranger.wait_for(STOP_FRAME)
