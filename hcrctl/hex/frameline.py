@@ -20,7 +20,7 @@ from ..protocol import commands as C
 from ..protocol.frames import ChecksumRule
 from ..protocol.records import fields_reader
 from ..protocol.runs import frame_part
-from .view import _AS_REPR, _AS_STR, SHOW_BYTES, units, value_text
+from .view import AS_REPR, AS_STR, SHOW_BYTES, units, value_text
 
 #: Content shown in full up to this many characters of hex; past it, cut and marked.
 _CUT = SHOW_BYTES * 3 - 1
@@ -99,7 +99,7 @@ def _details(cmd: C.Command, request: bool) -> Details:
             ((name, value),) = fields.items()
             head, unit = labels.get(name) or label(name)
             kind = type(value)
-            if kind is int or (kind is list and _AS_REPR.issuperset(map(type, value))):
+            if kind is int or (kind is list and AS_REPR.issuperset(map(type, value))):
                 return f"  {head}{value}{unit}"  # ``value_text``'s own text of these, its ``str``
             return f"  {head}{value_text(value)}{unit}"
         if not fields:
@@ -117,7 +117,7 @@ def _details(cmd: C.Command, request: bool) -> Details:
         fill = "".join(f"  {_braces(head)}{{}}{_braces(unit)}" for head, unit in map(label, names)).format
 
         def values_text(values: tuple[Any, ...]) -> str:
-            if _AS_STR.issuperset(map(type, values)):
+            if AS_STR.issuperset(map(type, values)):
                 return fill(*values)
             return text(dict(zip(names, values, strict=True)))
 

@@ -74,10 +74,10 @@ def value_text(value: Any) -> str:
     if kind is int or kind is float or kind is str:  # the common case, first
         return str(value)
     if kind is list or kind is tuple:
-        if _AS_REPR.issuperset(map(type, value)):  # numbers only: a list's own text is the same, made in C
+        if AS_REPR.issuperset(map(type, value)):  # numbers only: a list's own text is the same, made in C
             return str(value if kind is list else list(value))
         kinds = set(map(type, value))
-        if kinds <= _AS_STR:  # no flags, no nesting: each item is its str
+        if kinds <= AS_STR:  # no flags, no nesting: each item is its str
             return "[" + ", ".join(map(str, value)) + "]"
         return "[" + ", ".join(map(value_text, value)) + "]"
     if isinstance(value, bool):
@@ -88,9 +88,9 @@ def value_text(value: Any) -> str:
 
 
 #: Types a value of which prints as its ``str`` (``bool`` is not one: a flag prints yes or no).
-_AS_STR = frozenset((int, float, str))
+AS_STR = frozenset((int, float, str))
 #: Types whose ``repr`` is their ``str``, so that ``str`` of a list of them prints each as its ``str``.
-_AS_REPR = frozenset((int, float))
+AS_REPR = frozenset((int, float))
 
 
 def verdict_text(row: dict[str, Any]) -> str:
