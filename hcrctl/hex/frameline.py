@@ -17,6 +17,7 @@ from typing import Any
 
 from ..errors import ProtocolError
 from ..protocol import commands as C
+from ..protocol.bytewise import Joined
 from ..protocol.frames import ChecksumRule
 from ..protocol.records import fields_reader
 from ..protocol.runs import frame_part
@@ -123,7 +124,11 @@ def _details(cmd: C.Command, request: bool) -> Details:
 
         return values_text
 
-    return fields_reader(cmd, request, text, values_text)
+    return fields_reader(cmd, request, text, values_text, _JOINED)
+
+
+#: How ``_details``'s text of several fields is made of each one's: two spaces before each.
+_JOINED = Joined("  ", "  ", "")
 
 
 def _braces(text: str) -> str:

@@ -204,11 +204,7 @@ class Request(Message):
     def __post_init__(self) -> None:
         for info in fields_of(type(self)):
             value = getattr(self, info.name)
-            if info.is_flag:  # a truthy "no" must not turn the robot counter-clockwise
-                ok = isinstance(value, int) and value in (0, 1)
-            else:
-                ok = not isinstance(value, bool) and isinstance(value, int) and info.lo <= value <= info.hi
-            if not ok:
+            if not request_value_ok(info, value):
                 raise RangeError(info.name, value, info.lo, info.hi, info.unit)
 
     def content(self) -> bytes:
@@ -217,6 +213,13 @@ class Request(Message):
     @classmethod
     def from_content(cls, content: bytes) -> Request:
         raise NotImplementedError
+
+
+def request_value_ok(info: FieldInfo, value: Any) -> bool:
+    """Whether a request may carry ``value`` in the field ``info``: an int in its range, or 0/1 for a flag."""
+    if info.is_flag:  # a truthy "no" must not turn the robot counter-clockwise
+        return isinstance(value, int) and value in (0, 1)
+    return not isinstance(value, bool) and isinstance(value, int) and info.lo <= value <= info.hi
 
 
 class Reply(Message):
@@ -370,11 +373,25 @@ def _check_field(what: str, info: FieldInfo, value: Any, raw: bytes) -> None:
         shown = f"{len(items)} reading{'s' if len(items) != 1 else ''}"
         raise ImpossibleReply(f"{what} length", bytes((len(raw),)), shown, f"{lo}-{hi} readings", value)
     for i, item in enumerate(items):
-        if isinstance(item, bool) or info.lo <= item <= info.hi:
+        if item_in_range(info, item):
             continue
         item_raw = raw[i : i + 1] if isinstance(value, tuple) else raw
         shown, expected = with_unit(item, info.unit), f"{info.lo}-{with_unit(info.hi, info.unit)}"
         raise ImpossibleReply(what, item_raw, shown, expected, item)
+
+
+def item_in_range(info: FieldInfo, item: Any) -> bool:
+    """Whether a reply's value (or one item of its list) is one the field ``info`` can have."""
+    return isinstance(item, bool) or info.lo <= item <= info.hi
+
+
+def reply_value_ok(info: FieldInfo, value: Any) -> bool:
+    """Whether ``check_reply`` passes ``value`` in the field ``info`` (not a flag byte): its own verdict."""
+    try:
+        _check_field(info.name, info, value, b"")
+    except ImpossibleReply:
+        return False
+    return True
 
 
 def with_unit(value: float, unit: str) -> str:

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from ..errors import ProtocolError
+from .bytewise import ByteList, Bytewise, signed_byte
 from .fields import READ_REQUEST, Reply, Request, _need, byte_to_percent, percent_to_byte, spec
 
 #: Direction bits of the percent requests (0x01, 0x02): set when that motor runs backwards.
@@ -24,19 +25,15 @@ DIR_MOTOR2 = 0x10
 
 
 @dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
-class _PercentPair(Request):
+class _PercentPair(Bytewise, Request):
     """Both motors in percent, each byte 0x80 + p (``percent_to_byte``)."""
 
+    READERS: ClassVar = (byte_to_percent, byte_to_percent)
     left: int = spec(-100, 100, "%", "motor 1, -100 (full reverse) to 100 (full forward)")
     right: int = spec(-100, 100, "%", "motor 2, -100 (full reverse) to 100 (full forward)")
 
     def content(self) -> bytes:
         return bytes((percent_to_byte(self.left), percent_to_byte(self.right)))
-
-    @classmethod
-    def from_content(cls, content: bytes) -> Request:
-        _need(content, 2, cls.__name__)
-        return cls(byte_to_percent(content[0]), byte_to_percent(content[1]))
 
 
 @dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
@@ -96,38 +93,32 @@ class Turn(Request):
 
 
 @dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
-class Servo(Request):
+class Servo(Bytewise, Request):
     """Servo 1 and 2 positions, one byte each."""
 
     CODE: ClassVar[int] = 0x41
+    READERS: ClassVar = (None, None)
+    WHAT: ClassVar[str] = "servo"
     p1: int = spec(0, 255, "", "servo 1 position")
     p2: int = spec(0, 255, "", "servo 2 position")
 
     def content(self) -> bytes:
         return bytes((self.p1, self.p2))
 
-    @classmethod
-    def from_content(cls, content: bytes) -> Request:
-        _need(content, 2, "servo")
-        return cls(content[0], content[1])
-
 
 @dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
-class Pid(Request):
+class Pid(Bytewise, Request):
     """The speed controller's P, I and D gains, one byte each."""
 
     CODE: ClassVar[int] = 0x21
+    READERS: ClassVar = (None, None, None)
+    WHAT: ClassVar[str] = "pid"
     p: int = spec(0, 255, "", "proportional gain")
     i: int = spec(0, 255, "", "integral gain")
     d: int = spec(0, 255, "", "derivative gain")
 
     def content(self) -> bytes:
         return bytes((self.p, self.i, self.d))
-
-    @classmethod
-    def from_content(cls, content: bytes) -> Request:
-        _need(content, 3, "pid")
-        return cls(*content)
 
 
 @dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
@@ -177,30 +168,8 @@ class Bumpers(Reply):
 MAX_SENSORS = 8
 
 
-class _ByteList(Reply):
-    """One byte per sensor; the length field says how many sensors there are.
-
-    A plain base, not a dataclass: it has no field of its own (each subclass
-    declares its list), and each dataclass costs start-up time to build.
-    """
-
-    KEY: ClassVar[str]
-
-    @classmethod
-    def from_content(cls, content: bytes) -> Reply:
-        if not content:
-            raise ProtocolError(f"{cls.KEY} reply carries no readings")
-        return cls(tuple(content))  # type: ignore[call-arg]  # each subclass's one field: its list
-
-    def content(self) -> bytes:
-        return bytes(getattr(self, self.KEY))
-
-    def fields(self) -> dict[str, Any]:
-        return {self.KEY: list(getattr(self, self.KEY))}
-
-
 @dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
-class Infrared(_ByteList):
+class Infrared(ByteList):
     """IR distances, one raw byte per sensor."""
 
     CODE: ClassVar[int] = 0x12
@@ -211,7 +180,7 @@ class Infrared(_ByteList):
 
 
 @dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
-class Ultrasonic(_ByteList):
+class Ultrasonic(ByteList):
     """Ultrasonic distances in cm, one byte per sensor."""
 
     CODE: ClassVar[int] = 0x13
@@ -261,17 +230,14 @@ class WheelSpeed(Reply):
 
 
 @dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
-class Environment(Reply):
+class Environment(Bytewise, Reply):
     """Humidity %, then temperature in degrees C, read as signed (a cold garage)."""
 
     CODE: ClassVar[int] = 0x16
+    READERS: ClassVar = (None, signed_byte)
+    WHAT: ClassVar[str] = "temperature/humidity reply"
     humidity: int = spec(0, 100, "%", "relative humidity")
     temperature: int = spec(-128, 127, "°C", "temperature")
-
-    @classmethod
-    def from_content(cls, content: bytes) -> Reply:
-        _need(content, 2, "temperature/humidity reply")
-        return cls(content[0], int.from_bytes(content[1:], "big", signed=True))
 
     def content(self) -> bytes:
         return bytes((self.humidity, self.temperature & 0xFF))
@@ -294,19 +260,16 @@ class PidAck(Reply):
 
 
 @dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
-class Position(Reply):
+class Position(Bytewise, Reply):
     """A positioning station's broadcast: data id, two distances, time since the last id."""
 
     CODE: ClassVar[int] = 0xA0
+    READERS: ClassVar = (None, None, None, None)
+    WHAT: ClassVar[str] = "positioning broadcast"
     did: int = spec(0, 255, "", "data id")
     d1: int = spec(0, 255, "cm", "distance 1")
     d2: int = spec(0, 255, "cm", "distance 2")
     ts: int = spec(0, 255, "ms", "time since the previous data id")
-
-    @classmethod
-    def from_content(cls, content: bytes) -> Reply:
-        _need(content, 4, "positioning broadcast")
-        return cls(*content)
 
     def content(self) -> bytes:
         return bytes((self.did, self.d1, self.d2, self.ts))

@@ -15,6 +15,7 @@ from typing import Any, TypeVar
 
 from ..errors import ImpossibleReply, ProtocolError
 from . import commands as C
+from .bytewise import Joined, byte_layout, layout_reader
 from .fields import fields_of, reply_decoder, values_getter
 from .frames import (
     ADDRESS_AT,
@@ -244,10 +245,16 @@ def _json_head(
     name = encode(cmd.name if cmd else None)
     kind = encode(_kind(cmd, code, b"", direction))
     flat = flat_dict_encoder(encode)
-    parse = None if cmd is None else fields_reader(cmd, request, flat, flat_values_encoder(flat, encode))
+    parse = (
+        None if cmd is None else fields_reader(cmd, request, flat, flat_values_encoder(flat, encode), _JSON)
+    )
     text = f'"command": {code}, "name": {name}, "kind": {kind}, "payload": "'
     head = _JSON_HEADS[rule][code, request] = (cmd, text, _verdicts(rule), parse)
     return head
+
+
+#: How a flat JSON object of several fields is made of each one's.
+_JSON = Joined("{", ", ", "}")
 
 
 #: What ``fields_reader`` may take besides ``then``: for a message's declared field names, a function of
@@ -260,6 +267,7 @@ def fields_reader(
     request: bool,
     then: Callable[[dict[str, Any]], T],
     then_values: ThenValues[T] | None = None,
+    joined: Joined | None = None,
 ) -> Callable[[bytes], T]:
     """``then(C.decode_fields(...))`` for the frames of ``cmd`` on one side, the side known: made once.
 
@@ -268,8 +276,26 @@ def fields_reader(
     shares, is taken out of the per-frame work. ``then`` (a view's text of
     the fields) is called in the same step: one call less per frame. With
     ``then_values``, a message of several declared fields hands its values
-    as a tuple (read in C), with no dict built.
+    as a tuple (read in C), with no dict built. With ``joined`` (``then``
+    gives text joined that way), a message of a byte per value is read a
+    byte at a time through its ``ByteLayout``, each byte's text made once.
     """
+    reader = _codec_reader(cmd, request, then, then_values)
+    cls = cmd.request if request else cmd.reply
+    layout = None if joined is None or cls is None else byte_layout(cls)
+    if layout is None:
+        return reader
+    fast = layout_reader(layout, then, joined, reader)  # type: ignore[arg-type]  # joined: then gives text
+    return reader if fast is None else fast  # type: ignore[return-value]
+
+
+def _codec_reader(
+    cmd: C.Command,
+    request: bool,
+    then: Callable[[dict[str, Any]], T],
+    then_values: ThenValues[T] | None = None,
+) -> Callable[[bytes], T]:
+    """``fields_reader`` through the table's codec, a frame at a time."""
     if request and cmd.request is not None:
         return _declared(cmd.request, cmd.request.from_content, then, then_values)
     if not request and cmd.reply is not None:
