@@ -12,9 +12,8 @@ the message. Standard library only.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 from operator import getitem
-from typing import Any, ClassVar, NamedTuple
+from typing import Any, ClassVar
 
 from ..errors import ProtocolError
 from .fields import (
@@ -75,23 +74,53 @@ class ByteList(Reply):
         return {self.KEY: list(getattr(self, self.KEY))}
 
 
+class ByteHex(Reply):
+    """A reply of ``SIZE`` bytes held as its one field's tuple, shown as their hex under ``KEY``.
+
+    A plain base, not a dataclass, as ``ByteList``.
+    """
+
+    KEY: ClassVar[str]
+    SIZE: ClassVar[int]
+    WHAT: ClassVar[str]
+
+    @classmethod
+    def from_content(cls, content: bytes) -> Reply:
+        _need(content, cls.SIZE, cls.WHAT)
+        return cls(tuple(content))  # type: ignore[call-arg]  # each subclass's one field: its bytes
+
+    def content(self) -> bytes:
+        return bytes(getattr(self, fields_of(type(self))[0].name))
+
+    def fields(self) -> dict[str, Any]:
+        return {self.KEY: self.content().hex()}
+
+
 #: What a byte reads as when its field's rule refuses the value.
 REFUSED = object()
 
 
-@dataclass(frozen=True)
 class ByteLayout:
     """What each byte of a message's content reads as, by the message's own declaration and rules.
 
     ``values[i][b]`` is the value byte ``b`` gives at position ``i`` (or, for a
     list, ``values[0][b]`` is the item ``b`` gives anywhere), REFUSED where the
     field's range refuses it: a content is then decoded the ordinary way, which
-    says why. ``items`` is a list's ``count``: how many bytes it may hold.
+    says why. ``items`` is a list's ``count``: how many bytes it may hold;
+    ``hex``: the list is shown as the content's hex (``ByteHex``).
+    (A plain class, not a dataclass: this module loads with every command.)
     """
 
-    names: tuple[str, ...]
-    values: tuple[tuple[Any, ...], ...]
-    items: tuple[int, int] | None = None
+    __slots__ = ("hex", "items", "names", "values")
+
+    def __init__(
+        self,
+        names: tuple[str, ...],
+        values: tuple[tuple[Any, ...], ...],
+        items: tuple[int, int] | None = None,
+        hex: bool = False,
+    ) -> None:
+        self.names, self.values, self.items, self.hex = names, values, items, hex
 
 
 def byte_layout(cls: type) -> ByteLayout | None:
@@ -109,10 +138,17 @@ def byte_layout(cls: type) -> ByteLayout | None:
         ok = _rule_of(cls)
         values = tuple(_values(info, read, ok) for info, read in zip(infos, readers, strict=True))
         return ByteLayout(tuple(info.name for info in infos), values)
-    if _own(cls, "from_content", ByteList) and _own(cls, "fields", ByteList) and len(infos) == 1:
-        (info,) = infos
+    if len(infos) != 1:
+        return None
+    (info,) = infos
+    items = _values(info, None, item_in_range)
+    if _own(cls, "from_content", ByteList) and _own(cls, "fields", ByteList):
         count = info.count or (1, 0xFF)
-        return ByteLayout((info.name,), (_values(info, None, item_in_range),), (max(count[0], 1), count[1]))
+        return ByteLayout((info.name,), (items,), (max(count[0], 1), count[1]))
+    if _own(cls, "from_content", ByteHex) and _own(cls, "fields", ByteHex) and REFUSED not in items:
+        size: int = cls.SIZE  # type: ignore[attr-defined]
+        fits = info.count is None or info.count[0] <= size <= info.count[1]
+        return ByteLayout((cls.KEY,), (items,), (size, size), hex=True) if fits else None  # type: ignore[attr-defined]
     return None
 
 
@@ -141,17 +177,17 @@ def _fields_as_declared(cls: type) -> bool:
     return issubclass(cls, Request) or (issubclass(cls, Reply) and cls.fields is Reply.fields)
 
 
-class Joined(NamedTuple):
+class Joined:
     """How a view's text of several fields is made of each field's alone.
 
     ``then(fields)`` is ``prefix + sep.join(then({name: value})[len(prefix):-len(suffix)] ...) + suffix``,
     and a list's items are joined by ``item_sep`` between its brackets.
     """
 
-    prefix: str
-    sep: str
-    suffix: str
-    item_sep: str = ", "
+    __slots__ = ("item_sep", "prefix", "sep", "suffix")
+
+    def __init__(self, prefix: str, sep: str, suffix: str, item_sep: str = ", ") -> None:
+        self.prefix, self.sep, self.suffix, self.item_sep = prefix, sep, suffix, item_sep
 
 
 def layout_reader(
@@ -166,13 +202,15 @@ def layout_reader(
     """
     if layout.items is None:
         return _fields_reader(layout, then, joined, slow)
+    if layout.hex:
+        return _hex_reader(layout, then, slow)
     return _items_reader(layout, then, joined, slow)
 
 
 def _fields_reader(
     layout: ByteLayout, then: Callable[[dict[str, Any]], str], joined: Joined, slow: Callable[[bytes], str]
 ) -> Callable[[bytes], str] | None:
-    prefix, sep, suffix, _ = joined
+    prefix, sep, suffix = joined.prefix, joined.sep, joined.suffix
     cut = slice(len(prefix), -len(suffix) or None)
     tables = [
         tuple(None if value is REFUSED else then({name: value})[cut] for value in values)
@@ -220,6 +258,23 @@ def _items_reader(
             pieces: list[Any] = [*map(item, content)]
             if None not in pieces:
                 return f"{head}{join(pieces)}{tail}"
+        return slow(content)
+
+    return read
+
+
+def _hex_reader(
+    layout: ByteLayout, then: Callable[[dict[str, Any]], str], slow: Callable[[bytes], str]
+) -> Callable[[bytes], str] | None:
+    (name,), size = layout.names, (layout.items or (0, 0))[0]
+    probe, other = bytes(range(size)).hex(), bytes(range(0xFF, 0xFF - size, -1)).hex()
+    head, found, tail = then({name: probe}).partition(probe)
+    if not found or then({name: other}) != f"{head}{other}{tail}":
+        return None
+
+    def read(content: bytes) -> str:
+        if len(content) == size:
+            return f"{head}{content.hex()}{tail}"
         return slow(content)
 
     return read

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from ..errors import ProtocolError
-from .bytewise import ByteList, Bytewise, signed_byte
+from .bytewise import ByteHex, ByteList, Bytewise, signed_byte
 from .fields import READ_REQUEST, Reply, Request, _need, byte_to_percent, percent_to_byte, spec
 
 #: Direction bits of the percent requests (0x01, 0x02): set when that motor runs backwards.
@@ -279,25 +279,17 @@ MAP_ROWS = 16
 
 
 @dataclass(frozen=True, eq=False, repr=False)  # Message's: see fields.Message
-class GridMap(Reply):
+class GridMap(ByteHex):
     """16 bytes, layout unspecified: shown raw and as a bit grid, MSB first."""
 
     CODE: ClassVar[int] = 0xB0
+    KEY: ClassVar[str] = "map"
+    SIZE: ClassVar[int] = MAP_ROWS
+    WHAT: ClassVar[str] = "grid map"
     rows: tuple[int, ...] = spec(0, 255, "", "one byte per row, most significant bit first")
-
-    @classmethod
-    def from_content(cls, content: bytes) -> Reply:
-        _need(content, MAP_ROWS, "grid map")
-        return cls(tuple(content))
-
-    def content(self) -> bytes:
-        return bytes(self.rows)
 
     def grid(self) -> list[str]:
         return [format(row, "08b").replace("0", ".").replace("1", "#") for row in self.rows]
-
-    def fields(self) -> dict[str, Any]:
-        return {"map": bytes(self.rows).hex()}
 
 
 def code_mismatch(code: int, request: object, reply: object) -> str | None:
