@@ -202,7 +202,8 @@ class Request(Message):
     CODE: ClassVar[int]
 
     def __post_init__(self) -> None:
-        for name, lo, hi, info in _REQUEST_RANGES.get(type(self)) or _request_ranges(type(self)):
+        ranges = _REQUEST_RANGES.get(type(self))
+        for name, lo, hi, info in _request_ranges(type(self)) if ranges is None else ranges:
             value = getattr(self, name)
             if not (type(value) is int and lo <= value <= hi) and not request_value_ok(info, value):
                 raise RangeError(name, value, info.lo, info.hi, info.unit)
