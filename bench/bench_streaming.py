@@ -264,15 +264,16 @@ def _run(args: argparse.Namespace, env: dict[str, str], work: Path) -> int:
     return 1 if missed else 0
 
 
-#: The time bounds, as ratios to the reference measured in the same run: on hcrctl's own inputs
-#: (``own_*``, issue 43) and on the random mix (issue 15).
+#: The time bounds, as ratios to the reference measured in the same run: ``hex decode``'s 1.5x and
+#: ``--summary``'s 0.5x hold on hcrctl's own inputs (``own_*``) and on the random mix alike; its JSON
+#: and ``monitor --from`` of the synthetic log keep their earlier 2x.
 TARGETS = {
     "own_view_1MiB": 1.5,
     "own_view_4MiB": 1.5,
     "own_summary_4MiB": 0.5,
     "own_monitor_100000": 1.5,
-    "view_1MiB": 2.0,
-    "view_4MiB": 2.0,
+    "view_1MiB": 1.5,
+    "view_4MiB": 1.5,
     "view_json_1MiB": 2.0,
     "view_json_4MiB": 2.0,
     "summary_4MiB": 0.5,

@@ -340,10 +340,8 @@ def _range_check(infos: tuple[FieldInfo, ...]) -> Callable[[Any], bool]:
 
         def one_in_range(value: Any) -> bool:
             item = getattr(value, name)
-            if type(item) is tuple:  # ``_tuple_in_range``, inline: most list replies are checked here
-                if count is not None and not count[0] <= len(item) <= count[1]:
-                    return False
-                return not item or (lo <= min(item) and max(item) <= hi)
+            if type(item) is tuple:
+                return _tuple_in_range(item, lo, hi, count)
             return (type(item) is int or type(item) is float) and count is None and lo <= item <= hi
 
         return one_in_range
