@@ -17,6 +17,8 @@ from rich.console import Console, ConsoleOptions, RenderableType, RenderResult
 from rich.segment import Segment
 from rich.text import Text
 
+from .panellines import panel_lines
+
 #: The narrowest a dashboard column gets before there are fewer columns.
 COLUMN_WIDTH = 38
 
@@ -252,9 +254,7 @@ class Board:
         if lines is None and memo is self._fresh and self.cache is not None:
             lines = self.cache.get(key)
         if lines is None:
-            lines = console.render_lines(
-                tile.draw(size, width), options.update(width=width, height=None), pad=True
-            )
+            lines = panel_lines(console, tile.draw(size, width), options.update(width=width, height=None))
         memo[key] = lines
         return lines
 
