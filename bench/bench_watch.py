@@ -21,6 +21,9 @@ share of the line is printed, not subtracted. CPU is the process's own utime+sti
 /proc/<pid>/stat over a steady window after start-up, divided by the same wall time.
 
     python bench/bench_watch.py [--rounds 3] [--seconds 5] [--cpu-only]
+
+The CPU share is a percent or two of a core: over windows of 5 s it swings by a
+percent a round, so its figures come from `--cpu-only --rounds 5 --seconds 10`.
 """
 
 from __future__ import annotations
