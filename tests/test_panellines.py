@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import itertools
 
 import pytest
 from helpers import Clock
@@ -65,11 +66,40 @@ def panels(draw: st.DrawFn) -> Panel:
     )
 
 
-@settings(max_examples=600, deadline=None)
+@settings(max_examples=600, deadline=None, derandomize=True)
 @given(panel=panels(), width=st.integers(3, 60), console=st.sampled_from(CONSOLES))
 def test_any_panel_is_drawn_as_rich_draws_it(panel: Panel, width: int, console: Console) -> None:
     options = console.options.update(width=width, height=None)
     assert panel_lines(console, panel, options) == console.render_lines(panel, options, pad=True)
+
+
+@pytest.mark.parametrize("console", CONSOLES, ids=["truecolor", "no-colour", "ascii"])
+def test_every_kind_of_panel_around_each_width_is_drawn_as_rich_draws_it(console: Console) -> None:
+    """Each look at widths either side of a fixed width (12) and of a long title, exhaustively."""
+    looks = itertools.product(
+        [None, "link", "a title longer than a narrow panel"],
+        [None, "[yellow]stale · 1.0 s old[/]"],
+        [True, False],
+        [None, 12],
+        [(0, 1), (0, 0), (0, 1, 0, 3)],
+        ["none", "dim"],
+        ["", "ok", "x" * 30],
+    )
+    for title, subtitle, expand, fixed, padding, style, text in looks:
+        for width in (11, 12, 13, 40):
+            panel = Panel(
+                Text(text),
+                title=title,
+                subtitle=subtitle,
+                expand=expand,
+                width=fixed,
+                padding=padding,
+                style=style,
+            )
+            options = console.options.update(width=width, height=None)
+            assert panel_lines(console, panel, options) == console.render_lines(panel, options, pad=True), (
+                title, subtitle, expand, fixed, padding, style, text, width,
+            )  # fmt: skip
 
 
 def test_the_dashboard_panels_take_the_quick_way() -> None:

@@ -86,7 +86,8 @@ def _frame(console: Console, panel: Panel, options: ConsoleOptions) -> Frame | N
 def _empty_frame(console: Console, panel: Panel, options: ConsoleOptions) -> Frame | None:
     """Top, bottom and the segments either side of a body line, from rich's drawing of an empty body."""
     top_pad, right, bottom_pad, left = Padding.unpack(panel.padding)
-    if top_pad or bottom_pad or not panel.expand or panel.height is not None:
+    narrower = panel.width is not None and panel.width < options.max_width  # then padded to the width
+    if top_pad or bottom_pad or narrower or not panel.expand or panel.height is not None:
         return None
     empty = Panel(
         Text(""), box=panel.box, title=panel.title, title_align=panel.title_align, subtitle=panel.subtitle,
