@@ -101,7 +101,7 @@ def _empty_frame(console: Console, panel: Panel, options: ConsoleOptions) -> Fra
     width = Segment.get_line_length(line)
     start, rest = _cut(line, 1 + left)
     middle, end = _cut(rest, width - 2 - left - right)
-    if start is None or middle is None or end is None or Segment.get_line_length(end) != right + 1:
+    if start is None or middle is None or Segment.get_line_length(end) != right + 1:
         return None
     return [lines[0]], start, end, [lines[2]], width - 2 - left - right
 
