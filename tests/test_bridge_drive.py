@@ -11,8 +11,8 @@ from helpers_live import FakeRobot, is_stop
 
 from hcrctl.motion.governor import Lease
 from hcrctl.protocol import commands as C
+from hcrctl.protocol.geometry import HCR
 from hcrctl.served.cmdvel import parse_twist, twist_wheels, wheel_limits
-from hcrctl.sim.body import WHEEL_BASE_CM
 
 # -- Twist to wheels (pure) ------------------------------------------------------------------
 
@@ -29,7 +29,7 @@ def test_the_limits_are_the_velocity_commands_range_in_the_table() -> None:
 def test_left_is_v_minus_w_b_over_2_and_right_v_plus(
     linear: float, angular: float, expected: tuple[int, int]
 ) -> None:
-    half = angular * WHEEL_BASE_CM / 2
+    half = angular * HCR.wheel_base_cm / 2
     assert expected == (round(linear * 100 - half), round(linear * 100 + half))
     assert twist_wheels(linear, angular) == expected
 

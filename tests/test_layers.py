@@ -132,11 +132,26 @@ def test_layers_name_packages_only() -> None:
             assert prefix not in MODULES or MODULES[prefix].name == "__init__.py", f"{prefix} is a module"
 
 
+def own_from(name: str, packages: tuple[str, ...]) -> list[str]:
+    """The modules of ``packages`` that ``name`` imports."""
+    return sorted(m for m in own(name) if any(m == p or m.startswith(p + ".") for p in packages))
+
+
 @pytest.mark.parametrize("name", sorted(m for m in MODULES if m.startswith(tuple(p + "." for p in SERVERS))))
 def test_servers_import_no_terminal_ui(name: str) -> None:
     """A server runs headless: importing the bridge must not load teleop's keys, painter or panels."""
-    ui = sorted(m for m in own(name) if any(m == p or m.startswith(p + ".") for p in TERMINAL))
+    ui = own_from(name, TERMINAL)
     assert not ui, f"{name} is a server and imports the terminal UI: {ui}"
+
+
+@pytest.mark.parametrize(
+    "name", sorted(m for m in MODULES if m.startswith(tuple(p + "." for p in (*SERVERS, "hcrctl.motion"))))
+)
+def test_what_serves_a_real_robot_takes_nothing_from_the_simulator(name: str) -> None:
+    """A real robot's server reads its numbers (the wheel base, the body) from their own home
+    (``protocol.geometry``, set by the config), never from the simulated robot's body."""
+    sim = own_from(name, ("hcrctl.sim",))
+    assert not sim, f"{name} serves a real robot and imports the simulator: {sim}"
 
 
 @pytest.mark.parametrize("name", sorted(MODULES))

@@ -14,7 +14,8 @@ from helpers import QUIET, Clock
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import BadChecksum, ChecksumRule, Frame, Junk, encode
-from hcrctl.sim.body import MAX_SPEED_CM_S, ROBOT_RADIUS_CM, START_POSE, WHEEL_TIME_CONSTANT_S
+from hcrctl.protocol.geometry import HCR
+from hcrctl.sim.body import MAX_SPEED_CM_S, START_POSE, WHEEL_TIME_CONSTANT_S
 from hcrctl.sim.options import SimOptions
 from hcrctl.sim.simulator import MAX_BACKLOG, STATIONS, Simulator, ir_raw
 from hcrctl.sim.world import ROOM_WIDTH_CM
@@ -71,7 +72,7 @@ def angle_diff(a: float, b: float) -> float:
 
 def test_start_pose_readings_match_the_room() -> None:
     sim, _ = make()
-    free_ahead = ROOM_WIDTH_CM - START_POSE.x - ROBOT_RADIUS_CM
+    free_ahead = ROOM_WIDTH_CM - START_POSE.x - HCR.body_radius_cm
     assert ask(sim, "sonar").sonar[1] == round(free_ahead)
     assert heading(sim) == START_POSE.heading
     assert ask(sim, "bump").bump == (False, False, False)
@@ -110,7 +111,7 @@ def test_driving_into_a_wall_presses_the_front_bumper_and_stops_there() -> None:
     sim, clock = make()
     send(sim, C.Velocity(60, 60))
     run(sim, clock, 8.0)
-    wall_x = ROOM_WIDTH_CM - ROBOT_RADIUS_CM
+    wall_x = ROOM_WIDTH_CM - HCR.body_radius_cm
     assert wall_x - 0.1 <= sim.pose.x <= wall_x
     assert ask(sim, "bump").bump == (False, True, False)
     assert ask(sim, "wheels").wheels == (0, 0)  # stalled against the wall

@@ -19,7 +19,7 @@ from helpers import QUIET, TIMEOUT, Clock, clean_env, hcrctl_exe, sim_process, t
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import Frame
-from hcrctl.sim.body import ROBOT_RADIUS_CM
+from hcrctl.protocol.geometry import HCR
 from hcrctl.sim.options import SimOptions
 from hcrctl.sim.simulator import Simulator
 from hcrctl.sim.wander import CRUISE_CM_S
@@ -67,7 +67,7 @@ def test_it_stays_in_the_room_and_clear_of_obstacles_for_ten_minutes() -> None:
         clock.now += 0.1
         sim.advance()
         pose = sim.pose
-        assert not sim.body.world.blocked(pose.x, pose.y, ROBOT_RADIUS_CM - 0.01), (i, pose)
+        assert not sim.body.world.blocked(pose.x, pose.y, HCR.body_radius_cm - 0.01), (i, pose)
         visited.add((int(pose.x // 50), int(pose.y // 50)))
     assert len(visited) >= 12  # of the room's 6 x 4 squares of 50 cm: it gets about, not stuck in a corner
 

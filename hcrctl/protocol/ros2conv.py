@@ -46,8 +46,9 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, replace
 from typing import Any
 
-from . import ros2msg
+from . import geometry, ros2msg
 from . import ros2types as R
+from .geometry import HCR, Geometry
 from .messages import BUMPER_NAMES
 from .topics import PREFIX, Topic, microseconds
 
@@ -145,7 +146,7 @@ class Ranger:
     field_of_view: float
 
 
-def on_rim(yaws: Iterable[float], radius: float = 0.15, height: float = 0.05) -> tuple[Pose, ...]:
+def on_rim(yaws: Iterable[float], radius: float = HCR.body_radius, height: float = 0.05) -> tuple[Pose, ...]:
     """Sensors on the body's edge (``radius`` m from its centre), each looking outwards at its yaw (deg)."""
     return tuple(
         Pose(
@@ -191,8 +192,8 @@ class Layout:
     #: How far out a bumper detects: REP 117's fixed distance.
     bumper_distance: float = 0.01
     ir_model: str = "inverse"
-    #: The document gives no wheel radius: set yours (metres).
-    wheel_radius: float = 0.035
+    #: The wheel base, the wheel radius and the body's radius (``protocol.geometry``).
+    geometry: Geometry = HCR
     wheel_joints: tuple[str, str] = ("left_wheel_joint", "right_wheel_joint")
     imu_frame: str = "imu_link"
     #: The frame the odometry is in (REP 105), parent of ``base_frame`` on ``/tf``.
@@ -202,6 +203,10 @@ class Layout:
 
     def frame(self, name: str) -> str:
         return self.frame_prefix + name
+
+    @property
+    def wheel_radius(self) -> float:
+        return self.geometry.wheel_radius
 
 
 DEFAULT_LAYOUT = Layout()
@@ -214,9 +219,8 @@ LAYOUT_KEYS: dict[str, str] = {
     "sonar-yaw": "an array of degrees, counter-clockwise from ahead, one per sonar",
     "ir-yaw": "an array of degrees, counter-clockwise from ahead, one per IR sensor",
     "bumper-yaw": "an array of degrees, counter-clockwise from ahead, one per bumper",
-    "body-radius": "metres from the centre to the sensors, 0.01 to 5",
     "ir-model": "inverse (hcrctl's simulator) or cm (the published v0.33 firmware)",
-    "wheel-radius": "metres, 0.001 to 5",
+    **{key: str(spec) for key, spec in geometry.KEYS.items()},
 }
 
 
@@ -252,8 +256,12 @@ def layout_from(table: Mapping[str, Any], base: Layout = DEFAULT_LAYOUT) -> Layo
     for key in table:
         if key not in LAYOUT_KEYS:
             raise LayoutError(key, f"unknown key; known keys: {', '.join(LAYOUT_KEYS)}")
-    radius = _number("body-radius", table.get("body-radius", 0.15), 0.01, 5.0)
-    changes: dict[str, Any] = {}
+    shape = replace(
+        base.geometry,
+        **{k.attr: _number(key, table[key], k.lo, k.hi) for key, k in geometry.KEYS.items() if key in table},
+    )
+    radius = shape.body_radius
+    changes: dict[str, Any] = {"geometry": shape}
     for key, attr, height in (
         ("sonar-yaw", "sonar", 0.05),
         ("ir-yaw", "ir", 0.05),
@@ -271,8 +279,6 @@ def layout_from(table: Mapping[str, Any], base: Layout = DEFAULT_LAYOUT) -> Layo
                 "ir-model", f"expected one of {', '.join(IR_MODELS)}, got {table['ir-model']!r}"
             )
         changes["ir_model"] = table["ir-model"]
-    if "wheel-radius" in table:
-        changes["wheel_radius"] = _number("wheel-radius", table["wheel-radius"], 0.001, 5.0)
     return replace(base, **changes)
 
 
@@ -521,8 +527,10 @@ _LAYOUT = [DEFAULT_LAYOUT]
 
 
 def use_layout(layout: Layout) -> None:
-    """Make ``layout`` the one ``current_layout`` gives: the config file's, set once as the program starts."""
+    """Make ``layout`` the one ``current_layout`` gives (and its geometry ``geometry.current``'s): the config
+    file's, set once as the program starts."""
     _LAYOUT[0] = layout
+    geometry.use(layout.geometry)
 
 
 def current_layout() -> Layout:

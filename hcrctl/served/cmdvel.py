@@ -25,7 +25,7 @@ from typing import Any
 
 from ..inputs import PeerJsonError, peer_json
 from ..protocol import commands as C
-from ..sim.body import WHEEL_BASE_CM
+from ..protocol import geometry
 
 TOPIC = "/cmd_vel"
 #: What the Teleop panel advertises (ROS 1 spelling; ROS 2 clients say geometry_msgs/msg/Twist).
@@ -90,10 +90,11 @@ def parse_twist(data: bytes) -> tuple[float, float]:
     return _number(message, "linear", "x"), _number(message, "angular", "z")
 
 
-def twist_wheels(linear: float, angular: float, wheel_base_cm: float = WHEEL_BASE_CM) -> tuple[int, int]:
-    """Wheel speeds in cm/s for a Twist, scaled down together to fit the table's range."""
+def twist_wheels(linear: float, angular: float, shape: geometry.Geometry | None = None) -> tuple[int, int]:
+    """Wheel speeds in cm/s for a Twist, scaled down together to fit the table's range; the wheel base is
+    ``shape``'s, by default this run's robot's (``geometry.current``: the config's ``[layout]``)."""
     v = linear * 100.0
-    half = angular * wheel_base_cm / 2
+    half = angular * (shape or geometry.current()).wheel_base_cm / 2
     left, right = v - half, v + half
     if not all(map(math.isfinite, (left, right))):
         raise BadTwist("speeds out of any range")

@@ -12,10 +12,9 @@ import math
 from dataclasses import dataclass
 from typing import Protocol
 
+from ..protocol import geometry
 from .world import World
 
-WHEEL_BASE_CM = 24.0
-ROBOT_RADIUS_CM = 15.0
 MAX_SPEED_CM_S = 80.0
 #: First-order lag of the wheel speed controllers.
 WHEEL_TIME_CONSTANT_S = 0.15
@@ -64,10 +63,20 @@ class _Turn:
 
 
 class Body:
-    """Where the robot is and how its wheels move; mutated only by ``advance``."""
+    """Where the robot is and how its wheels move; mutated only by ``advance``.
 
-    def __init__(self, world: World | None = None, pose: Pose = START_POSE) -> None:
+    Its wheel base and radius are ``shape``'s, by default this run's robot's
+    (``geometry.current``: the config's ``[layout]``), so the simulator turns
+    by the same numbers a Twist is made into wheels with.
+    """
+
+    def __init__(
+        self, world: World | None = None, pose: Pose = START_POSE, shape: geometry.Geometry | None = None
+    ) -> None:
         self.world = world or World()
+        self.shape = shape or geometry.current()
+        self.wheel_base_cm = self.shape.wheel_base_cm
+        self.radius_cm = self.shape.body_radius_cm
         self.x, self.y, self.heading = pose.x, pose.y, pose.heading % 360
         self.wheels = [0.0, 0.0]
         self.targets = [0.0, 0.0]
@@ -139,7 +148,7 @@ class Body:
         step = min(turn.rate * h, turn.remaining)
         self.heading = (self.heading + turn.sign * step) % 360
         turn.remaining -= step
-        rim = math.radians(turn.rate) * WHEEL_BASE_CM / 2
+        rim = math.radians(turn.rate) * self.wheel_base_cm / 2
         self.wheels = [turn.sign * rim, -turn.sign * rim]
         if turn.remaining <= 1e-9:
             self._turn = None
@@ -147,12 +156,12 @@ class Body:
 
     def _move(self, h: float) -> None:
         left, right = self.wheels
-        spin = math.degrees((left - right) / WHEEL_BASE_CM) * h
+        spin = math.degrees((left - right) / self.wheel_base_cm) * h
         mid = math.radians(self.heading + spin / 2)
         dist = (left + right) / 2 * h
         dx, dy = dist * math.sin(mid), dist * math.cos(mid)
         self.heading = (self.heading + spin) % 360
-        if self.world.blocked(self.x + dx, self.y + dy, ROBOT_RADIUS_CM):
+        if self.world.blocked(self.x + dx, self.y + dy, self.radius_cm):
             f = self._free_fraction(dx, dy)
             dx, dy = dx * f, dy * f
             self.wheels = [(left - right) / 2, (right - left) / 2]  # stalled: only the spin is left
@@ -164,7 +173,7 @@ class Body:
         lo, hi = 0.0, 1.0
         for _ in range(14):
             mid = (lo + hi) / 2
-            if self.world.blocked(self.x + dx * mid, self.y + dy * mid, ROBOT_RADIUS_CM):
+            if self.world.blocked(self.x + dx * mid, self.y + dy * mid, self.radius_cm):
                 hi = mid
             else:
                 lo = mid
@@ -174,11 +183,11 @@ class Body:
 
     def range_at(self, relative: float) -> float:
         """Distance from the body's edge to the first surface, ``relative`` degrees off the heading."""
-        return max(0.0, self.world.ray(self.x, self.y, self.heading + relative) - ROBOT_RADIUS_CM)
+        return max(0.0, self.world.ray(self.x, self.y, self.heading + relative) - self.radius_cm)
 
     def bumpers(self) -> tuple[bool, bool, bool]:
         hit = [False, False, False]
-        for bearing in self.world.contacts(self.x, self.y, ROBOT_RADIUS_CM + CONTACT_MARGIN_CM):
+        for bearing in self.world.contacts(self.x, self.y, self.radius_cm + CONTACT_MARGIN_CM):
             rel = (bearing - self.heading + 180) % 360 - 180
             for i, (lo, hi) in enumerate(BUMPER_ARCS):
                 hit[i] = hit[i] or lo <= rel <= hi
