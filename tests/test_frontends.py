@@ -345,24 +345,142 @@ def test_every_rows_options_are_keyword_only() -> None:
 
 # -- what a front end may see -----------------------------------------------------------------------------
 
-#: The runtime's insides: a front end reads what it needs through ``RuntimeView``, never these.
-INSIDES = {"signalled", "poller", "feed", "stats", "served", "lease"}
-FRONT_END_PACKAGES = ("foxglove", "fleet", "ros2")
+#: What a front end may read of the runtime: ``RuntimeView``'s public names, derived from the class itself.
+PUBLIC = frozenset(name for name in dir(RuntimeView) if not name.startswith("_"))
+#: The front ends (each holds the view it is handed) and the table that builds them.
+FRONT_END_PACKAGES = ("foxglove", "fleet", "ros2", "served/frontends")
+HCRCTL = Path(__file__).resolve().parent.parent / "hcrctl"
 
 
-def _reaches(path: Path) -> list[str]:
-    """Each ``x.<inside>`` in the module, but ``late.lease`` (a late renewal's lease, handed to a listener)."""
-    return [
-        f"{path.name}:{node.lineno} .{node.attr}"
-        for node in ast.walk(ast.parse(path.read_text()))
-        if isinstance(node, ast.Attribute)
-        and node.attr in INSIDES
-        and not (node.attr == "lease" and isinstance(node.value, ast.Name) and node.value.id == "late")
-    ]
+#: Builtins that read or write an object's attributes by a name given as data.
+REFLECTIVE = frozenset({"getattr", "setattr", "hasattr", "delattr", "vars"})
+
+
+def _names_the_view(annotation: ast.expr | None) -> bool:
+    return annotation is not None and "RuntimeView" in ast.unparse(annotation)
+
+
+class ViewReads(ast.NodeVisitor):
+    """The names a module reads off a ``RuntimeView``, however it holds one.
+
+    A view is a parameter or variable annotated ``RuntimeView``, any name or ``self.<attribute>`` assigned
+    one (also by tuple assignment), and so on to a fixed point; each ``<view>.<name>`` and each
+    ``getattr``/``setattr``/``hasattr``/``vars`` of a view is a read.
+    """
+
+    def __init__(self, tree: ast.Module) -> None:
+        self.names: set[str] = set()
+        self.self_attributes: set[str] = set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.arg) and _names_the_view(node.annotation):
+                self._hold(ast.Name(node.arg))
+            elif isinstance(node, ast.AnnAssign) and _names_the_view(node.annotation):
+                self._hold(node.target)
+        while self._spread(tree):
+            pass
+        self.reads: list[tuple[int, str]] = []
+        self.visit(tree)
+
+    def is_view(self, node: ast.expr) -> bool:
+        if isinstance(node, ast.Name):
+            return node.id in self.names
+        return (
+            isinstance(node, ast.Attribute)
+            and isinstance(node.value, ast.Name)
+            and node.value.id == "self"
+            and node.attr in self.self_attributes
+        )
+
+    def _hold(self, target: ast.expr) -> bool:
+        """Remember ``target`` as a view; whether it is new."""
+        if isinstance(target, ast.Name) and target.id not in self.names:
+            self.names.add(target.id)
+            return True
+        if (
+            isinstance(target, ast.Attribute)
+            and isinstance(target.value, ast.Name)
+            and target.value.id == "self"
+            and target.attr not in self.self_attributes
+        ):
+            self.self_attributes.add(target.attr)
+            return True
+        return False
+
+    def _spread(self, tree: ast.Module) -> bool:
+        """One pass of assignments from a view; whether it found a new holder."""
+        grew = False
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.Assign | ast.NamedExpr):
+                continue
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            for target in targets:
+                if isinstance(target, ast.Tuple) and isinstance(node.value, ast.Tuple):
+                    pairs = list(zip(target.elts, node.value.elts, strict=False))
+                else:
+                    pairs = [(target, node.value)]
+                grew |= any(self.is_view(value) and self._hold(held) for held, value in pairs)
+        return grew
+
+    def visit_Attribute(self, node: ast.Attribute) -> None:
+        if self.is_view(node.value):
+            self.reads.append((node.lineno, node.attr))
+        self.generic_visit(node)
+
+    def visit_Call(self, node: ast.Call) -> None:
+        if (
+            isinstance(node.func, ast.Name)
+            and node.func.id in REFLECTIVE
+            and node.args
+            and self.is_view(node.args[0])
+        ):
+            name = node.args[1] if len(node.args) > 1 else None
+            if isinstance(name, ast.Constant) and isinstance(name.value, str):
+                self.reads.append((node.lineno, name.value))
+            else:  # vars(view), getattr(view, a_name): whatever it reads, it reads past the names
+                self.reads.append((node.lineno, f"<{ast.unparse(node)}>"))
+        self.generic_visit(node)
+
+
+def view_reads(package: str) -> dict[str, list[tuple[int, str]]]:
+    """Each module of ``hcrctl/<package>`` (recursively) -> the names it reads off a view."""
+    root = HCRCTL / package
+    return {
+        str(path.relative_to(HCRCTL)): ViewReads(ast.parse(path.read_text(encoding="utf-8"))).reads
+        for path in sorted(root.rglob("*.py"))
+    }
 
 
 @pytest.mark.parametrize("package", FRONT_END_PACKAGES)
-def test_front_ends_reach_no_insides_of_the_runtime(package: str) -> None:
-    root = Path(__file__).resolve().parent.parent / "hcrctl" / package
-    reaches = [reach for path in sorted(root.glob("*.py")) for reach in _reaches(path)]
-    assert not reaches, f"hcrctl/{package} reaches into the runtime (use served.view.RuntimeView): {reaches}"
+def test_front_ends_read_only_the_public_names_of_the_runtime_view(package: str) -> None:
+    reads = view_reads(package)
+    beyond = [
+        f"{module}:{line} .{name}"
+        for module, found in reads.items()
+        for line, name in found
+        if name not in PUBLIC
+    ]
+    assert not beyond, f"hcrctl/{package} reads past RuntimeView's public names {sorted(PUBLIC)}: {beyond}"
+
+
+def test_the_view_reads_search_finds_what_each_front_end_reads() -> None:
+    """The search is not blind: every front end reads the governor, and the public names are the view's."""
+    assert {"governor", "robot", "topics", "heard", "set_rate", "set_deadman"} <= PUBLIC
+    assert not PUBLIC & {"feed", "served", "poller", "signalled"}
+    for package in ("foxglove", "fleet", "ros2"):
+        names = {name for found in view_reads(package).values() for _, name in found}
+        assert "governor" in names, package
+
+
+@pytest.mark.parametrize(
+    "source",
+    [
+        "def f(view: RuntimeView):\n    return view._feed.messages",
+        "class A:\n    def __init__(self, view: 'RuntimeView'):\n        self.v = view\n"
+        "    def g(self):\n        held, n = self.v, 1\n        return held._served",
+        "def f(view: RuntimeView):\n    return getattr(view, '_feed')",
+        "def f(view: RuntimeView):\n    return vars(view)",
+    ],
+    ids=["direct", "held-through-self-and-a-tuple", "getattr", "vars"],
+)
+def test_the_view_reads_search_sees_an_inside_however_the_view_is_held(source: str) -> None:
+    assert [name for _, name in ViewReads(ast.parse(source)).reads if name not in PUBLIC]

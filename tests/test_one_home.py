@@ -8,6 +8,7 @@ crept back.
 
 from __future__ import annotations
 
+import ast
 import inspect
 import re
 from collections.abc import Callable
@@ -94,10 +95,92 @@ def test_the_fleets_key_space_reads_a_peers_json_by_the_same_rule(data: bytes) -
     assert keyspace.loads(b'{"a": [1]}') == {"a": [1]}
 
 
+#: The standard library's JSON module and what in it parses a text (everything else in it writes JSON).
+JSON, JSON_READERS = "json", frozenset({"load", "loads", "decoder", "scanner", "JSONDecoder"})
+
+
+def json_reads(tree: ast.Module) -> list[str]:
+    """Each place a module reaches a JSON parser, by any spelling: ``json.loads``, ``import json as j;
+    j.loads``, ``from json import loads as x``, ``import json.decoder``, ``k = json; k.load``,
+    ``getattr(json, ...)``, and any import of a module named by a string (which this cannot follow)."""
+    modules: set[str] = set()  # the names the json module is bound to
+    found: list[str] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name == JSON or alias.name.startswith(JSON + "."):
+                    modules.add(alias.asname or JSON)
+                    if alias.name != JSON:
+                        found.append(f"{node.lineno}: import {alias.name}")
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module is not None:
+            top = node.module.split(".")[0]
+            for alias in node.names:
+                if top == JSON and (node.module != JSON or alias.name in JSON_READERS | {"*"}):
+                    found.append(f"{node.lineno}: from {node.module} import {alias.name}")
+    while True:  # a name assigned the module is the module
+        more = {
+            target.id
+            for node in ast.walk(tree)
+            if isinstance(node, ast.Assign) and isinstance(node.value, ast.Name) and node.value.id in modules
+            for target in node.targets
+            if isinstance(target, ast.Name) and target.id not in modules
+        }
+        if not more:
+            break
+        modules |= more
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in modules:
+            if node.attr in JSON_READERS:
+                found.append(f"{node.lineno}: {node.value.id}.{node.attr}")
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name | ast.Attribute):
+            called = node.func.id if isinstance(node.func, ast.Name) else node.func.attr
+            first = node.args[0] if node.args else None
+            by_name = called in {"getattr", "vars"} and isinstance(first, ast.Name) and first.id in modules
+            if by_name or called in {"__import__", "import_module"}:
+                found.append(f"{node.lineno}: {ast.unparse(node)}")
+    return found
+
+
+def modules_reading_json() -> dict[str, list[str]]:
+    """The modules that reach a JSON parser -> where."""
+    reads = {name: json_reads(ast.parse(text)) for name, text in sources().items()}
+    return {name: found for name, found in reads.items() if found}
+
+
 def test_no_module_reads_json_from_a_peer_but_through_the_one_reader() -> None:
-    """``json.loads`` only in the reader itself and in readers of this machine's own files."""
+    """A JSON parser only in the reader itself and in readers of this machine's own files."""
     own_files = {"link/trafficlog.py", "link/zenoh/join.py", "fleet/router.py", "extras.py"}
-    assert modules_matching(r"json\.loads?\(") == {"inputs.py", *own_files}
+    # modules that import a module by the name a table gives (plug-ins, front ends): never a JSON parser
+    by_name = {"protocol/plugins.py", "cli/table.py"}
+    readers = modules_reading_json()
+    assert set(readers) == {"inputs.py", *own_files, *by_name}
+    assert all("import_module(module)" in found for name in by_name for found in readers[name])
+
+
+@pytest.mark.parametrize(
+    "source",
+    [
+        "import json\njson.loads(b)",
+        "from json import loads\nloads(b)",
+        "from json import loads as parse\nparse(b)",
+        "import json as j\nj.loads(b)",
+        "import json as j\nk = j\nk.load(f)",
+        "from json import *\nloads(b)",
+        "import json.decoder\njson.decoder.JSONDecoder().decode(s)",
+        "from json.decoder import JSONDecoder",
+        "import json\ngetattr(json, 'lo' + 'ads')(b)",
+        "import importlib\nimportlib.import_module('js' + 'on').loads(b)",
+    ],
+)
+def test_the_json_search_follows_the_parser_by_any_spelling(source: str) -> None:
+    assert json_reads(ast.parse(source))
+
+
+def test_the_json_search_leaves_writing_json_alone() -> None:
+    assert (
+        json_reads(ast.parse("import json\nfrom json import dumps\njson.dumps(x)\njson.JSONDecodeError"))
+        == []
+    )
 
 
 # -- a frame's layout --------------------------------------------------------------------------

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import itertools
+from typing import Any
 
 import pytest
 from helpers import Clock
@@ -100,6 +101,36 @@ def test_every_kind_of_panel_around_each_width_is_drawn_as_rich_draws_it(console
             assert panel_lines(console, panel, options) == console.render_lines(panel, options, pad=True), (
                 title, subtitle, expand, fixed, padding, style, text, width,
             )  # fmt: skip
+
+
+#: Each part of a panel's look its borders are drawn from, and two values of it that draw different borders.
+LOOKS: dict[str, tuple[Any, Any]] = {
+    "border_style": ("cyan", "red"),
+    "style": ("none", "on blue"),
+    "box": (box.ROUNDED, box.HEAVY),
+    "title": ("link", "env"),
+    "title_align": ("left", "right"),
+    "subtitle": ("ok", "stale"),
+    "subtitle_align": ("left", "right"),
+    "padding": ((0, 1), (0, 3)),
+}
+
+
+@pytest.mark.parametrize("part", sorted(LOOKS))
+def test_two_panels_differing_in_one_part_of_their_look_are_each_drawn_as_rich_draws_them(part: str) -> None:
+    """One after the other through the borders kept: the second is not drawn in the first's borders."""
+    console = CONSOLES[0]
+    options = console.options.update(width=30, height=None)
+    FRAMES.clear()
+    drawn = []
+    for value in LOOKS[part]:
+        looks: dict[str, Any] = {"title": "t", "subtitle": "s", "border_style": "none", part: value}
+        panel = Panel(Text("48 %\nok"), **looks)
+        by_rich = console.render_lines(panel, options, pad=True)
+        assert panel_lines(console, panel, options) == by_rich, (part, value)
+        drawn.append(by_rich)
+    assert drawn[0] != drawn[1], f"{part}'s two values draw the same panel: the pair proves nothing"
+    assert len(FRAMES) == 2, "each look's borders kept once"
 
 
 def test_the_dashboard_panels_take_the_quick_way() -> None:

@@ -21,7 +21,7 @@ from hcrctl.protocol import topics as T
 from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import ChecksumRule, Frame
 from hcrctl.protocol.ros2conv import yaw_of_heading
-from hcrctl.ros2.odom import OdomTopics
+from hcrctl.ros2.odom import ODOM, OdomTopics
 from hcrctl.ros2.odometry import DOUBT_S, MAX_GAP, SLIP, SPEED_STEP, Odometry
 from hcrctl.sim.options import SimOptions
 from hcrctl.sim.simulator import Simulator
@@ -52,9 +52,26 @@ def test_forward_along_the_yaw_trapezoid_between_readings() -> None:
     odo.heading(NORTH)
     odo.wheels(0.0, 0.0, 0.0)
     state = odo.wheels(0.5, 0.2, 0.2)  # from 0 to 0.2 m/s in 0.5 s: 0.05 m
-    assert state is not None
+    assert (state.t, state.yaw) == (0.5, NORTH)
     assert math.isclose(state.y, 0.05) and abs(state.x) < 1e-12
     assert state.speed == pytest.approx(0.2) and state.wheel_angles == pytest.approx((0.05 / RADIUS,) * 2)
+
+
+@pytest.mark.parametrize(
+    ("yaw0", "yaw1", "along"),
+    [(EAST, NORTH, math.pi / 4), (math.pi - 0.1, -math.pi + 0.1, math.pi)],
+    ids=["east-to-north", "through-pi"],
+)
+def test_the_distance_goes_along_the_yaw_halfway_between_the_readings(
+    yaw0: float, yaw1: float, along: float
+) -> None:
+    """Turning while driving: the step is taken along the mid yaw (wrapped), not the start's or the end's."""
+    odo = Odometry(RADIUS)
+    odo.heading(yaw0)
+    odo.wheels(0.0, 0.2, 0.2)
+    odo.heading(yaw1)
+    state = odo.wheels(1.0, 0.2, 0.2)  # 0.2 m
+    assert (state.x, state.y) == pytest.approx((0.2 * math.cos(along), 0.2 * math.sin(along)), abs=1e-12)
 
 
 def test_a_command_backwards_signs_the_unsigned_speeds() -> None:
@@ -63,7 +80,7 @@ def test_a_command_backwards_signs_the_unsigned_speeds() -> None:
     odo.commanded(0.0, -20, -20)
     odo.wheels(1.0, 0.2, 0.2)
     state = odo.wheels(2.0, 0.2, 0.2)
-    assert state is not None
+    assert (state.t, state.yaw) == (2.0, EAST)
     assert state.x == pytest.approx(-0.2) and state.speed == pytest.approx(-0.2)
     assert state.wheel_rates == pytest.approx((-0.2 / RADIUS,) * 2)
 
@@ -75,7 +92,7 @@ def test_stop_keeps_the_sign_the_wheels_wind_down_in() -> None:
     odo.commanded(0.1, 0, 0)
     odo.wheels(1.0, 0.1, 0.1)
     state = odo.wheels(1.1, 0.05, 0.05)
-    assert state is not None and state.speed < 0 and state.x < 0
+    assert state.t == 1.1 and state.speed < 0 and state.x < 0
 
 
 def test_turning_in_place_moves_nothing_and_the_yaw_rate_is_the_compass_s() -> None:
@@ -85,7 +102,7 @@ def test_turning_in_place_moves_nothing_and_the_yaw_rate_is_the_compass_s() -> N
     odo.wheels(1.0, 0.1, 0.1)
     odo.heading(0.1)
     state = odo.wheels(1.5, 0.1, 0.1)
-    assert state is not None and abs(state.x) < 1e-12 and abs(state.y) < 1e-12
+    assert state.yaw == 0.1 and abs(state.x) < 1e-12 and abs(state.y) < 1e-12
     assert state.turn_rate == pytest.approx(0.2)
     assert state.wheel_angles[0] == pytest.approx(-state.wheel_angles[1])
 
@@ -96,7 +113,7 @@ def test_the_yaw_rate_wraps_through_pi() -> None:
     odo.wheels(0.0, 0.0, 0.0)
     odo.heading(-math.pi + 0.05)
     state = odo.wheels(1.0, 0.0, 0.0)
-    assert state is not None and state.turn_rate == pytest.approx(0.1)
+    assert state.t == 1.0 and state.turn_rate == pytest.approx(0.1)
 
 
 def test_a_reversal_puts_the_sign_in_doubt_in_the_covariance_for_a_while() -> None:
@@ -108,7 +125,7 @@ def test_a_reversal_puts_the_sign_in_doubt_in_the_covariance_for_a_while() -> No
     odo.commanded(1.0, -20, -20)
     doubtful = odo.wheels(1.1, 0.1, 0.1)
     later = odo.wheels(1.1 + DOUBT_S, 0.2, 0.2)
-    assert settled is not None and doubtful is not None and later is not None
+    assert (settled.t, doubtful.t, later.t) == (1.0, 1.1, 1.1 + DOUBT_S)
     assert settled.speed_variance == pytest.approx(SPEED_STEP**2)
     assert doubtful.speed_variance == pytest.approx(SPEED_STEP**2 + 0.1**2)
     assert later.speed_variance == pytest.approx(SPEED_STEP**2)
@@ -121,7 +138,7 @@ def test_a_gap_in_the_readings_is_not_integrated_across() -> None:
     odo.heading(EAST)
     odo.wheels(0.0, 0.2, 0.2)
     state = odo.wheels(MAX_GAP + 0.5, 0.2, 0.2)
-    assert state is not None and state.x == 0.0
+    assert state.t == MAX_GAP + 0.5 and state.x == 0.0 and state.speed == pytest.approx(0.2)
 
 
 # -- a square in the simulator ---------------------------------------------------------------
@@ -162,7 +179,7 @@ class Drive:
             self.odo.heading(yaw_of_heading(heading))
             left, right = read(self.sim, "wheels").wheels  # type: ignore[attr-defined]
             state = self.odo.wheels(self.clock.now, left / 100, right / 100)
-            assert state is not None
+            assert state.t == self.clock.now and state.yaw == yaw_of_heading(heading)
             self.worst = max(self.worst, self.error(state.x, state.y))
 
     def error(self, x: float, y: float) -> float:
@@ -193,7 +210,7 @@ def test_a_square_driven_in_the_simulator_agrees_with_its_own_pose(ccw: bool) ->
             drive.command(C.Velocity(0, 0), (0, 0))
             drive.sweeps(1.0)
     state = drive.odo.wheels(drive.clock.now, 0.0, 0.0)
-    assert state is not None
+    assert state.yaw is not None  # the compass was read: there is a pose
     pose = drive.sim.pose
     assert drive.odo.travelled > 2.0
     assert drive.worst <= SQUARE_TOLERANCE_M, drive.worst
@@ -244,3 +261,19 @@ def test_the_messages_decode_as_jazzy_s_and_follow_the_frames_sent() -> None:
     assert tf["transform"]["translation"] == pose["pose"]["position"]
     assert tf["transform"]["rotation"] == pose["pose"]["orientation"]
     assert decoded[ros2conv.JOINT_STATES]["position"][0] < 0
+
+
+def test_the_yaw_rate_s_variance_is_that_of_two_compass_yaws_over_the_interval() -> None:
+    """The twist's yaw-rate variance: a difference of two compass yaws (2 var) over dt squared."""
+    layout = ros2conv.DEFAULT_LAYOUT
+    odom = OdomTopics(layout)
+    odom.convert(T.PREFIX + "compass", {"time": 10.0, "heading": 0.0})
+    variances = []
+    for t in (10.0, 10.1, 10.35):
+        converted = {
+            n: f for n, _, f in odom.convert(T.PREFIX + "wheels", {"time": t, "left": 5, "right": 5})
+        }
+        variances.append(converted[ODOM]["twist"]["covariance"][35])
+    var = layout.heading_variance
+    # the first reading has no interval before it: 1 s is assumed
+    assert variances == pytest.approx([2 * var, 2 * var / 0.1**2, 2 * var / 0.25**2])
