@@ -63,7 +63,7 @@ from typing import Any, NamedTuple, Protocol, SupportsBytes
 from ..errors import ProtocolError
 from ..inputs import PeerJsonError, peer_json
 from ..link.zenoh import identity, keyspace
-from ..motion.governor import Governor, Kind, Source, Verdict, Wheels, refusal
+from ..motion.governor import STILL, Governor, Kind, Source, Verdict, Wheels, refusal
 from ..protocol import commands as C
 from ..protocol.profiles import Profile
 from ..served.cmdvel import BadTwist, parse_twist, twist_wheels
@@ -177,6 +177,22 @@ def parse_motion(data: bytes) -> dict[str, Any]:
     return message
 
 
+#: The longest cmd_vel read for a zero while another drives: a zero Twist is far shorter.
+MAX_ZERO_BYTES = 256
+
+
+def zero_twist(payload: SupportsBytes) -> bool:
+    """Whether a cmd_vel payload is a short Twist (not a table request) asking for zero: a stop, whoever
+    sends it."""
+    if len(payload) > MAX_ZERO_BYTES:  # type: ignore[arg-type]
+        return False
+    data = bytes(payload)
+    try:
+        return "command" not in parse_motion(data) and twist_wheels(*parse_twist(data)) == STILL
+    except (BadMotion, BadTwist):
+        return False
+
+
 class FleetDrive:
     """The robot side of ``cmd_vel``/``stop``/``drive`` and the operators' tokens, for ``governor``."""
 
@@ -210,7 +226,7 @@ class FleetDrive:
 
     def cmd_vel(self, attachment: bytes | None, payload: SupportsBytes) -> None:
         """One motion message; ``payload`` is made bytes only once it is read (Zenoh's ZBytes copies)."""
-        if self._not_the_drivers(attachment):
+        if self._not_the_drivers(attachment, payload):
             return
         parsed = keyspace.parse_attachment(attachment)
         if parsed is None:
@@ -243,10 +259,11 @@ class FleetDrive:
         elif not drove:
             self._say(op, keyspace.drives_status(op, self.robot), None)
 
-    def _not_the_drivers(self, attachment: bytes | None) -> bool:
+    def _not_the_drivers(self, attachment: bytes | None, payload: SupportsBytes) -> bool:
         """While one drives, a message whose attachment does not start with the driver's session is refused
-        at once: its signature, sequence number and payload are never read, nor its attachment unless the
-        refusal is said, so a flood of other names (or of garbage) costs the driver's own messages little."""
+        at once: its signature and sequence number are never read, nor its attachment unless the refusal
+        is said, so a flood of other names (or of garbage) costs the driver's own messages little. Only a
+        short payload is read, for a zero Twist: from anyone, that is a stop."""
         driver = self.governor.driver
         if driver is None or driver.kind is not Kind.OPERATOR or attachment is None:
             return False
@@ -254,6 +271,11 @@ class FleetDrive:
         if isinstance(who, keyspace.Who) and attachment.startswith(f"{who.name} {who.session} ".encode()):
             return False
         self.counters.cmd_vel += 1
+        self.governor.heard_unread()  # a stop holds its sender out too, whoever it is
+        if zero_twist(payload):
+            self.counters.stops += 1
+            self.governor.stop("stop from someone unverified (a zero cmd_vel)")
+            return True
         # Read only when a word could be said: to another sender, or to a session present (its own budget).
         readable = self.refusals.may_say() or self._names_present(attachment)
         parsed = keyspace.parse_attachment(attachment) if readable else None
@@ -340,14 +362,15 @@ class FleetDrive:
     def stop(self, attachment: bytes | None, payload: bytes = b"") -> None:
         """Anyone may stop; the lease is freed. Said as its sender's only when that session signed it."""
         parsed = keyspace.parse_attachment(attachment)
+        by = None
         if parsed is not None and self.check("stop", parsed, payload, _named_key(payload)).why is None:
-            who = str(parsed.who)
+            who, by = str(parsed.who), operator_source(parsed.who)
         elif parsed is not None:
             who = f"someone unverified calling itself {parsed.who}"  # a name: letters, digits, _ . -
         else:
             who = "someone unverified"
         self.counters.stops += 1
-        self.governor.stop(f"stop from {who}")
+        self.governor.stop(f"stop from {who}", by)  # the driver's own stop holds only the others out
 
     def drive(self, payload: bytes, attachment: bytes | None = None) -> tuple[bool, dict[str, Any]]:
         """A claim or release, signed by the session it names: (taken, the reply's object)."""
