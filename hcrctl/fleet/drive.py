@@ -4,8 +4,9 @@ This is a *source* of motion, as the bridge's ``/cmd_vel`` is: it reads each
 message on a budget and offers it to the motion governor, which alone
 decides, writes and stops. Who sent a message is its attachment
 (``keyspace.parse_attachment``): an operator *session* (a name and a random id).
-A message from anyone but the driver is refused before its payload is read,
-so a second operator cannot make the driver's messages cost more.
+A message from anyone but the driver is refused before its payload is read
+(but for a short one, read for a zero Twist: a stop from anyone), so a second
+operator cannot make the driver's messages cost more.
 
 Who may drive, and which messages count:
 
@@ -27,7 +28,8 @@ Who may drive, and which messages count:
 - a session whose token went is remembered (``MAX_GONE``, its key and its
   numbers): a copy of its token declared later gives its old messages no
   second life, and a dead session's lease cannot be claimed again;
-- a stop is anyone's, and is said as the sender's only when signed by it;
+- a stop is anyone's (a ``stop``, or a zero Twist on ``cmd_vel``), and is said as the sender's only
+  when signed by it; it holds (``governor.HOLD_RULE``);
 - every message ignored or refused is said on ``status`` to its sender, on
   a budget (``refusals``: one word per sender and reason a window, a few
   lines a second for each session present and a few for all the others
@@ -40,9 +42,9 @@ What the operators must know (a refusal, who drives now, a stop and why) is
 put on ``hcr/<robot>/status`` by ``say``.
 
 While one drives, a message whose attachment does not name the driver's
-session is refused before its signature, sequence number or payload is read,
-so a flood of other names (or of garbage) costs the driver's own messages
-little.
+session is refused before its signature or sequence number is read, and its
+payload only if short (``zero_twist``), so a flood of other names (or of
+garbage) costs the driver's own messages little.
 
 A motion message is either a Twist (the bridge's ``/cmd_vel``, turned into
 wheel velocities) or a request of the command table (power, speed, velocity,

@@ -3,8 +3,10 @@
 This is a *source* of motion, nothing more: it runs on the server's thread,
 reads each message on a budget (``cmdvel.parse_twist``) and offers the wheels
 to the motion governor, which alone decides, writes and stops. A client that
-does not drive is refused before its payload is even read, so a second client
-cannot make the driver's messages cost more. Whatever happens to a message is
+does not drive is refused, its payload read only to find a zero Twist (from
+anyone, a stop that holds: ``governor.HOLD_RULE``) on the budget every
+message is read on, so a second client cannot make the driver's messages
+cost much more. Whatever happens to a message is
 returned as text for the client's ``status`` (``None``: taken). A client
 keeps at most ``MAX_CHANNELS`` ``/cmd_vel`` channels, and what it advertises
 is said on stderr once per burst (``BurstNotes``), not once per advertise.
