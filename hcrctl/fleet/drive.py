@@ -241,7 +241,7 @@ class FleetDrive:
         self.counters.cmd_vel += 1
         source = operator_source(op)
         refused = self.governor.would_refuse(source)
-        if refused is not None:
+        if refused is not None and not zero_twist(payload):  # a zero is never refused: it is a stop
             self.refused(op, refused, seq)
             return
         drove = self.governor.driver == source
@@ -258,7 +258,7 @@ class FleetDrive:
             return
         if not verdict:
             self._dropped(op, seq, f"cmd_vel {verdict.why}")
-        elif not drove:
+        elif not drove and self.governor.driver == source:  # not a zero that stopped another
             self._say(op, keyspace.drives_status(op, self.robot), None)
 
     def _not_the_drivers(self, attachment: bytes | None, payload: SupportsBytes) -> bool:
