@@ -9,6 +9,7 @@ unbroken stream even on a loaded machine.
 from __future__ import annotations
 
 import contextlib
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -73,6 +74,24 @@ def sent_on(node: Serve, a: RosSide, b: RosSide, since: float) -> bool:
 
 
 @contextlib.contextmanager
+def sending_on(a: RosSide, b: RosSide) -> Iterator[None]:
+    """A and B send on (``send``, B backwards) from a thread of their own, every few tens of ms."""
+    done = threading.Event()
+
+    def run() -> None:
+        while not done.wait(0.02):
+            send(a, b, -0.3)
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join()
+
+
+@contextlib.contextmanager
 def a_drives(env: dict[str, str], tmp_path: Path, here: Place) -> Iterator[tuple[Serve, RosSide, RosSide]]:
     """The node on the simulator, writers A and B, all at ``here``; A driving (backwards)."""
     with (
@@ -110,15 +129,19 @@ def test_after_the_stop_service_neither_the_driver_nor_a_refused_writer_moves_un
     deadman, then drives again: a stop ends a stream, not a writer."""
     here = place()
     with a_drives(env, tmp_path, here) as (node, a, b):
-
-        def b_refused() -> bool:
-            send(a, b, -0.3)
-            return "refused: ROS 2 writer" in node.said()  # "cmd_vel from B refused: A drives the robot"
-
-        wait_until(b_refused, what="B refused")
-        asked = motion(node)[-1][0]
         stop = CycloneClient(here.domain, f"{here.namespace}/hcrctl/stop", S.TRIGGER)
-        assert stop.call({}).success
+
+        def b_refused() -> bool:  # and the stop service found, so A and B never pause for long
+            send(a, b, -0.3)
+            refused = "refused: ROS 2 writer" in node.said()  # "cmd_vel from B refused: A drives the robot"
+            return refused and bool(
+                stop.writer.get_matched_subscriptions() and stop.reader.get_matched_publications()
+            )
+
+        wait_until(b_refused, what="B refused, and the stop service found")
+        asked = motion(node)[-1][0]
+        with sending_on(a, b):  # no gap in either stream while the call waits for its answer
+            assert stop.call({}).success
         stopped = wait_until(lambda: stop_after(node, asked), what="the stop frame")
         wait_until(lambda: sent_on(node, a, b, stopped), what="A and B, sending on, both held out")
         assert moved_after(node, stopped) == []
