@@ -110,17 +110,12 @@ def test_a_second_operator_is_refused_and_a_third_may_stop(lab: Fleet, tmp_path:
         assert op2.wait_said("refused")["text"] == "refused: op1 drives r1"
         op3.session.put(keyspace.stop("r1"), b"", attachment=keyspace.attachment(op1.op, 99))
         unverified = op1.wait_said("stop from someone unverified calling itself op1")
-        op1.cmd_vel(twist(0.2))
+        op1.cmd_vel(twist(0.2))  # sending on after a stop: held out until silent for the deadman
+        assert "send nothing for 10 s" in op1.wait_said("refused: stopped")["text"]
         op3.open()  # a session there, whose signature says who it is (once its token is there)
         said = wait_until(lambda: op3.stop() or op1.said("stop from op3"), what="op3's stop said as its")
         wait_until(lambda: motion_then_stop(serve)[1], what="stop after the motion")
-    assert said == {
-        "event": "stopped",
-        "op": "op1",
-        "session": op1.op.session,
-        "reason": "stop",
-        "text": "stopped: stop from op3",
-    }
+    assert said == {"event": "stopped", "op": None, "reason": "stop", "text": "stopped: stop from op3"}
     assert unverified["reason"] == "stop"
     backwards = [f for f in serve.sent_codes({VELOCITY}) if f.content[0]]
     assert not backwards, "op2's reverse reached the wire"
@@ -400,3 +395,26 @@ def test_a_lost_serial_link_is_said_and_ends_the_drive(lab: Fleet, tmp_path: Pat
     assert f"warning: {port} went away: the drive lease is ended" in text
     assert said["text"] == f"stopped: {port} went away"
     assert (said["event"], said["reason"], said["op"]) == ("stopped", "port lost", "op1")
+
+
+def test_a_zero_cmd_vel_from_an_operator_that_does_not_drive_stops_and_the_stop_holds(
+    lab: Fleet, tmp_path: Path
+) -> None:
+    """Anyone may stop with a zero Twist, as on ROS 2 and Foxglove; the driver sending on is held out."""
+    serve = served(lab, tmp_path, "--deadman", "10")
+    with operator(lab.endpoint, "r1", "op1") as op1, operator(lab.endpoint, "r1", "op2") as op2:
+        op1.open()
+        op1.cmd_vel(twist(0.2))
+        wait_until(lambda: serve.sent_codes({VELOCITY}), what="op1's velocity on the wire")
+        op2.open()
+        op2.cmd_vel(twist(0.0))
+        said = op1.wait_said("a zero cmd_vel")
+        wait_until(lambda: motion_then_stop(serve)[1], what="stop after the motion")
+        moved = motion_then_stop(serve)[0]
+        op1.cmd_vel(twist(0.2))  # sending on: held out until silent for the deadman
+        held = op1.wait_said("refused: stopped")
+    assert (
+        said["text"] == "stopped: stop from someone unverified (a zero cmd_vel)" and said["reason"] == "stop"
+    )
+    assert "send nothing for 10 s" in held["text"]
+    assert motion_then_stop(serve)[0] == moved  # nothing moved since the stop

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import subprocess
 import threading
+from pathlib import Path
 
 import pytest
-from helpers import wait_until
+from helpers import hcrctl_exe, wait_until
 
 from hcrctl.errors import DeviceTimeout
-from hcrctl.motion.governor import STILL, Governor, Late
+from hcrctl.motion.governor import HOLD_RULE, STILL, Governor, Late, Streams
 from hcrctl.protocol import commands as C
 
 
@@ -72,7 +74,7 @@ def test_release_by_the_driver_stops_and_by_another_does_nothing() -> None:
 def test_anyone_may_stop_and_stop_goes_out_even_when_still() -> None:
     told: list[tuple[object, str]] = []
     wire = Wire()
-    gov = governor(wire, on_stop=lambda source, why: told.append((source, why)))
+    gov = governor(wire, on_stop=lambda source, why, by: told.append((source, why)))
     gov.stop("stop asked")
     gov.turn(0.0)
     assert wire.sent == ["stop"]
@@ -185,3 +187,123 @@ def test_a_renewal_after_half_its_lease_is_counted_and_told_once() -> None:
     gov.stop("stop asked")
     assert gov.claim("a", now=5.0)  # a new lease after a stop is no renewal
     assert len(told) == 2 and gov.lease.longest_gap == pytest.approx(0.2)
+
+
+def test_a_zero_from_a_source_that_does_not_drive_stops_at_once_and_names_who_stopped() -> None:
+    told: list[tuple[object, str, object]] = []
+    wire = Wire()
+    gov = governor(wire, on_stop=lambda source, why, by: told.append((source, why, by)))
+    assert gov.offer("a", (10, 10), now=0.0)
+    gov.turn(0.0)
+    assert gov.offer("b", STILL, now=0.05)  # never refused: a stop
+    gov.turn(0.05)
+    assert wire.sent == [C.Velocity(10, 10), "stop"] and gov.driver is None
+    assert told == [("a", "b asked for zero", "b")]
+
+
+def test_a_stop_holds_the_stream_it_stopped_until_that_stream_is_silent_for_the_deadman() -> None:
+    wire = Wire()
+    gov = governor(wire)  # a 0.3 s deadman
+    gov.offer("a", (20, 20), now=0.0)
+    gov.turn(0.0)
+    gov.stop("the stop service", now=0.1)
+    for t in (0.15, 0.3, 0.45):  # a sends on: each word starts its wait again
+        verdict = gov.offer("a", (20, 20), now=t)
+        assert not verdict and "send nothing for 0.3 s" in verdict.why
+        assert gov.would_refuse("a", now=t) is not None  # type: ignore[arg-type]
+        gov.turn(t)
+    assert wire.sent == [C.Velocity(20, 20), "stop"]
+    assert gov.offer("a", (20, 20), now=0.76)  # silent for the deadman: a new stream
+    gov.turn(0.76)
+    assert wire.last() == C.Velocity(20, 20)
+
+
+def test_a_stop_never_hands_the_robot_to_a_source_refused_before_it() -> None:
+    wire = Wire()
+    gov = governor(wire)
+    gov.offer("a", (20, 20), now=0.0)
+    assert not gov.offer("b", (-30, -30), now=0.05)
+    gov.stop("the stop service", now=0.1)
+    for t in (0.12, 0.2, 0.3):
+        assert not gov.offer("b", (-30, -30), now=t)
+        gov.turn(t)
+    assert C.Velocity(-30, -30) not in wire.sent and wire.last() == "stop"
+    assert gov.offer("c", (5, 5), now=0.31)  # never heard before the stop: may drive
+    gov.turn(0.31)
+    assert wire.last() == C.Velocity(5, 5)
+
+
+def test_a_zero_that_stops_another_holds_out_both_streams() -> None:
+    gov = governor(Wire())
+    gov.offer("a", (20, 20), now=0.0)
+    gov.offer("b", STILL, now=0.1)
+    assert not gov.offer("a", (20, 20), now=0.15) and not gov.offer("b", (20, 20), now=0.2)
+    assert gov.offer("b", STILL, now=0.25)  # a held-out zero is still never refused
+
+
+def test_a_drivers_own_stop_or_zero_holds_only_the_others_out() -> None:
+    gov = governor(Wire())
+    gov.offer("a", (20, 20), now=0.0)
+    assert not gov.offer("b", (10, 10), now=0.05)
+    gov.stop("stop key", "a", now=0.1)  # type: ignore[arg-type]
+    assert gov.offer("a", (20, 20), now=0.12)  # the keys keep working
+    assert gov.offer("a", STILL, now=0.14) and gov.offer("a", (20, 20), now=0.16)
+    gov.release("a", "key released")
+    gov.stop("stop key", "a", now=0.2)  # type: ignore[arg-type]  # nobody drove: its own stop again
+    assert not gov.offer("b", (10, 10), now=0.25)  # refused before the first stop, sending on
+    assert gov.offer("a", (20, 20), now=0.26)
+
+
+def test_the_memory_of_streams_is_bounded_and_a_hold_fails_safe_past_it() -> None:
+    gov = governor(Wire())
+    gov.lease.streams = Streams(cap=4)
+    gov.offer("a", (20, 20), now=0.0)
+    for i in range(1000):  # a flood of fresh names, all refused
+        gov.offer(f"fleet-{i}", (10, 10), now=0.1)  # type: ignore[arg-type]
+    assert len(gov.lease.streams.heard) <= 4
+    gov.stop("the stop service", now=0.2)
+    assert len(gov.lease.streams.barred) <= 4
+    assert not gov.offer("never-heard", (5, 5), now=0.3)  # it may be one forgotten: everyone waits
+    assert not gov.offer("never-heard", (5, 5), now=0.5)  # every word is the flood's still
+    assert gov.offer("never-heard", (5, 5), now=0.81)  # every stream quiet for the deadman
+
+
+def test_a_hold_within_the_memory_lets_a_source_never_heard_drive_at_once() -> None:
+    streams = Streams(cap=4)
+    for source in "abc":
+        streams.word(source, 0.0, deadman=0.3)
+    streams.hold(0.1, 0.3)
+    assert streams.word("d", 0.2, 0.3) is False and streams.word("a", 0.2, 0.3) is True
+    assert streams.word("a", 0.49, 0.3) is True and streams.word("a", 0.8, 0.3) is False
+
+
+def test_a_source_refused_before_its_payload_is_read_is_held_out_by_a_stop() -> None:
+    """A front end asks ``would_refuse`` for a word before reading it: that word counts for the hold."""
+    gov = governor(Wire())
+    gov.offer("a", (20, 20), now=0.0)
+    assert gov.would_refuse("b", now=0.05) is not None  # type: ignore[arg-type]
+    gov.stop("the stop service", now=0.1)
+    assert gov.would_refuse("b", now=0.15) is not None  # type: ignore[arg-type]
+    assert not gov.offer("b", (10, 10), now=0.2)
+    gov.heard_unread(now=0.3)  # a word whose source is not known
+    gov.stop("the stop service", now=0.35)
+    assert not gov.offer("never-heard", (10, 10), now=0.4)  # type: ignore[arg-type]
+
+
+def words(text: str) -> str:
+    """``text`` as a run of words: wrapping and a Markdown quote's ``>`` do not count."""
+    return " ".join(w for w in text.split() if w != ">")
+
+
+@pytest.mark.parametrize("command", [["ros2"], ["bridge"], ["fleet", "serve"]])
+def test_every_front_end_s_help_states_the_one_rule(env: dict[str, str], command: list[str]) -> None:
+    shown = subprocess.run(
+        [hcrctl_exe(), *command, "--help"], env=env, capture_output=True, text=True, timeout=60
+    )
+    assert shown.returncode == 0 and words(HOLD_RULE) in words(shown.stdout), shown.stdout
+
+
+def test_the_safety_rules_state_the_same_words() -> None:
+    safety = Path(__file__).parent.parent / "docs" / "safety.md"
+    rules = safety.read_text().split("## The rules")[1].split("\n## ")[0]
+    assert words(HOLD_RULE) in words(rules)

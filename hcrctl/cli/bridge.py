@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from ..link.defaults import DEADMAN_S
+from ..motion.governor import HOLD_RULE
 from ..protocol.encodings import ENCODINGS
 from ..recording.outfile import force_option
 from .params import HostPort, allow_origin_option, deadman_option, duration_option, rate_option
@@ -12,7 +13,7 @@ from .serverend import ServerEnd
 from .settings import Settings
 
 
-@click.command()
+@click.command(epilog=HOLD_RULE)
 @click.option(
     "--listen",
     type=HostPort(),

@@ -16,6 +16,7 @@ import click
 
 from ..fleet.listing import ANSWER_WAIT_S
 from ..link.defaults import DEADMAN_S
+from ..motion.governor import HOLD_RULE
 from ..protocol.encodings import ENCODINGS
 from .params import (
     Endpoint,
@@ -89,7 +90,7 @@ def router(settings: Settings, listen: tuple[str, ...]) -> None:
         run_router(where(listen, settings.zenoh, settings.zenoh_config), ready)
 
 
-@fleet.command()
+@fleet.command(epilog=HOLD_RULE)
 @click.argument("name", callback=_name)
 @click.option("--connect", type=Endpoint(), multiple=True, help="Also connect here; repeatable.")
 @click.option(

@@ -9,12 +9,13 @@ from __future__ import annotations
 import click
 
 from ..link.defaults import DEADMAN_S
+from ..motion.governor import HOLD_RULE
 from .params import deadman_option, domain_option, namespace_param, rate_option
 from .serverend import ServerEnd
 from .settings import Settings
 
 
-@click.command()
+@click.command(epilog=HOLD_RULE)
 @click.option(
     "--namespace",
     default="",

@@ -4,8 +4,9 @@ This is a *source* of motion, as the bridge's ``/cmd_vel`` is: it reads each
 message on a budget and offers it to the motion governor, which alone
 decides, writes and stops. Who sent a message is its attachment
 (``keyspace.parse_attachment``): an operator *session* (a name and a random id).
-A message from anyone but the driver is refused before its payload is read,
-so a second operator cannot make the driver's messages cost more.
+A message from anyone but the driver is refused before its payload is read
+(but for a short one, read for a zero Twist: a stop from anyone), so a second
+operator cannot make the driver's messages cost more.
 
 Who may drive, and which messages count:
 
@@ -27,7 +28,8 @@ Who may drive, and which messages count:
 - a session whose token went is remembered (``MAX_GONE``, its key and its
   numbers): a copy of its token declared later gives its old messages no
   second life, and a dead session's lease cannot be claimed again;
-- a stop is anyone's, and is said as the sender's only when signed by it;
+- a stop is anyone's (a ``stop``, or a zero Twist on ``cmd_vel``), and is said as the sender's only
+  when signed by it; it holds (``governor.HOLD_RULE``);
 - every message ignored or refused is said on ``status`` to its sender, on
   a budget (``refusals``: one word per sender and reason a window, a few
   lines a second for each session present and a few for all the others
@@ -40,9 +42,9 @@ What the operators must know (a refusal, who drives now, a stop and why) is
 put on ``hcr/<robot>/status`` by ``say``.
 
 While one drives, a message whose attachment does not name the driver's
-session is refused before its signature, sequence number or payload is read,
-so a flood of other names (or of garbage) costs the driver's own messages
-little.
+session is refused before its signature or sequence number is read, and its
+payload only if short (``zero_twist``), so a flood of other names (or of
+garbage) costs the driver's own messages little.
 
 A motion message is either a Twist (the bridge's ``/cmd_vel``, turned into
 wheel velocities) or a request of the command table (power, speed, velocity,
@@ -63,7 +65,7 @@ from typing import Any, NamedTuple, Protocol, SupportsBytes
 from ..errors import ProtocolError
 from ..inputs import PeerJsonError, peer_json
 from ..link.zenoh import identity, keyspace
-from ..motion.governor import Governor, Kind, Source, Verdict, Wheels, refusal
+from ..motion.governor import STILL, Governor, Kind, Source, Verdict, Wheels, refusal
 from ..protocol import commands as C
 from ..protocol.profiles import Profile
 from ..served.cmdvel import BadTwist, parse_twist, twist_wheels
@@ -177,6 +179,22 @@ def parse_motion(data: bytes) -> dict[str, Any]:
     return message
 
 
+#: The longest cmd_vel read for a zero while another drives: a zero Twist is far shorter.
+MAX_ZERO_BYTES = 256
+
+
+def zero_twist(payload: SupportsBytes) -> bool:
+    """Whether a cmd_vel payload is a short Twist (not a table request) asking for zero: a stop, whoever
+    sends it."""
+    if len(payload) > MAX_ZERO_BYTES:  # type: ignore[arg-type]
+        return False
+    data = bytes(payload)
+    try:
+        return "command" not in parse_motion(data) and twist_wheels(*parse_twist(data)) == STILL
+    except (BadMotion, BadTwist):
+        return False
+
+
 class FleetDrive:
     """The robot side of ``cmd_vel``/``stop``/``drive`` and the operators' tokens, for ``governor``."""
 
@@ -210,7 +228,7 @@ class FleetDrive:
 
     def cmd_vel(self, attachment: bytes | None, payload: SupportsBytes) -> None:
         """One motion message; ``payload`` is made bytes only once it is read (Zenoh's ZBytes copies)."""
-        if self._not_the_drivers(attachment):
+        if self._not_the_drivers(attachment, payload):
             return
         parsed = keyspace.parse_attachment(attachment)
         if parsed is None:
@@ -223,7 +241,7 @@ class FleetDrive:
         self.counters.cmd_vel += 1
         source = operator_source(op)
         refused = self.governor.would_refuse(source)
-        if refused is not None:
+        if refused is not None and not zero_twist(payload):  # a zero is never refused: it is a stop
             self.refused(op, refused, seq)
             return
         drove = self.governor.driver == source
@@ -240,13 +258,14 @@ class FleetDrive:
             return
         if not verdict:
             self._dropped(op, seq, f"cmd_vel {verdict.why}")
-        elif not drove:
+        elif not drove and self.governor.driver == source:  # not a zero that stopped another
             self._say(op, keyspace.drives_status(op, self.robot), None)
 
-    def _not_the_drivers(self, attachment: bytes | None) -> bool:
+    def _not_the_drivers(self, attachment: bytes | None, payload: SupportsBytes) -> bool:
         """While one drives, a message whose attachment does not start with the driver's session is refused
-        at once: its signature, sequence number and payload are never read, nor its attachment unless the
-        refusal is said, so a flood of other names (or of garbage) costs the driver's own messages little."""
+        at once: its signature and sequence number are never read, nor its attachment unless the refusal
+        is said, so a flood of other names (or of garbage) costs the driver's own messages little. Only a
+        short payload is read, for a zero Twist: from anyone, that is a stop."""
         driver = self.governor.driver
         if driver is None or driver.kind is not Kind.OPERATOR or attachment is None:
             return False
@@ -254,6 +273,11 @@ class FleetDrive:
         if isinstance(who, keyspace.Who) and attachment.startswith(f"{who.name} {who.session} ".encode()):
             return False
         self.counters.cmd_vel += 1
+        self.governor.heard_unread()  # a stop holds its sender out too, whoever it is
+        if zero_twist(payload):
+            self.counters.stops += 1
+            self.governor.stop("stop from someone unverified (a zero cmd_vel)")
+            return True
         # Read only when a word could be said: to another sender, or to a session present (its own budget).
         readable = self.refusals.may_say() or self._names_present(attachment)
         parsed = keyspace.parse_attachment(attachment) if readable else None
@@ -340,14 +364,15 @@ class FleetDrive:
     def stop(self, attachment: bytes | None, payload: bytes = b"") -> None:
         """Anyone may stop; the lease is freed. Said as its sender's only when that session signed it."""
         parsed = keyspace.parse_attachment(attachment)
+        by = None
         if parsed is not None and self.check("stop", parsed, payload, _named_key(payload)).why is None:
-            who = str(parsed.who)
+            who, by = str(parsed.who), operator_source(parsed.who)
         elif parsed is not None:
             who = f"someone unverified calling itself {parsed.who}"  # a name: letters, digits, _ . -
         else:
             who = "someone unverified"
         self.counters.stops += 1
-        self.governor.stop(f"stop from {who}")
+        self.governor.stop(f"stop from {who}", by)  # the driver's own stop holds only the others out
 
     def drive(self, payload: bytes, attachment: bytes | None = None) -> tuple[bool, dict[str, Any]]:
         """A claim or release, signed by the session it names: (taken, the reply's object)."""

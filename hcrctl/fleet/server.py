@@ -149,7 +149,7 @@ class Fleet(FrontEnd):
         self.declare(list(view.sensors))
         return f"{self.name} ({self.robot.port}) as {keyspace.ROOT}/{self.name}/..."
 
-    def stopped(self, source: Source | None, why: str) -> None:
+    def stopped(self, source: Source | None, why: str, by: Source | None = None) -> None:
         """A stop told on ``status``: to the operator that drove, or to all when it names no operator.
 
         A stop with no source (the bumper, the port) is addressed to whoever drove then, so an operator

@@ -108,7 +108,7 @@ class Foxglove(FrontEnd):
             return f"Foxglove on {self.url}"
         return f"on {self.url} ({PROTOCOLS})"
 
-    def stopped(self, source: Source | None, why: str) -> None:
+    def stopped(self, source: Source | None, why: str, by: Source | None = None) -> None:
         """A client that drove is told why it was stopped, on its status."""
         if source is not None and source.kind is Kind.CLIENT and isinstance(source.id, int):
             self.server.ws.tell(source.id, 1, f"stopped: {why}")

@@ -3,8 +3,10 @@
 This is a *source* of motion, nothing more: it runs on the server's thread,
 reads each message on a budget (``cmdvel.parse_twist``) and offers the wheels
 to the motion governor, which alone decides, writes and stops. A client that
-does not drive is refused before its payload is even read, so a second client
-cannot make the driver's messages cost more. Whatever happens to a message is
+does not drive is refused, its payload read only to find a zero Twist (from
+anyone, a stop that holds: ``governor.HOLD_RULE``) on the budget every
+message is read on, so a second client cannot make the driver's messages
+cost much more. Whatever happens to a message is
 returned as text for the client's ``status`` (``None``: taken). A client
 keeps at most ``MAX_CHANNELS`` ``/cmd_vel`` channels, and what it advertises
 is said on stderr once per burst (``BurstNotes``), not once per advertise.
@@ -14,7 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from ..motion.governor import Governor, Kind, Source
+from ..motion.governor import STILL, Governor, Kind, Source
 from ..served.bursts import BurstNotes
 from ..served.cmdvel import SCHEMA_NAMES, TOPIC, BadTwist, parse_twist, twist_wheels
 from ..served.untrusted import shown
@@ -88,18 +90,19 @@ class CmdVelSource:
         if (client, channel) not in self._channels:
             return None  # not /cmd_vel: nothing else is read
         source = client_source(client)
-        refused = self.governor.would_refuse(source)
-        if refused is not None:
-            return f"{TOPIC} {refused}"
-        driver = self.governor.driver
+        driver, refused = self.governor.driver, self.governor.would_refuse(source)
         try:
             wheels = twist_wheels(*parse_twist(payload))
         except BadTwist as exc:
+            if refused is not None:
+                return f"{TOPIC} {refused}"
             if client not in self._complained:
                 self._complained.add(client)
                 self._note(f"{source}: {TOPIC} refused: {exc}")
             return f"{TOPIC} refused: {exc}"
+        if refused is not None and wheels != STILL:  # a zero from anyone is a stop, never refused
+            return f"{TOPIC} {refused}"
         verdict = self.governor.offer(source, wheels)
-        if verdict.taken and driver != source:
+        if verdict.taken and driver != source == self.governor.driver:
             self._note(f"{source} drives the robot ({TOPIC})")
         return None if verdict.taken else f"{TOPIC} {verdict.why}"

@@ -154,7 +154,7 @@ def press(drive: Drive, governor: Governor, key: str, now: float | None = None) 
     before = drive.motion
     drive.press(key, now)
     if key in STOP_KEYS:
-        governor.stop("stop key")
+        governor.stop("stop key", KEYS)  # the keys' own stop: it holds others out, never the keys
     elif drive.motion != "stop":
         first = drive.motion != before
         lease = max(drive.deadman, HOLD_GRACE) if first else drive.deadman
@@ -166,7 +166,7 @@ def press(drive: Drive, governor: Governor, key: str, now: float | None = None) 
 def teleop_governor(drive: Drive, state: LiveState) -> Governor:
     """Motor speed (0x02) per key mix, the deadman from ``drive``, the bumpers from ``state``."""
     governor = Governor(C.MotorSpeed, deadman=drive.deadman, silence="no key")
-    governor.attach(bumpers=bumper_rule(state, POLL_HZ), on_stop=lambda source, why: drive.halt(why))
+    governor.attach(bumpers=bumper_rule(state, POLL_HZ), on_stop=lambda source, why, by: drive.halt(why))
     return governor
 
 

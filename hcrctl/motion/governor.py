@@ -16,10 +16,17 @@ governor decides:
 - forward motion is refused, and stopped, while ``bumpers`` says why not
   (a bumper pressed, or no reading fresh enough to tell: ``motion.bumpers``);
   a rule that fails blocks forward motion too;
-- anyone may ``stop``;
+- anyone may stop: ``stop``, or an offer of ``STILL`` from a source that
+  does not drive, is never refused;
+- a stop holds (``Streams``, the rule in ``HOLD_RULE``): after a stop by
+  anyone but the driver, motion resumes only from a source whose stream has
+  been silent for the deadman first, so neither the stream that was stopped
+  nor one refused before the stop moves the robot again by sending on; a
+  source never heard may drive, and a driver's own stop holds nobody out but
+  the others;
 - every stop (for any reason but a new offer) is told to each of the
-  ``listeners``, with the source that drove: each front end tells its own
-  sources why they were stopped;
+  ``listeners``, with the source that drove and the source that stopped it
+  (as data): each front end tells its own sources why they were stopped;
 - a driver's renewal that comes after half the lease it renews is counted
   (``Lease.late``, ``longest_gap``) and told (``on_late``): the margin the
   deadman leaves is being spent, and the robot side can say so before it stops.
@@ -66,6 +73,17 @@ RESEND = 0.1
 STILL = (0, 0)
 #: No single offer holds motion longer than this, whatever lease it asks for.
 MAX_LEASE = 10.0
+#: The most sources whose streams are remembered for a hold; past it a hold refuses everyone until all
+#: streams have been quiet for the deadman (it fails safe rather than forget one).
+MAX_STREAMS = 256
+
+#: The rule of who may stop and what a stop holds, as every front end states it (docs/safety.md too).
+HOLD_RULE = (
+    "Anyone may stop: a zero command from any source stops the robot at once, whoever drives. "
+    "A stop holds: after a stop by anyone but the driver, motion resumes only from a sender "
+    "that has been silent for the deadman first; a sender that was driving or refused before "
+    "the stop cannot move the robot again by just sending on."
+)
 
 Wheels = tuple[int, int]
 #: What was last written: wheels and the request that carried them (None: ``make``'s).
@@ -85,6 +103,7 @@ class Kind(Enum):
     CLIENT = "client"  # a Foxglove WebSocket client
     OPERATOR = "operator"  # a fleet operator's session
     NODE = "node"  # a ROS 2 publisher
+    SERVICE = "service"  # a stop service (ROS 2's ~/stop): it stops, never drives
 
 
 @dataclass(frozen=True)
@@ -103,8 +122,9 @@ class Source:
         return self.name or f"{self.kind.value} {self.id}"
 
 
-#: (source that drove, why motion stopped): told when motion stops for any reason but a new offer.
-OnStop = Callable[[Source | None, str], None]
+#: (source that drove, why motion stopped, source that stopped it: None for a rule such as the deadman or
+#: an unnamed caller): told when motion stops for any reason but a new offer.
+OnStop = Callable[[Source | None, str, Source | None], None]
 #: (driver, its renewal as a ``Late``): told when a driver's renewal came after half the lease it renewed.
 OnLate = Callable[[Source, "Late"], None]
 
@@ -112,6 +132,12 @@ OnLate = Callable[[Source, "Late"], None]
 def refusal(driver: object, robot: str) -> str:
     """The one wording of "someone else drives": said to every source refused for it."""
     return f"refused: {driver} drives {robot}"
+
+
+def held_refusal(by: object, deadman: float) -> str:
+    """The one wording of "a stop holds you out": said to every source a stop holds."""
+    who = f" by {by}" if by is not None else ""
+    return f"refused: stopped{who}; send nothing for {deadman:g} s, then drive again"
 
 
 @dataclass(frozen=True)
@@ -139,6 +165,65 @@ def forward(wheels: Wheels) -> bool:
     return wheels[0] + wheels[1] > 0
 
 
+class Streams:
+    """When each source was last heard, while its stream is live (heard within the deadman): what a stop holds.
+
+    A hold bars every live stream; a barred source stays out until it has
+    been silent for the deadman, each word it sends meanwhile starting that
+    wait again. Pure: the clock and the deadman are the caller's. Memory is
+    bounded: at most ``cap`` sources are remembered; a source heard while
+    full is not, and a hold made while such a one is live bars everyone until
+    every stream has been quiet for the deadman.
+    """
+
+    def __init__(self, cap: int = MAX_STREAMS) -> None:
+        self.cap = cap
+        self.heard: dict[Hashable, float] = {}
+        self.barred: dict[Hashable, float] = {}
+        #: When a source was last heard and not remembered (the memory was full).
+        self.unknown = -math.inf
+        #: While within the deadman of this, everyone is barred (a hold that could not tell who was live).
+        self.blind = -math.inf
+
+    def word(self, source: Hashable, now: float, deadman: float) -> bool:
+        """``source`` was heard: whether a hold keeps it out now."""
+        held = self._held(source, now, deadman)
+        self._hear(source, now, deadman)
+        return held
+
+    def hold(self, now: float, deadman: float, by: Hashable | None = None, bar_by: bool = True) -> None:
+        """A stop holds: every live stream is barred (``by``'s only if ``bar_by``)."""
+        if by is not None:
+            self._hear(by, now, deadman)
+        live = {s: t for s, t in (*self.barred.items(), *self.heard.items()) if now - t < deadman}
+        if not bar_by:
+            live.pop(by, None)
+        self.barred = live
+        if now - self.unknown < deadman or len(live) > self.cap:
+            self.blind = now
+
+    def _held(self, source: Hashable, now: float, deadman: float) -> bool:
+        if now - self.blind < deadman:
+            self.blind = now  # everyone out until every stream is quiet
+            return True
+        last = self.barred.pop(source, None)
+        if last is None or now - last >= deadman:
+            return False  # never barred, or silent for the deadman since: a new stream
+        self.barred[source] = now
+        return True
+
+    def _hear(self, source: Hashable, now: float, deadman: float) -> None:
+        if source in self.heard or self._room(now, deadman):
+            self.heard[source] = now
+        else:
+            self.unknown = now
+
+    def _room(self, now: float, deadman: float) -> bool:
+        if len(self.heard) >= self.cap:
+            self.heard = {s: t for s, t in self.heard.items() if now - t < deadman}
+        return len(self.heard) < self.cap
+
+
 class Lease:
     """Who drives, what was asked and until when: the arbitration, pure, the clock the caller's."""
 
@@ -160,6 +245,12 @@ class Lease:
         self.until = -math.inf
         self.why_stopped = ""
         self.stopped_driver: Source | None = None
+        #: Who stopped the motion last (None: a rule, or an unnamed caller), and who made the last hold.
+        self.stopped_by: Source | None = None
+        self.held_by: Source | None = None
+        #: A stop to write even if nothing moves (taken by the governor's turn).
+        self.stop_asked = False
+        self.streams = Streams()
         self.version = 0
         #: Renewals that came after half the lease they renewed (``Late``), and the longest gap between
         #: a driver's words: how much of the deadman's margin the drivers' renewals used.
@@ -178,9 +269,12 @@ class Lease:
         request: C.Request | None = None,
         once: bool = False,
     ) -> Verdict:
+        if wheels == STILL and self.driver not in (None, source):
+            self.stop(f"{source} asked for zero", now, source)  # anyone may stop
+            return Verdict(True)
         verdict = self.claim(source, now, lease)
         if not verdict:
-            return verdict
+            return Verdict(True) if wheels == STILL else verdict  # held out, and still: nothing to stop
         if forward(wheels) and blocked:
             self._set(STILL, f"{blocked}: forward blocked")
             return Verdict(False, f"refused: {blocked} (forward blocked)")
@@ -189,9 +283,13 @@ class Lease:
         return Verdict(True)
 
     def claim(self, source: Source, now: float, lease: float | None = None) -> Verdict:
-        """``source`` holds the lease (renewed) without changing the motion; refused if another drives."""
+        """``source`` holds the lease (renewed) without changing the motion; refused if another drives, or
+        while a stop holds it out (``Streams``)."""
+        held = self.streams.word(source, now, self.deadman)
         if self.driver not in (None, source):
             return Verdict(False, refusal(self.driver, self.robot))
+        if held and self.driver is None:
+            return Verdict(False, held_refusal(self.held_by, self.deadman))
         if self.driver == source:
             self._renewed(now - self.last, self.until - self.last)
         self.driver, self.last = source, now
@@ -224,9 +322,27 @@ class Lease:
             self.driver = None
             self._set(STILL, why, source)
 
-    def stop(self, why: str) -> None:
+    def refuses(self, source: Source, now: float) -> str | None:
+        """Why an offer of motion from ``source`` would be refused now (None: it would not). Asked for a
+        word ``source`` sent: it is heard, as an offer is, for what a stop holds out."""
+        held = self.streams.word(source, now, self.deadman)
+        if self.driver not in (None, source):
+            return refusal(self.driver, self.robot)
+        return held_refusal(self.held_by, self.deadman) if held and self.driver is None else None
+
+    def heard_unread(self, now: float) -> None:
+        """A word refused unread, its source unknown: a stop while such words are live holds everyone."""
+        self.streams.unknown = now
+
+    def stop(self, why: str, now: float, by: Source | None = None, hold: bool = True) -> None:
+        """Motion ends and the lease is free; with ``hold``, every live stream is held out (``Streams``)
+        but ``by``'s own when it drove or nobody did: a driver's own stop never locks it out."""
         self.driver, driver = None, self.driver
-        self._set(STILL, why, driver)
+        if hold:
+            self.streams.hold(now, self.deadman, by, bar_by=driver not in (None, by))
+            self.held_by = by
+        self.stop_asked = True
+        self._set(STILL, why, driver, by=by)
 
     def _set(
         self,
@@ -235,9 +351,11 @@ class Lease:
         source: Source | None = None,
         request: C.Request | None = None,
         once: bool = False,
+        by: Source | None = None,
     ) -> None:
         if (wheels, why, request, once) != (self.wheels, self.why_stopped, self.request, self.once):
             self.stopped_driver = source if wheels == STILL else None
+            self.stopped_by = by if wheels == STILL else None
             self.wheels, self.why_stopped = wheels, why
             self.request, self.once = request, once
             self.version += 1
@@ -270,7 +388,6 @@ class Governor:
         self._done = threading.Event()
         self._sent: Sent | None = None
         self._sent_at = 0.0
-        self._stop_asked = False
         self._seen = 0
         self._thread = threading.Thread(target=self._run, name="hcrctl-governor", daemon=True)
 
@@ -300,13 +417,23 @@ class Governor:
         if on_late is not None:
             self._on_late = on_late
 
-    def would_refuse(self, source: Source) -> str | None:
-        """Why an offer from ``source`` would be refused now because another drives (None: it would not).
+    def would_refuse(self, source: Source, now: float | None = None) -> str | None:
+        """Why an offer of motion from ``source`` would be refused now: another drives, or a stop holds it
+        out (None: it would not). A zero is never refused: it is a stop.
 
-        Asked by a source before it reads a payload, so a non-driver's flood costs the driver little.
+        Asked by a front end for a word ``source`` sent, before it reads the payload, so a non-driver's
+        flood costs the driver little; the word is heard, as an offer is, for what a stop holds out.
         """
-        driver = self.lease.driver
-        return None if driver in (None, source) else refusal(driver, self.lease.robot)
+        now = time.monotonic() if now is None else now
+        with self._lock:
+            return self.lease.refuses(source, now)
+
+    def heard_unread(self, now: float | None = None) -> None:
+        """A word was refused before its source was known (its attachment unread): a stop while such
+        words are live holds everyone out until all are quiet, as when too many sources are heard."""
+        now = time.monotonic() if now is None else now
+        with self._lock:
+            self.lease.heard_unread(now)
 
     # -- the sources' side: any thread, never waits on the wire --------------------------
 
@@ -356,11 +483,15 @@ class Governor:
             self.lease.release(source, why)
         self._wake.set()
 
-    def stop(self, why: str) -> None:
-        """Anyone may stop: motion ends and the lease is free."""
+    def stop(
+        self, why: str, by: Source | None = None, *, hold: bool = True, now: float | None = None
+    ) -> None:
+        """Anyone may stop: motion ends and the lease is free. ``by``: who stops (None: a caller with no
+        source); ``hold``: the stop holds the live streams out (``Streams``), as every stop from someone
+        does; a rule's own (the link lost) need not."""
+        now = time.monotonic() if now is None else now
         with self._lock:
-            self.lease.stop(why)
-            self._stop_asked = True
+            self.lease.stop(why, now, by, hold)
         self._wake.set()
 
     @property
@@ -402,7 +533,7 @@ class Governor:
         """Whether the clock must turn by itself: someone holds the lease, or motion is (or may be) on the
         wire. Otherwise nothing can change until an offer, claim, release or stop wakes the thread."""
         lease = self.lease
-        return lease.driver is not None or lease.wheels != STILL or self._moving or self._stop_asked
+        return lease.driver is not None or lease.wheels != STILL or self._moving or lease.stop_asked
 
     def turn(self, now: float) -> None:
         """The clock first (deadman, bumpers), then the wire: a change at once, a repeat every RESEND."""
@@ -410,8 +541,8 @@ class Governor:
             self.lease.check(now, self._blocked())
             wheels, version = self.lease.wheels, self.lease.version
             request, once = self.lease.request, self.lease.once
-            stopped = (self.lease.stopped_driver, self.lease.why_stopped)
-            asked, self._stop_asked = self._stop_asked, False
+            stopped = (self.lease.stopped_driver, self.lease.why_stopped, self.lease.stopped_by)
+            asked, self.lease.stop_asked = self.lease.stop_asked, False
         if version != self._seen:
             self._seen = version
             if wheels == STILL and stopped[1]:
@@ -424,19 +555,19 @@ class Governor:
 
     def _failed(self, exc: Exception) -> None:
         with contextlib.suppress(Exception), self._lock:
-            self.lease.stop(f"internal error: {exc!r}")
+            self.lease.stop(f"internal error: {exc!r}", time.monotonic())
         with contextlib.suppress(Exception):
             self._write(STILL)
         with contextlib.suppress(Exception):
-            self._tell_stop(None, f"internal error in the governor: {exc!r}")
+            self._tell_stop(None, f"internal error in the governor: {exc!r}", None)
 
-    def _tell_stop(self, source: Source | None, why: str) -> None:
+    def _tell_stop(self, source: Source | None, why: str, by: Source | None) -> None:
         """Every listener hears the stop; the first failure is raised after all were told (a turn that
         fails is a stop and a note)."""
         failed: Exception | None = None
         for listener in self._listeners:
             try:
-                listener(source, why)
+                listener(source, why, by)
             except Exception as exc:
                 failed = failed or exc
         if failed is not None:

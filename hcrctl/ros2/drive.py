@@ -6,7 +6,8 @@ driver of its own (its instance handle is its id; it is named by its ROS node,
 ``ROS 2 node /teleop``, where ``ros_discovery_info`` says which node owns it,
 else ``ROS 2 writer <handle>``), so the first writer to send
 motion holds the lease and another is refused until the first stops sending
-for the deadman, or goes away (unmatched). A twist_mux in front of the robot
+for the deadman, or goes away (unmatched); a zero Twist from any writer is a
+stop, and the stop holds (``governor.HOLD_RULE``). A twist_mux in front of the robot
 is then the one writer, and its own priorities decide which input reaches
 the robot: hcrctl's rule only keeps two muxes, or a stray teleop beside one,
 from taking turns.
@@ -28,7 +29,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from ..motion.governor import Governor, Kind, Source
+from ..motion.governor import STILL, Governor, Kind, Source, Wheels
 from ..served.cmdvel import BadTwist, speed, twist_wheels
 from ..served.refusals import Refusals
 
@@ -58,6 +59,14 @@ def checked(twist: Any) -> tuple[float, float]:
     return float(twist.linear.x), float(twist.angular.z)
 
 
+def read_wheels(message: Any) -> Wheels | str:
+    """The wheels a Twist (or TwistStamped) asks for, or why it is refused."""
+    try:
+        return twist_wheels(*checked(twist_of(message)))
+    except BadTwist as exc:
+        return f"refused: {exc}"
+
+
 class RosCmdVel:
     """Twists from DDS writers, turned into offers to ``governor``; counts of what was taken and refused."""
 
@@ -74,22 +83,20 @@ class RosCmdVel:
     def message(self, writer: str, message: Any) -> None:
         """One sample from ``writer``: offered, or refused and counted (said on the budget)."""
         source = writer_source(writer, self._names(writer))
-        refused = self.governor.would_refuse(source)
-        if refused is not None:
+        driver, refused = self.governor.driver, self.governor.would_refuse(source)
+        wheels = read_wheels(message)
+        if refused is not None and wheels != STILL:  # a zero from anyone is a stop, never refused
             self._refused(source, "busy", refused)
             return
-        driver = self.governor.driver
-        try:
-            wheels = twist_wheels(*checked(twist_of(message)))
-        except BadTwist as exc:
-            self._refused(source, "bad", f"refused: {exc}")
+        if isinstance(wheels, str):
+            self._refused(source, "bad", wheels)
             return
         verdict = self.governor.offer(source, wheels)
         if not verdict:
             self._refused(source, verdict.why, verdict.why)
             return
         self.taken += 1
-        if driver != source:
+        if driver != source == self.governor.driver:
             self._note(f"{source} drives the robot ({TOPIC})")
 
     def _refused(self, source: Source, kind: str, why: str) -> None:

@@ -30,6 +30,7 @@ from typing import Any
 
 from ..errors import HcrError
 from ..link.defaults import DEADMAN_RANGE, MAX_RATE
+from ..motion.governor import Kind, Source
 from ..protocol import commands as C
 from ..protocol import ros2srv as S
 from ..served.view import RuntimeView
@@ -231,7 +232,7 @@ class Parameters:
     def stop(self, request: dict[str, Any]) -> dict[str, Any]:
         """Stop now; successful only when it was written and the robot answered after it."""
         view, asked = self.view, time.monotonic()
-        view.governor.stop("the ~/stop service was called")
+        view.governor.stop("the ~/stop service was called", STOP_SERVICE)
         port = view.robot.port
         if _until(lambda: (view.governor.sent_at or 0) >= asked) is None:
             return {"success": False, "message": f"stop NOT written: the link to {port} is down"}
@@ -251,6 +252,10 @@ class Parameters:
             if heard is not None and heard[0] > since:
                 return True
         return False
+
+
+#: Who stops when ``~/stop`` is called (its caller is not known on DDS).
+STOP_SERVICE = Source(Kind.SERVICE, "~/stop", "the ~/stop service")
 
 
 #: The services, by name relative to the node, and the method of ``Parameters`` that answers each.

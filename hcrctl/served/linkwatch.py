@@ -54,11 +54,13 @@ class LinkWatch:
         if not self.lost and (status == "disconnected" or current is not self._answered):
             self.lost = True
             self.note(f"warning: {self.port} went away: the drive lease is ended; re-opening it")
-            self.governor.stop(f"{self.port} went away")
+            self.governor.stop(f"{self.port} went away", hold=False)  # a rule's stop: nobody to hold out
         elif self.lost and current is not None and status == "ok":
             self.lost, self._answered, self._said_silent = False, current, False
             self.note(f"{self.port} is back (the robot answers): stop sent")
-            self.governor.stop(f"{self.port} went away")  # the same reason: written, not said again
+            self.governor.stop(
+                f"{self.port} went away", hold=False
+            )  # the same reason: written, not said again
         elif self.lost and current is not None and status == "no reply" and not self._said_silent:
             self._said_silent = True
             self.note(

@@ -117,8 +117,8 @@ class FrontEnd:
         """After the first sweep; its part of the "serving ..." line ("" for none)."""
         return ""
 
-    def stopped(self, source: Source | None, why: str) -> None:
-        """Motion stopped: tell ``source`` if it is one of this front end's."""
+    def stopped(self, source: Source | None, why: str, by: Source | None = None) -> None:
+        """Motion stopped: tell ``source`` (who drove) if it is one of this front end's; ``by``: who stopped."""
 
     def tick(self) -> None:
         """A turn of the main loop."""
@@ -246,7 +246,7 @@ class ServedRobot:
         for front in self._fronts.values():
             front.publish(topic, message, at)
 
-    def _said_stop(self, source: Source | None, why: str) -> None:
+    def _said_stop(self, source: Source | None, why: str, by: Source | None = None) -> None:
         self.notes.note(f"stopped: {shown(why, 120)}")
 
     def _quietly(self, front: FrontEnd, step: Callable[[], None]) -> None:
