@@ -300,6 +300,14 @@ class Governor:
         if on_late is not None:
             self._on_late = on_late
 
+    def set_deadman(self, seconds: float) -> None:
+        """The deadman from now on; a lease running now ends by it when that is sooner (a shorter one at once)."""
+        with self._lock:
+            lease = self.lease
+            lease.deadman = seconds
+            lease.until = min(lease.until, lease.last + seconds)
+        self._wake.set()
+
     def would_refuse(self, source: Source) -> str | None:
         """Why an offer from ``source`` would be refused now because another drives (None: it would not).
 
