@@ -175,10 +175,12 @@ class RosSide:
         self.connector = connector
 
     def take(self, topic: str) -> list[Any]:
-        """Every sample that has arrived on ``topic`` since the last take."""
+        """Every sample that has arrived on ``topic`` since the last take, each its own (the Connector's
+        ``valid_data_iter`` yields one iterator again and again: listed, every item is the last sample)."""
         reader = self.connector.get_input(f"sub::{entity(topic)}")
         reader.take()
-        return list(reader.samples.valid_data_iter)
+        samples = reader.samples
+        return [samples[i] for i in range(samples.length) if samples[i].valid_data]
 
     def wait_sample(self, topic: str, what: str = "") -> Any:
         """The latest sample on ``topic``, waiting for one (and for ``what`` to be true of it when given)."""

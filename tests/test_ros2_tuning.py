@@ -18,7 +18,17 @@ from typing import Any
 
 from helpers import TIMEOUT, hcrctl_exe, wait_until
 from helpers_cli import sim_pty
-from helpers_dds import CycloneClient, Place, RosSide, Serve, place, ros2_node, ros_side, value
+from helpers_dds import (
+    LATCHED_QOS,
+    CycloneClient,
+    Place,
+    RosSide,
+    Serve,
+    place,
+    ros2_node,
+    ros_side,
+    value,
+)
 from helpers_fleet_robot import VELOCITY, Fleet, fleet, is_stop
 
 from hcrctl.protocol import commands as C
@@ -27,6 +37,8 @@ from hcrctl.protocol import ros2srv as S
 TWIST = "geometry_msgs/msg/Twist"
 QUIET = ("--options", "noise=0&broadcast_hz=0&map_hz=0")
 BUMP = C.BY_NAME["bump"].code
+#: rcl's /rosout reader side: transient local, deep enough for every line of a test.
+ROSOUT_QOS = LATCHED_QOS + "<history><kind>KEEP_LAST_HISTORY_QOS</kind><depth>1000</depth></history>"
 #: Who the node says set a parameter: any participant of the domain.
 PEER = "by a ROS 2 peer (unauthenticated)"
 
@@ -61,11 +73,14 @@ class Parameters:
 
 @contextlib.contextmanager
 def driven(env: dict[str, str], tmp_path: Path, *options: str) -> Iterator[tuple[RosSide, Serve, Parameters]]:
-    """``hcrctl ros2 OPTIONS`` on the simulator, a cmd_vel writer it has matched, and its parameters."""
+    """``hcrctl ros2 OPTIONS`` on the simulator, a cmd_vel writer it has matched (and a /rosout reader),
+    and its parameters."""
     here = place()
     with (
         sim_pty(env, *QUIET) as port,
-        ros_side(here, tmp_path, {}, {"cmd_vel": TWIST}) as ros,
+        ros_side(
+            here, tmp_path, {"/rosout": ("rcl_interfaces/msg/Log", ROSOUT_QOS)}, {"cmd_vel": TWIST}
+        ) as ros,
         ros2_node(port, here, env, *options, log=tmp_path / "w.jsonl") as node,
     ):
         wait_until(lambda: ros.matched("cmd_vel"), what="the node's cmd_vel reader")
@@ -151,7 +166,13 @@ def test_a_shorter_deadman_ends_the_running_lease_by_itself(env: dict[str, str],
         )
         assert stop < first + 10, (first, stop)
         node.wait_err("stopped: deadman: no cmd_vel for 0.3 s")
-        assert f"deadman set to 0.3 s (was 10 s) {PEER}" in node.said()
+        said = f"deadman set to 0.3 s (was 10 s) {PEER}"
+        assert said in node.said()
+        logged: list[str] = []
+        wait_until(
+            lambda: logged.extend(s.get_string("msg") for s in ros.take("/rosout")) or said in logged,
+            what="the change on /rosout",
+        )
 
 
 @contextlib.contextmanager
