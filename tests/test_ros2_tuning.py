@@ -10,14 +10,13 @@ too, but a set is proved by what the robot is sent after it.
 from __future__ import annotations
 
 import contextlib
-import subprocess
 import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from helpers import TIMEOUT, hcrctl_exe, wait_until
-from helpers_cli import sim_pty
+from helpers import wait_until
+from helpers_cli import run, sim_pty
 from helpers_dds import (
     LATCHED_QOS,
     CycloneClient,
@@ -220,14 +219,7 @@ def test_fleet_serve_with_ros2_may_loosen_takes_a_longer_deadman_from_ros2(env: 
 
 
 def test_ros2_may_loosen_without_ros2_is_a_usage_error(env: dict[str, str]) -> None:
-    done = subprocess.run(
-        [hcrctl_exe(), "--port", "sim://", "fleet", "serve", "r1", "--ros2-may-loosen"],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=TIMEOUT,
-        stdin=subprocess.DEVNULL,
-    )
+    done = run(["--port", "sim://", "fleet", "serve", "r1", "--ros2-may-loosen"], env)
     assert done.returncode == 2 and done.stdout == "", done
     (line,) = done.stderr.splitlines()
     assert "--ros2-may-loosen" in line and "needs --ros2" in line, line
