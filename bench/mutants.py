@@ -46,6 +46,7 @@ PANEL_LOOK = (
 )
 VIEW_NAMES = "tests/test_frontends.py::test_front_ends_read_only_the_public_names_of_the_runtime_view"
 JSON_READER = "tests/test_one_home.py::test_no_module_reads_json_from_a_peer_but_through_the_one_reader"
+TUNING = ("tests/test_tuning.py", "tests/test_ros2_tuning.py")
 CMDVEL = "hcrctl/served/cmdvel.py"
 PEER_JSON_CALL = "message = peer_json(data, parse_int=_integer)"
 
@@ -122,6 +123,55 @@ MUTANTS = (
         PEER_JSON_CALL,
         "from json import loads as x\n\n        message = x(data, parse_int=_integer)",
         (JSON_READER,),
+    ),
+    Mutant(
+        "view: set_rate does nothing",
+        "hcrctl/served/view.py",
+        "        self._served.tuning.set_rate(hz, by)\n",
+        "        pass\n",
+        TUNING,
+    ),
+    Mutant(
+        "view: set_deadman does nothing",
+        "hcrctl/served/view.py",
+        "        self._served.tuning.set_deadman(seconds, by)\n",
+        "        pass\n",
+        TUNING,
+    ),
+    Mutant(
+        "poller: sleeps out the old period",
+        "hcrctl/ops/poller.py",
+        "        self._retimed.set()\n",
+        "",
+        TUNING,
+    ),
+    Mutant(
+        "bumpers: the rate the rule was made with",
+        "hcrctl/served/runtime.py",
+        "BumperRule(feed.state, lambda: tuning.rate)",
+        "BumperRule(feed.state, lambda rate=tuning.rate: rate)",
+        TUNING,
+    ),
+    Mutant(
+        "governor: a running lease keeps the old deadman",
+        "hcrctl/motion/governor.py",
+        "            lease.until = min(lease.until, lease.last + seconds)\n",
+        "",
+        TUNING,
+    ),
+    Mutant(
+        "tuning: any rate is taken",
+        "hcrctl/served/tuning.py",
+        "        if not lo <= value <= hi:  # NaN too\n",
+        "        if False:\n",
+        TUNING,
+    ),
+    Mutant(
+        "tuning: an unauthenticated setter may loosen",
+        "hcrctl/served/tuning.py",
+        "        if looser and not by.authenticated and self.guarded:\n",
+        "        if False:\n",
+        TUNING,
     ),
 )
 

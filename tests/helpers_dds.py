@@ -9,6 +9,10 @@ nothing to hcrctl, with the names rmw gives them on DDS (``rt/`` topics,
 ``/tf_static`` and ``ros_discovery_info`` reliable and transient local,
 ``cmd_vel`` written reliable keep last 10 (teleop_twist_keyboard's).
 
+A parameter or service is called as rmw_cyclonedds's clients call it
+(``CycloneClient``: a Cyclone DDS participant, its request header before the
+request's fields).
+
 Every test takes a random domain id and namespace of its own (``place``), so
 tests running beside each other under pytest-xdist never hear each other.
 Without the DDS wheels for this interpreter the tests skip, saying so.
@@ -171,10 +175,12 @@ class RosSide:
         self.connector = connector
 
     def take(self, topic: str) -> list[Any]:
-        """Every sample that has arrived on ``topic`` since the last take."""
+        """Every sample that has arrived on ``topic`` since the last take, each its own (the Connector's
+        ``valid_data_iter`` yields one iterator again and again: listed, every item is the last sample)."""
         reader = self.connector.get_input(f"sub::{entity(topic)}")
         reader.take()
-        return list(reader.samples.valid_data_iter)
+        samples = reader.samples
+        return [samples[i] for i in range(samples.length) if samples[i].valid_data]
 
     def wait_sample(self, topic: str, what: str = "") -> Any:
         """The latest sample on ``topic``, waiting for one (and for ``what`` to be true of it when given)."""
@@ -290,3 +296,8 @@ class CycloneClient:
             return None
 
         return wait_until(answer, what=f"{self.service}'s reply")
+
+
+def value(kind: int, number: float) -> dict[str, Any]:
+    key = "double_value" if kind == S.DOUBLE else "integer_value"
+    return {"type": kind, key: number}

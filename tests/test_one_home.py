@@ -33,6 +33,63 @@ def modules_matching(pattern: str) -> set[str]:
     return {name for name, text in sources().items() if found.search(text)}
 
 
+def imports(module: str, tree: ast.Module) -> dict[str, str]:
+    """Each name module ``module`` (its path under hcrctl/) binds by an import -> the dotted name it stands
+    for, however spelt: ``import json as j`` binds j to json, ``from ..link.defaults import DEADMAN_S as D``
+    binds D to hcrctl.link.defaults.DEADMAN_S."""
+    package = ["hcrctl", *Path(module).parent.parts]  # level 1 of a module, or of a package's __init__
+    bound: dict[str, str] = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                bound[alias.asname or alias.name.partition(".")[0]] = (
+                    alias.name if alias.asname else alias.name.partition(".")[0]
+                )
+        elif isinstance(node, ast.ImportFrom):
+            base = package[: len(package) - node.level + 1] if node.level else []
+            where = ".".join([*base, *([node.module] if node.module else [])])
+            for alias in node.names:
+                bound[alias.asname or alias.name] = f"{where}.{alias.name}"
+    return bound
+
+
+def dotted(node: ast.AST, bound: dict[str, str]) -> str | None:
+    """What a name or an attribute of one stands for, through the module's imports (None: not imported)."""
+    if isinstance(node, ast.Name):
+        return bound.get(node.id)
+    if isinstance(node, ast.Attribute):
+        base = dotted(node.value, bound)
+        return None if base is None else f"{base}.{node.attr}"
+    return None
+
+
+def parsed() -> dict[str, tuple[ast.Module, dict[str, str]]]:
+    """Each module of the package -> its syntax tree and the names its imports bind."""
+    trees = {name: ast.parse(text) for name, text in sources().items()}
+    return {name: (tree, imports(name, tree)) for name, tree in trees.items()}
+
+
+def modules_using(*names: str) -> set[str]:
+    """The modules that import or refer to any of ``names`` (dotted: ``json.loads``), by any spelling."""
+    return {
+        module
+        for module, (tree, bound) in parsed().items()
+        if set(bound.values()) & set(names) or any(dotted(node, bound) in names for node in ast.walk(tree))
+    }
+
+
+def test_an_import_is_followed_by_any_spelling() -> None:
+    tree = ast.parse(
+        "import json as j\nfrom json import loads as parse\nfrom ..defaults import DEADMAN_S as D\n"
+    )
+    bound = imports("link/zenoh/remote.py", tree)
+    assert bound == {"j": "json", "parse": "json.loads", "D": "hcrctl.link.defaults.DEADMAN_S"}
+    assert dotted(ast.parse("j.loads").body[0].value, bound) == "json.loads"  # type: ignore[attr-defined]
+    assert imports("served/frontends/__init__.py", ast.parse("from ..runtime import X"))["X"] == (
+        "hcrctl.served.runtime.X"
+    )
+
+
 # -- JSON from a peer ------------------------------------------------------------------------
 
 TOO_LONG = b'{"pad": "' + b"x" * MAX_PEER_JSON + b'"}'
@@ -259,14 +316,59 @@ def test_no_module_writes_a_stop_but_robot_stop() -> None:
 # -- the deadman and the poll rate -------------------------------------------------------------
 
 
-def test_the_deadman_and_the_poll_rate_have_one_name_and_one_default() -> None:
+#: A setting's name (a parameter or a field) -> the one home its default must come from.
+DEFAULTS = {
+    "deadman": "hcrctl.link.defaults.DEADMAN_S",
+    "rate": "hcrctl.link.defaults.RATE_HZ",
+}
+
+
+def defaults_not_from_home() -> list[str]:
+    """Every default of a parameter or a dataclass field named as a setting (``DEFAULTS``) that is neither
+    None nor its home's name (by any spelling of the import): ``module: name = what``."""
+    found = []
+    for module, (tree, bound) in parsed().items():
+        for node in ast.walk(tree):
+            pairs: list[tuple[str, ast.expr]] = []
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                positional = [*node.args.posonlyargs, *node.args.args]
+                defaulted = positional[len(positional) - len(node.args.defaults) :]
+                pairs += zip([a.arg for a in defaulted], node.args.defaults, strict=True)
+                pairs += [
+                    (a.arg, d)
+                    for a, d in zip(node.args.kwonlyargs, node.args.kw_defaults, strict=True)
+                    if d is not None
+                ]
+            elif isinstance(node, ast.ClassDef):
+                pairs += [
+                    (field.target.id, field.value)
+                    for field in node.body
+                    if isinstance(field, ast.AnnAssign)
+                    and isinstance(field.target, ast.Name)
+                    and field.value
+                    and "float" in ast.unparse(field.annotation)  # seconds and Hz, not a command's fields
+                ]
+            for name, default in pairs:
+                home = DEFAULTS.get(name)
+                none = isinstance(default, ast.Constant) and default.value is None
+                if home is not None and not none and dotted(default, bound) != home:
+                    found.append(f"{module}: {name} = {ast.unparse(default)}")
+    return found
+
+
+def test_the_deadman_and_the_poll_rate_default_to_their_one_home() -> None:
+    """By name, wherever a default is given (any spelling of the import), and by value where one is used."""
+    assert defaults_not_from_home() == []
     assert modules_matching(r"^\s*DEADMAN_S\b.*=") == {"link/defaults.py"}
     assert modules_matching(r"DEFAULT_TIMEOUT_S") == set()
-    assert modules_matching(r"rate: float \| None = \d") == set()
     from hcrctl.cli.bridge import bridge
-    from hcrctl.link.defaults import DEADMAN_S, RATE_HZ
+    from hcrctl.link.defaults import DEADMAN_S, RATE_HZ, REPLY_TIMEOUT_S
+    from hcrctl.link.zenoh.remote import _deadman
     from hcrctl.live.teleop import Drive, run_teleop
     from hcrctl.live.watch import run_watch
+    from hcrctl.motion.bumpers import MIN_FRESH_S
+    from hcrctl.motion.governor import Governor
+    from hcrctl.protocol import commands as C
 
     (rate,) = [p for p in bridge.params if p.name == "rate"]
     assert (
@@ -274,6 +376,28 @@ def test_the_deadman_and_the_poll_rate_have_one_name_and_one_default() -> None:
     )
     assert inspect.signature(run_teleop).parameters["deadman"].default == DEADMAN_S
     assert "deadman" in Drive.__dataclass_fields__
+    assert _deadman({}) == DEADMAN_S, "a fleet robot that does not say its deadman has the default one"
+    assert Governor(C.Velocity).lease.deadman == DEADMAN_S
+    assert MIN_FRESH_S == REPLY_TIMEOUT_S, "the freshest a bumper reading need be is one reply timeout"
+
+
+def test_the_rate_and_the_deadman_have_one_range_on_the_command_line_and_at_run_time() -> None:
+    from hcrctl.cli.params import Rate
+    from hcrctl.cli.settings import global_options
+    from hcrctl.link.defaults import DEADMAN_RANGE, RATE_RANGE
+    from hcrctl.ros2.params import PARAMETERS
+
+    cli = Rate()
+    assert (cli.min, cli.max, cli.min_open, cli.max_open) == (*RATE_RANGE, False, False)
+    (deadman,) = [o for o in global_options() if "--deadman" in o.opts]
+    assert (deadman.type.min, deadman.type.max) == DEADMAN_RANGE  # type: ignore[attr-defined]
+    assert (PARAMETERS["rate"].lo, PARAMETERS["rate"].hi) == RATE_RANGE
+    assert (PARAMETERS["deadman"].lo, PARAMETERS["deadman"].hi) == DEADMAN_RANGE
+    assert modules_using("hcrctl.link.defaults.RATE_RANGE") == {
+        "cli/params.py",
+        "ros2/params.py",
+        "served/tuning.py",
+    }
 
 
 def driving_commands() -> set[str]:

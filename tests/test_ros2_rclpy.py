@@ -22,7 +22,7 @@ from typing import Any
 import pytest
 from helpers import sim_process, wait_until
 from helpers_cli import sim_pty
-from helpers_dds import CycloneClient, Place, place, ros2_node
+from helpers_dds import CycloneClient, Place, place, ros2_node, value
 from helpers_fleet_robot import VELOCITY, is_stop
 from helpers_rclpy import LOOPBACK, Peer, numbers, rclpy_peer, rclpy_python
 from helpers_ros2 import expected, mismatches, read_json, ros_type
@@ -180,11 +180,6 @@ def test_an_rclpy_twist_drives_and_the_deadman_stops(loop_env: dict[str, str], t
         drive_until_moving(here, node, peer, "a velocity frame of 20 cm/s per wheel from rclpy")
         node.wait_err("stopped: deadman: no cmd_vel for 0.5 s")
         wait_until(lambda: any(is_stop(f) for _, f in node.sent()), what="the stop frame on the wire")
-
-
-def value(kind: int, number: float) -> dict[str, Any]:
-    key = "double_value" if kind == S.DOUBLE else "integer_value"
-    return {"type": kind, key: number}
 
 
 def test_parameters_get_set_refuse_and_say_it_on_parameter_events(

@@ -179,11 +179,11 @@ def test_without_a_terminal_the_last_dashboard_is_printed_once() -> None:
 @pytest.mark.parametrize(
     ("args", "name", "allowed"),
     [
-        (["--rate", "0"], "--rate", "0<x<=1000 Hz (or 'max')"),
+        (["--rate", "0"], "--rate", "0.1<=x<=1000 Hz (or 'max')"),
         (
             ["--rate", "fast"],
             "--rate",
-            "'fast' is not a valid number; expected a number in 0<x<=1000 Hz (or 'max')",
+            "'fast' is not a valid number; expected a number in 0.1<=x<=1000 Hz (or 'max')",
         ),
         (["--duration", "-1"], "--duration", "0<x<=864000"),
         (["warp"], "SENSOR", "'bump', 'ir', 'sonar', 'compass', 'wheels', 'env'"),

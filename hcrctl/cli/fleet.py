@@ -122,6 +122,12 @@ def router(settings: Settings, listen: tuple[str, ...]) -> None:
     help="Also be a ROS 2 node (namespace /NAME), from the same link and governor (needs the ros2 extra).",
 )
 @domain_option("--ros2-domain-id", "With --ros2: the DDS domain, as ROS_DOMAIN_ID.")
+@click.option(
+    "--ros2-may-loosen",
+    is_flag=True,
+    help="With --ros2: let any ROS 2 peer (DDS has no authentication) set a slower rate or a longer "
+    "deadman. Without it, ROS 2 may only tighten them (a faster rate, a shorter deadman).",
+)
 @click.pass_obj
 def serve(
     settings: Settings,
@@ -135,6 +141,7 @@ def serve(
     allow_origins: tuple[str, ...],
     ros2: bool,
     domain_id: int,
+    ros2_may_loosen: bool,
 ) -> None:
     """Publish this robot (--port) to the fleet as NAME, and let one operator at a time drive it.
 
@@ -144,12 +151,18 @@ def serve(
     when its messages stop for --deadman, when its operator's session goes,
     on a stop from anyone, and when this command ends. NAME is 1-64 letters,
     digits, '_', '.' or '-'. With --json a summary is printed at the end.
+
+    With --ros2, a ROS 2 peer may set the node's rate and deadman parameters
+    only to tighten the robot's safety (said on stderr and /rosout), unless
+    --ros2-may-loosen allows more.
     """
     from ..served.frontends import require_front_end, summary_line
     from ..served.frontends import serve as serve_robot
 
     if ros2:
         _ros2_name(name)
+    elif ros2_may_loosen:
+        raise click.BadParameter("it needs --ros2", param_hint="--ros2-may-loosen")
     fronts: dict[str, dict[str, Any]] = {
         "fleet": dict(
             name=name,
@@ -177,6 +190,7 @@ def serve(
             robot=name,
             needed_by=f"fleet serve {name}",
             report=end.reporter(summary_line("fleet")),
+            guarded="" if ros2_may_loosen else "fleet serve was started without --ros2-may-loosen",
         )
 
 

@@ -31,7 +31,7 @@ from typing import Any
 
 import click
 
-from ..link.defaults import DEADMAN_RANGE, MAX_RATE, RATE_HZ
+from ..link.defaults import DEADMAN_RANGE, RATE_HZ, RATE_RANGE
 from ..numtext import NumberError, finite, parse_float, parse_int
 from ..protocol import commands as C
 
@@ -118,7 +118,7 @@ class Rate(FloatRange):
     name = "HZ|max"
 
     def __init__(self) -> None:
-        super().__init__(0, MAX_RATE, min_open=True, unit="Hz", words={"max": None})
+        super().__init__(*RATE_RANGE, unit="Hz", words={"max": None})
 
 
 def rate_option(help: str = "Sweeps per second, or max.") -> Callable:

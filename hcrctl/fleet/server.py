@@ -33,7 +33,6 @@ from typing import TYPE_CHECKING, Any
 from .. import __version__
 from ..link.zenoh import keyspace
 from ..link.zenoh.join import FleetError, Where, beyond_loopback, import_zenoh, open_member
-from ..motion.bumpers import freshness_bound
 from ..motion.governor import Kind, Late, Source
 from ..numtext import plural
 from ..protocol import commands as C
@@ -118,8 +117,6 @@ class Fleet(FrontEnd):
         self.view = view
         self.started = time.time()
         self.answers = queries.Answers()
-        #: A read is answered from the sweep when its reply is at most this old (the bumper rule's bound).
-        self.fresh = freshness_bound(view.rate)
         self.holds = Holds(lambda: self.session)
         self.drive = FleetDrive(self.name, view.governor, self.say, self._profile, self.holds)
         self.declared: list[Any] = []
@@ -287,7 +284,7 @@ class Fleet(FrontEnd):
                 message = queries.payload_object(query)
                 robot = self.robot
                 address = queries.address_of(message, robot)
-                body = queries.swept(robot, cmd, self.view.heard(address, cmd.code), self.fresh)
+                body = queries.swept(robot, cmd, self.view.heard(address, cmd.code), self.view.bumper_bound)
             except Exception as exc:  # a bad payload, an impossible reply: the querier's answer
                 self.answers.reply(query, key, (False, queries.error_body(exc)))
                 return

@@ -17,8 +17,11 @@ REPLY_TIMEOUT_S: float = 0.5
 RETRIES: int = 2
 #: Sweeps a second of the polling commands (``--rate``: watch, plot, record, bridge, ros2, fleet serve).
 RATE_HZ: float = 10.0
-#: The fastest sweep rate asked of a poller (watch, plot, ``--rate``, the ROS 2 node's ``rate`` parameter).
+#: The slowest and the fastest sweep rate asked of a poller (``--rate`` of every polling command, the ROS 2
+#: node's ``rate`` parameter): below it a poll period would outlast any wait a person makes for a reading.
+MIN_RATE: float = 0.1
 MAX_RATE: float = 1000.0
+RATE_RANGE: tuple[float, float] = (MIN_RATE, MAX_RATE)
 #: How long motion runs without a fresh command before it is stopped (``--deadman``): teleop's keys, the
 #: bridge's and the ROS 2 node's /cmd_vel and the fleet driver's messages share it.
 DEADMAN_S: float = 0.5

@@ -9,8 +9,9 @@ is stale (``bumper reading stale (620 ms old, over 500 ms)``), never that a
 bumper is pressed when none was. The bound is ``FRESH_SWEEPS``
 sweeps of the poll rate, never less than ``MIN_FRESH_S`` (one reply timeout,
 so a single late sweep on a healthy link is not a stop): 0.5 s at 10 or 20 Hz,
-1.5 s at 2 Hz. A reading whose last try failed keeps its last good value
-until then: a pressed bumper stays pressed.
+1.5 s at 2 Hz. The rate is read at every question (``BumperRule``), so a rate
+changed while serving moves the bound with it. A reading whose last try
+failed keeps its last good value until then: a pressed bumper stays pressed.
 
 ``forward_blocked`` answers with why forward motion is blocked ("" when it is
 not); the motion governor asks it on every offer and every turn of its clock.
@@ -21,6 +22,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Protocol
 
+from ..link.defaults import REPLY_TIMEOUT_S
 from ..protocol import commands as C
 
 
@@ -43,8 +45,8 @@ class Readings(Protocol):
 
 #: A bumper reading older than this many sweeps no longer allows forward motion...
 FRESH_SWEEPS = 3
-#: ...nor one older than this, whatever the rate (one reply timeout, ``REPLY_TIMEOUT_S``).
-MIN_FRESH_S = 0.5
+#: ...nor one older than this, whatever the rate: one reply timeout.
+MIN_FRESH_S = REPLY_TIMEOUT_S
 BUMP = "bump"
 
 
@@ -68,16 +70,21 @@ def forward_blocked(state: Readings, bound: float) -> str:
 
 
 def bumper_rule(state: Readings, rate: float | None) -> BumperRule:
-    """The rule for a front end polling ``state`` at ``rate``: what its governor's ``bumpers`` calls."""
-    return BumperRule(state, freshness_bound(rate))
+    """The rule for a front end polling ``state`` at a fixed ``rate``: what its governor's ``bumpers`` calls."""
+    return BumperRule(state, lambda: rate)
 
 
 class BumperRule:
-    """``forward_blocked`` of one state at one bound, as a callable (the governor's ``bumpers``)."""
+    """``forward_blocked`` of one state, bound by the poll rate ``rate()`` is now (the governor's ``bumpers``)."""
 
-    def __init__(self, state: Readings, bound: float) -> None:
+    def __init__(self, state: Readings, rate: Callable[[], float | None]) -> None:
         self.state = state
-        self.bound = bound
+        self.rate = rate
+
+    @property
+    def bound(self) -> float:
+        """The freshness bound at the rate polled now."""
+        return freshness_bound(self.rate())
 
     def __call__(self) -> str:
         return forward_blocked(self.state, self.bound)

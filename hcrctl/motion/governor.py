@@ -417,6 +417,14 @@ class Governor:
         if on_late is not None:
             self._on_late = on_late
 
+    def set_deadman(self, seconds: float) -> None:
+        """The deadman from now on; a lease running now ends by it when that is sooner (a shorter one at once)."""
+        with self._lock:
+            lease = self.lease
+            lease.deadman = seconds
+            lease.until = min(lease.until, lease.last + seconds)
+        self._wake.set()
+
     def would_refuse(self, source: Source, now: float | None = None) -> str | None:
         """Why an offer of motion from ``source`` would be refused now: another drives, or a stop holds it
         out (None: it would not). A zero is never refused: it is a stop.

@@ -60,6 +60,7 @@ class Poller(threading.Thread):
         self.robot: Robot | None = robot
         self.state = state
         self.sensors = tuple(sensors)
+        #: Seconds between sweeps (0: as fast as replies come); changed by ``set_rate``.
         self.period = 1.0 / rate if rate else 0.0
         self.reconnect = reconnect
         self.retry_every = retry_every
@@ -72,6 +73,7 @@ class Poller(threading.Thread):
         self.crash: BaseException | None = None
         self.paused = threading.Event()
         self._stopping = threading.Event()
+        self._retimed = threading.Event()
         self._first = robot
         self._retries: list[tuple[Robot, int]] = []
         self._seen = _error_counts(robot)
@@ -87,6 +89,12 @@ class Poller(threading.Thread):
             self.join(wait if wait is not None else self._join_time())
         for robot, retries in self._retries:
             robot.retries = retries
+
+    def set_rate(self, rate: float | None) -> None:
+        """Sweep at ``rate`` Hz from now on: the wait for the next sweep is cut to the new period at once
+        (within a ``SLICE``), never slept out at the old one."""
+        self.period = 1.0 / rate if rate else 0.0
+        self._retimed.set()
 
     def toggle_pause(self) -> bool:
         if self.paused.is_set():
@@ -120,23 +128,30 @@ class Poller(threading.Thread):
             self._close_own()
 
     def _loop(self) -> None:
-        next_at = time.monotonic()
+        swept_at = time.monotonic()  # when the sweep made last was due
         while not self._stopping.is_set():
             robot = self.robot
             if robot is None:
                 if not self._reopen():
                     return
-                next_at = time.monotonic()
+                swept_at = time.monotonic()
                 continue
             try:
                 if self.paused.is_set():
                     self._drain(robot, time.monotonic() + SLICE)
                     continue
                 self.sweep(robot)
-                next_at = max(next_at + self.period, time.monotonic()) if self.period else time.monotonic()
-                self._drain(robot, next_at)
+                due = self._due(swept_at)
+                while self._drain(robot, due):  # a new rate: the next sweep is due by it, not by the old one
+                    due = self._due(swept_at)
+                swept_at = due
             except PortError as exc:
                 self._on_lost(robot, exc)
+
+    def _due(self, swept_at: float) -> float:
+        """When the sweep after the one due at ``swept_at`` is due: a period later, never in the past."""
+        now = time.monotonic()
+        return max(swept_at + self.period, now) if self.period else now
 
     def sweep(self, robot: Robot) -> None:
         """Read every sensor once, pipelined unless the firmware needs one at a time."""
@@ -168,9 +183,11 @@ class Poller(threading.Thread):
         else:
             self.state.record(name, result, rtt)
 
-    def _drain(self, robot: Robot, until: float) -> None:
-        """Move unsolicited frames into the state until ``until`` (monotonic)."""
+    def _drain(self, robot: Robot, until: float) -> bool:
+        """Move unsolicited frames into the state until ``until`` (monotonic), or until a new rate is set
+        (``set_rate``: then True, and the caller works out when the next sweep is due)."""
         unsolicited = robot.unsolicited
+        retimed = False
         while True:
             with contextlib.suppress(queue.Empty):
                 while True:
@@ -178,11 +195,16 @@ class Poller(threading.Thread):
             remaining = until - time.monotonic()
             if remaining <= 0 or self._stopping.is_set():
                 break
+            if self._retimed.is_set():
+                self._retimed.clear()
+                retimed = True
+                break
             with contextlib.suppress(queue.Empty):
                 self._unsolicited(robot, unsolicited.get(timeout=min(remaining, SLICE)))
         if robot.error is not None:
             raise robot.error
         self._count_errors(robot)
+        return retimed
 
     def _unsolicited(self, robot: Robot, frame: Frame) -> None:
         """A broadcast, or, from a board that streams (v0.11), a reading of a watched sensor."""

@@ -26,7 +26,7 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from ..motion.bumpers import BUMP, freshness_bound
+from ..motion.bumpers import BUMP
 from ..protocol import ros2conv, ros2msg, ros2srv
 from ..protocol import ros2types as R
 from ..recording.progress import sweeps
@@ -195,7 +195,7 @@ class Health:
             new_timeouts=_since(timeouts, last[0]),
             new_checksum_errors=_since(checksum, last[1]),
             bumper_age=view.reading_age(BUMP),
-            bumper_bound=freshness_bound(view.rate),
+            bumper_bound=view.bumper_bound,
         )
         drive = diagnostics.Driver(
             driver=str(driver) if driver is not None else "",

@@ -1,9 +1,12 @@
 """The node's ROS 2 parameters (``rate``, ``deadman``, ``pid.p/i/d``) and its ``~/stop``, as services answer them.
 
 The parameters are a table (``PARAMETERS``): each its type, its range (from
-where the rest of hcrctl keeps it: the link's defaults ``MAX_RATE`` and
-``DEADMAN_RANGE``, the pid request's fields in the command table), how to
-read it and how to set it. ``ros2 param get/set/describe/list`` reach it
+where the rest of hcrctl keeps it: the link's defaults ``RATE_RANGE`` and
+``DEADMAN_RANGE``, the command line's, and the pid request's fields in the
+command table), how to read it and how to set it. ``rate`` and ``deadman``
+are the runtime's (``served.tuning``): read from it, and set through it as
+set by a ROS 2 peer (``ROS2_PEER``, unauthenticated), so the change is said
+on stderr and ``/rosout`` and every rule made from the setting follows it. ``ros2 param get/set/describe/list`` reach it
 through rcl_interfaces' six services; each change is also said on
 ``/parameter_events``, as every ROS 2 node says its own.
 
@@ -29,16 +32,19 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 from ..errors import HcrError
-from ..link.defaults import DEADMAN_RANGE, MAX_RATE
+from ..link.defaults import DEADMAN_RANGE, RATE_RANGE
 from ..motion.governor import Kind, Source
 from ..protocol import commands as C
 from ..protocol import ros2srv as S
+from ..served.tuning import Setter
 from ..served.view import RuntimeView
 
 #: The longest parameter name a reason repeats (a refused name may be megabytes long).
 SHOWN = 64
 #: How long ``~/stop`` waits for the stop to be written, then for the robot's next answer (seconds).
 STOP_WAIT = 2.0
+#: Who sets a parameter: any participant of the DDS domain, which has no identity a server can check.
+ROS2_PEER = Setter("a ROS 2 peer (unauthenticated)", authenticated=False)
 
 
 class Refused(Exception):
@@ -47,14 +53,13 @@ class Refused(Exception):
 
 @dataclass(frozen=True)
 class Param:
-    """One parameter: ``kind`` a ``ParameterType``, its range ``lo``..``hi`` (``lo`` excluded if ``open``)."""
+    """One parameter: ``kind`` a ``ParameterType``, its range ``lo``..``hi``."""
 
     name: str
     kind: int
     description: str
     lo: float
     hi: float
-    open: bool = False
 
 
 def _pid_range(gain: str) -> tuple[int, int]:
@@ -63,10 +68,12 @@ def _pid_range(gain: str) -> tuple[int, int]:
 
 
 PID_GAINS = ("p", "i", "d")
+#: The parameters that are the runtime's settings (``served.tuning``), set through it.
+TUNED = ("rate", "deadman")
 PARAMETERS: dict[str, Param] = {
     p.name: p
     for p in (
-        Param("rate", S.DOUBLE, "sweeps of the sensors per second (Hz)", 0.0, MAX_RATE, open=True),
+        Param("rate", S.DOUBLE, "sweeps of the sensors per second (Hz)", *RATE_RANGE),
         Param("deadman", S.DOUBLE, "stop when cmd_vel is silent this long (s)", *DEADMAN_RANGE),
         *(
             Param(
@@ -103,10 +110,8 @@ def checked(param: Param, value: Any) -> float:
     else:
         want = "a double" if param.kind == S.DOUBLE else "an integer"
         raise Refused(f"{param.name} takes {want}, not a value of type {kind}")
-    low = number > param.lo if param.open else number >= param.lo
-    if not (math.isfinite(number) and low and number <= param.hi):
-        sign = "<" if param.open else "<="
-        raise Refused(f"{param.name} must be {param.lo:g}{sign}x<={param.hi:g}, not {number!r}")
+    if not (math.isfinite(number) and param.lo <= number <= param.hi):
+        raise Refused(f"{param.name} must be {param.lo:g}<=x<={param.hi:g}, not {number!r}")
     return number
 
 
@@ -115,8 +120,6 @@ class Parameters:
 
     def __init__(self, view: RuntimeView, announce: Callable[[list[dict[str, Any]]], None]) -> None:
         self.view = view
-        #: The rate set here; the one asked at start until then.
-        self.rate = view.rate
         self.announce = announce
         self.pid: dict[str, int] = {}
         self._lock = threading.Lock()
@@ -125,7 +128,7 @@ class Parameters:
 
     def get(self, name: str) -> float | None:
         if name == "rate":
-            return self.rate
+            return self.view.rate
         if name == "deadman":
             return float(self.view.deadman)
         return self.pid.get(name.removeprefix("pid."))
@@ -138,11 +141,14 @@ class Parameters:
         with self._lock:
             try:
                 wanted = {self._param(p.name).name: checked(self._param(p.name), p.value) for p in parameters}
+                for name, number in wanted.items():  # every refusal before anything changes
+                    if name in TUNED and (why := self.view.refusal(name, number, ROS2_PEER)):
+                        raise Refused(why)
                 gains = {k.removeprefix("pid."): int(v) for k, v in wanted.items() if k.startswith("pid.")}
                 if gains:
                     self._set_pid(gains)
                 for name, number in wanted.items():
-                    if not name.startswith("pid."):
+                    if name in TUNED:
                         self._apply(name, number)
             except Refused as exc:
                 return str(exc)
@@ -158,10 +164,9 @@ class Parameters:
 
     def _apply(self, name: str, number: float) -> None:
         if name == "rate":
-            self.view.set_rate(number)
-            self.rate = number
-        elif name == "deadman":
-            self.view.set_deadman(number)
+            self.view.set_rate(number, ROS2_PEER)
+        else:
+            self.view.set_deadman(number, ROS2_PEER)
 
     def _set_pid(self, gains: dict[str, int]) -> None:
         merged = {**self.pid, **gains}
@@ -207,12 +212,11 @@ class Parameters:
             return {"name": shown(name), "read_only": False, "dynamic_typing": False}
         span = {"from_value": param.lo, "to_value": param.hi, "step": 0}
         ranged = {"floating_point_range": [span]} if param.kind == S.DOUBLE else {"integer_range": [span]}
-        constraint = f"above {param.lo:g}" if param.open else ""
         return {
             "name": name,
             "type": param.kind,
             "description": param.description,
-            "additional_constraints": constraint,
+            "additional_constraints": "",
             "read_only": False,
             "dynamic_typing": False,
             **ranged,

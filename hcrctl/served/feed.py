@@ -114,6 +114,11 @@ class Feed:
         if self.poller.lost is not None:
             raise self.poller.lost
 
+    def set_rate(self, rate: float | None) -> None:
+        """Poll at ``rate`` Hz from now on: the poller's period, and the rate its state reports as asked."""
+        self.state.target_rate = rate
+        self.poller.set_rate(rate)
+
     @property
     def current(self) -> Robot | None:
         """The robot being polled now (a new one after a reconnect; None while the port is gone)."""

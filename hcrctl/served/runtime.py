@@ -49,7 +49,7 @@ from ..errors.terminal import warn
 from ..link.context import Connection, Reconnect
 from ..link.dialects import supported_sensors
 from ..link.handoff import quick_handoff
-from ..motion.bumpers import bumper_rule
+from ..motion.bumpers import BumperRule
 from ..motion.governor import Governor, Source
 from ..protocol import commands as C
 from ..protocol.profiles import profile
@@ -59,6 +59,7 @@ from .endstop import stopping_driven
 from .feed import Feed
 from .linkwatch import LinkWatch
 from .notes import Notes
+from .tuning import Tuning
 from .untrusted import shown
 from .view import RuntimeView
 
@@ -147,12 +148,17 @@ class ServedRobot:
         silence: str,
         duration: float | None = None,
         name: str = "the robot",
+        guarded: str = "",
     ) -> None:
+        """``guarded``: when not "", no unauthenticated peer may slow the rate or lengthen the deadman, and
+        this text says what would have allowed it (``tuning.Tuning``)."""
         self.settings = settings
         self.notes = notes
-        self.rate = rate
         self.duration = duration
         self.governor = Governor(C.Velocity, deadman=deadman, silence=silence, robot=name)
+        #: The rate and the deadman, held once: everything made from them follows its changes.
+        self.tuning = Tuning(rate, deadman, notes.note, guarded=guarded)
+        self.tuning.follow(deadman=self.governor.set_deadman)
         self.signalled = Signalled()
         self.sensors: list[str] = supported_sensors(settings.protocol, [])
         #: Whether the firmware has the velocity command a Twist becomes.
@@ -162,6 +168,8 @@ class ServedRobot:
         self.view = RuntimeView(self)
         self._feed: Feed | None = None
         self._fronts: dict[str, FrontEnd] = {}
+        #: The bumper rule the governor asks, from ``start`` on (its bound follows the rate).
+        self.bumpers: BumperRule | None = None
 
     @property
     def feed(self) -> Feed:
@@ -204,10 +212,13 @@ class ServedRobot:
         """Poll and publish, drive when asked, until the end; stop goes out however it ends."""
         governor = self.governor
         with self.settings.robot() as robot, quick_handoff():
+            tuning = self.tuning
             feed = self._feed = Feed(
-                robot, self.sensors, self.rate, self._publish, reconnect=Reconnect(self.settings, robot)
+                robot, self.sensors, tuning.rate, self._publish, reconnect=Reconnect(self.settings, robot)
             )
-            governor.attach(bumpers=bumper_rule(feed.state, self.rate), on_stop=self._said_stop)
+            tuning.follow(rate=feed.set_rate)
+            self.bumpers = BumperRule(feed.state, lambda: tuning.rate)
+            governor.attach(bumpers=self.bumpers, on_stop=self._said_stop)
             for front in self._fronts.values():
                 governor.attach(on_stop=front.stopped)
             try:
@@ -262,7 +273,12 @@ class ServedRobot:
         part under its name, so no front end's key can meet another's or the runtime's."""
         feed = self.feed
         summary = dict(feed.state.summary())
-        summary.update(messages=feed.messages, drive_frames=self.governor.frames)
+        summary.update(
+            messages=feed.messages,
+            drive_frames=self.governor.frames,
+            rate=self.tuning.rate,
+            deadman=self.tuning.deadman,
+        )
         for name, front in self._fronts.items():
             assert name not in summary, f"a front end named {name!r} would hide the runtime's {name!r}"
             summary[name] = front.summary()

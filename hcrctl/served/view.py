@@ -5,8 +5,10 @@ A front end (``runtime.FrontEnd``) is handed a ``RuntimeView``, never the
 to run, and a front end that reached into them (set the flag, read a
 counter the poller is writing as a field of its own) would tie the runtime's
 insides to every front end. What a front end needs is here, read-only, plus
-the two things it acts through: the motion governor its sources offer to,
-and the poller's pause a query on the serial link holds (``fleet.queries``).
+what it acts through: the motion governor its sources offer to, the poller's
+pause a query on the serial link holds (``fleet.queries``), and the rate and
+the deadman a peer may set (``set_rate``, ``set_deadman``: through the one
+holder, ``tuning.Tuning``, said with who set them).
 """
 
 from __future__ import annotations
@@ -15,9 +17,11 @@ import threading
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Protocol
 
+from ..motion.bumpers import BumperRule
 from ..motion.governor import Governor
 from ..protocol.topics import Topic
 from .feed import Feed, Heard
+from .tuning import Setter, Tuning
 
 if TYPE_CHECKING:
     from ..link.client import Robot
@@ -37,7 +41,10 @@ class Served(Protocol):
     def governor(self) -> Governor: ...
 
     @property
-    def rate(self) -> float | None: ...
+    def tuning(self) -> Tuning: ...
+
+    @property
+    def bumpers(self) -> BumperRule | None: ...
 
     @property
     def drives(self) -> bool: ...
@@ -73,11 +80,6 @@ class RuntimeView:
     @property
     def sensors(self) -> tuple[str, ...]:
         return tuple(self._served.sensors)
-
-    @property
-    def rate(self) -> float | None:
-        """The poll rate asked for, Hz (None: as fast as replies come)."""
-        return self._served.rate
 
     @property
     def drives(self) -> bool:
@@ -125,24 +127,45 @@ class RuntimeView:
         view = self._feed.state.view()
         return view.status, view.poll_rate, view.counters.timeouts, view.counters.checksum_errors
 
+    @property
+    def bumper_bound(self) -> float:
+        """How old (s) the bumper reading may be for forward motion now: the bumper rule's own bound, at the
+        rate polled now, from ``start`` on."""
+        rule = self._served.bumpers
+        assert rule is not None, "the bumper rule exists once the robot's port is open"
+        return rule.bound
+
     def reading_age(self, name: str) -> float | None:
         """Seconds since sensor ``name``'s last good reading (None: none yet)."""
         state = self._feed.state
         return state.reading(name).age(state.clock())
 
+    # -- the settings a peer may change while it runs (``tuning.Tuning``: held there once) ----------
+
+    @property
+    def rate(self) -> float | None:
+        """The poll rate asked for now, Hz (None: as fast as replies come)."""
+        return self._served.tuning.rate
+
     @property
     def deadman(self) -> float:
-        return self._served.governor.lease.deadman
+        """The deadman now, seconds."""
+        return self._served.tuning.deadman
 
-    def set_deadman(self, seconds: float) -> None:
-        """A new deadman for the leases from now on (the ROS 2 node's ``deadman`` parameter)."""
-        self._served.governor.lease.deadman = seconds
+    def set_deadman(self, seconds: float, by: Setter) -> None:
+        """Stop motion after ``seconds`` without a fresh command from now on (a running lease too), said with
+        ``by``; ``tuning.NotAllowed`` saying why when out of range, or a loosening ``by`` may not make."""
+        self._served.tuning.set_deadman(seconds, by)
 
-    def set_rate(self, hz: float) -> None:
-        """Sweep at ``hz`` from the next sweep on (the ROS 2 node's ``rate`` parameter); ``rate`` stays as asked."""
-        feed = self._feed
-        feed.poller.period = 1.0 / hz
-        feed.state.target_rate = hz
+    def refusal(self, name: str, value: float, by: Setter) -> str:
+        """Why setting ``name`` ("rate" or "deadman") to ``value`` for ``by`` would be refused ("": it would
+        not): out of the command line's range, or a loosening ``by`` may not make."""
+        return self._served.tuning.refusal(name, value, by)
+
+    def set_rate(self, hz: float, by: Setter) -> None:
+        """Sweep at ``hz`` from now on (the poller woken at once, the bumper rule's bound following), said
+        with ``by``; ``tuning.NotAllowed`` saying why when out of range, or a loosening ``by`` may not make."""
+        self._served.tuning.set_rate(hz, by)
 
     def counters(self) -> dict[str, Any]:
         """The link's counters (``Feed.counters``), the sweeps, messages, drive frames and the lease's."""

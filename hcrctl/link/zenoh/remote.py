@@ -45,6 +45,7 @@ from ...protocol import commands as C
 from ...protocol.profiles import DEFAULT, Profile, profile
 from ...protocol.records import hexs
 from ..carrier import Carrier, Deliver, Lost, Settings, Timeout, is_stop
+from ..defaults import DEADMAN_S
 from .identity import Identity
 from .join import FleetError, Where, import_zenoh, join, looked_at
 from .keyspace import (
@@ -407,6 +408,6 @@ def _profile_of(info: dict[str, Any]) -> Profile:
 
 
 def _deadman(info: dict[str, Any]) -> float:
-    """The robot side's deadman (checked in range by ``check_info``), 0.5 s when it does not say."""
+    """The robot side's deadman (checked in range by ``check_info``), the default one when it does not say."""
     value = info.get("deadman")
-    return float(value) if value is not None else 0.5
+    return float(value) if value is not None else DEADMAN_S

@@ -110,15 +110,24 @@ def serve(
     robot: str = "the robot",
     needed_by: str,
     report: Report | None = None,
+    guarded: str = "",
 ) -> dict[str, Any]:
     """Serve the robot behind ``settings`` through ``fronts`` (name -> its options), the first speaking for
-    the run (its stderr, its deadman's words); the summary, as ``ServedRobot.run``."""
+    the run (its stderr, its deadman's words); the summary, as ``ServedRobot.run``. ``guarded``: as
+    ``ServedRobot``'s (no unauthenticated peer loosens the rate or the deadman)."""
     for name in fronts:
         require_front_end(name, needed_by)
     first = FRONT_ENDS[next(iter(fronts))]
     notes = (imported(first.notes) if first.notes else Notes)(sys.stderr, first.prefix)
     served = ServedRobot(
-        settings, notes, rate=rate, deadman=deadman, silence=first.silence, duration=duration, name=robot
+        settings,
+        notes,
+        rate=rate,
+        deadman=deadman,
+        silence=first.silence,
+        duration=duration,
+        name=robot,
+        guarded=guarded,
     )
     built = {name: build(name, served, notes, options) for name, options in fronts.items()}
     return served.run(built, report=report)
