@@ -34,6 +34,17 @@ def pytest_configure(config: pytest.Config) -> None:
         signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The tests marked ``long`` first, the rest in their order.
+
+    pytest-xdist hands out the first tests one to a worker in turn, so each of
+    these starts at once on a worker of its own and runs beside the short
+    ones; collected last, one would start near the end and the whole run would
+    wait for it alone.
+    """
+    items.sort(key=lambda item: item.get_closest_marker("long") is None)
+
+
 #: Hypothesis fails an example slower than 200 ms by default: a timing assertion, which a loaded machine
 #: breaks. The suite checks results only; speed is the benchmarks' job (bench/).
 settings.register_profile("suite", deadline=None)

@@ -157,6 +157,7 @@ def awkward_inputs() -> list[bytes]:
     return inputs
 
 
+@pytest.mark.long  # thousands of inputs, each fed byte by byte too
 def test_bulk_counting_counts_what_feeding_finds() -> None:
     for data in awkward_inputs():
         for rule in RULES:
@@ -178,6 +179,7 @@ def unrolled(events: list) -> list:
     return out
 
 
+@pytest.mark.long  # thousands of inputs, each fed byte by byte too
 def test_runs_in_bulk_are_the_frames_feeding_finds_in_the_same_order() -> None:
     bulk = 0
     for data in awkward_inputs():
