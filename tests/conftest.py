@@ -14,6 +14,7 @@ from collections.abc import Generator, Iterator
 from pathlib import Path
 
 import helpers_netns
+import helpers_skips
 import pytest
 from helpers import DevicePty, clean_env, hcrctl_exe
 from helpers_cli import sim_pty
@@ -32,6 +33,7 @@ def pytest_configure(config: pytest.Config) -> None:
     """
     if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+    helpers_skips.register(config)
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
