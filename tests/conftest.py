@@ -14,6 +14,7 @@ from collections.abc import Generator, Iterator
 from pathlib import Path
 
 import helpers_netns
+import helpers_skips
 import pytest
 from helpers import DevicePty, clean_env, hcrctl_exe
 from helpers_cli import sim_pty
@@ -32,6 +33,18 @@ def pytest_configure(config: pytest.Config) -> None:
     """
     if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+    helpers_skips.register(config)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The tests marked ``long`` first, the rest in their order.
+
+    pytest-xdist hands out the first tests one to a worker in turn, so each of
+    these starts at once on a worker of its own and runs beside the short
+    ones; collected last, one would start near the end and the whole run would
+    wait for it alone.
+    """
+    items.sort(key=lambda item: item.get_closest_marker("long") is None)
 
 
 #: Hypothesis fails an example slower than 200 ms by default: a timing assertion, which a loaded machine

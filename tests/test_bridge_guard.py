@@ -19,6 +19,7 @@ import socket
 import struct
 import subprocess
 import threading
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -239,7 +240,8 @@ def test_any_other_web_page_is_refused_at_the_handshake(env: dict[str, str], ori
             connect(f"ws://127.0.0.1:{running.port}", subprotocols=["foxglove.sdk.v1"], origin=origin)  # type: ignore[arg-type]
         assert refused.value.response.status_code == 403
         running.wait_line("refused a client from")
-        robot.settle()
+        refused = time.monotonic()
+        robot.wait_frame(lambda f: True, after=refused)  # the bridge's poll goes on after the refusal
         assert not [f for _, f in robot.frames() if velocity_of(f) is not None]
 
 

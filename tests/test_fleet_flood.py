@@ -33,6 +33,8 @@ SERVO = C.BY_NAME["servo"].code
 RATE = 10.0
 #: Queries a second from the attacker: far more than the paced line could answer one by one.
 FLOOD_RATE = 1000.0
+#: The serve's line when a bumper rule stops the robot: the press, or a reading too old to trust.
+BUMPER_STOP = re.compile(r"stopped: (bumper hit|bumper reading stale \(\d+ ms old)")
 
 
 @pytest.fixture
@@ -68,27 +70,35 @@ def test_a_read_flood_while_driving_forward_cannot_blind_the_bumpers(lab: Fleet,
         peer.reads([(keyspace.read("r1", "compass"), None)], rate=FLOOD_RATE)
         wait_until(lambda: peer.sent >= 200, what="the flood under way")
 
-        def driven_into_the_wall() -> bool:
+        def stopped_at_the_wall() -> bool:
             op.cmd_vel(twist(0.8))  # the driver keeps driving: only the bumper rule can stop it
-            return any(is_stop(f) for f in _after_forward(serve))
+            return _pressed_then_still(serve)
 
-        wait_until(driven_into_the_wall, what="a stop after forward motion, the driver still driving")
+        wait_until(stopped_at_the_wall, what="the press heard and the wheels still, the driver still driving")
         for _ in range(5):  # the driver goes on asking: refused while the bumper is pressed
             op.cmd_vel(twist(0.8))
         op.wait_said("forward blocked")
-        serve.wait_err("stopped: bumper hit")
+        wait_until(
+            lambda: BUMPER_STOP.search(serve.said()), what="the serve saying which bumper rule stopped it"
+        )
     press = next(t for t, f in serve.heard() if pressed(f))
-    stop = next(t for t, f in serve.sent() if t >= press and is_stop(f))
     late = [t for t, f in serve.sent() if forward(f) and t > press + freshness_bound(RATE)]
-    assert not late, (
-        f"forward motion {late[-1] - press:.2f} s after the press (stop after {stop - press:.2f} s)"
-    )
+    assert not late, f"forward motion {late[-1] - press:.2f} s after the press ({serve.said()!r})"
 
 
-def _after_forward(serve: Any) -> list[Frame]:
-    frames = [f for _, f in serve.sent()]
-    first = next((i for i, f in enumerate(frames) if forward(f)), None)
-    return [] if first is None else frames[first:]
+def _pressed_then_still(serve: Any) -> bool:
+    """The press is heard and the last motion frame on the wire is a stop.
+
+    Which bumper rule stops the wheels depends on the machine's load: the
+    press itself (``bumper hit``) or a bump read answered too late behind the
+    flood (``bumper reading stale``). Either ends forward motion, which is what
+    the rule guarantees; how soon after the press is checked on the wire.
+    """
+    press = next((t for t, f in serve.heard() if pressed(f)), None)
+    if press is None:
+        return False
+    motion = [f for _, f in serve.sent() if f.command == VELOCITY or is_stop(f)]
+    return bool(motion) and is_stop(motion[-1])
 
 
 def test_ten_third_party_stops_go_through_a_read_flood(lab: Fleet, tmp_path: Path) -> None:
@@ -162,8 +172,18 @@ def test_a_servo_write_needs_the_lease_while_someone_drives(lab: Fleet, tmp_path
         done = lab.run(servo)
         other.open()
         refused, body = other.write({"address": 1, "command": SERVO, "content": "015A"})
+        # the refusal its answer gave; on a loaded machine a write that came before op2's token was
+        # refused for that first (and asked again), which was said to op2 too
         said = wait_until(
-            lambda: next((s for s in list(other.status) if s.get("op") == "op2"), None), what="op2 told"
+            lambda: next(
+                (
+                    s
+                    for s in list(other.status)
+                    if s.get("op") == "op2" and s.get("text") == body.get("error")
+                ),
+                None,
+            ),
+            what=f"op2 told {body.get('error')!r} (got {other.status})",
         )
         op.gone()
         serve.wait_err("operator op1 gone")

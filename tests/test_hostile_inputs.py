@@ -14,11 +14,11 @@ from __future__ import annotations
 import json
 import os
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 from helpers_cli import clean_env, hcrctl_exe, run
+from helpers_memory import peak_rss
 
 from hcrctl.link.trafficlog import LINE_LIMIT, RECORD_BYTES
 from hcrctl.protocol.frames import encode
@@ -169,30 +169,9 @@ def test_a_field_no_record_holds_is_one_short_line(
         refused(hcr(reader_args(reader, log, tmp_path), tmp_path), f"{log}:2", what)
 
 
-def peak_rss(
-    args: list[str], env: dict[str, str], tmp_path: Path
-) -> tuple[int, subprocess.CompletedProcess[str]]:
-    """The command's peak resident memory in KiB, measured by wait4 in a small fresh interpreter
-    (a child forked from this test process would count this process's memory too), and its result."""
-    trampoline = (
-        "import os, sys\n"
-        "pid = os.fork()\n"
-        "if pid == 0:\n"
-        "    os.execv(sys.argv[2], sys.argv[2:])\n"
-        "_, status, usage = os.wait4(pid, 0)\n"
-        "open(sys.argv[1], 'w').write(str(usage.ru_maxrss))\n"
-        "sys.exit(os.waitstatus_to_exitcode(status))\n"
-    )
-    report = tmp_path / "rss"
-    proc = subprocess.run(
-        [sys.executable, "-c", trampoline, str(report), hcrctl_exe(), *args],
-        env=env,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-        timeout=120,
-    )
-    return int(report.read_text()), proc
+def hcrctl_rss(args: list[str], tmp_path: Path) -> tuple[int, subprocess.CompletedProcess[str]]:
+    """``hcrctl ARGS``' peak resident memory in KiB (its own, not this process's), and its result."""
+    return peak_rss([hcrctl_exe(), *args], tmp_path, clean_env(tmp_path))
 
 
 @pytest.mark.parametrize("reader", ["monitor", "export-csv", "replay"])
@@ -200,7 +179,7 @@ def test_a_13_mb_record_is_refused_at_the_line_cap_in_bounded_memory(tmp_path: P
     log = tmp_path / "huge.jsonl"
     log.write_text(good_lines(1) + record(bytes(range(256)) * 17_000))  # 4.3 MB of bytes, 13 MB of hex
     assert log.stat().st_size > 13_000_000
-    rss, proc = peak_rss(reader_args(reader, log, tmp_path), clean_env(tmp_path), tmp_path)
+    rss, proc = hcrctl_rss(reader_args(reader, log, tmp_path), tmp_path)
     assert rss < RSS_BOUND_KIB, rss  # read whole, that line took 549 MB
     refused(proc, f"{log}:2", f"longer than {LINE_LIMIT >> 10} KiB")
 
@@ -213,7 +192,7 @@ def test_records_at_the_caps_cost_bounded_memory_in_the_heaviest_reader(tmp_path
     body = (unit * (RECORD_BYTES // len(unit) + 1))[: RECORD_BYTES - 4]
     log = tmp_path / "caps.jsonl"
     log.write_text("".join(record(body + i.to_bytes(4, "big"), "rx") for i in range(2500)))
-    rss, proc = peak_rss(["monitor", "--json", "--from", str(log)], clean_env(tmp_path), tmp_path)
+    rss, proc = hcrctl_rss(["monitor", "--json", "--from", str(log)], tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert rss < RSS_BOUND_KIB, rss
 

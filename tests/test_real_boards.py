@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 from helpers import DevicePty, clean_env, wait_until
 from helpers_cli import finish, run, sim_pty, start
-from helpers_live import terminal
+from helpers_live import Terminal, terminal
 from helpers_shell import shell
 
 from hcrctl.protocol.profiles import V011, V015
@@ -43,6 +43,13 @@ def board(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
 
 def tx_frames(log: Path) -> list[str]:
     return [r["hex"] for r in map(json.loads, log.read_text().splitlines()) if r["direction"] == "tx"]
+
+
+def ctrl_c(term: Terminal) -> None:
+    """Ctrl-C to a monitor once it says Ctrl-C ends it: from that line on it is its normal end (exit 0);
+    sent earlier, while a slow start is still on its way there, it would interrupt (exit 130)."""
+    term.wait_for("until Ctrl-C")
+    term.send("\x03")
 
 
 def one_line(text: str) -> str:
@@ -131,7 +138,7 @@ def test_monitor_decodes_the_v011_stream_with_its_checksum_rules(board: str) -> 
         )
         assert re.search(r"rx  @01  bump +07  bump=\[no, no, no\]  checksum 13 ok", screen)
         assert re.search(r"rx  @01  ir +(\w\w ){6}\w\w  ir=\[[\d, ]+\] raw  checksum \w\w ok", screen)
-        term.send("\x03")
+        ctrl_c(term)
         assert term.finish() == 0
 
 
@@ -139,7 +146,7 @@ def test_monitor_shows_the_boot_banner_as_text() -> None:
     with terminal(["--port", "sim://?protocol=v0.11", *V11, "monitor"]) as term:
         screen = term.wait_for(lambda t: "HCR Start" in t and "bump" in t)
         assert re.search(r"rx       text +HCR Start", screen)
-        term.send("\x03")
+        ctrl_c(term)
         assert term.finish() == 0
 
 
@@ -170,7 +177,7 @@ def test_a_v015_monitor_of_a_v011_board_says_try_protocol_v011(board: str) -> No
     with terminal(["--protocol", "v0.15", "--port", board, "monitor"], size=WIDE) as term:
         screen = term.wait_for(lambda t: "as v0.11 bump" in t)
         assert LONE_LF in screen
-        term.send("\x03")
+        ctrl_c(term)
         term.finish()
         assert f"(hint: {LONE_LF})" in term.output()
 
@@ -179,7 +186,7 @@ def test_a_monitor_left_on_the_default_follows_a_v011_board(board: str) -> None:
     """Without --protocol, monitor says it heard v0.11 and decodes the stream as v0.11 from there."""
     with terminal(["--port", board, "monitor"], size=WIDE) as term:
         term.wait_for(lambda t: "last IR byte rule" in t and "bump=[" in t)
-        term.send("\x03")
+        ctrl_c(term)
         term.finish()
         output = term.output()
         assert "decoding them as v0.11 from here on (give --protocol v0.11 to start so)" in output
