@@ -1,0 +1,149 @@
+"""A stdout nobody reads never holds a stop, a poll or a signal, and what it missed is said.
+
+The installed hcrctl gets as stdout a pipe the test fills before the start
+and never reads (shrunk to one page, ``F_SETPIPE_SZ``): every line it
+writes there, its ``--log -`` first, finds the pipe full, as a terminal
+after Ctrl-S or a reader that went to sleep would leave it. The robot is a
+pty the test owns, so every time is the wire's: the stop after ``--for``,
+the stop a signal brings, the polls a server keeps sending. Stderr is read
+(it is where the loss is said).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+import signal
+import subprocess
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from helpers import TIMEOUT, clean_env, hcrctl_exe, wait_until
+from helpers_cli import stderr_until
+from helpers_live import FakeRobot, is_stop
+
+from hcrctl.protocol.frames import Frame
+
+#: fcntl's F_SETPIPE_SZ (Linux): the pipe's capacity.
+F_SETPIPE_SZ = 1031
+PAGE = 4096
+#: What the stalled stdout's loss is said as, on stderr.
+LOSS = "stdout was not read"
+
+
+@pytest.fixture
+def env(tmp_path: Path) -> dict[str, str]:
+    return clean_env(tmp_path)
+
+
+@contextlib.contextmanager
+def full_pipe() -> Iterator[int]:
+    """The write end of a pipe already full, that nobody will read (its read end stays open, unread)."""
+    read_end, write_end = os.pipe()
+    try:
+        fcntl.fcntl(write_end, F_SETPIPE_SZ, PAGE)
+        os.set_blocking(write_end, False)
+        with contextlib.suppress(BlockingIOError):
+            while True:
+                os.write(write_end, b"x" * PAGE)
+        os.set_blocking(write_end, True)
+        yield write_end
+    finally:
+        os.close(read_end)
+        with contextlib.suppress(OSError):
+            os.close(write_end)
+
+
+@contextlib.contextmanager
+def stalled(args: list[str], env: dict[str, str]) -> Iterator[subprocess.Popen[bytes]]:
+    """``hcrctl ARGS`` with a full stdout nobody reads, stderr piped (SIGINT at its default: conftest)."""
+    with full_pipe() as stdout:
+        proc = subprocess.Popen(
+            [hcrctl_exe(), *args],
+            env=env,
+            stdin=subprocess.DEVNULL,
+            stdout=stdout,
+            stderr=subprocess.PIPE,
+        )
+        os.close(stdout)
+        try:
+            yield proc
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+            proc.wait()
+            proc.stderr.close()
+
+
+def ended(proc: subprocess.Popen[bytes]) -> tuple[int, str]:
+    """Its status once it ended (waited for, not timed: a hang fails here) and the rest of its stderr."""
+    try:
+        _, rest = proc.communicate(timeout=TIMEOUT)
+    except subprocess.TimeoutExpired:
+        raise AssertionError(f"hcrctl did not end in {TIMEOUT} s with its stdout stalled") from None
+    return proc.returncode, rest.decode()
+
+
+def moving(frame: Frame) -> bool:
+    """The drive's motion: motor power (command 1), not the stop."""
+    return frame.command == 1 and not is_stop(frame)
+
+
+def test_a_timed_drive_sends_its_stop_and_says_what_stdout_missed(env: dict[str, str]) -> None:
+    with (
+        FakeRobot() as robot,
+        stalled(
+            ["--port", robot.path, "--log", "-", "drive", "power", "10", "10", "--for", "1"], env
+        ) as proc,
+    ):
+        moved = robot.wait_frame(moving)
+        robot.wait_frame(is_stop, after=moved)
+        code, err = ended(proc)
+    assert code == 1, err  # an output that could not be written
+    assert LOSS in err and "could not be written" in err, err
+    assert "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    ("signum", "code"),
+    [(signal.SIGINT, 130), (signal.SIGTERM, 143), (signal.SIGHUP, 129)],
+    ids=["SIGINT", "SIGTERM", "SIGHUP"],
+)
+def test_a_signal_ends_a_drive_whose_stdout_is_stalled(env: dict[str, str], signum: int, code: int) -> None:
+    with (
+        FakeRobot() as robot,
+        stalled(["--port", robot.path, "--log", "-", "drive", "power", "10", "10"], env) as proc,
+    ):
+        moved = robot.wait_frame(moving)
+        stderr_until(
+            proc, "Ctrl-C to stop"
+        )  # said after the motion went out and its log line was handed over
+        proc.send_signal(signum)
+        robot.wait_frame(is_stop, after=moved)
+        status, err = ended(proc)
+    assert status == code, err
+    assert LOSS in err, err
+    assert "Traceback" not in err
+
+
+#: Polls a server must keep sending while its stdout is stalled: many sweeps, not one or two.
+POLLS = 40
+
+
+def test_a_server_keeps_polling_and_ends_on_sigterm_with_its_stdout_stalled(env: dict[str, str]) -> None:
+    args = ["--port", "PORT", "--log", "-", "bridge", "--listen", "127.0.0.1:0", "--rate", "20"]
+    with FakeRobot() as robot:
+        args[1] = robot.path
+        with stalled(args, env) as proc:
+            stderr_until(proc, "serving")
+            start = len(robot.frames())
+            wait_until(
+                lambda: len(robot.frames()) >= start + POLLS, what=f"{POLLS} polls with stdout stalled"
+            )
+            proc.send_signal(signal.SIGTERM)
+            code, err = ended(proc)
+    assert code == 0, err  # a server's normal end, stalled stdout or not
+    assert LOSS in err, err
+    assert "Traceback" not in err
