@@ -28,7 +28,6 @@ from __future__ import annotations
 import contextlib
 import io
 import os
-import signal
 import stat
 import sys
 import threading
@@ -40,7 +39,7 @@ from typing import Any
 from .errors import HcrError
 from .errors.status import ExitStatus, signalled
 from .errors.terminal import warn
-from .signals import STOP_SIGNALS
+from .signals import STOP_SIGNALS, leave_to_main_thread
 
 STDOUT = 1
 
@@ -262,8 +261,7 @@ class Outlet:
             self._thread.start()
 
     def _run(self) -> None:
-        if hasattr(signal, "pthread_sigmask"):  # a stop signal is the main thread's to take, at once
-            signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+        leave_to_main_thread()
         while True:
             with self._cond:
                 while not self._chunks and not self._closing:

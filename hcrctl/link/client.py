@@ -47,7 +47,7 @@ from ..protocol.frames import (
 )
 from ..protocol.motionscan import MotionScan
 from ..protocol.profiles import DEFAULT, Profile, profile
-from ..signals import signals_deferred
+from ..signals import leave_to_main_thread, signals_deferred
 from ..stdout import urgent
 from .carrier import Carrier, RawRefused, is_stop, requests_in
 from .defaults import BAUD, REPLY_TIMEOUT_S, RETRIES
@@ -437,6 +437,7 @@ class Robot(TypedReads, Dialect):
     # -- receiving -----------------------------------------------------------
 
     def _read_loop(self) -> None:
+        leave_to_main_thread()
         ser = self.serial
         while not self._closing.is_set():
             try:
