@@ -24,6 +24,7 @@ from helpers import TIMEOUT, clean_env, hcrctl_exe, wait_until
 from helpers_cli import stderr_until
 from helpers_live import FakeRobot, is_stop
 
+from hcrctl import stdout
 from hcrctl.protocol.frames import Frame
 
 #: fcntl's F_SETPIPE_SZ (Linux): the pipe's capacity.
@@ -147,3 +148,40 @@ def test_a_server_keeps_polling_and_ends_on_sigterm_with_its_stdout_stalled(env:
     assert code == 0, err  # a server's normal end, stalled stdout or not
     assert LOSS in err, err
     assert "Traceback" not in err
+
+
+def test_what_a_stalled_reader_missed_is_counted_and_said_when_it_reads_again(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """The mechanism under them all, in-process: past its bound an outlet drops whole lines, counts them, and
+    says so on stderr once its reader takes a write again; every line is either read or counted."""
+    with full_pipe() as fd:
+        read_end = os.open(f"/proc/self/fd/{fd}", os.O_RDONLY)  # the same pipe, read from here on
+        stdout.urgent()  # a robot is open: writes never wait
+        outlet = stdout.Outlet(fd, "stdout", limit=PAGE)
+        lines = [b"%05d" % n + b"x" * 94 + b"\n" for n in range(200)]  # 20,000 bytes: ~8 KiB fits
+        for line in lines:
+            outlet.write(line)  # returns at once: nobody reads
+        assert outlet.dropped[1] > 0
+        got = bytearray()
+        said = ""
+
+        def drained() -> bool:
+            nonlocal said
+            with contextlib.suppress(BlockingIOError):
+                got.extend(os.read(read_end, 1 << 16))
+            said += capsys.readouterr().err
+            return "stdout was not read for a while" in said and outlet.held == 0
+
+        os.set_blocking(read_end, False)
+        wait_until(drained, what="the held lines written and the drop said")
+        with contextlib.suppress(BlockingIOError):  # everything is in the pipe now: take the rest
+            while chunk := os.read(read_end, 1 << 16):
+                got.extend(chunk)
+        os.close(read_end)
+    read = [line for line in bytes(got).replace(b"x" * PAGE, b"").splitlines(keepends=True) if line]
+    dropped = int(said.split("a while: ")[1].split(" lines")[0])
+    assert all(line in lines for line in read), read  # whole lines
+    numbers = [int(line[:5]) for line in read]
+    assert numbers == sorted(set(numbers)), numbers  # in order, none twice
+    assert len(read) + dropped == len(lines), said
