@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import fcntl
 import os
 import select
 import signal
@@ -34,20 +33,18 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))  # the tests' FakeRobot
 
 from _common import record
-from helpers import hcrctl_exe, sleeping
+from helpers import sleeping
+from helpers_cli import on_pipe
 from helpers_live import FakeRobot, is_stop
 
 from hcrctl.protocol.frames import Frame
 
-F_SETPIPE_SZ = 1031
-PAGE = 4096
 MODES = ("quiet", "stalled")
 #: The longest a stalled run may take to exit after its stop or its signal.
 EXIT_BOUND_S = 1.0
@@ -141,50 +138,11 @@ def server_polls(mode: str, seconds: float) -> float:
     return polls
 
 
-@contextlib.contextmanager
-def _run(mode: str, robot: FakeRobot, args: list[str]) -> Iterator[subprocess.Popen[bytes]]:
+def _run(
+    mode: str, robot: FakeRobot, args: list[str]
+) -> contextlib.AbstractContextManager[subprocess.Popen[bytes]]:
     """``hcrctl --port ROBOT --log - ARGS``, its stdout read (quiet) or a full pipe nobody reads (stalled)."""
-    read_end, write_end = os.pipe()
-    fcntl.fcntl(write_end, F_SETPIPE_SZ, PAGE)
-    reader: threading.Thread | None = None
-    if mode == "stalled":
-        _fill(write_end)
-    else:
-        reader = threading.Thread(target=_drain, args=(read_end,), daemon=True)
-        reader.start()
-    proc = subprocess.Popen(
-        [hcrctl_exe(), "--port", robot.path, "--log", "-", *args],
-        stdin=subprocess.DEVNULL,
-        stdout=write_end,
-        stderr=subprocess.PIPE,
-    )
-    os.close(write_end)
-    try:
-        yield proc
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-        proc.wait()
-        proc.stderr.close()
-        if reader is None:
-            os.close(read_end)
-        else:
-            reader.join(5)
-
-
-def _fill(fd: int) -> None:
-    os.set_blocking(fd, False)
-    with contextlib.suppress(BlockingIOError):
-        while True:
-            os.write(fd, b"x" * PAGE)
-    os.set_blocking(fd, True)
-
-
-def _drain(fd: int) -> None:
-    with contextlib.suppress(OSError):
-        while os.read(fd, 1 << 16):
-            pass
-    os.close(fd)
+    return on_pipe(["--port", robot.path, "--log", "-", *args], None, stalled=mode == "stalled")
 
 
 def _held(proc: subprocess.Popen[bytes], give_up: float) -> None:
@@ -218,12 +176,19 @@ def _said(proc: subprocess.Popen[bytes], text: bytes, give_up: float) -> None:
 def _exit_time(proc: subprocess.Popen[bytes], give_up: float) -> float:
     """When the process ended (its stderr read meanwhile, so it never waits on it); ``give_up`` s at most."""
     end = time.monotonic() + give_up
-    threading.Thread(target=_drain, args=(os.dup(proc.stderr.fileno()),), daemon=True).start()
+    threading.Thread(target=_drain_stderr, args=(proc,), daemon=True).start()
     while proc.poll() is None:
         if time.monotonic() > end:
             return end
         time.sleep(0.002)
     return time.monotonic()
+
+
+def _drain_stderr(proc: subprocess.Popen[bytes]) -> None:
+    """Read its stderr to the end, so it never waits on it."""
+    with contextlib.suppress(OSError, ValueError):
+        while proc.stderr.read1(1 << 16):
+            pass
 
 
 if __name__ == "__main__":

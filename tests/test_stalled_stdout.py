@@ -12,24 +12,19 @@ the stop a signal brings, the polls a server keeps sending. Stderr is read
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import os
 import signal
 import subprocess
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from helpers import TIMEOUT, clean_env, hcrctl_exe, wait_until
-from helpers_cli import stderr_until
+from helpers import TIMEOUT, clean_env, wait_until
+from helpers_cli import PAGE, full_pipe, on_pipe, stderr_until
 from helpers_live import FakeRobot, is_stop
 
 from hcrctl import stdout
 from hcrctl.protocol.frames import Frame
 
-#: fcntl's F_SETPIPE_SZ (Linux): the pipe's capacity.
-F_SETPIPE_SZ = 1031
-PAGE = 4096
 #: What the stalled stdout's loss is said as, on stderr.
 LOSS = "stdout was not read"
 
@@ -39,43 +34,11 @@ def env(tmp_path: Path) -> dict[str, str]:
     return clean_env(tmp_path)
 
 
-@contextlib.contextmanager
-def full_pipe() -> Iterator[int]:
-    """The write end of a pipe already full, that nobody will read (its read end stays open, unread)."""
-    read_end, write_end = os.pipe()
-    try:
-        fcntl.fcntl(write_end, F_SETPIPE_SZ, PAGE)
-        os.set_blocking(write_end, False)
-        with contextlib.suppress(BlockingIOError):
-            while True:
-                os.write(write_end, b"x" * PAGE)
-        os.set_blocking(write_end, True)
-        yield write_end
-    finally:
-        os.close(read_end)
-        with contextlib.suppress(OSError):
-            os.close(write_end)
-
-
-@contextlib.contextmanager
-def stalled(args: list[str], env: dict[str, str]) -> Iterator[subprocess.Popen[bytes]]:
+def stalled(
+    args: list[str], env: dict[str, str]
+) -> contextlib.AbstractContextManager[subprocess.Popen[bytes]]:
     """``hcrctl ARGS`` with a full stdout nobody reads, stderr piped (SIGINT at its default: conftest)."""
-    with full_pipe() as stdout:
-        proc = subprocess.Popen(
-            [hcrctl_exe(), *args],
-            env=env,
-            stdin=subprocess.DEVNULL,
-            stdout=stdout,
-            stderr=subprocess.PIPE,
-        )
-        os.close(stdout)
-        try:
-            yield proc
-        finally:
-            if proc.poll() is None:
-                proc.kill()
-            proc.wait()
-            proc.stderr.close()
+    return on_pipe(args, env, stalled=True)
 
 
 def ended(proc: subprocess.Popen[bytes]) -> tuple[int, str]:
