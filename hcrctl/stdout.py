@@ -25,6 +25,7 @@ command: the console script installs it first (``install``).
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import io
 import os
@@ -84,6 +85,7 @@ WAIT_SLICE_S = 0.1
 _urgent = threading.Event()
 _patient = threading.local()
 _normal_signal_end = threading.Event()
+_finished = threading.Event()
 
 
 def urgent() -> None:
@@ -106,10 +108,12 @@ def ended_by_signal() -> None:
 
 @contextlib.contextmanager
 def patient(until: threading.Event) -> Iterator[None]:
-    """Within the block this thread's writes wait for room, even once ``urgent``, until ``until`` is set.
+    """Within the block this thread's writes wait, even once ``urgent``, until ``until`` is set.
 
-    For a thread whose only work is the drawing (``live.painter``): a stalled
-    terminal holds its frames back rather than tearing them. Once ``until``
+    For a thread whose only work is the drawing (``live.painter``): each of
+    its writes waits until everything handed over before it is written, so
+    a stalled terminal holds its frames back (the next one drawn is current
+    then) rather than tearing them or queueing stale ones. Once ``until``
     is set (the drawing is told to end) its last writes (the screen restored)
     are queued past the bound instead, so the thread ends and the run with
     it; what the terminal never took is said at the exit (``finish``).
@@ -124,12 +128,6 @@ def patient(until: threading.Event) -> Iterator[None]:
 def _waits() -> bool:
     """A write may wait for room: nothing urgent yet, or a patient thread."""
     return not _urgent.is_set() or getattr(_patient, "until", None) is not None
-
-
-def _patience_over() -> bool:
-    """A patient thread was told to end: its writes are queued, past the bound, not waited for."""
-    until = getattr(_patient, "until", None)
-    return until is not None and until.is_set()
 
 
 class Outlet:
@@ -201,15 +199,23 @@ class Outlet:
             if self.error is not None or self._closing:
                 self._drop(data, counted=self.error is None)
                 return
-            while self._held and self._held + len(data) > self.limit and not _patience_over():
+            while self._held and not self._room_for(len(data)):
                 if not _waits() or self._closing or self.error is not None:
-                    self._drop(data)
+                    self._drop(data, counted=self.error is None)  # a failed write is said as its error
                     return
                 self._cond.wait(WAIT_SLICE_S)
             self._chunks.append(data)
             self._held += len(data)
             self._start()
             self._cond.notify_all()
+
+    def _room_for(self, size: int) -> bool:
+        """Room for ``size`` more bytes (lock held). A patient thread's has none until everything handed
+        over before is written: it draws only what the terminal can take now, and the next frame is current."""
+        until = getattr(_patient, "until", None)
+        if until is not None:
+            return until.is_set()
+        return self._held + size <= self.limit
 
     def wait_written(self, timeout: float | None) -> bool:
         """Until everything handed over is written (True), or ``timeout`` s passed (None: no limit)."""
@@ -417,6 +423,16 @@ def install() -> None:
         _STD[fd] = Outlet(fd, name)
     sys.stdout = Stream(_STD[STDOUT], sys.stdout)
     sys.stderr = Stream(_STD[STDERR], sys.stderr)
+    atexit.register(_written_at_exit)
+
+
+def _written_at_exit() -> None:
+    """An exit ``finish`` did not see (a traceback with ``--debug``): what the streams hold still goes
+    out, waited for as ``finish`` waits. Registered after ``cli.fastexit``'s handler, so it runs first."""
+    if _finished.is_set():  # ``finish`` waited already, and said what was lost
+        return
+    for outlet in list(_STD.values()):
+        outlet.wait_written(None if _exit_wait(by_signal=False) is None else EXIT_WAIT_S)
 
 
 def stdout_outlet() -> Outlet | None:
@@ -425,13 +441,15 @@ def stdout_outlet() -> Outlet | None:
 
 
 def written() -> None:
-    """Wait for stdout's outlet as the exit does (``finish``), and raise the write error it met, if no
-    caller was told yet: the command's own error path then says it (a full disk) before the exit."""
-    outlet = _STD.get(STDOUT)
-    if outlet is None:
-        return
-    outlet.wait_written(_exit_wait(by_signal=False))
-    sys.stdout.flush()
+    """Wait for every outlet but stderr's as the exit does (``finish``), then raise the write error
+    stdout met if no caller was told yet: the command's own error path says it (a full disk), and a
+    ``--log`` that failed on its thread is counted (``trafficlog.incomplete``) before the status is made."""
+    with _OUTLETS_LOCK:
+        outlets = [o for o in _OUTLETS if o is not _STD.get(STDERR)]
+    for outlet in outlets:
+        outlet.wait_written(_exit_wait(by_signal=False))
+    if STDOUT in _STD:
+        sys.stdout.flush()
 
 
 def write_to(fd: int, data: bytes) -> None:
@@ -469,6 +487,7 @@ def finish(code: int) -> int:
     """
     from .signals import Terminated, stop_signals_raise
 
+    _finished.set()
     by_signal = _normal_signal_end.is_set() or code in {signalled(sig) for sig in STOP_SIGNALS}
     with _OUTLETS_LOCK:
         outlets = [o for o in _OUTLETS if o is not _STD.get(STDERR)]
@@ -483,7 +502,7 @@ def finish(code: int) -> int:
         except KeyboardInterrupt:
             code, by_signal = ExitStatus.INTERRUPTED, True
         size, lines = outlet.unwritten()
-        if size:
+        if size and outlet.error is None:  # a write that failed is said as its error, not as a loss
             lost = True
             say(f"{outlet.name} was not read: {_amount(size, lines)} could not be written")
     if STDERR in _STD:  # a bound of its own: the words about what was lost must get their chance

@@ -18,9 +18,9 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from helpers import TIMEOUT, clean_env, wait_until
+from helpers import TIMEOUT, clean_env, terminal, wait_until
 from helpers_cli import PAGE, full_pipe, on_pipe, stderr_until
-from helpers_live import FakeRobot, is_stop
+from helpers_live import FakeRobot, is_stop, speed_of
 
 from hcrctl import stdout
 from hcrctl.protocol.frames import Frame
@@ -70,11 +70,12 @@ def test_a_timed_drive_sends_its_stop_and_says_what_stdout_missed(env: dict[str,
     assert "Traceback" not in err
 
 
-@pytest.mark.parametrize(
-    ("signum", "code"),
-    [(signal.SIGINT, 130), (signal.SIGTERM, 143), (signal.SIGHUP, 129)],
-    ids=["SIGINT", "SIGTERM", "SIGHUP"],
-)
+#: Each stop signal and the status a one-shot command it ends exits with (docs/commands.md).
+SIGNALS = [(signal.SIGINT, 130), (signal.SIGTERM, 143), (signal.SIGHUP, 129)]
+SIGNAL_IDS = ["SIGINT", "SIGTERM", "SIGHUP"]
+
+
+@pytest.mark.parametrize(("signum", "code"), SIGNALS, ids=SIGNAL_IDS)
 def test_a_signal_ends_a_drive_whose_stdout_is_stalled(env: dict[str, str], signum: int, code: int) -> None:
     with (
         FakeRobot() as robot,
@@ -148,3 +149,17 @@ def test_what_a_stalled_reader_missed_is_counted_and_said_when_it_reads_again(
     numbers = [int(line[:5]) for line in read]
     assert numbers == sorted(set(numbers)), numbers  # in order, none twice
     assert len(read) + dropped == len(lines), said
+
+
+@pytest.mark.parametrize(("signum", "code"), SIGNALS, ids=SIGNAL_IDS)
+def test_a_signal_ends_teleop_on_a_terminal_that_stopped_reading(signum: int, code: int) -> None:
+    """A terminal after Ctrl-S: the screen's writes pile up in the pty; a signal still stops and ends teleop."""
+    with FakeRobot() as robot, terminal(["--port", robot.path, "teleop", "--deadman", "5"]) as term:
+        term.wait_for(r"sending +(stop|nothing yet)", timeout=TIMEOUT)
+        with term.stalled():
+            term.fill(lambda: term.send("w"))  # a held key: the screen changes ten times a second
+            moved = robot.wait_frame(lambda f: speed_of(f) == (50, 50))
+            os.kill(term.child.pid, signum)
+            robot.wait_frame(is_stop, after=moved)
+            wait_until(lambda: not term.child.isalive(), what="teleop to end with its terminal stalled")
+        assert term.finish(timeout=TIMEOUT) == code
