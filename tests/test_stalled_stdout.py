@@ -97,18 +97,24 @@ def test_a_signal_ends_a_drive_whose_stdout_is_stalled(env: dict[str, str], sign
 POLLS = 40
 
 
-def test_a_server_keeps_polling_and_ends_on_sigterm_with_its_stdout_stalled(env: dict[str, str]) -> None:
-    args = ["--port", "PORT", "--log", "-", "bridge", "--listen", "127.0.0.1:0", "--rate", "20"]
-    with FakeRobot() as robot:
-        args[1] = robot.path
-        with stalled(args, env) as proc:
-            stderr_until(proc, "serving")
-            start = len(robot.frames())
-            wait_until(
-                lambda: len(robot.frames()) >= start + POLLS, what=f"{POLLS} polls with stdout stalled"
-            )
-            proc.send_signal(signal.SIGTERM)
-            code, err = ended(proc)
+#: Servers that poll and print a line per frame with ``--log -`` (fleet serve as a Zenoh peer: no router).
+SERVERS = {
+    "bridge": ["bridge", "--listen", "127.0.0.1:0"],
+    "fleet serve": ["fleet", "serve", "r1", "--listen", "tcp/127.0.0.1:0"],
+}
+
+
+@pytest.mark.parametrize("server", SERVERS.values(), ids=SERVERS.keys())
+def test_a_server_keeps_polling_and_ends_on_sigterm_with_its_stdout_stalled(
+    env: dict[str, str], server: list[str]
+) -> None:
+    args = ["--log", "-", *server, "--rate", "20"]
+    with FakeRobot() as robot, stalled(["--port", robot.path, *args], env) as proc:
+        stderr_until(proc, "serving")
+        start = len(robot.frames())
+        wait_until(lambda: len(robot.frames()) >= start + POLLS, what=f"{POLLS} polls with stdout stalled")
+        proc.send_signal(signal.SIGTERM)
+        code, err = ended(proc)
     assert code == 0, err  # a server's normal end, stalled stdout or not
     assert LOSS in err, err
     assert "Traceback" not in err
