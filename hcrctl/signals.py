@@ -102,6 +102,19 @@ class SignalFlag:
         return stop_signals_handled(self, signals)
 
 
+def leave_to_main_thread() -> None:
+    """Block every stop signal in the calling thread (a worker's first call), so the main thread takes it.
+
+    The kernel hands a signal sent to the process to any thread that does
+    not block it, and Python runs the handler in the main thread only, when
+    that thread next runs Python code. A signal a worker took leaves a main
+    thread asleep in a hold until its sleep ends: a SIGTERM's stop was seen
+    100 ms late. Blocked in the workers, it wakes the main thread at once.
+    """
+    if hasattr(signal, "pthread_sigmask") and threading.current_thread() is not threading.main_thread():
+        signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+
+
 @contextlib.contextmanager
 def signals_deferred() -> Iterator[None]:
     """Block every stop signal for the block; they are delivered after it (main thread only)."""

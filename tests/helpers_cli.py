@@ -9,12 +9,14 @@ commands that need replies; ``spy_frames`` reads pyserial's ``spy://`` log.
 
 from __future__ import annotations
 
+import fcntl
 import os
 import select
 import subprocess
+import threading
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
 from helpers import (
@@ -36,7 +38,9 @@ __all__ = [
     "clean_env",
     "finish",
     "frames_in",
+    "full_pipe",
     "hcrctl_exe",
+    "on_pipe",
     "one_line",
     "readline",
     "run",
@@ -140,6 +144,63 @@ def sim_pty(env: dict[str, str], *options: str) -> Iterator[str]:
     with sim_process(["sim", "--pty", *options], env) as (_, path):
         assert path.startswith("/dev/"), path
         yield path
+
+
+#: fcntl's F_SETPIPE_SZ (Linux): a pipe's capacity; one page is the least, so a pipe fills at once.
+F_SETPIPE_SZ = 1031
+PAGE = 4096
+
+
+@contextmanager
+def full_pipe() -> Iterator[int]:
+    """The write end of a one-page pipe already full, that nobody reads (its read end stays open, unread)."""
+    read_end, write_end = os.pipe()
+    try:
+        fcntl.fcntl(write_end, F_SETPIPE_SZ, PAGE)
+        os.set_blocking(write_end, False)
+        with suppress(BlockingIOError):
+            while True:
+                os.write(write_end, b"x" * PAGE)
+        os.set_blocking(write_end, True)
+        yield write_end
+    finally:
+        os.close(read_end)
+        with suppress(OSError):
+            os.close(write_end)
+
+
+@contextmanager
+def on_pipe(
+    args: list[str], env: dict[str, str] | None, *, stalled: bool
+) -> Iterator[subprocess.Popen[bytes]]:
+    """``hcrctl ARGS`` with stdout a one-page pipe, full and never read (``stalled``: a terminal after
+    Ctrl-S, a reader asleep) or read as it comes; stderr piped. Ended (killed if need be) on leaving."""
+    with full_pipe() as stdout:
+        reader = None
+        if not stalled:
+            reader = threading.Thread(target=_drain, args=(os.open(f"/proc/self/fd/{stdout}", os.O_RDONLY),))
+            reader.start()
+        proc = subprocess.Popen(
+            [hcrctl_exe(), *args], env=env, stdin=subprocess.DEVNULL, stdout=stdout, stderr=subprocess.PIPE
+        )
+        os.close(stdout)
+        try:
+            yield proc
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+            proc.wait()
+            proc.stderr.close()
+            if reader is not None:
+                reader.join(TIMEOUT)
+
+
+def _drain(fd: int) -> None:
+    """Read ``fd`` until its writers are gone."""
+    with suppress(OSError):
+        while os.read(fd, 1 << 16):
+            pass
+    os.close(fd)
 
 
 def frames_in(data: bytes) -> list[Frame]:

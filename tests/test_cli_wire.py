@@ -103,7 +103,7 @@ def _drive_then_signal(env, signum: int) -> tuple[int, str, str]:
 
 @pytest.mark.parametrize(
     ("signum", "code"),
-    [(signal.SIGTERM, 128 + signal.SIGTERM), (signal.SIGHUP, 128 + signal.SIGHUP), (signal.SIGINT, 0)],
+    [(signal.SIGTERM, 128 + signal.SIGTERM), (signal.SIGHUP, 128 + signal.SIGHUP), (signal.SIGINT, 130)],
 )
 def test_signal_during_drive_sends_stop(env, signum, code):
     returncode, sent, err = _drive_then_signal(env, signum)

@@ -52,7 +52,10 @@ def entry() -> None:
     one-shot command; mypy exits the same way. Output is flushed, threads are
     waited for and atexit handlers run first (``fast_exit``).
     Tests and library users call ``main()``, which raises SystemExit as usual.
-    A closed stdout is refused first (``stdout.guard``).
+    A closed stdout is refused first (``stdout.guard``); then stdout and
+    stderr are written through outlets (``stdout.install``), so no write
+    waits for a reader that stopped while a robot is open, and the exit says
+    what could not be written (``stdout.finish``).
     """
     try:
         stdout.guard()
@@ -60,6 +63,7 @@ def entry() -> None:
         from .errormap import exit_code_for
 
         fast_exit(exit_code_for(exc))
+    stdout.install()
     try:
         main()
     except SystemExit as exc:
@@ -73,7 +77,7 @@ def entry() -> None:
         if code is not None:
             click.echo(code, err=True)
         code = ExitStatus.OK if code is None else ExitStatus.FAILED
-    fast_exit(code)
+    fast_exit(stdout.finish(code))
 
 
 #: The plugin modules ``main`` loaded; None until it has, so a second ``main()`` loads none again.
@@ -112,6 +116,7 @@ def main(argv: list[str] | None = None) -> None:
         with stop_signals_raise():
             defaults = config_defaults_for(args)
             code = cli.main(args=args, prog_name="hcrctl", standalone_mode=False, default_map=defaults)
+            stdout.written()  # a write that failed on the outlet's thread is said here, as the command's
     except SystemExit:
         raise
     except BaseException as exc:  # the one place errors become exit codes

@@ -36,6 +36,7 @@ from typing import Any
 
 import click
 
+from .. import stdout
 from ..signals import STOP_SIGNALS, Terminated
 
 #: The signals that end an open-ended server normally.
@@ -76,7 +77,10 @@ class ServerEnd:
             _stdout_to_devnull()
             return True
         self.close()
-        return exc is not None and self.is_normal_end(exc)
+        normal = exc is not None and self.is_normal_end(exc)
+        if normal:
+            stdout.ended_by_signal()  # its status stays 0 even if a stalled stdout lost output
+        return normal
 
     def is_normal_end(self, exc: BaseException) -> bool:
         """A stop signal that ends this server normally (exit 0): it was up, with no ``--duration``."""

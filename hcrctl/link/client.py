@@ -47,7 +47,8 @@ from ..protocol.frames import (
 )
 from ..protocol.motionscan import MotionScan
 from ..protocol.profiles import DEFAULT, Profile, profile
-from ..signals import signals_deferred
+from ..signals import leave_to_main_thread, signals_deferred
+from ..stdout import urgent
 from .carrier import Carrier, RawRefused, is_stop, requests_in
 from .defaults import BAUD, REPLY_TIMEOUT_S, RETRIES
 from .dialects import HEAR_FIRST, Dialect, stop_frames
@@ -88,6 +89,7 @@ class Robot(TypedReads, Dialect):
         on_unsolicited: FrameHook | None = None,
         on_traffic: TrafficHook | tuple[TrafficHook, ...] | None = None,
     ) -> None:
+        urgent()  # from now on no output waits for its reader: the robot's work must not wait with it
         self.address = address
         self.timeout = timeout
         self.retries = retries
@@ -435,6 +437,7 @@ class Robot(TypedReads, Dialect):
     # -- receiving -----------------------------------------------------------
 
     def _read_loop(self) -> None:
+        leave_to_main_thread()
         ser = self.serial
         while not self._closing.is_set():
             try:

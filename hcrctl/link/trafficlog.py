@@ -6,11 +6,14 @@ showed; ``replay`` sends only tx records and so never sends them back.
 
 Each line is the ``hex decode --json`` shape plus ``time`` (ISO 8601, local
 time with offset, microseconds), ``direction`` (``tx``/``rx``) and ``hex``
-(the bytes exactly as they crossed the wire). Lines are written whole, one
-``write`` each, so a crash or a ``kill -9`` loses nothing already seen;
-the file is opened for appending (``O_APPEND``), so several sessions build
-one history, and two at once never tear each other's lines. A FIFO is
-waited for so that a signal still ends the wait (``claims.open_appended``).
+(the bytes exactly as they crossed the wire). Lines are handed to the log's
+own writer thread (``stdout.Outlet``) and written whole, so a file, a FIFO
+or a stdout whose reader stopped never delays a stop, a poll or a signal:
+what such a reader left behind (held past its bound, or at the exit) is
+counted and said on stderr, never lost in silence. The file is opened for
+appending (``O_APPEND``), so several sessions build one history, and two
+at once never tear each other's lines. A FIFO is waited for so that a
+signal still ends the wait (``claims.open_appended``).
 ``--log -`` writes the lines to stdout instead (as ``hex decode -`` reads
 stdin), each whole, between the command's own lines.
 ``monitor --from`` and ``replay`` read it back with ``read_log``. The log
@@ -51,6 +54,7 @@ from ..protocol.dialect import decode_all
 from ..protocol.frames import ChecksumRule
 from ..protocol.profiles import DEFAULT, Profile
 from ..protocol.records import event_dict, hexs
+from ..stdout import Outlet, stdout_outlet
 from .claims import open_appended
 
 if TYPE_CHECKING:
@@ -110,7 +114,7 @@ class TrafficLog:
         self._rule = rule
         self._lock = threading.Lock()  # tx comes from the caller's thread, rx from the reader's
         try:
-            self._fd: int | None = _open_log(path)
+            self._out: Outlet | None = _outlet(path, self._give_up)
         except OSError as exc:
             raise LogOpenError(f"cannot open the log {path} ({exc.strerror})", hint="check the path") from exc
 
@@ -137,33 +141,28 @@ class TrafficLog:
             line = "".join(
                 json.dumps(record(piece, rule, self.profile), ensure_ascii=False) + "\n" for piece in pieces
             )
-        data = line.encode()
         with self._lock:
-            if self._fd is None:
-                return
-            try:
-                while data:  # one write for a file: whole at the end, whoever else appends
-                    data = data[os.write(self._fd, data) :]
-            except OSError as exc:
-                self._give_up(exc)
+            out = self._out
+        if out is not None:  # the outlet orders the writes; its failure comes back through _give_up
+            out.write(line.encode())
 
     #: The robot's traffic hook: a hook is called with each piece of traffic.
     __call__ = write
 
     def close(self) -> None:
+        """Write no more; what is handed over is still written (its own file closed after)."""
         with self._lock:
-            fd, self._fd = self._fd, None
-            if fd is not None:
-                with contextlib.suppress(OSError):  # every line was written at once: nothing is left to lose
-                    os.close(fd)
+            out, self._out = self._out, None
+        if out is not None and out is not stdout_outlet():
+            out.close()
 
     def _give_up(self, exc: OSError) -> None:
-        """Say once, at once, that the log is incomplete, and write no more (lock held)."""
+        """Say once, at once, that the log is incomplete, and write no more (on the outlet's thread)."""
+        with self._lock:
+            if self._out is None:  # closed before: the failure is no longer this log's
+                return
         error = LogIncomplete(self.path, exc.strerror or str(exc))
-        fd, self._fd = self._fd, None
-        if fd is not None:
-            with contextlib.suppress(OSError):
-                os.close(fd)
+        self.close()
         with _INCOMPLETE_LOCK:
             _INCOMPLETE.append(error)
         with contextlib.suppress(OSError, ValueError):
@@ -175,12 +174,18 @@ class TrafficLog:
 STDOUT = "-"
 
 
-def _open_log(path: str) -> int:
-    """A descriptor appending to ``path``; ``-``: a copy of stdout's, so closing the log leaves stdout open."""
+def _outlet(path: str, on_error: Callable[[OSError], None]) -> Outlet:
+    """Where the lines go, written by their own thread so no reader that stops delays the robot's work
+    (``stdout.Outlet``). ``-``: stdout's own outlet, so the lines keep their place among the command's;
+    before stdout has one (a library caller), a copy of stdout's descriptor."""
     if path == STDOUT:
+        shared = stdout_outlet()
+        if shared is not None:
+            shared.listen(on_error)
+            return shared
         sys.stdout.flush()
-        return os.dup(sys.stdout.fileno())
-    return open_appended(path)
+        return Outlet(os.dup(sys.stdout.fileno()), "stdout", owns_fd=True, on_error=on_error)
+    return Outlet(open_appended(path), f"the log {path}", owns_fd=True, on_error=on_error)
 
 
 def attach(robot: Robot, path: str) -> TrafficLog:

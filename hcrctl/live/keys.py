@@ -27,6 +27,8 @@ import sys
 import time
 from typing import IO, Any
 
+from ..stdout import write_to
+
 ESC = 0x1B
 #: How long to wait for the rest of an escape sequence before calling it ESC.
 ESC_WAIT = 0.03
@@ -183,7 +185,7 @@ class KeyReader:
         """Probe the terminal on ``out``; switch the kitty protocol on if it answers. Keys typed meanwhile are kept."""
         if not self.is_terminal or not os.isatty(out):
             return False
-        os.write(out, b"\x1b[?u\x1b[c")
+        write_to(out, b"\x1b[?u\x1b[c")
         found, kept, deadline = False, [], time.monotonic() + wait
         while (left := deadline - time.monotonic()) > 0:
             key = self.read(left)
@@ -195,7 +197,7 @@ class KeyReader:
                 kept.append(key)
         self._keys[:0] = kept
         if found:
-            os.write(out, b"\x1b[>%du" % KITTY_FLAGS)
+            write_to(out, b"\x1b[>%du" % KITTY_FLAGS)
             self._kitty = out
         return found
 
@@ -205,12 +207,14 @@ class KeyReader:
             import contextlib
 
             with contextlib.suppress(OSError):
-                os.write(self._kitty, b"\x1b[<u")
+                write_to(self._kitty, b"\x1b[<u")
             self._kitty = None
         if self._saved is not None and self.fd is not None:
             import termios
 
-            termios.tcsetattr(self.fd, termios.TCSADRAIN, self._saved)
+            # now, not after the output drains: a terminal that stopped reading would hold the
+            # change, and with it the stop and the exit, for as long as it stays stalled
+            termios.tcsetattr(self.fd, termios.TCSANOW, self._saved)
             self._saved = None
 
     def read(self, timeout: float) -> str | None:

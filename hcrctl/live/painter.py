@@ -24,6 +24,8 @@ import time
 from collections.abc import Callable, Iterator
 from typing import IO, TYPE_CHECKING, Any
 
+from .. import stdout
+
 if TYPE_CHECKING:
     from rich.console import Console, RenderableType
     from rich.live import Live
@@ -79,7 +81,8 @@ class Painter:
 
     def _run(self) -> None:
         try:
-            with self.screen as draw:
+            # a stalled terminal holds this thread's frames back (it waits for room), never tears one
+            with stdout.patient(until=self._done), self.screen as draw:
                 draw()
                 while not self._done.wait(self.interval):
                     draw()

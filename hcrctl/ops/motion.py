@@ -25,22 +25,19 @@ HOLD_POLL_S = 0.1
 def hold(robot: Robot, seconds: float | None) -> float:
     """Wait while the motion runs; the seconds it was held.
 
-    Ctrl-C is the normal end of an open-ended drive (exit 0); with --for it
-    interrupts (exit 130). SIGTERM/SIGHUP raise through, and the caller's
-    ``stopping()`` still sends stop. A lost link ends the hold with its error,
-    and so does motion the far side of a carrier stopped (``Robot.halted``).
+    Ctrl-C, SIGTERM and SIGHUP raise through, timed or not: a one-shot
+    command they end exits 130, 143 or 129, as every one-shot command does
+    (docs/commands.md), and the caller's ``stopping()`` still sends stop. A
+    lost link ends the hold with its error, and so does motion the far side
+    of a carrier stopped (``Robot.halted``).
     """
     start = time.monotonic()
     deadline = None if seconds is None else start + seconds
-    try:
-        while deadline is None or time.monotonic() < deadline:
-            if robot.error is not None:
-                raise robot.error
-            if robot.halted is not None:
-                raise robot.halted
-            left = HOLD_POLL_S if deadline is None else deadline - time.monotonic()
-            time.sleep(max(0.0, min(HOLD_POLL_S, left)))
-    except KeyboardInterrupt:
-        if deadline is not None:
-            raise
+    while deadline is None or time.monotonic() < deadline:
+        if robot.error is not None:
+            raise robot.error
+        if robot.halted is not None:
+            raise robot.halted
+        left = HOLD_POLL_S if deadline is None else deadline - time.monotonic()
+        time.sleep(max(0.0, min(HOLD_POLL_S, left)))
     return time.monotonic() - start
