@@ -11,10 +11,8 @@ Cyclone DDS participant in this process.
 
 from __future__ import annotations
 
-import itertools
 import math
 import queue
-import random
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -24,6 +22,7 @@ from typing import Any
 import pytest
 from helpers import sim_process, wait_until
 from helpers_cli import sim_pty
+from helpers_cyclone import CycloneClient
 from helpers_dds import Place, place, ros2_node
 from helpers_fleet_robot import VELOCITY, is_stop
 from helpers_rclpy import LOOPBACK, Peer, numbers, rclpy_peer, rclpy_python
@@ -182,44 +181,6 @@ def test_an_rclpy_twist_drives_and_the_deadman_stops(loop_env: dict[str, str], t
         drive_until_moving(here, node, peer, "a velocity frame of 20 cm/s per wheel from rclpy")
         node.wait_err("stopped: deadman: no cmd_vel for 0.5 s")
         wait_until(lambda: any(is_stop(f) for _, f in node.sent()), what="the stop frame on the wire")
-
-
-class CycloneClient:
-    """A service client as rmw_cyclonedds makes one: its id and a request number before the request."""
-
-    def __init__(self, domain: int, name: str, service: str) -> None:
-        from cyclonedds.domain import DomainParticipant
-        from cyclonedds.pub import DataWriter
-        from cyclonedds.qos import Policy, Qos
-        from cyclonedds.sub import DataReader
-        from cyclonedds.topic import Topic
-
-        from hcrctl.ros2 import idl
-
-        self.idl, self.service = idl, service
-        qos = Qos(Policy.Reliability.Reliable(max_blocking_time=1), Policy.History.KeepLast(10))
-        dp = self.participant = DomainParticipant(domain)
-        asked, answer = S.service_topics(name)
-        self.writer = DataWriter(dp, Topic(dp, asked, idl.service_type(S.request(service))), qos=qos)
-        self.reader = DataReader(dp, Topic(dp, answer, idl.service_type(S.response(service))), qos=qos)
-        self.guid = random.getrandbits(63)
-        self.numbers = itertools.count(1)
-
-    def call(self, fields: dict[str, Any]) -> Any:
-        wait_until(
-            lambda: self.writer.get_matched_subscriptions() and self.reader.get_matched_publications(),
-            what=f"{self.service}'s server",
-        )
-        number = next(self.numbers)
-        self.writer.write(self.idl.build_service(S.request(self.service), (self.guid, number), fields))
-
-        def answer() -> Any:
-            for sample in self.reader.take(N=16):
-                if sample.client_guid == self.guid and sample.sequence_number == number:
-                    return sample
-            return None
-
-        return wait_until(answer, what=f"{self.service}'s reply")
 
 
 def value(kind: int, number: float) -> dict[str, Any]:
