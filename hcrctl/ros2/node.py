@@ -17,7 +17,9 @@ node and the GUIDs of its readers and writers, so ``ros2 node list`` and
 What the node reads (``cmd_vel``, ``ros_discovery_info``, the services'
 requests) is taken on a thread of its own (``intake.Intake``): no Python
 listener runs on Cyclone's threads, so no DDS call waits for the interpreter
-lock held by another thread inside DDS.
+lock held by another thread inside DDS. Its readers keep a deeper history than
+the QoS they are offered (``READER_DEPTH``), so a burst waits there for that
+thread instead of pushing samples out.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from __future__ import annotations
 import contextlib
 import threading
 from collections.abc import Callable, Hashable, Mapping
+from dataclasses import replace
 from typing import Any
 
 from cyclonedds.core import DDSException
@@ -60,6 +63,10 @@ OnGone = Callable[[str], None]
 Note = Callable[[str], None]
 #: The thread that takes what the node reads.
 INTAKE = "ros2-intake"
+#: Samples a reader of the node holds between two takes of its intake, at least: a burst from many writers
+#: comes faster than one thread takes it, and a sample pushed out of a keyless topic's history is lost
+#: (a zero Twist among them, or a participant's announcement).
+READER_DEPTH = 1000
 
 
 def dds_topic(name: str, namespace: str) -> str:
@@ -79,6 +86,11 @@ def dds_qos(qos: ros2conv.Qos, ros_type: str, hashes: Mapping[str, str] = HASHES
     if ros_type in hashes:
         policies.append(Policy.Userdata(f"typehash={hashes[ros_type]};".encode()))
     return Qos(*policies)
+
+
+def reader_qos(qos: ros2conv.Qos, ros_type: str, depth: int = READER_DEPTH) -> Qos:
+    """``dds_qos`` for a reader the intake takes from: its history at least ``depth`` deep (see the module)."""
+    return dds_qos(replace(qos, depth=max(qos.depth, depth)), ros_type)
 
 
 class DdsError(HcrError):
@@ -115,7 +127,7 @@ class Node:
         #: Which node each writer of the domain belongs to, from the other participants' announcements.
         self.graph = Graph(self.participant.guid.bytes)
         self._guids: dict[str, bytes] = {}
-        self._graph_reader = DataReader(self.participant, discovery, qos=dds_qos(DISCOVERY_QOS, ""))
+        self._graph_reader = DataReader(self.participant, discovery, qos=reader_qos(DISCOVERY_QOS, ""))
         self.intake.watch(self._graph_reader, self._announced)
 
     @property
@@ -164,7 +176,7 @@ class Node:
     def subscribe(self, topic: ros2conv.RosTopic, on_message: OnMessage, on_gone: OnGone) -> None:
         """Read ``topic`` into ``on_message`` (``on_gone`` when a writer leaves), on the intake's thread."""
         dds = Topic(self.participant, dds_topic(topic.name, self.namespace), idl.dds_type(topic.type))
-        reader = DataReader(self.participant, dds, qos=dds_qos(topic.qos, topic.type))
+        reader = DataReader(self.participant, dds, qos=reader_qos(topic.qos, topic.type))
         self.intake.watch(
             reader,
             lambda sample: on_message(_writer(sample.sample_info.publication_handle), sample),

@@ -49,7 +49,7 @@ from cyclonedds.topic import Topic
 from ..protocol import ros2conv, ros2msg, ros2srv
 from . import idl
 from .intake import Intake
-from .node import Node, Note, dds_qos
+from .node import Node, Note, dds_qos, reader_qos
 
 #: rmw's default service QoS.
 SERVICE_QOS = ros2conv.Qos(reliable=True, transient_local=False, depth=10)
@@ -122,7 +122,7 @@ class Services:
         reply_topic = Topic(participant, answer, idl.service_type(response))
         writer = DataWriter(participant, reply_topic, qos=dds_qos(SERVICE_QOS, response))
         request_topic = Topic(participant, asked, idl.service_type(request))
-        reader = DataReader(participant, request_topic, qos=dds_qos(SERVICE_QOS, request))
+        reader = DataReader(participant, request_topic, qos=reader_qos(SERVICE_QOS, request, MAX_WAITING))
         self.node.add_endpoints([reader], [writer])
         return _Endpoints(request, response, reader, writer)
 
