@@ -48,7 +48,7 @@ from cyclonedds.topic import Topic
 
 from ..protocol import ros2conv, ros2msg, ros2srv
 from . import idl
-from .intake import Intake
+from .intake import Intake, yield_lock
 from .node import Node, Note, dds_qos, reader_qos
 
 #: rmw's default service QoS.
@@ -167,6 +167,7 @@ class _Worker:
     def _run(self) -> None:
         while (job := self._jobs.get()) is not None:
             job()
+            yield_lock()
 
     def close(self, deadline: float) -> None:
         """Ends after the jobs it holds; waited for until ``deadline`` (a daemon thread, it dies with us)."""
