@@ -10,8 +10,7 @@ nothing to hcrctl, with the names rmw gives them on DDS (``rt/`` topics,
 ``cmd_vel`` written reliable keep last 10 (teleop_twist_keyboard's).
 
 A parameter or service is called as rmw_cyclonedds's clients call it
-(``CycloneClient``: a Cyclone DDS participant, its request header before the
-request's fields).
+(``helpers_cyclone.CycloneClient``).
 
 Every test takes a random domain id and namespace of its own (``place``), so
 tests running beside each other under pytest-xdist never hear each other.
@@ -257,45 +256,7 @@ def ros2_node(
                 stream.close()
 
 
-# -- a service client ---------------------------------------------------------------------------------
-
-
-class CycloneClient:
-    """A service client as rmw_cyclonedds makes one: its id and a request number before the request."""
-
-    def __init__(self, domain: int, name: str, service: str) -> None:
-        from cyclonedds.domain import DomainParticipant
-        from cyclonedds.pub import DataWriter
-        from cyclonedds.qos import Policy, Qos
-        from cyclonedds.sub import DataReader
-        from cyclonedds.topic import Topic
-
-        from hcrctl.ros2 import idl
-
-        self.idl, self.service = idl, service
-        qos = Qos(Policy.Reliability.Reliable(max_blocking_time=1), Policy.History.KeepLast(10))
-        dp = self.participant = DomainParticipant(domain)
-        asked, answer = S.service_topics(name)
-        self.writer = DataWriter(dp, Topic(dp, asked, idl.service_type(S.request(service))), qos=qos)
-        self.reader = DataReader(dp, Topic(dp, answer, idl.service_type(S.response(service))), qos=qos)
-        self.guid = random.getrandbits(63)
-        self.numbers = itertools.count(1)
-
-    def call(self, fields: dict[str, Any]) -> Any:
-        wait_until(
-            lambda: self.writer.get_matched_subscriptions() and self.reader.get_matched_publications(),
-            what=f"{self.service}'s server",
-        )
-        number = next(self.numbers)
-        self.writer.write(self.idl.build_service(S.request(self.service), (self.guid, number), fields))
-
-        def answer() -> Any:
-            for sample in self.reader.take(N=16):
-                if sample.client_guid == self.guid and sample.sequence_number == number:
-                    return sample
-            return None
-
-        return wait_until(answer, what=f"{self.service}'s reply")
+# -- a parameter's value ------------------------------------------------------------------------------
 
 
 def value(kind: int, number: float) -> dict[str, Any]:

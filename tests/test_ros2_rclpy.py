@@ -22,7 +22,8 @@ from typing import Any
 import pytest
 from helpers import sim_process, wait_until
 from helpers_cli import sim_pty
-from helpers_dds import CycloneClient, Place, place, ros2_node, value
+from helpers_cyclone import CycloneClient
+from helpers_dds import Place, place, ros2_node, value
 from helpers_fleet_robot import VELOCITY, is_stop
 from helpers_rclpy import LOOPBACK, Peer, numbers, rclpy_peer, rclpy_python
 from helpers_ros2 import expected, mismatches, read_json, ros_type

@@ -16,7 +16,8 @@ from pathlib import Path
 
 from helpers import wait_until
 from helpers_cli import sim_pty
-from helpers_dds import CycloneClient, Place, RosSide, place, ros2_node, ros_side
+from helpers_cyclone import CycloneClient
+from helpers_dds import Place, RosSide, place, ros2_node, ros_side
 from helpers_fleet_robot import VELOCITY, Serve, is_stop
 
 from hcrctl.protocol import commands as C

@@ -37,7 +37,7 @@ from . import diagnostics, rosout
 from .drive import TOPIC, RosCmdVel
 from .node import Node
 from .odom import OdomTopics
-from .params import SERVICES, Parameters
+from .params import FIRST, SERVICES, Parameters
 from .services import Services
 
 #: Every node's parameter changes, as rclcpp's ParameterEventsQoS offers them.
@@ -88,7 +88,7 @@ class Ros2Node(FrontEnd):
 
     def open(self, view: RuntimeView) -> None:
         """Join the DDS domain, make every writer and latch ``/tf_static``: before the port opens."""
-        self.node = node = Node(self.options.domain_id, self.options.namespace)
+        self.node = node = Node(self.options.domain_id, self.options.namespace, self.notes.note)
         node.advertise(
             [
                 *self.topics,
@@ -137,7 +137,7 @@ class Ros2Node(FrontEnd):
         if view.drives:
             kind = R.TWIST_STAMPED if self.options.stamped else R.TWIST
             topic = ros2conv.RosTopic(TOPIC, kind, ros2conv.CMD_VEL_QOS)
-            self.node.subscribe(topic, self.cmd_vel.message, self.cmd_vel.gone, self.notes.note)
+            self.node.subscribe(topic, self.cmd_vel.message, self.cmd_vel.gone)
         self._serve_parameters(view)
         return f"{view.robot.port} as ROS 2 node {self.node.fullname} on DDS domain {self.options.domain_id}"
 
@@ -146,6 +146,8 @@ class Ros2Node(FrontEnd):
         assert self.node is not None
         params = Parameters(view, lambda changed: self._parameter_event("changed_parameters", changed))
         self.services = Services(self.node, self.notes.note)
+        for name, (kind, act, answer) in FIRST.items():
+            self.services.serve_first(name, kind, getattr(params, act), getattr(params, answer))
         for name, (kind, method) in SERVICES.items():
             self.services.serve(name, kind, getattr(params, method))
         self._parameter_event("new_parameters", params.all())

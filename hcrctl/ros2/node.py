@@ -13,6 +13,13 @@ writer's USER_DATA carries ``typehash=RIHS01_...;`` (the type's hash, REP
 2016), and a ``ParticipantEntitiesInfo`` on ``ros_discovery_info`` names the
 node and the GUIDs of its readers and writers, so ``ros2 node list`` and
 ``ros2 node info`` show it.
+
+What the node reads (``cmd_vel``, ``ros_discovery_info``, the services'
+requests) is taken on a thread of its own (``intake.Intake``): no Python
+listener runs on Cyclone's threads, so no DDS call waits for the interpreter
+lock held by another thread inside DDS. Its readers keep a deeper history than
+the QoS they are offered (``READER_DEPTH``), so a burst waits there for that
+thread instead of pushing samples out.
 """
 
 from __future__ import annotations
@@ -20,9 +27,10 @@ from __future__ import annotations
 import contextlib
 import threading
 from collections.abc import Callable, Hashable, Mapping
+from dataclasses import replace
 from typing import Any
 
-from cyclonedds.core import DDSException, Listener
+from cyclonedds.core import DDSException
 from cyclonedds.domain import DomainParticipant
 from cyclonedds.pub import DataWriter
 from cyclonedds.qos import Policy, Qos
@@ -35,6 +43,7 @@ from ..protocol.ros2types import TYPE_HASHES
 from ..protocol.topics import microseconds
 from . import idl
 from .graph import Graph
+from .intake import Intake
 
 DISCOVERY_TOPIC = "ros_discovery_info"
 #: rmw's own topic: reliable, transient local, keep last 1, so a tool started later learns the node.
@@ -52,6 +61,12 @@ OnMessage = Callable[[str, Any], None]
 #: A writer went away (unmatched).
 OnGone = Callable[[str], None]
 Note = Callable[[str], None]
+#: The thread that takes what the node reads.
+INTAKE = "ros2-intake"
+#: Samples a reader of the node holds between two takes of its intake, at least: a burst from many writers
+#: comes faster than one thread takes it, and a sample pushed out of a keyless topic's history is lost
+#: (a zero Twist among them, or a participant's announcement).
+READER_DEPTH = 1000
 
 
 def dds_topic(name: str, namespace: str) -> str:
@@ -73,6 +88,11 @@ def dds_qos(qos: ros2conv.Qos, ros_type: str, hashes: Mapping[str, str] = HASHES
     return Qos(*policies)
 
 
+def reader_qos(qos: ros2conv.Qos, ros_type: str, depth: int = READER_DEPTH) -> Qos:
+    """``dds_qos`` for a reader the intake takes from: its history at least ``depth`` deep (see the module)."""
+    return dds_qos(replace(qos, depth=max(qos.depth, depth)), ros_type)
+
+
 class DdsError(HcrError):
     """DDS could not be joined (a bad ``CYCLONEDDS_URI``, no usable network interface): exit 1, with a hint."""
 
@@ -90,9 +110,11 @@ def _participant(domain: int) -> DomainParticipant:
 class Node:
     """A participant on ``domain``: writers made up front (``advertise``), readers (``subscribe``)."""
 
-    def __init__(self, domain: int, namespace: str) -> None:
+    def __init__(self, domain: int, namespace: str, note: Note) -> None:
         self.namespace = namespace
         self.participant = _participant(domain)
+        #: Takes every sample the node's readers hold, on a thread of its own (see the module).
+        self.intake = Intake(self.participant, INTAKE, note)
         self._writers: dict[str, tuple[DataWriter, str]] = {}
         self._built: dict[Hashable, Any] = {}
         self._readers: list[DataReader] = []
@@ -105,9 +127,8 @@ class Node:
         #: Which node each writer of the domain belongs to, from the other participants' announcements.
         self.graph = Graph(self.participant.guid.bytes)
         self._guids: dict[str, bytes] = {}
-        self._graph_reader = DataReader(
-            self.participant, discovery, qos=dds_qos(DISCOVERY_QOS, ""), listener=_Announcements(self.graph)
-        )
+        self._graph_reader = DataReader(self.participant, discovery, qos=reader_qos(DISCOVERY_QOS, ""))
+        self.intake.watch(self._graph_reader, self._announced)
 
     @property
     def fullname(self) -> str:
@@ -152,14 +173,23 @@ class Node:
         writer.write(built)
         return True
 
-    def subscribe(self, topic: ros2conv.RosTopic, on_message: OnMessage, on_gone: OnGone, note: Note) -> None:
-        """Read ``topic`` into ``on_message``, on Cyclone's listener thread."""
+    def subscribe(self, topic: ros2conv.RosTopic, on_message: OnMessage, on_gone: OnGone) -> None:
+        """Read ``topic`` into ``on_message`` (``on_gone`` when a writer leaves), on the intake's thread."""
         dds = Topic(self.participant, dds_topic(topic.name, self.namespace), idl.dds_type(topic.type))
-        listener = _Reading(on_message, on_gone, note)
-        reader = DataReader(self.participant, dds, qos=dds_qos(topic.qos, topic.type), listener=listener)
+        reader = DataReader(self.participant, dds, qos=reader_qos(topic.qos, topic.type))
+        self.intake.watch(
+            reader,
+            lambda sample: on_message(_writer(sample.sample_info.publication_handle), sample),
+            lambda handle: on_gone(_writer(handle)),
+        )
         with self._lock:
             self._readers.append(reader)
         self.announce()
+
+    def _announced(self, sample: Any) -> None:
+        """A participant's ``ros_discovery_info``, into the graph; one that does not fit is skipped."""
+        with contextlib.suppress(Exception):
+            self.graph.update(sample)
 
     def add_endpoints(self, readers: list[DataReader], writers: list[DataWriter]) -> None:
         """Readers and writers made elsewhere on this participant, announced as the node's."""
@@ -208,8 +238,7 @@ class Node:
 
     def unsubscribe(self) -> None:
         """No reader calls back after this (the writers stay, so late readings still go out)."""
-        for reader in [*self._readers, self._graph_reader]:
-            reader.set_listener(None)
+        self.intake.close()
 
     def close(self) -> None:
         """Readers first (no message after this), then the participant and everything in it."""
@@ -227,49 +256,6 @@ def _gid(guid: Any) -> dict[str, list[int]]:
     return {"data": list(guid.bytes)}
 
 
-class _Reading(Listener):
-    """Samples and unmatched writers, on Cyclone's listener thread; a failure costs only its sample."""
-
-    def __init__(self, on_message: OnMessage, on_gone: OnGone, note: Note) -> None:
-        super().__init__()
-        self._on_message, self._on_gone, self._note = on_message, on_gone, note
-
-    def on_data_available(self, reader: DataReader) -> None:
-        try:
-            for sample in reader.take(N=64):
-                info = getattr(sample, "sample_info", None)
-                if info is not None and info.valid_data:
-                    self._on_message(_writer(info.publication_handle), sample)
-        except Exception as exc:  # never into Cyclone's thread: the deadman stops what this left moving
-            self._note(f"error reading {reader.topic.name} (ignored): {exc!r}")
-
-    def on_subscription_matched(self, reader: DataReader, status: Any) -> None:
-        try:
-            if status.current_count_change < 0:
-                self._on_gone(_writer(status.last_publication_handle))
-        except Exception as exc:
-            self._note(f"error in a writer's leaving {reader.topic.name} (ignored): {exc!r}")
-
-
 def _writer(handle: int) -> str:
     """A DDS writer as this reader knows it: its instance handle."""
     return f"{handle:x}"
-
-
-class _Announcements(Listener):
-    """``ros_discovery_info`` samples into the graph, on Cyclone's listener thread; a bad one is skipped."""
-
-    def __init__(self, graph: Graph) -> None:
-        super().__init__()
-        self._graph = graph
-
-    def on_data_available(self, reader: DataReader) -> None:
-        try:
-            samples = reader.take(N=64)
-        except Exception:  # a sample that does not decode: the next announcement will do
-            return
-        for sample in samples:
-            info = getattr(sample, "sample_info", None)
-            if info is None or info.valid_data:
-                with contextlib.suppress(Exception):
-                    self._graph.update(sample)

@@ -233,10 +233,15 @@ class Parameters:
         why = self.set_all(list(request.get("parameters") or []))
         return {"result": {"successful": not why, "reason": why}}
 
-    def stop(self, request: dict[str, Any]) -> dict[str, Any]:
-        """Stop now; successful only when it was written and the robot answered after it."""
-        view, asked = self.view, time.monotonic()
-        view.governor.stop("the ~/stop service was called", STOP_SERVICE)
+    def stop(self, request: dict[str, Any]) -> float:
+        """Stop now (as the request is taken: ``Services.serve_first``); when it was asked, for ``stopped``."""
+        asked = time.monotonic()
+        self.view.governor.stop("the ~/stop service was called", STOP_SERVICE)
+        return asked
+
+    def stopped(self, asked: float) -> dict[str, Any]:
+        """``stop``'s answer: successful only when it was written and the robot answered after it."""
+        view = self.view
         port = view.robot.port
         if _until(lambda: (view.governor.sent_at or 0) >= asked) is None:
             return {"success": False, "message": f"stop NOT written: the link to {port} is down"}
@@ -270,8 +275,9 @@ SERVICES: dict[str, tuple[str, str]] = {
     "describe_parameters": (S.DESCRIBE_PARAMETERS, "describe_parameters"),
     "set_parameters": (S.SET_PARAMETERS, "set_parameters"),
     "set_parameters_atomically": (S.SET_PARAMETERS_ATOMICALLY, "set_parameters_atomically"),
-    "stop": (S.TRIGGER, "stop"),
 }
+#: Services served first, each on a path of its own: name -> (type, the method that acts, the one that answers).
+FIRST: dict[str, tuple[str, str, str]] = {"stop": (S.TRIGGER, "stop", "stopped")}
 
 
 def _until(ready: Callable[[], bool], wait: float = STOP_WAIT) -> bool | None:

@@ -14,95 +14,262 @@ Fast DDS client sees these services (``ros2 service list``) but its calls are
 never answered; a request without rmw_cyclonedds's header is not one of this
 node's and goes unanswered. docs/ros2.md says so.
 
-Handlers run on one worker thread of their own, in order, never on Cyclone's
-listener thread: a handler may wait for the robot (``stop``), and cmd_vel's
-samples must not wait behind it.
+Nothing a client does keeps a stop from running:
+
+- An ordinary request (the parameters) is taken on the node's intake thread
+  and queued for one worker, which answers them in order; beyond
+  ``MAX_WAITING`` waiting, a burst is dropped (a client retries).
+- A first-served one (``serve_first``: ``~/stop``) has a reader, an intake
+  thread and a worker of its own: its ``act`` (the governor's stop) runs on
+  that intake thread the moment the request is taken, and its answer (which
+  waits for the robot) is made on its worker; no other request shares any of
+  them.
+- A reply waits for the client's reply reader to be matched (discovery is
+  two-sided: a request may come before this node's reply writer has learnt
+  the client's reader, and a volatile reply written then reaches no one),
+  but never in a worker: ``Replies`` holds it (at most ``MAX_PENDING``, at
+  most ``MATCH_WAIT`` each) and writes it once the reader is there, so an
+  asker with no reply reader costs a slot for a while, and nothing else.
 """
 
 from __future__ import annotations
 
-import contextlib
 import queue
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
-from cyclonedds.core import Listener
 from cyclonedds.pub import DataWriter
 from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 
 from ..protocol import ros2conv, ros2msg, ros2srv
 from . import idl
-from .node import Node, Note, dds_qos
+from .intake import Intake, yield_lock
+from .node import Node, Note, dds_qos, reader_qos
 
 #: rmw's default service QoS.
 SERVICE_QOS = ros2conv.Qos(reliable=True, transient_local=False, depth=10)
 #: A request's fields as a dict -> the response's fields.
 Handler = Callable[[dict[str, Any]], dict[str, Any]]
+#: A first-served request's fields -> what it did (given to its answer, on another thread).
+Act = Callable[[dict[str, Any]], Any]
+#: What ``Act`` did -> the response's fields.
+Answer = Callable[[Any], dict[str, Any]]
 #: The longest a reply waits for its client's reader to be matched (seconds).
-MATCH_WAIT = 1.0
+MATCH_WAIT = 5.0
 #: Requests waiting for the worker: beyond this a burst is dropped (a client retries), never queued forever.
 MAX_WAITING = 64
+#: First-served requests acted on and waiting for their answer: beyond this the act still runs, unanswered.
+MAX_FIRST = 16
+#: Replies waiting for their client's reader: beyond this the oldest is dropped.
+MAX_PENDING = 256
+#: How often waiting replies look for their readers (seconds).
+RETRY = 0.01
+#: The longest ``close`` waits for a worker to finish what it holds (seconds).
+CLOSE_WAIT = 0.5
+
+
+@dataclass(frozen=True)
+class _Endpoints:
+    """One service's reader of requests and writer of replies, and their message types."""
+
+    request: str
+    response: str
+    reader: DataReader
+    writer: DataWriter
 
 
 class Services:
-    """The node's services: each a request reader and a reply writer, answered in order by one worker."""
+    """The node's services: ordinary ones answered in order by one worker, first-served ones on a path each."""
 
     def __init__(self, node: Node, note: Note) -> None:
         self.node = node
         self.note = note
-        self.answered = 0
         self.dropped = 0
-        self._work: queue.Queue[tuple[Handler, str, str, Any] | None] = queue.Queue(MAX_WAITING)
-        self._replies: dict[str, DataWriter] = {}
-        self._readers: list[DataReader] = []
-        self._index: dict[str, int] = {}
-        self._worker = threading.Thread(target=self._run, name="ros2-services", daemon=True)
-        self._worker.start()
+        self.replies = Replies(note)
+        self._ordinary = _Worker("ros2-services", MAX_WAITING, note, self._dropped)
+        self._paths: list[tuple[Intake, _Worker]] = []
 
     def serve(self, name: str, service: str, handler: Handler) -> None:
-        """Answer ROS service ``name`` (relative to the node: ``~/stop`` is ``stop``) of type ``service``."""
+        """Answer ROS service ``name`` (relative to the node: ``list_parameters``) of type ``service``, in turn."""
+        ends = self._endpoints(name, service)
+        self.node.intake.watch(
+            ends.reader, lambda sample: self._ordinary.put(lambda: self._answer(ends, sample, handler))
+        )
+
+    def serve_first(self, name: str, service: str, act: Act, answer: Answer) -> None:
+        """Serve ``name`` on a path of its own: ``act`` runs as each request is taken, ``answer`` after it."""
+        ends = self._endpoints(name, service)
+        worker = _Worker(f"ros2-{name}", MAX_FIRST, self.note, self._dropped)
+        intake = Intake(self.node.participant, f"ros2-{name}-intake", self.note)
+
+        def taken(sample: Any) -> None:
+            did = act(_fields(ends.request, sample))
+            worker.put(lambda: self._answer(ends, sample, lambda _: answer(did)))
+
+        intake.watch(ends.reader, taken)
+        self._paths.append((intake, worker))
+
+    def _endpoints(self, name: str, service: str) -> _Endpoints:
         full = f"{self.node.fullname}/{name}"
         asked, answer = ros2srv.service_topics(full)
         request, response = ros2srv.request(service), ros2srv.response(service)
         participant = self.node.participant
         reply_topic = Topic(participant, answer, idl.service_type(response))
         writer = DataWriter(participant, reply_topic, qos=dds_qos(SERVICE_QOS, response))
-        self._replies[response] = writer
-        listener = _Requests(lambda sample: self._queue(handler, request, response, sample), self.note)
         request_topic = Topic(participant, asked, idl.service_type(request))
-        qos = dds_qos(SERVICE_QOS, request)
-        self._index[request] = len(self._readers)
-        self._readers.append(DataReader(participant, request_topic, qos=qos, listener=listener))
-        self.node.add_endpoints(self._readers[-1:], [writer])
+        reader = DataReader(participant, request_topic, qos=reader_qos(SERVICE_QOS, request, MAX_WAITING))
+        self.node.add_endpoints([reader], [writer])
+        return _Endpoints(request, response, reader, writer)
 
-    def _queue(self, handler: Handler, request: str, response: str, sample: Any) -> None:
+    def _answer(self, ends: _Endpoints, sample: Any, handler: Handler) -> None:
+        """Run ``handler`` on a request and hand its reply to ``replies``; a failure costs that request only."""
         try:
-            self._work.put_nowait((handler, request, response, sample))
-        except queue.Full:
-            self.dropped += 1
+            fields = handler(_fields(ends.request, sample))
+            header = (sample.client_guid, sample.sequence_number)
+            reply = idl.build_service(ends.response, header, fields)
+            self.replies.send(ends.writer, _asker(ends.reader, sample), reply)
+        except Exception as exc:
+            self.note(f"error answering a {ends.response.rpartition('/')[2]} (ignored): {exc!r}")
 
-    def _run(self) -> None:
-        while (job := self._work.get()) is not None:
-            handler, request, response, sample = job
-            try:
-                fields = handler(_fields(request, sample))
-                header = (sample.client_guid, sample.sequence_number)
-                writer = self._replies[response]
-                _until_heard_by(writer, _asker(self._readers[self._index[request]], sample))
-                writer.write(idl.build_service(response, header, fields))
-                self.answered += 1
-            except Exception as exc:  # a request that breaks a handler costs that request only
-                self.note(f"error answering a {response.rpartition('/')[2]} (ignored): {exc!r}")
+    def _dropped(self) -> None:
+        self.dropped += 1
 
     def close(self) -> None:
-        """No request is taken after this; the worker ends once it has answered what it holds."""
-        for reader in self._readers:
-            reader.set_listener(None)
-        self._work.put(None)
-        self._worker.join(timeout=5)
+        """No request is taken after this; the workers end once they have answered what they hold."""
+        for intake, _ in self._paths:
+            intake.close()
+        deadline = time.monotonic() + CLOSE_WAIT
+        for worker in [self._ordinary, *(worker for _, worker in self._paths)]:
+            worker.close(deadline)
+        self.replies.close(deadline)
+
+
+class _Worker:
+    """One thread running jobs in the order they came; beyond ``room`` waiting, a job is dropped."""
+
+    def __init__(self, name: str, room: int, note: Note, dropped: Callable[[], None]) -> None:
+        self._jobs: queue.Queue[Callable[[], None] | None] = queue.Queue(room)
+        self._note, self._dropped = note, dropped
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+        self._thread.start()
+
+    def put(self, job: Callable[[], None]) -> None:
+        try:
+            self._jobs.put_nowait(job)
+        except queue.Full:
+            self._dropped()
+
+    def _run(self) -> None:
+        while (job := self._jobs.get()) is not None:
+            job()
+            yield_lock()
+
+    def close(self, deadline: float) -> None:
+        """Ends after the jobs it holds; waited for until ``deadline`` (a daemon thread, it dies with us)."""
+        while True:
+            try:
+                self._jobs.put(None, timeout=max(0.0, deadline - time.monotonic()))
+                break
+            except queue.Full:
+                return
+        self._thread.join(timeout=max(0.0, deadline - time.monotonic()))
+
+
+@dataclass
+class _Reply:
+    writer: DataWriter
+    asker: Any
+    sample: Any
+    until: float
+
+
+class Replies:
+    """Replies written once their client's reader is matched, on a thread of their own; none waits in a worker.
+
+    Each reply waits at most ``MATCH_WAIT`` (then it is dropped: its asker is
+    gone, or never had a reader); at most ``MAX_PENDING`` wait (a new one
+    pushes out the oldest).
+    """
+
+    def __init__(self, note: Note) -> None:
+        self.written = 0
+        self.expired = 0
+        self._note = note
+        self._pending: deque[_Reply] = deque()
+        self._lock = threading.Lock()
+        self._wake = threading.Event()
+        self._closed = False
+        #: Each writer's matched readers (instance handle -> participant), learnt once per reader.
+        self._readers: dict[int, dict[int, Any]] = {}
+        self._thread = threading.Thread(target=self._run, name="ros2-replies", daemon=True)
+        self._thread.start()
+
+    def send(self, writer: DataWriter, asker: Any, sample: Any) -> None:
+        """Write ``sample`` with ``writer`` once it reaches a reader of participant ``asker`` (None: at once)."""
+        with self._lock:
+            if len(self._pending) >= MAX_PENDING:
+                self._pending.popleft()
+                self.expired += 1
+            self._pending.append(_Reply(writer, asker, sample, time.monotonic() + MATCH_WAIT))
+        self._wake.set()
+
+    def close(self, deadline: float) -> None:
+        self._closed = True
+        self._wake.set()
+        self._thread.join(timeout=max(0.0, deadline - time.monotonic()))
+
+    def _run(self) -> None:
+        while not self._closed:
+            with self._lock:
+                waiting = bool(self._pending)
+            self._wake.wait(RETRY if waiting else None)
+            self._wake.clear()
+            self._try()
+
+    def _try(self) -> None:
+        """Write every reply whose reader is there; drop those past their time."""
+        with self._lock:
+            pending, self._pending = self._pending, deque()
+        heard: dict[int, set[Any]] = {}
+        now = time.monotonic()
+        keep: list[_Reply] = []
+        for reply in pending:
+            if reply.asker is not None and reply.asker not in self._heard(reply.writer, heard):
+                if now < reply.until:
+                    keep.append(reply)
+                else:
+                    self.expired += 1
+                continue
+            try:
+                reply.writer.write(reply.sample)
+                self.written += 1
+            except Exception as exc:  # a reply that cannot be written costs that reply only
+                self._note(f"error writing a reply (ignored): {exc!r}")
+        with self._lock:
+            self._pending.extendleft(reversed(keep))
+
+    def _heard(self, writer: DataWriter, heard: dict[int, set[Any]]) -> set[Any]:
+        """The participants ``writer`` reaches a reader of now (looked up once per pass)."""
+        key = id(writer)
+        if key not in heard:
+            known = self._readers.setdefault(key, {})
+            handles = set(writer.get_matched_subscriptions())
+            for handle in set(known) - handles:
+                del known[handle]
+            for handle in handles - set(known):
+                try:
+                    found = writer.get_matched_subscription_data(handle)
+                except Exception:  # the reader left while being looked up
+                    continue
+                if found is not None:
+                    known[handle] = found.participant_key
+            heard[key] = set(known.values())
+        return heard[key]
 
 
 def _asker(reader: DataReader, sample: Any) -> Any:
@@ -114,40 +281,6 @@ def _asker(reader: DataReader, sample: Any) -> Any:
     return None if found is None else found.participant_key
 
 
-def _until_heard_by(writer: DataWriter, participant: Any) -> None:
-    """Wait (at most ``MATCH_WAIT``) until ``writer`` reaches a reader of ``participant``.
-
-    Discovery is two-sided: a client's request may arrive before this node's
-    reply writer has learnt the client's reply reader, and a volatile reply
-    written then reaches no one (rmw_fastrtps's services wait the same way).
-    """
-    deadline = time.monotonic() + MATCH_WAIT
-    while participant is not None and time.monotonic() < deadline:
-        for handle in writer.get_matched_subscriptions():
-            with contextlib.suppress(Exception):
-                found = writer.get_matched_subscription_data(handle)
-                if found is not None and found.participant_key == participant:
-                    return
-        time.sleep(0.01)
-
-
 def _fields(request: str, sample: Any) -> dict[str, Any]:
     """A request's own fields (the header left out), nested messages as they are."""
     return {field.name: getattr(sample, field.name) for field in ros2msg.TYPES[request].fields}
-
-
-class _Requests(Listener):
-    """Requests, on Cyclone's listener thread, handed to the worker; a failure costs only its sample."""
-
-    def __init__(self, on_request: Callable[[Any], None], note: Note) -> None:
-        super().__init__()
-        self._on_request, self._note = on_request, note
-
-    def on_data_available(self, reader: DataReader) -> None:
-        try:
-            for sample in reader.take(N=64):
-                info = getattr(sample, "sample_info", None)
-                if info is None or info.valid_data:
-                    self._on_request(sample)
-        except Exception as exc:  # never into Cyclone's thread
-            self._note(f"error reading {reader.topic.name} (ignored): {exc!r}")
