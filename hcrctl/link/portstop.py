@@ -27,13 +27,6 @@ if TYPE_CHECKING:
 #: An owner's part of a stop from the port, told who asked (as said to people).
 StopHandler = Callable[[str], None]
 
-#: The rule, as every front end states it (docs/safety.md, ``hcrctl stop --help``).
-PORT_RULE = (
-    "Anyone may stop, also from another terminal: hcrctl stop on a port another hcrctl holds "
-    "asks that program to stop; it stops at once, whatever it was doing, and the stop holds "
-    "as any other stop does."
-)
-
 
 class StoppedFromPort(HcrError):
     """A held motion another program stopped through the port (exit 1)."""

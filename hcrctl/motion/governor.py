@@ -84,7 +84,8 @@ HOLD_RULE = (
     "Anyone may stop: a zero command from any source stops the robot at once, whoever drives. "
     "A stop holds: after a stop by anyone but the driver, motion resumes only from a sender "
     "that has been silent for the deadman first; a sender that was driving or refused before "
-    "the stop cannot move the robot again by just sending on."
+    "the stop cannot move the robot again by just sending on. "
+    "hcrctl stop on the robot's port, from another terminal, is such a stop."
 )
 
 Wheels = tuple[int, int]
