@@ -25,6 +25,7 @@ from helpers import wait_until
 from helpers_bridge import TWIST, bridge, velocity_of, viewer
 from helpers_cli import TIMEOUT, hcrctl_exe, run
 from helpers_live import FakeRobot, is_stop
+from helpers_shell import STOP_FRAME, PtyRobot, shell, stop_after_motion
 
 from hcrctl.protocol import commands as C
 
@@ -166,3 +167,18 @@ def test_stop_with_no_holder_says_who_might(port_env: dict[str, str]) -> None:
         (line,) = out.stderr.splitlines()
         assert "no hcrctl holds it" in line and "hint:" in line, out
         assert os.path.exists(robot.path)
+
+
+def test_stop_from_another_terminal_stops_the_shells_robot(
+    port_env: dict[str, str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The shell holds the port and left the robot driving (an untimed drive returns at once there):
+    ``hcrctl stop`` from another terminal puts the stop on its wire, and the session goes on."""
+    monkeypatch.setenv("XDG_RUNTIME_DIR", port_env["XDG_RUNTIME_DIR"])  # the shell's environment
+    with PtyRobot() as robot, shell(["--port", robot.port, "shell"], tmp_path) as term:
+        term.run("drive power 60 60")
+        robot.wait_for(lambda frames: any(f[4] == C.MotorPower.CODE and f != STOP_FRAME for f in frames))
+        out = run(["--port", robot.port, "stop"], env=port_env)
+        assert out.returncode == 0 and out.stdout.startswith(DELIVERED), out
+        assert stop_after_motion(robot.received())
+        assert "compass" in term.run("read compass")
