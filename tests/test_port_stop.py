@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import tempfile
 import threading
@@ -182,3 +183,26 @@ def test_stop_from_another_terminal_stops_the_shells_robot(
         assert out.returncode == 0 and out.stdout.startswith(DELIVERED), out
         assert stop_after_motion(robot.received())
         assert "compass" in term.run("read compass")
+
+
+def test_silent_askers_on_the_line_delay_no_stop(port_env: dict[str, str]) -> None:
+    """Twelve connections to the holder's line that never finish a question (two seconds each, one at a
+    time, would outlast the asker's wait): ``hcrctl stop`` is still delivered, and the drive ends."""
+    with FakeRobot() as robot, driving(robot, port_env) as drive:
+        (line,) = stop_lines(port_env)
+        silent = []
+        try:
+            for _ in range(12):
+                conn = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+                silent.append(conn)
+                conn.connect(str(line))
+                conn.sendall(b"st")
+            moved = robot.frames()[-1][0]
+            out = stop_on(robot, port_env)
+        finally:
+            for conn in silent:
+                conn.close()
+        assert out.returncode == 0 and out.stdout.startswith(DELIVERED), out
+        robot.wait_frame(is_stop, after=moved)
+        drive.communicate(timeout=TIMEOUT)
+        assert drive.returncode == 1

@@ -16,8 +16,9 @@ The rules of the socket:
   stop through it; anyone else stops with the power switch or by the port);
 - a socket left by a killed holder refuses connections: the next holder
   replaces it, and an asker reads the refusal as "no holder";
-- one accept thread, one request at a time, each bounded in size and time,
-  so a slow or dead asker costs a stop at most ``IO_TIMEOUT_S``.
+- one thread hears every asker at once, each bounded in size and time, so a
+  slow or dead asker delays no stop; the stops asked by then are one stop,
+  and each asker is told its outcome.
 
 Standard library only (and the one reader of a peer's JSON): the link layer's owners decide what stopping means
 (``answer``); this module only carries the question and the outcome.
@@ -30,10 +31,11 @@ import errno
 import hashlib
 import json
 import os
+import selectors
 import socket
 import struct
-import tempfile
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -49,6 +51,8 @@ MAX_MESSAGE = 4096
 IO_TIMEOUT_S = 2.0
 #: How long an asker waits for the outcome: the holder's stop plus its robot's answer, with retries.
 ANSWER_WAIT_S = 15.0
+#: The most askers heard at once; past it the oldest is dropped (each had its IO_TIMEOUT_S).
+MAX_ASKERS = 16
 #: How often the accept thread looks up to see whether the port is closing.
 ACCEPT_SLICE_S = 0.2
 
@@ -96,7 +100,7 @@ def _dirs() -> list[Path]:
     runtime = os.environ.get("XDG_RUNTIME_DIR")
     if runtime:
         found.append(Path(runtime) / "hcrctl")
-    found.append(Path(tempfile.gettempdir()) / f"hcrctl-{os.getuid()}")
+    found.append(Path("/tmp") / f"hcrctl-{os.getuid()}")  # fixed, not $TMPDIR: asker and holder must agree
     return found
 
 
@@ -152,6 +156,7 @@ class StopLine:
     def close(self) -> None:
         """Stop listening (a stop being answered is finished first) and remove the socket if still ours."""
         self._closing.set()
+        _answers(self.path)  # a knock wakes the accept at once, not a slice later
         self._thread.join(timeout=ANSWER_WAIT_S)
         with contextlib.suppress(OSError):
             self._sock.close()
@@ -160,26 +165,85 @@ class StopLine:
                 self.path.unlink()
 
     def _serve(self) -> None:
-        self._sock.settimeout(ACCEPT_SLICE_S)
-        while not self._closing.is_set():
+        """Accept and read every asker at once (none waits behind a slow one); answer the stops asked."""
+        with selectors.DefaultSelector() as sel:
+            sel.register(self._sock, selectors.EVENT_READ)
+            askers: dict[socket.socket, _Asker] = {}
             try:
-                conn, _ = self._sock.accept()
-            except TimeoutError:
-                continue
-            except OSError:
-                return
-            with conn, contextlib.suppress(OSError):
-                self._one(conn)
+                while not self._closing.is_set():
+                    for key, _ in sel.select(ACCEPT_SLICE_S):
+                        if key.fileobj is self._sock:
+                            self._accept(sel, askers)
+                        else:
+                            askers[key.fileobj].hear()  # type: ignore[index]
+                    self._answer_asked(askers)
+                    for conn in [c for c, a in askers.items() if a.done or a.late()]:
+                        sel.unregister(conn)
+                        askers.pop(conn).conn.close()
+            finally:
+                for asker in askers.values():
+                    asker.conn.close()
 
-    def _one(self, conn: socket.socket) -> None:
-        conn.settimeout(IO_TIMEOUT_S)
-        if _read_line(conn) != REQUEST.strip():
+    def _accept(self, sel: selectors.BaseSelector, askers: dict[socket.socket, _Asker]) -> None:
+        try:
+            conn, _ = self._sock.accept()
+        except OSError:
+            return
+        if len(askers) >= MAX_ASKERS:  # the oldest makes room: it had its IO_TIMEOUT_S share
+            oldest = next(iter(askers))
+            sel.unregister(oldest)
+            askers.pop(oldest).conn.close()
+        conn.setblocking(False)
+        askers[conn] = _Asker(conn)
+        sel.register(conn, selectors.EVENT_READ)
+
+    def _answer_asked(self, askers: dict[socket.socket, _Asker]) -> None:
+        """One stop for everyone who asked by now; each told its outcome."""
+        asked = [a for a in askers.values() if a.asked and not a.done]
+        if not asked or self._closing.is_set():
             return
         try:
-            outcome = self._answer(_asker(conn))
+            outcome = self._answer(asked[0].who)
         except Exception as exc:  # the holder could not even try: said, never a dead line
             outcome = Outcome(NOT_DELIVERED, why=f"the holder failed ({exc})")
-        conn.sendall(json.dumps(asdict(outcome)).encode() + b"\n")
+        told = json.dumps(asdict(outcome)).encode() + b"\n"
+        for asker in asked:
+            asker.tell(told)
+
+
+class _Asker:
+    """One connection: what it sent so far, by when it must have asked, who it is."""
+
+    def __init__(self, conn: socket.socket) -> None:
+        self.conn = conn
+        self.who = _asker(conn)
+        self.data = b""
+        self.deadline = time.monotonic() + IO_TIMEOUT_S
+        self.done = False
+
+    @property
+    def asked(self) -> bool:
+        return self.data.split(b"\n", 1)[0].strip() == REQUEST.strip() and b"\n" in self.data
+
+    def late(self) -> bool:
+        return not self.asked and time.monotonic() > self.deadline
+
+    def hear(self) -> None:
+        try:
+            chunk = self.conn.recv(MAX_MESSAGE)
+        except BlockingIOError:
+            return
+        except OSError:
+            chunk = b""
+        self.data += chunk
+        if not chunk or len(self.data) > MAX_MESSAGE or (b"\n" in self.data and not self.asked):
+            self.done = True  # gone, too long, or not a stop: dropped unanswered
+
+    def tell(self, told: bytes) -> None:
+        self.done = True
+        with contextlib.suppress(OSError):
+            self.conn.settimeout(IO_TIMEOUT_S)
+            self.conn.sendall(told)
 
 
 def _bind(path: Path) -> socket.socket:
@@ -193,7 +257,7 @@ def _bind(path: Path) -> socket.socket:
                 raise
             path.unlink()
             sock.bind(str(path))
-        sock.listen(4)
+        sock.listen(MAX_ASKERS)
     except BaseException:
         sock.close()
         raise
@@ -244,6 +308,8 @@ def ask(port: str, wait: float = ANSWER_WAIT_S) -> Outcome | None:
                 reply = _read_line(conn)
             except OSError:
                 return Outcome(NOT_DELIVERED, why=f"the holder did not answer within {wait:g} s")
+            if not reply:  # it let go of the port as the question came (its own end sends its stop)
+                return Outcome(NOT_DELIVERED, why="the holder closed the port before answering; try again")
             return _outcome(reply)
     return None
 
