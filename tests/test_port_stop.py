@@ -25,7 +25,7 @@ import pytest
 from helpers import wait_until
 from helpers_bridge import TWIST, bridge, velocity_of, viewer
 from helpers_cli import TIMEOUT, hcrctl_exe, run
-from helpers_live import FakeRobot, is_stop
+from helpers_live import FakeRobot, Terminal, is_stop, speed_of, terminal
 from helpers_shell import STOP_FRAME, PtyRobot, shell, stop_after_motion
 
 from hcrctl.protocol import commands as C
@@ -206,3 +206,38 @@ def test_silent_askers_on_the_line_delay_no_stop(port_env: dict[str, str]) -> No
         robot.wait_frame(is_stop, after=moved)
         drive.communicate(timeout=TIMEOUT)
         assert drive.returncode == 1
+
+
+def test_teleop_stopped_from_the_port_holds_the_keys_out(
+    port_env: dict[str, str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Teleop drives on a key held down; ``hcrctl stop`` on its port: a stop on the wire, and the key
+    still repeating moves nothing (a stop holds, as every other does), and the screen says why."""
+    monkeypatch.setenv("XDG_RUNTIME_DIR", port_env["XDG_RUNTIME_DIR"])  # teleop's environment
+    with FakeRobot() as robot, terminal(["--port", robot.path, "teleop", "--deadman", "2"]) as term:
+        term.wait_for("sending")
+        done = threading.Event()
+        presser = threading.Thread(target=lambda: _press_until(term, done), daemon=True)
+        presser.start()
+        try:
+            moved = robot.wait_frame(lambda f: speed_of(f) == (50, 50))
+            out = stop_on(robot, port_env)
+            assert out.returncode == 0 and out.stdout.startswith(DELIVERED), out
+            stopped = robot.wait_frame(is_stop, after=moved)
+            seen = len(robot.frames())
+            wait_until(lambda: len(robot.frames()) > seen + 5, what="teleop still polling")
+        finally:
+            done.set()
+            presser.join(TIMEOUT)
+        assert [
+            s for t, f in robot.frames() if t > stopped and (s := speed_of(f)) not in (None, (0, 0))
+        ] == []
+        term.wait_for("stop from the port")
+        term.send("q")
+        assert term.finish() == 0
+
+
+def _press_until(term: Terminal, done: threading.Event) -> None:
+    """``w`` as a held key repeats it: every few tens of milliseconds, one stream for a 2 s deadman."""
+    while not done.wait(0.03):
+        term.send("w")
