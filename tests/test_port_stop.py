@@ -85,6 +85,9 @@ def test_stop_from_another_terminal_ends_a_held_drive(port_env: dict[str, str]) 
     """A one-shot drive holds the port; ``hcrctl stop`` there: a stop frame, the drive ends, "delivered"."""
     with FakeRobot() as robot, driving(robot, port_env) as drive:
         moved = robot.wait_frame(powered)
+        other = run(["--port", robot.path, "read", "compass"], env=port_env)
+        assert other.returncode == 1 and "the port is busy" in other.stderr, other
+        assert "hcrctl stop still works" in other.stderr, other  # where to turn while it is busy
         out = stop_on(robot, port_env)
         assert out.returncode == 0, out
         assert out.stdout.startswith(DELIVERED) and "the robot answered" in out.stdout, out
