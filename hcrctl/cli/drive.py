@@ -9,12 +9,14 @@ timed move, which is held and stopped there too.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from typing import TYPE_CHECKING, Any
 
 import click
 
-from ..errors import HcrError
+from ..errors import HcrError, PortBusy
+from ..link import stopline
 from ..link.dialects import check_command, frame_of
 from ..link.rescue import stopping
 from ..ops.motion import DRIVE_COMMANDS, hold
@@ -87,8 +89,36 @@ def _held(settings: Settings, record: dict[str, Any], robot: Robot, hold_for: fl
 @click.command()
 @click.pass_obj
 def stop(settings: Settings) -> None:
-    """Stop both motors (motor power 0x80 0x80)."""
-    with settings.robot() as robot:
-        record = sent_record(robot, C.STOP)
-        send_stop(robot)
+    """Stop both motors (motor power 0x80 0x80).
+
+    Anyone may stop, also from another terminal: when another hcrctl holds
+    the port (a drive, teleop, watch, the shell, a bridge, ros2 or fleet
+    serve), stop asks that program, which stops at once through whatever
+    drives and holds its senders out as any stop does. Exit 0 only once the
+    robot answered after the stop; 1 when it was written but nothing
+    answered, or could not be delivered.
+    """
+    try:
+        with settings.robot() as robot:
+            record = sent_record(robot, C.STOP)
+            send_stop(robot)
+    except PortBusy as busy:
+        _ask_holder(settings, busy)
+        return
     emit(settings, record, f"sent stop: {record['hex']}")
+
+
+def _ask_holder(settings: Settings, busy: PortBusy) -> None:
+    """Stop through the program holding the port: one line with the outcome; an error unless delivered."""
+    outcome = stopline.ask(busy.port)
+    if outcome is None:
+        raise PortBusy(
+            "the port is busy and no hcrctl holds it to take the stop",
+            busy.port,
+            hint="stop it in the program that holds the port, or with the robot's power switch",
+        )
+    line = outcome.line(busy.port)
+    if not outcome.delivered:
+        raise HcrError(line, hint="stop it by hand (power switch), then check the link")
+    record = {"command": "stop", "port": busy.port, "through": "the holder", **dataclasses.asdict(outcome)}
+    emit(settings, record, line)

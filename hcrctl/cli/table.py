@@ -27,7 +27,10 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "read": ("hcrctl.cli.read:read", "Read each SENSOR once and print it; none means all of them."),
     "drive": ("hcrctl.cli.drive:drive", "Drive both motors: power or speed in percent, velocity in cm/s."),
     "turn": ("hcrctl.cli.turn:turn", "Turn in place by an angle, then stop."),
-    "stop": ("hcrctl.cli.drive:stop", "Stop both motors (motor power 0x80 0x80)."),
+    "stop": (
+        "hcrctl.cli.drive:stop",
+        "Stop both motors (motor power 0x80 0x80), also on a port another hcrctl holds.",
+    ),
     "servo": ("hcrctl.cli.servo:servo", C.BY_NAME["servo"].help),
     "pid": ("hcrctl.cli.pid:pid", C.BY_NAME["pid"].help),
     "ping": (

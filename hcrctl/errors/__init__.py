@@ -161,6 +161,10 @@ class PortError(HcrError):
         self.port = port
 
 
+class PortBusy(PortError):
+    """Another program holds the port; ``hcrctl stop`` still reaches the robot through it (``stopline``)."""
+
+
 class LinkLostWhileMoving(PortError):
     """The link dropped while the robot was moving; the message says whether stop got through.
 

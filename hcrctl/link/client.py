@@ -21,7 +21,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterable
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from ..errors import (
     DeviceRefused,
@@ -56,6 +56,9 @@ from .reads import TypedReads
 from .schemes import opener
 from .stopwait import DEFAULT_WAIT_S as DEFAULT_WAIT_S
 from .traffic import FrameHook, LinkStats, TrafficHook, Watchers, decode_sent
+
+if TYPE_CHECKING:
+    from .stopline import StopLine
 
 #: How long the reader blocks in one read; bounds how fast close() returns.
 READ_SLICE = 0.05
@@ -130,6 +133,12 @@ class Robot(TypedReads, Dialect):
         #: The port when it carries requests, not bytes (``carrier``); None for a serial port.
         self.carrier: Carrier | None = self.serial if isinstance(self.serial, Carrier) else None
         self._carried = threading.Lock()  # the carrier's replies come on its threads: one at a time here
+        #: Owners' parts of a stop from the port (``portstop.owning``); a Connection shares its list.
+        self.stop_handlers: list[Callable[[str], None]] = []
+        #: Why another program stopped this robot through the port (``portstop``); None until it does.
+        self.port_stop: HcrError | None = None
+        #: The port's stop line, which a Connection gives the robots it opens (``portstop.listen``).
+        self.stopline: StopLine | None = None
         self._reader: threading.Thread | None = None
         if self.carrier is not None:
             self.carrier.bind(self._heard_carried, self._carrier_lost)
@@ -162,6 +171,8 @@ class Robot(TypedReads, Dialect):
         """Stop the motors if this session moved them, then release the port."""
         if self._closing.is_set():
             return
+        if self.stopline is not None:  # first: a stop being answered finishes on an open port
+            self.stopline.close()
         with contextlib.suppress(Exception):
             if self.moved:
                 self.stop(stop_frames(self))
@@ -195,6 +206,8 @@ class Robot(TypedReads, Dialect):
         """Send a request; wait for its reply if the command has one (``timeout``: as ``transact``'s)."""
         cmd = self.check_supported(C.command_for(value))
         frame = self.frame_for(value, address)
+        if cmd.motion and value != C.STOP:
+            self.port_stop = None  # motion asked anew: an earlier stop from the port is history
         if cmd.reply is None:
             self.write(frame)
             return None
@@ -242,8 +255,9 @@ class Robot(TypedReads, Dialect):
 
     @property
     def halted(self) -> HcrError | None:
-        """Why the far side stopped the motion this robot asked for (a carrier's word); None while it runs."""
-        return None if self.carrier is None else self.carrier.halted()
+        """Why the far side (a carrier) or another program on the port stopped the motion this robot asked
+        for; None while it runs."""
+        return self.port_stop or (None if self.carrier is None else self.carrier.halted())
 
     def _result(
         self, cmd: C.Command, addr: int, frame: Frame | None, silent: DeviceSilent | None = None

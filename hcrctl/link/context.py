@@ -49,6 +49,9 @@ class Connection:
     shared_robot: Robot | None = None
     #: Called with every robot ``connect()`` opens (the shell wires its broadcasts and state).
     robot_hooks: list[Callable[[Robot], None]] = field(default_factory=list)
+    #: The owners' parts of a stop from the port (``portstop``), shared by every robot opened here, so
+    #: a robot re-opened after a lost link stops through the same owners.
+    stop_handlers: list[Callable[[str], None]] = field(default_factory=list)
 
     @contextlib.contextmanager
     def robot(self, on_traffic: TrafficHook | None = None) -> Iterator[Robot]:
@@ -84,6 +87,7 @@ class Connection:
         given ``on_traffic`` and the log begin at the same frame.
         """
         from .client import Robot
+        from .portstop import listen
 
         log = self._open_log()
         try:
@@ -103,6 +107,8 @@ class Connection:
             raise
         if log is not None:
             log.bind(robot)
+        robot.stop_handlers = self.stop_handlers
+        listen(robot)
         for hook in self.robot_hooks:
             hook(robot)
         return robot

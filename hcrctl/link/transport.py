@@ -11,12 +11,13 @@ import os
 
 import serial
 
-from ..errors import BadPortUrl, PortError
+from ..errors import BadPortUrl, PortBusy, PortError
 from .defaults import BAUD
 from .transport_sim import register as register_sim
 
 SIM_HINT = "use --port sim:// for the built-in simulator"
 SIM_OPTIONS_HINT = "for example sim://?drop=0.1&seed=3; docs/simulator.md lists every option"
+BUSY_HINT = "another program has it open; close it and retry (hcrctl stop still works: it asks that program)"
 URL_HINT = "a device path, or a URL such as socket://HOST:PORT, rfc2217://HOST:PORT, loop:// or sim://"
 
 
@@ -115,7 +116,7 @@ def _port_error(url: str, exc: Exception) -> PortError:
             hint="add yourself to the dialout group (sudo usermod -aG dialout $USER) and log in again",
         )
     if code == errno.EBUSY or "busy" in text or "exclusively lock" in text:
-        return PortError("the port is busy", url, hint="another program has it open; close it and retry")
+        return PortBusy("the port is busy", url, hint=BUSY_HINT)
     if any(
         words in text for words in ("Name or service not known", "nodename nor servname", "name resolution")
     ):

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from ..link.defaults import DEADMAN_S
+from ..link.portstop import owning
 from ..link.rescue import stopping
 from ..motion.bumpers import bumper_rule
 from ..motion.governor import Governor, Kind, Source
@@ -192,6 +193,7 @@ def run_teleop(
         try:
             with (
                 stopping(robot),
+                owning(robot, governor.port_stop),
                 KeyReader() as keys,
                 kitty_probed(keys, console),
                 painting(console, redraw) as painter,

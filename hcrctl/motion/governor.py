@@ -71,6 +71,8 @@ STEP = 0.02
 #: An unchanged motion is re-sent this often (a lost frame costs one interval).
 RESEND = 0.1
 STILL = (0, 0)
+#: The longest a stop from the port waits for the governor's thread to have written it.
+PORT_STOP_WAIT = 1.0
 #: No single offer holds motion longer than this, whatever lease it asks for.
 MAX_LEASE = 10.0
 #: The most sources whose streams are remembered for a hold; past it a hold refuses everyone until all
@@ -82,7 +84,8 @@ HOLD_RULE = (
     "Anyone may stop: a zero command from any source stops the robot at once, whoever drives. "
     "A stop holds: after a stop by anyone but the driver, motion resumes only from a sender "
     "that has been silent for the deadman first; a sender that was driving or refused before "
-    "the stop cannot move the robot again by just sending on."
+    "the stop cannot move the robot again by just sending on. "
+    "hcrctl stop on the robot's port, from another terminal, is such a stop."
 )
 
 Wheels = tuple[int, int]
@@ -104,6 +107,7 @@ class Kind(Enum):
     OPERATOR = "operator"  # a fleet operator's session
     NODE = "node"  # a ROS 2 publisher
     SERVICE = "service"  # a stop service (ROS 2's ~/stop): it stops, never drives
+    PORT = "port"  # another program on the serial port (hcrctl stop): it stops, never drives
 
 
 @dataclass(frozen=True)
@@ -390,6 +394,9 @@ class Governor:
         self._sent_at = 0.0
         self._seen = 0
         self._thread = threading.Thread(target=self._run, name="hcrctl-governor", daemon=True)
+        #: Turns of the governor's thread begun and ended: a stop's caller can wait for one that saw it.
+        self._turns = [0, 0]
+        self._turned = threading.Condition()
 
     def attach(
         self,
@@ -502,6 +509,22 @@ class Governor:
             self.lease.stop(why, now, by, hold)
         self._wake.set()
 
+    def port_stop(self, who: str) -> None:
+        """A stop another program asked for through the port (``link.portstop``): a stop by anyone, so it
+        holds the streams out as every other does.
+
+        Returns once a turn begun after the stop has ended (at most ``PORT_STOP_WAIT``): a motion frame
+        a turn already under way was writing is then behind the governor's stop, never after the stop
+        the asker is told about.
+        """
+        self.stop(f"stop from the port by {who}", Source(Kind.PORT, who, name=who))
+        with self._turned:
+            seen = self._turns[0]
+        self._wake.set()  # a turn begins after this one, even if the wake was spent by one under way
+        if self._thread.is_alive():
+            with self._turned:
+                self._turned.wait_for(lambda: self._turns[1] > seen, timeout=PORT_STOP_WAIT)
+
     @property
     def driver(self) -> Source | None:
         return self.lease.driver
@@ -532,10 +555,15 @@ class Governor:
         while not self._done.is_set():
             self._wake.wait(STEP if self._busy() else None)
             self._wake.clear()
+            with self._turned:
+                self._turns[0] += 1
             try:
                 self.turn(time.monotonic())
             except Exception as exc:  # a bug must cost a stop, never the loop
                 self._failed(exc)
+            with self._turned:
+                self._turns[1] += 1
+                self._turned.notify_all()
 
     def _busy(self) -> bool:
         """Whether the clock must turn by itself: someone holds the lease, or motion is (or may be) on the

@@ -49,6 +49,7 @@ from ..errors.terminal import warn
 from ..link.context import Connection, Reconnect
 from ..link.dialects import supported_sensors
 from ..link.handoff import quick_handoff
+from ..link.portstop import owning
 from ..motion.bumpers import BumperRule
 from ..motion.governor import Governor, Source
 from ..protocol import commands as C
@@ -211,7 +212,7 @@ class ServedRobot:
     def _serve(self) -> None:
         """Poll and publish, drive when asked, until the end; stop goes out however it ends."""
         governor = self.governor
-        with self.settings.robot() as robot, quick_handoff():
+        with self.settings.robot() as robot, quick_handoff(), owning(robot, governor.port_stop):
             tuning = self.tuning
             feed = self._feed = Feed(
                 robot, self.sensors, tuning.rate, self._publish, reconnect=Reconnect(self.settings, robot)
