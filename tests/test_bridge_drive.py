@@ -10,6 +10,7 @@ from helpers_bridge import CMD_VEL, TWIST, bridge, velocity_of, viewer
 from helpers_live import FakeRobot, is_stop
 
 from hcrctl.motion.governor import Lease
+from hcrctl.motion.reasons import Reason, Why
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.geometry import HCR
 from hcrctl.served.cmdvel import parse_twist, twist_wheels, wheel_limits
@@ -57,46 +58,50 @@ def test_a_partial_twist_counts_the_missing_parts_as_zero() -> None:
 
 # -- the rules (pure: the clock is the test's) --------------------------------------------------
 
+HIT = Why(Reason.BUMPER, "bumper hit")
+
 
 def test_the_deadman_stops_when_messages_stop() -> None:
     rules = Lease(deadman=0.5)
-    assert rules.offer((1, 5), (20, 20), now=10.0, blocked="")
-    rules.check(10.4, blocked="")
+    assert rules.offer((1, 5), (20, 20), now=10.0, blocked=None)
+    rules.check(10.4, blocked=None)
     assert rules.wheels == (20, 20)
-    rules.check(10.6, blocked="")
+    rules.check(10.6, blocked=None)
     assert rules.wheels == (0, 0) and rules.why_stopped.startswith("deadman")
 
 
 def test_a_bumper_blocks_forward_but_not_backing_off_or_turning() -> None:
     rules = Lease(deadman=0.5)
-    rules.offer((1, 5), (20, 20), now=0.0, blocked="")
-    rules.check(0.1, blocked="bumper hit")
+    rules.offer((1, 5), (20, 20), now=0.0, blocked=None)
+    rules.check(0.1, blocked=HIT)
     assert rules.wheels == (0, 0) and rules.why_stopped == "bumper hit"
-    rules.offer((1, 5), (20, 20), now=0.2, blocked="bumper hit")
-    assert rules.wheels == (0, 0) and "forward blocked" in rules.why_stopped
-    rules.offer((1, 5), (-20, -20), now=0.3, blocked="bumper hit")
+    version = rules.version
+    verdict = rules.offer((1, 5), (20, 20), now=0.2, blocked=HIT)
+    assert rules.wheels == (0, 0) and verdict.why == "refused: bumper hit (forward blocked)"
+    assert rules.why_stopped == "bumper hit: forward blocked" and rules.version == version  # not a new stop
+    rules.offer((1, 5), (-20, -20), now=0.3, blocked=HIT)
     assert rules.wheels == (-20, -20)
-    rules.offer((1, 5), (-12, 12), now=0.4, blocked="bumper hit")
+    rules.offer((1, 5), (-12, 12), now=0.4, blocked=HIT)
     assert rules.wheels == (-12, 12)
 
 
 def test_one_client_drives_at_a_time_until_it_leaves() -> None:
     rules = Lease(deadman=0.5)
-    assert rules.offer((1, 5), (20, 20), now=0.0, blocked="")
-    assert not rules.offer((2, 1), (-20, -20), now=0.1, blocked="")
+    assert rules.offer((1, 5), (20, 20), now=0.0, blocked=None)
+    assert not rules.offer((2, 1), (-20, -20), now=0.1, blocked=None)
     assert rules.wheels == (20, 20)
     rules.release((2, 1), "client 2 left")
     assert rules.wheels == (20, 20)
     rules.release((1, 5), "client 1 left")
     assert rules.wheels == (0, 0) and rules.driver is None
-    assert rules.offer((2, 1), (-20, -20), now=0.2, blocked="")
+    assert rules.offer((2, 1), (-20, -20), now=0.2, blocked=None)
 
 
 def test_a_silent_driver_gives_the_robot_up() -> None:
     rules = Lease(deadman=0.5)
-    rules.offer((1, 5), (0, 0), now=0.0, blocked="")
-    rules.check(1.0, blocked="")
-    assert rules.driver is None and rules.offer((2, 1), (10, 10), now=1.1, blocked="")
+    rules.offer((1, 5), (0, 0), now=0.0, blocked=None)
+    rules.check(1.0, blocked=None)
+    assert rules.driver is None and rules.offer((2, 1), (10, 10), now=1.1, blocked=None)
     assert math.isfinite(rules.last)
 
 

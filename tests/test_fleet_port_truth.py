@@ -109,7 +109,9 @@ def test_a_drive_whose_robot_port_went_away_exits_1_naming_the_port(
         assert driver.wait(timeout=TIMEOUT) == 1
         line = error_line(err.read_text())
         assert re.fullmatch(
-            rf"hcrctl: error: r1 stopped: {re.escape(url)} went away \(hint: the robot's serial .*\)", line
+            rf"hcrctl: error: r1 {re.escape(url)} went away: stop NOT written \(the link is down\): "
+            rf"the robot may still be moving \(hint: the robot's serial .*\)",
+            line,
         )
 
 

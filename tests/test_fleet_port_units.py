@@ -15,6 +15,7 @@ from hcrctl.errors import BadPortUrl
 from hcrctl.link.carrier import is_stop, requests_in
 from hcrctl.link.zenoh import keyspace
 from hcrctl.link.zenoh.remote import robot_name
+from hcrctl.motion.reasons import Reason
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.dialect import decode_all
 
@@ -36,34 +37,16 @@ def test_a_good_name_is_the_robots() -> None:
     assert robot_name("ZENOH://r1") == "r1"
 
 
-@pytest.mark.parametrize(
-    ("why", "reason"),
-    [
-        ("bumper hit", "bumper"),
-        ("bumper hit: forward blocked", "bumper"),
-        ("bumper reading stale (610 ms old, over 600 ms)", "stale"),
-        ("no bumper reading yet", "stale"),
-        ("deadman: no cmd_vel for 0.5 s", "deadman"),
-        ("stop from op2", "stop"),
-        ("operator op1 gone", "operator gone"),
-        ("/dev/ttyUSB0 went away", "port lost"),
-        ("op1 released r1", "released"),
-        (
-            "a second sender under op1's session: cmd_vel #3 was not signed with its key; the lease is ended",
-            "second sender",
-        ),
-        ("internal error in the governor: KeyError()", "error"),
-        ("something new", "other"),
-    ],
-)
-def test_a_stop_carries_the_reason_a_program_compares(why: str, reason: str) -> None:
-    said = keyspace.stopped_status(OP, why)
+@pytest.mark.parametrize("reason", list(Reason))
+def test_a_stop_carries_the_reason_it_was_made_for_never_read_from_its_words(reason: Reason) -> None:
+    """The words may hold a peer's name ("deadman-lab" stopping the robot): the reason is the governor's."""
+    said = keyspace.stopped_status(OP, "stopped: stop from deadman-lab (bumper hit)", reason.value)
     assert json.loads(said.to_bytes()) == {
         "event": "stopped",
-        "text": f"stopped: {why}",
+        "text": "stopped: stop from deadman-lab (bumper hit)",
         "op": "op1",
         "session": OP.session,
-        "reason": reason,
+        "reason": reason.value,
     }
     assert keyspace.parse_status(said.to_bytes()) == said
 
@@ -161,8 +144,8 @@ def test_the_word_of_this_sessions_own_stop_never_halts_its_next_motion() -> Non
     lease.stop()
     assert session.puts == [keyspace.stop("r1")]
     lease.held = True  # the next motion claimed before the robot side's word of that stop came
-    lease.heard(keyspace.stopped_status(OP, "stop from op1"))
+    lease.heard(keyspace.stopped_status(OP, "stopped: stop from op1", "stop"))
     assert lease.halted is None and lease.held
-    lease.heard(keyspace.stopped_status(OP, "stop from op2"))  # another's stop, after it
+    lease.heard(keyspace.stopped_status(OP, "stopped: stop from op2", "stop"))  # another's stop, after it
     assert lease.halted is not None and not lease.held
     assert lease.halted.message == "r1 stopped: stop from op2" and lease.halted.hint == HALT_HINTS["stop"]

@@ -121,6 +121,23 @@ def test_a_second_operator_is_refused_and_a_third_may_stop(lab: Fleet, tmp_path:
     assert not backwards, "op2's reverse reached the wire"
 
 
+def test_a_stops_reason_is_the_one_it_was_made_for_whatever_the_stoppers_name_says(
+    lab: Fleet, tmp_path: Path
+) -> None:
+    """An operator named for a rule ("deadman-lab") who stops the robot is a stop, never a deadman: the
+    reason travels as data from where the stop was made, so the driver's hint blames no network."""
+    serve = served(lab, tmp_path, "--deadman", "10")
+    with operator(lab.endpoint, "r1", "op1") as op1, operator(lab.endpoint, "r1", "deadman-lab") as lab_op:
+        op1.open()
+        op1.cmd_vel(twist(0.2))
+        wait_until(lambda: serve.sent_codes({VELOCITY}), what="op1's velocity on the wire")
+        lab_op.open()
+        said = wait_until(
+            lambda: lab_op.stop() or op1.said("stop from deadman-lab"), what="deadman-lab's stop said"
+        )
+    assert said["reason"] == "stop" and said["text"] == "stopped: stop from deadman-lab"
+
+
 def test_a_renewal_after_half_its_lease_is_said_with_a_count_and_counted_in_info(
     lab: Fleet, tmp_path: Path
 ) -> None:
@@ -393,7 +410,9 @@ def test_a_lost_serial_link_is_said_and_ends_the_drive(lab: Fleet, tmp_path: Pat
         text = serve.wait_err("went away")
         said = op.wait_said("went away")
     assert f"warning: {port} went away: the drive lease is ended" in text
-    assert said["text"] == f"stopped: {port} went away"
+    assert said["text"] == (
+        f"{port} went away: stop NOT written (the link is down): the robot may still be moving"
+    )
     assert (said["event"], said["reason"], said["op"]) == ("stopped", "port lost", "op1")
 
 

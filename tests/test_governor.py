@@ -10,7 +10,8 @@ import pytest
 from helpers import hcrctl_exe, wait_until
 
 from hcrctl.errors import DeviceTimeout
-from hcrctl.motion.governor import HOLD_RULE, STILL, Governor, Late, Streams
+from hcrctl.motion.governor import HOLD_RULE, STILL, Governor, Kind, Late, Source, Stopped, Streams
+from hcrctl.motion.reasons import Reason, Why
 from hcrctl.protocol import commands as C
 
 
@@ -74,7 +75,7 @@ def test_release_by_the_driver_stops_and_by_another_does_nothing() -> None:
 def test_anyone_may_stop_and_stop_goes_out_even_when_still() -> None:
     told: list[tuple[object, str]] = []
     wire = Wire()
-    gov = governor(wire, on_stop=lambda source, why, by: told.append((source, why)))
+    gov = governor(wire, on_stop=lambda s: told.append((s.driver, s.why.text)))
     gov.stop("stop asked")
     gov.turn(0.0)
     assert wire.sent == ["stop"]
@@ -192,7 +193,7 @@ def test_a_renewal_after_half_its_lease_is_counted_and_told_once() -> None:
 def test_a_zero_from_a_source_that_does_not_drive_stops_at_once_and_names_who_stopped() -> None:
     told: list[tuple[object, str, object]] = []
     wire = Wire()
-    gov = governor(wire, on_stop=lambda source, why, by: told.append((source, why, by)))
+    gov = governor(wire, on_stop=lambda s: told.append((s.driver, s.why.text, s.by)))
     assert gov.offer("a", (10, 10), now=0.0)
     gov.turn(0.0)
     assert gov.offer("b", STILL, now=0.05)  # never refused: a stop
@@ -307,3 +308,77 @@ def test_the_safety_rules_state_the_same_words() -> None:
     safety = Path(__file__).parent.parent / "docs" / "safety.md"
     rules = safety.read_text().split("## The rules")[1].split("\n## ")[0]
     assert words(HOLD_RULE) in words(rules)
+
+
+# -- reasons as data, and stops told as they are ----------------------------------------------------
+
+
+def test_a_stops_reason_is_the_rule_that_made_it_whatever_the_names_in_its_words() -> None:
+    told: list[Stopped] = []
+    wire = Wire()
+    stale = Why(Reason.STALE, "bumper reading stale (600 ms old, over 500 ms)")
+    blocked: list[Why | None] = [None]
+    gov = governor(wire, on_stop=told.append, bumpers=lambda: blocked[0])
+    deadman_bot = Source(Kind.NODE, 1, "/deadman_bot")
+    gov.offer(deadman_bot, (10, 10), now=0.0)
+    gov.turn(0.0)
+    gov.offer(Source(Kind.NODE, 2, "/deadman_lab (bumper hit)"), STILL, now=0.1)
+    gov.turn(0.1)
+    gov.offer(Source(Kind.NODE, 3, "/stop_bot"), (10, 10), now=0.2)
+    gov.turn(0.2)
+    gov.turn(0.6)  # its deadman
+    gov.offer(Source(Kind.NODE, 4, "/x"), (-10, -10), now=1.0)
+    gov.release(Source(Kind.NODE, 4, "/x"), "the deadman left")
+    gov.turn(1.0)
+    gov.offer(Source(Kind.NODE, 5, "/y"), (10, 10), now=2.0)
+    gov.turn(2.0)
+    blocked[0] = stale
+    gov.turn(2.1)
+    assert [s.reason for s in told] == [Reason.STOP, Reason.DEADMAN, Reason.RELEASED, Reason.STALE]
+    assert told[0].by == Source(Kind.NODE, 2) and told[0].driver == deadman_bot
+
+
+def test_a_writer_sending_on_into_a_stale_reading_is_one_stop_not_a_line_a_message() -> None:
+    told: list[Stopped] = []
+    wire = Wire()
+    age = [600]
+    gov = governor(
+        wire,
+        on_stop=told.append,
+        bumpers=lambda: Why(Reason.STALE, f"bumper reading stale ({age[0]} ms old, over 500 ms)"),
+    )
+    for i in range(50):
+        age[0] += 20
+        assert not gov.offer("a", (10, 10), now=0.02 * i)
+        gov.turn(0.02 * i)
+    assert len(told) == 1 and told[0].reason is Reason.STALE
+    assert gov.lease.why_stopped == "bumper reading stale (1600 ms old, over 500 ms): forward blocked"
+
+
+def test_a_stop_the_link_kept_from_the_wire_is_told_as_not_written_and_then_as_written() -> None:
+    told: list[Stopped] = []
+    wire = Wire()
+    link: list[Wire | None] = [wire]
+    gov = Governor(C.Velocity, deadman=0.3, silence="no test")
+    gov.attach(lambda: link[0], on_stop=told.append)  # type: ignore[arg-type, return-value]
+    gov.offer("a", (20, 20), now=0.0)
+    gov.turn(0.0)
+    link[0] = None  # the port went away with motion on the wire
+    gov.stop("/dev/ttyUSB0 went away", reason=Reason.PORT_LOST, hold=False, now=0.1)
+    gov.turn(0.1)
+    assert not told[-1].written and wire.sent == [C.Velocity(20, 20)]
+    assert str(told[-1]).startswith("/dev/ttyUSB0 went away: stop NOT written")
+    link[0] = wire
+    gov.stop("/dev/ttyUSB0 is back", reason=Reason.PORT_LOST, hold=False, now=0.2)
+    gov.turn(0.2)
+    assert wire.sent[-1] == "stop" and told[-1].written and str(told[-1]) == "stopped: /dev/ttyUSB0 is back"
+
+
+def test_a_stop_asked_while_the_link_is_down_is_never_said_as_stopped() -> None:
+    """Nothing this run moved may be moving, but another may have: a stop not written is said as such."""
+    told: list[Stopped] = []
+    gov = Governor(C.Velocity, deadman=0.3, silence="no test")
+    gov.attach(lambda: None, on_stop=told.append)
+    gov.stop("the stop service", now=0.0)
+    gov.turn(0.0)
+    assert not told[-1].written and str(told[-1]).startswith("the stop service: stop NOT written")

@@ -66,6 +66,7 @@ from ..errors import ProtocolError
 from ..inputs import PeerJsonError, peer_json
 from ..link.zenoh import identity, keyspace
 from ..motion.governor import STILL, Governor, Kind, Source, Verdict, Wheels, refusal
+from ..motion.reasons import Reason
 from ..protocol import commands as C
 from ..protocol.profiles import Profile
 from ..served.cmdvel import BadTwist, parse_twist, twist_wheels
@@ -333,7 +334,7 @@ class FleetDrive:
         """A message under ``op``'s session not signed with its key: if it drives, stop and end the lease."""
         why = f"a second sender under {op}'s session: {what} was not signed with its key"
         if drives:
-            self.governor.release(operator_source(op), f"{why}; the lease is ended")
+            self.governor.release(operator_source(op), f"{why}; the lease is ended", Reason.SECOND_SENDER)
         return f"ignored: {why}"
 
     def _not_admitted(self, op: keyspace.Who) -> str:
@@ -531,7 +532,7 @@ class FleetDrive:
         if hold is not None and self._holds is not None:
             self._holds.drop(keyspace.hold(self.robot, hold))
         if operator_source(op) == self.governor.driver:
-            self.governor.release(operator_source(op), f"operator {op} gone")
+            self.governor.release(operator_source(op), f"operator {op} gone", Reason.OPERATOR_GONE)
 
     def refusal(self, driver: Source | None) -> str:
         return refusal(driver, self.robot)

@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any
 from .. import __version__
 from ..link.zenoh import keyspace
 from ..link.zenoh.join import FleetError, Where, beyond_loopback, import_zenoh, open_member
-from ..motion.governor import Kind, Late, Source
+from ..motion.governor import Kind, Late, Source, Stopped
 from ..numtext import plural
 from ..protocol import commands as C
 from ..recording.progress import sweeps
@@ -146,18 +146,20 @@ class Fleet(FrontEnd):
         self.declare(list(view.sensors))
         return f"{self.name} ({self.robot.port}) as {keyspace.ROOT}/{self.name}/..."
 
-    def stopped(self, source: Source | None, why: str, by: Source | None = None) -> None:
+    def stopped(self, stopped: Stopped) -> None:
         """A stop told on ``status``: to the operator that drove, or to all when it names no operator.
 
         A stop with no source (the bumper, the port) is addressed to whoever drove then, so an operator
         learns why its motion ended. Another front end's source (a Foxglove client) is told by its own
         front end, not named here.
         """
+        source = stopped.driver
         driver = source if source is not None else self.governor.driver
         op = driver.id if driver is not None and driver.kind is Kind.OPERATOR else None
         if source is not None and not isinstance(op, keyspace.Who):
             return
-        self.tell(keyspace.stopped_status(op if isinstance(op, keyspace.Who) else None, why))
+        who = op if isinstance(op, keyspace.Who) else None
+        self.tell(keyspace.stopped_status(who, str(stopped), stopped.reason.value))
 
     def tick(self) -> None:
         self.drive.refusals.tick()

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from ..link.loopback import is_loopback
-from ..motion.governor import Kind, Source
+from ..motion.governor import Kind, Stopped
 from ..recording.progress import sweeps
 from ..served.notes import Notes
 from ..served.runtime import FrontEnd, exposed
@@ -108,10 +108,11 @@ class Foxglove(FrontEnd):
             return f"Foxglove on {self.url}"
         return f"on {self.url} ({PROTOCOLS})"
 
-    def stopped(self, source: Source | None, why: str, by: Source | None = None) -> None:
+    def stopped(self, stopped: Stopped) -> None:
         """A client that drove is told why it was stopped, on its status."""
+        source = stopped.driver
         if source is not None and source.kind is Kind.CLIENT and isinstance(source.id, int):
-            self.server.ws.tell(source.id, 1, f"stopped: {why}")
+            self.server.ws.tell(source.id, 1, str(stopped))
 
     def finish(self) -> None:
         """The recording whole once nothing publishes (or said not to be), then the server down."""

@@ -167,7 +167,7 @@ def press(drive: Drive, governor: Governor, key: str, now: float | None = None) 
 def teleop_governor(drive: Drive, state: LiveState) -> Governor:
     """Motor speed (0x02) per key mix, the deadman from ``drive``, the bumpers from ``state``."""
     governor = Governor(C.MotorSpeed, deadman=drive.deadman, silence="no key")
-    governor.attach(bumpers=bumper_rule(state, POLL_HZ), on_stop=lambda source, why, by: drive.halt(why))
+    governor.attach(bumpers=bumper_rule(state, POLL_HZ), on_stop=lambda stopped: drive.halt(stopped.why.text))
     return governor
 
 

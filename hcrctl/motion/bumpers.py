@@ -13,8 +13,9 @@ so a single late sweep on a healthy link is not a stop): 0.5 s at 10 or 20 Hz,
 changed while serving moves the bound with it. A reading whose last try
 failed keeps its last good value until then: a pressed bumper stays pressed.
 
-``forward_blocked`` answers with why forward motion is blocked ("" when it is
-not); the motion governor asks it on every offer and every turn of its clock.
+``forward_blocked`` answers with why forward motion is blocked (a ``Why``:
+``BUMPER`` or ``STALE``, as data; None when it is not); the motion governor
+asks it on every offer and every turn of its clock.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from typing import Protocol
 
 from ..link.defaults import REPLY_TIMEOUT_S
 from ..protocol import commands as C
+from .reasons import Reason, Why
 
 
 class Reading(Protocol):
@@ -55,18 +57,18 @@ def freshness_bound(rate: float | None) -> float:
     return max(FRESH_SWEEPS / rate, MIN_FRESH_S) if rate else MIN_FRESH_S
 
 
-def forward_blocked(state: Readings, bound: float) -> str:
-    """Why forward motion is not allowed now ("" when it is): a bumper pressed, or no fresh reading (said
+def forward_blocked(state: Readings, bound: float) -> Why | None:
+    """Why forward motion is not allowed now (None when it is): a bumper pressed, or no fresh reading (said
     as stale, with its age: nothing is known of the bumpers then, pressed or not)."""
     reading = state.reading(BUMP)
     age = reading.age(state.clock())
     if age is None:
-        return "no bumper reading yet"
+        return Why(Reason.STALE, "no bumper reading yet")
     if age > bound:
-        return f"bumper reading stale ({age * 1e3:.0f} ms old, over {bound * 1e3:.0f} ms)"
+        return Why(Reason.STALE, f"bumper reading stale ({age * 1e3:.0f} ms old, over {bound * 1e3:.0f} ms)")
     if isinstance(reading.value, C.Bumpers) and any(reading.value.bump):
-        return "bumper hit"
-    return ""
+        return Why(Reason.BUMPER, "bumper hit")
+    return None
 
 
 def bumper_rule(state: Readings, rate: float | None) -> BumperRule:
@@ -86,5 +88,5 @@ class BumperRule:
         """The freshness bound at the rate polled now."""
         return freshness_bound(self.rate())
 
-    def __call__(self) -> str:
+    def __call__(self) -> Why | None:
         return forward_blocked(self.state, self.bound)

@@ -61,6 +61,7 @@ from typing import TYPE_CHECKING
 
 from ..errors import HcrError, PortError
 from ..link.defaults import DEADMAN_S
+from .reasons import Reason, Why
 
 if TYPE_CHECKING:
     from ..link.client import Robot
@@ -94,7 +95,7 @@ Sent = tuple[Wheels, "C.Request | None"]
 #: What each wheel pair becomes on the wire (velocity in cm/s, motor speed in %...).
 MakeMotion = Callable[[int, int], "C.Request"]
 #: Why forward motion is blocked now ("" when it is not): the bumper rule (``motion.bumpers``).
-Bumpers = Callable[[], str]
+Bumpers = Callable[[], "Why | None"]
 #: The robot to write to now (None while the link is down).
 Where = Callable[[], "Robot | None"]
 
@@ -126,9 +127,33 @@ class Source:
         return self.name or f"{self.kind.value} {self.id}"
 
 
-#: (source that drove, why motion stopped, source that stopped it: None for a rule such as the deadman or
-#: an unnamed caller): told when motion stops for any reason but a new offer.
-OnStop = Callable[[Source | None, str, Source | None], None]
+@dataclass(frozen=True)
+class Stopped:
+    """Motion stopped, as told to every listener: who drove, why (its reason as data), who stopped it, and
+    whether the robot can have heard it."""
+
+    #: The source that drove (None: nobody, or the motion was a rule's).
+    driver: Source | None
+    why: Why
+    #: The source that stopped it (None: a rule such as the deadman, or a caller with no source).
+    by: Source | None = None
+    #: A stop frame reached the wire, or nothing was moving: False when the link was down and motion was
+    #: left on the wire (the robot may still be moving; the stop goes out when the link is back).
+    written: bool = True
+
+    @property
+    def reason(self) -> Reason:
+        return self.why.reason
+
+    def __str__(self) -> str:
+        """How every front end says it: "stopped" only when a stop was written."""
+        if self.written:
+            return f"stopped: {self.why}"
+        return f"{self.why}: stop NOT written (the link is down): the robot may still be moving"
+
+
+#: Told when motion stops for any reason but a new offer, after the stop was written (or could not be).
+OnStop = Callable[[Stopped], None]
 #: (driver, its renewal as a ``Late``): told when a driver's renewal came after half the lease it renewed.
 OnLate = Callable[[Source, "Late"], None]
 
@@ -247,7 +272,8 @@ class Lease:
         self.last = -math.inf
         #: When the lease runs out (monotonic): the last offer's time plus its lease.
         self.until = -math.inf
-        self.why_stopped = ""
+        #: Why the wheels are still (None while they move).
+        self.why: Why | None = None
         self.stopped_driver: Source | None = None
         #: Who stopped the motion last (None: a rule, or an unnamed caller), and who made the last hold.
         self.stopped_by: Source | None = None
@@ -268,22 +294,23 @@ class Lease:
         source: Source,
         wheels: Wheels,
         now: float,
-        blocked: str,
+        blocked: Why | None,
         lease: float | None = None,
         request: C.Request | None = None,
         once: bool = False,
     ) -> Verdict:
         if wheels == STILL and self.driver not in (None, source):
-            self.stop(f"{source} asked for zero", now, source)  # anyone may stop
+            self.stop(Why(Reason.STOP, f"{source} asked for zero"), now, source)  # anyone may stop
             return Verdict(True)
         verdict = self.claim(source, now, lease)
         if not verdict:
             return Verdict(True) if wheels == STILL else verdict  # held out, and still: nothing to stop
-        if forward(wheels) and blocked:
-            self._set(STILL, f"{blocked}: forward blocked")
+        if forward(wheels) and blocked is not None:
+            self._block(blocked, ": forward blocked")
             return Verdict(False, f"refused: {blocked} (forward blocked)")
         moving = wheels != STILL
-        self._set(wheels, "" if moving else "asked for zero", request=request if moving else None, once=once)
+        why = None if moving else Why(Reason.OTHER, "asked for zero")
+        self._set(wheels, why, request=request if moving else None, once=once)
         return Verdict(True)
 
     def claim(self, source: Source, now: float, lease: float | None = None) -> Verdict:
@@ -311,17 +338,28 @@ class Lease:
         late, self._late = self._late, None
         return late
 
-    def check(self, now: float, blocked: str) -> None:
+    def check(self, now: float, blocked: Why | None) -> None:
         """The deadman and the bumpers (``blocked``: why forward is not allowed): once per turn of the clock."""
         if self.driver is not None and now > self.until:
             if self.wheels != STILL:
-                self.release(self.driver, f"deadman: {self.silence} for {self.until - self.last:g} s")
+                silent = f"deadman: {self.silence} for {self.until - self.last:g} s"
+                self.release(self.driver, Why(Reason.DEADMAN, silent))
             else:
                 self.driver = None  # a silent driver gives the robot up to the next source
-        if forward(self.wheels) and blocked:
-            self._set(STILL, blocked)
+        if forward(self.wheels) and blocked is not None:
+            self._block(blocked)
 
-    def release(self, source: Source, why: str) -> None:
+    def _block(self, blocked: Why, said: str = "") -> None:
+        """Still, for the bumper rule's reason. A stop already made for the same reason is not made (nor
+        told) again, only its words renewed: a stale reading's words change with its age, and a writer
+        sending on must not become a line a message."""
+        why = Why(blocked.reason, f"{blocked}{said}")
+        if self.wheels == STILL and self.why is not None and self.why.reason is blocked.reason:
+            self.why = why
+        else:
+            self._set(STILL, why)
+
+    def release(self, source: Source, why: Why) -> None:
         if self.driver == source:
             self.driver = None
             self._set(STILL, why, source)
@@ -338,7 +376,7 @@ class Lease:
         """A word refused unread, its source unknown: a stop while such words are live holds everyone."""
         self.streams.unknown = now
 
-    def stop(self, why: str, now: float, by: Source | None = None, hold: bool = True) -> None:
+    def stop(self, why: Why, now: float, by: Source | None = None, hold: bool = True) -> None:
         """Motion ends and the lease is free; with ``hold``, every live stream is held out (``Streams``)
         but ``by``'s own when it drove or nobody did: a driver's own stop never locks it out."""
         self.driver, driver = None, self.driver
@@ -348,19 +386,24 @@ class Lease:
         self.stop_asked = True
         self._set(STILL, why, driver, by=by)
 
+    @property
+    def why_stopped(self) -> str:
+        """Why the wheels are still, in words ("" while they move)."""
+        return "" if self.why is None else self.why.text
+
     def _set(
         self,
         wheels: Wheels,
-        why: str,
+        why: Why | None,
         source: Source | None = None,
         request: C.Request | None = None,
         once: bool = False,
         by: Source | None = None,
     ) -> None:
-        if (wheels, why, request, once) != (self.wheels, self.why_stopped, self.request, self.once):
+        if (wheels, why, request, once) != (self.wheels, self.why, self.request, self.once):
             self.stopped_driver = source if wheels == STILL else None
             self.stopped_by = by if wheels == STILL else None
-            self.wheels, self.why_stopped = wheels, why
+            self.wheels, self.why = wheels, why
             self.request, self.once = request, once
             self.version += 1
 
@@ -384,7 +427,7 @@ class Governor:
         self.driven: Robot | None = None
         self._make = make
         self._listeners: list[OnStop] = []
-        self._bumpers: Bumpers = lambda: ""
+        self._bumpers: Bumpers = lambda: None
         self._on_late: OnLate = lambda source, late: None
         self._robot: Where = lambda: None
         self._lock = threading.Lock()
@@ -492,21 +535,27 @@ class Governor:
             with contextlib.suppress(Exception):  # a word about the margin never costs the offer
                 self._on_late(source, late)
 
-    def release(self, source: Source, why: str) -> None:
-        """``source`` is gone (disconnected, unadvertised): if it drove, stop."""
+    def release(self, source: Source, why: str, reason: Reason = Reason.RELEASED) -> None:
+        """``source`` is gone (disconnected, unadvertised): if it drove, stop, for ``reason``."""
         with self._lock:
-            self.lease.release(source, why)
+            self.lease.release(source, Why(reason, why))
         self._wake.set()
 
     def stop(
-        self, why: str, by: Source | None = None, *, hold: bool = True, now: float | None = None
+        self,
+        why: str,
+        by: Source | None = None,
+        *,
+        reason: Reason = Reason.STOP,
+        hold: bool = True,
+        now: float | None = None,
     ) -> None:
         """Anyone may stop: motion ends and the lease is free. ``by``: who stops (None: a caller with no
-        source); ``hold``: the stop holds the live streams out (``Streams``), as every stop from someone
-        does; a rule's own (the link lost) need not."""
+        source); ``reason``: why, as data (``why`` says it to people); ``hold``: the stop holds the live
+        streams out (``Streams``), as every stop from someone does; a rule's own (the link lost) need not."""
         now = time.monotonic() if now is None else now
         with self._lock:
-            self.lease.stop(why, now, by, hold)
+            self.lease.stop(Why(reason, why), now, by, hold)
         self._wake.set()
 
     def port_stop(self, who: str) -> None:
@@ -572,67 +621,74 @@ class Governor:
         return lease.driver is not None or lease.wheels != STILL or self._moving or lease.stop_asked
 
     def turn(self, now: float) -> None:
-        """The clock first (deadman, bumpers), then the wire: a change at once, a repeat every RESEND."""
+        """The clock first (deadman, bumpers), then the wire: a change at once, a repeat every RESEND. A
+        stop is written before anyone is told of it, and told as written or not."""
         with self._lock:
-            self.lease.check(now, self._blocked())
-            wheels, version = self.lease.wheels, self.lease.version
-            request, once = self.lease.request, self.lease.once
-            stopped = (self.lease.stopped_driver, self.lease.why_stopped, self.lease.stopped_by)
-            asked, self.lease.stop_asked = self.lease.stop_asked, False
-        if version != self._seen:
-            self._seen = version
-            if wheels == STILL and stopped[1]:
-                self._tell_stop(*stopped)
+            lease = self.lease
+            lease.check(now, self._blocked())
+            wheels, version, request, once = lease.wheels, lease.version, lease.request, lease.once
+            why, driver, by = lease.why, lease.stopped_driver, lease.stopped_by
+            asked, lease.stop_asked = lease.stop_asked, False
+        told = version != self._seen and wheels == STILL and why is not None
+        self._seen = version
         if wheels == STILL:
-            if asked or self._moving:
-                self._write(STILL, now)
+            # nothing to write when nothing was asked and nothing moves: still, as said
+            written = self._write(STILL, now) if asked or self._moving else True
+            if told and why is not None:
+                self._tell_stop(Stopped(driver, why, by, written))
         elif (wheels, request) != self._sent or (not once and now - self._sent_at >= RESEND):
             self._write(wheels, now, request)
 
     def _failed(self, exc: Exception) -> None:
         with contextlib.suppress(Exception), self._lock:
-            self.lease.stop(f"internal error: {exc!r}", time.monotonic())
+            self.lease.stop(Why(Reason.ERROR, f"internal error: {exc!r}"), time.monotonic())
+        written = False
         with contextlib.suppress(Exception):
-            self._write(STILL)
+            written = self._write(STILL)
         with contextlib.suppress(Exception):
-            self._tell_stop(None, f"internal error in the governor: {exc!r}", None)
+            self._tell_stop(
+                Stopped(None, Why(Reason.ERROR, f"internal error in the governor: {exc!r}"), None, written)
+            )
 
-    def _tell_stop(self, source: Source | None, why: str, by: Source | None) -> None:
+    def _tell_stop(self, stopped: Stopped) -> None:
         """Every listener hears the stop; the first failure is raised after all were told (a turn that
         fails is a stop and a note)."""
         failed: Exception | None = None
         for listener in self._listeners:
             try:
-                listener(source, why, by)
+                listener(stopped)
             except Exception as exc:
                 failed = failed or exc
         if failed is not None:
             raise failed
 
-    def _blocked(self) -> str:
+    def _blocked(self) -> Why | None:
         """The bumper rule's word; a rule that fails blocks forward motion (it cannot say the way is clear)."""
         try:
-            return str(self._bumpers())
+            return self._bumpers()
         except Exception as exc:
-            return f"the bumper rule failed ({exc!r})"
+            return Why(Reason.ERROR, f"the bumper rule failed ({exc!r})")
 
-    def _write(self, wheels: Wheels, now: float | None = None, request: C.Request | None = None) -> None:
-        """Motion (``request``, or ``make``'s frame for the wheels), or stop for none; a failure other
-        than a lost link ends the run (``error``)."""
+    def _write(self, wheels: Wheels, now: float | None = None, request: C.Request | None = None) -> bool:
+        """Motion (``request``, or ``make``'s frame for the wheels), or stop for none: whether it reached the
+        wire. A failure other than a lost link ends the run (``error``)."""
         robot = self._robot()
         if robot is None:
-            return  # the port is gone: the poller reconnects; the final stop rescues a robot left moving
+            return (
+                False  # the port is gone: the poller reconnects; the final stop rescues a robot left moving
+            )
         try:
             if wheels == STILL:
                 robot.stop()
             else:
                 robot.send(self._make(*wheels) if request is None else request)
         except PortError:
-            return  # the link just dropped: as above
+            return False  # the link just dropped: as above
         except HcrError as exc:
             self.error = self.error or exc
-            return
+            return False
         finally:
             self.driven = robot
         self.frames += 1
         self._sent, self._sent_at = (wheels, request), time.monotonic() if now is None else now
+        return True

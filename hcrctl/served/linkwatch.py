@@ -23,6 +23,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from ..motion.governor import Governor
+from ..motion.reasons import Reason
 from .feed import Feed
 
 if TYPE_CHECKING:
@@ -45,22 +46,24 @@ class LinkWatch:
         governor.attach(self.robot)
 
     def robot(self) -> Robot | None:
-        """The robot to write to now: the polled one if it is the one that answered, else None."""
+        """The robot to write to now: the polled one if it is the one that answered and the link is not
+        lost, else None (a stop then is told as not written, and is written once the robot is back)."""
         current = self.feed.current
-        return current if current is not None and current is self._answered else None
+        return current if not self.lost and current is not None and current is self._answered else None
 
     def check(self) -> None:
         current, status = self.feed.current, self.feed.state.status
         if not self.lost and (status == "disconnected" or current is not self._answered):
             self.lost = True
             self.note(f"warning: {self.port} went away: the drive lease is ended; re-opening it")
-            self.governor.stop(f"{self.port} went away", hold=False)  # a rule's stop: nobody to hold out
+            # a rule's stop: nobody to hold out
+            self.governor.stop(f"{self.port} went away", reason=Reason.PORT_LOST, hold=False)
         elif self.lost and current is not None and status == "ok":
             self.lost, self._answered, self._said_silent = False, current, False
-            self.note(f"{self.port} is back (the robot answers): stop sent")
+            # said as "stopped" once written, to the device that answered
             self.governor.stop(
-                f"{self.port} went away", hold=False
-            )  # the same reason: written, not said again
+                f"{self.port} is back (the robot answers)", reason=Reason.PORT_LOST, hold=False
+            )
         elif self.lost and current is not None and status == "no reply" and not self._said_silent:
             self._said_silent = True
             self.note(

@@ -51,7 +51,7 @@ from ..link.dialects import supported_sensors
 from ..link.handoff import quick_handoff
 from ..link.portstop import owning
 from ..motion.bumpers import BumperRule
-from ..motion.governor import Governor, Source
+from ..motion.governor import Governor, Stopped
 from ..protocol import commands as C
 from ..protocol.profiles import profile
 from ..protocol.topics import Topic, all_topics
@@ -119,8 +119,8 @@ class FrontEnd:
         """After the first sweep; its part of the "serving ..." line ("" for none)."""
         return ""
 
-    def stopped(self, source: Source | None, why: str, by: Source | None = None) -> None:
-        """Motion stopped: tell ``source`` (who drove) if it is one of this front end's; ``by``: who stopped."""
+    def stopped(self, stopped: Stopped) -> None:
+        """Motion stopped: tell its driver if it is one of this front end's sources."""
 
     def tick(self) -> None:
         """A turn of the main loop."""
@@ -258,8 +258,13 @@ class ServedRobot:
         for front in self._fronts.values():
             front.publish(topic, message, at)
 
-    def _said_stop(self, source: Source | None, why: str, by: Source | None = None) -> None:
-        self.notes.note(f"stopped: {shown(why, 120)}")
+    def _said_stop(self, stopped: Stopped) -> None:
+        """ "stopped" only when a stop was written; a stop the link kept from the wire is said as such."""
+        said = shown(str(stopped), 200)
+        if stopped.written:
+            self.notes.note(said)
+        else:
+            self.notes.note(f"warning: {said}; it goes out once the robot answers again")
 
     def _quietly(self, front: FrontEnd, step: Callable[[], None]) -> None:
         """A step of the closing: a failure is a note naming the front end (stop has gone out, or goes out

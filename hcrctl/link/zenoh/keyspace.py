@@ -289,20 +289,6 @@ REASONS = (
     "error",
     "other",
 )
-#: The governor's words for a stop, first match wins: (what the words start with or contain, the reason).
-_REASON_WORDS = (
-    ("bumper reading", "stale"),
-    ("bumper", "bumper"),
-    ("deadman", "deadman"),
-    ("stop from ", "stop"),
-    ("operator ", "operator gone"),
-    ("went away", "port lost"),
-    ("lost the link", "port lost"),
-    ("second sender", "second sender"),
-    ("released", "released"),
-    ("left", "released"),
-    ("internal error", "error"),
-)
 #: The longest text a status message carries.
 MAX_STATUS_TEXT = 1000
 
@@ -339,20 +325,15 @@ def drives_status(op: Who, robot: str) -> Status:
     return Status("drives", f"{op} drives {robot}", op.name, op.session)
 
 
-def stopped_status(op: Hashable | None, why: str) -> Status:
-    """Motion stopped for ``why`` (the governor's words), while ``op`` drove."""
-    return Status("stopped", f"stopped: {why}", *addressed(op), reason=stop_reason(why))
+def stopped_status(op: Hashable | None, said: str, reason: str) -> Status:
+    """Motion stopped for ``reason`` (a ``REASONS`` word, decided where the stop was made; ``said`` tells it
+    to people and is never read for it), while ``op`` drove."""
+    return Status("stopped", said, *addressed(op), reason=reason)
 
 
 def refused_status(op: Hashable | None, text: str, seq: int | None = None) -> Status:
     """A message of ``op``'s (``seq``) refused or ignored, and why (``text``)."""
     return Status("refused", text, *addressed(op), seq=seq)
-
-
-def stop_reason(why: str) -> str:
-    """The ``REASONS`` word for the governor's words of a stop."""
-    lowered = why.lower()
-    return next((reason for words, reason in _REASON_WORDS if words in lowered), "other")
 
 
 def parse_status(data: bytes) -> Status | None:
