@@ -169,8 +169,9 @@ class Outlet:
         self._closing = False
         self._cond = threading.Condition()
         self._thread: threading.Thread | None = None
-        #: A regular file never waits for a reader: written at once, in the caller's thread.
-        self._direct = _is_file(fd)
+        #: A file or a device that is no terminal (``/dev/full``, ``/dev/null``) never waits for a reader:
+        #: written at once, in the caller's thread, so its failure is said where it happened.
+        self._direct = _never_waits(fd)
         self._direct_lock = threading.Lock()
         with _OUTLETS_LOCK:
             _OUTLETS.append(self)
@@ -322,9 +323,11 @@ class Outlet:
             os.close(self.fd)
 
 
-def _is_file(fd: int) -> bool:
+def _never_waits(fd: int) -> bool:
+    """Whether writes to ``fd`` never wait for a reader: a file or a device, but no pipe, socket or terminal."""
     try:
-        return stat.S_ISREG(os.fstat(fd).st_mode)
+        mode = os.fstat(fd).st_mode
+        return stat.S_ISREG(mode) or stat.S_ISBLK(mode) or (stat.S_ISCHR(mode) and not os.isatty(fd))
     except OSError:
         return False
 

@@ -138,7 +138,7 @@ def hcrctl(sim: FirmwareSim, *args: str) -> subprocess.CompletedProcess[str]:
 
 
 def held_drive(sim: FirmwareSim, left: int, right: int) -> subprocess.Popen[str]:
-    """``drive power L R`` held until SIGINT (its normal end: it then sends stop)."""
+    """``drive power L R`` held until SIGINT (it then sends stop, and exits 130 as Ctrl-C does)."""
     return subprocess.Popen(
         [hcrctl_exe(), *V011, "--port", sim.port, "drive", "power", str(left), str(right)],
         stdout=subprocess.PIPE,
@@ -152,7 +152,7 @@ def held_drive(sim: FirmwareSim, left: int, right: int) -> subprocess.Popen[str]
 def end_drive(drive: subprocess.Popen[str]) -> str:
     drive.send_signal(signal.SIGINT)
     _, err = drive.communicate(timeout=TIMEOUT)
-    assert drive.returncode == 0, err
+    assert drive.returncode == 130, err
     return err
 
 

@@ -401,11 +401,11 @@ def test_a_lost_serial_link_is_said_and_ends_the_drive(lab: Fleet, tmp_path: Pat
     """The port gone mid-drive: a warning on stderr, and the driver told its drive ended (not resumed later)."""
     sim = lab.start(["sim", "--pty"])
     port = readline(sim)
-    serve = lab.serve("r1", port, "--deadman", "10")
+    serve = lab.serve("r1", port, "--deadman", "10", log=tmp_path / "r1.jsonl")
     with operator(lab.endpoint, "r1", "op1") as op:
         op.open()
         op.cmd_vel(twist(0.2))
-        op.wait_said("op1 drives r1")
+        wait_until(lambda: serve.sent_codes({VELOCITY}), what="velocity on the wire")
         sim.kill()
         text = serve.wait_err("went away")
         said = op.wait_said("went away")

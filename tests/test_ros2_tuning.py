@@ -17,9 +17,9 @@ from typing import Any
 
 from helpers import wait_until
 from helpers_cli import run, sim_pty
+from helpers_cyclone import CycloneClient
 from helpers_dds import (
     LATCHED_QOS,
-    CycloneClient,
     Place,
     RosSide,
     Serve,

@@ -89,7 +89,7 @@ def _held(settings: Settings, record: dict[str, Any], robot: Robot, hold_for: fl
 @click.command()
 @click.pass_obj
 def stop(settings: Settings) -> None:
-    """Stop both motors (motor power 0x80 0x80).
+    """Stop both motors (motor power 0x80 0x80), also on a port another hcrctl holds.
 
     Anyone may stop, also from another terminal: when another hcrctl holds
     the port (a drive, teleop, watch, the shell, a bridge, ros2 or fleet

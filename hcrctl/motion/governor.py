@@ -137,9 +137,11 @@ class Stopped:
     why: Why
     #: The source that stopped it (None: a rule such as the deadman, or a caller with no source).
     by: Source | None = None
-    #: A stop frame reached the wire, or nothing was moving: False when the link was down and motion was
-    #: left on the wire (the robot may still be moving; the stop goes out when the link is back).
+    #: A stop frame reached the wire for it (False: none was needed, or the link was down).
     written: bool = True
+    #: Motion of this run's was on the wire and no stop could follow it: the robot may still be moving
+    #: (the stop goes out when the link is back).
+    left_moving: bool = False
 
     @property
     def reason(self) -> Reason:
@@ -149,7 +151,9 @@ class Stopped:
         """How every front end says it: "stopped" only when a stop was written."""
         if self.written:
             return f"stopped: {self.why}"
-        return f"{self.why}: stop NOT written (the link is down): the robot may still be moving"
+        if self.left_moving:
+            return f"{self.why}: stop NOT written (the link is down): the robot may still be moving"
+        return f"{self.why}: no stop written (the link is down); the last motion frame sent was a stop"
 
 
 #: Told when motion stops for any reason but a new offer, after the stop was written (or could not be).
@@ -632,10 +636,10 @@ class Governor:
         told = version != self._seen and wheels == STILL and why is not None
         self._seen = version
         if wheels == STILL:
-            # nothing to write when nothing was asked and nothing moves: still, as said
-            written = self._write(STILL, now) if asked or self._moving else True
+            moving = self._moving  # nothing to write when nothing was asked and nothing moves: still, as said
+            written = self._write(STILL, now) if asked or moving else not asked
             if told and why is not None:
-                self._tell_stop(Stopped(driver, why, by, written))
+                self._tell_stop(Stopped(driver, why, by, written, left_moving=moving and not written))
         elif (wheels, request) != self._sent or (not once and now - self._sent_at >= RESEND):
             self._write(wheels, now, request)
 
@@ -646,9 +650,8 @@ class Governor:
         with contextlib.suppress(Exception):
             written = self._write(STILL)
         with contextlib.suppress(Exception):
-            self._tell_stop(
-                Stopped(None, Why(Reason.ERROR, f"internal error in the governor: {exc!r}"), None, written)
-            )
+            said = Why(Reason.ERROR, f"internal error in the governor: {exc!r}")
+            self._tell_stop(Stopped(None, said, None, written, left_moving=not written))
 
     def _tell_stop(self, stopped: Stopped) -> None:
         """Every listener hears the stop; the first failure is raised after all were told (a turn that

@@ -261,10 +261,10 @@ class ServedRobot:
     def _said_stop(self, stopped: Stopped) -> None:
         """ "stopped" only when a stop was written; a stop the link kept from the wire is said as such."""
         said = shown(str(stopped), 200)
-        if stopped.written:
-            self.notes.note(said)
-        else:
+        if stopped.left_moving:
             self.notes.note(f"warning: {said}; it goes out once the robot answers again")
+        else:
+            self.notes.note(said)
 
     def _quietly(self, front: FrontEnd, step: Callable[[], None]) -> None:
         """A step of the closing: a failure is a note naming the front end (stop has gone out, or goes out
