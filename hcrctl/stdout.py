@@ -422,8 +422,9 @@ def install() -> None:
     """Make ``sys.stdout`` and ``sys.stderr`` write through outlets (the console script's start)."""
     sys.stdout.flush()
     sys.stderr.flush()
-    for fd, name in ((STDOUT, "stdout"), (STDERR, "stderr")):
-        _STD[fd] = Outlet(fd, name)
+    _STD[STDOUT] = Outlet(STDOUT, "stdout")
+    # One file behind both (a terminal, a 2>&1): one outlet, so their lines keep the order they were written in.
+    _STD[STDERR] = _STD[STDOUT] if _same_file(STDOUT, STDERR) else Outlet(STDERR, "stderr")
     sys.stdout = Stream(_STD[STDOUT], sys.stdout)
     sys.stderr = Stream(_STD[STDERR], sys.stderr)
     atexit.register(_written_at_exit)
@@ -438,6 +439,20 @@ def _written_at_exit() -> None:
         outlet.wait_written(None if _exit_wait(by_signal=False) is None else EXIT_WAIT_S)
 
 
+def _same_file(fd: int, other: int) -> bool:
+    try:
+        one, two = os.fstat(fd), os.fstat(other)
+    except OSError:
+        return False
+    return (one.st_dev, one.st_ino) == (two.st_dev, two.st_ino)
+
+
+def _stderr_only() -> Outlet | None:
+    """stderr's outlet when it is not stdout's too."""
+    stderr = _STD.get(STDERR)
+    return None if stderr is _STD.get(STDOUT) else stderr
+
+
 def stdout_outlet() -> Outlet | None:
     """The outlet stdout is written through, so other writers (``--log -``) keep its order; None before ``install``."""
     return _STD.get(STDOUT)
@@ -448,7 +463,7 @@ def written() -> None:
     stdout met if no caller was told yet: the command's own error path says it (a full disk), and a
     ``--log`` that failed on its thread is counted (``trafficlog.incomplete``) before the status is made."""
     with _OUTLETS_LOCK:
-        outlets = [o for o in _OUTLETS if o is not _STD.get(STDERR)]
+        outlets = [o for o in _OUTLETS if o is not _stderr_only()]
     for outlet in outlets:
         outlet.wait_written(_exit_wait(by_signal=False))
     if STDOUT in _STD:
@@ -493,10 +508,11 @@ def finish(code: int) -> int:
     _finished.set()
     by_signal = _normal_signal_end.is_set() or code in {signalled(sig) for sig in STOP_SIGNALS}
     with _OUTLETS_LOCK:
-        outlets = [o for o in _OUTLETS if o is not _STD.get(STDERR)]
+        outlets = [o for o in _OUTLETS if o is not _stderr_only()]
     lost = False
     for outlet in outlets:
-        outlet.close()
+        if outlet is not _STD.get(STDERR):  # stderr's, shared with stdout, still says what was lost
+            outlet.close()
         try:
             with stop_signals_raise():
                 outlet.wait_written(_exit_wait(by_signal))

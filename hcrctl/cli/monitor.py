@@ -223,14 +223,14 @@ def _drain_until(
         while deadline is None or time.monotonic() < deadline:
             if robot.error is not None:
                 raise robot.error
-            if robot.profile is not heard_as:
-                heard_as = robot.profile
-                click.echo(f"hcrctl: monitor: {_followed(robot.profile)}", err=True)
             wait = POLL_S if deadline is None else max(0.0, min(POLL_S, deadline - time.monotonic()))
             try:
                 traffic = inbox.get(timeout=wait)
             except queue.Empty:
                 continue
+            if robot.profile is not heard_as:  # said before the first row read in the dialect followed
+                heard_as = robot.profile
+                click.echo(f"hcrctl: monitor: {_followed(robot.profile)}", err=True)
             printer.show_traffic(traffic, robot.rule, robot.profile)
     except KeyboardInterrupt:
         if deadline is not None:
