@@ -4,6 +4,7 @@ and their messages as rosbags (Jazzy) decodes them."""
 from __future__ import annotations
 
 import dataclasses
+import io
 from types import SimpleNamespace
 from typing import Any
 
@@ -15,6 +16,7 @@ from hcrctl.protocol import ros2types as R
 from hcrctl.ros2 import diagnostics as D
 from hcrctl.ros2 import rosout
 from hcrctl.ros2.graph import MAX_WRITERS, Graph
+from hcrctl.served.notes import Level, Notes
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 HEALTHY = D.Link("/dev/ttyUSB0", "ok", 9.9, 10.0, 0, 0, 0, 0, 0.05, 0.5)
@@ -64,17 +66,11 @@ def test_the_array_decodes_as_jazzy_s() -> None:
     assert {"key": "sweeps per second", "value": "9.90"} in link["values"]
 
 
-@pytest.mark.parametrize(
-    ("text", "level"),
-    [
-        ("serving /dev/pts/3 as ROS 2 node /hcr/hcrctl on DDS domain 0; Ctrl-C ends it", R.LOG_INFO),
-        ("stopped: deadman: no cmd_vel for 0.5 s", R.LOG_WARN),
-        ("cmd_vel from ROS 2 writer 1a refused: ROS 2 node /t drives the robot", R.LOG_WARN),
-        ("closing the ROS 2 node failed (ignored): OSError()", R.LOG_ERROR),
-    ],
-)
-def test_rosout_levels_and_logger_name(text: str, level: int) -> None:
-    fields = rosout.log(text, rosout.logger_name("/hcr/hcrctl"), at=1_700_000_000.25)
+@pytest.mark.parametrize("level", [R.LOG_INFO, R.LOG_WARN, R.LOG_ERROR])
+def test_rosout_carries_the_level_a_line_was_said_at_never_one_read_from_its_words(level: int) -> None:
+    """A peer's name may be any word ("/error_bot", "stopped", "lost"): the level is the code's."""
+    text = "serving /dev/pts/3 as ROS 2 node /error_bot (failed, lost, refused, stopped); Ctrl-C ends it"
+    fields = rosout.log(text, rosout.logger_name("/hcr/hcrctl"), level, at=1_700_000_000.25)
     decoded = plain(jazzy().deserialize_cdr(ros2msg.encoder(R.LOG)(fields), R.LOG))
     assert decoded["level"] == level and decoded["name"] == "hcr.hcrctl" and decoded["msg"] == text
     assert decoded["stamp"] == {"sec": 1_700_000_000, "nanosec": 250_000_000}
@@ -117,3 +113,18 @@ def test_a_peer_cannot_fill_the_graph_or_the_terminal() -> None:
     graph.update(_info(3, [("/", "late\x1b[2J", [MAX_WRITERS + 1000])]))
     name = graph.node_of((MAX_WRITERS + 1000).to_bytes(16, "big"))
     assert name is not None and "\x1b" not in name
+
+
+def test_every_listener_of_the_notes_hears_each_line_with_the_level_it_was_said_at() -> None:
+    heard: list[tuple[str, Level]] = []
+    notes = Notes(io.StringIO(), "hcrctl: ros2: ")
+    notes.listen(lambda text, level: heard.append((text, level)))
+    notes.note("client /error_bot connected")
+    notes.note("stopped: stop from /info_bot", Level.WARN)
+    notes.note("closing failed (ignored)", Level.ERROR)
+    assert heard == [
+        ("client /error_bot connected", Level.INFO),
+        ("stopped: stop from /info_bot", Level.WARN),
+        ("closing failed (ignored)", Level.ERROR),
+    ]
+    assert {int(level) for level in Level} == {R.LOG_INFO, R.LOG_WARN, R.LOG_ERROR}  # rcl's own numbers

@@ -37,7 +37,7 @@ from ..motion.governor import Kind, Late, Source, Stopped
 from ..numtext import plural
 from ..protocol import commands as C
 from ..recording.progress import sweeps
-from ..served.notes import Notes
+from ..served.notes import Level, Notes
 from ..served.runtime import FrontEnd, exposed
 from ..served.view import RuntimeView
 from ..signals import Terminated
@@ -194,7 +194,7 @@ class Fleet(FrontEnd):
         try:
             step()
         except Exception as exc:
-            self.notes.note(f"{what} failed while closing (ignored): {exc!r}")
+            self.notes.note(f"{what} failed while closing (ignored): {exc!r}", Level.ERROR)
 
     # -- saying ---------------------------------------------------------------------------
 
@@ -271,7 +271,7 @@ class Fleet(FrontEnd):
             try:
                 callback(item)
             except Exception as exc:
-                self.notes.note(f"error in a fleet callback (ignored): {exc!r}")
+                self.notes.note(f"error in a fleet callback (ignored): {exc!r}", Level.ERROR)
 
         return call
 

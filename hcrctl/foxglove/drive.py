@@ -14,14 +14,12 @@ is said on stderr once per burst (``BurstNotes``), not once per advertise.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 from ..motion.governor import STILL, Governor, Kind, Source
 from ..served.bursts import BurstNotes
 from ..served.cmdvel import SCHEMA_NAMES, TOPIC, BadTwist, parse_twist, twist_wheels
+from ..served.notes import Level, Note
 from ..served.untrusted import shown
 
-Note = Callable[[str], None]
 #: (client id, client channel id)
 Publisher = tuple[int, int]
 #: ``/cmd_vel`` channels one client may hold: one drives; more only cost memory.
@@ -98,7 +96,7 @@ class CmdVelSource:
                 return f"{TOPIC} {refused}"
             if client not in self._complained:
                 self._complained.add(client)
-                self._note(f"{source}: {TOPIC} refused: {exc}")
+                self._note(f"{source}: {TOPIC} refused: {exc}", Level.WARN)
             return f"{TOPIC} refused: {exc}"
         if refused is not None and wheels != STILL:  # a zero from anyone is a stop, never refused
             return f"{TOPIC} {refused}"

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import contextlib
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
 
 from ..errors import HcrError
@@ -32,6 +32,7 @@ from ..errors.terminal import printable
 from ..protocol.encodings import ENCODINGS, Encode
 from ..protocol.topics import Topic
 from ..recording.sinks import RecordingIncomplete, SinkWriteError, seconds
+from ..served.notes import Level, Note
 from .drive import CmdVelSource
 from .websocket import Channel, FoxgloveServer
 
@@ -39,7 +40,6 @@ if TYPE_CHECKING:
     from ..recording.mcapsink import McapSink
 
 SERVER_NAME = "hcrctl"
-Note = Callable[[str], None]
 
 
 class Server:
@@ -148,7 +148,7 @@ class Server:
 
     def _said_incomplete(self, exc: SinkWriteError, then: str) -> None:
         said = self.incomplete = RecordingIncomplete(exc.path, exc.why)
-        self.note(printable(f"error: {said.message}{then} (hint: {said.hint})"))
+        self.note(printable(f"error: {said.message}{then} (hint: {said.hint})"), Level.ERROR)
 
     def _add_channel(self, topic: Topic) -> None:
         """The topic's channel in this server's encoding, and how a message dict becomes its payload."""

@@ -47,6 +47,7 @@ from websockets.http11 import Request, Response
 
 from ..inputs import MAX_PEER_JSON, PeerJsonError, peer_json
 from ..served.bursts import BurstNotes
+from ..served.notes import Level, Note
 from ..served.untrusted import origin_allowed, shown
 from .client import CONTROL_RATE, ERROR, STALLED_S, WARNING, Channel, Client
 from .drive import CmdVelSource
@@ -71,7 +72,6 @@ REAP_EVERY = 1.0
 #: Messages waiting for the fan-out; beyond it the oldest are dropped (the loop could not keep up).
 PENDING = 4096
 
-Note = Callable[[str], None]
 _Item = TypeVar("_Item")
 
 
@@ -248,7 +248,9 @@ class FoxgloveServer:
         if now - self._told_full >= 60:
             self._told_full = now
             exc = context.get("exception")
-            self.note(f"websocket: {context.get('message', 'error')}" + (f" ({exc})" if exc else ""))
+            self.note(
+                f"websocket: {context.get('message', 'error')}" + (f" ({exc})" if exc else ""), Level.ERROR
+            )
 
     # -- a connection ---------------------------------------------------------------------
 

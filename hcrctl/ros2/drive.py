@@ -31,6 +31,7 @@ from typing import Any
 
 from ..motion.governor import STILL, Governor, Kind, Source, Wheels
 from ..served.cmdvel import BadTwist, speed, twist_wheels
+from ..served.notes import Level, Note
 from ..served.refusals import Refusals
 
 TOPIC = "cmd_vel"
@@ -70,15 +71,13 @@ def read_wheels(message: Any) -> Wheels | str:
 class RosCmdVel:
     """Twists from DDS writers, turned into offers to ``governor``; counts of what was taken and refused."""
 
-    def __init__(
-        self, governor: Governor, note: Callable[[str], None], names: Names = lambda writer: None
-    ) -> None:
+    def __init__(self, governor: Governor, note: Note, names: Names = lambda writer: None) -> None:
         self.governor = governor
         self.taken = 0
         self.refused = 0
         self._note = note
         self._names = names
-        self._refusals: Refusals[Source] = Refusals(lambda source, text, seq: note(text))
+        self._refusals: Refusals[Source] = Refusals(lambda source, text, seq: note(text, Level.WARN))
 
     def message(self, writer: str, message: Any) -> None:
         """One sample from ``writer``: offered, or refused and counted (said on the budget)."""

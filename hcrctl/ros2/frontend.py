@@ -30,7 +30,7 @@ from ..motion.bumpers import BUMP
 from ..protocol import ros2conv, ros2msg, ros2srv
 from ..protocol import ros2types as R
 from ..recording.progress import sweeps
-from ..served.notes import Notes
+from ..served.notes import Level, Notes
 from ..served.runtime import FrontEnd
 from ..served.view import RuntimeView
 from . import diagnostics, rosout
@@ -117,9 +117,9 @@ class Ros2Node(FrontEnd):
             node.publish(name, fields)
             self.messages += 1
 
-    def _rosout(self, text: str) -> None:
+    def _rosout(self, text: str, level: Level) -> None:
         if self.node is not None:
-            self.node.publish(rosout.TOPIC, rosout.log(text, self._logger))
+            self.node.publish(rosout.TOPIC, rosout.log(text, self._logger, level))
 
     def _writer_name(self, writer: str) -> str | None:
         return self.node.writer_name(writer) if self.node is not None else None

@@ -36,6 +36,8 @@ from cyclonedds.domain import DomainParticipant
 from cyclonedds.sub import DataReader
 from cyclonedds.util import duration
 
+from ..served.notes import Level, Note
+
 #: Samples taken from a reader at a time.
 BATCH = 64
 #: The longest the thread waits without looking at its readers (seconds); a guard wakes it sooner.
@@ -50,7 +52,6 @@ ANY = SampleState.Any | ViewState.Any | InstanceState.Any
 OnSample = Callable[[Any], None]
 #: A writer (its instance handle) no longer matched.
 OnGone = Callable[[int], None]
-Note = Callable[[str], None]
 
 
 @dataclass
@@ -110,7 +111,7 @@ class Intake:
                 self._waitset.wait(duration(seconds=IDLE))
                 self._guard.take()
             except Exception as exc:  # the participant went first: nothing more to take
-                self._note(f"DDS intake ended: {exc!r}")
+                self._note(f"DDS intake ended: {exc!r}", Level.ERROR)
                 return
             with self._lock:
                 if self._closed:
@@ -136,13 +137,13 @@ class Intake:
                 for handle in self._gone(watch, senders):
                     self._call(reader, watch.on_gone, handle)
         except Exception as exc:  # the reader itself failed: the next wake tries again
-            self._note(f"error reading {reader.topic.name} (ignored): {exc!r}")
+            self._note(f"error reading {reader.topic.name} (ignored): {exc!r}", Level.ERROR)
 
     def _call(self, reader: DataReader, callback: Callable[[Any], None], what: Any) -> None:
         try:
             callback(what)
         except Exception as exc:  # a sample that breaks a callback costs that sample; the deadman stops
-            self._note(f"error in what {reader.topic.name} brought (ignored): {exc!r}")
+            self._note(f"error in what {reader.topic.name} brought (ignored): {exc!r}", Level.ERROR)
 
     @staticmethod
     def _gone(watch: _Watch, senders: set[int]) -> list[int]:

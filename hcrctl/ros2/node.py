@@ -41,6 +41,7 @@ from ..errors import HcrError
 from ..protocol import ros2conv, ros2msg, ros2srv
 from ..protocol.ros2types import TYPE_HASHES
 from ..protocol.topics import microseconds
+from ..served.notes import Note
 from . import idl
 from .graph import Graph
 from .intake import Intake
@@ -60,7 +61,6 @@ MAX_BUILT = 256
 OnMessage = Callable[[str, Any], None]
 #: A writer went away (unmatched).
 OnGone = Callable[[str], None]
-Note = Callable[[str], None]
 #: The thread that takes what the node reads.
 INTAKE = "ros2-intake"
 #: Samples a reader of the node holds between two takes of its intake, at least: a burst from many writers

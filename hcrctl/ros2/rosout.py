@@ -4,8 +4,8 @@ Each line the served robot's ``Notes`` writes (the front ends' and the
 runtime's: serving, stopped, refused, the link lost...) is also a ``Log`` on
 ``/rosout`` (rcl's QoS: reliable, transient local, keep last 1000, 10 s
 lifespan), named as rcl names a node's logger (``hcr.hcrctl`` for
-``/hcr/hcrctl``). Its level comes from the first word of ``LEVELS`` the line
-holds; INFO otherwise.
+``/hcr/hcrctl``). Its level is the one the line was said at (``Notes``' ``Level``,
+rcl's own numbers), never read from its words.
 """
 
 from __future__ import annotations
@@ -18,14 +18,6 @@ from ..protocol import ros2types as R
 from ..protocol.topics import microseconds
 
 TOPIC = "/rosout"
-#: (a word in the line, the level it gives), the first found wins.
-LEVELS = (
-    ("error", R.LOG_ERROR),
-    ("failed", R.LOG_ERROR),
-    ("lost", R.LOG_WARN),
-    ("refused", R.LOG_WARN),
-    ("stopped", R.LOG_WARN),
-)
 #: The longest line carried (a Log is no place for a megabyte).
 MAX_CHARS = 1000
 
@@ -35,16 +27,11 @@ def logger_name(fullname: str) -> str:
     return fullname.strip("/").replace("/", ".")
 
 
-def level(text: str) -> int:
-    lowered = text.lower()
-    return next((found for word, found in LEVELS if word in lowered), R.LOG_INFO)
-
-
-def log(text: str, name: str, at: float | None = None) -> dict[str, Any]:
-    """One ``Log`` of ``text`` from logger ``name``, stamped ``at`` (now by default)."""
+def log(text: str, name: str, level: int = R.LOG_INFO, at: float | None = None) -> dict[str, Any]:
+    """One ``Log`` of ``text`` at ``level`` from logger ``name``, stamped ``at`` (now by default)."""
     return {
         "stamp": ros2msg.stamp(microseconds(time.time() if at is None else at)),
-        "level": level(text),
+        "level": int(level),
         "name": name,
         "msg": text[:MAX_CHARS],
         "file": "hcrctl",

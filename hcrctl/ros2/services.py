@@ -47,6 +47,7 @@ from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 
 from ..protocol import ros2conv, ros2msg, ros2srv
+from ..served.notes import Level
 from . import idl
 from .intake import Intake, yield_lock
 from .node import Node, Note, dds_qos, reader_qos
@@ -134,7 +135,7 @@ class Services:
             reply = idl.build_service(ends.response, header, fields)
             self.replies.send(ends.writer, _asker(ends.reader, sample), reply)
         except Exception as exc:
-            self.note(f"error answering a {ends.response.rpartition('/')[2]} (ignored): {exc!r}")
+            self.note(f"error answering a {ends.response.rpartition('/')[2]} (ignored): {exc!r}", Level.ERROR)
 
     def _dropped(self) -> None:
         self.dropped += 1
@@ -249,7 +250,7 @@ class Replies:
                 reply.writer.write(reply.sample)
                 self.written += 1
             except Exception as exc:  # a reply that cannot be written costs that reply only
-                self._note(f"error writing a reply (ignored): {exc!r}")
+                self._note(f"error writing a reply (ignored): {exc!r}", Level.ERROR)
         with self._lock:
             self._pending.extendleft(reversed(keep))
 

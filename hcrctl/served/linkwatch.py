@@ -19,12 +19,12 @@ Checked from the server's main loop.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from ..motion.governor import Governor
 from ..motion.reasons import Reason
 from .feed import Feed
+from .notes import Level, Note
 
 if TYPE_CHECKING:
     from ..link.client import Robot
@@ -37,7 +37,7 @@ class LinkWatch:
     being polled, and after a re-open only once that device has answered.
     """
 
-    def __init__(self, feed: Feed, governor: Governor, note: Callable[[str], None], port: str) -> None:
+    def __init__(self, feed: Feed, governor: Governor, note: Note, port: str) -> None:
         self.feed, self.governor, self.note, self.port = feed, governor, note, port
         self.lost = False
         #: The device that last answered as the robot: the only one motion is written to.
@@ -55,7 +55,7 @@ class LinkWatch:
         current, status = self.feed.current, self.feed.state.status
         if not self.lost and (status == "disconnected" or current is not self._answered):
             self.lost = True
-            self.note(f"warning: {self.port} went away: the drive lease is ended; re-opening it")
+            self.note(f"warning: {self.port} went away: the drive lease is ended; re-opening it", Level.WARN)
             # a rule's stop: nobody to hold out
             self.governor.stop(f"{self.port} went away", reason=Reason.PORT_LOST, hold=False)
         elif self.lost and current is not None and status == "ok":
@@ -68,5 +68,6 @@ class LinkWatch:
             self._said_silent = True
             self.note(
                 f"warning: {self.port} re-opened, but nothing there answers as the robot did: "
-                "nothing is written to it until it does"
+                "nothing is written to it until it does",
+                Level.WARN,
             )

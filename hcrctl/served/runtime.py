@@ -59,7 +59,7 @@ from ..signals import SignalFlag, Terminated, stop_signals_handled
 from .endstop import stopping_driven
 from .feed import Feed
 from .linkwatch import LinkWatch
-from .notes import Notes
+from .notes import Level, Notes
 from .tuning import Tuning
 from .untrusted import shown
 from .view import RuntimeView
@@ -252,7 +252,9 @@ class ServedRobot:
         parts = [part for part in (front.start(self.view) for front in self._fronts.values()) if part]
         self.notes.note(f"serving {'; '.join(parts)}; Ctrl-C ends it")
         if not self.drives:
-            self.notes.note(f"this firmware ({robot.profile.name}) has no velocity command: nobody can drive")
+            self.notes.note(
+                f"this firmware ({robot.profile.name}) has no velocity command: nobody can drive", Level.WARN
+            )
 
     def _publish(self, topic: str, message: dict[str, Any], at: float) -> None:
         for front in self._fronts.values():
@@ -262,9 +264,9 @@ class ServedRobot:
         """ "stopped" only when a stop was written; a stop the link kept from the wire is said as such."""
         said = shown(str(stopped), 200)
         if stopped.left_moving:
-            self.notes.note(f"warning: {said}; it goes out once the robot answers again")
+            self.notes.note(f"warning: {said}; it goes out once the robot answers again", Level.ERROR)
         else:
-            self.notes.note(said)
+            self.notes.note(said, Level.WARN)
 
     def _quietly(self, front: FrontEnd, step: Callable[[], None]) -> None:
         """A step of the closing: a failure is a note naming the front end (stop has gone out, or goes out
@@ -272,7 +274,7 @@ class ServedRobot:
         try:
             step()
         except Exception as exc:
-            self.notes.note(f"closing the {front.label} failed (ignored): {exc!r}")
+            self.notes.note(f"closing the {front.label} failed (ignored): {exc!r}", Level.ERROR)
 
     def summary(self) -> dict[str, Any]:
         """The feed's summary (sweeps, sweeps_per_s...), the messages and drive frames; each front end's
