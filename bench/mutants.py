@@ -47,6 +47,11 @@ PANEL_LOOK = (
 VIEW_NAMES = "tests/test_frontends.py::test_front_ends_read_only_the_public_names_of_the_runtime_view"
 JSON_READER = "tests/test_one_home.py::test_no_module_reads_json_from_a_peer_but_through_the_one_reader"
 TUNING = ("tests/test_tuning.py", "tests/test_ros2_tuning.py")
+PERIODS = (
+    "tests/test_ros2_health.py::"
+    "test_each_report_counts_only_its_own_period_and_a_quiet_period_after_trouble_is_ok_again"
+)
+ATOMIC = "tests/test_ros2_params.py"
 CMDVEL = "hcrctl/served/cmdvel.py"
 PEER_JSON_CALL = "message = peer_json(data, parse_int=_integer)"
 
@@ -172,6 +177,34 @@ MUTANTS = (
         "        if looser and not by.authenticated and self.guarded:\n",
         "        if False:\n",
         TUNING,
+    ),
+    Mutant(
+        "diagnostics: totals for the period's counts",
+        "hcrctl/ros2/frontend.py",
+        "return count - last if count >= last else count",
+        "return count",
+        (PERIODS,),
+    ),
+    Mutant(
+        "diagnostics: the last report's counts never kept",
+        "hcrctl/ros2/frontend.py",
+        "last, self._last = self._last, (timeouts, checksum, refused)",
+        "last = self._last",
+        (PERIODS,),
+    ),
+    Mutant(
+        "parameters: atomically set one by one",
+        "hcrctl/ros2/params.py",
+        'why = self.set_all(list(request.get("parameters") or []))',
+        'why = next(filter(None, [self.set_all([p]) for p in request.get("parameters") or []]), "")',
+        (ATOMIC,),
+    ),
+    Mutant(
+        "parameters: the settings' refusals not asked first",
+        "hcrctl/ros2/params.py",
+        "if name in TUNED and (why := self.view.refusal(name, number, ROS2_PEER)):",
+        "if False:",
+        (ATOMIC,),
     ),
 )
 
