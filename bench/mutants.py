@@ -51,7 +51,14 @@ PERIODS = (
     "tests/test_ros2_health.py::"
     "test_each_report_counts_only_its_own_period_and_a_quiet_period_after_trouble_is_ok_again"
 )
-ATOMIC = "tests/test_ros2_params.py"
+ATOMIC = (
+    "tests/test_ros2_params.py",
+    "tests/test_ros2_tuning.py::test_a_bad_gain_among_good_settings_set_atomically_changes_nothing_on_the_wire",
+)
+UNANSWERED = (
+    "tests/test_ros2_stop.py::"
+    "test_the_stop_service_says_so_when_the_stop_was_written_but_nothing_answered_after_it"
+)
 CMDVEL = "hcrctl/served/cmdvel.py"
 PEER_JSON_CALL = "message = peer_json(data, parse_int=_integer)"
 
@@ -197,14 +204,28 @@ MUTANTS = (
         "hcrctl/ros2/params.py",
         'why = self.set_all(list(request.get("parameters") or []))',
         'why = next(filter(None, [self.set_all([p]) for p in request.get("parameters") or []]), "")',
-        (ATOMIC,),
+        ATOMIC,
     ),
     Mutant(
         "parameters: the settings' refusals not asked first",
         "hcrctl/ros2/params.py",
         "if name in TUNED and (why := self.view.refusal(name, number, ROS2_PEER)):",
         "if False:",
-        (ATOMIC,),
+        ATOMIC,
+    ),
+    Mutant(
+        "~/stop: written is enough",
+        "hcrctl/ros2/params.py",
+        "if _until(lambda: self._answered_since(written)) is None:",
+        "if False:",
+        (UNANSWERED,),
+    ),
+    Mutant(
+        "~/stop: an answer from before the stop",
+        "hcrctl/ros2/params.py",
+        "if asked is not None and asked > since:",
+        "if asked is not None:",
+        (UNANSWERED,),
     ),
 )
 
