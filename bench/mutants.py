@@ -55,6 +55,10 @@ ATOMIC = (
     "tests/test_ros2_params.py",
     "tests/test_ros2_tuning.py::test_a_bad_gain_among_good_settings_set_atomically_changes_nothing_on_the_wire",
 )
+SERVICE_BYTES = (
+    "tests/test_ros2_service_bytes.py::"
+    "test_list_parameters_answers_a_request_laid_out_as_rmw_cyclonedds_lays_it_out"
+)
 UNANSWERED = (
     "tests/test_ros2_stop.py::"
     "test_the_stop_service_says_so_when_the_stop_was_written_but_nothing_answered_after_it"
@@ -226,6 +230,27 @@ MUTANTS = (
         "if asked is not None and asked > since:",
         "if asked is not None:",
         (UNANSWERED,),
+    ),
+    Mutant(
+        "service header: a 32-bit guid",
+        "hcrctl/ros2/idl.py",
+        '{"client_guid": T.uint64, "sequence_number": T.int64}',
+        '{"client_guid": T.uint32, "sequence_number": T.int64}',
+        (SERVICE_BYTES,),
+    ),
+    Mutant(
+        "service header: after the fields",
+        "hcrctl/ros2/idl.py",
+        "fields = {**SERVICE_HEADER, **{field.name: _field_type(field) for field in message.fields}}",
+        "fields = {**{field.name: _field_type(field) for field in message.fields}, **SERVICE_HEADER}",
+        (SERVICE_BYTES,),
+    ),
+    Mutant(
+        "service header: echoed the other way round",
+        "hcrctl/ros2/services.py",
+        "header = (sample.client_guid, sample.sequence_number)",
+        "header = (sample.sequence_number, sample.client_guid)",
+        (SERVICE_BYTES,),
     ),
 )
 
