@@ -47,6 +47,22 @@ PANEL_LOOK = (
 VIEW_NAMES = "tests/test_frontends.py::test_front_ends_read_only_the_public_names_of_the_runtime_view"
 JSON_READER = "tests/test_one_home.py::test_no_module_reads_json_from_a_peer_but_through_the_one_reader"
 TUNING = ("tests/test_tuning.py", "tests/test_ros2_tuning.py")
+PERIODS = (
+    "tests/test_ros2_health.py::"
+    "test_each_report_counts_only_its_own_period_and_a_quiet_period_after_trouble_is_ok_again"
+)
+ATOMIC = (
+    "tests/test_ros2_params.py",
+    "tests/test_ros2_tuning.py::test_a_bad_gain_among_good_settings_set_atomically_changes_nothing_on_the_wire",
+)
+SERVICE_BYTES = (
+    "tests/test_ros2_service_bytes.py::"
+    "test_list_parameters_answers_a_request_laid_out_as_rmw_cyclonedds_lays_it_out"
+)
+UNANSWERED = (
+    "tests/test_ros2_stop.py::"
+    "test_the_stop_service_says_so_when_the_stop_was_written_but_nothing_answered_after_it"
+)
 CMDVEL = "hcrctl/served/cmdvel.py"
 PEER_JSON_CALL = "message = peer_json(data, parse_int=_integer)"
 
@@ -172,6 +188,69 @@ MUTANTS = (
         "        if looser and not by.authenticated and self.guarded:\n",
         "        if False:\n",
         TUNING,
+    ),
+    Mutant(
+        "diagnostics: totals for the period's counts",
+        "hcrctl/ros2/frontend.py",
+        "return count - last if count >= last else count",
+        "return count",
+        (PERIODS,),
+    ),
+    Mutant(
+        "diagnostics: the last report's counts never kept",
+        "hcrctl/ros2/frontend.py",
+        "last, self._last = self._last, (timeouts, checksum, refused)",
+        "last = self._last",
+        (PERIODS,),
+    ),
+    Mutant(
+        "parameters: atomically set one by one",
+        "hcrctl/ros2/params.py",
+        'why = self.set_all(list(request.get("parameters") or []))',
+        'why = next(filter(None, [self.set_all([p]) for p in request.get("parameters") or []]), "")',
+        ATOMIC,
+    ),
+    Mutant(
+        "parameters: the settings' refusals not asked first",
+        "hcrctl/ros2/params.py",
+        "if name in TUNED and (why := self.view.refusal(name, number, ROS2_PEER)):",
+        "if False:",
+        ATOMIC,
+    ),
+    Mutant(
+        "~/stop: written is enough",
+        "hcrctl/ros2/params.py",
+        "if _until(lambda: self._answered_since(written)) is None:",
+        "if False:",
+        (UNANSWERED,),
+    ),
+    Mutant(
+        "~/stop: an answer from before the stop",
+        "hcrctl/ros2/params.py",
+        "if asked is not None and asked > since:",
+        "if asked is not None:",
+        (UNANSWERED,),
+    ),
+    Mutant(
+        "service header: a 32-bit guid",
+        "hcrctl/ros2/idl.py",
+        '{"client_guid": T.uint64, "sequence_number": T.int64}',
+        '{"client_guid": T.uint32, "sequence_number": T.int64}',
+        (SERVICE_BYTES,),
+    ),
+    Mutant(
+        "service header: after the fields",
+        "hcrctl/ros2/idl.py",
+        "fields = {**SERVICE_HEADER, **{field.name: _field_type(field) for field in message.fields}}",
+        "fields = {**{field.name: _field_type(field) for field in message.fields}, **SERVICE_HEADER}",
+        (SERVICE_BYTES,),
+    ),
+    Mutant(
+        "service header: echoed the other way round",
+        "hcrctl/ros2/services.py",
+        "header = (sample.client_guid, sample.sequence_number)",
+        "header = (sample.sequence_number, sample.client_guid)",
+        (SERVICE_BYTES,),
     ),
 )
 

@@ -128,3 +128,49 @@ def test_every_listener_of_the_notes_hears_each_line_with_the_level_it_was_said_
         ("closing failed (ignored)", Level.ERROR),
     ]
     assert {int(level) for level in Level} == {R.LOG_INFO, R.LOG_WARN, R.LOG_ERROR}  # rcl's own numbers
+
+
+class _Counters:
+    """The figures ``frontend.Health`` reads from the runtime's view and the cmd_vel source, set by hand."""
+
+    def __init__(self) -> None:
+        self.status, self.timeouts, self.checksum, self.refused = "ok", 0, 0, 0
+        self.view = SimpleNamespace(
+            link_state=lambda: (self.status, 9.9, self.timeouts, self.checksum),
+            rate=10.0,
+            governor=SimpleNamespace(driver=None),
+            robot=SimpleNamespace(port="/dev/ttyUSB0"),
+            reading_age=lambda _sensor: 0.05,
+            bumper_bound=0.5,
+            drives=True,
+        )
+
+    def levels(self, health: Any) -> list[tuple[int, str]]:
+        """(level, message) of the link and the driver in the next report."""
+        cmd_vel = SimpleNamespace(taken=5, refused=self.refused)
+        report = health.array("/hcr/hcrctl", self.view, cmd_vel)
+        return [(status["level"], status["message"]) for status in report["status"]]
+
+
+def test_each_report_counts_only_its_own_period_and_a_quiet_period_after_trouble_is_ok_again() -> None:
+    """A period with 2 timeouts, 1 checksum error and 3 refused Twists warns with those counts; the next,
+    with nothing new, is OK again; then 1 more timeout warns with 1; a period of no reply (5 timeouts) is an
+    error, and the one after it, answered again with no new timeout, is OK."""
+    pytest.importorskip("cyclonedds", reason="cyclonedds (the ros2 extra) is not installed")
+    from hcrctl.ros2.frontend import Health
+
+    health, counts = Health(), _Counters()
+    assert [level for level, _ in counts.levels(health)] == [R.DIAG_OK, R.DIAG_OK]
+    counts.timeouts, counts.checksum, counts.refused = 2, 1, 3
+    (link, link_why), (driver, driver_why) = counts.levels(health)
+    assert (link, driver) == (R.DIAG_WARN, R.DIAG_WARN)
+    assert "2 timeout(s), 1 checksum error(s)" in link_why and "3 cmd_vel refused" in driver_why
+    assert counts.levels(health) == [(R.DIAG_OK, "ok"), (R.DIAG_OK, "nobody drives")]
+    counts.timeouts = 3
+    (link, link_why), driver_level = counts.levels(health)
+    assert link == R.DIAG_WARN and "1 timeout(s), 0 checksum error(s)" in link_why, link_why
+    assert driver_level == (R.DIAG_OK, "nobody drives")
+    counts.status, counts.timeouts = "no reply", 8
+    assert counts.levels(health)[0][0] == R.DIAG_ERROR
+    counts.status = "ok"
+    assert counts.levels(health)[0] == (R.DIAG_OK, "ok")

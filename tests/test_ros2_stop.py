@@ -19,6 +19,7 @@ from helpers_cli import sim_pty
 from helpers_cyclone import CycloneClient
 from helpers_dds import Place, RosSide, place, ros2_node, ros_side
 from helpers_fleet_robot import VELOCITY, Serve, is_stop
+from helpers_live import FakeRobot
 
 from hcrctl.protocol import commands as C
 from hcrctl.protocol import ros2srv as S
@@ -149,3 +150,32 @@ def test_after_the_stop_service_neither_the_driver_nor_a_refused_writer_moves_un
         time.sleep(DEADMAN * 1.5)  # the rule's own input: A and B send nothing for the deadman
         wait_until(lambda: moving(node, a, -0.2, (-20, -20)), what="A driving again after its silence")
         assert (-30, -30) not in moved_after(node, stopped)
+
+
+class StillAfterStop(FakeRobot):
+    """Answers every read until it is sent a stop, then nothing: a robot whose link died with the stop."""
+
+    def _answer(self, frame: Frame) -> None:
+        if is_stop(frame):
+            self.mute = True
+        super()._answer(frame)
+
+
+def test_the_stop_service_says_so_when_the_stop_was_written_but_nothing_answered_after_it(
+    env: dict[str, str], tmp_path: Path
+) -> None:
+    """The robot answered sweeps before the stop and nothing after it: ``~/stop`` is not successful, and
+    says the stop was written to the port but nothing answered."""
+    here = place()
+    bump = C.BY_NAME["bump"].code
+    with StillAfterStop() as robot, ros2_node(robot.path, here, env) as node:
+        stop = CycloneClient(here.domain, f"{here.namespace}/hcrctl/stop", S.TRIGGER)
+        # three sweeps asked: the first two were answered (the poller asks a sweep after the last's replies)
+        robot.wait_logged(lambda log: sum(1 for _, f in log if f.command == bump) >= 3)
+        assert not any(is_stop(f) for _, f in robot.frames()), "a stop before ~/stop was called"
+        reply = stop.call({})
+        assert robot.mute, "~/stop answered before its stop reached the robot"
+        want = f"stop written to {robot.path}, but nothing answered"
+        assert not reply.success and want in reply.message, reply.message
+        assert "NOT written" not in reply.message
+        node.wait_err("stopped: the ~/stop service was called")

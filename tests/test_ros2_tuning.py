@@ -223,3 +223,39 @@ def test_ros2_may_loosen_without_ros2_is_a_usage_error(env: dict[str, str]) -> N
     assert done.returncode == 2 and done.stdout == "", done
     (line,) = done.stderr.splitlines()
     assert "--ros2-may-loosen" in line and "needs --ros2" in line, line
+
+
+def test_a_bad_gain_among_good_settings_set_atomically_changes_nothing_on_the_wire(
+    env: dict[str, str], tmp_path: Path
+) -> None:
+    """rate, deadman and three gains with pid.d out of range: refused naming pid.d, rate and deadman read
+    back unchanged, nothing said; the same with pid.d in range is taken, and the one pid frame on the wire
+    is that one."""
+    here = place()
+    with (
+        sim_pty(env, *QUIET) as port,
+        ros2_node(port, here, env, "--deadman", "0.5", log=tmp_path / "w.jsonl") as node,
+    ):
+        base = f"{here.namespace}/hcrctl"
+        atomic = CycloneClient(here.domain, f"{base}/set_parameters_atomically", S.SET_PARAMETERS_ATOMICALLY)
+        getter = CycloneClient(here.domain, f"{base}/get_parameters", S.GET_PARAMETERS)
+
+        def settings(d: int) -> list[dict[str, Any]]:
+            gains = [(f"pid.{g}", value(S.INTEGER, n)) for g, n in zip("pid", (1, 2, d), strict=True)]
+            numbers = [("rate", value(S.DOUBLE, 20.0)), ("deadman", value(S.DOUBLE, 0.2)), *gains]
+            return [{"name": name, "value": number} for name, number in numbers]
+
+        refused = atomic.call({"parameters": settings(300)}).result
+        assert not refused.successful and "pid.d must be 0<=x<=255, not 300" in refused.reason, refused
+        got = getter.call({"names": ["rate", "deadman", "pid.p"]}).values
+        assert [(v.type, v.double_value) for v in got] == [
+            (S.DOUBLE, 10.0),
+            (S.DOUBLE, 0.5),
+            (S.NOT_SET, 0.0),
+        ]
+        taken = atomic.call({"parameters": settings(3)}).result
+        assert (taken.successful, taken.reason) == (True, ""), taken
+        node.wait_err(f"deadman set to 0.2 s (was 0.5 s) {PEER}")
+        pid = [C.Pid.from_content(f.content) for _, f in node.sent() if f.command == C.BY_NAME["pid"].code]
+        assert pid == [C.Pid(1, 2, 3)], pid
+        assert node.said().count("set to") == 2, node.said()

@@ -19,7 +19,8 @@ pid frame and counts only when the robot answered 0x01.
 
 ``~/stop`` (std_srvs/Trigger) stops the robot through the governor, and is
 successful only when the stop was written and the robot answered a read
-after it: what a stop's truth is everywhere in hcrctl.
+written after it (a reply already on its way when the stop went out is no
+answer to it): what a stop's truth is everywhere in hcrctl.
 """
 
 from __future__ import annotations
@@ -245,7 +246,7 @@ class Parameters:
         port = view.robot.port
         if _until(lambda: (view.governor.sent_at or 0) >= asked) is None:
             return {"success": False, "message": f"stop NOT written: the link to {port} is down"}
-        written = view.governor.sent_at or asked
+        written = time.time()  # the stop is on the wire: what the link stamps later was written after it
         if _until(lambda: self._answered_since(written)) is None:
             return {
                 "success": False,
@@ -254,11 +255,13 @@ class Parameters:
         return {"success": True, "message": f"stopped: the robot on {port} answered after the stop"}
 
     def _answered_since(self, since: float) -> bool:
+        """Whether the robot answered a read written after ``since`` (wall clock): one that was on its way
+        when the stop was written proves nothing."""
         view = self.view
         address = view.robot.address
         for sensor in view.sensors:
-            heard = view.heard(address, C.BY_NAME[sensor].code)
-            if heard is not None and heard[0] > since:
+            asked = view.asked_at(address, C.BY_NAME[sensor].code)
+            if asked is not None and asked > since:
                 return True
         return False
 

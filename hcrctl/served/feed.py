@@ -73,6 +73,10 @@ class Feed:
         self.error: BaseException | None = None
         self._lock = threading.Lock()
         self._heard: dict[tuple[int, int], Heard] = {}
+        #: When the last request per (address, command) was written, and when the one the last reply
+        #: answers was (wall clock: the link's own stamp, ``Traffic.time``).
+        self._written: dict[tuple[int, int], float] = {}
+        self._answered: dict[tuple[int, int], float] = {}
         self._asked: set[bytes] = set()
         self._reconnect = reconnect
         wrapped = self._watched(reconnect) if reconnect is not None else None
@@ -140,8 +144,19 @@ class Feed:
         """The last reply heard from ``address`` to ``command``: (when, monotonic; its wire bytes; the frame)."""
         return self._heard.get((address, command))
 
+    def asked_at(self, address: int, command: int) -> float | None:
+        """When the request that the last reply from ``address`` to ``command`` answers was written (wall
+        clock, as the link stamps its traffic); None before any reply.
+
+        The link is one ordered stream and the robot answers in order, so a reply to a request written
+        after a frame proves the robot read that frame; a reply merely heard after it proves nothing (it
+        may have been on its way already).
+        """
+        return self._answered.get((address, command))
+
     def _remember(self, traffic: Traffic) -> None:
-        """The last frame heard per (address, command), so a peer's read can be answered from the sweep.
+        """The last frame heard per (address, command), so a peer's read can be answered from the sweep, and
+        when the request it answers was written.
 
         A copy of one of our own requests (a half-duplex adapter's echo) is no reply: never remembered.
         """
@@ -149,9 +164,14 @@ class Feed:
             if len(self._asked) >= MAX_ASKED:
                 self._asked.clear()
             self._asked.add(traffic.data)
+            if isinstance(traffic.event, Frame):
+                self._written[(traffic.event.address, traffic.event.command)] = traffic.time
         elif isinstance(traffic.event, Frame) and traffic.data not in self._asked:
             frame = traffic.event
-            self._heard[(frame.address, frame.command)] = (time.monotonic(), traffic.data, frame)
+            key = (frame.address, frame.command)
+            self._heard[key] = (time.monotonic(), traffic.data, frame)
+            if key in self._written:
+                self._answered[key] = self._written[key]
 
     def _on_traffic(self, traffic: Traffic) -> None:
         self._remember(traffic)

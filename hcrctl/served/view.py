@@ -107,6 +107,11 @@ class RuntimeView:
         """The last reply heard from ``address`` to ``command``: (when, monotonic; its wire bytes; the frame)."""
         return self._feed.heard(address, command)
 
+    def asked_at(self, address: int, command: int) -> float | None:
+        """When the request the last reply from ``address`` to ``command`` answers was written (wall clock,
+        ``time.time()``); None before any reply. Later than a frame: the robot read that frame."""
+        return self._feed.asked_at(address, command)
+
     def last_sweep(self) -> float | None:
         """When the poller's last sweep ended (monotonic; None before the first)."""
         return self._feed.state.last_sweep
