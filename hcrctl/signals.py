@@ -115,6 +115,19 @@ def leave_to_main_thread() -> None:
         signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
 
 
+def start_worker(thread: threading.Thread) -> None:
+    """Start ``thread`` with every stop signal blocked from its first instruction.
+
+    A thread inherits its creator's signal mask: started from the main
+    thread it could take a signal before its own ``leave_to_main_thread``
+    ran, and a main thread asleep in a select() with no timeout (``sim
+    --tcp``) would never run the handler. Blocked in the main thread for the
+    start only, a signal that comes meanwhile waits, and is the main thread's.
+    """
+    with signals_deferred():
+        thread.start()
+
+
 @contextlib.contextmanager
 def signals_deferred() -> Iterator[None]:
     """Block every stop signal for the block; they are delivered after it (main thread only)."""

@@ -40,7 +40,7 @@ from typing import Any
 from .errors import HcrError
 from .errors.status import ExitStatus, signalled
 from .errors.terminal import warn
-from .signals import STOP_SIGNALS, leave_to_main_thread
+from .signals import STOP_SIGNALS, leave_to_main_thread, start_worker
 
 STDOUT = 1
 
@@ -265,7 +265,7 @@ class Outlet:
     def _start(self) -> None:
         if self._thread is None:
             self._thread = threading.Thread(target=self._run, name=f"hcrctl-out-{self.fd}", daemon=True)
-            self._thread.start()
+            start_worker(self._thread)
 
     def _run(self) -> None:
         leave_to_main_thread()

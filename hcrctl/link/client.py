@@ -47,7 +47,7 @@ from ..protocol.frames import (
 )
 from ..protocol.motionscan import MotionScan
 from ..protocol.profiles import DEFAULT, Profile, profile
-from ..signals import leave_to_main_thread, signals_deferred
+from ..signals import leave_to_main_thread, signals_deferred, start_worker
 from ..stdout import urgent
 from .carrier import Carrier, RawRefused, is_stop, requests_in
 from .defaults import BAUD, REPLY_TIMEOUT_S, RETRIES
@@ -144,7 +144,7 @@ class Robot(TypedReads, Dialect):
             self.carrier.bind(self._heard_carried, self._carrier_lost)
         else:
             self._reader = threading.Thread(target=self._read_loop, name="hcrctl-reader", daemon=True)
-            self._reader.start()
+            start_worker(self._reader)
 
     # -- lifecycle -----------------------------------------------------------
 
