@@ -40,6 +40,8 @@ Publish = Callable[[str, dict[str, Any], float], None]
 COUNTERS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(LinkStats))
 #: How often ``run`` looks at its deadline, ``should_stop`` and the poller.
 STEP = 0.05
+#: The longest the feed waits, as it ends, for the link's last traffic to be told (the final stop).
+TOLD_WAIT_S = 1.0
 #: Distinct requests remembered to tell a reply from an echo (a poll sends the same few again and again).
 MAX_ASKED = 64
 #: (when heard, monotonic; the frame's wire bytes; the frame).
@@ -95,6 +97,7 @@ class Feed:
     def __exit__(self, *exc: object) -> None:
         self.poller.stop()
         for robot in {id(r): r for r in (self.robot, self.poller.robot) if r is not None}.values():
+            _told_so_far(robot)
             robot.remove_traffic_hook(self._on_traffic)
 
     def run(self, duration: float | None = None, should_stop: Callable[[], bool] = lambda: False) -> None:
@@ -208,3 +211,11 @@ class Feed:
 
         reopen.owned = getattr(reconnect, "owned", True)  # type: ignore[attr-defined]
         return reopen
+
+
+def _told_so_far(robot: Robot, wait: float = TOLD_WAIT_S) -> None:
+    """Wait (at most ``wait``) until what the link queued before now was told to its hooks: another thread
+    may be telling it, and the final stop written just before the feed ends is published too."""
+    told = threading.Event()
+    robot.watchers.in_order(lambda now: told.set())
+    told.wait(wait)
