@@ -153,3 +153,29 @@ def test_a_closed_stdout_ends_the_script_quietly_and_stop_is_still_sent(tmp_path
         assert frames[-1] == STOP_FRAME
     finally:
         robot.close()
+
+
+def test_a_reader_that_leaves_after_the_script_ended_is_no_internal_error(tmp_path):
+    """The reader goes once the whole script was handed over and stop was sent: the outlet's thread meets
+    the closed pipe while the exit waits for it, and that is the output's end, not a bug."""
+    robot = PtyRobot()
+    path = tmp_path / "s.hcr"
+    path.write_text("drive power 30 30\n" + "help\n" * 200)  # far more than a pipe holds: the outlet waits
+    read_end, write_end = os.pipe()
+    try:
+        proc = subprocess.Popen(
+            [hcrctl_exe(), "--port", robot.port, "shell", "--script", str(path)],
+            stdout=write_end,
+            stderr=subprocess.PIPE,
+            env=shell_env(tmp_path),
+        )
+        os.close(write_end)
+        frames = robot.wait_for(stop_after_motion)  # the script ran to its end: the session's stop
+        os.close(read_end)  # nothing read: every chunk the outlet holds meets a closed pipe
+        _, err = proc.communicate(timeout=TIMEOUT)
+        assert frames[-1] == STOP_FRAME
+        assert proc.returncode == 1, err  # Click's one-shot commands exit 1 on EPIPE
+        said = [line for line in err.decode().splitlines() if not line.startswith("hcr> ")]
+        assert not [line for line in said if "internal error" in line or "Traceback" in line], said
+    finally:
+        robot.close()

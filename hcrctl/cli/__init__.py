@@ -116,7 +116,7 @@ def main(argv: list[str] | None = None) -> None:
         with stop_signals_raise():
             defaults = config_defaults_for(args)
             code = cli.main(args=args, prog_name="hcrctl", standalone_mode=False, default_map=defaults)
-            stdout.written()  # a write that failed on the outlet's thread is said here, as the command's
+            code = _written(code)
     except SystemExit:
         raise
     except BaseException as exc:  # the one place errors become exit codes
@@ -128,6 +128,17 @@ def main(argv: list[str] | None = None) -> None:
 
         code = ExitStatus.FAILED if said_by_log(exc) else exit_code_for(exc, args)
     sys.exit(with_log_status(code if isinstance(code, int) else ExitStatus.OK))
+
+
+def _written(code: object) -> object:
+    """Wait for stdout as the exit does; a write that failed on the outlet's thread is raised here, as the
+    command's error. A reader that went away (``| head -1``) ends the output, as Click ends a command whose
+    stdout closed: exit 1 and nothing said, whenever the outlet's thread met it."""
+    try:
+        stdout.written()
+    except BrokenPipeError:
+        return ExitStatus.FAILED
+    return code
 
 
 def config_defaults_for(args: list[str]) -> dict[str, Any]:
