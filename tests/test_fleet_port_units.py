@@ -140,12 +140,106 @@ def test_the_word_of_this_sessions_own_stop_never_halts_its_next_motion() -> Non
     assert set(HALT_HINTS) <= set(keyspace.REASONS)
     session = _Session()
     lease = DriveLease(session, "r1", OP, Identity(), 0.5)
-    lease.held = True  # driving
+    lease.held = lease.driving = True
     lease.stop()
     assert session.puts == [keyspace.stop("r1")]
-    lease.held = True  # the next motion claimed before the robot side's word of that stop came
+    lease.held = lease.driving = True  # the next motion taken before the robot side's word of that stop came
     lease.heard(keyspace.stopped_status(OP, "stopped: stop from op1", "stop"))
     assert lease.halted is None and lease.held
     lease.heard(keyspace.stopped_status(OP, "stopped: stop from op2", "stop"))  # another's stop, after it
     assert lease.halted is not None and not lease.held
     assert lease.halted.message == "r1 stopped: stop from op2" and lease.halted.hint == HALT_HINTS["stop"]
+
+
+def test_a_claims_refusal_said_on_status_never_halts_the_motion_the_stops_word_does() -> None:
+    """A renewal refused by the hold of someone's stop ends the lease; the refusal's status word (no message
+    number: the claim's answer said it) is not the news, the stop's own word after it is."""
+    pytest.importorskip("zenoh", reason="the lease's puts name Zenoh's encodings")
+    from hcrctl.link.zenoh.identity import Identity
+    from hcrctl.link.zenoh.lease import DriveLease
+
+    lease = DriveLease(_Session(), "r1", OP, Identity(), 0.5)
+    lease.held = lease.driving = True
+    lease.lost()  # the renewal's refusal
+    lease.heard(keyspace.refused_status(OP, "refused: stopped; send nothing for 0.5 s, then drive again"))
+    assert lease.halted is None
+    lease.heard(keyspace.stopped_status(OP, "stopped: stop from op2", "stop"))
+    assert lease.halted is not None and lease.halted.message == "r1 stopped: stop from op2"
+    lease.heard(keyspace.refused_status(OP, "refused: another word", 7))  # the motion is over: nothing new
+    assert lease.halted.message == "r1 stopped: stop from op2"
+
+
+def test_a_refused_motion_message_halts_the_motion_it_ended() -> None:
+    pytest.importorskip("zenoh", reason="the lease's puts name Zenoh's encodings")
+    from hcrctl.link.zenoh.identity import Identity
+    from hcrctl.link.zenoh.lease import DriveLease
+
+    lease = DriveLease(_Session(), "r1", OP, Identity(), 0.5)
+    lease.held = lease.driving = True
+    lease.heard(keyspace.refused_status(OP, "cmd_vel refused: a bumper is pressed", 3))
+    assert lease.halted is not None and lease.halted.message == "r1 cmd_vel refused: a bumper is pressed"
+    assert not lease.held and not lease.driving
+
+
+class _Payload:
+    def __init__(self, data: bytes) -> None:
+        self.data = data
+
+    def to_bytes(self) -> bytes:
+        return self.data
+
+
+class _Reply:
+    """A Zenoh reply: ``ok`` with the robot side's answer, or ``err`` (the robot side's, or Zenoh's own)."""
+
+    def __init__(self, ok: bytes | None = None, err: bytes | None = None) -> None:
+        self.ok = None if ok is None else type("Sample", (), {"payload": _Payload(ok)})()
+        self.err = None if err is None else type("ReplyError", (), {"payload": _Payload(err)})()
+
+
+class _Asked(_Session):
+    """A session whose drive queries are answered, one list of replies per query, in turn."""
+
+    def __init__(self, answers: list[list[_Reply]]) -> None:
+        super().__init__()
+        self.answers = answers
+        self.asked = 0
+
+    def get(self, key: str, *handler: object, **options: object) -> list[_Reply]:
+        self.asked += 1
+        return self.answers.pop(0) if self.answers else []
+
+
+def _asking_lease(session: _Asked, present: list[bool]) -> object:
+    from hcrctl.link.zenoh.identity import Identity
+    from hcrctl.link.zenoh.lease import DriveLease
+
+    lease = DriveLease(session, "r1", OP, Identity(), 0.5, present=lambda: present[0])
+    lease.challenge = "c" * 32
+    lease._start = lambda: None  # type: ignore[method-assign]  # no renewing thread in a unit test
+    return lease
+
+
+def test_zenohs_own_error_reply_is_no_refusal_and_a_put_motion_is_confirmed_again() -> None:
+    """A timed-out query's error reply ("Timeout") is no answer; while the robot is in the fleet, the motion
+    already put is asked about again, and the robot side's answer decides."""
+    pytest.importorskip("zenoh", reason="the lease's puts name Zenoh's encodings")
+    granted = json.dumps({"seen": 99}).encode()
+    session = _Asked([[_Reply(ok=granted)], [_Reply(err=b"Timeout")], [], [_Reply(ok=granted)]])
+    lease = _asking_lease(session, [True])
+    lease.drive(1, C.BY_NAME["velocity"], C.Velocity(20, 20).content())  # type: ignore[attr-defined]
+    assert session.asked == 4 and lease.driving  # type: ignore[attr-defined]
+
+
+def test_a_put_motion_unanswered_once_the_robot_left_is_unanswered_not_refused() -> None:
+    pytest.importorskip("zenoh", reason="the lease's puts name Zenoh's encodings")
+    from hcrctl.link.zenoh.lease import DriveRefused, Unanswered
+
+    session = _Asked([[_Reply(ok=json.dumps({"seen": 0}).encode())], [_Reply(err=b"Timeout")]])
+    lease = _asking_lease(session, [False])
+    with pytest.raises(Unanswered) as raised:
+        lease.drive(1, C.BY_NAME["velocity"], C.Velocity(20, 20).content())  # type: ignore[attr-defined]
+    assert not isinstance(raised.value, DriveRefused)
+    session = _Asked([[_Reply(err=json.dumps({"error": "refused: op2 drives r1"}).encode())]])
+    with pytest.raises(DriveRefused, match="refused: op2 drives r1"):
+        _asking_lease(session, [True]).drive(1, C.BY_NAME["velocity"], C.Velocity(20, 20).content())  # type: ignore[attr-defined]

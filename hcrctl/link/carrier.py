@@ -23,7 +23,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable
 from typing import Protocol, TypeVar
 
-from ..errors import DeviceTimeout, HcrError
+from ..errors import DeviceTimeout, HcrError, PortError
 from ..protocol import commands as C
 from ..protocol.frames import Event, Frame
 from ..protocol.messages import READ_REQUEST
@@ -113,6 +113,11 @@ class Carrier(ABC):
     def halted(self) -> HcrError | None:
         """Why the far side stopped the motion this link asked for; None while it runs (or none was asked)."""
         return None
+
+    def lost_error(self, why: str) -> PortError:
+        """The error of this link ended (``why``), as the Robot keeps it when told (``Lost``), and as a
+        request that finds the link ended raises it: one wording for both."""
+        return PortError(f"lost the link ({why})", self.port, hint=self.lost_hint)
 
     @abstractmethod
     def close(self) -> None:

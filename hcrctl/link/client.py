@@ -365,7 +365,7 @@ class Robot(TypedReads, Dialect):
 
     def _carrier_lost(self, why: str) -> None:
         if not self._closing.is_set() and self.carrier is not None:
-            self.error = PortError(f"lost the link ({why})", self.port, hint=self.carrier.lost_hint)
+            self.error = self.carrier.lost_error(why)
 
     def transact(
         self, frame: bytes, expect: tuple[int, int], what: str = "request", *, timeout: float | None = None

@@ -35,6 +35,7 @@ import contextlib
 import json
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 from ...errors import HcrError
@@ -42,7 +43,7 @@ from ...errors.terminal import quoted
 from ...protocol import commands as C
 from ...protocol.records import hexs
 from .identity import Identity, signed_bytes
-from .join import FleetError
+from .join import LEASE_MS, FleetError
 from .keyspace import HOLD, Status, Who, attachment, cmd_vel, loads
 from .keyspace import drive as drive_key
 from .keyspace import hold as hold_key
@@ -60,6 +61,9 @@ TOKEN_WAIT_S = 5.0
 CONFIRM_ASKS = 10
 #: The longest a robot side's text is quoted in a command's error.
 SAID_CHARS = 200
+#: How long a motion already put is confirmed again while nobody answers and the robot is still in the
+#: fleet: a cut network ends the robot's presence within the link's lease, and then the loss is the news.
+UNANSWERED_S = CLAIM_TIMEOUT_S + LEASE_MS / 1000
 
 
 #: What to do about each reason the robot side gives for stopping this session's motion.
@@ -89,11 +93,25 @@ class MotionHalted(HcrError):
     """The robot side stopped or refused this session's motion (exit 1): its reason, one line."""
 
 
+class Unanswered(FleetError):
+    """Nothing answered a drive query in time: no answer from the robot side, only Zenoh's own (a timeout)."""
+
+
 class DriveLease:
     """This operator's claim on one robot's motion, over a Zenoh session."""
 
-    def __init__(self, session: Any, robot: str, op: Who, identity: Identity, deadman: float) -> None:
+    def __init__(
+        self,
+        session: Any,
+        robot: str,
+        op: Who,
+        identity: Identity,
+        deadman: float,
+        present: Callable[[], bool] = lambda: True,
+    ) -> None:
         self._session = session
+        #: Whether the robot is still in the fleet (its liveliness token there).
+        self._present = present
         self._robot = robot
         self._op = op
         self._identity = identity
@@ -107,6 +125,10 @@ class DriveLease:
         # Reentrant: a renewal, under it, numbers and signs its claim under it too.
         self._lock = threading.RLock()
         self.held = False
+        #: A motion of this session's was taken and is running as far as this side knows: only then does a
+        #: stop the robot side tells halt it. Not ``held``: a renewal refused by the stop's hold ends the
+        #: lease before the stop's own word (written first, then told) arrives, and that word is the news.
+        self.driving = False
         #: The last motion was refused: the stop a refused command sends on its way out
         #: must not stop the operator it was refused for.
         self.refused = False
@@ -136,16 +158,29 @@ class DriveLease:
             self.claim()
         payload = {"address": address, "command": cmd.code, "content": hexs(content)}
         seq = self._put(cmd_vel(self._robot), "cmd_vel", payload)
-        answer = self.claim(confirm=seq)
-        for _ in range(CONFIRM_ASKS):  # the motion still on its way when the claim was answered
-            seen = answer.get("seen")
-            if not isinstance(seen, int) or seen >= seq:
-                break
-            time.sleep(TOKEN_RETRY_S)
-            answer = self.claim(confirm=seq)
+        answer = self._confirmed(seq)
         dropped = answer.get("dropped")
         if dropped is not None:
             raise DriveRefused(f"{self._robot} dropped the command: {quoted(dropped, SAID_CHARS)}")
+        self.driving = True
+
+    def _confirmed(self, seq: int) -> dict[str, Any]:
+        """The robot side's answer to the claim naming motion ``seq``, asked again while it has not seen the
+        motion yet (still on its way), and while nobody answers but the robot is still in the fleet: the
+        motion is out, so only an answer or the robot's loss ends the wait (``Unanswered`` then)."""
+        asks, since = 0, time.monotonic()
+        while True:
+            try:
+                answer = self.claim(confirm=seq)
+            except Unanswered:
+                if not self._present() or time.monotonic() - since > UNANSWERED_S:
+                    raise
+                continue
+            seen = answer.get("seen")
+            if not isinstance(seen, int) or seen >= seq or asks >= CONFIRM_ASKS:
+                return answer
+            asks += 1
+            time.sleep(TOKEN_RETRY_S)
 
     def stop(self) -> None:
         """The fleet's stop (anyone's), unless this stop only closes a motion that was refused."""
@@ -153,7 +188,7 @@ class DriveLease:
             return
         with self._lock:
             self._own_stops += 1 if self.held else 0
-            self.held = False
+            self.held = self.driving = False
             self._put(stop_key(self._robot), "stop", {"key": self._identity.public_hex})
 
     def claim(self, confirm: int | None = None) -> dict[str, Any]:
@@ -188,8 +223,10 @@ class DriveLease:
             self.held = False
 
     def heard(self, said: Status) -> None:
-        """The robot side's status for this session: a stop or a refusal while it drives halts its motion."""
-        if said.event not in ("stopped", "refused"):
+        """The robot side's status for this session: a stop, or a refusal of a motion message, while it drives
+        halts its motion. A refusal with no message number (a claim's, a write's) was its query's answer
+        already: a renewal the hold of someone's stop refused is followed by that stop's own word."""
+        if said.event not in ("stopped", "refused") or (said.event == "refused" and said.seq is None):
             return
         with self._lock:
             if said.reason == "stop" and self._own_stops:
@@ -200,9 +237,9 @@ class DriveLease:
     def _halt(self, text: str, reason: str | None) -> None:
         """The motion this session drives was stopped (``text``, the robot side's words): kept, lease lost."""
         with self._lock:
-            if self.held:
+            if self.driving:
                 self.halted = MotionHalted(f"{self._robot} {text}", hint=HALT_HINTS.get(reason or ""))
-            self.held = False
+            self.held = self.driving = False
 
     def close(self) -> None:
         """Stop renewing and give the lease back (best effort: the robot side frees it when we go anyway)."""
@@ -215,7 +252,7 @@ class DriveLease:
         if self._hold is not None:
             with contextlib.suppress(Exception):
                 self._hold.undeclare()
-        self.held = False
+        self.held = self.driving = False
 
     # -- the renewing thread ------------------------------------------------------------
 
@@ -248,10 +285,14 @@ class DriveLease:
         )
 
     def _renewed(self, reply: Any) -> None:
-        """A renewal's answer: refused, the lease is lost; granted to a session that ``rejoined``, the robot
+        """A renewal's answer: refused by the robot side, the lease is lost (unanswered, it is renewed on:
+        only the robot's loss or its refusal ends it); granted to a session that ``rejoined``, the robot
         side had lost its token for a while, and with it the motion it drove, unheard here."""
         if reply.err is not None:
-            self.lost()
+            if isinstance(
+                loads(reply.err.payload.to_bytes()), dict
+            ):  # the robot side's refusal: not Zenoh's timeout
+                self.lost()
         elif _object(reply.ok.payload.to_bytes()).get("rejoined") is True:
             self._halt(
                 f"stopped: it lost {self._op}'s liveliness token, and the motion with it", "operator gone"
@@ -286,7 +327,8 @@ class DriveLease:
             return attachment(self._op, seq, self._identity.sign(data))
 
     def _ask(self, do: str, confirm: int | None = None) -> tuple[bool, dict[str, Any]]:
-        """A ``drive`` query: (granted, the robot side's answer); FleetError when nobody answers."""
+        """A ``drive`` query: (granted, the robot side's answer); ``Unanswered`` when nobody answers. An error
+        reply that is no JSON object is Zenoh's own (a timeout), not the robot side's refusal."""
         zenoh = _zenoh()
         payload, signed = self._asking(do, confirm)
         replies = self._session.get(
@@ -297,11 +339,18 @@ class DriveLease:
             timeout=CLAIM_TIMEOUT_S,
         )
         for reply in replies:
-            granted = reply.ok is not None
-            answer = _object((reply.ok if granted else reply.err).payload.to_bytes())
-            return granted, answer
-        raise FleetError(
-            f"{self._robot} did not answer the drive {do} within {CLAIM_TIMEOUT_S:g} s: nothing was sent",
+            if reply.ok is not None:
+                return True, _object(reply.ok.payload.to_bytes())
+            refused = loads(reply.err.payload.to_bytes())
+            if isinstance(refused, dict):
+                return False, refused
+        sent = (
+            "nothing was sent"
+            if confirm is None
+            else "the motion was sent: the robot side's deadman stops it"
+        )
+        raise Unanswered(
+            f"{self._robot} did not answer the drive {do} within {CLAIM_TIMEOUT_S:g} s: {sent}",
             hint="hcrctl fleet list shows whether it is still there",
         )
 

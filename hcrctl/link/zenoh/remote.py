@@ -65,7 +65,7 @@ from .keyspace import (
 from .keyspace import info as info_key
 from .keyspace import read as read_key
 from .keyspace import write as write_key
-from .lease import DriveLease
+from .lease import DriveLease, Unanswered
 
 SCHEME = "zenoh://"
 #: How long the robot's presence, its info and a write may take to answer.
@@ -149,11 +149,17 @@ class RemoteLink(Carrier):
         )
         if not self._here.wait(ASK_TIMEOUT_S):
             raise FleetError(f"no robot {self.name} in the fleet at {self._where()}", hint=LIST_HINT)
-        self.lease = DriveLease(session, self.name, self.op, self.identity, _deadman(self.info))
+        self.lease = DriveLease(
+            session, self.name, self.op, self.identity, _deadman(self.info), present=self._here.is_set
+        )
         self._held += [
             session.declare_subscriber(topic(self.name, "frames"), zenoh.handlers.Callback(self._frame)),
             session.declare_subscriber(status(self.name), zenoh.handlers.Callback(self._status)),
         ]
+
+    @property
+    def _left(self) -> str:
+        return f"{self.name} left the fleet"
 
     def _where(self) -> str:
         return looked_at(self.where)
@@ -214,7 +220,7 @@ class RemoteLink(Carrier):
     def _presence(self, sample: Any) -> None:
         if sample.kind == import_zenoh().SampleKind.DELETE:
             self._here.clear()
-            self._lost(f"{self.name} left the fleet")
+            self._lost(self._left)
         else:
             self._here.set()
 
@@ -250,13 +256,24 @@ class RemoteLink(Carrier):
         if cmd.kind == "read":
             self._read(address, cmd)
         elif cmd.motion:
-            assert self.lease is not None  # set by open()
             if stop:
+                assert self.lease is not None  # set by open()
                 self.lease.stop()
             else:
-                self.lease.drive(address, cmd, content)
+                self._drive(address, cmd, content)
         else:
             self._write(address, cmd, content)
+
+    def _drive(self, address: int, cmd: C.Command, content: bytes) -> None:
+        """Motion under the lease. Put but never confirmed because the robot left the fleet meanwhile (a cut
+        network), the motion ends as the link does: with the link's loss, never as a refusal."""
+        assert self.lease is not None  # set by open()
+        try:
+            self.lease.drive(address, cmd, content)
+        except Unanswered:
+            if self._here.is_set():
+                raise
+            raise self.lost_error(self._left) from None
 
     def halted(self) -> HcrError | None:
         return None if self.lease is None else self.lease.halted
