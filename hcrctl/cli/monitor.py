@@ -173,8 +173,8 @@ def _listen(settings: Settings, printer: TrafficPrinter | SummaryPrinter, durati
             robot.follow_dialect = settings.shared_robot is None and _protocol_not_given()
             start = time.monotonic()  # the duration counts from an open port, however slow opening was
             until = f"for {duration:g} s" if duration is not None else "until Ctrl-C"
-            click.echo(f"hcrctl: monitoring {robot.port} {until}", err=True)
-            _drain_until(robot, inbox, printer, None if duration is None else start + duration)
+            deadline = None if duration is None else start + duration
+            _drain_until(robot, inbox, printer, deadline, f"hcrctl: monitoring {robot.port} {until}")
     finally:
         if robot is not None:
             robot.remove_traffic_hook(listener)
@@ -213,25 +213,41 @@ def _print_rest(
 
 
 def _drain_until(
-    robot: Any, inbox: queue.SimpleQueue, printer: TrafficPrinter | SummaryPrinter, deadline: float | None
+    robot: Any,
+    inbox: queue.SimpleQueue,
+    printer: TrafficPrinter | SummaryPrinter,
+    deadline: float | None,
+    said: str,
 ) -> None:
-    """Print traffic until the deadline; Ctrl-C is the normal end of an open-ended monitor."""
-    import queue
+    """Say ``said`` (how long it listens), then print traffic until the deadline. Ctrl-C is the normal end
+    of an open-ended monitor wherever it lands once that was said.
 
-    heard_as = robot.profile
+    The loop is a function of its own, called in the ``try``: on CPython 3.11 and 3.12 a signal taken at
+    a ``continue`` in an ``except`` of a loop that starts a ``try`` block escapes that block's handlers
+    (``tests/test_signal_safe_loops.py``)."""
     try:
-        while deadline is None or time.monotonic() < deadline:
-            if robot.error is not None:
-                raise robot.error
-            wait = POLL_S if deadline is None else max(0.0, min(POLL_S, deadline - time.monotonic()))
-            try:
-                traffic = inbox.get(timeout=wait)
-            except queue.Empty:
-                continue
-            if robot.profile is not heard_as:  # said before the first row read in the dialect followed
-                heard_as = robot.profile
-                click.echo(f"hcrctl: monitor: {_followed(robot.profile)}", err=True)
-            printer.show_traffic(traffic, robot.rule, robot.profile)
+        click.echo(said, err=True)
+        _drain(robot, inbox, printer, deadline)
     except KeyboardInterrupt:
         if deadline is not None:
             raise
+
+
+def _drain(
+    robot: Any, inbox: queue.SimpleQueue, printer: TrafficPrinter | SummaryPrinter, deadline: float | None
+) -> None:
+    import queue
+
+    heard_as = robot.profile
+    while deadline is None or time.monotonic() < deadline:
+        if robot.error is not None:
+            raise robot.error
+        wait = POLL_S if deadline is None else max(0.0, min(POLL_S, deadline - time.monotonic()))
+        try:
+            traffic = inbox.get(timeout=wait)
+        except queue.Empty:
+            continue
+        if robot.profile is not heard_as:  # said before the first row read in the dialect followed
+            heard_as = robot.profile
+            click.echo(f"hcrctl: monitor: {_followed(robot.profile)}", err=True)
+        printer.show_traffic(traffic, robot.rule, robot.profile)

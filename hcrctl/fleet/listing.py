@@ -86,12 +86,24 @@ def watch(
     with join(where) as session:
         subscriber = session.liveliness().declare_subscriber(keyspace.ALL_ALIVE, changed, history=True)
         try:
-            while not done():
-                try:
-                    event, name = changes.get(timeout=0.2)
-                except queue.Empty:
-                    continue
-                info = infos(session, [name], timeout)[0] if event == "joined" else {"name": name}
-                shown(event, info)
+            _show_changes(session, changes, shown, timeout, done)
         finally:
             subscriber.undeclare()
+
+
+def _show_changes(
+    session: Any,
+    changes: queue.SimpleQueue[Event],
+    shown: Callable[[str, dict[str, Any]], None],
+    timeout: float,
+    done: Callable[[], bool],
+) -> None:
+    """Each change as it comes, until ``done()``. A loop of its own, called from the ``try``: see
+    ``tests/test_signal_safe_loops.py`` for why a loop never starts a ``try`` block."""
+    while not done():
+        try:
+            event, name = changes.get(timeout=0.2)
+        except queue.Empty:
+            continue
+        info = infos(session, [name], timeout)[0] if event == "joined" else {"name": name}
+        shown(event, info)
