@@ -29,6 +29,7 @@ from helpers_fleet_robot import (
     TURN,
     VELOCITY,
     Fleet,
+    Operator,
     fleet,
     free_port,
     is_stop,
@@ -53,6 +54,13 @@ def lab(env: dict[str, str]) -> Any:
 
 def served(lab: Fleet, tmp_path: Path, *options: str, name: str = "r1") -> Any:
     return lab.serve(name, lab.sim(), *options, log=tmp_path / f"{name}.jsonl")
+
+
+def drives(op: Operator, serve: Any) -> None:
+    """``op`` opens its session and drives at 0.2 m/s: returns once its velocity is on the wire."""
+    op.open()
+    op.cmd_vel(twist(0.2))
+    wait_until(lambda: serve.sent_codes({VELOCITY}), what="the operator's velocity on the wire")
 
 
 def motion_then_stop(serve: Any) -> tuple[list[Frame], Frame]:
@@ -101,9 +109,7 @@ def test_a_second_operator_is_refused_and_a_third_may_stop(lab: Fleet, tmp_path:
         operator(lab.endpoint, "r1", "op2") as op2,
         operator(lab.endpoint, "r1", "op3") as op3,
     ):
-        op1.open()
-        op1.cmd_vel(twist(0.2))
-        wait_until(lambda: serve.sent_codes({VELOCITY}), what="op1's velocity on the wire")
+        drives(op1, serve)
         taken, body = op2.claim()
         assert not taken and body == {"error": "refused: op1 drives r1", "driver": "op1"}
         op2.cmd_vel(twist(-0.5))
@@ -128,9 +134,7 @@ def test_a_stops_reason_is_the_one_it_was_made_for_whatever_the_stoppers_name_sa
     reason travels as data from where the stop was made, so the driver's hint blames no network."""
     serve = served(lab, tmp_path, "--deadman", "10")
     with operator(lab.endpoint, "r1", "op1") as op1, operator(lab.endpoint, "r1", "deadman-lab") as lab_op:
-        op1.open()
-        op1.cmd_vel(twist(0.2))
-        wait_until(lambda: serve.sent_codes({VELOCITY}), what="op1's velocity on the wire")
+        drives(op1, serve)
         lab_op.open()
         said = wait_until(
             lambda: lab_op.stop() or op1.said("stop from deadman-lab"), what="deadman-lab's stop said"
@@ -422,9 +426,7 @@ def test_a_zero_cmd_vel_from_an_operator_that_does_not_drive_stops_and_the_stop_
     """Anyone may stop with a zero Twist, as on ROS 2 and Foxglove; the driver sending on is held out."""
     serve = served(lab, tmp_path, "--deadman", "10")
     with operator(lab.endpoint, "r1", "op1") as op1, operator(lab.endpoint, "r1", "op2") as op2:
-        op1.open()
-        op1.cmd_vel(twist(0.2))
-        wait_until(lambda: serve.sent_codes({VELOCITY}), what="op1's velocity on the wire")
+        drives(op1, serve)
         op2.open()
         op2.cmd_vel(twist(0.0))
         said = op1.wait_said("a zero cmd_vel")

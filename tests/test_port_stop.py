@@ -17,7 +17,7 @@ import subprocess
 import tempfile
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -25,7 +25,7 @@ import pytest
 from helpers import wait_until
 from helpers_bridge import TWIST, bridge, velocity_of, viewer
 from helpers_cli import TIMEOUT, hcrctl_exe, run
-from helpers_live import FakeRobot, Terminal, is_stop, speed_of, terminal
+from helpers_live import FakeRobot, is_stop, speed_of, terminal
 from helpers_shell import STOP_FRAME, PtyRobot, shell, stop_after_motion
 
 from hcrctl.protocol import commands as C
@@ -135,28 +135,41 @@ def test_a_bridge_stopped_from_the_port_holds_its_driver_out(port_env: dict[str,
             lambda: client.publish(TWIST) or any(velocity_of(f) == (20, 20) for _, f in robot.frames()),
             what="the client driving",
         )
-        done = threading.Event()
-        sender = threading.Thread(target=lambda: _send_until(client, done), daemon=True)
-        sender.start()
-        try:
-            asked = robot.frames()[-1][0]
-            out = stop_on(robot, port_env)
-            assert out.returncode == 0 and out.stdout.startswith(DELIVERED), out
-            stopped = robot.wait_frame(is_stop, after=asked)
-            seen = len(robot.frames())
-            wait_until(lambda: len(robot.frames()) > seen + 5, what="the bridge still polling")
-        finally:
-            done.set()
-            sender.join(TIMEOUT)
+        with sent_on(lambda: client.publish(TWIST)):
+            stopped = stopped_from_the_port(robot, port_env, after=robot.frames()[-1][0])
         moving = [w for t, f in robot.frames() if t > stopped and (w := velocity_of(f)) not in (None, (0, 0))]
         assert moving == []
         assert "another program (pid " in running.wait_line("stop from the port")
 
 
-def _send_until(client: object, done: threading.Event) -> None:
-    """The client sends on, every few tens of milliseconds: one unbroken stream for a 2 s deadman."""
-    while not done.wait(0.03):
-        client.publish(TWIST)  # type: ignore[attr-defined]
+@contextmanager
+def sent_on(send: Callable[[], object]) -> Iterator[None]:
+    """``send`` every few tens of milliseconds through the block (a client publishing, a held key
+    repeating): one unbroken stream for a 2 s deadman."""
+    done = threading.Event()
+
+    def sending() -> None:
+        while not done.wait(0.03):
+            send()
+
+    sender = threading.Thread(target=sending, daemon=True)
+    sender.start()
+    try:
+        yield
+    finally:
+        done.set()
+        sender.join(TIMEOUT)
+
+
+def stopped_from_the_port(robot: FakeRobot, port_env: dict[str, str], after: float) -> float:
+    """``hcrctl stop`` on the port a sender drives through: delivered, and the holder polls on after it;
+    when the stop frame reached the wire."""
+    out = stop_on(robot, port_env)
+    assert out.returncode == 0 and out.stdout.startswith(DELIVERED), out
+    stopped = robot.wait_frame(is_stop, after=after)
+    seen = len(robot.frames())
+    wait_until(lambda: len(robot.frames()) > seen + 5, what="the holder still polling")
+    return stopped
 
 
 def test_stop_with_no_holder_says_who_might(port_env: dict[str, str]) -> None:
@@ -219,28 +232,12 @@ def test_teleop_stopped_from_the_port_holds_the_keys_out(
     monkeypatch.setenv("XDG_RUNTIME_DIR", port_env["XDG_RUNTIME_DIR"])  # teleop's environment
     with FakeRobot() as robot, terminal(["--port", robot.path, "teleop", "--deadman", "2"]) as term:
         term.wait_for("sending")
-        done = threading.Event()
-        presser = threading.Thread(target=lambda: _press_until(term, done), daemon=True)
-        presser.start()
-        try:
+        with sent_on(lambda: term.send("w")):  # a held key repeats
             moved = robot.wait_frame(lambda f: speed_of(f) == (50, 50))
-            out = stop_on(robot, port_env)
-            assert out.returncode == 0 and out.stdout.startswith(DELIVERED), out
-            stopped = robot.wait_frame(is_stop, after=moved)
-            seen = len(robot.frames())
-            wait_until(lambda: len(robot.frames()) > seen + 5, what="teleop still polling")
-        finally:
-            done.set()
-            presser.join(TIMEOUT)
+            stopped = stopped_from_the_port(robot, port_env, after=moved)
         assert [
             s for t, f in robot.frames() if t > stopped and (s := speed_of(f)) not in (None, (0, 0))
         ] == []
         term.wait_for("stop from the port")
         term.send("q")
         assert term.finish() == 0
-
-
-def _press_until(term: Terminal, done: threading.Event) -> None:
-    """``w`` as a held key repeats it: every few tens of milliseconds, one stream for a 2 s deadman."""
-    while not done.wait(0.03):
-        term.send("w")
