@@ -31,10 +31,30 @@ from hcrctl.ros2 import idl
 SERVICE_QOS = Qos(Policy.Reliability.Reliable(max_blocking_time=1), Policy.History.KeepLast(10))
 
 
-class CycloneClient:
-    """A service client as rmw_cyclonedds makes one: its id and a request number before the request."""
+def announce(participant: DomainParticipant, node: str, writers: list[DataWriter]) -> DataWriter:
+    """Say on ``ros_discovery_info``, as rmw does, that node ``/node`` owns ``writers``; the announcer
+    (keep it: a latched announcement lives as long as its writer)."""
+    from hcrctl.ros2.node import DISCOVERY_QOS, DISCOVERY_TOPIC, dds_qos
 
-    def __init__(self, domain: int, name: str, service: str) -> None:
+    kind = idl.dds_type(idl.PARTICIPANT_ENTITIES)
+    announcer = DataWriter(
+        participant, Topic(participant, DISCOVERY_TOPIC, kind), qos=dds_qos(DISCOVERY_QOS, "")
+    )
+    entity = {
+        "node_namespace": "/",
+        "node_name": node,
+        "writer_gid_seq": [{"data": list(w.guid.bytes)} for w in writers],
+    }
+    info = {"gid": {"data": list(participant.guid.bytes)}, "node_entities_info_seq": [entity]}
+    announcer.write(idl.build(idl.PARTICIPANT_ENTITIES, info))
+    return announcer
+
+
+class CycloneClient:
+    """A service client as rmw_cyclonedds makes one: its id and a request number before the request; with
+    ``node``, its request writer announced as that node's (``announce``)."""
+
+    def __init__(self, domain: int, name: str, service: str, node: str | None = None) -> None:
         self.service = service
         dp = self.participant = DomainParticipant(domain)
         asked, answer = S.service_topics(name)
@@ -42,6 +62,7 @@ class CycloneClient:
         self.reader = DataReader(
             dp, Topic(dp, answer, idl.service_type(S.response(service))), qos=SERVICE_QOS
         )
+        self.announcer = None if node is None else announce(dp, node, [self.writer])
         self.guid = random.getrandbits(63)
         self.numbers = itertools.count(1)
 

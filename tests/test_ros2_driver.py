@@ -189,9 +189,10 @@ class Teleop:
         from cyclonedds.domain import DomainParticipant
         from cyclonedds.pub import DataWriter
         from cyclonedds.topic import Topic
+        from helpers_cyclone import announce
 
         from hcrctl.ros2 import idl
-        from hcrctl.ros2.node import DISCOVERY_QOS, DISCOVERY_TOPIC, dds_qos, dds_topic
+        from hcrctl.ros2.node import dds_qos, dds_topic
 
         self.idl = idl
         self.participant = DomainParticipant(here.domain)
@@ -199,16 +200,7 @@ class Teleop:
         qos = dds_qos(ros2conv.CMD_VEL_QOS, R.TWIST)
         self.writers = [DataWriter(self.participant, topic, qos=qos) for _ in range(writers)]
         if name is not None:
-            kind = idl.dds_type(idl.PARTICIPANT_ENTITIES)
-            discovery = Topic(self.participant, DISCOVERY_TOPIC, kind)
-            self.announcer = DataWriter(self.participant, discovery, qos=dds_qos(DISCOVERY_QOS, ""))
-            node = {
-                "node_namespace": "/",
-                "node_name": name,
-                "writer_gid_seq": [{"data": list(w.guid.bytes)} for w in self.writers],
-            }
-            info = {"gid": {"data": list(self.participant.guid.bytes)}, "node_entities_info_seq": [node]}
-            self.announcer.write(idl.build(idl.PARTICIPANT_ENTITIES, info))
+            self.announcer = announce(self.participant, name, self.writers)
 
     def write(self, index: int, speed: float) -> None:
         self.writers[index].write(self.idl.build(R.TWIST, {"linear": {"x": speed}}))

@@ -10,6 +10,7 @@ too, but a set is proved by what the robot is sent after it.
 from __future__ import annotations
 
 import contextlib
+import re
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -59,8 +60,11 @@ def velocities(node: Serve) -> list[tuple[float, tuple[int, int]]]:
 class Parameters:
     """The node's set_parameters, as a ROS 2 peer calls it."""
 
-    def __init__(self, here: Place, node: str = "hcrctl") -> None:
-        self.client = CycloneClient(here.domain, f"{here.namespace}/{node}/set_parameters", S.SET_PARAMETERS)
+    def __init__(self, here: Place, node: str = "hcrctl", asker: str | None = None) -> None:
+        """``asker``: the node this client's request writer is announced as (None: announced by nobody)."""
+        self.client = CycloneClient(
+            here.domain, f"{here.namespace}/{node}/set_parameters", S.SET_PARAMETERS, node=asker
+        )
 
     def set(self, name: str, number: float) -> tuple[bool, str]:
         """(successful, reason) of setting double ``name`` to ``number``."""
@@ -104,6 +108,26 @@ def test_a_rate_set_while_serving_changes_the_sweeps_on_the_wire(env: dict[str, 
         assert params.set("rate", 20.0) == (True, "")
         wait_until(lambda: busiest_second(sweeps(node, asked)) >= 6, what="a second of six sweeps or more")
         node.wait_err(f"rate set to 20 Hz (was 2 Hz) {PEER}")
+
+
+def test_a_change_is_said_with_the_node_that_asked_for_it_where_the_graph_names_it(
+    env: dict[str, str], tmp_path: Path
+) -> None:
+    """A client whose request writer a ROS 2 node announced is named by that node (unauthenticated: any
+    participant may announce any name); one nobody announced is a ROS 2 peer."""
+    here = place()
+    with sim_pty(env, *QUIET) as port, ros2_node(port, here, env, "--deadman", "0.5") as node:
+        tuner = Parameters(here, asker="tuner")
+        # asked again until the node has heard the announcement: discovery may bring the request first
+        wait_until(
+            lambda: tuner.set("deadman", 0.25) == (True, "") and "/tuner" in node.said(), what="/tuner"
+        )
+        assert re.search(
+            r"deadman set to 0\.25 s \(was \S+ s\) by ROS 2 node /tuner \(unauthenticated\)",
+            node.err.decode(),
+        )
+        assert Parameters(here).set("deadman", 0.3) == (True, "")
+        node.wait_err(f"deadman set to 0.3 s (was 0.25 s) {PEER}")
 
 
 def test_a_rate_below_the_range_is_refused_and_a_slow_one_gives_way_at_once(

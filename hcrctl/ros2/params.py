@@ -5,7 +5,7 @@ where the rest of hcrctl keeps it: the link's defaults ``RATE_RANGE`` and
 ``DEADMAN_RANGE``, the command line's, and the pid request's fields in the
 command table), how to read it and how to set it. ``rate`` and ``deadman``
 are the runtime's (``served.tuning``): read from it, and set through it as
-set by a ROS 2 peer (``ROS2_PEER``, unauthenticated), so the change is said
+set as asked by the ROS 2 node the graph names (``setter_of``; never authenticated), so the change is said
 on stderr and ``/rosout`` and every rule made from the setting follows it. ``ros2 param get/set/describe/list`` reach it
 through rcl_interfaces' six services; each change is also said on
 ``/parameter_events``, as every ROS 2 node says its own.
@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -46,6 +46,15 @@ SHOWN = 64
 STOP_WAIT = 2.0
 #: Who sets a parameter: any participant of the DDS domain, which has no identity a server can check.
 ROS2_PEER = Setter("a ROS 2 peer (unauthenticated)", authenticated=False)
+
+
+def setter_of(request: Mapping[str, Any]) -> Setter:
+    """Who asked (``services.Request.asker``): the node the graph names, never authenticated (any participant
+    may announce any name); a peer no rmw announced is ``ROS2_PEER``."""
+    asker = getattr(request, "asker", None)
+    return (
+        ROS2_PEER if asker is None else Setter(f"ROS 2 node {asker} (unauthenticated)", authenticated=False)
+    )
 
 
 class Refused(Exception):
@@ -137,20 +146,20 @@ class Parameters:
     def all(self) -> list[dict[str, Any]]:
         return [{"name": p.name, "value": value_of(p.kind, self.get(p.name))} for p in PARAMETERS.values()]
 
-    def set_all(self, parameters: list[Any]) -> str:
-        """Apply every one or none; '' when applied, else why not."""
+    def set_all(self, parameters: list[Any], setter: Setter = ROS2_PEER) -> str:
+        """Apply every one or none, as ``setter`` asked; '' when applied, else why not."""
         with self._lock:
             try:
                 wanted = {self._param(p.name).name: checked(self._param(p.name), p.value) for p in parameters}
                 for name, number in wanted.items():  # every refusal before anything changes
-                    if name in TUNED and (why := self.view.refusal(name, number, ROS2_PEER)):
+                    if name in TUNED and (why := self.view.refusal(name, number, setter)):
                         raise Refused(why)
                 gains = {k.removeprefix("pid."): int(v) for k, v in wanted.items() if k.startswith("pid.")}
                 if gains:
                     self._set_pid(gains)
                 for name, number in wanted.items():
                     if name in TUNED:
-                        self._apply(name, number)
+                        self._apply(name, number, setter)
             except Refused as exc:
                 return str(exc)
         if wanted:
@@ -163,11 +172,11 @@ class Parameters:
             raise Refused(f"no parameter {shown(name)!r} (this node has {', '.join(PARAMETERS)})")
         return found
 
-    def _apply(self, name: str, number: float) -> None:
+    def _apply(self, name: str, number: float, setter: Setter) -> None:
         if name == "rate":
-            self.view.set_rate(number, ROS2_PEER)
+            self.view.set_rate(number, setter)
         else:
-            self.view.set_deadman(number, ROS2_PEER)
+            self.view.set_deadman(number, setter)
 
     def _set_pid(self, gains: dict[str, int]) -> None:
         merged = {**self.pid, **gains}
@@ -226,12 +235,12 @@ class Parameters:
     def set_parameters(self, request: dict[str, Any]) -> dict[str, Any]:
         results = []
         for parameter in request.get("parameters") or []:
-            why = self.set_all([parameter])
+            why = self.set_all([parameter], setter_of(request))
             results.append({"successful": not why, "reason": why})
         return {"results": results}
 
     def set_parameters_atomically(self, request: dict[str, Any]) -> dict[str, Any]:
-        why = self.set_all(list(request.get("parameters") or []))
+        why = self.set_all(list(request.get("parameters") or []), setter_of(request))
         return {"result": {"successful": not why, "reason": why}}
 
     def stop(self, request: dict[str, Any]) -> float:

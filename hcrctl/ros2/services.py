@@ -54,10 +54,22 @@ from .node import Node, Note, dds_qos, reader_qos
 
 #: rmw's default service QoS.
 SERVICE_QOS = ros2conv.Qos(reliable=True, transient_local=False, depth=10)
-#: A request's fields as a dict -> the response's fields.
-Handler = Callable[[dict[str, Any]], dict[str, Any]]
-#: A first-served request's fields -> what it did (given to its answer, on another thread).
-Act = Callable[[dict[str, Any]], Any]
+
+
+class Request(dict[str, Any]):
+    """A request's own fields (the header left out), and who asked: the ROS 2 node that owns the client's
+    request writer, as the graph (``ros_discovery_info``) names it; None where no rmw announced it (a raw
+    DDS peer). A name any participant may announce: it says who, it proves nothing."""
+
+    def __init__(self, fields: dict[str, Any], asker: str | None = None) -> None:
+        super().__init__(fields)
+        self.asker = asker
+
+
+#: A request -> the response's fields.
+Handler = Callable[[Request], dict[str, Any]]
+#: A first-served request -> what it did (given to its answer, on another thread).
+Act = Callable[[Request], Any]
 #: What ``Act`` did -> the response's fields.
 Answer = Callable[[Any], dict[str, Any]]
 #: The longest a reply waits for its client's reader to be matched (seconds).
@@ -109,7 +121,7 @@ class Services:
         intake = Intake(self.node.participant, f"ros2-{name}-intake", self.note)
 
         def taken(sample: Any) -> None:
-            did = act(_fields(ends.request, sample))
+            did = act(self._request(ends, sample))
             worker.put(lambda: self._answer(ends, sample, lambda _: answer(did)))
 
         intake.watch(ends.reader, taken)
@@ -130,12 +142,20 @@ class Services:
     def _answer(self, ends: _Endpoints, sample: Any, handler: Handler) -> None:
         """Run ``handler`` on a request and hand its reply to ``replies``; a failure costs that request only."""
         try:
-            fields = handler(_fields(ends.request, sample))
+            fields = handler(self._request(ends, sample))
             header = (sample.client_guid, sample.sequence_number)
             reply = idl.build_service(ends.response, header, fields)
             self.replies.send(ends.writer, _asker(ends.reader, sample), reply)
         except Exception as exc:
             self.note(f"error answering a {ends.response.rpartition('/')[2]} (ignored): {exc!r}", Level.ERROR)
+
+    def _request(self, ends: _Endpoints, sample: Any) -> Request:
+        """``sample``'s fields, and the node that owns the writer it came from."""
+        writer = _publication(ends.reader, sample)
+        asker = None if writer is None else self.node.graph.node_of(bytes(writer.key.bytes))
+        return Request(
+            {field.name: getattr(sample, field.name) for field in ros2msg.TYPES[ends.request].fields}, asker
+        )
 
     def _dropped(self) -> None:
         self.dropped += 1
@@ -273,15 +293,15 @@ class Replies:
         return heard[key]
 
 
-def _asker(reader: DataReader, sample: Any) -> Any:
-    """The participant that sent ``sample`` (its key), or None if it is gone already."""
+def _publication(reader: DataReader, sample: Any) -> Any:
+    """What discovery said of the writer that sent ``sample``, or None if it is gone already."""
     try:
-        found = reader.get_matched_publication_data(sample.sample_info.publication_handle)
+        return reader.get_matched_publication_data(sample.sample_info.publication_handle)
     except Exception:  # the client left between its request and this answer
         return None
+
+
+def _asker(reader: DataReader, sample: Any) -> Any:
+    """The participant that sent ``sample`` (its key), or None if it is gone already."""
+    found = _publication(reader, sample)
     return None if found is None else found.participant_key
-
-
-def _fields(request: str, sample: Any) -> dict[str, Any]:
-    """A request's own fields (the header left out), nested messages as they are."""
-    return {field.name: getattr(sample, field.name) for field in ros2msg.TYPES[request].fields}
