@@ -79,7 +79,8 @@ def test_sigterm_after_a_reconnect_stops_the_robot_on_the_new_port(
         code, err = sigterm(running)
         after = stop_after(again, before)
     assert code == 0, err
-    assert after[-1] == STOP_FRAME and not moving(after[after.index(STOP_FRAME) :])
+    # a sweep's read may follow the stop (the poller ends after it): nothing that moves may
+    assert not moving(after[after.index(STOP_FRAME) :]), after
     assert "lost the link" not in err and "error" not in err, err  # nothing to rescue: the port was there
 
 
