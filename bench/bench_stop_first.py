@@ -34,6 +34,12 @@ every channel and unsubscribing), for the fleet those of ``_fleet_floods.py``
 serial line; ``refusals``: cmd_vel from ever new operators, each refused),
 paced at ``--fleet-rate`` messages a second (default 2,000).
 
+``linkdown``: a server told to end with its link down mid-drive. A client
+drives (the bridge, and ``fleet serve`` with its router), the pty closes,
+and once the server said its stop could not be written it is sent SIGTERM:
+the time to its exit (target: every round within ``LINKDOWN_TARGET_S``, 2 s,
+and status 0; before, the stop rescue's wait, 30 s by default, then 1).
+
 Target: each busy kind's median at most ``TARGET`` (1.2) times the quiet
 median of the same run plus ``ALLOWANCE_S`` (a few ms: the holder's threads
 share one interpreter lock with whatever a flood keeps busy, held up to its
@@ -48,7 +54,9 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import os
+import signal
 import statistics
 import struct
 import subprocess
@@ -83,7 +91,11 @@ FLOOD_LEAD = 0.3
 #: Quiet after a round's stop beyond the deadman, before the next round.
 SETTLE = 0.2
 TIMEOUT = 30.0
-PARTS = ("port", "foxglove", "fleet")
+PARTS = ("port", "foxglove", "fleet", "linkdown")
+#: A server told to end with its link down mid-drive exits within this (issue 48: every server, 2 s).
+LINKDOWN_TARGET_S = 2.0
+#: How long the bench waits for that exit: past the rescue's default wait (30 s), so a miss is measured.
+LINKDOWN_WAIT = 60.0
 BRIDGE_KINDS = ("quiet", "clients", "reads")
 FLEET_KINDS = ("quiet", "reads", "refusals")
 #: The fleet floods' messages a second: as the bridge's (~1 kHz), twice over. Unpaced (0), a refusals flood
@@ -208,7 +220,8 @@ def bridge_parts(parts: list[str], rounds: int) -> dict[str, dict[str, list[floa
 
 @contextlib.contextmanager
 def fleet_serve(path: str, tmp: Path) -> Iterator[str]:
-    """A router on a free loopback port and ``fleet serve r1`` on ``path``; the endpoint."""
+    """A router on a free loopback port and ``fleet serve r1`` on ``path`` (its stderr in ``tmp/serve.err``,
+    the serve last in ``SERVES``); the endpoint."""
     from bench_fleet import wait_for
 
     endpoint = free_endpoint()
@@ -218,10 +231,15 @@ def fleet_serve(path: str, tmp: Path) -> Iterator[str]:
         procs.append(started(["--zenoh", endpoint, "fleet", "router", "--listen", endpoint], None))
         serve = ["--zenoh", endpoint, "--port", path, "fleet", "serve", "r1", "--deadman", str(DEADMAN)]
         procs.append(started(serve, err))
+        SERVES.append(procs[-1])
         wait_for(lambda: err.exists() and "serving r1" in err.read_text(), what="fleet serve r1")
         yield endpoint
     finally:
         kill_groups(procs)
+
+
+#: The fleet serves started, the last one running now.
+SERVES: list[subprocess.Popen[bytes]] = []
 
 
 def started(args: list[str], err: Path | None) -> subprocess.Popen[bytes]:
@@ -270,6 +288,85 @@ def fleet_part(rounds: int, rate: float) -> dict[str, list[float]]:
             driver.close()
 
 
+# -- a server told to end with its link down ----------------------------------------------------------------
+
+
+def sigterm_to_exit(proc: subprocess.Popen[Any], said: Callable[[], str]) -> tuple[float, int]:
+    """Once the server said its stop could not be written, SIGTERM: seconds to its exit, and its status."""
+    deadline = time.monotonic() + TIMEOUT
+    while "stop NOT written" not in said():
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"the server never said the link was lost: {said()[-2000:]}")
+        time.sleep(0.01)
+    asked = time.monotonic()
+    proc.send_signal(signal.SIGTERM)
+    status = proc.wait(timeout=LINKDOWN_WAIT)
+    return time.monotonic() - asked, status
+
+
+def linkdown_part(rounds: int) -> dict[str, list[float]]:
+    """SIGTERM to exit, the pty closed while a client drives: the bridge and fleet serve, ``rounds`` each."""
+    took: dict[str, list[float]] = {"bridge": [], "fleet serve": []}
+    for _ in range(rounds):
+        took["bridge"].append(bridge_linkdown())
+        took["fleet serve"].append(fleet_linkdown())
+    return took
+
+
+def bridge_linkdown() -> float:
+    with FakeRobot() as robot:
+        bridge = Bridge(robot.path)
+        driver = FoxgloveDriver(bridge.port)
+        try:
+            wait_motion(robot, driver.publish, 0.0)
+            robot.close()
+            return linkdown_exit("bridge", bridge.proc, lambda: "\n".join(bridge.lines))
+        finally:
+            driver.close()
+            bridge.close()
+
+
+def fleet_linkdown() -> float:
+    from _fleet_floods import Driver as FleetDriver
+
+    with (
+        FakeRobot() as robot,
+        tempfile.TemporaryDirectory() as tmp,
+        fleet_serve(robot.path, Path(tmp)) as end,
+    ):
+        driver = FleetDriver(end)
+        try:
+            wait_motion(robot, lambda: driver.publish(1), 0.0)
+            robot.close()
+            return linkdown_exit("fleet serve", SERVES[-1], (Path(tmp) / "serve.err").read_text)
+        finally:
+            driver.close()
+
+
+def linkdown_exit(name: str, proc: subprocess.Popen[Any], said: Callable[[], str]) -> float:
+    seconds, status = sigterm_to_exit(proc, said)
+    print(f"  {name}: SIGTERM to exit {seconds * 1000:.0f} ms, status {status}", flush=True)
+    return (
+        seconds if status == 0 else math.inf
+    )  # a server's SIGTERM is its normal end: any other status misses
+
+
+def judged_linkdown(times: dict[str, list[float]], metrics: dict[str, Any]) -> bool:
+    ok = True
+    for name, values in times.items():
+        worst = max(values)
+        met = worst <= LINKDOWN_TARGET_S
+        ok = ok and met
+        key = name.replace(" ", "_")
+        metrics[f"linkdown_{key}_median_ms"] = round(statistics.median(values) * 1000, 1)
+        metrics[f"linkdown_{key}_max_ms"] = round(worst * 1000, 1)
+        print(
+            f"  {'ok  ' if met else 'MISS'} {name} with the link down: SIGTERM to exit median "
+            f"{statistics.median(values) * 1000:.0f} ms, max {worst * 1000:.0f} (target <= {LINKDOWN_TARGET_S:g} s)"
+        )
+    return ok
+
+
 # -- the figures -----------------------------------------------------------------------------------------
 
 
@@ -309,8 +406,10 @@ def main() -> int:
     found = bridge_parts(parts, args.rounds) if {"port", "foxglove"} & set(parts) else {}
     if "fleet" in parts:
         found["fleet"] = fleet_part(args.rounds, args.fleet_rate)
+    linkdown = linkdown_part(args.rounds) if "linkdown" in parts else {}
     metrics: dict[str, Any] = {"rounds": args.rounds, "load": round(os.getloadavg()[0], 1)}
     ok = all([judged(part, times, metrics) for part, times in found.items()])
+    ok = (judged_linkdown(linkdown, metrics) if linkdown else True) and ok
     record("stop_first", metrics)
     return 0 if ok else 1
 
