@@ -1,9 +1,10 @@
 """The fleet under floods from a raw Zenoh peer: the deadman stop on the robot's wire, flood against none.
 
-Used by ``bench_fleet.py`` (``--flood-rounds``); run alone as
-``python bench/_fleet_floods.py KIND ENDPOINT`` it is the flood process: a raw
-Zenoh client (not hcrctl's code) sending as fast as it can until its stdin
-closes, printing ``flooding`` once under way and its counts at the end.
+Used by ``bench_fleet.py`` (``--flood-rounds``) and ``bench_stop_first.py``; run alone as
+``python bench/_fleet_floods.py KIND ENDPOINT [RATE]`` it is the flood process: a raw
+Zenoh client (not hcrctl's code) sending as fast as it can (or RATE messages a
+second) until its stdin closes, printing ``flooding`` once under way and its
+counts at the end.
 
 The kinds (``KINDS``), each against ``fleet serve r1`` while a driver drives:
 
@@ -56,8 +57,9 @@ SPEED = 0.2
 STOP = C.encode_request(C.STOP)
 
 
-def flood_main(kind: str, endpoint: str) -> int:
-    """The flood process: as fast as one Python loop goes, until stdin closes."""
+def flood_main(kind: str, endpoint: str, rate: float = 0.0) -> int:
+    """The flood process: as fast as one Python loop goes (or ``rate`` messages a second), until stdin
+    closes."""
     import zenoh
 
     cfg = zenoh.Config()
@@ -75,6 +77,8 @@ def flood_main(kind: str, endpoint: str) -> int:
         sent += 1
         if sent == 200:
             print("flooding", flush=True)
+        if rate and (ahead := start + sent / rate - time.monotonic()) > 0:
+            time.sleep(ahead)
     seconds = time.monotonic() - start
     print(json.dumps({"sent": sent, "seconds": seconds}), flush=True)
     session.close()
@@ -109,14 +113,21 @@ def _sender(kind: str, session: Any, zenoh: Any) -> Callable[[int], None]:
 class Flood:
     """This module as a flood process of ``kind`` while the block runs (nothing for the baseline)."""
 
-    def __init__(self, kind: str, endpoint: str) -> None:
-        self.kind, self.endpoint = kind, endpoint
+    def __init__(self, kind: str, endpoint: str, rate: float = 0.0) -> None:
+        """``rate``: messages a second (0: as fast as it goes)."""
+        self.kind, self.endpoint, self.rate = kind, endpoint, rate
         self.proc: subprocess.Popen[str] | None = None
         self.stats: dict[str, Any] = {}
 
     def __enter__(self) -> Flood:
         if self.kind != "baseline":
-            args = [sys.executable, __file__, self.kind, self.endpoint]
+            args = [
+                sys.executable,
+                __file__,
+                self.kind,
+                self.endpoint,
+                *([str(self.rate)] if self.rate else []),
+            ]
             self.proc = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
             assert self.proc.stdout is not None
             if self.proc.stdout.readline().strip() != "flooding":
@@ -237,4 +248,4 @@ def deadman_under_floods(
 
 
 if __name__ == "__main__":
-    sys.exit(flood_main(sys.argv[1], sys.argv[2]))
+    sys.exit(flood_main(sys.argv[1], sys.argv[2], *map(float, sys.argv[3:4])))

@@ -27,6 +27,7 @@ pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip instal
 
 from helpers import TIMEOUT, clean_env, wait_until
 from helpers_fleet_robot import MOTION, VELOCITY, Fleet, Operator, fleet, is_stop, operator, twist
+from helpers_shell import LONG_STOP_WAIT, PtyRobot, ended_saying_not_delivered
 
 from hcrctl.fleet.publish import Publishers
 from hcrctl.link.zenoh import keyspace
@@ -219,3 +220,32 @@ def _wait_for_answers(op: Operator, robot: str) -> None:
         return answered.wait(0.1)
 
     wait_until(asked, what=f"an answer to a read of {robot}")
+
+
+def test_sigterm_with_the_link_down_mid_drive_ends_at_once_saying_the_stop_was_not_delivered(
+    tmp_path: Path,
+) -> None:
+    """An operator drives, the robot's pty closes, SIGTERM: exit 0 well before the rescue's long wait, the
+    stop it could not deliver said on stderr."""
+    robot = PtyRobot()
+    try:
+        with fleet(clean_env(tmp_path, HCRCTL_STOP_WAIT=LONG_STOP_WAIT)) as lab:
+            lab.router()
+            serve = lab.serve("r1", robot.port, "--deadman", "10", log=tmp_path / "r1.jsonl")
+            with operator(lab.endpoint, "r1", "op1") as op:
+                op.open()
+                taken, body = op.claim()
+                assert taken, body
+
+                def moving() -> bool:
+                    op.cmd_vel(twist())
+                    return bool(serve.sent_codes({VELOCITY}))
+
+                wait_until(moving, what="velocity on the wire")
+                robot.close()  # the port is pulled while the robot moves
+                serve.wait_err("stop NOT written")
+                serve.proc.send_signal(signal.SIGTERM)
+                status = serve.proc.wait(timeout=TIMEOUT)
+            ended_saying_not_delivered(status, _stderr_to_end(serve), robot.port)
+    finally:
+        robot.close()

@@ -186,6 +186,26 @@ def test_stop_with_no_holder_says_who_might(port_env: dict[str, str]) -> None:
         assert os.path.exists(robot.path)
 
 
+def test_only_a_robot_a_connection_opened_offers_the_stop_line(
+    port_env: dict[str, str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A program using the library's ``Robot`` itself holds the port, but offers no stop line (it owns its
+    motion, and no owner would stop it): stop says no hcrctl holds it. A Connection's robot offers one."""
+    monkeypatch.setenv("XDG_RUNTIME_DIR", port_env["XDG_RUNTIME_DIR"])
+    from hcrctl.link import stopline
+    from hcrctl.link.client import Robot
+    from hcrctl.link.context import Connection
+
+    with FakeRobot() as robot:
+        with Robot(robot.path) as held:
+            assert held.stopline is None and stop_lines(port_env) == []
+            out = stop_on(robot, port_env)
+            assert out.returncode == 1 and "no hcrctl holds it" in out.stderr, out
+        with Connection(port=robot.path).connect() as opened:
+            assert opened.stopline is not None and len(stop_lines(port_env)) == 1
+            assert stopline.ask(robot.path) is not None
+
+
 def test_stop_from_another_terminal_stops_the_shells_robot(
     port_env: dict[str, str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -9,17 +9,19 @@ unbroken stream even on a loaded machine.
 from __future__ import annotations
 
 import contextlib
+import signal
 import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
 
-from helpers import wait_until
+from helpers import TIMEOUT, wait_until
 from helpers_cli import sim_pty
 from helpers_cyclone import CycloneClient
 from helpers_dds import Place, RosSide, place, ros2_node, ros_side
 from helpers_fleet_robot import VELOCITY, Serve, is_stop
 from helpers_live import FakeRobot
+from helpers_shell import LONG_STOP_WAIT, PtyRobot, ended_saying_not_delivered
 
 from hcrctl.protocol import commands as C
 from hcrctl.protocol import ros2srv as S
@@ -179,3 +181,29 @@ def test_the_stop_service_says_so_when_the_stop_was_written_but_nothing_answered
         assert not reply.success and want in reply.message, reply.message
         assert "NOT written" not in reply.message
         node.wait_err("stopped: the ~/stop service was called")
+
+
+def test_sigterm_with_the_link_down_mid_drive_ends_the_node_at_once_saying_the_stop_was_not_delivered(
+    env: dict[str, str], tmp_path: Path
+) -> None:
+    """A writer drives, the robot's pty closes, SIGTERM: exit 0 well before the rescue's long wait, and the
+    stop it could not deliver said on stderr."""
+    here = place()
+    waits = {**env, "HCRCTL_STOP_WAIT": LONG_STOP_WAIT}  # the test waits for the exit far less
+    robot = PtyRobot()
+    try:
+        with (
+            ros_side(here, tmp_path, {}, {"cmd_vel": TWIST}) as a,
+            ros2_node(
+                robot.port, here, waits, "--deadman", str(DEADMAN), log=tmp_path / "wire.jsonl"
+            ) as node,
+        ):
+            wait_until(lambda: moving(node, a, -0.2, (-20, -20)), what="A driving")
+            robot.close()  # the port is pulled while the robot moves
+            node.wait_err("stop NOT written")
+            node.proc.send_signal(signal.SIGTERM)
+            status = node.proc.wait(timeout=TIMEOUT)
+            err = node.said()
+    finally:
+        robot.close()
+    ended_saying_not_delivered(status, err, robot.port)

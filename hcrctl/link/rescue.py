@@ -25,6 +25,10 @@ watchdog. So ``rescue()`` takes over, the one place that knows how:
 
 Ctrl-C (or SIGTERM/SIGHUP) during the wait gives up at once with the NOT
 delivered outcome, and the exit status of that signal (130, 143, 129).
+A signal that came before the rescue began is the same giving up, said
+beforehand: ``rescue(..., ending=NAME)`` tries the port once (a device back
+at the path gets its stop) and waits for nothing, so a server told to end
+ends at once, its outcome said.
 """
 
 from __future__ import annotations
@@ -61,53 +65,58 @@ def stop_frame(robot: Robot, address: int | None = None) -> bytes:
 
 
 @contextlib.contextmanager
-def stopping(robot: Robot, frames: StopFrames | None = None) -> Iterator[None]:
+def stopping(robot: Robot, frames: StopFrames | None = None, *, ending: str | None = None) -> Iterator[None]:
     """Send stop when the block ends, however it ends; rescue it if the link is gone.
 
     ``frames`` gives the stop frames to send (default: stop to the robot's
     address and to every address its writes moved, ``stop_frames``); it is
     called at the end, so every address moved by then is stopped. When the block raised and stop went out (or nothing had moved),
     the block's error is the news; when stop could not be delivered because
-    the link dropped, the rescue's outcome is.
+    the link dropped, the rescue's outcome is. ``ending``: as for ``rescue``.
     """
     frames = frames or (lambda: stop_frames(robot))
     try:
         yield
     except BaseException as exc:
-        lost = _stop(robot, frames, quiet=True)
+        lost = _stop(robot, frames, quiet=True, ending=ending)
         if lost is not None:
             raise lost from exc
         raise
-    lost = _stop(robot, frames, quiet=False)
+    lost = _stop(robot, frames, quiet=False, ending=ending)
     if lost is not None:
         raise lost
 
 
-def _stop(robot: Robot, frames: StopFrames, *, quiet: bool) -> HcrError | None:
+def _stop(robot: Robot, frames: StopFrames, *, quiet: bool, ending: str | None) -> HcrError | None:
     """Send the stop frames; the rescue's outcome if the link was lost while moving."""
     moved = robot.moved
     try:
         robot.stop(frames())
     except Exception:
         if moved and robot.error is not None:
-            return rescue(robot, frames)
+            return rescue(robot, frames, ending=ending)
         if quiet:
             return None
         raise
     return None
 
 
-def rescue(robot: Robot, frames: StopFrames) -> LinkLostWhileMoving:
-    """Warn, wait for the port to come back, send stop; the error carrying the outcome."""
+def rescue(robot: Robot, frames: StopFrames, *, ending: str | None = None) -> LinkLostWhileMoving:
+    """Warn, wait for the port to come back, send stop; the error carrying the outcome.
+
+    ``ending``: the name of a stop signal that already ended the run (a server told to end): the port is
+    tried once, with no wait and no warning beforehand, since no one is left to wait for it.
+    """
     cause = robot.error or PortError("lost the link", robot.port)
     reopen = robot.reopen or _same_port(robot)
-    wait = robot.stop_wait
+    wait = 0.0 if ending else robot.stop_wait
     started = time.monotonic()
     try:  # a signal from here on is giving up, even one that lands before the warning is out
-        warn(
-            f"lost the link on {robot.port} while the robot was moving: stop could NOT be delivered; "
-            f"re-opening {robot.port} for up to {wait:g} s to send it (Ctrl-C gives up)"
-        )
+        if ending is None:
+            warn(
+                f"lost the link on {robot.port} while the robot was moving: stop could NOT be delivered; "
+                f"re-opening {robot.port} for up to {wait:g} s to send it (Ctrl-C gives up)"
+            )
         if getattr(reopen, "owned", True):
             robot.close()  # release the dead port (nothing can be sent on it) before re-opening
         took, written = _wait_and_stop(robot.port, reopen, list(frames()), started + wait)
@@ -115,13 +124,14 @@ def rescue(robot: Robot, frames: StopFrames) -> LinkLostWhileMoving:
         return _not_delivered(cause, "gave up on Ctrl-C", ExitStatus.INTERRUPTED)
     except Terminated as exc:
         return _not_delivered(cause, f"gave up on {signal.Signals(exc.signum).name}", exc.exit_code)
+    within = f"when {ending} ended the run" if ending else f"within {wait:g} s"
     if took is None and not written:
-        return _not_delivered(cause, f"{robot.port} did not come back within {wait:g} s", ExitStatus.FAILED)
+        back = "was not back" if ending else "did not come back"
+        return _not_delivered(cause, f"{robot.port} {back} {within}", ExitStatus.FAILED)
     if took is None:
         return _not_delivered(
             cause,
-            f"nothing at {robot.port} answered as the robot does within {wait:g} s: "
-            "another device may hold the path",
+            f"nothing at {robot.port} answered as the robot does {within}: another device may hold the path",
             1,
             f"stop written to {robot.port}, but nothing answered: the robot may still be moving",
         )

@@ -12,41 +12,81 @@ re-opened at its path never answered: that may be another device, and only
 the rescue's answer tells.
 A robot at rest (nothing moved since its last stop was written: ``Robot.moved``
 is false) owes no stop: a port gone then is no alarm, and nothing waits for it.
+A server ended by a stop signal (SIGTERM, SIGINT, SIGHUP: its normal end,
+exit 0) waits for no port either: the rescue tries the port once
+(``rescue(..., ending=NAME)``) and its outcome is said as a note (stderr, and
+``/rosout`` on a ROS 2 node), so that a supervisor's SIGTERM ends the server at
+once whatever the link, and the robot's loss is told rather than waited on.
 This is watch's ``OwedStop`` problem, ended the way ``OwedStop.finish`` ends it.
 """
 
 from __future__ import annotations
 
 import contextlib
+import signal
 from collections.abc import Callable, Iterator
 
+from ..errors import LinkLostWhileMoving
+from ..errors.terminal import warn
 from ..link.client import Robot
 from ..link.dialects import stop_frames
 from ..link.rescue import rescue, stopping
+from ..signals import Terminated
 from .feed import Feed
+
+#: Says a line on every channel the server speaks (``Notes.note``); ``error`` when the robot may still move.
+Say = Callable[[str, bool], None]
 
 
 @contextlib.contextmanager
-def stopping_driven(feed: Feed, first: Robot, driven: Callable[[], Robot | None]) -> Iterator[None]:
-    """``stopping()`` whose robot is chosen when the block ends; ``driven()``: the last one written to."""
+def stopping_driven(
+    feed: Feed,
+    first: Robot,
+    driven: Callable[[], Robot | None],
+    signalled: Callable[[], int | None] = lambda: None,
+    say: Say | None = None,
+) -> Iterator[None]:
+    """``stopping()`` whose robot is chosen when the block ends; ``driven()``: the last one written to.
+
+    ``signalled()``: the stop signal the server was told to end by, if any (a flag, not an exception);
+    ``say``: where a signalled end's rescue outcome goes (default: a warning on stderr).
+    """
     try:
         yield
-    except BaseException:
-        with _final_stop(feed, first, driven()):
+    except BaseException as exc:
+        with _final_stop(feed, first, driven(), _ending(exc, signalled()), say):
             raise
-    with _final_stop(feed, first, driven()):
+    with _final_stop(feed, first, driven(), _ending(None, signalled()), say):
         pass
 
 
-def _final_stop(feed: Feed, first: Robot, driven: Robot | None) -> contextlib.AbstractContextManager[None]:
+def _ending(exc: BaseException | None, signum: int | None) -> str | None:
+    """The name of the stop signal that ends the run (raised or flagged), or None."""
+    if isinstance(exc, KeyboardInterrupt):
+        return signal.SIGINT.name
+    if isinstance(exc, Terminated):
+        signum = exc.signum
+    return signal.Signals(signum).name if signum else None
+
+
+def _final_stop(
+    feed: Feed, first: Robot, driven: Robot | None, ending: str | None, say: Say | None
+) -> contextlib.AbstractContextManager[None]:
+    chosen = _chosen_stop(feed, first, driven, ending)
+    return chosen if ending is None else _said(chosen, say or _warned)
+
+
+def _chosen_stop(
+    feed: Feed, first: Robot, driven: Robot | None, ending: str | None
+) -> contextlib.AbstractContextManager[None]:
     current = feed.current
     moved = [robot for robot in (driven, first) if robot is not None and robot.moved]
     if current is not None and current.connected and _robot_there(feed, current, moved):
-        return stopping(current)
+        return stopping(current, ending=ending)
     if not moved:  # at rest: stop is still tried on a live link; a dead one owes nothing (its loss was said)
-        return stopping(first) if first.connected else contextlib.nullcontext()
+        return stopping(first, ending=ending) if first.connected else contextlib.nullcontext()
     feed.poller.stop()
-    return _rescued(moved[0])
+    return _rescued(moved[0], ending)
 
 
 def _robot_there(feed: Feed, current: Robot, moved: list[Robot]) -> bool:
@@ -56,10 +96,27 @@ def _robot_there(feed: Feed, current: Robot, moved: list[Robot]) -> bool:
 
 
 @contextlib.contextmanager
-def _rescued(robot: Robot) -> Iterator[None]:
+def _rescued(robot: Robot, ending: str | None) -> Iterator[None]:
     """The link is down and ``robot`` moved: the rescue's outcome is the error, after the block's own."""
     try:
         yield
     except BaseException as exc:
-        raise rescue(robot, lambda: stop_frames(robot)) from exc
-    raise rescue(robot, lambda: stop_frames(robot))
+        raise rescue(robot, lambda: stop_frames(robot), ending=ending) from exc
+    raise rescue(robot, lambda: stop_frames(robot), ending=ending)
+
+
+@contextlib.contextmanager
+def _said(stop: contextlib.AbstractContextManager[None], say: Say) -> Iterator[None]:
+    """A signal ends the run: a rescue's outcome (one try, no wait) is said, and the run's own end
+    stands (a server exits 0)."""
+    try:
+        with stop:
+            yield
+    except LinkLostWhileMoving as lost:
+        say(f"{lost.message} ({lost.hint})" if lost.hint else lost.message, not lost.delivered)
+        if lost.__cause__ is not None:
+            raise lost.__cause__ from None
+
+
+def _warned(text: str, error: bool) -> None:
+    warn(text)

@@ -223,7 +223,7 @@ class ServedRobot:
             for front in self._fronts.values():
                 governor.attach(on_stop=front.stopped)
             try:
-                with feed, stopping_driven(feed, robot, lambda: governor.driven), governor:
+                with feed, self._final_stop(feed, robot), governor:
                     feed.poller.first_sweep()  # the bumper rule has a reading before anyone may drive
                     self._started(robot)
                     self._loop(LinkWatch(feed, governor, self.notes.note, robot.port))
@@ -231,6 +231,15 @@ class ServedRobot:
                         raise governor.error
             finally:
                 self.notes.stop()
+
+    def _final_stop(self, feed: Feed, robot: Robot) -> contextlib.AbstractContextManager[None]:
+        """The end-of-run stop to the robot driven then; a signalled end with the link down is said, not
+        waited on."""
+
+        def say(text: str, error: bool) -> None:
+            self.notes.note(f"warning: {text}", Level.ERROR if error else Level.WARN)
+
+        return stopping_driven(feed, robot, lambda: self.governor.driven, lambda: self.signalled.signum, say)
 
     def _loop(self, watch: LinkWatch) -> None:
         """Until the duration, a signal or the governor's error; then every front end closes (no more offers)."""
