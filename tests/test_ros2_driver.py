@@ -26,7 +26,7 @@ from helpers_dds import COMMAND_QOS, LATCHED_QOS, SENSOR_QOS, Place, RosSide, pl
 
 from hcrctl.protocol import ros2conv
 from hcrctl.protocol import ros2types as R
-from hcrctl.served.refusals import MAX_LINES, WINDOW
+from hcrctl.served.peerwords import MAX_LINES, WINDOW
 
 TWIST = "geometry_msgs/msg/Twist"
 QUIET = ("--options", "noise=0&broadcast_hz=0&map_hz=0")

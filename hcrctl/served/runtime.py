@@ -60,6 +60,7 @@ from .endstop import stopping_driven
 from .feed import Feed
 from .linkwatch import LinkWatch
 from .notes import Level, Notes
+from .peerwords import PeerWords
 from .tuning import Tuning
 from .untrusted import shown
 from .view import RuntimeView
@@ -160,6 +161,8 @@ class ServedRobot:
         #: The rate and the deadman, held once: everything made from them follows its changes.
         self.tuning = Tuning(rate, deadman, notes.note, guarded=guarded)
         self.tuning.follow(deadman=self.governor.set_deadman)
+        #: Words about peers, on one budget for every front end and every channel (``peerwords``).
+        self.words = PeerWords(notes.note)
         self.signalled = Signalled()
         self.sensors: list[str] = supported_sensors(settings.protocol, [])
         #: Whether the firmware has the velocity command a Twist becomes.
@@ -199,6 +202,7 @@ class ServedRobot:
 
         with stop_signals_handled(self.signalled), contextlib.ExitStack() as ending:
             ending.callback(summed)
+            ending.callback(self.words.flush)  # after every front end's finish: what they held back is said
             for front in self._fronts.values():
                 front.open(self.view)
                 ending.callback(self._quietly, front, front.finish)
@@ -237,6 +241,7 @@ class ServedRobot:
 
         def ended() -> bool:
             watch.check()
+            self.words.tick()
             for front in self._fronts.values():
                 front.tick()
             return bool(self.signalled) or self.governor.error is not None
@@ -247,6 +252,7 @@ class ServedRobot:
             self.signalled.closing = True
             for front in self._fronts.values():
                 self._quietly(front, front.close)
+            self.words.flush()  # while every channel (``/rosout``, ``status``) is still there to carry it
 
     def _started(self, robot: Robot) -> None:
         parts = [part for part in (front.start(self.view) for front in self._fronts.values()) if part]
