@@ -313,3 +313,64 @@ def test_fleet_serve_with_ros2_publishes_odometry_diagnostics_and_rosout(
         assert link["name"] == f"/{name}/hcrctl: link"
         serving = latest(ros, "/rosout", lambda line: "serving " in line["msg"])
         assert serving["name"] == f"{name}.hcrctl"
+
+
+def test_floods_through_the_fleet_and_ros2_at_once_share_one_budget_on_stderr_and_rosout(
+    env: dict[str, str], tmp_path: Path
+) -> None:
+    """``fleet serve --ros2``: one ROS 2 writer drives; 99 others and a Zenoh peer under ever new names are
+    refused again and again. Both front ends' words draw on the one budget (``served.peerwords``): stderr
+    and ``/rosout`` each carry at most MAX_LINES refusals a window in all, not MAX_LINES per front end,
+    and what was held back is said as a count."""
+    pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra")
+    from helpers_fleet_robot import attacker, fleet, twist
+
+    from hcrctl.link.zenoh import keyspace
+
+    here = place()
+    name = "r" + here.namespace.lstrip("/")
+    robot = Place(here.domain, f"/{name}")
+    env = {**env, "ROS_DOMAIN_ID": str(here.domain)}
+    readers = {"/rosout": ("rcl_interfaces/msg/Log", ROSOUT_QOS)}
+    logged: list[str] = []
+    with (
+        fleet(env) as group,
+        ros_side(robot, tmp_path, readers) as ros,
+        teleop(robot, None, writers=100) as crowd,
+    ):
+        group.router()
+        serve = group.serve(name, group.sim(*QUIET), "--ros2", "--deadman", "10")
+        wait_until(crowd.matched, what="100 writers matched")
+
+        def driving() -> bool:
+            crowd.write(0, 0.1)
+            return "drives the robot (cmd_vel)" in serve.said()
+
+        wait_until(driving, what="the first writer driving")
+        with attacker(group.endpoint) as peer:
+            start = time.monotonic()
+            peer.puts(
+                keyspace.cmd_vel(name),
+                json.dumps(twist(-0.5)).encode(),
+                lambda n: keyspace.attachment(keyspace.Who(f"evil{n}", f"{n:016x}"), n),
+                rate=1000,
+            )
+
+            def flooded() -> bool:  # both floods on, until four windows have held words back
+                for index in range(100):
+                    crowd.write(index, 0.1)
+                logged.extend(s.get_dictionary()["msg"] for s in ros.take("/rosout"))
+                return serve.said().count("more refusals in the last") >= 4
+
+            wait_until(flooded, what="four windows of refusals held back")
+            peer.stop()
+            elapsed = time.monotonic() - start
+        assert "refused: ROS 2 writer" in serve.said() and "cmd_vel from ROS 2 writer" in serve.said()
+        serve.summary()
+        logged.extend(s.get_dictionary()["msg"] for s in ros.take("/rosout"))
+    windows = elapsed / WINDOW + 2
+    stderr = [line for line in serve.err.decode().splitlines() if "refused" in line]
+    rosout = [line for line in logged if "refused" in line]
+    assert len(stderr) <= MAX_LINES * windows, (len(stderr), elapsed)
+    assert len(rosout) <= MAX_LINES * windows, (len(rosout), elapsed)
+    assert any("more refusals in the last" in line for line in logged)  # the count on /rosout too
