@@ -122,6 +122,15 @@ def test_known_senders_with_budgets_of_their_own_are_bounded() -> None:
     ``MAX_BUDGETS``; beyond them a known sender shares the others' budget, so memory stays bounded."""
     words, _, _ = words_with_clock()
     words.know(lambda sender: True)
-    for n in range(3 * MAX_BUDGETS):
-        words.allowed(f"op{n}", "refused: op1 drives r1")
-    assert words.remembered <= MAX_BUDGETS * MAX_LINES
+    told = sum(words.allowed(f"op{n}", "refused: op1 drives r1") for n in range(3 * MAX_BUDGETS))
+    assert told == MAX_BUDGETS + MAX_LINES  # one word each for those with a budget, the others' budget's
+    assert words.remembered == MAX_BUDGETS + MAX_LINES
+
+
+def test_one_budget_is_made_per_serving_process_and_no_module_counts_words_of_its_own() -> None:
+    """Every front end and channel speaks through the runtime's one ``PeerWords``: none makes another, and
+    no other module says a count of what it held back (as the bridge and each front end once did)."""
+    from test_one_home import modules_matching
+
+    assert modules_matching(r"\bPeerWords\(") == {"served/runtime.py"}
+    assert modules_matching(r"more (refusals )?in ") == {"served/peerwords.py"}
