@@ -134,3 +134,38 @@ def test_one_budget_is_made_per_serving_process_and_no_module_counts_words_of_it
 
     assert modules_matching(r"\bPeerWords\(") == {"served/runtime.py"}
     assert modules_matching(r"more (refusals )?in ") == {"served/peerwords.py"}
+
+
+def test_a_ros2_writer_refused_in_words_that_hold_an_age_is_told_once_a_window() -> None:
+    """A stale bumper reading's refusal names its age, new with every Twist: the words without their
+    numbers are its kind, so a writer refused a thousand times in a window is told once, the rest counted."""
+    from types import SimpleNamespace
+
+    from hcrctl.motion.governor import Verdict
+    from hcrctl.ros2.drive import RosCmdVel
+
+    class Stale:
+        """A governor whose bumper reading is always too old for forward motion."""
+
+        driver = None
+
+        def would_refuse(self, source: object) -> None:
+            return None
+
+        def offer(self, source: object, wheels: object) -> Verdict:
+            self.age = getattr(self, "age", 500) + 1
+            return Verdict(False, f"refused: bumper reading stale ({self.age} ms old, over 500 ms)")
+
+    words, said, clock = words_with_clock()
+    cmd_vel = RosCmdVel(Stale(), said, words)  # type: ignore[arg-type]
+    axes = {"x": 0.0, "y": 0.0, "z": 0.0}
+    twist = SimpleNamespace(linear=SimpleNamespace(**{**axes, "x": 0.1}), angular=SimpleNamespace(**axes))
+    for _ in range(1000):
+        cmd_vel.message("6343720887c9286", twist)
+    assert cmd_vel.refused == 1000
+    assert said.texts == [
+        "cmd_vel from ROS 2 writer 6343720887c9286 refused: bumper reading stale (501 ms old, over 500 ms)"
+    ]
+    clock[0] = 1.0
+    words.tick()
+    assert said.texts[-1] == "... and 999 more refusals in the last 1.0 s"

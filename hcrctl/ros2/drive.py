@@ -95,13 +95,13 @@ class RosCmdVel:
             return
         verdict = self.governor.offer(source, wheels)
         if not verdict:
-            self._refused(source, verdict.why, verdict.why)
+            self._refused(source, None, verdict.why)  # its kind: the words without their numbers (an age)
             return
         self.taken += 1
         if driver != source == self.governor.driver:
             self._note(f"{source} drives the robot ({TOPIC})")
 
-    def _refused(self, source: Source, kind: str, why: str) -> None:
+    def _refused(self, source: Source, kind: str | None, why: str) -> None:
         self.refused += 1
         self._words.say(source, f"{TOPIC} from {source} {why}", Level.WARN, kind=kind)
 
