@@ -14,7 +14,7 @@ from taking turns.
 
 A sample is held to the rule every Twist hcrctl reads (``cmdvel.speed``: a
 finite number within ±1000 m/s or rad/s, for all six components): NaN, an
-infinity or 1e308 is refused and counted, said once per burst, and never
+infinity or 1e308 is refused and counted, said on the budget below, and never
 reaches the wire. Only ``linear.x`` and ``angular.z`` move a differential
 drive; the others must still be numbers.
 
