@@ -54,7 +54,6 @@ never written through. A turn is written once and held under the lease.
 
 from __future__ import annotations
 
-import re
 import secrets
 import threading
 from collections import OrderedDict
@@ -73,7 +72,6 @@ from ..served.cmdvel import BadTwist, parse_twist, twist_wheels
 from ..served.peerwords import PeerWords
 from .queries import QueryError, code_text
 
-_DIGITS = re.compile(r"\d+")
 #: Operator sessions present at once (their tokens); a token beyond this waits for room.
 MAX_OPERATORS = 256
 #: Sessions gone remembered with their keys and numbers, the oldest forgotten first.
