@@ -33,8 +33,11 @@ A front end sees the runtime only through ``served.view`` (``view.RuntimeView``)
 The runtime owns the rest: the signals (a flag the loop reads; a second
 signal, or one once closing, raises ``Terminated``), the governor (the bumper
 rule, the stop listeners, the link watch as where it writes), the final stop
-to the robot driven then (``stopping_driven``), the governor's error, and the
-summary, handed to ``report`` however the run ends once the robot was open.
+to the robot driven then (``stopping_driven``), the governor's error, the one
+budget for words about peers every front end says them on (``view.words``,
+``peerwords``: its windows closed each turn of the loop, what it held back said
+once the front ends close and again at the very end), and the summary, handed
+to ``report`` however the run ends once the robot was open.
 A failure in ``close`` or ``finish`` is a note naming the front end by its
 ``label``: the robot is stopped regardless.
 """
