@@ -35,6 +35,7 @@ from hcrctl.foxglove.client import STALLED_S
 from hcrctl.foxglove.websocket import MAX_ITEMS, MAX_MESSAGE, MAX_PER_CHANNEL, MAX_SUBSCRIPTIONS
 from hcrctl.motion.governor import RESEND
 from hcrctl.protocol import commands as C
+from hcrctl.served.peerwords import MAX_LINES, WINDOW
 
 DEADMAN = 0.5
 #: The most repeats of a held motion between the driver's last good message and the stop.
@@ -448,7 +449,8 @@ def test_fifty_thousand_subscriptions_from_a_client_that_never_reads_leave_the_b
 
 
 def test_a_burst_of_advertises_is_one_stderr_line_and_its_count(env: dict[str, str]) -> None:
-    """1,920 advertises of /cmd_vel in cbor: the first said at once, the rest counted, not a line each."""
+    """1,920 advertises of /cmd_vel in cbor: the first said at once, the rest counted (``served.peerwords``),
+    not a line each."""
     sent = 0
     with running_bridge(env) as (_, running), viewer(running.port) as client:
         # as many as the bridge reads of one message, in all less than a client's control budget
@@ -460,7 +462,7 @@ def test_a_burst_of_advertises_is_one_stderr_line_and_its_count(env: dict[str, s
             client.ws.send(json.dumps({"op": "advertise", "channels": channels}))
             sent += len(channels)
         said = re.compile(r"advertised /cmd_vel in cbor: only json is accepted$")
-        counted = re.compile(r"/cmd_vel advertised in an encoding other than json: ([\d,]+) more in 1 s$")
+        counted = re.compile(r"\.\.\. and (\d+) more refusals in the last [\d.]+ s$")
 
         def accounted() -> int:
             firsts = sum(1 for line in running.lines if said.search(line))
@@ -468,8 +470,35 @@ def test_a_burst_of_advertises_is_one_stderr_line_and_its_count(env: dict[str, s
             return firsts + more
 
         wait_until(lambda: accounted() == sent, what=f"all {sent} advertises said or counted")
-    lines = [x for x in running.lines if "cbor" in x or "other than json" in x]
-    assert len(lines) <= 2 * 10, lines  # two lines a burst; a burst lasts a second
+    lines = [x for x in running.lines if "cbor" in x or "more refusals" in x]
+    assert len(lines) <= 2 * 10, lines  # two lines a window: the first advertise and the count
+
+
+def test_clients_one_after_another_sending_no_twist_cost_the_budget_s_lines_not_one_each(
+    env: dict[str, str],
+) -> None:
+    """40 clients in turn, each advertising /cmd_vel and sending a payload that is no Twist while nobody
+    drives: each is told on its status, but stderr carries at most MAX_LINES of them a window (the one
+    budget for words about peers), and the rest are counted."""
+    sent = 40
+    with running_bridge(env) as (_, running):
+        start = time.monotonic()
+        for _ in range(sent):
+            with viewer(running.port) as client:
+                client.advertise_cmd_vel()
+                send_raw(client, b"not json")
+                assert "refused" in client.control("status")["message"]
+        elapsed = time.monotonic() - start
+        said = re.compile(r"client \d+: /cmd_vel refused: ")
+        counted = re.compile(r"\.\.\. and (\d+) more refusals in the last [\d.]+ s$")
+
+        def accounted() -> list[str] | None:
+            lines = [line for line in running.lines if said.search(line)]
+            more = sum(int(m.group(1)) for x in running.lines if (m := counted.search(x)))
+            return lines if len(lines) + more == sent else None
+
+        lines = wait_until(accounted, what=f"all {sent} refusals said or counted")
+    assert len(lines) <= MAX_LINES * (elapsed / WINDOW + 2), (len(lines), elapsed)
 
 
 def test_a_control_message_too_deep_is_refused_by_the_rule_for_every_peers_json(env: dict[str, str]) -> None:

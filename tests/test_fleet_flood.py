@@ -25,7 +25,7 @@ from hcrctl.link.zenoh import keyspace
 from hcrctl.motion.bumpers import freshness_bound
 from hcrctl.protocol import commands as C
 from hcrctl.protocol.frames import Frame
-from hcrctl.served.refusals import MAX_LINES, WINDOW
+from hcrctl.served.peerwords import MAX_LINES, WINDOW
 
 BUMP = C.BY_NAME["bump"].code
 SERVO = C.BY_NAME["servo"].code

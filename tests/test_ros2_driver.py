@@ -26,10 +26,12 @@ from helpers_dds import COMMAND_QOS, LATCHED_QOS, SENSOR_QOS, Place, RosSide, pl
 
 from hcrctl.protocol import ros2conv
 from hcrctl.protocol import ros2types as R
-from hcrctl.served.refusals import MAX_LINES, WINDOW
+from hcrctl.served.peerwords import MAX_LINES, WINDOW
 
 TWIST = "geometry_msgs/msg/Twist"
 QUIET = ("--options", "noise=0&broadcast_hz=0&map_hz=0")
+#: Messages a flooding Zenoh peer sends (paced at 1,000 a second): a flood of several windows.
+FLOODED = 5000
 #: rcl's /rosout reader side: transient local, deep enough for every start-up line.
 ROSOUT_QOS = LATCHED_QOS + "<history><kind>KEEP_LAST_HISTORY_QOS</kind><depth>1000</depth></history>"
 
@@ -305,3 +307,65 @@ def test_fleet_serve_with_ros2_publishes_odometry_diagnostics_and_rosout(
         assert link["name"] == f"/{name}/hcrctl: link"
         serving = latest(ros, "/rosout", lambda line: "serving " in line["msg"])
         assert serving["name"] == f"{name}.hcrctl"
+
+
+def test_floods_through_the_fleet_and_ros2_at_once_share_one_budget_on_stderr_and_rosout(
+    env: dict[str, str], tmp_path: Path
+) -> None:
+    """``fleet serve --ros2``: one ROS 2 writer drives; 99 others and a Zenoh peer under ever new names are
+    refused again and again. Both front ends' words draw on the one budget (``served.peerwords``): stderr
+    and ``/rosout`` each carry at most MAX_LINES refusals a window in all, not MAX_LINES per front end,
+    and what was held back is said as a count (windows are at least WINDOW long, so a run of T seconds
+    meets at most T / WINDOW + 2 of them)."""
+    pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra")
+    from helpers_fleet_robot import attacker, fleet, twist
+
+    from hcrctl.link.zenoh import keyspace
+
+    here = place()
+    name = "r" + here.namespace.lstrip("/")
+    robot = Place(here.domain, f"/{name}")
+    env = {**env, "ROS_DOMAIN_ID": str(here.domain)}
+    readers = {"/rosout": ("rcl_interfaces/msg/Log", ROSOUT_QOS)}
+    logged: list[str] = []
+    with (
+        fleet(env) as group,
+        ros_side(robot, tmp_path, readers) as ros,
+        teleop(robot, None, writers=100) as crowd,
+    ):
+        group.router()
+        serve = group.serve(name, group.sim(*QUIET), "--ros2", "--deadman", "10")
+        wait_until(crowd.matched, what="100 writers matched")
+
+        def driving() -> bool:
+            crowd.write(0, 0.1)
+            return "drives the robot (cmd_vel)" in serve.said()
+
+        wait_until(driving, what="the first writer driving")
+        with attacker(group.endpoint) as peer:
+            start = time.monotonic()
+            peer.puts(
+                keyspace.cmd_vel(name),
+                json.dumps(twist(-0.5)).encode(),
+                lambda n: keyspace.attachment(keyspace.Who(f"evil{n}", f"{n:016x}"), n),
+                rate=1000,
+            )
+
+            def flooded() -> bool:  # both floods on, for 5,000 of the peer's (paced) messages
+                for index in range(100):
+                    crowd.write(index, 0.1)
+                logged.extend(s.get_dictionary()["msg"] for s in ros.take("/rosout"))
+                return peer.sent >= FLOODED and "more refusals in the last" in serve.said()
+
+            wait_until(flooded, what=f"{FLOODED} messages from the peer, and words held back")
+            peer.stop()
+        assert "refused: ROS 2 writer" in serve.said() and "cmd_vel from ROS 2 writer" in serve.said()
+        serve.summary()
+        elapsed = time.monotonic() - start  # every word was said by now: the serve has ended
+        logged.extend(s.get_dictionary()["msg"] for s in ros.take("/rosout"))
+    windows = elapsed / WINDOW + 2
+    stderr = [line for line in serve.err.decode().splitlines() if "refused: " in line]
+    rosout = [line for line in logged if "refused: " in line]
+    assert len(stderr) <= MAX_LINES * windows, (len(stderr), elapsed)
+    assert len(rosout) <= MAX_LINES * windows, (len(rosout), elapsed)
+    assert any("more refusals in the last" in line for line in logged)  # the count on /rosout too

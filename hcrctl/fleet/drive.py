@@ -30,13 +30,13 @@ Who may drive, and which messages count:
   second life, and a dead session's lease cannot be claimed again;
 - a stop is anyone's (a ``stop``, or a zero Twist on ``cmd_vel``), and is said as the sender's only
   when signed by it; it holds (``governor.HOLD_RULE``);
-- every message ignored or refused is said on ``status`` to its sender, on
-  a budget (``refusals``: one word per sender and reason a window, a few
-  lines a second for each session present and a few for all the others
-  together, so no flood of names crowds out the words meant for a session,
-  and a count of what was held back), and the last one dropped of a session is kept for its
-  next claim's answer, so the sender learns which of its commands did not
-  count.
+- every message ignored or refused is said on ``status`` to its sender and
+  on stderr, on the serving process's one budget for words about peers
+  (``served.peerwords``: each session present has a budget of its own, all
+  the other senders share one, so no flood of names crowds out the words
+  meant for a session, and a count of what was held back), and the last one
+  dropped of a session is kept for its next claim's answer, so the sender
+  learns which of its commands did not count.
 
 What the operators must know (a refusal, who drives now, a stop and why) is
 put on ``hcr/<robot>/status`` by ``say``.
@@ -54,7 +54,6 @@ never written through. A turn is written once and held under the lease.
 
 from __future__ import annotations
 
-import re
 import secrets
 import threading
 from collections import OrderedDict
@@ -70,10 +69,9 @@ from ..motion.reasons import Reason
 from ..protocol import commands as C
 from ..protocol.profiles import Profile
 from ..served.cmdvel import BadTwist, parse_twist, twist_wheels
-from ..served.refusals import Refusals
+from ..served.peerwords import PeerWords
 from .queries import QueryError, code_text
 
-_DIGITS = re.compile(r"\d+")
 #: Operator sessions present at once (their tokens); a token beyond this waits for room.
 MAX_OPERATORS = 256
 #: Sessions gone remembered with their keys and numbers, the oldest forgotten first.
@@ -205,6 +203,7 @@ class FleetDrive:
         governor: Governor,
         say: Say,
         profile: Callable[[], tuple[Profile, int]],
+        words: PeerWords,
         holds: Holds | None = None,
     ) -> None:
         identity.check_installed()
@@ -222,7 +221,9 @@ class FleetDrive:
         self.challenge = keyspace.new_challenge()
         #: Sessions whose token came while ``MAX_OPERATORS`` were present, in the order they came.
         self._waiting: dict[keyspace.Who, None] = {}
-        self.refusals = Refusals(say, known=self._present.__contains__)
+        #: The serving process's budget for words about peers; each session present has one of its own.
+        self.words = words
+        words.know(self._present.__contains__)
         self._lock = threading.Lock()
 
     # -- messages ---------------------------------------------------------------
@@ -280,7 +281,7 @@ class FleetDrive:
             self.governor.stop("stop from someone unverified (a zero cmd_vel)")
             return True
         # Read only when a word could be said: to another sender, or to a session present (its own budget).
-        readable = self.refusals.may_say() or self._names_present(attachment)
+        readable = self.words.may_say() or self._names_present(attachment)
         parsed = keyspace.parse_attachment(attachment) if readable else None
         self.refused(parsed.who if parsed else None, self.refusal(driver), parsed.seq if parsed else None)
         return True
@@ -538,7 +539,7 @@ class FleetDrive:
         return refusal(driver, self.robot)
 
     def refused(self, op: keyspace.Who | None, text: str, seq: int | None = None) -> None:
-        """Counted every time, said on the budget (``refusals``: a flood of refusals is a few lines a second)."""
+        """Counted every time, said on the budget (``words``: a flood of refusals is a few lines a second)."""
         self.counters.refused += 1
         self._tell(op, text, seq)
 
@@ -554,8 +555,9 @@ class FleetDrive:
     def _tell(
         self, op: keyspace.Who | None, text: str, seq: int | None = None, kind: str | None = None
     ) -> None:
-        """A word about a dropped message to its sender, on the budget (``refusals``)."""
-        self.refusals.refused(op, text, seq, kind)
+        """A word about a dropped message to its sender (and stderr), on the budget (``words``)."""
+        if self.words.allowed(op, text, kind):
+            self._say(op, text, seq)
 
 
 def _named_key(payload: bytes) -> object:

@@ -118,7 +118,8 @@ class Fleet(FrontEnd):
         self.started = time.time()
         self.answers = queries.Answers()
         self.holds = Holds(lambda: self.session)
-        self.drive = FleetDrive(self.name, view.governor, self.say, self._profile, self.holds)
+        self.drive = FleetDrive(self.name, view.governor, self.say, self._profile, view.words, self.holds)
+        view.words.count_to(lambda text: self.tell(keyspace.refused_status(None, text)))
         self.declared: list[Any] = []
         self.session: Any = None
         self.publishers: Publishers | None = None
@@ -160,9 +161,6 @@ class Fleet(FrontEnd):
             return
         who = op if isinstance(op, keyspace.Who) else None
         self.tell(keyspace.stopped_status(who, str(stopped), stopped.reason.value))
-
-    def tick(self) -> None:
-        self.drive.refusals.tick()
 
     def close(self) -> None:
         self.undeclare()

@@ -79,7 +79,7 @@ class Foxglove(FrontEnd):
             exposed(options.host)
         self.beside = options.beside
         self.notes = notes
-        cmd_vel = CmdVelSource(view.governor, notes.note) if view.drives else None
+        cmd_vel = CmdVelSource(view.governor, notes.note, view.words) if view.drives else None
         self.server: Server = Server(
             view.topics,
             options.host,
@@ -87,6 +87,7 @@ class Foxglove(FrontEnd):
             options.mcap,
             cmd_vel,
             notes.note,
+            view.words,
             options.encoding,
             options.allow_origins,
         )

@@ -8,16 +8,18 @@ anyone, a stop that holds: ``governor.HOLD_RULE``) on the budget every
 message is read on, so a second client cannot make the driver's messages
 cost much more. Whatever happens to a message is
 returned as text for the client's ``status`` (``None``: taken). A client
-keeps at most ``MAX_CHANNELS`` ``/cmd_vel`` channels, and what it advertises
-is said on stderr once per burst (``BurstNotes``), not once per advertise.
+keeps at most ``MAX_CHANNELS`` ``/cmd_vel`` channels. What a client does
+that is worth a line on stderr (an advertise refused or read differently, a
+Twist that is no Twist) is said on the serving process's one budget for
+words about peers (``served.peerwords``), not once per message.
 """
 
 from __future__ import annotations
 
 from ..motion.governor import STILL, Governor, Kind, Source
-from ..served.bursts import BurstNotes
 from ..served.cmdvel import SCHEMA_NAMES, TOPIC, BadTwist, parse_twist, twist_wheels
 from ..served.notes import Level, Note
+from ..served.peerwords import PeerWords
 from ..served.untrusted import shown
 
 #: (client id, client channel id)
@@ -34,13 +36,12 @@ def client_source(client: int) -> Source:
 class CmdVelSource:
     """Client channels advertised as ``/cmd_vel``, their messages turned into offers to ``governor``."""
 
-    def __init__(self, governor: Governor, note: Note) -> None:
+    def __init__(self, governor: Governor, note: Note, words: PeerWords) -> None:
         self.governor = governor
         self._note = note
-        self._bursts = BurstNotes(note)
+        self._words = words
         self._channels: set[Publisher] = set()
         self._per_client: dict[int, int] = {}
-        self._complained: set[int] = set()
 
     def advertised(
         self, client: int, channel: int, topic: str, encoding: str, schema_name: str
@@ -49,26 +50,26 @@ class CmdVelSource:
         if topic != TOPIC:
             return None
         if encoding != "json":
-            self._bursts.say(
-                f"{TOPIC} advertised in an encoding other than json",
+            self._words.say(
+                client_source(client),
                 f"{client_source(client)} advertised {TOPIC} in {shown(encoding)}: only json is accepted",
+                Level.INFO,
+                kind="advertised in an encoding other than json",
             )
             return f"{TOPIC} is accepted in json only, not {shown(encoding)}"
         if (client, channel) not in self._channels and self._per_client.get(client, 0) >= MAX_CHANNELS:
             return f"{TOPIC} refused: at most {MAX_CHANNELS} {TOPIC} channels per client"
         if schema_name not in SCHEMA_NAMES:
-            self._bursts.say(
-                f"{TOPIC} advertised with another schema",
+            self._words.say(
+                client_source(client),
                 f"{client_source(client)} advertised {TOPIC} as {shown(schema_name)}; reading it as a Twist",
+                Level.INFO,
+                kind="advertised with another schema",
             )
         if (client, channel) not in self._channels:
             self._channels.add((client, channel))
             self._per_client[client] = self._per_client.get(client, 0) + 1
         return None
-
-    def flush(self) -> None:
-        """Say the counts of the bursts still open (the server is closing)."""
-        self._bursts.flush()
 
     def unadvertised(self, client: int, channel: int) -> None:
         if (client, channel) in self._channels:
@@ -81,7 +82,6 @@ class CmdVelSource:
         """The client disconnected: each of its channels is unadvertised."""
         for publisher in [p for p in self._channels if p[0] == client]:
             self.unadvertised(*publisher)
-        self._complained.discard(client)
 
     def data(self, client: int, channel: int, payload: bytes) -> str | None:
         """One message: offered to the governor; why not, for the client's status."""
@@ -94,9 +94,7 @@ class CmdVelSource:
         except BadTwist as exc:
             if refused is not None:
                 return f"{TOPIC} {refused}"
-            if client not in self._complained:
-                self._complained.add(client)
-                self._note(f"{source}: {TOPIC} refused: {exc}", Level.WARN)
+            self._words.say(source, f"{source}: {TOPIC} refused: {exc}", Level.WARN, kind="not a Twist")
             return f"{TOPIC} refused: {exc}"
         if refused is not None and wheels != STILL:  # a zero from anyone is a stop, never refused
             return f"{TOPIC} {refused}"

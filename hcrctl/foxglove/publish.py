@@ -33,6 +33,7 @@ from ..protocol.encodings import ENCODINGS, Encode
 from ..protocol.topics import Topic
 from ..recording.sinks import RecordingIncomplete, SinkWriteError, seconds
 from ..served.notes import Level, Note
+from ..served.peerwords import PeerWords
 from .drive import CmdVelSource
 from .websocket import Channel, FoxgloveServer
 
@@ -53,6 +54,7 @@ class Server:
         mcap: str | None,
         cmd_vel: CmdVelSource | None,
         note: Note,
+        words: PeerWords,
         encoding: str = "json",
         allowed_origins: Iterable[str] = (),
     ) -> None:
@@ -62,7 +64,7 @@ class Server:
         self.host, self.port = host, port
         self.mcap = mcap
         self.note = note
-        self.ws = FoxgloveServer(SERVER_NAME, host, port, cmd_vel, note, allowed_origins)
+        self.ws = FoxgloveServer(SERVER_NAME, host, port, cmd_vel, note, words, allowed_origins)
         self.bound_port = 0
         self._served: dict[str, tuple[Channel, Encode]] = {}
         self._sink: McapSink | None = None

@@ -46,11 +46,11 @@ from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
 from ..inputs import MAX_PEER_JSON, PeerJsonError, peer_json
-from ..served.bursts import BurstNotes
 from ..served.notes import Level, Note
+from ..served.peerwords import PeerWords
 from ..served.untrusted import origin_allowed, shown
 from .client import CONTROL_RATE, ERROR, STALLED_S, WARNING, Channel, Client
-from .drive import CmdVelSource
+from .drive import CmdVelSource, client_source
 
 #: The current name first: a client offering both gets it.
 SUBPROTOCOLS = ("foxglove.sdk.v1", "foxglove.websocket.v1")
@@ -85,12 +85,14 @@ class FoxgloveServer:
         port: int,
         cmd_vel: CmdVelSource | None,
         note: Note,
+        words: PeerWords,
         allowed_origins: Iterable[str] = (),
     ) -> None:
         self.name, self.host, self.port = name, host, port
         self.cmd_vel = cmd_vel
         self.note = note
-        self._bursts = BurstNotes(note)
+        #: What clients do that is worth a line: said on the serving process's one budget (``peerwords``).
+        self.words = words
         self.allowed = tuple(allowed_origins)
         self.channels: dict[str, Channel] = {}
         self.sessions: set[Client] = set()
@@ -211,9 +213,6 @@ class FoxgloveServer:
         with contextlib.suppress(RuntimeError):
             self._loop.call_soon_threadsafe(self._server.close)
         self._thread.join(5.0)
-        self._bursts.flush()
-        if self.cmd_vel is not None:
-            self.cmd_vel.flush()
 
     async def _serve(self) -> WsServer:
         return await serve(
@@ -234,9 +233,11 @@ class FoxgloveServer:
         """Drop the clients that read nothing (``Client.stalled``); again in ``REAP_EVERY`` s."""
         now = time.monotonic()
         for session in [s for s in self.sessions if s.stalled(now)]:
-            self._bursts.say(
-                "clients dropped for reading nothing",
+            self.words.say(
+                client_source(session.number),
                 f"dropped client {session.number}: it read nothing for {STALLED_S:g} s",
+                Level.INFO,
+                kind="dropped for reading nothing",
             )
             session.ws.transport.abort()  # closing would wait to send its close frame, behind the rest
         if self._loop is not None:
@@ -262,9 +263,11 @@ class FoxgloveServer:
             origin = "(several)"
         if not origin_allowed(origin, self.allowed):
             self.refused += 1
-            self._bursts.say(
-                "clients refused for their origin",
+            self.words.say(
+                None,
                 f"refused a client from {shown(origin)}: only loopback pages, Foxglove and --allow-origin",
+                Level.INFO,
+                kind="refused for its origin",
             )
             return connection.respond(
                 HTTPStatus.FORBIDDEN, f"origin {origin} is not allowed (hcrctl bridge --allow-origin)\n"

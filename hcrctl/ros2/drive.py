@@ -14,14 +14,15 @@ from taking turns.
 
 A sample is held to the rule every Twist hcrctl reads (``cmdvel.speed``: a
 finite number within ±1000 m/s or rad/s, for all six components): NaN, an
-infinity or 1e308 is refused and counted, said once per burst, and never
+infinity or 1e308 is refused and counted, said on the budget below, and never
 reaches the wire. Only ``linear.x`` and ``angular.z`` move a differential
 drive; the others must still be numbers.
 
-Refusals are counted every time and said on one budget for all writers
-(``served.refusals``: each writer and reason once a second, five lines a
-second in all, then one line with how many more), so a hundred writers cost
-a few lines a second, not one each.
+Refusals are counted every time and said on the serving process's one
+budget for words about peers (``served.peerwords``: writers have no budget
+of their own, so all of them share the one every unknown sender draws on),
+so a hundred writers cost a few lines a second, not one each, and the same
+lines on stderr and ``/rosout``.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from typing import Any
 from ..motion.governor import STILL, Governor, Kind, Source, Wheels
 from ..served.cmdvel import BadTwist, speed, twist_wheels
 from ..served.notes import Level, Note
-from ..served.refusals import Refusals
+from ..served.peerwords import PeerWords
 
 TOPIC = "cmd_vel"
 AXES = ("x", "y", "z")
@@ -71,13 +72,15 @@ def read_wheels(message: Any) -> Wheels | str:
 class RosCmdVel:
     """Twists from DDS writers, turned into offers to ``governor``; counts of what was taken and refused."""
 
-    def __init__(self, governor: Governor, note: Note, names: Names = lambda writer: None) -> None:
+    def __init__(
+        self, governor: Governor, note: Note, words: PeerWords, names: Names = lambda writer: None
+    ) -> None:
         self.governor = governor
         self.taken = 0
         self.refused = 0
         self._note = note
         self._names = names
-        self._refusals: Refusals[Source] = Refusals(lambda source, text, seq: note(text, Level.WARN))
+        self._words = words
 
     def message(self, writer: str, message: Any) -> None:
         """One sample from ``writer``: offered, or refused and counted (said on the budget)."""
@@ -92,21 +95,17 @@ class RosCmdVel:
             return
         verdict = self.governor.offer(source, wheels)
         if not verdict:
-            self._refused(source, verdict.why, verdict.why)
+            self._refused(source, None, verdict.why)  # its kind: the words without their numbers (an age)
             return
         self.taken += 1
         if driver != source == self.governor.driver:
             self._note(f"{source} drives the robot ({TOPIC})")
 
-    def _refused(self, source: Source, kind: str, why: str) -> None:
+    def _refused(self, source: Source, kind: str | None, why: str) -> None:
         self.refused += 1
-        self._refusals.refused(source, f"{TOPIC} from {source} {why}", kind=kind)
+        self._words.say(source, f"{TOPIC} from {source} {why}", Level.WARN, kind=kind)
 
     def gone(self, writer: str) -> None:
         """``writer`` went away: if it drove, stop."""
         source = writer_source(writer, self._names(writer))
         self.governor.release(source, f"{source} left {TOPIC}")
-
-    def tick(self) -> None:
-        """What the budget held back, said once its window is over."""
-        self._refusals.tick()

@@ -77,7 +77,7 @@ class Ros2Node(FrontEnd):
             if not t.type.startswith("hcrctl_msgs/") and t.name != ros2conv.JOINT_STATES
         ]
         self._published = {t.name for t in self.topics}
-        self.cmd_vel = RosCmdVel(view.governor, notes.note, self._writer_name)
+        self.cmd_vel = RosCmdVel(view.governor, notes.note, view.words, self._writer_name)
         self.node: Node | None = None
         self.services: Services | None = None
         self.messages = 0
@@ -125,7 +125,6 @@ class Ros2Node(FrontEnd):
         return self.node.writer_name(writer) if self.node is not None else None
 
     def tick(self) -> None:
-        self.cmd_vel.tick()
         now = time.monotonic()
         if self.node is not None and now >= self._next_diagnostics:
             self._next_diagnostics = now + diagnostics.PERIOD
@@ -162,7 +161,6 @@ class Ros2Node(FrontEnd):
             self.services.close()
         if self.node is not None:
             self.node.unsubscribe()
-        self.cmd_vel.tick()
 
     def finish(self) -> None:
         if self.node is not None:

@@ -33,8 +33,11 @@ A front end sees the runtime only through ``served.view`` (``view.RuntimeView``)
 The runtime owns the rest: the signals (a flag the loop reads; a second
 signal, or one once closing, raises ``Terminated``), the governor (the bumper
 rule, the stop listeners, the link watch as where it writes), the final stop
-to the robot driven then (``stopping_driven``), the governor's error, and the
-summary, handed to ``report`` however the run ends once the robot was open.
+to the robot driven then (``stopping_driven``), the governor's error, the one
+budget for words about peers every front end says them on (``view.words``,
+``peerwords``: its windows closed each turn of the loop, what it held back said
+once the front ends close and again at the very end), and the summary, handed
+to ``report`` however the run ends once the robot was open.
 A failure in ``close`` or ``finish`` is a note naming the front end by its
 ``label``: the robot is stopped regardless.
 """
@@ -60,6 +63,7 @@ from .endstop import stopping_driven
 from .feed import Feed
 from .linkwatch import LinkWatch
 from .notes import Level, Notes
+from .peerwords import PeerWords
 from .tuning import Tuning
 from .untrusted import shown
 from .view import RuntimeView
@@ -160,6 +164,8 @@ class ServedRobot:
         #: The rate and the deadman, held once: everything made from them follows its changes.
         self.tuning = Tuning(rate, deadman, notes.note, guarded=guarded)
         self.tuning.follow(deadman=self.governor.set_deadman)
+        #: Words about peers, on one budget for every front end and every channel (``peerwords``).
+        self.words = PeerWords(notes.note)
         self.signalled = Signalled()
         self.sensors: list[str] = supported_sensors(settings.protocol, [])
         #: Whether the firmware has the velocity command a Twist becomes.
@@ -199,6 +205,7 @@ class ServedRobot:
 
         with stop_signals_handled(self.signalled), contextlib.ExitStack() as ending:
             ending.callback(summed)
+            ending.callback(self.words.flush)  # after every front end's finish: what they held back is said
             for front in self._fronts.values():
                 front.open(self.view)
                 ending.callback(self._quietly, front, front.finish)
@@ -246,6 +253,7 @@ class ServedRobot:
 
         def ended() -> bool:
             watch.check()
+            self.words.tick()
             for front in self._fronts.values():
                 front.tick()
             return bool(self.signalled) or self.governor.error is not None
@@ -256,6 +264,7 @@ class ServedRobot:
             self.signalled.closing = True
             for front in self._fronts.values():
                 self._quietly(front, front.close)
+            self.words.flush()  # while every channel (``/rosout``, ``status``) is still there to carry it
 
     def _started(self, robot: Robot) -> None:
         parts = [part for part in (front.start(self.view) for front in self._fronts.values()) if part]

@@ -21,6 +21,7 @@ from ..motion.bumpers import BumperRule
 from ..motion.governor import Governor
 from ..protocol.topics import Topic
 from .feed import Feed, Heard
+from .peerwords import PeerWords
 from .tuning import Setter, Tuning
 
 if TYPE_CHECKING:
@@ -42,6 +43,9 @@ class Served(Protocol):
 
     @property
     def tuning(self) -> Tuning: ...
+
+    @property
+    def words(self) -> PeerWords: ...
 
     @property
     def bumpers(self) -> BumperRule | None: ...
@@ -90,6 +94,11 @@ class RuntimeView:
     def governor(self) -> Governor:
         """The one motion governor: what a front end's sources offer to (and who drives)."""
         return self._served.governor
+
+    @property
+    def words(self) -> PeerWords:
+        """The one budget every word about a peer is said on, whatever the front end or channel."""
+        return self._served.words
 
     # -- the run, as it goes ---------------------------------------------------------
 
