@@ -130,7 +130,7 @@ def test_known_senders_with_budgets_of_their_own_are_bounded() -> None:
 def test_one_budget_is_made_per_serving_process_and_no_module_counts_words_of_its_own() -> None:
     """Every front end and channel speaks through the runtime's one ``PeerWords``: none makes another, and
     no other module says a count of what it held back (as the bridge and each front end once did)."""
-    from test_one_home import modules_matching
+    from helpers_source import modules_matching
 
     assert modules_matching(r"\bPeerWords\(") == {"served/runtime.py"}
     assert modules_matching(r"more (refusals )?in ") == {"served/peerwords.py"}
