@@ -14,9 +14,9 @@ the last is this project's way.
 from __future__ import annotations
 
 import ast
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+from helpers_source import sources
+
 SCOPES = (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda, ast.ClassDef, ast.While, ast.For, ast.AsyncFor)
 
 
@@ -49,11 +49,7 @@ def unsafe_loops(source: str) -> list[int]:
 
 
 def test_no_try_block_starts_with_a_loop_that_continues_from_an_except() -> None:
-    found = {
-        f"{path.relative_to(ROOT)}:{line}"
-        for path in sorted((ROOT / "hcrctl").rglob("*.py"))
-        for line in unsafe_loops(path.read_text(encoding="utf-8"))
-    }
+    found = {f"hcrctl/{module}:{line}" for module, text in sources().items() for line in unsafe_loops(text)}
     assert not found, f"move each loop into a function of its own, called from the try: {sorted(found)}"
 
 
