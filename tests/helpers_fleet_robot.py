@@ -266,6 +266,8 @@ class Operator:
         self.identity = identity.Identity()
         self.op = keys.Who(op, self.identity.session)
         self.challenge: str | None = None
+        #: The lease value of this session's admission (asked of the robot side on first need).
+        self.lease: str | None = None
         self.session = open_session("client", Where((endpoint,), (), config))
         self.status: list[dict[str, Any]] = []
         self._status = self.session.declare_subscriber(keys.status(robot), self._heard)
@@ -303,10 +305,28 @@ class Operator:
         if self.challenge is None:
             _, body = self.query(self.keys.info(self.robot))
             self.challenge = body["challenge"]
+        lease = self.admission()
         self.seq += 1
-        signed = self.identities.signed_bytes(self.challenge, self.robot, what, self.op, self.seq, data)
+        signed = self.identities.signed_bytes(
+            self.challenge, lease, self.robot, what, self.op, self.seq, data
+        )
         found: bytes = self.keys.attachment(self.op, self.seq, self.identity.sign(signed))
         return found
+
+    def admission(self) -> str:
+        """This session's lease value, asked of the robot side (again while its token is on its way); a
+        session not admitted signs for none (32 zeros), and its message is refused for want of a token."""
+        deadline = time.monotonic() + TIMEOUT
+        while self.lease is None:
+            asked = {"op": self.op.name, "session": self.op.session, "do": "lease"}
+            ok, body = self.query(self.keys.drive(self.robot), asked)
+            if ok:
+                self.lease = body["lease"]
+            elif self.token is None or time.monotonic() > deadline:
+                return "0" * 32
+            else:
+                time.sleep(0.05)
+        return self.lease
 
     def claim(self) -> tuple[bool, dict[str, Any]]:
         """A signed claim, asked again while the robot side has not seen the token yet."""

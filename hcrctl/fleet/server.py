@@ -163,6 +163,7 @@ class Fleet(FrontEnd):
 
     def tick(self) -> None:
         self.drive.refusals.tick()
+        self.drive.tick()
 
     def close(self) -> None:
         self.undeclare()

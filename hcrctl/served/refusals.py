@@ -68,9 +68,13 @@ class Refusals(Generic[Op]):
         self._said: dict[Op | None, set[tuple[Op | None, str]]] = {}
         self._held = 0
 
-    def refused(self, op: Op | None, text: str, seq: int | None = None, kind: str | None = None) -> None:
-        """One word for ``op``: said unless already said to it this window or over its budget (then counted)."""
-        budget = op if op is not None and self._known(op) else None
+    def refused(
+        self, op: Op | None, text: str, seq: int | None = None, kind: str | None = None, proven: bool = True
+    ) -> None:
+        """One word for ``op``: said unless already said to it this window or over its budget (then counted).
+        A word about a message ``op`` is not ``proven`` to have sent (anyone may name anyone) is on the
+        others' budget, never on ``op``'s own."""
+        budget = op if proven and op is not None and self._known(op) else None
         with self._lock:
             summary = self._roll(self._clock())
             said = self._said.get(budget)
