@@ -272,6 +272,10 @@ class Operator:
         self.status: list[dict[str, Any]] = []
         self._status = self.session.declare_subscriber(keys.status(robot), self._heard)
         self.token: Any = None
+        #: Numbering and signing one message at a time: the renewing thread signs claims too.
+        self._numbering = threading.RLock()
+        self._silent = threading.Event()
+        self._renewing: threading.Thread | None = None
 
     def _heard(self, sample: Any) -> None:
         self.status.append(json.loads(bytes(sample.payload)))
@@ -283,6 +287,7 @@ class Operator:
         )
 
     def gone(self) -> None:
+        self.silent()
         self.token.undeclare()
         self.token = None
 
@@ -306,12 +311,36 @@ class Operator:
             _, body = self.query(self.keys.info(self.robot))
             self.challenge = body["challenge"]
         lease = self.admission()
-        self.seq += 1
-        signed = self.identities.signed_bytes(
-            self.challenge, lease, self.robot, what, self.op, self.seq, data
-        )
-        found: bytes = self.keys.attachment(self.op, self.seq, self.identity.sign(signed))
+        with self._numbering:
+            self.seq += 1
+            signed = self.identities.signed_bytes(
+                self.challenge, lease, self.robot, what, self.op, self.seq, data
+            )
+            found: bytes = self.keys.attachment(self.op, self.seq, self.identity.sign(signed))
         return found
+
+    def renew(self) -> None:
+        """Claim again every 0.05 s from now until ``silent`` (a driver's signed renewals are its life on
+        the robot side), as hcrctl's own lease does."""
+        if self._renewing is None:
+            self._renewing = threading.Thread(target=self._renew, daemon=True)
+            self._renewing.start()
+
+    def _renew(self) -> None:
+        silent = self._silent
+        while not silent.wait(0.05):
+            with contextlib.suppress(Exception):
+                data = json.dumps(self.asking()).encode()
+                self.session.get(
+                    self.keys.drive(self.robot), payload=data, attachment=self.attachment("claim", data)
+                )
+
+    def silent(self) -> None:
+        """No renewal any more: this driver falls silent (its token stays)."""
+        self._silent.set()
+        if self._renewing is not None:
+            self._renewing.join()
+        self._renewing, self._silent = None, threading.Event()
 
     def admission(self) -> str:
         """This session's lease value, asked of the robot side (again while its token is on its way); a
@@ -336,6 +365,8 @@ class Operator:
             if taken or body.get("token") is not False or self.token is None or time.monotonic() > deadline:
                 break
             time.sleep(0.05)
+        if taken:
+            self.renew()
         return taken, body
 
     def asking(self, do: str = "claim") -> dict[str, Any]:
@@ -358,7 +389,7 @@ class Operator:
             time.sleep(0.05)
 
     def cmd_vel(self, message: dict[str, Any]) -> None:
-        if self.seq == 0:
+        if self.seq == 0 or self._renewing is None:
             self.claim()
         self.put(self.keys.cmd_vel(self.robot), json.dumps(message).encode())
 
@@ -369,6 +400,7 @@ class Operator:
         return attachment
 
     def stop(self) -> None:
+        self.silent()
         self.put(self.keys.stop(self.robot), json.dumps({"key": self.identity.public_hex}).encode(), "stop")
 
     def said(self, text: str) -> dict[str, Any] | None:
@@ -381,6 +413,7 @@ class Operator:
         return found
 
     def close(self) -> None:
+        self.silent()
         with contextlib.suppress(Exception):
             self.session.close()
 

@@ -85,8 +85,8 @@ MAX_GONE = 16384
 GONE_S = 300.0
 #: A test's smaller table of gone sessions (a count): the same rule, at a size a test can churn through.
 GONE_ENV = "HCRCTL_TEST_FLEET_GONE"
-#: The driver is alive while its signed words (claims, motion) come within this: a killed driver is stopped
-#: this long after its last renewal (its lease renews every ``lease.RENEW_S``), whatever subscriber,
+#: The driver is alive while its signed words (claims, motion) come within this: a killed driver's motion is
+#: stopped this long after its last renewal (its lease renews every ``lease.RENEW_S``), whatever subscriber,
 #: queryable or token copy anyone declares; only its key can sign.
 HOLD_S = 0.15
 #: Tokens that wait for room, at most (first come, first admitted); one beyond this is counted and forgotten.
@@ -392,12 +392,12 @@ class FleetDrive:
         source = operator_source(op)
         drove = self.governor.driver == source
         checked = self.check(do, parsed, payload, message.get("key"))
+        if do == "claim" and (refused := self.governor.would_refuse(source)) is not None:
+            return self._claim_refused(op, refused, proven=checked.why is None)
         if checked.why is not None and (do == "release" or not checked.stale or not drove):
             return False, {"error": checked.why, "driver": named(self.governor.driver)} | (
                 {"token": False} if checked.tokenless else {}
             ) | ({"token": True, "waiting": True} if op in self._waiting else {})
-        if do == "claim" and (refused := self.governor.would_refuse(source)) is not None:
-            return self._claim_refused(op, refused)  # signed by its session: said on its own budget
         if do == "release":
             self.governor.release(source, f"{op} released {self.robot}")
             return True, {"driver": named(self.governor.driver)}
@@ -482,9 +482,10 @@ class FleetDrive:
         self.refused(op, text)
         raise WriteRefused(text)
 
-    def _claim_refused(self, op: keyspace.Who, why: str) -> tuple[bool, dict[str, Any]]:
-        """A claim refused because another drives: answered, counted, and said (on the budget)."""
-        self.refused(op, why)
+    def _claim_refused(self, op: keyspace.Who, why: str, proven: bool = True) -> tuple[bool, dict[str, Any]]:
+        """A claim refused because another drives: answered, counted, and said (on the budget: the session's
+        own when its key signed the claim)."""
+        self.refused(op, why, proven=proven)
         return False, {"error": why, "driver": named(self.governor.driver)}
 
     def operator_here(self, key: str) -> None:
@@ -581,12 +582,14 @@ class FleetDrive:
         self.refusals.refused(op, text, seq, kind, proven=proven)
 
     def tick(self) -> None:
-        """The driver's life (``HOLD_S``): an operator driving whose last signed word is older is gone."""
+        """The driver's life (``HOLD_S``): an operator whose motion runs and whose last signed word is older
+        is gone (a lease held still waits for the deadman: it moves nothing)."""
         driver = self.governor.driver
         if (
             driver is None
             or driver.kind is not Kind.OPERATOR
             or not isinstance(op := driver.id, keyspace.Who)
+            or self.governor.asked == STILL
         ):
             return
         with self._lock:
