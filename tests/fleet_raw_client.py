@@ -8,7 +8,8 @@ object a line for the test to read.
     python fleet_raw_client.py ENDPOINT ROBOT churn N       N sessions that claim, release and go
     python fleet_raw_client.py ENDPOINT ROBOT replay FILE  that claim and motion sent again, under a copy
                                                            of its token
-    python fleet_raw_client.py ENDPOINT ROBOT copy         copy every operator token, hold them until killed
+    python fleet_raw_client.py ENDPOINT ROBOT copy [KEYEXPR]  copy every operator token (and subscribe to
+                                                           KEYEXPR), hold them until killed
 """
 
 from __future__ import annotations
@@ -264,12 +265,13 @@ def replay(s: Any, robot: str, path: str) -> None:
     token.undeclare()
 
 
-def copy(s: Any, robot: str) -> None:
+def copy(s: Any, robot: str, *subscribed: str) -> None:
     deadline = time.monotonic() + WAIT_S
     while not (listed := operators(s, robot)) and time.monotonic() < deadline:
         time.sleep(0.05)
     tokens = [s.liveliness().declare_token(f"hcr/{robot}/op/{name}/{sid}") for name, sid in listed]
-    say(copied=len(tokens))
+    subscribers = [s.declare_subscriber(key, lambda sample: None) for key in subscribed]
+    say(copied=len(tokens), subscribed=len(subscribers))
     time.sleep(3600)
 
 

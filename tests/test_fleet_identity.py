@@ -113,11 +113,16 @@ def test_a_replay_after_the_gone_table_forgot_its_session_moves_nothing(robot: F
     )
 
 
-def test_a_killed_driver_is_gone_at_once_though_a_peer_copies_its_token(robot: Fleet) -> None:
+@pytest.mark.parametrize("subscribed", [(), ("hcr/**",)], ids=["token", "token+subscriber"])
+def test_a_killed_driver_is_gone_at_once_though_a_peer_copies_its_token(
+    robot: Fleet, subscribed: tuple[str, ...]
+) -> None:
+    """A copy of its token, and a subscriber on every key (its hold's among them), keep nothing alive:
+    only the driver can sign its renewals."""
     wire = robot.served["r1"]
     driver, _, _ = robot.start("r1", "drive", "power", "30", "30", "--for", "120")
     moved = wire.wait_sent(is_motion, what="the driver's motion")
-    copier = raw(robot, "copy")
+    copier = raw(robot, "copy", *subscribed)
     assert line(copier)["copied"] >= 1
     os.killpg(driver.pid, signal.SIGKILL)
     said = wire.wait_said(" gone")
