@@ -292,10 +292,16 @@ class Operator:
         self.token = None
 
     def query(
-        self, key: str, payload: Any = None, sign: str | None = None, attachment: bytes | None = None
+        self,
+        key: str,
+        payload: Any = None,
+        sign: str | None = None,
+        attachment: bytes | None = None,
+        raw: bytes | None = None,
     ) -> tuple[bool, dict[str, Any]]:
-        """A query of ``key`` (``sign``: numbered and signed as that kind of message): (ok, its answer)."""
-        data = json.dumps(payload).encode() if payload is not None else None
+        """A query of ``key`` (``sign``: numbered and signed as that kind of message; ``raw``: these bytes
+        as its payload): (ok, its answer)."""
+        data = json.dumps(payload).encode() if payload is not None else raw
         if sign is not None:
             attachment = self.attachment(sign, data or b"")
         replies = list(self.session.get(key, payload=data, attachment=attachment, timeout=TIMEOUT / 3))

@@ -261,3 +261,36 @@ def test_the_driver_is_told_when_its_command_was_dropped(lab: Fleet, tmp_path: P
     assert "sent velocity" not in shell.stdout, shell.stdout
     assert "old dropped the command" in shell.stderr, shell.stderr
     assert not serve.sent_codes({0x03})
+
+
+def test_a_stranger_under_a_sessions_name_does_not_spend_the_words_meant_for_it(
+    lab: Fleet, tmp_path: Path
+) -> None:
+    """Five kinds of message under op1's session that its key did not sign (or signed once, long ago) fill a
+    budget of words; op1's own dropped command right after is still said to it: only what its key signed
+    is charged to its session."""
+    served(lab, tmp_path)
+    with operator(lab.endpoint, "r1", "op1") as op1, operator(lab.endpoint, "r1", "eve") as eve:
+        op1.open()
+        op1.cmd_vel(power(0, 0))
+        still = json.dumps(power(0, 0)).encode()
+        moved = op1.put(keyspace.cmd_vel("r1"), still)  # seen by anyone subscribed to cmd_vel
+        servo = {"address": 1, "command": C.BY_NAME["servo"].code, "content": "11 22"}
+        wrote = {"op": "op1", "session": op1.op.session, "key": op1.identity.public_hex, **servo}
+        written = json.dumps(wrote).encode()
+        signed = op1.attachment("write", written)
+        assert op1.query(keyspace.write("r1"), attachment=signed, raw=written)[0]
+        ignored = info(eve)["counters"]["ignored"] + info(eve)["counters"]["refused"]
+        forged = keyspace.attachment(op1.op, op1.seq + 100, "0" * 128)
+        eve.session.put(keyspace.cmd_vel("r1"), still, attachment=forged)
+        eve.session.put(keyspace.cmd_vel("r1"), still, attachment=moved)
+        eve.query(keyspace.write("r1"), attachment=forged, raw=written)
+        eve.query(keyspace.write("r1"), attachment=signed, raw=written)
+        eve.query(keyspace.write("r1"), attachment=keyspace.attachment(op1.op, op1.seq + 101), raw=written)
+        wait_until(
+            lambda: info(eve)["counters"]["ignored"] + info(eve)["counters"]["refused"] >= ignored + 5,
+            what="the stranger's five messages refused",
+        )
+        op1.cmd_vel({"address": 1, "command": 0x7F, "content": ""})
+        said = op1.wait_said("is not a motion command")
+    assert said["session"] == op1.op.session and said["text"].startswith("cmd_vel refused: 0x7F"), said
