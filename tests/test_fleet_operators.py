@@ -294,3 +294,44 @@ def test_a_stranger_under_a_sessions_name_does_not_spend_the_words_meant_for_it(
         op1.cmd_vel({"address": 1, "command": 0x7F, "content": ""})
         said = op1.wait_said("is not a motion command")
     assert said["session"] == op1.op.session and said["text"].startswith("cmd_vel refused: 0x7F"), said
+
+
+def test_a_sequence_number_with_leading_zeros_is_malformed_however_it_was_signed(
+    lab: Fleet, tmp_path: Path
+) -> None:
+    """``0110`` signed as 110 is not taken as 110, and ``0009`` signed as spelt is no forgery: both are
+    attachments that are not what the docs say (``SEQ`` has no leading zeros), ignored as malformed."""
+    serve = served(lab, tmp_path)
+    with operator(lab.endpoint, "r1", "op1") as op1, operator(lab.endpoint, "r1", "eve") as eve:
+        op1.open()
+        op1.cmd_vel(power(10, 10))
+        wait_until(lambda: powered(serve, 10, 10), what="op1's power 10 10")
+        data = json.dumps(power(45, 45)).encode()
+        head = f"hcr-fleet-2\n{op1.challenge}\n{op1.lease}\nr1\ncmd_vel\nop1\n{op1.op.session}\n"
+        for signed, spelt in (("110", "0110"), ("0009", "0009")):
+            signature = op1.identity.sign(head.encode() + signed.encode() + b"\n" + data)
+            attachment = f"op1 {op1.op.session} {spelt} {signature}".encode()
+            eve.session.put(keyspace.cmd_vel("r1"), data, attachment=attachment)
+        said = op1.wait_said("without a valid attachment")
+        wait_until(lambda: info(eve)["counters"]["ignored"] >= 2, what="both ignored")
+        body = info(eve)
+    assert said["op"] is None, said
+    assert body["driver"] == "op1" and not [s for s in op1.status if "not signed" in s["text"]], op1.status
+    assert not powered(serve, 45, 45), "a zero-padded number was taken"
+
+
+def test_a_released_sessions_replayed_claim_is_not_answered_as_granted(lab: Fleet, tmp_path: Path) -> None:
+    served(lab, tmp_path)
+    with operator(lab.endpoint, "r1", "op1") as op1, operator(lab.endpoint, "r1", "eve") as eve:
+        op1.open()
+        asked = op1.asking()
+        signed = op1.attachment("claim", json.dumps(asked).encode())
+        assert op1.query(keyspace.drive("r1"), asked, attachment=signed)[0]
+        assert op1.query(keyspace.drive("r1"), op1.asking("release"), sign="release") == (
+            True,
+            {"driver": None},
+        )
+        taken, body = eve.query(keyspace.drive("r1"), asked, attachment=signed)
+        driver = info(eve)["driver"]
+    assert not taken and "replayed or out of order" in body["error"], body
+    assert body["driver"] is None and driver is None

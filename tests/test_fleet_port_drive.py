@@ -91,6 +91,12 @@ def test_a_second_operator_is_refused_naming_the_driver_and_a_third_stops_it(rob
     assert re.fullmatch(rf"hcrctl: error: refused: \S+\.{first.pid} drives r1 \(hint: .*\)", line), line
     third = robot.run("r1", "stop")
     assert third.returncode == 0, third.stderr
+    # No frame crossed the fleet: the line says what was put and what the robot side said of it.
+    assert re.fullmatch(
+        r"stop put on hcr/r1/stop; hcr/r1/status said: stopped: stop from someone unverified calling itself "
+        r"\S+\n",
+        third.stdout,
+    ), third.stdout
     stopped = wire.wait_sent(is_stop, after=moved, what="the third operator's stop")
     robot.served["r1"].wait_said("stopped: stop from")
     # The first operator's drive ends on that stop (exit 1, saying so) and never sets the robot going again.
