@@ -102,10 +102,11 @@ def stop(settings: Settings) -> None:
         with settings.robot() as robot:
             record = sent_record(robot, C.STOP)
             send_stop(robot)
+            said = _stop_line(robot, record)  # while the link is open: a carrier hears who answered
     except PortBusy as busy:
         _ask_holder(settings, busy)
         return
-    emit(settings, *_stop_line(robot, record))
+    emit(settings, *said)
 
 
 def _stop_line(robot: Robot, record: dict[str, Any]) -> tuple[dict[str, Any], str]:

@@ -78,7 +78,8 @@ HALT_HINTS = {
     "deadman": "this operator's renewals stopped reaching the robot within its deadman: a slow or cut network",
     "stop": "someone on the fleet sent stop; drive again once it is safe",
     "port lost": "the robot's serial port went away: check its cable and power on the robot's side",
-    "operator gone": "the robot side lost this operator's liveliness token: a broken network",
+    "operator gone": "the robot side lost this operator's liveliness token or its renewals: a frozen "
+    "process or a broken network",
     "second sender": "someone on the fleet sends as you; restrict who may drive with Zenoh's access control",
 }
 
