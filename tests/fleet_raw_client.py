@@ -17,6 +17,7 @@ from __future__ import annotations
 import hashlib
 import json
 import sys
+import threading
 import time
 from typing import Any
 
@@ -146,11 +147,16 @@ def drive(s: Any, robot: str) -> None:
     say(claimed=ok, answer=answer)
     hold = s.declare_subscriber(f"hcr/{robot}/hold/{answer['hold']}", lambda sample: None)
     me.put(f"hcr/{robot}/cmd_vel", {"address": 1, "command": 1, "content": "B3 B3"}, "cmd_vel")
-    for _ in range(5):  # step 5: renew by claiming again, signed, never by repeating the motion
+    for _ in range(5):  # step 6: renew by claiming again, signed, never by repeating the motion
         time.sleep(0.05)
         ok, answer, _, _ = me.claim()
     say(renewed=ok, seen=answer.get("seen"))
+    renewing = threading.Event()
+    renewer = threading.Thread(target=renew, args=(me, renewing))  # every 0.05 s while the motion runs
+    renewer.start()
     sys.stdin.readline()  # the test has seen the motion on the wire
+    renewing.set()
+    renewer.join()
     me.put(f"hcr/{robot}/stop", {"key": me.key}, "stop")
     ok, answer, _, _ = me.ask(
         f"hcr/{robot}/drive", {"op": me.name, "session": me.session, "do": "release"}, "release"
@@ -158,6 +164,12 @@ def drive(s: Any, robot: str) -> None:
     say(stopped=True, released=ok, driver=answer.get("driver"))
     hold.undeclare()
     me.token.undeclare()
+
+
+def renew(me: Client, done: threading.Event) -> None:
+    """Step 6: a signed claim every 0.05 s until ``done``."""
+    while not done.wait(0.05):
+        me.claim()
 
 
 def stranger(s: Any, robot: str) -> None:
