@@ -19,15 +19,19 @@ Who may drive, and which messages count:
 - a session proves it is itself (``link.zenoh.identity``): its first claim (or
   write) names its public key, which must be the one its session id was
   derived from, and every claim, release, motion and write must be signed with
-  that key over this serve's ``challenge`` and carry a sequence number higher
-  than the last one taken of its kind. Knowing a session's id (anyone can list
-  the tokens) is not enough, and nothing signed for another serving process is
-  good here. An exact copy of a message is older; a message under the session
-  that the key did not sign is a second sender under one name: when that
-  session drives, the robot stops, the lease ends and the status says why;
-- a session whose token went is remembered (``MAX_GONE``, its key and its
-  numbers): a copy of its token declared later gives its old messages no
-  second life, and a dead session's lease cannot be claimed again;
+  that key over this serve's ``challenge`` and its admission's lease value
+  (``Present.lease``), and carry a sequence number higher than the last one
+  taken of its kind. Knowing a session's id (anyone can list the tokens) is not
+  enough, and nothing signed for another serving process, or in another
+  admission of the session, is good here. An exact copy of a message is older;
+  a message under the session that the key did not sign is ignored, and ends
+  nothing: only the driver (or a stop) ends its lease;
+- a session whose token went is remembered (``MAX_GONE``, ``GONE_S``: its key,
+  its numbers, its lease value), so a session back after a network cut carries
+  on; one forgotten is admitted afresh, with a new lease value its old messages
+  were never signed for;
+- a driver whose motion runs is alive while its signed words come (``HOLD_S``,
+  ``tick``): no subscriber, token copy or queryable anyone declares keeps it;
 - a stop is anyone's (a ``stop``, or a zero Twist on ``cmd_vel``), and is said as the sender's only
   when signed by it; it holds (``governor.HOLD_RULE``);
 - every message ignored or refused is said on ``status`` to its sender, on
