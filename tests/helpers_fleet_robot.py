@@ -353,12 +353,12 @@ class Operator:
         session not admitted signs for none (32 zeros), and its message is refused for want of a token."""
         deadline = time.monotonic() + TIMEOUT
         while self.lease is None:
-            asked = {"op": self.op.name, "session": self.op.session, "do": "lease"}
-            ok, body = self.query(self.keys.drive(self.robot), asked)
-            if ok:
-                self.lease = body["lease"]
-            elif self.token is None or time.monotonic() > deadline:
-                return "0" * 32
+            asked = json.dumps({"op": self.op.name, "session": self.op.session, "do": "lease"}).encode()
+            replies = list(self.session.get(self.keys.drive(self.robot), payload=asked, timeout=TIMEOUT / 3))
+            if replies and replies[0].ok is not None:
+                self.lease = json.loads(bytes(replies[0].ok.payload))["lease"]
+            elif self.token is None or not replies or time.monotonic() > deadline:
+                return "0" * 32  # not admitted, or the router let nobody answer
             else:
                 time.sleep(0.05)
         return self.lease
