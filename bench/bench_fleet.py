@@ -74,6 +74,7 @@ from _simpty import hcrctl_exe, sim_pty
 sys.path.insert(0, str(ROOT / "tests"))
 import helpers_netns
 
+from hcrctl.fleet.drive import HOLD_S
 from hcrctl.link.zenoh.join import Where, open_session
 from hcrctl.protocol import commands as C
 
@@ -280,9 +281,10 @@ def lost_operator(
     tmp: Path,
     where: helpers_netns.Topology | None = None,
     copied: bool = False,
+    subscribed: tuple[str, ...] = (),
 ) -> list[float]:
     """Seconds from ``sig`` (or the cable cut) to the stop on the wire, per round; ``copied``: a raw peer
-    holds a copy of the driver's token meanwhile."""
+    holds a copy of the driver's token meanwhile (and subscribes to the key expressions ``subscribed``)."""
     figures = []
     name = sig if isinstance(sig, str) else sig.name
     with fleet(tmp, where) as (procs, endpoint):
@@ -302,7 +304,7 @@ def lost_operator(
             )
             start = len(wire(log))
             moved = wait_for(lambda start=start: moving_since(log, start), what="motion")
-            copier = copy_tokens(procs, endpoint) if copied else None
+            copier = copy_tokens(procs, endpoint, subscribed) if copied else None
             at = time.time()
             if isinstance(sig, str):
                 assert where is not None, "a cable is cut on hosts only"
@@ -321,9 +323,10 @@ def lost_operator(
     return figures
 
 
-def copy_tokens(procs: Procs, endpoint: str) -> subprocess.Popen[str]:
-    """A raw Zenoh peer holding a copy of every operator token on r1, once it says it holds them."""
-    raw = [sys.executable, str(ROOT / "tests" / "fleet_raw_client.py"), endpoint, "r1", "copy"]
+def copy_tokens(procs: Procs, endpoint: str, subscribed: tuple[str, ...] = ()) -> subprocess.Popen[str]:
+    """A raw Zenoh peer holding a copy of every operator token on r1 (and subscribers of ``subscribed``),
+    once it says it holds them."""
+    raw = [sys.executable, str(ROOT / "tests" / "fleet_raw_client.py"), endpoint, "r1", "copy", *subscribed]
     copier = subprocess.Popen(raw, stdout=subprocess.PIPE, text=True, start_new_session=True)
     assert copier.stdout is not None and json.loads(copier.stdout.readline())["copied"] >= 1
     return copier
@@ -515,13 +518,23 @@ def part_lost(rounds: int, tmp: Path, metrics: dict[str, Any]) -> bool:
 
 #: A killed driver whose token a peer copied: stopped within this, its hold's going, not the deadman.
 COPIED_STOP_S = 0.1
+#: ... and while the peer also subscribes to ``hcr/**`` (its hold matched for ever): stopped when its signed
+#: renewals are missed (``fleet.drive.HOLD_S``), give or take a turn of the serve's loop.
+WILDCARD_STOP_S = HOLD_S + 0.05
 
 
 def part_copied(rounds: int, tmp: Path, metrics: dict[str, Any]) -> bool:
     deadman = str(DEADMAN_S)
     figures = lost_operator(signal.SIGKILL, deadman, rounds, tmp, copied=True)
-    return stop_figures(
-        "kill -9, token copied,", figures, deadman, COPIED_STOP_S, metrics, "copied_kill_stop"
+    ok = stop_figures("kill -9, token copied,", figures, deadman, COPIED_STOP_S, metrics, "copied_kill_stop")
+    figures = lost_operator(signal.SIGKILL, deadman, rounds, tmp, copied=True, subscribed=("hcr/**",))
+    return ok & stop_figures(
+        "kill -9, token copied, hcr/** subscribed,",
+        figures,
+        deadman,
+        WILDCARD_STOP_S,
+        metrics,
+        "wildcard_kill_stop",
     )
 
 

@@ -4,9 +4,12 @@ object a line for the test to read.
 
     python fleet_raw_client.py ENDPOINT ROBOT drive        list, read, claim, drive, stop, release
     python fleet_raw_client.py ENDPOINT ROBOT stranger     claim and drive under another's listed session
-    python fleet_raw_client.py ENDPOINT ROBOT capture FILE a signed claim granted, saved to FILE
-    python fleet_raw_client.py ENDPOINT ROBOT replay FILE  that claim sent again, under a copy of its token
-    python fleet_raw_client.py ENDPOINT ROBOT copy         copy every operator token, hold them until killed
+    python fleet_raw_client.py ENDPOINT ROBOT capture FILE a signed claim granted and a motion, saved to FILE
+    python fleet_raw_client.py ENDPOINT ROBOT churn N       N sessions that claim, release and go
+    python fleet_raw_client.py ENDPOINT ROBOT replay FILE  that claim and motion sent again, under a copy
+                                                           of its token
+    python fleet_raw_client.py ENDPOINT ROBOT copy [KEYEXPR]  copy every operator token (and subscribe to
+                                                           KEYEXPR), hold them until killed
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ from __future__ import annotations
 import hashlib
 import json
 import sys
+import threading
 import time
 from typing import Any
 
@@ -49,6 +53,7 @@ class Client:
         self.session = hashlib.sha256(raw).hexdigest()[:16]
         self.seq = 0
         self.challenge = ""
+        self.lease = ""
         self.token: Any = None
 
     def declare(self) -> None:
@@ -62,12 +67,28 @@ class Client:
             return info
         raise SystemExit("no info")
 
+    def admit(self) -> dict[str, Any]:
+        """Step 4: the lease value the robot side drew when it admitted this session, asked again while
+        the answer says the token is not there yet; the last answer."""
+        deadline = time.monotonic() + WAIT_S
+        while True:
+            asked = json.dumps({"op": self.name, "session": self.session, "do": "lease"}).encode()
+            ok, answer = self.send(f"hcr/{self.robot}/drive", asked, None)
+            if ok:
+                self.lease = answer["lease"]
+            if ok or answer.get("token") is not False or time.monotonic() > deadline:
+                return answer
+            time.sleep(0.05)
+
     def attachment(self, what: str, payload: bytes, seq: int | None = None) -> bytes:
-        """Step 5: ``OP SESSION SEQ SIGNATURE``, signed over the head lines and the payload as sent."""
+        """``OP SESSION SEQ SIGNATURE``, signed over the head lines and the payload as sent."""
         if seq is None:
             self.seq += 1
             seq = self.seq
-        head = f"hcr-fleet-1\n{self.challenge}\n{self.robot}\n{what}\n{self.name}\n{self.session}\n{seq}\n"
+        head = (
+            f"hcr-fleet-2\n{self.challenge}\n{self.lease}\n{self.robot}\n{what}\n"
+            f"{self.name}\n{self.session}\n{seq}\n"
+        )
         signature = self.private.sign(head.encode("ascii") + payload).hex()
         return f"{self.name} {self.session} {seq} {signature}".encode("ascii")
 
@@ -77,7 +98,7 @@ class Client:
         attachment = self.attachment(what, payload)
         return (*self.send(key, payload, attachment), payload, attachment)
 
-    def send(self, key: str, payload: bytes, attachment: bytes) -> tuple[bool, dict[str, Any]]:
+    def send(self, key: str, payload: bytes, attachment: bytes | None) -> tuple[bool, dict[str, Any]]:
         for reply in self.s.get(key, payload=payload, attachment=attachment, timeout=WAIT_S):
             if reply.ok is not None:
                 return True, json.loads(reply.ok.payload.to_bytes())
@@ -85,7 +106,9 @@ class Client:
         return False, {"error": "no answer"}
 
     def claim(self) -> tuple[bool, dict[str, Any], bytes, bytes]:
-        """Step 4: a claim naming the key, asked again while the answer says the token is not there yet."""
+        """Step 5: a claim naming the key, asked again while the answer says the token is not there yet."""
+        if not self.lease:
+            self.admit()
         deadline = time.monotonic() + WAIT_S
         while True:
             message = {"op": self.name, "session": self.session, "do": "claim", "key": self.key}
@@ -124,11 +147,16 @@ def drive(s: Any, robot: str) -> None:
     say(claimed=ok, answer=answer)
     hold = s.declare_subscriber(f"hcr/{robot}/hold/{answer['hold']}", lambda sample: None)
     me.put(f"hcr/{robot}/cmd_vel", {"address": 1, "command": 1, "content": "B3 B3"}, "cmd_vel")
-    for _ in range(5):  # step 5: renew by claiming again, signed, never by repeating the motion
+    for _ in range(5):  # step 6: renew by claiming again, signed, never by repeating the motion
         time.sleep(0.05)
         ok, answer, _, _ = me.claim()
     say(renewed=ok, seen=answer.get("seen"))
+    renewing = threading.Event()
+    renewer = threading.Thread(target=renew, args=(me, renewing))  # every 0.05 s while the motion runs
+    renewer.start()
     sys.stdin.readline()  # the test has seen the motion on the wire
+    renewing.set()
+    renewer.join()
     me.put(f"hcr/{robot}/stop", {"key": me.key}, "stop")
     ok, answer, _, _ = me.ask(
         f"hcr/{robot}/drive", {"op": me.name, "session": me.session, "do": "release"}, "release"
@@ -136,6 +164,12 @@ def drive(s: Any, robot: str) -> None:
     say(stopped=True, released=ok, driver=answer.get("driver"))
     hold.undeclare()
     me.token.undeclare()
+
+
+def renew(me: Client, done: threading.Event) -> None:
+    """Step 6: a signed claim every 0.05 s until ``done``."""
+    while not done.wait(0.05):
+        me.claim()
 
 
 def stranger(s: Any, robot: str) -> None:
@@ -169,18 +203,60 @@ def stranger(s: Any, robot: str) -> None:
 
 
 def capture(s: Any, robot: str, path: str) -> None:
+    """What anyone on the fleet sees of a drive (a queryable that never replies gets the claim, a
+    subscriber the motion): saved, then this session goes."""
     me = Client(s, robot, "captured")
     me.declare()
     me.info()
     ok, answer, payload, attachment = me.claim()
+    motion = json.dumps({"address": 1, "command": 1, "content": "B3 B3"}).encode()
+    moved = me.attachment("cmd_vel", motion)
+    s.put(f"hcr/{robot}/cmd_vel", motion, attachment=moved)
+    seq, deadline = me.seq, time.monotonic() + WAIT_S
+    confirm = {"op": me.name, "session": me.session, "do": "claim", "confirm": seq}
+    while (
+        me.ask(f"hcr/{robot}/drive", confirm, "claim")[1].get("seen", 0) < seq and time.monotonic() < deadline
+    ):
+        time.sleep(0.02)  # step 6: the motion confirmed taken
     with open(path, "w") as out:
-        json.dump({"session": me.session, "payload": payload.hex(), "attachment": attachment.hex()}, out)
-    say(claimed=ok, answer=answer)
+        json.dump(
+            {
+                "session": me.session,
+                "payload": payload.hex(),
+                "attachment": attachment.hex(),
+                "motion": motion.hex(),
+                "moved": moved.hex(),
+            },
+            out,
+        )
+    say(claimed=ok, answer=answer, seq=seq)
+
+
+def churn(s: Any, robot: str, count: str) -> None:
+    """``count`` throw-away sessions, each with a key the robot side learns (a claim), gone one by one:
+    each waited for until the robot side no longer admits it (its token's going taken)."""
+    for n in range(int(count)):
+        me = Client(s, robot, f"churn{n}")
+        me.declare()
+        me.info()
+        me.claim()
+        me.ask(f"hcr/{robot}/drive", {"op": me.name, "session": me.session, "do": "release"}, "release")
+        me.token.undeclare()
+        deadline = time.monotonic() + WAIT_S
+        while me.admit().get("lease") and time.monotonic() < deadline:
+            time.sleep(0.05)
+    say(churned=int(count))
 
 
 def replay(s: Any, robot: str, path: str) -> None:
+    """The captured claim and motion sent again under a copy of the session's token; what the robot
+    side answered the claim and said on ``status`` of the motion."""
     with open(path) as saved:
         was = json.load(saved)
+    heard: list[dict[str, Any]] = []
+    status = s.declare_subscriber(
+        f"hcr/{robot}/status", lambda sample: heard.append(json.loads(sample.payload.to_bytes()))
+    )
     token = s.liveliness().declare_token(f"hcr/{robot}/op/captured/{was['session']}")  # a copy of its token
     deadline = time.monotonic() + WAIT_S
     while True:
@@ -190,16 +266,24 @@ def replay(s: Any, robot: str, path: str) -> None:
         if ok or answer.get("token") is not False or time.monotonic() > deadline:
             break
         time.sleep(0.05)
-    say(claimed=ok, answer=answer)
+    seq = int(bytes.fromhex(was["moved"]).split()[2])
+    said = None
+    while said is None and time.monotonic() < deadline:
+        s.put(f"hcr/{robot}/cmd_vel", bytes.fromhex(was["motion"]), attachment=bytes.fromhex(was["moved"]))
+        time.sleep(0.1)
+        said = next((h for h in list(heard) if h.get("op") == "captured" and h.get("seq") == seq), None)
+    say(claimed=ok, answer=answer, motion=said)
+    status.undeclare()
     token.undeclare()
 
 
-def copy(s: Any, robot: str) -> None:
+def copy(s: Any, robot: str, *subscribed: str) -> None:
     deadline = time.monotonic() + WAIT_S
     while not (listed := operators(s, robot)) and time.monotonic() < deadline:
         time.sleep(0.05)
     tokens = [s.liveliness().declare_token(f"hcr/{robot}/op/{name}/{sid}") for name, sid in listed]
-    say(copied=len(tokens))
+    subscribers = [s.declare_subscriber(key, lambda sample: None) for key in subscribed]
+    say(copied=len(tokens), subscribed=len(subscribers))
     time.sleep(3600)
 
 
@@ -207,9 +291,14 @@ def main() -> None:
     endpoint, robot, what, *rest = sys.argv[1:]
     s = open_session(endpoint)
     try:
-        {"drive": drive, "stranger": stranger, "capture": capture, "replay": replay, "copy": copy}[what](
-            s, robot, *rest
-        )
+        {
+            "drive": drive,
+            "stranger": stranger,
+            "capture": capture,
+            "churn": churn,
+            "replay": replay,
+            "copy": copy,
+        }[what](s, robot, *rest)
     finally:
         s.close()
 

@@ -266,10 +266,16 @@ class Operator:
         self.identity = identity.Identity()
         self.op = keys.Who(op, self.identity.session)
         self.challenge: str | None = None
+        #: The lease value of this session's admission (asked of the robot side on first need).
+        self.lease: str | None = None
         self.session = open_session("client", Where((endpoint,), (), config))
         self.status: list[dict[str, Any]] = []
         self._status = self.session.declare_subscriber(keys.status(robot), self._heard)
         self.token: Any = None
+        #: Numbering and signing one message at a time: the renewing thread signs claims too.
+        self._numbering = threading.RLock()
+        self._silent = threading.Event()
+        self._renewing: threading.Thread | None = None
 
     def _heard(self, sample: Any) -> None:
         self.status.append(json.loads(bytes(sample.payload)))
@@ -281,14 +287,21 @@ class Operator:
         )
 
     def gone(self) -> None:
+        self.silent()
         self.token.undeclare()
         self.token = None
 
     def query(
-        self, key: str, payload: Any = None, sign: str | None = None, attachment: bytes | None = None
+        self,
+        key: str,
+        payload: Any = None,
+        sign: str | None = None,
+        attachment: bytes | None = None,
+        raw: bytes | None = None,
     ) -> tuple[bool, dict[str, Any]]:
-        """A query of ``key`` (``sign``: numbered and signed as that kind of message): (ok, its answer)."""
-        data = json.dumps(payload).encode() if payload is not None else None
+        """A query of ``key`` (``sign``: numbered and signed as that kind of message; ``raw``: these bytes
+        as its payload): (ok, its answer)."""
+        data = json.dumps(payload).encode() if payload is not None else raw
         if sign is not None:
             attachment = self.attachment(sign, data or b"")
         replies = list(self.session.get(key, payload=data, attachment=attachment, timeout=TIMEOUT / 3))
@@ -303,10 +316,52 @@ class Operator:
         if self.challenge is None:
             _, body = self.query(self.keys.info(self.robot))
             self.challenge = body["challenge"]
-        self.seq += 1
-        signed = self.identities.signed_bytes(self.challenge, self.robot, what, self.op, self.seq, data)
-        found: bytes = self.keys.attachment(self.op, self.seq, self.identity.sign(signed))
+        lease = self.admission()
+        with self._numbering:
+            self.seq += 1
+            signed = self.identities.signed_bytes(
+                self.challenge, lease, self.robot, what, self.op, self.seq, data
+            )
+            found: bytes = self.keys.attachment(self.op, self.seq, self.identity.sign(signed))
         return found
+
+    def renew(self) -> None:
+        """Claim again every 0.05 s from now until ``silent`` (a driver's signed renewals are its life on
+        the robot side), as hcrctl's own lease does."""
+        if self._renewing is None:
+            self._renewing = threading.Thread(target=self._renew, daemon=True)
+            self._renewing.start()
+
+    def _renew(self) -> None:
+        silent = self._silent
+        while not silent.wait(0.05):
+            with contextlib.suppress(Exception):
+                data = json.dumps(self.asking()).encode()
+                self.session.get(
+                    self.keys.drive(self.robot), payload=data, attachment=self.attachment("claim", data)
+                )
+
+    def silent(self) -> None:
+        """No renewal any more: this driver falls silent (its token stays)."""
+        self._silent.set()
+        if self._renewing is not None:
+            self._renewing.join()
+        self._renewing, self._silent = None, threading.Event()
+
+    def admission(self) -> str:
+        """This session's lease value, asked of the robot side (again while its token is on its way); a
+        session not admitted signs for none (32 zeros), and its message is refused for want of a token."""
+        deadline = time.monotonic() + TIMEOUT
+        while self.lease is None:
+            asked = json.dumps({"op": self.op.name, "session": self.op.session, "do": "lease"}).encode()
+            replies = list(self.session.get(self.keys.drive(self.robot), payload=asked, timeout=TIMEOUT / 3))
+            if replies and replies[0].ok is not None:
+                self.lease = json.loads(bytes(replies[0].ok.payload))["lease"]
+            elif self.token is None or not replies or time.monotonic() > deadline:
+                return "0" * 32  # not admitted, or the router let nobody answer
+            else:
+                time.sleep(0.05)
+        return self.lease
 
     def claim(self) -> tuple[bool, dict[str, Any]]:
         """A signed claim, asked again while the robot side has not seen the token yet."""
@@ -316,6 +371,8 @@ class Operator:
             if taken or body.get("token") is not False or self.token is None or time.monotonic() > deadline:
                 break
             time.sleep(0.05)
+        if taken:
+            self.renew()
         return taken, body
 
     def asking(self, do: str = "claim") -> dict[str, Any]:
@@ -338,7 +395,7 @@ class Operator:
             time.sleep(0.05)
 
     def cmd_vel(self, message: dict[str, Any]) -> None:
-        if self.seq == 0:
+        if self.seq == 0 or self._renewing is None:
             self.claim()
         self.put(self.keys.cmd_vel(self.robot), json.dumps(message).encode())
 
@@ -349,6 +406,7 @@ class Operator:
         return attachment
 
     def stop(self) -> None:
+        self.silent()
         self.put(self.keys.stop(self.robot), json.dumps({"key": self.identity.public_hex}).encode(), "stop")
 
     def said(self, text: str) -> dict[str, Any] | None:
@@ -361,6 +419,7 @@ class Operator:
         return found
 
     def close(self) -> None:
+        self.silent()
         with contextlib.suppress(Exception):
             self.session.close()
 

@@ -103,7 +103,8 @@ def test_the_laptop_drives_and_the_visitor_reads_but_moves_nothing(acl: Any) -> 
     refused = as_user(group, users, "visitor", "drive", "power", "33", "33", "--for", "0.3")
     assert refused.returncode == 1, refused.stderr
     (line,) = refused.stderr.splitlines()
-    assert "r1 did not answer the drive claim" in line and "nothing was sent" in line, line
+    # its first drive query (the session's lease value, before any claim) is denied by the router
+    assert "r1 did not answer the drive lease" in line and "nothing was sent" in line, line
     driven = as_user(group, users, "laptop", "drive", "power", "22", "22", "--for", "0.3")
     assert driven.returncode == 0, driven.stderr
     wait_until(lambda: powered(served, 22, 22), what="the laptop's power 22 22 on the wire")

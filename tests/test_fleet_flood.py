@@ -123,7 +123,7 @@ def test_ten_third_party_stops_go_through_a_read_flood(lab: Fleet, tmp_path: Pat
             outcomes.append((done.returncode, done.stdout, done.stderr))
             if done.returncode == 0:
                 wait_until(lambda before=before: _stops(serve) > before, what="the stop on the wire")
-    failed = [o for o in outcomes if o[0] != 0 or not o[1].startswith("sent stop: ")]
+    failed = [o for o in outcomes if o[0] != 0 or not o[1].startswith("stop put on hcr/r1/stop; ")]
     assert not failed, failed
     serve.wait_err("stopped: stop from")
 

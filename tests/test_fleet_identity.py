@@ -25,6 +25,7 @@ from helpers import TIMEOUT
 from helpers_fleet_port import Fleet, fleet, is_motion, is_stop
 from helpers_netns import OPERATOR_HOST, Topology
 
+from hcrctl.fleet.drive import GONE_ENV
 from hcrctl.protocol import commands as C
 
 RAW = Path(__file__).with_name("fleet_raw_client.py")
@@ -87,14 +88,41 @@ def test_a_claim_signed_for_one_serve_is_refused_by_the_next(robot: Fleet, tmp_p
     assert old.proc.wait(timeout=TIMEOUT) == 0
     robot.serve("r1", "sim://", "--deadman", "10")
     said = finished(robot, "replay", str(saved))
-    assert not said["claimed"] and "not signed with its key" in said["answer"]["error"], said
+    assert not said["claimed"] and "not signed with its session's key" in said["answer"]["error"], said
 
 
-def test_a_killed_driver_is_gone_at_once_though_a_peer_copies_its_token(robot: Fleet) -> None:
+def test_a_replay_after_the_gone_table_forgot_its_session_moves_nothing(robot: Fleet) -> None:
+    """Served with a table of 2 gone sessions (the same rule as 16384): a drive captured, its session gone
+    and forgotten behind 3 others, then its claim and motion sent again under a copy of its token."""
+    old = robot.served["r1"]
+    old.proc.send_signal(signal.SIGTERM)
+    assert old.proc.wait(timeout=TIMEOUT) == 0
+    robot.env[GONE_ENV] = "2"
+    wire = robot.serve("r1", "sim://", "--deadman", "10")
+    saved = robot.tmp / "drive.json"
+    first = finished(robot, "capture", str(saved))
+    assert first["claimed"], first
+    moved = wire.wait_sent(lambda f: is_motion(f) and f.content == b"\xb3\xb3", what="the captured motion")
+    stopped = wire.wait_sent(is_stop, after=moved, what="the stop when the captured session went")
+    assert finished(robot, "churn", "3") == {"churned": 3}
+    said = finished(robot, "replay", str(saved))
+    assert not said["claimed"] and "for this lease" in said["answer"]["error"], said
+    assert said["motion"] and said["motion"]["text"].startswith("ignored cmd_vel #"), said  # its key unknown
+    assert not [f for f in wire.sent()[stopped:] if is_motion(f) and f.content == b"\xb3\xb3"], (
+        "a replay drove"
+    )
+
+
+@pytest.mark.parametrize("subscribed", [(), ("hcr/**",)], ids=["token", "token+subscriber"])
+def test_a_killed_driver_is_gone_at_once_though_a_peer_copies_its_token(
+    robot: Fleet, subscribed: tuple[str, ...]
+) -> None:
+    """A copy of its token, and a subscriber on every key (its hold's among them), keep nothing alive:
+    only the driver can sign its renewals."""
     wire = robot.served["r1"]
     driver, _, _ = robot.start("r1", "drive", "power", "30", "30", "--for", "120")
     moved = wire.wait_sent(is_motion, what="the driver's motion")
-    copier = raw(robot, "copy")
+    copier = raw(robot, "copy", *subscribed)
     assert line(copier)["copied"] >= 1
     os.killpg(driver.pid, signal.SIGKILL)
     said = wire.wait_said(" gone")

@@ -216,6 +216,7 @@ def _asking_lease(session: _Asked, present: list[bool]) -> object:
 
     lease = DriveLease(session, "r1", OP, Identity(), 0.5, present=lambda: present[0])
     lease.challenge = "c" * 32
+    lease.admission = "a" * 32  # the session's lease value, as if asked already
     lease._start = lambda: None  # type: ignore[method-assign]  # no renewing thread in a unit test
     return lease
 

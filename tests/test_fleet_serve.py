@@ -90,14 +90,15 @@ def test_motion_arrives_and_stops_when_the_drivers_token_goes(lab: Fleet, tmp_pa
 
 
 def test_a_silent_driver_is_stopped_by_the_deadman(lab: Fleet, tmp_path: Path) -> None:
-    serve = served(lab, tmp_path, "--deadman", "0.3")
+    serve = served(lab, tmp_path, "--deadman", "0.1")  # shorter than the driver's life (``HOLD_S``)
     with operator(lab.endpoint, "r1", "op1") as op:
         op.open()  # the token stays: only the silence can stop it
         op.cmd_vel(twist(0.3))
+        op.silent()
         wait_until(lambda: serve.sent_codes({VELOCITY}), what="velocity on the wire")
         said = op.wait_said("deadman")
         wait_until(lambda: motion_then_stop(serve)[1], what="stop after the motion")
-    assert said["text"] == "stopped: deadman: no cmd_vel for 0.3 s"
+    assert said["text"] == "stopped: deadman: no cmd_vel for 0.1 s"
     assert (said["event"], said["reason"], said["session"]) == ("stopped", "deadman", op.op.session)
     assert "stopped: deadman: no cmd_vel" in serve.wait_err("deadman")
 
@@ -153,6 +154,7 @@ def test_a_renewal_after_half_its_lease_is_said_with_a_count_and_counted_in_info
     with operator(lab.endpoint, "r1", "op1") as op:
         op.open()
         assert op.claim()[0] and op.claim()[0]  # the second renews the first at once: on time
+        op.silent()
         time.sleep(5.5)
         assert op.claim()[0]
         text = serve.wait_err("late so far)")

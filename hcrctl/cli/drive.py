@@ -102,10 +102,23 @@ def stop(settings: Settings) -> None:
         with settings.robot() as robot:
             record = sent_record(robot, C.STOP)
             send_stop(robot)
+            said = _stop_line(robot, record)  # while the link is open: a carrier hears who answered
     except PortBusy as busy:
         _ask_holder(settings, busy)
         return
-    emit(settings, record, f"sent stop: {record['hex']}")
+    emit(settings, *said)
+
+
+def _stop_line(robot: Robot, record: dict[str, Any]) -> tuple[dict[str, Any], str]:
+    """What the stop command says: the frame sent on a wire; over a carrier, what went out and who
+    answered (a carrier sends no frame). Nobody answering a carrier's stop is an error (exit 1)."""
+    told = robot.carrier.stop_told() if robot.carrier is not None else None
+    if told is None:
+        return record, f"sent stop: {record['hex']}"
+    line, answered = told
+    if not answered:
+        raise HcrError(line, hint="hcrctl fleet list shows whether the robot is still there")
+    return record | {"said": line}, line
 
 
 def _ask_holder(settings: Settings, busy: PortBusy) -> None:

@@ -19,15 +19,19 @@ Who may drive, and which messages count:
 - a session proves it is itself (``link.zenoh.identity``): its first claim (or
   write) names its public key, which must be the one its session id was
   derived from, and every claim, release, motion and write must be signed with
-  that key over this serve's ``challenge`` and carry a sequence number higher
-  than the last one taken of its kind. Knowing a session's id (anyone can list
-  the tokens) is not enough, and nothing signed for another serving process is
-  good here. An exact copy of a message is older; a message under the session
-  that the key did not sign is a second sender under one name: when that
-  session drives, the robot stops, the lease ends and the status says why;
-- a session whose token went is remembered (``MAX_GONE``, its key and its
-  numbers): a copy of its token declared later gives its old messages no
-  second life, and a dead session's lease cannot be claimed again;
+  that key over this serve's ``challenge`` and its admission's lease value
+  (``Present.lease``), and carry a sequence number higher than the last one
+  taken of its kind. Knowing a session's id (anyone can list the tokens) is not
+  enough, and nothing signed for another serving process, or in another
+  admission of the session, is good here. An exact copy of a message is older;
+  a message under the session that the key did not sign is ignored, and ends
+  nothing: only the driver (or a stop) ends its lease;
+- a session whose token went is remembered (``MAX_GONE``, ``GONE_S``: its key,
+  its numbers, its lease value), so a session back after a network cut carries
+  on; one forgotten is admitted afresh, with a new lease value its old messages
+  were never signed for;
+- a driver whose motion runs is alive while its signed words come (``HOLD_S``,
+  ``tick``): no subscriber, token copy or queryable anyone declares keeps it;
 - a stop is anyone's (a ``stop``, or a zero Twist on ``cmd_vel``), and is said as the sender's only
   when signed by it; it holds (``governor.HOLD_RULE``);
 - every message ignored or refused is said on ``status`` to its sender and
@@ -54,8 +58,10 @@ never written through. A turn is written once and held under the lease.
 
 from __future__ import annotations
 
+import os
 import secrets
 import threading
+import time
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -76,6 +82,15 @@ from .queries import QueryError, code_text
 MAX_OPERATORS = 256
 #: Sessions gone remembered with their keys and numbers, the oldest forgotten first.
 MAX_GONE = 16384
+#: ... and for this long at most: forgetting one is safe, since its next admission draws a new lease value
+#: (``Present.lease``) that none of its old messages was signed for.
+GONE_S = 300.0
+#: A test's smaller table of gone sessions (a count): the same rule, at a size a test can churn through.
+GONE_ENV = "HCRCTL_TEST_FLEET_GONE"
+#: The driver is alive while its signed words (claims, motion) come within this: a killed driver's motion is
+#: stopped this long after its last renewal (its lease renews every ``lease.RENEW_S``), whatever subscriber,
+#: queryable or token copy anyone declares; only its key can sign.
+HOLD_S = 0.15
 #: Tokens that wait for room, at most (first come, first admitted); one beyond this is counted and forgotten.
 MAX_WAITING = 256
 #: Say = (operator a refusal is for or about, its text or a built status, the sequence number it is
@@ -128,6 +143,13 @@ class Present:
     hold: str | None = None
     #: Its token went and came back since it was last granted the drive: whatever it drove was stopped.
     rejoined: bool = False
+    #: The value drawn when it was admitted (``identity``'s ``LEASE``): every signature of this admission
+    #: covers it, so no message signed in another admission of the same session is good here.
+    lease: str = field(default_factory=keyspace.new_lease)
+    #: When its last signed word (a claim or a motion, fresh) was taken: its life as a driver (``HOLD_S``).
+    heard: float = 0.0
+    #: When its token went (monotonic), while remembered as gone (``GONE_S``).
+    gone_at: float = 0.0
 
     @property
     def seq(self) -> int:
@@ -136,10 +158,9 @@ class Present:
 
 
 class Checked(NamedTuple):
-    """What became of a signed message: ``why`` None when it counts; ``forged`` when its key did not sign it."""
+    """What became of a signed message: ``why`` None when it counts (then its sender is proven)."""
 
     why: str | None
-    forged: bool = False
     #: The session has no token here: its claim is told so (``"token": false``), to ask again.
     tokenless: bool = False
     #: Signed, but numbered no higher than the last of its kind taken: a copy, or overtaken on the way.
@@ -225,6 +246,7 @@ class FleetDrive:
         self.words = words
         words.know(self._present.__contains__)
         self._lock = threading.Lock()
+        self._max_gone = int(os.environ.get(GONE_ENV) or MAX_GONE)
 
     # -- messages ---------------------------------------------------------------
 
@@ -244,14 +266,14 @@ class FleetDrive:
         source = operator_source(op)
         refused = self.governor.would_refuse(source)
         if refused is not None and not zero_twist(payload):  # a zero is never refused: it is a stop
-            self.refused(op, refused, seq)
+            self.refused(op, refused, seq, proven=False)
             return
         drove = self.governor.driver == source
         data = bytes(payload)
-        why = self._admitted("cmd_vel", parsed, data, drove)
+        why = self.check("cmd_vel", parsed, data).why
         if why is not None:
             self.counters.ignored += 1
-            self._tell(op, why, seq)
+            self._tell(op, why, seq, proven=False)
             return
         try:
             verdict = self._offer(op, data)
@@ -280,29 +302,12 @@ class FleetDrive:
             self.counters.stops += 1
             self.governor.stop("stop from someone unverified (a zero cmd_vel)")
             return True
-        # Read only when a word could be said: to another sender, or to a session present (its own budget).
-        readable = self.words.may_say() or self._names_present(attachment)
-        parsed = keyspace.parse_attachment(attachment) if readable else None
-        self.refused(parsed.who if parsed else None, self.refusal(driver), parsed.seq if parsed else None)
+        # Unverified, it is said on the others' budget: read only when a word could be said there.
+        parsed = keyspace.parse_attachment(attachment) if self.words.may_say() else None
+        self.refused(
+            parsed.who if parsed else None, self.refusal(driver), parsed.seq if parsed else None, proven=False
+        )
         return True
-
-    def _names_present(self, attachment: bytes) -> bool:
-        """Whether an attachment starts with a session present besides the driver: a lookup, not a parse."""
-        if len(self._present) < 2:
-            return False
-        head = attachment.split(b" ", 2)
-        if len(head) < 3:
-            return False
-        name, session = (part.decode("ascii", "replace") for part in head[:2])
-        return keyspace.Who(name, session) in self._present
-
-    def _admitted(self, what: str, parsed: keyspace.Attachment, payload: bytes, drives: bool) -> str | None:
-        """None if the message counts (its number then taken); otherwise why it is ignored, a forgery
-        under the driver's session ending its lease."""
-        checked = self.check(what, parsed, payload)
-        if checked.forged:
-            return self._second_sender(parsed.who, f"{what} #{parsed.seq}", drives)
-        return checked.why
 
     def check(self, what: str, parsed: keyspace.Attachment, payload: bytes, key: object = None) -> Checked:
         """Whether ``payload`` is ``parsed.who``'s, signed with its session's key (``key``: the public key
@@ -312,16 +317,18 @@ class FleetDrive:
         with self._lock:
             present = self._present.get(op)
             if present is None:
-                return Checked(self._not_admitted(op), tokenless=op not in self._waiting)
+                return Checked(self._not_admitted(op), op not in self._waiting)
             verifier = present.key if present.key is not None else identity.public_key(key, op.session)
             if verifier is None:
                 return Checked(
                     f"ignored {what} #{seq} from {op}: no public key of its session is known here "
                     f'(a claim names it: {{"key": HEX}}, whose SHA-256 begins with the session id)'
                 )
-            signed = identity.signed_bytes(self.challenge, self.robot, what, op, seq, payload)
+            signed = identity.signed_bytes(self.challenge, present.lease, self.robot, what, op, seq, payload)
             if not identity.verified(verifier, signed, parsed.signature):
-                return Checked(f"ignored {what} #{seq} from {op}: not signed with its session's key", True)
+                return Checked(
+                    f"ignored {what} #{seq} from {op}: not signed with its session's key for this lease"
+                )
             last = present.taken.get(what, 0)
             if seq <= last:
                 return Checked(
@@ -329,14 +336,9 @@ class FleetDrive:
                     stale=True,
                 )
             present.key, present.taken[what] = verifier, seq
+            if what in ("claim", "cmd_vel"):
+                present.heard = time.monotonic()
         return Checked(None)
-
-    def _second_sender(self, op: keyspace.Who, what: str, drives: bool) -> str:
-        """A message under ``op``'s session not signed with its key: if it drives, stop and end the lease."""
-        why = f"a second sender under {op}'s session: {what} was not signed with its key"
-        if drives:
-            self.governor.release(operator_source(op), f"{why}; the lease is ended", Reason.SECOND_SENDER)
-        return f"ignored: {why}"
 
     def _not_admitted(self, op: keyspace.Who) -> str:
         """Why a session is not admitted, truly: its token waits for room, or none was admitted."""
@@ -377,25 +379,27 @@ class FleetDrive:
         self.governor.stop(f"stop from {who}", by)  # the driver's own stop holds only the others out
 
     def drive(self, payload: bytes, attachment: bytes | None = None) -> tuple[bool, dict[str, Any]]:
-        """A claim or release, signed by the session it names: (taken, the reply's object)."""
+        """A claim, a release (signed by the session it names) or the ask for a session's lease value:
+        (taken, the reply's object)."""
         message = parse_motion(payload)
         op, do = keyspace.who(message.get("op"), message.get("session")), message.get("do")
-        if op is None or do not in ("claim", "release"):
-            raise BadMotion('drive takes {"op": OPERATOR, "session": SESSION, "do": "claim" or "release"}')
+        if op is None or do not in ("claim", "release", "lease"):
+            raise BadMotion(
+                'drive takes {"op": OPERATOR, "session": SESSION, "do": "claim", "release" or "lease"}'
+            )
+        if do == "lease":
+            return self._lease(op)
         parsed = keyspace.parse_attachment(attachment)
         if parsed is None or parsed.who != op or not parsed.signature:
             raise BadMotion(
                 f"a {do} is signed: its attachment is OP SESSION SEQ SIGNATURE, of its op and session"
             )
         source = operator_source(op)
-        if do == "claim" and (refused := self.governor.would_refuse(source)) is not None:
-            return self._claim_refused(op, refused)
         drove = self.governor.driver == source
         checked = self.check(do, parsed, payload, message.get("key"))
-        if checked.forged:
-            why = self._second_sender(op, f"a {do}", drove)
-            return False, {"error": why, "driver": named(self.governor.driver)}
-        if checked.why is not None and (do == "release" or not checked.stale):
+        if do == "claim" and (refused := self.governor.would_refuse(source)) is not None:
+            return self._claim_refused(op, refused, proven=checked.why is None)
+        if checked.why is not None and (do == "release" or not checked.stale or not drove):
             return False, {"error": checked.why, "driver": named(self.governor.driver)} | (
                 {"token": False} if checked.tokenless else {}
             ) | ({"token": True, "waiting": True} if op in self._waiting else {})
@@ -403,6 +407,17 @@ class FleetDrive:
             self.governor.release(source, f"{op} released {self.robot}")
             return True, {"driver": named(self.governor.driver)}
         return self._claim(op, message, fresh=not checked.stale, drove=drove)
+
+    def _lease(self, op: keyspace.Who) -> tuple[bool, dict[str, Any]]:
+        """The value ``op``'s admission drew (``Present.lease``), which its signatures cover: anyone may ask
+        (it proves nothing and is good for nothing without the session's key), nobody before admission."""
+        with self._lock:
+            present = self._present.get(op)
+            if present is not None:
+                return True, {"lease": present.lease}
+            return False, {"error": self._not_admitted(op), "driver": named(self.governor.driver)} | (
+                {"token": True, "waiting": True} if op in self._waiting else {"token": False}
+            )
 
     def _claim(
         self, op: keyspace.Who, message: dict[str, Any], fresh: bool, drove: bool
@@ -454,11 +469,11 @@ class FleetDrive:
         parsed = keyspace.parse_attachment(attachment)
         if op is None or parsed is None or parsed.who != op or not parsed.signature:
             text = "write refused: a write is signed: its attachment is OP SESSION SEQ SIGNATURE, of its op and session"
-            self.refused(op, text)
+            self.refused(op, text, proven=False)
             raise WriteRefused(text)
         checked = self.check("write", parsed, payload, message.get("key"))
         if checked.why is not None:
-            self.refused(op, f"write {checked.why}", parsed.seq)
+            self.refused(op, f"write {checked.why}", parsed.seq, proven=False)
             raise WriteRefused(f"write {checked.why}")
         self.may_write_now(op)
         return op
@@ -472,9 +487,10 @@ class FleetDrive:
         self.refused(op, text)
         raise WriteRefused(text)
 
-    def _claim_refused(self, op: keyspace.Who, why: str) -> tuple[bool, dict[str, Any]]:
-        """A claim refused because another drives: answered, counted, and said (on the budget)."""
-        self.refused(op, why)
+    def _claim_refused(self, op: keyspace.Who, why: str, proven: bool = True) -> tuple[bool, dict[str, Any]]:
+        """A claim refused because another drives: answered, counted, and said (on the budget: the session's
+        own when its key signed the claim)."""
+        self.refused(op, why, proven=proven)
         return False, {"error": why, "driver": named(self.governor.driver)}
 
     def operator_here(self, key: str) -> None:
@@ -493,7 +509,7 @@ class FleetDrive:
             if len(self._waiting) < MAX_WAITING:
                 self._waiting[op] = None
             why = self._not_admitted(op)
-        self._tell(op, why)
+        self._tell(op, why, proven=False)
 
     def _admit(self, op: keyspace.Who) -> None:
         """``op``'s session present (under the lock): back with its key and numbers if it was here before."""
@@ -518,10 +534,14 @@ class FleetDrive:
         the robot stops at once."""
         with self._lock:
             present = self._present.pop(op, None)
+            now = time.monotonic()
             if present is not None and present.key is not None:
+                present.gone_at = now
                 self._gone[op] = present
-                while len(self._gone) > MAX_GONE:
-                    self._gone.popitem(last=False)
+            while self._gone and (
+                len(self._gone) > self._max_gone or now - next(iter(self._gone.values())).gone_at > GONE_S
+            ):
+                self._gone.popitem(last=False)
             hold = None
             if present is not None:
                 hold, present.hold = present.hold, None
@@ -538,10 +558,12 @@ class FleetDrive:
     def refusal(self, driver: Source | None) -> str:
         return refusal(driver, self.robot)
 
-    def refused(self, op: keyspace.Who | None, text: str, seq: int | None = None) -> None:
+    def refused(
+        self, op: keyspace.Who | None, text: str, seq: int | None = None, proven: bool = True
+    ) -> None:
         """Counted every time, said on the budget (``words``: a flood of refusals is a few lines a second)."""
         self.counters.refused += 1
-        self._tell(op, text, seq)
+        self._tell(op, text, seq, proven=proven)
 
     def _dropped(self, op: keyspace.Who, seq: int, text: str) -> None:
         """A message taken from its sender but not made motion: kept for its claim, counted and said."""
@@ -553,11 +575,36 @@ class FleetDrive:
         self._tell(op, text, seq)
 
     def _tell(
-        self, op: keyspace.Who | None, text: str, seq: int | None = None, kind: str | None = None
+        self,
+        op: keyspace.Who | None,
+        text: str,
+        seq: int | None = None,
+        kind: str | None = None,
+        proven: bool = True,
     ) -> None:
-        """A word about a dropped message to its sender (and stderr), on the budget (``words``)."""
-        if self.words.allowed(op, text, kind):
+        """A word about a dropped message to its sender (and stderr), on the budget (``words``): a session's
+        own only when its key signed the message (``proven``), so no stranger spends the words meant for it."""
+        if self.words.allowed(op, text, kind, proven=proven):
             self._say(op, text, seq)
+
+    def tick(self) -> None:
+        """The driver's life (``HOLD_S``): an operator whose motion runs and whose last signed word is older
+        is gone (a lease held still waits for the deadman: it moves nothing)."""
+        driver = self.governor.driver
+        if (
+            driver is None
+            or driver.kind is not Kind.OPERATOR
+            or not isinstance(op := driver.id, keyspace.Who)
+            or self.governor.asked == STILL
+        ):
+            return
+        with self._lock:
+            present = self._present.get(op)
+            silent = None if present is None else time.monotonic() - present.heard
+        if silent is not None and silent > HOLD_S:
+            self.governor.release(
+                driver, f"operator {op} gone: no signed word of its for {silent:.2f} s", Reason.OPERATOR_GONE
+            )
 
 
 def _named_key(payload: bytes) -> object:

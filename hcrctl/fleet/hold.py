@@ -11,6 +11,11 @@ subscriber at once (its link closed) and the listener says so: the robot
 side stops as for a token gone. The secret goes in a query's reply, to the
 querier alone; it is never put on a key anyone may subscribe to.
 
+The listener counts any subscriber whose key expression intersects the
+hold's (one on ``hcr/**`` matches every hold for ever), so a hold only ever
+ends a lease sooner: what keeps a moving driver alive is what only its key can
+sign, its renewals (``drive.HOLD_S``).
+
 Declaring is done on a thread of its own, never on the Zenoh thread that
 answered the claim.
 """

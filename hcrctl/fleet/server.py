@@ -162,6 +162,9 @@ class Fleet(FrontEnd):
         who = op if isinstance(op, keyspace.Who) else None
         self.tell(keyspace.stopped_status(who, str(stopped), stopped.reason.value))
 
+    def tick(self) -> None:
+        self.drive.tick()
+
     def close(self) -> None:
         self.undeclare()
 

@@ -114,6 +114,11 @@ class Carrier(ABC):
         """Why the far side stopped the motion this link asked for; None while it runs (or none was asked)."""
         return None
 
+    def stop_told(self) -> tuple[str, bool] | None:
+        """After a stop was sent: (the stop command's line, saying what went out and who answered, and
+        whether anyone did), which must not name a frame no wire carried; None to say the frame sent."""
+        return None
+
     def lost_error(self, why: str) -> PortError:
         """The error of this link ended (``why``), as the Robot keeps it when told (``Lost``), and as a
         request that finds the link ended raises it: one wording for both."""

@@ -583,6 +583,11 @@ class Governor:
         return self.lease.driver
 
     @property
+    def asked(self) -> Wheels:
+        """What the lease asks of the wheels now (``STILL`` when it asks for no motion)."""
+        return self.lease.wheels
+
+    @property
     def _moving(self) -> bool:
         return self._sent is not None and self._sent[0] != STILL
 

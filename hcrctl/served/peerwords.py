@@ -89,11 +89,13 @@ class PeerWords:
         """The count of what was held back goes to ``channel`` too (the fleet's ``status``)."""
         self._channels.append(channel)
 
-    def allowed(self, sender: Sender | None, text: str, kind: str | None = None) -> bool:
+    def allowed(self, sender: Sender | None, text: str, kind: str | None = None, proven: bool = True) -> bool:
         """Whether a word about ``sender`` is said now (the caller says it, on each of its channels);
-        if not, it is counted. ``kind``: what makes two words one (default: ``text`` without its numbers)."""
+        if not, it is counted. ``kind``: what makes two words one (default: ``text`` without its numbers).
+        A word about a message ``sender`` is not ``proven`` to have sent (anyone may name anyone) is on the
+        others' budget, never on ``sender``'s own, so no stranger spends the words meant for it."""
         rule = self._known  # one call, not a search through the rules: this is a flood's path
-        known = sender is not None and rule is not None and rule(sender)
+        known = proven and sender is not None and rule is not None and rule(sender)
         with self._lock:
             summary = self._roll(self._clock())
             budget = sender if known and (sender in self._said or len(self._said) < MAX_BUDGETS) else None

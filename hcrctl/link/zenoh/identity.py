@@ -12,11 +12,14 @@ from, and from then on takes only what that key signed.
 What is signed (``signed_bytes``) is a head of text lines, then the
 message's payload exactly as sent::
 
-    hcr-fleet-1\\n CHALLENGE\\n ROBOT\\n WHAT\\n OP\\n SESSION\\n SEQ\\n PAYLOAD
+    hcr-fleet-2\\n CHALLENGE\\n LEASE\\n ROBOT\\n WHAT\\n OP\\n SESSION\\n SEQ\\n PAYLOAD
 
 ``CHALLENGE`` is the 32 hex digits the serving process drew when it
 started (in its ``info``), so nothing signed for one ``fleet serve`` is good
-for another; ``WHAT`` the kind of message (``WHATS``), so a signed claim is
+for another; ``LEASE`` the 32 hex digits it drew when it admitted the
+session (its token came; a ``drive`` query ``{"do": "lease"}`` answers it),
+so nothing signed in one admission is good in another, whatever the serve
+still remembers of sessions gone; ``WHAT`` the kind of message (``WHATS``), so a signed claim is
 never good as a motion; ``SEQ`` the decimal sequence number, counting up
 from 1 over all of the session's messages. The signature travels in the
 message's attachment, ``OP SESSION SEQ SIGNATURE`` (``keyspace.attachment``),
@@ -38,7 +41,7 @@ from .keyspace import Who
 #: The kinds of signed message: the drive lease's two, motion, a non-motion write, and a stop.
 WHATS = ("claim", "release", "cmd_vel", "write", "stop")
 #: The signed bytes' first line: what this scheme is, so a later one is never mistaken for it.
-SCHEME = "hcr-fleet-1"
+SCHEME = "hcr-fleet-2"
 #: A public key: 64 lower-case hex digits, its 32 raw bytes.
 PUBLIC_KEY = re.compile(r"[0-9a-f]{64}")
 
@@ -64,9 +67,11 @@ def session_of(public: bytes) -> str:
     return hashlib.sha256(public).hexdigest()[:16]
 
 
-def signed_bytes(challenge: str, robot: str, what: str, op: Who, seq: int, payload: bytes) -> bytes:
+def signed_bytes(
+    challenge: str, lease: str, robot: str, what: str, op: Who, seq: int, payload: bytes
+) -> bytes:
     """Exactly what a signature covers (see the module's docstring)."""
-    head = f"{SCHEME}\n{challenge}\n{robot}\n{what}\n{op.name}\n{op.session}\n{seq}\n"
+    head = f"{SCHEME}\n{challenge}\n{lease}\n{robot}\n{what}\n{op.name}\n{op.session}\n{seq}\n"
     return head.encode("ascii") + payload
 
 

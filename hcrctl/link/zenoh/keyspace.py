@@ -57,9 +57,13 @@ MAX_ATTACHMENT = 256
 CHALLENGE = re.compile(r"[0-9a-f]{32}")
 #: A hold's secret (``hold``): 32 lower-case hex digits, as a challenge.
 HOLD = CHALLENGE
+#: A session's lease value (``new_lease``): 32 lower-case hex digits, as a challenge.
+LEASE = CHALLENGE
 #: The longest sequence number: 19 digits stay below 2**63.
 MAX_SEQ_DIGITS = 19
 MAX_SEQ = 10**MAX_SEQ_DIGITS - 1
+#: A sequence number as written: decimal, no leading zero (0 alone: an unsigned stop's), at most 19 digits.
+SEQ = re.compile(rf"0|[1-9][0-9]{{0,{MAX_SEQ_DIGITS - 1}}}")
 #: Where `fleet router` listens, and where everyone connects, unless told otherwise.
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 
@@ -198,7 +202,7 @@ def parse_attachment(data: bytes | None) -> Attachment | None:
         return None
     op = who(fields[0], fields[1])
     seq, signature = fields[2], (fields[3] if len(fields) == 4 else "")
-    if op is None or not seq.isdigit() or len(seq) > MAX_SEQ_DIGITS:
+    if op is None or not SEQ.fullmatch(seq):
         return None
     if signature and not SIGNATURE.fullmatch(signature):
         return None
@@ -207,6 +211,12 @@ def parse_attachment(data: bytes | None) -> Attachment | None:
 
 def new_challenge() -> str:
     """A serving process's challenge (in its ``info``): what every signature for it covers."""
+    return secrets.token_hex(16)
+
+
+def new_lease() -> str:
+    """A session's lease value, drawn when the robot side admits it: what every signature of that
+    admission covers (``identity``)."""
     return secrets.token_hex(16)
 
 

@@ -8,17 +8,21 @@ liveliness token goes (a killed one). This side only asks and keeps asking:
 - before the first motion, ``claim`` (a query, answered at once): refused
   means the command fails saying who drives, and nothing moves. Every message
   (claim, release, motion, write, stop) is numbered and signed with this
-  session's private key over the robot's challenge (``identity``), and a claim
-  names the public key, so nobody else on the fleet can send as this operator
-  and nothing signed for one serving process is good for the next;
+  session's private key over the robot's challenge and the lease value the
+  robot side drew when it admitted this session (``identity``; asked once,
+  ``admit``), and a claim names the public key, so nobody else on the fleet
+  can send as this operator, nothing signed for one serving process is good
+  for the next, and nothing signed in one admission is good in another;
 - each motion is a ``cmd_vel`` put with ``attachment(op, seq, signature)``,
   then confirmed by a claim naming its sequence number: when the robot side
   dropped it (another drives, a bumper is pressed, its firmware lacks the
   command), the command fails with the robot side's reason, so nothing says
   "sent" of a command that moved nothing;
 - while the lease is held, a thread claims it again every
-  ``min(0.1 s, deadman / 4)``, so a one-shot ``drive --for 2`` holds it for
-  2 s. It renews with ``claim``, never by re-sending the motion: once the
+  ``min(RENEW_S, deadman / 4)``, so a one-shot ``drive --for 2`` holds it for
+  2 s; these signed renewals are the driver's life on the robot side (which
+  stops a driver unheard for ``fleet.drive.HOLD_S``), since only this
+  process can sign them. It renews with ``claim``, never by re-sending the motion: once the
   robot side has stopped this operator (another's ``stop``, its deadman), a
   renewal must not set it going again;
 - the stop request is the fleet's ``stop``, and the lease is then free;
@@ -44,15 +48,16 @@ from ...protocol import commands as C
 from ...protocol.records import hexs
 from .identity import Identity, signed_bytes
 from .join import LEASE_MS, FleetError
-from .keyspace import HOLD, Status, Who, attachment, cmd_vel, loads
+from .keyspace import HOLD, LEASE, Status, Who, attachment, cmd_vel, loads
 from .keyspace import drive as drive_key
 from .keyspace import hold as hold_key
 from .keyspace import stop as stop_key
 
 #: The longest wait for the robot side's answer to a claim or release.
 CLAIM_TIMEOUT_S = 2.0
-#: Renewals are at most this far apart, and at least four to a deadman.
-RENEW_S = 0.1
+#: Renewals are at most this far apart, and at least four to a deadman: three to the robot side's
+#: ``HOLD_S`` (0.15 s), so one late renewal never stops a live driver.
+RENEW_S = 0.05
 #: How often a claim refused for want of this session's token is asked again (the token on its way),
 #: and for how long: the token was declared before the robot's info was asked, so it is only late.
 TOKEN_RETRY_S = 0.05
@@ -73,7 +78,8 @@ HALT_HINTS = {
     "deadman": "this operator's renewals stopped reaching the robot within its deadman: a slow or cut network",
     "stop": "someone on the fleet sent stop; drive again once it is safe",
     "port lost": "the robot's serial port went away: check its cable and power on the robot's side",
-    "operator gone": "the robot side lost this operator's liveliness token: a broken network",
+    "operator gone": "the robot side lost this operator's liveliness token or its renewals: a frozen "
+    "process or a broken network",
     "second sender": "someone on the fleet sends as you; restrict who may drive with Zenoh's access control",
 }
 
@@ -120,6 +126,8 @@ class DriveLease:
         self._seq = 0
         #: The robot side's challenge, from its info (None before): every signature covers it.
         self.challenge: str | None = None
+        #: The lease value the robot side drew when it admitted this session (``admit``; None before).
+        self.admission: str | None = None
         #: This session's subscriber of the hold the robot side answered its claim (``fleet.hold``).
         self._hold: Any = None
         # Reentrant: a renewal, under it, numbers and signs its claim under it too.
@@ -196,6 +204,7 @@ class DriveLease:
 
         DriveRefused, naming the driver or the reason, if it is not granted.
         """
+        self.admit()
         ok, answer = self._ask("claim", confirm)
         deadline = time.monotonic() + TOKEN_WAIT_S
         while not ok and answer.get("token") is False and time.monotonic() < deadline:
@@ -211,6 +220,24 @@ class DriveLease:
         self._subscribe_hold(answer.get("hold"))
         self._start()
         return answer
+
+    def admit(self) -> None:
+        """Learn the lease value of this session's admission (once): asked again while this session's token
+        is on its way. DriveRefused when it is not admitted in time (the robot side's words)."""
+        if self.admission is not None:
+            return
+        payload = json.dumps({"op": self._op.name, "session": self._op.session, "do": "lease"}).encode()
+        deadline = time.monotonic() + TOKEN_WAIT_S
+        while True:
+            ok, answer = self._query(payload, None, "lease")
+            lease = answer.get("lease")
+            if ok and isinstance(lease, str) and LEASE.fullmatch(lease):
+                self.admission = lease
+                return
+            if ok or answer.get("token") is not False or time.monotonic() > deadline:
+                self.refused = True
+                raise DriveRefused(_refusal(answer, self._robot), hint=_refused_hint(answer))
+            time.sleep(TOKEN_RETRY_S)
 
     def _subscribe_hold(self, secret: object) -> None:
         """Subscribe to the hold the robot side answered: while this process lives, so does the subscriber."""
@@ -321,16 +348,23 @@ class DriveLease:
                 f"{self._robot}'s info names no challenge to sign for: nothing was sent",
                 hint=f"{self._robot}'s fleet serve may be an older hcrctl; upgrade it",
             )
+        self.admit()
+        assert self.admission is not None  # admit() raises otherwise
         with self._lock:
             seq = self._next()
-            data = signed_bytes(self.challenge, self._robot, what, self._op, seq, payload)
+            data = signed_bytes(self.challenge, self.admission, self._robot, what, self._op, seq, payload)
             return attachment(self._op, seq, self._identity.sign(data))
 
     def _ask(self, do: str, confirm: int | None = None) -> tuple[bool, dict[str, Any]]:
         """A ``drive`` query: (granted, the robot side's answer); ``Unanswered`` when nobody answers. An error
         reply that is no JSON object is Zenoh's own (a timeout), not the robot side's refusal."""
-        zenoh = _zenoh()
         payload, signed = self._asking(do, confirm)
+        return self._query(payload, signed, do, confirm)
+
+    def _query(
+        self, payload: bytes, signed: bytes | None, do: str, confirm: int | None = None
+    ) -> tuple[bool, dict[str, Any]]:
+        zenoh = _zenoh()
         replies = self._session.get(
             drive_key(self._robot),
             payload=payload,
@@ -361,12 +395,13 @@ class DriveLease:
     def _put(self, key: str, what: str, payload: dict[str, Any]) -> int:
         """Put ``payload`` numbered and signed; its sequence number. Under the lock: put in numbering order.
 
-        A stop before the robot's challenge is known goes unsigned (numbered 0): a stop is anyone's.
+        A stop before the robot's challenge and this session's lease value are known goes unsigned
+        (numbered 0): a stop is anyone's, and it must never wait for a question.
         """
         zenoh = _zenoh()
         data = json.dumps(payload).encode()
         with self._lock:
-            if what == "stop" and self.challenge is None:
+            if what == "stop" and (self.challenge is None or self.admission is None):
                 signed = attachment(self._op, 0)
             else:
                 signed = self.sign(what, data)

@@ -64,6 +64,7 @@ from .keyspace import (
 )
 from .keyspace import info as info_key
 from .keyspace import read as read_key
+from .keyspace import stop as stop_key
 from .keyspace import write as write_key
 from .lease import DriveLease, Unanswered
 
@@ -77,6 +78,8 @@ GRACE_S = 1.0
 LIST_HINT = "hcrctl fleet list shows the robots present"
 #: The longest the robot side's words (an error, a hint) are quoted in a command's error.
 SAID_CHARS = 200
+#: How long the stop command waits for the robot side's word that its stop was made (the stop goes first).
+STOP_WORD_S = 1.0
 #: What a frame message of a broadcast says it is (``"kind": "broadcast"``; the message is checked whole after).
 BROADCAST = b'"broadcast"'
 
@@ -126,6 +129,9 @@ class RemoteLink(Carrier):
         self._said: dict[tuple[int, int], tuple[str, str | None]] = {}
         #: Closed: no timeout waits for an explanation any more (a signal's exit must not wait for one).
         self._closed = False
+        #: The first word on ``status`` that a stop was made, since this side's last stop (``stop_told``).
+        self._stop_word: str | None = None
+        self._stop_heard = threading.Event()
 
     # -- opening and closing -------------------------------------------------------------
 
@@ -243,6 +249,14 @@ class RemoteLink(Carrier):
     def _status(self, sample: Any) -> None:
         """The robot side's word about this session: a stop or a refusal ends the lease and halts its motion."""
         said = parse_status(sample.payload.to_bytes())
+        if (
+            said is not None
+            and said.event == "stopped"
+            and said.reason == "stop"
+            and not self._stop_heard.is_set()
+        ):
+            self._stop_word = quoted(said.text, SAID_CHARS)
+            self._stop_heard.set()
         if self.lease is not None and said is not None and said.is_for(self.op):
             self.lease.heard(said)
 
@@ -258,6 +272,7 @@ class RemoteLink(Carrier):
         elif cmd.motion:
             if stop:
                 assert self.lease is not None  # set by open()
+                self._stop_heard.clear()
                 self.lease.stop()
             else:
                 self._drive(address, cmd, content)
@@ -277,6 +292,15 @@ class RemoteLink(Carrier):
 
     def halted(self) -> HcrError | None:
         return None if self.lease is None else self.lease.halted
+
+    def stop_told(self) -> tuple[str, bool]:
+        """A put on ``hcr/R/stop`` (no frame crosses the fleet), and the first ``stopped`` word on the
+        robot's status after it, waited for ``STOP_WORD_S`` (status is anyone's to put: it is quoted as
+        what was said there, not as proof)."""
+        sent = f"stop put on {stop_key(self.name)}"
+        if self._stop_heard.wait(STOP_WORD_S):
+            return f"{sent}; {status(self.name)} said: {self._stop_word}", True
+        return f"{sent}; nothing on {status(self.name)} said a stop was made within {STOP_WORD_S:g} s", False
 
     # -- reads ----------------------------------------------------------------------------------
 
