@@ -51,9 +51,10 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
 
     pytest-xdist (``--dist load`` with ``--maxschedchunk 1``, see ``addopts``)
     starts each worker with the next two tests in the list and then hands out
-    one test at a time, to the worker that finished one. A long test paired
-    with a short one is thus the only long test of its worker, starting at
-    once and running beside the short ones; two long tests side by side would
+    one test at a time, to the worker that finished one. Paired with a short
+    test, each of the first long tests is the only long test of its worker,
+    starting at once beside the short ones, and the others go to the first
+    workers free, before the short tests. Two long tests side by side would
     run one after the other on one worker, and a long test collected last would
     start near the end, the whole run waiting for it alone.
     """
