@@ -46,6 +46,7 @@ def _long_s(item: pytest.Item) -> float:
     return 0 if mark is None else float(mark.args[0] if mark.args else LONG_S)
 
 
+@pytest.hookimpl(trylast=True)  # after -k and -m have deselected: the pairs are of the tests that run
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """The tests marked ``long`` first, the longest first, each followed by one short test; then the rest.
 
