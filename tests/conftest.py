@@ -36,15 +36,33 @@ def pytest_configure(config: pytest.Config) -> None:
     helpers_skips.register(config)
 
 
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """The tests marked ``long`` first, the rest in their order.
+#: The seconds a ``long`` test is said to take when its mark gives none.
+LONG_S = 60
 
-    pytest-xdist hands out the first tests one to a worker in turn, so each of
-    these starts at once on a worker of its own and runs beside the short
-    ones; collected last, one would start near the end and the whole run would
-    wait for it alone.
+
+def _long_s(item: pytest.Item) -> float:
+    """The seconds a test's ``long`` mark says it takes (``long(80)``), or 0 for a short test."""
+    mark = item.get_closest_marker("long")
+    return 0 if mark is None else float(mark.args[0] if mark.args else LONG_S)
+
+
+@pytest.hookimpl(trylast=True)  # after -k and -m have deselected: the pairs are of the tests that run
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The tests marked ``long`` first, the longest first, each followed by one short test; then the rest.
+
+    pytest-xdist (``--dist load`` with ``--maxschedchunk 1``, see ``addopts``)
+    starts each worker with the next two tests in the list and then hands out
+    one test at a time, to the worker that finished one. Paired with a short
+    test, each of the first long tests is the only long test of its worker,
+    starting at once beside the short ones, and the others go to the first
+    workers free, before the short tests. Two long tests side by side would
+    run one after the other on one worker, and a long test collected last would
+    start near the end, the whole run waiting for it alone.
     """
-    items.sort(key=lambda item: item.get_closest_marker("long") is None)
+    long = sorted((item for item in items if _long_s(item)), key=_long_s, reverse=True)
+    short = [item for item in items if not _long_s(item)]
+    paired = [test for pair in zip(long, short, strict=False) for test in pair]
+    items[:] = paired + long[len(short) :] + short[len(long) :]
 
 
 #: Hypothesis fails an example slower than 200 ms by default: a timing assertion, which a loaded machine

@@ -15,6 +15,7 @@ import subprocess
 import threading
 from pathlib import Path
 
+import pytest
 from helpers import TIMEOUT, DevicePty, hcrctl_exe
 from helpers_live import DEFAULT_VALUES
 from hypothesis import HealthCheck, given, settings
@@ -68,6 +69,7 @@ def test_hex_decode_survives_any_capture(data: bytes, tmp_path_factory) -> None:
     assert_clean_end(run("--json", "hex", "decode", "-", stdin=data.hex(" ") or "00"))
 
 
+@pytest.mark.long(30)  # twenty executables, each waiting out a hostile device
 @FUZZ
 @given(data=hostile_bytes)
 def test_read_survives_any_answer(data: bytes) -> None:
@@ -77,6 +79,7 @@ def test_read_survives_any_answer(data: bytes) -> None:
     assert_clean_end(proc, (0, 1))
 
 
+@pytest.mark.long(30)  # twenty executables, each waiting out a hostile device
 @FUZZ
 @given(data=hostile_bytes)
 def test_monitor_survives_any_line_traffic(data: bytes) -> None:

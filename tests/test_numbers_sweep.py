@@ -347,6 +347,7 @@ def _shell_word(value: str) -> str:
     return "''" if value == "" else value
 
 
+@pytest.mark.long(80)  # hundreds of executables, a few at a time
 def test_the_executable_refuses_hostile_numbers_everywhere_and_sends_nothing(tmp_path: Path) -> None:
     runs = executable_runs(tmp_path)
     assert {r.source for r in runs} == {"option", "env", "config", "shell"}

@@ -18,7 +18,7 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 
 
-@pytest.mark.long  # mypy on the whole package: over a minute without its cache
+@pytest.mark.long(80)  # mypy on the whole package: over a minute without its cache
 def test_mypy_finds_no_error_in_the_package(request: pytest.FixtureRequest) -> None:
     pytest_cache = getattr(request.config, "cache", None)  # absent under -p no:cacheprovider
     cache = pytest_cache.mkdir("mypy") if pytest_cache is not None else ROOT / ".mypy_cache"
