@@ -663,3 +663,22 @@ class Clock:
 
     def __call__(self) -> float:
         return self.now
+
+
+@contextlib.contextmanager
+def repeating(send: Callable[[], object], period: float) -> Iterator[None]:
+    """``send`` every ``period`` s from a thread of its own through the block: one unbroken stream (a
+    client publishing, a held key repeating) for a deadman longer than the period."""
+    done = threading.Event()
+
+    def run() -> None:
+        while not done.wait(period):
+            send()
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join(60)

@@ -15,14 +15,13 @@ import signal
 import socket
 import subprocess
 import tempfile
-import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
-from helpers import wait_until
+from helpers import repeating, wait_until
 from helpers_bridge import TWIST, bridge, velocity_of, viewer
 from helpers_cli import TIMEOUT, hcrctl_exe, run
 from helpers_live import FakeRobot, is_stop, speed_of, terminal
@@ -135,30 +134,11 @@ def test_a_bridge_stopped_from_the_port_holds_its_driver_out(port_env: dict[str,
             lambda: client.publish(TWIST) or any(velocity_of(f) == (20, 20) for _, f in robot.frames()),
             what="the client driving",
         )
-        with sent_on(lambda: client.publish(TWIST)):
+        with repeating(lambda: client.publish(TWIST), 0.03):
             stopped = stopped_from_the_port(robot, port_env, after=robot.frames()[-1][0])
         moving = [w for t, f in robot.frames() if t > stopped and (w := velocity_of(f)) not in (None, (0, 0))]
         assert moving == []
         assert "another program (pid " in running.wait_line("stop from the port")
-
-
-@contextmanager
-def sent_on(send: Callable[[], object]) -> Iterator[None]:
-    """``send`` every few tens of milliseconds through the block (a client publishing, a held key
-    repeating): one unbroken stream for a 2 s deadman."""
-    done = threading.Event()
-
-    def sending() -> None:
-        while not done.wait(0.03):
-            send()
-
-    sender = threading.Thread(target=sending, daemon=True)
-    sender.start()
-    try:
-        yield
-    finally:
-        done.set()
-        sender.join(TIMEOUT)
 
 
 def stopped_from_the_port(robot: FakeRobot, port_env: dict[str, str], after: float) -> float:
@@ -252,7 +232,7 @@ def test_teleop_stopped_from_the_port_holds_the_keys_out(
     monkeypatch.setenv("XDG_RUNTIME_DIR", port_env["XDG_RUNTIME_DIR"])  # teleop's environment
     with FakeRobot() as robot, terminal(["--port", robot.path, "teleop", "--deadman", "2"]) as term:
         term.wait_for("sending")
-        with sent_on(lambda: term.send("w")):  # a held key repeats
+        with repeating(lambda: term.send("w"), 0.03):  # a held key repeats
             moved = robot.wait_frame(lambda f: speed_of(f) == (50, 50))
             stopped = stopped_from_the_port(robot, port_env, after=moved)
         assert [

@@ -10,12 +10,11 @@ from __future__ import annotations
 
 import contextlib
 import signal
-import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
 
-from helpers import TIMEOUT, wait_until
+from helpers import TIMEOUT, repeating, wait_until
 from helpers_cli import sim_pty
 from helpers_cyclone import CycloneClient
 from helpers_dds import Place, RosSide, place, ros2_node, ros_side
@@ -78,24 +77,6 @@ def sent_on(node: Serve, a: RosSide, b: RosSide, since: float) -> bool:
 
 
 @contextlib.contextmanager
-def sending_on(a: RosSide, b: RosSide) -> Iterator[None]:
-    """A and B send on (``send``, B backwards) from a thread of their own, every few tens of ms."""
-    done = threading.Event()
-
-    def run() -> None:
-        while not done.wait(0.02):
-            send(a, b, -0.3)
-
-    thread = threading.Thread(target=run, daemon=True)
-    thread.start()
-    try:
-        yield
-    finally:
-        done.set()
-        thread.join()
-
-
-@contextlib.contextmanager
 def a_drives(env: dict[str, str], tmp_path: Path, here: Place) -> Iterator[tuple[Serve, RosSide, RosSide]]:
     """The node on the simulator, writers A and B, all at ``here``; A driving (backwards)."""
     with (
@@ -144,7 +125,9 @@ def test_after_the_stop_service_neither_the_driver_nor_a_refused_writer_moves_un
 
         wait_until(b_refused, what="B refused, and the stop service found")
         asked = motion(node)[-1][0]
-        with sending_on(a, b):  # no gap in either stream while the call waits for its answer
+        with repeating(
+            lambda: send(a, b, -0.3), 0.02
+        ):  # no gap in either stream while the call waits for its answer
             assert stop.call({}).success
         stopped = wait_until(lambda: stop_after(node, asked), what="the stop frame")
         wait_until(lambda: sent_on(node, a, b, stopped), what="A and B, sending on, both held out")

@@ -78,8 +78,10 @@ GRACE_S = 1.0
 LIST_HINT = "hcrctl fleet list shows the robots present"
 #: The longest the robot side's words (an error, a hint) are quoted in a command's error.
 SAID_CHARS = 200
-#: How long the stop command waits for the robot side's word that its stop was made (the stop goes first).
-STOP_WORD_S = 1.0
+#: How long the stop command waits for the robot side's word that its stop was made (the stop goes first):
+#: the word is put after the stop is written on the robot's wire, and a loaded robot computer or network
+#: (a test's namespaces beside two busy loops) can take over a second; a stop never waits for it.
+STOP_WORD_S = 3.0
 #: What a frame message of a broadcast says it is (``"kind": "broadcast"``; the message is checked whole after).
 BROADCAST = b'"broadcast"'
 
