@@ -244,3 +244,25 @@ def test_a_put_motion_unanswered_once_the_robot_left_is_unanswered_not_refused()
     session = _Asked([[_Reply(err=json.dumps({"error": "refused: op2 drives r1"}).encode())]])
     with pytest.raises(DriveRefused, match="refused: op2 drives r1"):
         _asking_lease(session, [True]).drive(1, C.BY_NAME["velocity"], C.Velocity(20, 20).content())  # type: ignore[attr-defined]
+
+
+def test_a_renewals_answer_with_the_stops_words_halts_the_motion_that_missed_its_status_word() -> None:
+    pytest.importorskip("zenoh", reason="the lease's puts name Zenoh's encodings")
+    from hcrctl.link.zenoh.lease import HALT_HINTS
+
+    words = json.dumps({"error": "refused: stopped", "stopped": "stopped: stop from op2", "reason": "stop"})
+    for answer in (
+        _Reply(err=words.encode()),
+        _Reply(ok=json.dumps({"stopped": "stopped: deadman", "reason": "deadman"}).encode()),
+    ):
+        lease = _asking_lease(_Asked([]), [True])
+        lease.held = lease.driving = True  # type: ignore[attr-defined]
+        lease._renewed(answer)  # type: ignore[attr-defined]
+        assert lease.halted is not None and lease.halted.message.startswith("r1 stopped: ")  # type: ignore[attr-defined]
+        assert lease.halted.hint in (HALT_HINTS["stop"], HALT_HINTS["deadman"])  # type: ignore[attr-defined]
+    lease = _asking_lease(_Asked([]), [True])
+    lease._renewed(_Reply(ok=json.dumps({"stopped": "stopped: stop from op1", "reason": "stop"}).encode()))  # type: ignore[attr-defined]
+    assert lease.halted is None  # type: ignore[attr-defined]  # no motion of its ran: nothing to halt
+    lease.held = lease.driving = True  # type: ignore[attr-defined]
+    lease._renewed(_Reply(err=b"Timeout"))  # type: ignore[attr-defined]
+    assert lease.held and lease.halted is None  # type: ignore[attr-defined]  # Zenoh's timeout: renewed on

@@ -441,3 +441,27 @@ def test_a_zero_cmd_vel_from_an_operator_that_does_not_drive_stops_and_the_stop_
     )
     assert "send nothing for 10 s" in held["text"]
     assert motion_then_stop(serve)[0] == moved  # nothing moved since the stop
+
+
+def test_a_stopped_drivers_claims_are_answered_with_the_stops_words_until_it_moves_again(
+    lab: Fleet, tmp_path: Path
+) -> None:
+    """A driver that missed the status word of the stop that ended its motion (frozen, the word dropped on
+    the way) learns it from the answer to its next renewal, refused while the stop holds or granted."""
+    serve = served(lab, tmp_path, "--deadman", "0.5")
+    with operator(lab.endpoint, "r1", "op1") as op1, operator(lab.endpoint, "r1", "op2") as op2:
+        drives(op1, serve)
+        op1.silent()  # its renewals are this test's own from here
+        op2.open()
+        op2.stop()
+        wait_until(lambda: motion_then_stop(serve)[1], what="op2's stop after the motion")
+        held = wait_until(
+            lambda: (answer := op1.claim()) and "stopped" in answer[1] and answer, what="the words"
+        )
+        assert held[1]["stopped"] == "stopped: stop from op2" and held[1]["reason"] == "stop", held
+        time.sleep(0.6)  # the rule's own input: silent for the deadman, op1 is no longer held out
+        taken, answer = op1.claim()
+        assert taken and answer["stopped"] == "stopped: stop from op2", answer
+        op1.cmd_vel(twist(0.2))  # it moves again: the words are told
+        wait_until(lambda: len(motion_then_stop(serve)[0]) >= 2, what="op1's motion again")
+        assert "stopped" not in op1.claim()[1]

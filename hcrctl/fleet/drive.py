@@ -150,6 +150,10 @@ class Present:
     heard: float = 0.0
     #: When its token went (monotonic), while remembered as gone (``GONE_S``).
     gone_at: float = 0.0
+    #: The robot side's words of the stop that ended its motion, and the stop's reason, until it moves
+    #: again: answered to its claims too, so a driver that missed the status word (frozen, the word
+    #: dropped on the way) still learns that its motion is over.
+    stopped: tuple[str, str] | None = None
 
     @property
     def seq(self) -> int:
@@ -282,8 +286,25 @@ class FleetDrive:
             return
         if not verdict:
             self._dropped(op, seq, f"cmd_vel {verdict.why}")
-        elif not drove and self.governor.driver == source:  # not a zero that stopped another
+            return
+        with self._lock:
+            if (present := self._present.get(op)) is not None:
+                present.stopped = None  # it moves again: the last stop's words are told
+        if not drove and self.governor.driver == source:  # not a zero that stopped another
             self._say(op, keyspace.drives_status(op, self.robot), None)
+
+    def stopped_for(self, op: keyspace.Who, text: str, reason: str) -> None:
+        """The motion ``op`` drove was stopped (``text``, for ``reason``): kept for its next claims' answers."""
+        with self._lock:
+            if (present := self._present.get(op)) is not None:
+                present.stopped = (text, reason)
+
+    def _stop_words(self, op: keyspace.Who, message: dict[str, Any]) -> dict[str, str]:
+        """For a renewal (a claim that confirms no motion): the words of the stop that ended ``op``'s motion."""
+        with self._lock:
+            present = self._present.get(op)
+            said = None if present is None or "confirm" in message else present.stopped
+        return {} if said is None else {"stopped": said[0], "reason": said[1]}
 
     def _not_the_drivers(self, attachment: bytes | None, payload: SupportsBytes) -> bool:
         """While one drives, a message whose attachment does not start with the driver's session is refused
@@ -398,7 +419,8 @@ class FleetDrive:
         drove = self.governor.driver == source
         checked = self.check(do, parsed, payload, message.get("key"))
         if do == "claim" and (refused := self.governor.would_refuse(source)) is not None:
-            return self._claim_refused(op, refused, proven=checked.why is None)
+            taken, answer = self._claim_refused(op, refused, proven=checked.why is None)
+            return taken, answer | (self._stop_words(op, message) if checked.why is None else {})
         if checked.why is not None and (do == "release" or not checked.stale or not drove):
             return False, {"error": checked.why, "driver": named(self.governor.driver)} | (
                 {"token": False} if checked.tokenless else {}
@@ -454,6 +476,8 @@ class FleetDrive:
             if fresh and present.rejoined:
                 present.rejoined = False
                 answer["rejoined"] = True  # a renewal answered so lost its motion with its token, unheard
+        if fresh:
+            answer |= self._stop_words(op, message)
         if not drove and fresh:
             self._say(op, keyspace.drives_status(op, self.robot), None)
         return True, answer

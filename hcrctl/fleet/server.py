@@ -160,6 +160,8 @@ class Fleet(FrontEnd):
         if source is not None and not isinstance(op, keyspace.Who):
             return
         who = op if isinstance(op, keyspace.Who) else None
+        if who is not None:
+            self.drive.stopped_for(who, str(stopped), stopped.reason.value)
         self.tell(keyspace.stopped_status(who, str(stopped), stopped.reason.value))
 
     def tick(self) -> None:

@@ -312,18 +312,29 @@ class DriveLease:
         )
 
     def _renewed(self, reply: Any) -> None:
-        """A renewal's answer: refused by the robot side, the lease is lost (unanswered, it is renewed on:
-        only the robot's loss or its refusal ends it); granted to a session that ``rejoined``, the robot
-        side had lost its token for a while, and with it the motion it drove, unheard here."""
+        """A renewal's answer. The robot side's words of the stop that ended this session's motion halt it
+        (its status word may have been missed: frozen, or dropped on the way); refused by the robot side,
+        the lease is lost (unanswered, it is renewed on: only the robot's loss or its refusal ends it);
+        granted to a session that ``rejoined``, the robot side had lost its token for a while, and with it
+        the motion it drove, unheard here."""
         if reply.err is not None:
-            if isinstance(
-                loads(reply.err.payload.to_bytes()), dict
-            ):  # the robot side's refusal: not Zenoh's timeout
-                self.lost()
-        elif _object(reply.ok.payload.to_bytes()).get("rejoined") is True:
+            answer = loads(reply.err.payload.to_bytes())
+            if not isinstance(answer, dict):  # Zenoh's own (a timeout), not the robot side's refusal
+                return
+            self._told_stopped(answer)
+            self.lost()
+            return
+        answer = _object(reply.ok.payload.to_bytes())
+        if answer.get("rejoined") is True:
             self._halt(
                 f"stopped: it lost {self._op}'s liveliness token, and the motion with it", "operator gone"
             )
+        self._told_stopped(answer)
+
+    def _told_stopped(self, answer: dict[str, Any]) -> None:
+        said, reason = answer.get("stopped"), answer.get("reason")
+        if isinstance(said, str):
+            self._halt(quoted(said, SAID_CHARS), reason if isinstance(reason, str) else None)
 
     # -- the wire -------------------------------------------------------------------------
 
