@@ -384,3 +384,18 @@ def test_a_stop_asked_while_the_link_is_down_and_nothing_moves_is_no_alarm_and_n
     assert str(told[-1]) == (
         "the stop service: no stop written (the link is down); the last motion frame sent was a stop"
     )
+
+
+def test_a_stop_in_the_same_words_as_the_last_is_told_again() -> None:
+    """A second ``stop`` from the same operator, the robot already still: written and told, since whoever
+    asked waits for the word that it was made (the fleet's ``stop`` exits 1 without it)."""
+    told: list[Stopped] = []
+    wire = Wire()
+    gov = governor(wire, on_stop=told.append)
+    gov.offer("a", (10, 10), now=0.0)
+    gov.turn(0.0)
+    for t in (0.1, 0.2):
+        gov.stop("stop from op1", now=t)
+        gov.turn(t)
+    assert wire.sent == [C.Velocity(10, 10), "stop", "stop"]
+    assert [s.why.text for s in told] == ["stop from op1", "stop from op1"] and told[1].driver is None

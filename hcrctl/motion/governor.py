@@ -382,13 +382,20 @@ class Lease:
 
     def stop(self, why: Why, now: float, by: Source | None = None, hold: bool = True) -> None:
         """Motion ends and the lease is free; with ``hold``, every live stream is held out (``Streams``)
-        but ``by``'s own when it drove or nobody did: a driver's own stop never locks it out."""
+        but ``by``'s own when it drove or nobody did: a driver's own stop never locks it out.
+
+        Each stop asked is told, even one in the same words as the last (a second ``stop`` from the same
+        operator on a robot already still): whoever asked waits for the word that it was made."""
         self.driver, driver = None, self.driver
         if hold:
             self.streams.hold(now, self.deadman, by, bar_by=driver not in (None, by))
             self.held_by = by
         self.stop_asked = True
+        version = self.version
         self._set(STILL, why, driver, by=by)
+        if self.version == version:
+            self.stopped_driver, self.stopped_by = driver, by
+            self.version += 1
 
     @property
     def why_stopped(self) -> str:
