@@ -12,8 +12,9 @@ nothing to hcrctl, with the names rmw gives them on DDS (``rt/`` topics,
 A parameter or service is called as rmw_cyclonedds's clients call it
 (``helpers_cyclone.CycloneClient``).
 
-Every test takes a random domain id and namespace of its own (``place``), so
-tests running beside each other under pytest-xdist never hear each other.
+Every test takes a domain id and namespace of its own (``place``), so tests
+running beside each other under pytest-xdist never hear each other: each
+worker owns the domain ids congruent to its number, and walks through them.
 Without the DDS wheels for this interpreter the tests skip, saying so.
 """
 
@@ -21,6 +22,7 @@ from __future__ import annotations
 
 import contextlib
 import itertools
+import os
 import random
 import re
 import subprocess
@@ -74,9 +76,26 @@ class Place:
         return "rt" + (name if name.startswith("/") else f"{self.namespace}/{name}")
 
 
+#: The domain ids Cyclone DDS and RTI can both map to ports (7400 + 250 * id stays below 65536).
+DOMAINS = range(1, 233)
+
+
+def _own_domains() -> Iterator[int]:
+    """This worker's domain ids, endlessly, from a random one: a random pick could meet the other
+    worker's test in the same domain (about one run in three did), and the walk keeps a domain
+    unused until ``len(DOMAINS) // workers`` tests later, when the last one's processes are gone."""
+    worker = int(os.environ.get("PYTEST_XDIST_WORKER", "gw0").removeprefix("gw"))
+    workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+    own = list(DOMAINS[worker::workers])
+    start = random.SystemRandom().randrange(len(own))
+    return itertools.cycle(own[start:] + own[:start])
+
+
+_DOMAINS = _own_domains()
+
+
 def place() -> Place:
-    pick = random.SystemRandom()
-    return Place(pick.randrange(1, 233), f"/t{pick.getrandbits(40):010x}")
+    return Place(next(_DOMAINS), f"/t{random.SystemRandom().getrandbits(40):010x}")
 
 
 def dds_type(ros_type: str) -> str:
