@@ -245,13 +245,20 @@ def as_dict(sample: Any) -> dict[str, Any]:
 
 @contextlib.contextmanager
 def ros2_node(
-    port: str, place: Place, env: dict[str, str], *options: str, log: Path | None = None
+    port: str,
+    place: Place,
+    env: dict[str, str],
+    *options: str,
+    log: Path | None = None,
+    middleware: str = "cyclonedds",
 ) -> Iterator[Serve]:
-    """``hcrctl --port PORT [--log LOG] --json ros2 --namespace NS --domain-id N OPTIONS``, serving."""
+    """``hcrctl --port PORT [--log LOG] --json ros2 --namespace NS --domain-id N --middleware M OPTIONS``,
+    serving (on Cyclone DDS unless ``middleware`` says otherwise: a sourced ROS 2 in the tests' own
+    environment does not change which row a test tries)."""
     logged = ["--log", str(log)] if log is not None else []
     args = ["--port", port, *logged, "--json", "ros2", "--namespace", place.namespace]
     proc = subprocess.Popen(
-        [hcrctl_exe(), *args, "--domain-id", str(place.domain), *options],
+        [hcrctl_exe(), *args, "--domain-id", str(place.domain), "--middleware", middleware, *options],
         env=env,
         stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE,

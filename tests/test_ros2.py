@@ -236,7 +236,9 @@ def test_without_cyclonedds_one_line_names_the_extra(tmp_path: Path) -> None:
     )
     assert done.returncode == 1 and done.stdout == ""
     (line,) = done.stderr.splitlines()
-    assert "hcrctl ros2 needs the cyclonedds package" in line and checkout_extra("ros2") in line, line
+    assert "hcrctl ros2 needs the cyclonedds package (or rclpy" in line and checkout_extra("ros2") in line, (
+        line
+    )
 
 
 def test_fleet_serve_with_ros2_is_the_same_node_in_the_robots_name(

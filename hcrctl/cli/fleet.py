@@ -180,7 +180,7 @@ def serve(
     if ros2:
         fronts["ros2"] = dict(namespace=f"/{name}", domain_id=domain_id)
     for front in fronts:  # each absent package said before anything opens, the flag that needs it named
-        require_front_end(front, "the fleet" if front == "fleet" else f"fleet serve --{front}")
+        require_front_end(front, "the fleet" if front == "fleet" else f"fleet serve --{front}", fronts[front])
     with ServerEnd(f"fleet serve {name}", as_json=settings.as_json) as end:
         serve_robot(
             settings,

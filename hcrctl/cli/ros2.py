@@ -1,7 +1,11 @@
-"""``hcrctl ros2 [--namespace NS] [--domain-id N] [--rate HZ] [--deadman S] [--stamped]`` (docs/ros2.md).
+"""``hcrctl ros2 [--namespace NS] [--domain-id N] [--rate HZ] [--deadman S] [--stamped] [--middleware M]
+[--ros-args ...]`` (docs/ros2.md).
 
-Cyclone DDS is the ros2 extra, imported only when this runs; its absence is
-one line naming the pip command that installs it (``hcrctl.extras``).
+The node runs on rclpy where a ROS 2 installation makes it importable, else
+on Cyclone DDS (the ros2 extra); ``--middleware`` chooses
+(``ros2.middleware``). Neither is imported until this runs; the absence of
+the one needed is one line saying how to get it. Everything from
+``--ros-args`` on is ROS 2's (rclpy's), as for any ROS 2 node.
 """
 
 from __future__ import annotations
@@ -10,12 +14,13 @@ import click
 
 from ..link.defaults import DEADMAN_S
 from ..motion.governor import HOLD_RULE
+from ..ros2.middleware import AUTO, CHOICES
 from .params import deadman_option, domain_option, namespace_param, rate_option
 from .serverend import ServerEnd
 from .settings import Settings
 
 
-@click.command(epilog=HOLD_RULE)
+@click.command(epilog=HOLD_RULE, context_settings={"ignore_unknown_options": True})
 @click.option(
     "--namespace",
     default="",
@@ -31,6 +36,15 @@ from .settings import Settings
     is_flag=True,
     help="Read cmd_vel as geometry_msgs/msg/TwistStamped (teleop_twist_keyboard's stamped:=true; Nav2 from Kilted).",
 )
+@click.option(
+    "--middleware",
+    type=click.Choice(CHOICES),
+    default=AUTO,
+    show_default=True,
+    help="rclpy: a ROS 2 node on the middleware ROS 2 is set to (RMW_IMPLEMENTATION), where a sourced ROS 2 "
+    "makes rclpy importable; cyclonedds: hcrctl's own DDS node, no ROS 2 needed; auto: rclpy if it imports.",
+)
+@click.argument("ros_args", nargs=-1, type=click.UNPROCESSED, metavar="[--ros-args ...]")
 @click.pass_obj
 def ros2(
     settings: Settings,
@@ -39,6 +53,8 @@ def ros2(
     rate: float | None,
     deadman: float | None,
     stamped: bool,
+    middleware: str,
+    ros_args: tuple[str, ...],
 ) -> None:
     """Be a ROS 2 node over DDS: the readings as standard messages, and drive from cmd_vel.
 
@@ -52,16 +68,37 @@ def ros2(
     refused and counted. Needs the ros2 extra (without it, the error names
     the pip command). Runs until Ctrl-C; with --json a summary is printed
     at the end.
+
+    With rclpy, everything after --ros-args is ROS 2's, as for any node:
+    -r __ns:=/x, -r __node:=name, -p deadman:=0.3, --params-file F,
+    --log-level debug. A parameter given there is checked as one set later.
     """
     from ..served.frontends import require_front_end, serve, summary_line
 
-    require_front_end("ros2", "hcrctl ros2")
+    _ros_args(ros_args)
+    options = dict(
+        namespace=namespace,
+        domain_id=domain_id,
+        stamped=stamped,
+        middleware=middleware,
+        ros_args=ros_args[1:],
+    )
+    require_front_end("ros2", "hcrctl ros2", options)
     with ServerEnd("ros2", as_json=settings.as_json) as end:
         serve(
             settings,
-            {"ros2": dict(namespace=namespace, domain_id=domain_id, stamped=stamped)},
+            {"ros2": options},
             rate=rate,
             deadman=settings.deadman_or(deadman, DEADMAN_S),
             needed_by="hcrctl ros2",
             report=end.reporter(summary_line("ros2")),
         )
+
+
+def _ros_args(args: tuple[str, ...]) -> None:
+    """What follows the options must be ROS 2's own arguments, starting at ``--ros-args``."""
+    if not args or args[0] == "--ros-args":
+        return
+    if args[0].startswith("-"):
+        raise click.NoSuchOption(args[0])
+    raise click.UsageError(f"unexpected argument {args[0]!r}: ROS 2's arguments follow --ros-args")

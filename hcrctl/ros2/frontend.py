@@ -27,25 +27,17 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..motion.bumpers import BUMP
-from ..protocol import ros2conv, ros2msg, ros2srv
+from ..protocol import ros2conv
 from ..protocol import ros2types as R
 from ..recording.progress import sweeps
 from ..served.notes import Level, Notes
 from ..served.runtime import FrontEnd
 from ..served.view import RuntimeView
-from . import diagnostics, rosout
+from . import diagnostics
 from .drive import TOPIC, RosCmdVel
-from .node import Node
+from .middleware import AUTO, Ros2Host, open_host
 from .odom import OdomTopics
-from .params import FIRST, SERVICES, Parameters
-from .services import Services
-
-#: Every node's parameter changes, as rclcpp's ParameterEventsQoS offers them.
-PARAMETER_EVENTS = ros2conv.RosTopic(
-    "/parameter_events",
-    ros2srv.PARAMETER_EVENT,
-    ros2conv.Qos(reliable=True, transient_local=False, depth=1000),
-)
+from .params import Parameters
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -56,6 +48,10 @@ class Ros2Options:
     domain_id: int = 0
     #: cmd_vel as geometry_msgs/msg/TwistStamped (teleop_twist_keyboard's ``stamped``), else Twist.
     stamped: bool = False
+    #: The row of ``middleware.MIDDLEWARES`` the node runs on, or ``auto``: the first that imports.
+    middleware: str = AUTO
+    #: ROS 2's own arguments, everything after ``--ros-args`` (the rclpy row only).
+    ros_args: tuple[str, ...] = ()
 
 
 class Ros2Node(FrontEnd):
@@ -78,28 +74,24 @@ class Ros2Node(FrontEnd):
         ]
         self._published = {t.name for t in self.topics}
         self.cmd_vel = RosCmdVel(view.governor, notes.note, view.words, self._writer_name)
-        self.node: Node | None = None
-        self.services: Services | None = None
+        self.node: Ros2Host | None = None
         self.messages = 0
         self._view = view
         self._health = Health()
         self._next_diagnostics = 0.0
-        self._logger = ""
 
     def open(self, view: RuntimeView) -> None:
-        """Join the DDS domain, make every writer and latch ``/tf_static``: before the port opens."""
-        self.node = node = Node(self.options.domain_id, self.options.namespace, self.notes.note)
+        """Join the ROS 2 graph on the chosen middleware, make every writer and latch ``/tf_static``: before
+        the port opens."""
+        self.node = node = open_host(self.options.middleware, self.options, self.notes.note)
         node.advertise(
             [
                 *self.topics,
                 *self.odom.topics,
                 ros2conv.RosTopic(diagnostics.TOPIC, R.DIAGNOSTIC_ARRAY, ros2conv.DEFAULT_QOS),
-                rosout.TOPIC_QOS,
-                PARAMETER_EVENTS,
             ]
         )
         node.publish(ros2conv.TF_STATIC, self.converter.tf_static(time.time()))
-        self._logger = rosout.logger_name(node.fullname)
         self.notes.listen(self._rosout)
 
     def publish(self, topic: str, message: dict[str, Any], at: float) -> None:
@@ -119,7 +111,7 @@ class Ros2Node(FrontEnd):
 
     def _rosout(self, text: str, level: Level) -> None:
         if self.node is not None:
-            self.node.publish(rosout.TOPIC, rosout.log(text, self._logger, level))
+            self.node.log(text, level)
 
     def _writer_name(self, writer: str) -> str | None:
         return self.node.writer_name(writer) if self.node is not None else None
@@ -137,28 +129,14 @@ class Ros2Node(FrontEnd):
             kind = R.TWIST_STAMPED if self.options.stamped else R.TWIST
             topic = ros2conv.RosTopic(TOPIC, kind, ros2conv.CMD_VEL_QOS)
             self.node.subscribe(topic, self.cmd_vel.message, self.cmd_vel.gone)
-        self._serve_parameters(view)
-        return f"{view.robot.port} as ROS 2 node {self.node.fullname} on DDS domain {self.options.domain_id}"
-
-    def _serve_parameters(self, view: RuntimeView) -> None:
-        """The parameters and ``~/stop`` on their services; the parameters said once on ``/parameter_events``."""
-        assert self.node is not None
-        params = Parameters(view, lambda changed: self._parameter_event("changed_parameters", changed))
-        self.services = Services(self.node, self.notes.note)
-        for name, (kind, act, answer) in FIRST.items():
-            self.services.serve_first(name, kind, getattr(params, act), getattr(params, answer))
-        for name, (kind, method) in SERVICES.items():
-            self.services.serve(name, kind, getattr(params, method))
-        self._parameter_event("new_parameters", params.all())
-
-    def _parameter_event(self, key: str, parameters: list[dict[str, Any]]) -> None:
-        assert self.node is not None
-        event = {"stamp": ros2msg.stamp(int(time.time() * 1e6)), "node": self.node.fullname, key: parameters}
-        self.node.publish(PARAMETER_EVENTS.name, event)
+        node = self.node
+        node.serve(Parameters(view, node.parameters_changed))
+        return (
+            f"{view.robot.port} as ROS 2 node {node.fullname} on DDS domain {self.options.domain_id}"
+            f" ({node.described})"
+        )
 
     def close(self) -> None:
-        if self.services is not None:
-            self.services.close()
         if self.node is not None:
             self.node.unsubscribe()
 
@@ -168,6 +146,7 @@ class Ros2Node(FrontEnd):
 
     def summary(self) -> dict[str, Any]:
         return {
+            "middleware": self.node.described if self.node is not None else "",
             "messages": self.messages,
             "cmd_vel": self.cmd_vel.taken,
             "cmd_vel_refused": self.cmd_vel.refused,
@@ -219,4 +198,5 @@ def summary_line(summary: dict[str, Any]) -> str:
         f"ros2: {sweeps(summary)}, {ros2['messages']} ROS 2 messages, "
         f"{ros2['cmd_vel']} cmd_vel taken, {ros2['cmd_vel_refused']} refused, "
         f"{summary['drive_frames']} drive frame(s)"
+        + (f" ({ros2['middleware']})" if ros2.get("middleware") else "")
     )

@@ -45,6 +45,7 @@ from ..served.notes import Note
 from . import idl
 from .graph import Graph
 from .intake import Intake
+from .middleware import MAX_BUILT
 
 DISCOVERY_TOPIC = "ros_discovery_info"
 #: rmw's own topic: reliable, transient local, keep last 1, so a tool started later learns the node.
@@ -54,8 +55,6 @@ NODE_NAME = "hcrctl"
 HASHES = {**TYPE_HASHES, **ros2srv.TYPE_HASHES}
 #: Writers' GUIDs remembered (by instance handle) before the memo starts afresh.
 MAX_GUIDS = 4096
-#: Messages kept built for their next stamp (``publish_stamped``) before the memo starts afresh.
-MAX_BUILT = 256
 
 #: (the writer that sent it; its message) for every valid sample a reader takes.
 OnMessage = Callable[[str, Any], None]
