@@ -297,3 +297,58 @@ def test_a_dds_that_cannot_start_is_one_error_line_and_exit_1(env: dict[str, str
     last = done.stderr.strip().splitlines()[-1]
     assert last.startswith("hcrctl: error: could not join DDS domain") and "CYCLONEDDS_URI" in last, last
     assert "Traceback" not in done.stderr and "serving" not in done.stderr
+
+
+def test_ros_args_on_the_cyclone_row_is_a_usage_error_naming_it(env: dict[str, str]) -> None:
+    """``--ros-args`` are rclpy's: on Cyclone DDS nothing would read them, so they are refused, not ignored."""
+    done = subprocess.run(
+        [
+            hcrctl_exe(),
+            "--port",
+            "sim://",
+            "ros2",
+            "--middleware",
+            "cyclonedds",
+            "--ros-args",
+            "-p",
+            "deadman:=0.3",
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2 and done.stdout == "", done.stderr
+    (line,) = done.stderr.splitlines()
+    assert "--ros-args needs the rclpy middleware" in line and "cyclonedds" in line, line
+
+
+def test_the_rclpy_row_without_rclpy_says_how_to_get_it(env: dict[str, str], tmp_path: Path) -> None:
+    shadow = tmp_path / "shadow" / "rclpy"
+    shadow.mkdir(parents=True)
+    (shadow / "__init__.py").write_text(
+        "raise ModuleNotFoundError(\"No module named 'rclpy'\", name='rclpy')\n"
+    )
+    done = subprocess.run(
+        [hcrctl_exe(), "--port", "sim://", "ros2", "--middleware", "rclpy"],
+        env={**env, "PYTHONPATH": str(shadow.parent)},
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 1 and done.stdout == "", done.stderr
+    (line,) = done.stderr.splitlines()
+    assert "--middleware rclpy needs the rclpy package" in line and "source a ROS 2 installation" in line, (
+        line
+    )
+
+
+def test_an_unknown_option_is_not_taken_for_ros_arguments(env: dict[str, str]) -> None:
+    done = subprocess.run(
+        [hcrctl_exe(), "--port", "sim://", "ros2", "--namspace", "/x"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2 and "--namspace" in done.stderr, done.stderr

@@ -327,3 +327,47 @@ def test_a_bad_ros_argument_is_a_usage_error_and_nothing_is_sent(
     (line,) = done.stderr.strip().splitlines()
     assert words in line and "Traceback" not in done.stderr, line
     assert not log.exists() or '"tx"' not in log.read_text()
+
+
+def velocities(node: Serve) -> list[tuple[int, int]]:
+    return [
+        (v.left, v.right)
+        for _, f in node.sent()
+        if f.command == VELOCITY
+        for v in [C.Velocity.from_content(f.content)]
+    ]
+
+
+def test_with_two_writers_that_rclpy_cannot_tell_apart_none_drives_and_a_zero_still_stops(
+    ros_env: dict[str, str], tmp_path: Path
+) -> None:
+    """Jazzy's rclpy gives no writer's gid with a message: one writer drives (named by its node); with a
+    second on cmd_vel, neither moves the robot (a zero from either stops it); once one has gone, the other
+    drives."""
+    with on_rclpy(ros_env, tmp_path, "--deadman", "0.5") as (here, node, first):
+        topic = f"{here.namespace}/cmd_vel"
+
+        def moving(peer: Peer, speed: float, wheels: tuple[int, int]) -> bool:
+            peer.ask("pub", topic=topic, type=TWIST, values={"linear": {"x": speed}})
+            return wheels in velocities(node)
+
+        wait_until(lambda: moving(first, 0.2, (20, 20)), what="the first writer driving")
+        node.wait_err("ROS 2 node /peer/rclpy_peer drives the robot")
+        with rclpy_peer(here.domain, "second") as second:
+
+            def refused() -> bool:
+                second.ask("pub", topic=topic, type=TWIST, values={"linear": {"x": -0.2}})
+                return "more than one writer and this ROS 2 cannot say which sent it" in node.said()
+
+            wait_until(refused, what="a motion from one of two writers refused")
+            second.ask("pub", topic=topic, type=TWIST, values={})
+            wait_until(
+                lambda: is_stop(node.sent()[-1][1]) or "stopped" in node.said(), what="the zero's stop"
+            )
+            assert (-20, -20) not in velocities(node)
+        node.wait_err("stopped")
+        before = len(velocities(node))
+        wait_until(
+            lambda: moving(first, 0.1, (10, 10)) and len(velocities(node)) > before,
+            what="the writer left alone driving again",
+        )

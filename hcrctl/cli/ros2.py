@@ -56,17 +56,20 @@ def ros2(
     middleware: str,
     ros_args: tuple[str, ...],
 ) -> None:
-    """Be a ROS 2 node over DDS: the readings as standard messages, and drive from cmd_vel.
+    """Be a ROS 2 node: the readings as standard messages, and drive from cmd_vel.
 
     Range for each sonar, IR sensor and bumper, Imu from the compass,
     Temperature, RelativeHumidity, JointState for the wheels and /tf_static
-    for the sensor frames, as ROS 2 Jazzy defines them; no ROS installation
-    is needed on this side. A geometry_msgs/msg/Twist on cmd_vel (linear.x
+    for the sensor frames, as ROS 2 Jazzy defines them. Where a sourced
+    ROS 2 makes rclpy importable, the node is an rclpy node on that ROS 2's
+    middleware, so every ROS 2 client can call its parameters and ~/stop;
+    elsewhere it runs on Cyclone DDS (the ros2 extra), no ROS installation
+    needed. A geometry_msgs/msg/Twist on cmd_vel (linear.x
     m/s, angular.z rad/s) drives the robot: one writer at a time, stopped
     when messages stop for --deadman, when forward motion meets a pressed
     bumper, and when this command ends. NaN, infinite or huge values are
-    refused and counted. Needs the ros2 extra (without it, the error names
-    the pip command). Runs until Ctrl-C; with --json a summary is printed
+    refused and counted. Without rclpy or the ros2 extra, the error says how
+    to get one. Runs until Ctrl-C; with --json a summary is printed
     at the end.
 
     With rclpy, everything after --ros-args is ROS 2's, as for any node:

@@ -68,8 +68,6 @@ from .worker import CLOSE_WAIT, MAX_FIRST, Worker
 NODE_NAME = "hcrctl"
 #: Threads the executor spins on: the cmd_vel reader, ~/stop and the parameter services never share one.
 THREADS = 4
-#: How the node's rcl logger is told each line's level (``Notes``' levels are rcl's numbers).
-LOGGERS = {Level.INFO: "info", Level.WARN: "warning", Level.ERROR: "error"}
 #: Who set a parameter given at start: the person who started the node.
 COMMAND_LINE = Setter("the command line (--ros-args)", authenticated=True)
 #: Who sets a parameter through rclpy's services: any ROS 2 node, which rclpy does not name.
@@ -227,7 +225,15 @@ class RclpyHost:
         return self._cmd_vel.name_of(writer) if self._cmd_vel is not None else None
 
     def log(self, text: str, level: Level) -> None:
-        getattr(self.node.get_logger(), LOGGERS.get(level, "info"))(text)
+        """``text`` on ``/rosout`` through the node's logger. rclpy's logger holds each call site to one
+        severity (a second raises), so each level is logged from a line of its own."""
+        logger = self.node.get_logger()
+        if level >= Level.ERROR:
+            logger.error(text)
+        elif level >= Level.WARN:
+            logger.warning(text)
+        else:
+            logger.info(text)
 
     # -- parameters and ~/stop --------------------------------------------------------------------
 
