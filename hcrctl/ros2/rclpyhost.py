@@ -405,8 +405,9 @@ class CmdVelReader:
         return next(iter(writers)) if matched == 1 and len(writers) == 1 else None
 
     def _refresh(self) -> dict[str, str]:
+        """The topic's writers as the graph has them now: gid -> node ('' while rmw has not learnt it)."""
         infos = self._node.get_publishers_info_by_topic(self.subscription.topic_name)
-        writers = {_hex(i.endpoint_gid): f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in infos}
+        writers = {_hex(i.endpoint_gid): _node_name(i) for i in infos}
         with self._lock:
             self._writers = writers
         return writers
@@ -425,8 +426,19 @@ class CmdVelReader:
             self._on_gone(writer)
 
     def name_of(self, writer: str) -> str | None:
+        """The node that owns ``writer``, asking the graph again while it does not know."""
         with self._lock:
-            return self._writers.get(writer)
+            name = self._writers.get(writer)
+        if not name:
+            name = self._refresh().get(writer)
+        return name or None
+
+
+def _node_name(info: Any) -> str:
+    """``/ns/name`` of an endpoint's node; '' for the placeholder rmw gives before the node is announced."""
+    if info.node_name.startswith("_NODE_NAME_UNKNOWN"):
+        return ""
+    return f"{info.node_namespace.rstrip('/')}/{info.node_name}"
 
 
 def _hex(gid: Any) -> str:
