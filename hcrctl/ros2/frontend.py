@@ -3,8 +3,9 @@
 Every reading the feed yields is converted to its ROS 2 messages
 (``ros2conv.Converter``, the conversion every CDR writer uses) and written on
 DDS (``Node``); the node's writers are made before the robot's port opens,
-and ``/tf_static`` (the layout's frames) is written once, transient local,
-so a late rviz2 still gets it. What has no standard type (the raw frames,
+and ``/tf_static`` (the layout's frames) and ``robot_description`` (the
+layout's URDF, ``urdf``) are written once, transient local, so a late rviz2
+still gets them. What has no standard type (the raw frames,
 the link counters, the positioning broadcasts, the map) is left to the
 Foxglove and fleet topics and to recordings.
 
@@ -27,7 +28,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..motion.bumpers import BUMP
-from ..protocol import ros2conv, ros2msg, ros2srv
+from ..protocol import ros2conv, ros2msg, ros2srv, urdf
 from ..protocol import ros2types as R
 from ..recording.progress import sweeps
 from ..served.notes import Level, Notes
@@ -46,6 +47,9 @@ PARAMETER_EVENTS = ros2conv.RosTopic(
     ros2srv.PARAMETER_EVENT,
     ros2conv.Qos(reliable=True, transient_local=False, depth=1000),
 )
+
+#: The robot's model (``urdf``), as robot_state_publisher serves it: in the node's namespace, latched.
+ROBOT_DESCRIPTION = ros2conv.RosTopic("robot_description", R.STRING, ros2conv.LATCHED_QOS)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -96,9 +100,11 @@ class Ros2Node(FrontEnd):
                 ros2conv.RosTopic(diagnostics.TOPIC, R.DIAGNOSTIC_ARRAY, ros2conv.DEFAULT_QOS),
                 rosout.TOPIC_QOS,
                 PARAMETER_EVENTS,
+                ROBOT_DESCRIPTION,
             ]
         )
         node.publish(ros2conv.TF_STATIC, self.converter.tf_static(time.time()))
+        node.publish(ROBOT_DESCRIPTION.name, {"data": urdf.urdf(self.converter.layout)})
         self._logger = rosout.logger_name(node.fullname)
         self.notes.listen(self._rosout)
 
