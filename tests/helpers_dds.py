@@ -248,13 +248,19 @@ def as_dict(sample: Any) -> dict[str, Any]:
 
 @contextlib.contextmanager
 def ros2_node(
-    port: str, place: Place, env: dict[str, str], *options: str, log: Path | None = None
+    port: str,
+    place: Place,
+    env: dict[str, str],
+    *options: str,
+    log: Path | None = None,
+    on: tuple[str, ...] = (),
 ) -> Iterator[Serve]:
-    """``hcrctl --port PORT [--log LOG] --json ros2 --namespace NS --domain-id N OPTIONS``, serving."""
+    """``hcrctl --port PORT [--log LOG] --json ros2 --namespace NS --domain-id N OPTIONS``, serving; ``on`` is
+    the prefix that runs it on another host (``helpers_netns.Host.exec``)."""
     logged = ["--log", str(log)] if log is not None else []
     args = ["--port", port, *logged, "--json", "ros2", "--namespace", place.namespace]
     proc = subprocess.Popen(
-        [hcrctl_exe(), *args, "--domain-id", str(place.domain), *options],
+        [*on, hcrctl_exe(), *args, "--domain-id", str(place.domain), *options],
         env=env,
         stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE,

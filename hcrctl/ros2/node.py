@@ -14,6 +14,11 @@ writer's USER_DATA carries ``typehash=RIHS01_...;`` (the type's hash, REP
 node and the GUIDs of its readers and writers, so ``ros2 node list`` and
 ``ros2 node info`` show it.
 
+Its DDS domain is made as rmw_cyclonedds makes one: ROS 2's discovery
+settings (``ROS_AUTOMATIC_DISCOVERY_RANGE``, ``ROS_STATIC_PEERS``,
+``ROS_LOCALHOST_ONLY``; ``discovery``) first, the user's ``CYCLONEDDS_URI``
+after them.
+
 What the node reads (``cmd_vel``, ``ros_discovery_info``, the services'
 requests) is taken on a thread of its own (``intake.Intake``): no Python
 listener runs on Cyclone's threads, so no DDS call waits for the interpreter
@@ -25,13 +30,14 @@ thread instead of pushing samples out.
 from __future__ import annotations
 
 import contextlib
+import os
 import threading
 from collections.abc import Callable, Hashable, Mapping
 from dataclasses import replace
 from typing import Any
 
 from cyclonedds.core import DDSException
-from cyclonedds.domain import DomainParticipant
+from cyclonedds.domain import Domain, DomainParticipant
 from cyclonedds.pub import DataWriter
 from cyclonedds.qos import Policy, Qos
 from cyclonedds.sub import DataReader
@@ -41,8 +47,8 @@ from ..errors import HcrError
 from ..protocol import ros2conv, ros2msg, ros2srv
 from ..protocol.ros2types import TYPE_HASHES
 from ..protocol.topics import microseconds
-from ..served.notes import Note
-from . import idl
+from ..served.notes import Level, Note
+from . import discovery, idl
 from .graph import Graph
 from .intake import Intake
 
@@ -97,13 +103,20 @@ class DdsError(HcrError):
     """DDS could not be joined (a bad ``CYCLONEDDS_URI``, no usable network interface): exit 1, with a hint."""
 
 
-def _participant(domain: int) -> DomainParticipant:
+def _participant(domain: int, note: Note) -> tuple[DomainParticipant, Domain | None]:
+    """A participant on ``domain``, its domain made with ROS 2's discovery settings (``discovery``) before the
+    user's ``CYCLONEDDS_URI``, as rmw_cyclonedds makes it; each warning about those settings said once."""
+    config, warnings = discovery.cyclone_config(os.environ, os.getpid())
+    for warning in warnings:
+        note(f"warning: {warning}", Level.WARN)
     try:
-        return DomainParticipant(domain)
-    except DDSException:  # its text names only the class; Cyclone logged the reason on stderr
+        made = Domain(domain, config) if config is not None else None
+        return DomainParticipant(domain), made
+    except (DDSException, UnicodeEncodeError):  # its text names only the class; Cyclone logged the reason
         raise DdsError(
             f"could not join DDS domain {domain}",
-            hint="Cyclone DDS says why on the line above; check CYCLONEDDS_URI (its network interface)",
+            hint="Cyclone DDS says why on the line above; check CYCLONEDDS_URI (its network interface) "
+            f"and {discovery.PEERS_ENV}",
         ) from None
 
 
@@ -112,7 +125,7 @@ class Node:
 
     def __init__(self, domain: int, namespace: str, note: Note) -> None:
         self.namespace = namespace
-        self.participant = _participant(domain)
+        self.participant, self._domain = _participant(domain, note)
         #: Takes every sample the node's readers hold, on a thread of its own (see the module).
         self.intake = Intake(self.participant, INTAKE, note)
         self._writers: dict[str, tuple[DataWriter, str]] = {}
@@ -246,6 +259,8 @@ class Node:
         # dds_delete of the participant deletes every reader and writer in it and tells the peers at
         # once (a remote reader sees the writers go); Cyclone's Python binding calls it from __del__ only.
         self.participant.__del__()
+        if self._domain is not None:
+            self._domain.__del__()
         self._readers.clear()
         self._writers.clear()
         self._more_readers.clear()
