@@ -73,6 +73,8 @@ INTAKE = "ros2-intake"
 #: comes faster than one thread takes it, and a sample pushed out of a keyless topic's history is lost
 #: (a zero Twist among them, or a participant's announcement).
 READER_DEPTH = 1000
+#: DDS's "no limit" for a resource limit.
+UNLIMITED = -1
 
 
 def dds_topic(name: str, namespace: str) -> str:
@@ -81,12 +83,19 @@ def dds_topic(name: str, namespace: str) -> str:
 
 
 def dds_qos(qos: ros2conv.Qos, ros_type: str, hashes: Mapping[str, str] = HASHES) -> Qos:
-    """Cyclone's QoS for a ROS one, with the type's hash (from ``hashes``) in USER_DATA as rmw puts it there."""
+    """Cyclone's QoS for a ROS one, with the type's hash (from ``hashes``) in USER_DATA as rmw puts it there.
+
+    Transient local keeps for a late reader as many samples as the history does: Cyclone serves late
+    readers from the durability service's history (keep last 1 by default, whatever the writer's history),
+    so it is set to the writer's, as rmw_cyclonedds sets it."""
     reliability = (
         Policy.Reliability.Reliable(max_blocking_time=0) if qos.reliable else Policy.Reliability.BestEffort
     )
     durability = Policy.Durability.TransientLocal if qos.transient_local else Policy.Durability.Volatile
-    policies = [reliability, durability, Policy.History.KeepLast(qos.depth)]
+    history = Policy.History.KeepLast(qos.depth)
+    policies = [reliability, durability, history]
+    if qos.transient_local:  # what a late reader gets is the durability service's history, 1 unless set
+        policies.append(Policy.DurabilityService(0, history, UNLIMITED, UNLIMITED, UNLIMITED))
     if qos.lifespan:
         policies.append(Policy.Lifespan(int(qos.lifespan * 1e9)))
     if ros_type in hashes:

@@ -1,0 +1,58 @@
+"""What the node says once reaches those who come later or were there first, as its QoS promises.
+
+``/rosout`` is transient local, keep last 1000 (rcl's): a reader that joins
+after the node has said several lines gets every one of them (an RTI Connext
+reader asking for rcl's rosout QoS). ``/parameter_events`` is volatile: the
+start-up event (``new_parameters``) is written once the node's writer has
+met the readers already there, so a subscriber started before the node gets
+it, start after start.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from helpers import wait_until
+from helpers_cli import sim_pty
+from helpers_cyclone import CycloneClient
+from helpers_dds import place, ros2_node, ros_side, value
+
+from hcrctl.protocol import ros2srv as S
+from hcrctl.protocol import ros2types as R
+
+QUIET = ("--options", "noise=0&broadcast_hz=0&map_hz=0")
+PREFIX = "hcrctl: ros2: "
+#: rcl's rosout QoS, as a reader asks for it.
+ROSOUT_QOS = (
+    "<reliability><kind>RELIABLE_RELIABILITY_QOS</kind></reliability>"
+    "<durability><kind>TRANSIENT_LOCAL_DURABILITY_QOS</kind></durability>"
+    "<history><kind>KEEP_LAST_HISTORY_QOS</kind><depth>1000</depth></history>"
+)
+
+
+def lines(said: str) -> list[str]:
+    return [line.removeprefix(PREFIX) for line in said.splitlines() if line.startswith(PREFIX)]
+
+
+def test_a_late_rosout_reader_gets_every_line_said_before_it_came(
+    env: dict[str, str], tmp_path: Path
+) -> None:
+    """Four deadman settings after the serving line: five lines, and more, all on stderr before the reader
+    joins; the reader gets each of them (not only the last, as a durability history of 1 would keep)."""
+    here = place()
+    with sim_pty(env, *QUIET) as port, ros2_node(port, here, env, "--deadman", "5") as node:
+        setter = CycloneClient(here.domain, f"{here.namespace}/hcrctl/set_parameters", S.SET_PARAMETERS)
+        for seconds in (4.0, 3.0, 2.0, 1.0):
+            done = setter.call({"parameters": [{"name": "deadman", "value": value(S.DOUBLE, seconds)}]})
+            assert done.results[0].successful, done.results[0].reason
+        node.wait_err("deadman set to 1 s")
+        before = lines(node.said())
+        assert len(before) >= 5, before
+        with ros_side(here, tmp_path, {"/rosout": (R.LOG, ROSOUT_QOS)}) as ros:
+            got: list[str] = []
+
+            def every_line() -> bool:
+                got.extend(sample.get_string("msg") for sample in ros.take("/rosout"))
+                return set(before) <= set(got)
+
+            wait_until(every_line, what=f"the {len(before)} lines said before the reader came")
