@@ -10,12 +10,15 @@ it, start after start.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from helpers import wait_until
 from helpers_cli import sim_pty
 from helpers_cyclone import CycloneClient
-from helpers_dds import place, ros2_node, ros_side, value
+from helpers_dds import Place, place, ros2_node, ros_side, value
+from helpers_rclpy import rclpy_peer, rclpy_python
 
 from hcrctl.protocol import ros2srv as S
 from hcrctl.protocol import ros2types as R
@@ -28,6 +31,15 @@ ROSOUT_QOS = (
     "<durability><kind>TRANSIENT_LOCAL_DURABILITY_QOS</kind></durability>"
     "<history><kind>KEEP_LAST_HISTORY_QOS</kind><depth>1000</depth></history>"
 )
+
+
+#: rclcpp's ParameterEventsQoS, as a reader asks for it: reliable, volatile, keep last 1000.
+EVENTS_QOS = (
+    "<reliability><kind>RELIABLE_RELIABILITY_QOS</kind></reliability>"
+    "<history><kind>KEEP_LAST_HISTORY_QOS</kind><depth>1000</depth></history>"
+)
+#: How many times the node starts under one subscriber.
+STARTS = 4
 
 
 def lines(said: str) -> list[str]:
@@ -56,3 +68,48 @@ def test_a_late_rosout_reader_gets_every_line_said_before_it_came(
                 return set(before) <= set(got)
 
             wait_until(every_line, what=f"the {len(before)} lines said before the reader came")
+
+
+def starts(port: str, here: Place, env: dict[str, str], take: Callable[[], list[dict[str, Any]]]) -> None:
+    """The node started, serving and ended ``STARTS`` times, each in a namespace of its own; each time, its
+    new_parameters (every parameter) among what ``take`` gives (the events since the last take)."""
+    for start in range(STARTS):
+        this = Place(here.domain, f"{here.namespace}_{start}")
+        node = f"{this.namespace}/hcrctl"
+        with ros2_node(port, this, env):
+            names = wait_until(
+                lambda node=node: next(
+                    (
+                        [p["name"] for p in e["new_parameters"]]
+                        for e in take()
+                        if e["node"] == node and e["new_parameters"]
+                    ),
+                    None,
+                ),
+                what=f"start {start + 1}'s new_parameters",
+            )
+            assert names == ["rate", "deadman", "pid.p", "pid.i", "pid.d"]
+
+
+def test_the_start_up_parameter_event_reaches_a_subscriber_already_running(
+    env: dict[str, str], tmp_path: Path
+) -> None:
+    """An RTI Connext subscriber of /parameter_events runs first; the node starts, serves and ends, four times."""
+    here = place()
+    readers = {"/parameter_events": (S.PARAMETER_EVENT, EVENTS_QOS)}
+    with sim_pty(env, *QUIET) as port, ros_side(here, tmp_path, readers) as ros:
+        starts(port, here, env, lambda: [dict(s.get_dictionary()) for s in ros.take("/parameter_events")])
+
+
+def test_the_start_up_parameter_event_reaches_an_rclpy_subscriber_already_running(
+    env: dict[str, str],
+) -> None:
+    """The same with ROS 2's own subscriber: Jazzy's rclpy on Fast DDS, localhost-only as the node is."""
+    rclpy_python()
+    local = {k: v for k, v in env.items() if k != "CYCLONEDDS_URI"} | {
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"
+    }
+    here = place()
+    with sim_pty(env, *QUIET) as port, rclpy_peer(here.domain) as peer:
+        peer.ask("sub", topic="/parameter_events", type=S.PARAMETER_EVENT, qos="default")
+        starts(port, here, local, lambda: peer.ask("take", topic="/parameter_events")["messages"])

@@ -23,6 +23,7 @@ runtime's stderr line (and its ``/rosout`` copy) is the only word of it.
 
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -89,6 +90,9 @@ class Ros2Node(FrontEnd):
         self._health = Health()
         self._next_diagnostics = 0.0
         self._logger = ""
+        #: The start-up ``/parameter_events`` (every parameter, new), until discovery has settled.
+        self._startup: list[dict[str, Any]] | None = None
+        self._events = threading.Lock()
 
     def open(self, view: RuntimeView) -> None:
         """Join the DDS domain, make every writer and latch ``/tf_static``: before the port opens."""
@@ -132,6 +136,8 @@ class Ros2Node(FrontEnd):
 
     def tick(self) -> None:
         now = time.monotonic()
+        if self._startup is not None and self.node is not None and self.node.settled():
+            self._parameter_event("changed_parameters", [])  # no change: the held start-up event alone
         if self.node is not None and now >= self._next_diagnostics:
             self._next_diagnostics = now + diagnostics.PERIOD
             array = self._health.array(self.node.fullname, self._view, self.cmd_vel)
@@ -155,12 +161,19 @@ class Ros2Node(FrontEnd):
             self.services.serve_first(name, kind, getattr(params, act), getattr(params, answer))
         for name, (kind, method) in SERVICES.items():
             self.services.serve(name, kind, getattr(params, method))
-        self._parameter_event("new_parameters", params.all())
+        self._startup = params.all()  # said once discovery has settled (``tick``), or before the first change
 
     def _parameter_event(self, key: str, parameters: list[dict[str, Any]]) -> None:
+        """``parameters`` on ``/parameter_events`` as ``key``, the start-up event first if it is still held:
+        it is volatile, so it waits for the readers already on the domain to be matched (``Node.settled``)."""
         assert self.node is not None
-        event = {"stamp": ros2msg.stamp(int(time.time() * 1e6)), "node": self.node.fullname, key: parameters}
-        self.node.publish(PARAMETER_EVENTS.name, event)
+        with self._events:
+            startup, self._startup = self._startup, None
+            for what, said in (("new_parameters", startup), (key, parameters)):
+                if said:
+                    stamp = ros2msg.stamp(int(time.time() * 1e6))
+                    event = {"stamp": stamp, "node": self.node.fullname, what: said}
+                    self.node.publish(PARAMETER_EVENTS.name, event)
 
     def close(self) -> None:
         if self.services is not None:

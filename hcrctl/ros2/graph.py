@@ -58,5 +58,10 @@ class Graph:
                 gid: name for known in self._participants.values() for gid, name in known.items()
             }
 
+    def participants(self) -> int:
+        """How many participants (other than the node's own) have announced themselves."""
+        with self._lock:
+            return len(self._participants)
+
     def node_of(self, guid: bytes) -> str | None:
         return self._writers.get(guid)
