@@ -17,6 +17,7 @@ from hcrctl.ros2 import diagnostics as D
 from hcrctl.ros2 import rosout
 from hcrctl.ros2.graph import MAX_WRITERS, Graph
 from hcrctl.served.notes import Level, Notes
+from hcrctl.served.view import LinkState
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 HEALTHY = D.Link("/dev/ttyUSB0", "ok", 9.9, 10.0, 0, 0, 0, 0, 0.05, 0.5)
@@ -36,6 +37,8 @@ NOBODY = D.Driver("", 0, 0, 0, True)
         ({"new_timeouts": 1}, R.DIAG_WARN, "1 timeout(s)"),
         ({"new_checksum_errors": 2, "checksum_errors": 9}, R.DIAG_WARN, "2 checksum error(s)"),
         ({"timeouts": 40}, R.DIAG_OK, "ok"),  # old timeouts, none in the last period
+        ({"new_junk_bytes": 7, "junk_bytes": 30}, R.DIAG_WARN, "7 junk byte(s) on the line"),
+        ({"junk_bytes": 30}, R.DIAG_OK, "ok"),
     ],
 )
 def test_link_levels(change: dict[str, Any], level: int, words: str) -> None:
@@ -134,9 +137,9 @@ class _Counters:
     """The figures ``frontend.Health`` reads from the runtime's view and the cmd_vel source, set by hand."""
 
     def __init__(self) -> None:
-        self.status, self.timeouts, self.checksum, self.refused = "ok", 0, 0, 0
+        self.status, self.timeouts, self.checksum, self.refused, self.junk = "ok", 0, 0, 0, 0
         self.view = SimpleNamespace(
-            link_state=lambda: (self.status, 9.9, self.timeouts, self.checksum),
+            link_state=lambda: LinkState(self.status, 9.9, self.timeouts, self.checksum, self.junk),
             rate=10.0,
             governor=SimpleNamespace(driver=None),
             robot=SimpleNamespace(port="/dev/ttyUSB0"),

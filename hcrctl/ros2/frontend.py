@@ -197,30 +197,32 @@ class Health:
     """The figures ``/diagnostics`` reports, read from the runtime's view; counts since the last report."""
 
     def __init__(self) -> None:
-        self._last = (0, 0, 0)  # timeouts, checksum errors, refusals at the last report
+        self._last = (0, 0, 0, 0)  # timeouts, checksum errors, junk bytes, refusals at the last report
 
     def array(self, node: str, view: RuntimeView, cmd_vel: RosCmdVel) -> dict[str, Any]:
-        status, rate, timeouts, checksum = view.link_state()
+        state = view.link_state()
         refused = cmd_vel.refused
-        last, self._last = self._last, (timeouts, checksum, refused)
+        last, self._last = self._last, (state.timeouts, state.checksum_errors, state.junk_bytes, refused)
         driver = view.governor.driver
         link = diagnostics.Link(
             port=view.robot.port,
-            status=status,
-            sweeps_per_s=rate,
+            status=state.status,
+            sweeps_per_s=state.sweeps_per_s,
             target_rate=view.rate,
-            timeouts=timeouts,
-            checksum_errors=checksum,
-            new_timeouts=_since(timeouts, last[0]),
-            new_checksum_errors=_since(checksum, last[1]),
+            timeouts=state.timeouts,
+            checksum_errors=state.checksum_errors,
+            new_timeouts=_since(state.timeouts, last[0]),
+            new_checksum_errors=_since(state.checksum_errors, last[1]),
             bumper_age=view.reading_age(BUMP),
             bumper_bound=view.bumper_bound,
+            junk_bytes=state.junk_bytes,
+            new_junk_bytes=_since(state.junk_bytes, last[2]),
         )
         drive = diagnostics.Driver(
             driver=str(driver) if driver is not None else "",
             taken=cmd_vel.taken,
             refused=refused,
-            new_refused=_since(refused, last[2]),
+            new_refused=_since(refused, last[3]),
             drives=view.drives,
         )
         return diagnostics.array(time.time(), node, link, drive)
