@@ -107,6 +107,15 @@ def test_the_graph_names_writers_by_node_and_forgets_what_a_participant_no_longe
     assert graph.node_of((21).to_bytes(16, "big")) is None
 
 
+def test_the_graph_lists_the_other_participants_nodes_writers_or_not() -> None:
+    graph = Graph(own=(1).to_bytes(16, "big"))
+    graph.update(_info(1, [("/", "hcrctl", [10])]))
+    graph.update(_info(2, [("/", "hcrctl", []), ("/ns", "mux", [22])]))
+    assert sorted(graph.nodes()) == ["/hcrctl", "/ns/mux"]
+    graph.update(_info(2, [("/ns", "mux", [22])]))
+    assert graph.nodes() == ["/ns/mux"]
+
+
 def test_a_peer_cannot_fill_the_graph_or_the_terminal() -> None:
     graph = Graph()
     graph.update(_info(2, [("/", "flood", list(range(MAX_WRITERS + 500)))]))

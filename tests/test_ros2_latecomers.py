@@ -113,3 +113,34 @@ def test_the_start_up_parameter_event_reaches_an_rclpy_subscriber_already_runnin
     with sim_pty(env, *QUIET) as port, rclpy_peer(here.domain) as peer:
         peer.ask("sub", topic="/parameter_events", type=S.PARAMETER_EVENT, qos="default")
         starts(port, here, local, lambda: peer.ask("take", topic="/parameter_events")["messages"])
+
+
+def test_a_second_node_of_the_same_name_says_so_and_serves_on(env: dict[str, str], tmp_path: Path) -> None:
+    """Two nodes with no namespace on one domain, each on a robot of its own: the second to start warns
+    once, on stderr and /rosout, naming the node it meets; the first, settled before, says nothing."""
+    here = place()
+    bare = Place(here.domain, "")
+    readers = {"/parameter_events": (S.PARAMETER_EVENT, EVENTS_QOS), "/rosout": (R.LOG, ROSOUT_QOS)}
+    words = "another ROS 2 node named /hcrctl"
+    with (
+        sim_pty(env, *QUIET) as first_port,
+        sim_pty(env, *QUIET) as second_port,
+        ros_side(here, tmp_path, readers) as ros,
+        ros2_node(first_port, bare, env) as first,
+    ):
+        wait_until(  # the first has settled: it wrote its start-up event
+            lambda: any(
+                e["node"] == "/hcrctl" for e in (s.get_dictionary() for s in ros.take("/parameter_events"))
+            ),
+            what="the first node's start-up parameter event",
+        )
+        with ros2_node(second_port, bare, env) as second:
+            second.wait_err(words)
+            logged = wait_until(
+                lambda: next((s for s in ros.take("/rosout") if words in s.get_string("msg")), None),
+                what="the warning on /rosout",
+            )
+            assert logged.get_number("level") == R.LOG_WARN
+            assert "odom -> base_link on /tf" in logged.get_string("msg")
+            assert [line for line in lines(second.said()) if words in line] == [logged.get_string("msg")]
+        assert words not in first.said()

@@ -93,6 +93,8 @@ class Ros2Node(FrontEnd):
         #: The start-up ``/parameter_events`` (every parameter, new), until discovery has settled.
         self._startup: list[dict[str, Any]] | None = None
         self._events = threading.Lock()
+        #: Whether the graph was looked at for a node of the same name (once, as discovery settles).
+        self._namesakes_checked = False
 
     def open(self, view: RuntimeView) -> None:
         """Join the DDS domain, make every writer and latch ``/tf_static``: before the port opens."""
@@ -131,11 +133,26 @@ class Ros2Node(FrontEnd):
         if self.node is not None:
             self.node.publish(rosout.TOPIC, rosout.log(text, self._logger, level))
 
+    def _namesakes(self, node: Node) -> None:
+        """A node of this one's own name already in the graph publishes the same ``/tf`` (``odom`` ->
+        ``base_link``, no namespace to tell them apart): said once, as a warning, and served on. The one that
+        came second says it; the first has settled by then and does not look again."""
+        if node.fullname in node.nodes():
+            self.notes.note(
+                f"warning: another ROS 2 node named {node.fullname} is on DDS domain {self.options.domain_id}: "
+                f"both publish {self.odom.odom_frame} -> {self.odom.base_frame} on /tf; give each robot its "
+                "own --namespace and [layout] frame-prefix",
+                Level.WARN,
+            )
+
     def _writer_name(self, writer: str) -> str | None:
         return self.node.writer_name(writer) if self.node is not None else None
 
     def tick(self) -> None:
         now = time.monotonic()
+        if self.node is not None and not self._namesakes_checked and self.node.settled():
+            self._namesakes_checked = True
+            self._namesakes(self.node)
         if self._startup is not None and self.node is not None and self.node.settled():
             self._parameter_event("changed_parameters", [])  # no change: the held start-up event alone
         if self.node is not None and now >= self._next_diagnostics:

@@ -253,6 +253,10 @@ class Node:
             self._more_writers += writers
         self.announce()
 
+    def nodes(self) -> list[str]:
+        """The other nodes of the domain (``/ns/name``), as the graph (``ros_discovery_info``) has them now."""
+        return self.graph.nodes()
+
     def writer_name(self, writer: str) -> str | None:
         """The node (``/ns/name``) that owns ``writer`` (a reader's instance handle of it), if rmw said."""
         guid = self._guids.get(writer)
