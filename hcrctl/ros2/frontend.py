@@ -13,7 +13,11 @@ Besides the readings, what a ROS 2 driver of a robot like this publishes:
 ``odom`` and ``/tf`` ``odom -> base_link`` (``odom.OdomTopics``; its
 ``joint_states``, with the wheels' positions, replaces the conversion's),
 ``/diagnostics`` once a second (``diagnostics``) and every stderr line also
-on ``/rosout`` (``rosout``).
+on ``/rosout`` (``rosout``). Once discovery has settled (``Node.settled``),
+the start-up ``/parameter_events`` goes out (volatile: it waits for the
+readers already there) and the graph is looked at once for a node of this
+one's own name, which would publish the same ``/tf``: a warning, never a
+refusal.
 
 ``cmd_vel`` is a source of the one motion governor (``RosCmdVel``): one
 writer drives at a time, the deadman on the governor's clock, stop however
@@ -133,6 +137,15 @@ class Ros2Node(FrontEnd):
         if self.node is not None:
             self.node.publish(rosout.TOPIC, rosout.log(text, self._logger, level))
 
+    def _settled(self, node: Node) -> None:
+        """What waits for discovery to settle (``Node.settled``): the look for a namesake, once, and the
+        start-up parameter event if it is still held."""
+        if not self._namesakes_checked:
+            self._namesakes_checked = True
+            self._namesakes(node)
+        if self._startup is not None:
+            self._say_events()
+
     def _namesakes(self, node: Node) -> None:
         """A node of this one's own name already in the graph publishes the same ``/tf`` (``odom`` ->
         ``base_link``, no namespace to tell them apart): said once, as a warning, and served on. The one that
@@ -150,11 +163,8 @@ class Ros2Node(FrontEnd):
 
     def tick(self) -> None:
         now = time.monotonic()
-        if self.node is not None and not self._namesakes_checked and self.node.settled():
-            self._namesakes_checked = True
-            self._namesakes(self.node)
-        if self._startup is not None and self.node is not None and self.node.settled():
-            self._parameter_event("changed_parameters", [])  # no change: the held start-up event alone
+        if self.node is not None and self.node.settled():
+            self._settled(self.node)
         if self.node is not None and now >= self._next_diagnostics:
             self._next_diagnostics = now + diagnostics.PERIOD
             array = self._health.array(self.node.fullname, self._view, self.cmd_vel)
@@ -181,12 +191,16 @@ class Ros2Node(FrontEnd):
         self._startup = params.all()  # said once discovery has settled (``tick``), or before the first change
 
     def _parameter_event(self, key: str, parameters: list[dict[str, Any]]) -> None:
-        """``parameters`` on ``/parameter_events`` as ``key``, the start-up event first if it is still held:
-        it is volatile, so it waits for the readers already on the domain to be matched (``Node.settled``)."""
+        """``parameters`` on ``/parameter_events`` as ``key`` (after the start-up event, if it is still held)."""
+        self._say_events((key, parameters))
+
+    def _say_events(self, *events: tuple[str, list[dict[str, Any]]]) -> None:
+        """The held start-up event (``new_parameters``: volatile, it waits for the readers already on the
+        domain to be matched, ``Node.settled``), then ``events``, each (its key, its parameters)."""
         assert self.node is not None
         with self._events:
             startup, self._startup = self._startup, None
-            for what, said in (("new_parameters", startup), (key, parameters)):
+            for what, said in (("new_parameters", startup), *events):
                 if said:
                     stamp = ros2msg.stamp(int(time.time() * 1e6))
                     event = {"stamp": stamp, "node": self.node.fullname, what: said}
