@@ -5,7 +5,8 @@ ros2`` started with ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (or
 ``ROS_LOCALHOST_ONLY=1``) and no ``CYCLONEDDS_URI``; and on a host of its
 own (a network namespace with a cable to a switch), every RTPS packet of
 Cyclone DDS is watched on the wire (``rtps_watch.py``): the node's go over
-loopback, none over the host's cable.
+loopback, none over the host's cable. With ``OFF``, an RTI Connext reader
+finds another node started after it and never the one that is off.
 """
 
 from __future__ import annotations
@@ -22,9 +23,10 @@ import helpers_netns
 import pytest
 from helpers import TIMEOUT, wait_until
 from helpers_cli import sim_pty
-from helpers_dds import place, ros2_node
+from helpers_dds import SENSOR_QOS, Place, place, ros2_node, ros_side
 from helpers_rclpy import Peer, rclpy_peer, rclpy_python
 
+from hcrctl.protocol import ros2types as R
 from hcrctl.ros2 import discovery as D
 
 QUIET = ("--options", "noise=0&broadcast_hz=0&map_hz=0")
@@ -91,6 +93,29 @@ def test_the_user_s_cyclonedds_uri_comes_after_and_system_default_leaves_cyclone
     lan = fragment({D.RANGE_ENV: "LOCALHOST", D.PEERS_ENV: "10.0.0.2"})
     assert lan.find("Domain/General/Interfaces") is None  # a static peer may be another host: Cyclone chooses
     assert [p.attrib["address"] for p in lan.iter("Peer")] == ["localhost", "10.0.0.2"]
+
+
+#: Readings from the node that is found, by which the one that is not would have been found too.
+ENOUGH = 20
+
+
+def test_with_discovery_off_nobody_finds_the_node(env: dict[str, str], tmp_path: Path) -> None:
+    """Node A (``OFF``) starts first, node B (default range) after it; an RTI Connext reader of both imu
+    topics gets ENOUGH of B's readings, and none of A's: nobody discovered A, by multicast or on loopback."""
+    here = place()
+    hidden = Place(here.domain, f"{here.namespace}_off")
+    off = {k: v for k, v in env.items() if k != "CYCLONEDDS_URI"} | {D.RANGE_ENV: "OFF"}
+    readers = {"imu": (R.IMU, SENSOR_QOS), f"{hidden.namespace}/imu": (R.IMU, SENSOR_QOS)}
+    with (
+        sim_pty(env, *QUIET) as hidden_port,
+        sim_pty(env, *QUIET) as port,
+        ros_side(here, tmp_path, readers) as ros,
+        ros2_node(hidden_port, hidden, off),
+        ros2_node(port, here, env),
+    ):
+        found: list[object] = []
+        wait_until(lambda: found.extend(ros.take("imu")) or len(found) >= ENOUGH, what="node B's readings")
+        assert not ros.take(f"{hidden.namespace}/imu")
 
 
 def sees_the_node(peer: Peer, namespace: str) -> bool:
