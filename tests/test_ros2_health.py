@@ -186,3 +186,6 @@ def test_each_report_counts_only_its_own_period_and_a_quiet_period_after_trouble
     assert counts.levels(health)[0][0] == R.DIAG_ERROR
     counts.status = "ok"
     assert counts.levels(health)[0] == (R.DIAG_OK, "ok")
+    counts.junk = 12
+    assert counts.levels(health)[0] == (R.DIAG_WARN, "12 junk byte(s) on the line")
+    assert counts.levels(health)[0] == (R.DIAG_OK, "ok")
