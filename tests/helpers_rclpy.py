@@ -106,7 +106,8 @@ class Peer:
 
 
 @contextlib.contextmanager
-def rclpy_peer(domain: int, name: str = "rclpy_peer") -> Iterator[Peer]:
+def rclpy_peer(domain: int, name: str = "rclpy_peer", on: tuple[str, ...] = ()) -> Iterator[Peer]:
+    """The peer on ``domain``, localhost-only; ``on`` is the prefix that runs it on another host."""
     env = {
         "PATH": os.environ.get("PATH", ""),
         "HOME": os.environ.get("HOME", "/tmp"),
@@ -114,7 +115,7 @@ def rclpy_peer(domain: int, name: str = "rclpy_peer") -> Iterator[Peer]:
         "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
     }
     proc = subprocess.Popen(
-        [rclpy_python(), str(PEER), name],
+        [*on, rclpy_python(), str(PEER), name],
         env=env,
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,

@@ -311,7 +311,13 @@ def test_fleet_serve_composes_the_fleet_row_with_the_others_beside_it(tmp_path: 
     assert [name for name, _ in built] == ["FleetOptions", "BridgeOptions", "Ros2Options"]
     fleet, foxglove, ros2 = (options for _, options in built)
     assert fleet["name"] == "r1" and foxglove["beside"] is True and foxglove["port"] == 0
-    assert ros2 == {"namespace": "/r1", "domain_id": 3, "stamped": False, "middleware": "auto", "ros_args": []}
+    assert ros2 == {
+        "namespace": "/r1",
+        "domain_id": 3,
+        "stamped": False,
+        "middleware": "auto",
+        "ros_args": [],
+    }
     assert {k: summary[k] for k in ("fleet", "foxglove", "ros2")} == {
         "fleet": {"spied": "FleetOptions"},
         "foxglove": {"spied": "BridgeOptions"},

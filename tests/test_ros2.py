@@ -270,6 +270,46 @@ def test_fleet_serve_with_ros2_is_the_same_node_in_the_robots_name(
     assert over_ros2 and int(over_ros2[1]) >= 1, line  # the cmd_vel that drove, counted where it came from
 
 
+def test_fleet_serve_with_ros2_stamped_drives_from_a_twist_stamped(
+    env: dict[str, str], tmp_path: Path
+) -> None:
+    """``fleet serve NAME --ros2 --ros2-stamped``: cmd_vel is a TwistStamped (Nav2 from Kilted), as with
+    ``hcrctl ros2 --stamped``."""
+    from helpers_fleet_robot import fleet
+
+    here = place()
+    name = "r" + here.namespace.lstrip("/")
+    robot = Place(here.domain, f"/{name}")
+    env = {**env, "ROS_DOMAIN_ID": str(here.domain)}
+    with (
+        fleet(env) as group,
+        ros_side(robot, tmp_path, {}, {"cmd_vel": "geometry_msgs/msg/TwistStamped"}) as ros,
+    ):
+        group.router()
+        serve = group.serve(name, group.sim(*QUIET), "--ros2", "--ros2-stamped", log=tmp_path / "wire.jsonl")
+
+        def moving() -> bool:
+            ros.write("cmd_vel", {"twist.angular.z": 1.0})
+            return bool(velocities(serve))
+
+        wait_until(moving, what="a velocity frame from a TwistStamped through fleet serve")
+        assert {w for _, w in velocities(serve)} == {(-12, 12)}
+
+
+@pytest.mark.parametrize("flag", ["--ros2-stamped", "--ros2-may-loosen"])
+def test_fleet_serve_s_ros2_flags_need_ros2(env: dict[str, str], flag: str) -> None:
+    done = subprocess.run(
+        [hcrctl_exe(), "--port", "sim://", "fleet", "serve", "lab", flag],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2, done.stderr
+    (line,) = [line for line in done.stderr.splitlines() if line.strip()]
+    assert flag in line and "needs --ros2" in line, line
+
+
 def test_fleet_serve_with_ros2_needs_a_name_that_is_a_namespace(env: dict[str, str]) -> None:
     done = subprocess.run(
         [hcrctl_exe(), "--port", "sim://", "fleet", "serve", "lab-3", "--ros2"],

@@ -257,7 +257,8 @@ def test_parameters_get_set_refuse_and_say_it_on_parameter_events(
         assert [(r.successful, r.reason) for r in done] == [(True, "")]
 
         def changed() -> list[Any]:
-            return [e for e in peer.ask("take", topic="/parameter_events")["messages"] if e["node"] == base]
+            events = peer.ask("take", topic="/parameter_events")["messages"]
+            return [e for e in events if e["node"] == base and e["changed_parameters"]]
 
         events: list[Any] = []
         wait_until(lambda: events.extend(changed()) or len(events) >= 2, what="two parameter events in rclpy")

@@ -416,6 +416,19 @@ def namespace_param(ctx: click.Context, param: click.Parameter, value: str) -> s
         raise click.BadParameter(str(exc), ctx, param) from exc
 
 
+def stamped_option(
+    name: str = "--stamped", help: str = ""
+) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """cmd_vel as ``geometry_msgs/msg/TwistStamped`` instead of Twist (``hcrctl ros2``, ``fleet serve --ros2``)."""
+    return click.option(
+        name,
+        "stamped",
+        is_flag=True,
+        help=help
+        or "Read cmd_vel as geometry_msgs/msg/TwistStamped (teleop_twist_keyboard's stamped:=true; Nav2 from Kilted).",
+    )
+
+
 def domain_option(
     name: str = "--domain-id", help: str = ""
 ) -> Callable[[Callable[..., Any]], Callable[..., Any]]:

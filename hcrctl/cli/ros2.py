@@ -15,7 +15,7 @@ import click
 from ..link.defaults import DEADMAN_S
 from ..motion.governor import HOLD_RULE
 from ..ros2.middleware import AUTO, CHOICES
-from .params import deadman_option, domain_option, namespace_param, rate_option
+from .params import deadman_option, domain_option, namespace_param, rate_option, stamped_option
 from .serverend import ServerEnd
 from .settings import Settings
 
@@ -31,11 +31,7 @@ from .settings import Settings
 @domain_option()
 @rate_option()
 @deadman_option(DEADMAN_S, "Deadman: stop when no cmd_vel message arrives for S seconds.")
-@click.option(
-    "--stamped",
-    is_flag=True,
-    help="Read cmd_vel as geometry_msgs/msg/TwistStamped (teleop_twist_keyboard's stamped:=true; Nav2 from Kilted).",
-)
+@stamped_option()
 @click.option(
     "--middleware",
     type=click.Choice(CHOICES),

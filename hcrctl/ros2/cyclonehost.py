@@ -3,11 +3,15 @@
 ``Node`` is the participant and its topics; what an rcl node does for itself
 is done here by hand, as rmw_cyclonedds does it: ``/rosout`` (a writer of
 ``rcl_interfaces/Log``), the parameter services and ``~/stop`` (``Services``,
-rmw_cyclonedds's request header) and ``/parameter_events``.
+rmw_cyclonedds's request header) and ``/parameter_events``. The start-up
+event (every parameter, new) is volatile, so it is held until discovery has
+settled (``Node.settled``): the readers already on the domain are matched by
+then. A change before that sends the held event first.
 """
 
 from __future__ import annotations
 
+import threading
 import time
 from typing import Any
 
@@ -36,6 +40,9 @@ class CycloneHost(Node):
         self._note = note
         self._logger = rosout.logger_name(self.fullname)
         self.services: Services | None = None
+        #: The start-up ``/parameter_events`` (every parameter, new), until discovery has settled.
+        self._startup: list[dict[str, Any]] | None = None
+        self._events = threading.Lock()
         self.advertise([rosout.TOPIC_QOS, PARAMETER_EVENTS])
 
     def log(self, text: str, level: Level) -> None:
@@ -48,14 +55,23 @@ class CycloneHost(Node):
             services.serve_first(name, kind, getattr(params, act), getattr(params, answer))
         for name, (kind, method) in SERVICES.items():
             services.serve(name, kind, getattr(params, method))
-        self._event("new_parameters", params.all())
+        self._startup = params.all()  # said once discovery has settled (``tick``), or before the first change
+
+    def tick(self) -> None:
+        if self._startup is not None and self.settled():
+            self._say_events()
 
     def parameters_changed(self, changed: list[dict[str, Any]]) -> None:
-        self._event("changed_parameters", changed)
+        self._say_events(("changed_parameters", changed))
 
-    def _event(self, key: str, parameters: list[dict[str, Any]]) -> None:
-        event = {"stamp": ros2msg.stamp(int(time.time() * 1e6)), "node": self.fullname, key: parameters}
-        self.publish(PARAMETER_EVENTS.name, event)
+    def _say_events(self, *events: tuple[str, list[dict[str, Any]]]) -> None:
+        """The held start-up event (``new_parameters``), then ``events``, each (its key, its parameters)."""
+        with self._events:
+            startup, self._startup = self._startup, None
+            for what, said in (("new_parameters", startup), *events):
+                if said:
+                    stamp = ros2msg.stamp(int(time.time() * 1e6))
+                    self.publish(PARAMETER_EVENTS.name, {"stamp": stamp, "node": self.fullname, what: said})
 
     def unsubscribe(self) -> None:
         if self.services is not None:

@@ -32,6 +32,13 @@ if TYPE_CHECKING:
     from .params import Parameters
 
 AUTO = "auto"
+#: Discovery has settled (a host's ``settled``) once nothing new was heard for this long (s). Measured on
+#: loopback, a reader already there matched the node's writers 20 ms after they were made (Cyclone DDS), 0.2
+#: to 1.1 s after (RTI Connext; Jazzy's rclpy on Fast DDS, localhost-only), its node announced up to 2.9 s after.
+SETTLE_QUIET = 2.0
+#: ... and it is waited for no longer than this (s) after the writers were made: a domain that never goes
+#: quiet holds nothing back for ever.
+SETTLE_MAX = 6.0
 #: Messages a host keeps built for their next stamp (``publish_stamped``) before the memo starts afresh.
 MAX_BUILT = 256
 
@@ -137,6 +144,18 @@ class Ros2Host(Protocol):
     ) -> None: ...
 
     def writer_name(self, writer: str) -> str | None: ...
+
+    def settled(self) -> bool:
+        """Whether discovery has gone quiet since the node was made (``SETTLE_QUIET``, ``SETTLE_MAX``)."""
+        ...
+
+    def nodes(self) -> list[str]:
+        """The other nodes of the domain (``/ns/name``), as the graph has them now."""
+        ...
+
+    def tick(self) -> None:
+        """Called on every turn of the runtime's loop: what the host does when its time comes."""
+        ...
 
     def log(self, text: str, level: Level) -> None: ...
 

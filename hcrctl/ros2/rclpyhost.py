@@ -61,7 +61,7 @@ from ..protocol import ros2srv as S
 from ..protocol.topics import microseconds
 from ..served.notes import Level, Note
 from ..served.tuning import Setter
-from .middleware import MAX_BUILT, Ros2UsageError
+from .middleware import MAX_BUILT, SETTLE_MAX, SETTLE_QUIET, Ros2UsageError
 from .params import FIRST, PARAMETERS, PID_GAINS, Parameters, Refused, checked, descriptor
 from .worker import CLOSE_WAIT, MAX_FIRST, Worker
 
@@ -168,6 +168,9 @@ class RclpyHost:
         self._executor.add_node(self.node)
         self._spinner = threading.Thread(target=self._spin, name="ros2-rclpy", daemon=True)
         self._spinner.start()
+        self._made = self._quiet_since = time.monotonic()
+        self._last_heard: frozenset[str] = frozenset()
+        self._settled = False
 
     # -- topics -------------------------------------------------------------------------------------
 
@@ -223,6 +226,25 @@ class RclpyHost:
 
     def writer_name(self, writer: str) -> str | None:
         return self._cmd_vel.name_of(writer) if self._cmd_vel is not None else None
+
+    def nodes(self) -> list[str]:
+        own = self.fullname
+        found = (f"{ns.rstrip('/')}/{name}" for name, ns in self.node.get_node_names_and_namespaces())
+        return [name for name in found if name != own]
+
+    def settled(self) -> bool:
+        """Whether the graph's nodes have stayed the same for ``SETTLE_QUIET`` (``SETTLE_MAX`` at most) since
+        the node was made. From one thread (the main loop's)."""
+        if self._settled:
+            return True
+        now, heard = time.monotonic(), frozenset(self.nodes())
+        if heard != self._last_heard:
+            self._last_heard, self._quiet_since = heard, now
+        self._settled = now - self._quiet_since >= SETTLE_QUIET or now - self._made >= SETTLE_MAX
+        return self._settled
+
+    def tick(self) -> None:
+        """Nothing is held for its time: rclpy says the parameters on ``/parameter_events`` itself."""
 
     def log(self, text: str, level: Level) -> None:
         """``text`` on ``/rosout`` through the node's logger. rclpy's logger holds each call site to one
