@@ -380,3 +380,31 @@ def test_with_two_writers_that_rclpy_cannot_tell_apart_none_drives_and_a_zero_st
             return moving(first, 0.1, (10, 10))
 
         wait_until(drives_after_a_silence, what="the writer left alone driving again")
+
+
+def test_a_late_rclpy_reader_gets_robot_description(ros_env: dict[str, str], tmp_path: Path) -> None:
+    """The model is latched on the rclpy row too: a reader that comes after ``serving`` gets it, as
+    robot_state_publisher's is got."""
+    with on_rclpy(ros_env, tmp_path) as (here, node, peer):
+        assert "serving " in node.said()
+        topic = f"{here.namespace}/robot_description"
+        peer.ask("sub", topic=topic, type="std_msgs/msg/String", qos="latched")
+        (model,) = wait_until(lambda: peer.ask("take", topic=topic)["messages"], what="robot_description")
+        assert model["data"].startswith("<?xml") and 'name="left_wheel_joint"' in model["data"]
+
+
+def test_a_second_rclpy_node_of_the_same_name_says_so_and_serves_on(
+    ros_env: dict[str, str], tmp_path: Path
+) -> None:
+    """Two nodes with no namespace on one domain, both on rclpy: the second to start warns once."""
+    bare = Place(place().domain, "")
+    words = "another ROS 2 node named /hcrctl"
+    with (
+        sim_pty(ros_env, *QUIET) as first_port,
+        sim_pty(ros_env, *QUIET) as second_port,
+        ros2_node(first_port, bare, ros_env, middleware="rclpy") as first,
+    ):
+        with ros2_node(second_port, bare, ros_env, middleware="rclpy") as second:
+            second.wait_err(words)
+            assert "serving " in second.said()
+        assert words not in first.said()

@@ -228,9 +228,11 @@ class RclpyHost:
         return self._cmd_vel.name_of(writer) if self._cmd_vel is not None else None
 
     def nodes(self) -> list[str]:
-        own = self.fullname
-        found = (f"{ns.rstrip('/')}/{name}" for name, ns in self.node.get_node_names_and_namespaces())
-        return [name for name in found if name != own]
+        """The graph's nodes but this one: its own name taken out once (another may bear it too)."""
+        found = [f"{ns.rstrip('/')}/{name}" for name, ns in self.node.get_node_names_and_namespaces()]
+        if self.fullname in found:
+            found.remove(self.fullname)
+        return found
 
     def settled(self) -> bool:
         """Whether the graph's nodes have stayed the same for ``SETTLE_QUIET`` (``SETTLE_MAX`` at most) since
