@@ -296,10 +296,12 @@ def test_fleet_serve_with_ros2_stamped_drives_from_a_twist_stamped(
         assert {w for _, w in velocities(serve)} == {(-12, 12)}
 
 
-@pytest.mark.parametrize("flag", ["--ros2-stamped", "--ros2-may-loosen"])
-def test_fleet_serve_s_ros2_flags_need_ros2(env: dict[str, str], flag: str) -> None:
+@pytest.mark.parametrize(
+    "flag", [("--ros2-stamped",), ("--ros2-may-loosen",), ("--ros2-middleware", "rclpy")]
+)
+def test_fleet_serve_s_ros2_flags_need_ros2(env: dict[str, str], flag: tuple[str, ...]) -> None:
     done = subprocess.run(
-        [hcrctl_exe(), "--port", "sim://", "fleet", "serve", "lab", flag],
+        [hcrctl_exe(), "--port", "sim://", "fleet", "serve", "lab", *flag],
         env=env,
         capture_output=True,
         text=True,
@@ -307,7 +309,7 @@ def test_fleet_serve_s_ros2_flags_need_ros2(env: dict[str, str], flag: str) -> N
     )
     assert done.returncode == 2, done.stderr
     (line,) = [line for line in done.stderr.splitlines() if line.strip()]
-    assert flag in line and "needs --ros2" in line, line
+    assert flag[0] in line and "needs --ros2" in line, line
 
 
 def test_fleet_serve_with_ros2_needs_a_name_that_is_a_namespace(env: dict[str, str]) -> None:

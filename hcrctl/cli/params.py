@@ -429,6 +429,22 @@ def stamped_option(
     )
 
 
+def middleware_option(name: str = "--middleware") -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Which row of ``ros2.middleware`` hosts the ROS 2 node (``hcrctl ros2``, ``fleet serve --ros2``)."""
+    from ..ros2.middleware import AUTO, CHOICES
+
+    return click.option(
+        name,
+        "middleware",
+        type=click.Choice(CHOICES),
+        default=AUTO,
+        show_default=True,
+        help="rclpy: a ROS 2 node on the middleware ROS 2 is set to (RMW_IMPLEMENTATION), where a sourced "
+        "ROS 2 makes rclpy importable; cyclonedds: hcrctl's own DDS node, no ROS 2 needed; auto: rclpy if it "
+        "imports.",
+    )
+
+
 def domain_option(
     name: str = "--domain-id", help: str = ""
 ) -> Callable[[Callable[..., Any]], Callable[..., Any]]:

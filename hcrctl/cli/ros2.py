@@ -14,8 +14,14 @@ import click
 
 from ..link.defaults import DEADMAN_S
 from ..motion.governor import HOLD_RULE
-from ..ros2.middleware import AUTO, CHOICES
-from .params import deadman_option, domain_option, namespace_param, rate_option, stamped_option
+from .params import (
+    deadman_option,
+    domain_option,
+    middleware_option,
+    namespace_param,
+    rate_option,
+    stamped_option,
+)
 from .serverend import ServerEnd
 from .settings import Settings
 
@@ -32,14 +38,7 @@ from .settings import Settings
 @rate_option()
 @deadman_option(DEADMAN_S, "Deadman: stop when no cmd_vel message arrives for S seconds.")
 @stamped_option()
-@click.option(
-    "--middleware",
-    type=click.Choice(CHOICES),
-    default=AUTO,
-    show_default=True,
-    help="rclpy: a ROS 2 node on the middleware ROS 2 is set to (RMW_IMPLEMENTATION), where a sourced ROS 2 "
-    "makes rclpy importable; cyclonedds: hcrctl's own DDS node, no ROS 2 needed; auto: rclpy if it imports.",
-)
+@middleware_option()
 @click.argument("ros_args", nargs=-1, type=click.UNPROCESSED, metavar="[--ros-args ...]")
 @click.pass_obj
 def ros2(
