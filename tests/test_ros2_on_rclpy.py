@@ -408,3 +408,23 @@ def test_a_second_rclpy_node_of_the_same_name_says_so_and_serves_on(
             second.wait_err(words)
             assert "serving " in second.said()
         assert words not in first.said()
+
+
+def test_fleet_serve_with_ros2_on_rclpy_answers_parameters_and_refuses_a_loosening(
+    ros_env: dict[str, str],
+) -> None:
+    from helpers_fleet_robot import fleet
+
+    here = place()
+    name = "r" + here.namespace.lstrip("/")
+    robot = Place(here.domain, f"/{name}")
+    with fleet({**ros_env, "ROS_DOMAIN_ID": str(here.domain)}) as group, rclpy_peer(here.domain) as peer:
+        group.router()
+        serve = group.serve(name, group.sim(*QUIET), "--ros2", "--ros2-middleware", "rclpy")
+        serve.wait_err(
+            f"as ROS 2 node /{name}/hcrctl on DDS domain {here.domain} (rclpy on rmw_fastrtps_cpp)"
+        )
+        (rate,) = got(peer, robot, "rate")
+        assert rate["double_value"] == 10.0
+        ok, why = set_one(peer, robot, "deadman", S.DOUBLE, 5.0)  # a loosening, from an unauthenticated peer
+        assert not ok and "loosens the robot's safety" in why, why
