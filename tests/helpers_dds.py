@@ -33,7 +33,7 @@ from typing import Any
 from xml.sax.saxutils import quoteattr
 
 import pytest
-from helpers import TIMEOUT, hcrctl_exe, wait_until
+from helpers import TIMEOUT, default_sigint, hcrctl_exe, wait_until
 from helpers_fleet_robot import Serve
 
 from hcrctl.protocol import ros2srv as S
@@ -269,6 +269,7 @@ def ros2_node(
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         start_new_session=True,
+        preexec_fn=default_sigint,  # a test may send it Ctrl-C, under a pytest started with SIGINT ignored
     )
     node = Serve(proc, "ros2", log)
     try:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import signal
 import subprocess
 import time
 from collections.abc import Iterator
@@ -428,3 +429,23 @@ def test_fleet_serve_with_ros2_on_rclpy_answers_parameters_and_refuses_a_looseni
         assert rate["double_value"] == 10.0
         ok, why = set_one(peer, robot, "deadman", S.DOUBLE, 5.0)  # a loosening, from an unauthenticated peer
         assert not ok and "loosens the robot's safety" in why, why
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP], ids=["term", "int", "hup"])
+def test_a_signal_mid_drive_writes_the_stop_and_exits_0(
+    ros_env: dict[str, str], tmp_path: Path, sig: signal.Signals
+) -> None:
+    """However the node ends while an rclpy writer drives, the last motion frame on the wire is a stop."""
+    with on_rclpy(ros_env, tmp_path, "--deadman", "10") as (here, node, peer):
+        topic = f"{here.namespace}/cmd_vel"
+        wait_until(
+            lambda: (
+                peer.ask("pub", topic=topic, type=TWIST, values={"linear": {"x": 0.2}})
+                and (20, 20) in velocities(node)
+            ),
+            what="the rclpy writer driving",
+        )
+        node.proc.send_signal(sig)
+        assert node.proc.wait(timeout=TIMEOUT) == 0, node.said()
+        motion = [f for _, f in node.sent() if f.command == VELOCITY or is_stop(f)]
+        assert is_stop(motion[-1]), motion[-3:]
