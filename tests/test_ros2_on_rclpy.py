@@ -29,6 +29,7 @@ from helpers_rclpy import Peer, numbers, rclpy_peer, rclpy_python, sourced
 
 from hcrctl.protocol import commands as C
 from hcrctl.protocol import ros2srv as S
+from hcrctl.ros2.host import SETTLE_MAX
 
 rclpy_python(module=True)
 QUIET = ("--options", "noise=0&broadcast_hz=0&map_hz=0")
@@ -397,7 +398,8 @@ def test_a_late_rclpy_reader_gets_robot_description(ros_env: dict[str, str], tmp
 def test_a_second_rclpy_node_of_the_same_name_says_so_and_serves_on(
     ros_env: dict[str, str], tmp_path: Path
 ) -> None:
-    """Two nodes with no namespace on one domain, both on rclpy: the second to start warns once."""
+    """Two nodes with no namespace on one domain, both on rclpy: the second to start warns once. The first,
+    alone, has settled (``SETTLE_MAX`` after it was made, at the latest) before the second comes."""
     bare = Place(place().domain, "")
     words = "another ROS 2 node named /hcrctl"
     with (
@@ -405,6 +407,8 @@ def test_a_second_rclpy_node_of_the_same_name_says_so_and_serves_on(
         sim_pty(ros_env, *QUIET) as second_port,
         ros2_node(first_port, bare, ros_env, middleware="rclpy") as first,
     ):
+        served = time.monotonic()
+        wait_until(lambda: time.monotonic() - served > SETTLE_MAX, what="the first node settled, by the rule")
         with ros2_node(second_port, bare, ros_env, middleware="rclpy") as second:
             second.wait_err(words)
             assert "serving " in second.said()

@@ -72,7 +72,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     ),
     "ros2": (
         "hcrctl.cli.ros2:ros2",
-        "Be a ROS 2 node over DDS: the readings as standard messages, and drive from cmd_vel.",
+        "Be a ROS 2 node: the readings as standard messages, and drive from cmd_vel.",
     ),
     "replay": (
         "hcrctl.cli.replay:replay",

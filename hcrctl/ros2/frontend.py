@@ -39,7 +39,8 @@ from ..served.runtime import FrontEnd
 from ..served.view import RuntimeView
 from . import diagnostics
 from .drive import TOPIC, RosCmdVel
-from .middleware import AUTO, Ros2Host, open_host
+from .host import Ros2Host
+from .middleware import AUTO, open_host
 from .odom import OdomTopics
 from .params import Parameters
 

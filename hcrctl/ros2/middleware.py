@@ -1,7 +1,7 @@
 """Which middleware ``hcrctl ros2`` runs on: THE table, one row per way of being a ROS 2 node.
 
-- ``rclpy``: where ROS 2's own client library imports (a sourced ROS 2 of any
-  distribution from Humble, or Jazzy's PyPI wheels), the node is an rclpy
+- ``rclpy``: where ROS 2's own client library imports (a sourced ROS 2, or Jazzy's
+  PyPI wheels; tested with Jazzy, written for Humble on), the node is an rclpy
   node on whatever middleware that ROS 2 is set to (``RMW_IMPLEMENTATION``):
   every ROS 2 client, on every vendor's DDS or Zenoh, can call its services,
   and it takes ROS 2's own arguments (``--ros-args``).
@@ -10,7 +10,7 @@
   DDS-based ROS 2, its services only rmw_cyclonedds clients (docs/ros2.md).
 
 ``auto`` takes the first row whose package imports, in the table's order. A
-row names its host as ``module:class`` (``Ros2Host``'s shape), imported only
+row names its host as ``module:class`` (``host.Ros2Host``'s shape), imported only
 when chosen, so reading this table loads neither library. Everything above
 the host (what is published, odometry, diagnostics, the parameter rules, the
 one-writer rule, the governor) is the front end's, written once.
@@ -18,18 +18,15 @@ one-writer rule, the governor) is the front end's, written once.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Hashable, Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
-from ..errors import HcrError
-from ..errors.status import ExitStatus
 from ..extras import MissingExtra, imported, install_command, require
+from .host import Ros2Host, Ros2UsageError
 
 if TYPE_CHECKING:
-    from ..protocol.ros2conv import RosTopic
-    from ..served.notes import Level, Note
-    from .params import Parameters
+    from ..served.notes import Note
 
 AUTO = "auto"
 #: Discovery has settled (a host's ``settled``) once nothing new was heard for this long (s). Measured on
@@ -41,12 +38,6 @@ SETTLE_QUIET = 2.0
 SETTLE_MAX = 6.0
 #: Messages a host keeps built for their next stamp (``publish_stamped``) before the memo starts afresh.
 MAX_BUILT = 256
-
-
-class Ros2UsageError(HcrError):
-    """A ROS 2 argument or a parameter given at start that cannot be taken: exit 2, nothing sent."""
-
-    exit_code = ExitStatus.USAGE
 
 
 @dataclass(frozen=True)
@@ -121,51 +112,6 @@ def needs(options: Mapping[str, Any], needed_by: str) -> None:
             f"--ros-args needs the rclpy middleware, and this node runs on {row.name}",
             hint="source a ROS 2 installation, or leave --ros-args out",
         )
-
-
-class Ros2Host(Protocol):
-    """What the node needs of a middleware: the front end above it knows no more than this."""
-
-    #: The node as ``ros2 node list`` shows it (``/ns/hcrctl``, or what ``--ros-args`` renamed it to).
-    fullname: str
-    #: What serves it, for the serving line and the summary ("rclpy on rmw_fastrtps_cpp").
-    described: str
-
-    def advertise(self, topics: list[RosTopic]) -> None: ...
-
-    def publish(self, name: str, fields: dict[str, Any]) -> bool: ...
-
-    def publish_stamped(
-        self, name: str, key: Hashable, t: float, make: Callable[[], dict[str, Any]]
-    ) -> bool: ...
-
-    def subscribe(
-        self, topic: RosTopic, on_message: Callable[[str | None, Any], None], on_gone: Callable[[str], None]
-    ) -> None: ...
-
-    def writer_name(self, writer: str) -> str | None: ...
-
-    def settled(self) -> bool:
-        """Whether discovery has gone quiet since the node was made (``SETTLE_QUIET``, ``SETTLE_MAX``)."""
-        ...
-
-    def nodes(self) -> list[str]:
-        """The other nodes of the domain (``/ns/name``), as the graph has them now."""
-        ...
-
-    def tick(self) -> None:
-        """Called on every turn of the runtime's loop: what the host does when its time comes."""
-        ...
-
-    def log(self, text: str, level: Level) -> None: ...
-
-    def serve(self, params: Parameters) -> None: ...
-
-    def parameters_changed(self, changed: list[dict[str, Any]]) -> None: ...
-
-    def unsubscribe(self) -> None: ...
-
-    def close(self) -> None: ...
 
 
 def open_host(asked: str, options: Any, note: Note) -> Ros2Host:

@@ -51,8 +51,8 @@ from ..protocol.topics import microseconds
 from ..served.notes import Level, Note
 from . import discovery, idl
 from .graph import Graph
+from .host import MAX_BUILT, SETTLE_MAX, SETTLE_QUIET
 from .intake import Intake
-from .middleware import MAX_BUILT, SETTLE_MAX, SETTLE_QUIET
 
 DISCOVERY_TOPIC = "ros_discovery_info"
 #: rmw's own topic: reliable, transient local, keep last 1, so a tool started later learns the node.

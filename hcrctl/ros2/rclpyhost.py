@@ -61,7 +61,7 @@ from ..protocol import ros2srv as S
 from ..protocol.topics import microseconds
 from ..served.notes import Level, Note
 from ..served.tuning import Setter
-from .middleware import MAX_BUILT, SETTLE_MAX, SETTLE_QUIET, Ros2UsageError
+from .host import MAX_BUILT, SETTLE_MAX, SETTLE_QUIET, Ros2UsageError
 from .params import FIRST, PARAMETERS, PID_GAINS, Parameters, Refused, checked, descriptor
 from .worker import CLOSE_WAIT, MAX_FIRST, Worker
 
@@ -235,14 +235,17 @@ class RclpyHost:
         return found
 
     def settled(self) -> bool:
-        """Whether the graph's nodes have stayed the same for ``SETTLE_QUIET`` (``SETTLE_MAX`` at most) since
-        the node was made. From one thread (the main loop's)."""
+        """Whether the graph's nodes have stayed the same for ``SETTLE_QUIET`` since one was first heard, or
+        ``SETTLE_MAX`` has passed since the node was made: an empty graph may be one not yet discovered (a
+        loaded machine), and what waits for this (the look for a namesake) costs nothing by waiting. From
+        one thread (the main loop's)."""
         if self._settled:
             return True
         now, heard = time.monotonic(), frozenset(self.nodes())
         if heard != self._last_heard:
             self._last_heard, self._quiet_since = heard, now
-        self._settled = now - self._quiet_since >= SETTLE_QUIET or now - self._made >= SETTLE_MAX
+        quiet = bool(heard) and now - self._quiet_since >= SETTLE_QUIET
+        self._settled = quiet or now - self._made >= SETTLE_MAX
         return self._settled
 
     def tick(self) -> None:
@@ -392,23 +395,33 @@ class CmdVelReader:
     def __init__(
         self, node: Node, topic: ros2conv.RosTopic, on_message: OnMessage, on_gone: Callable[[str], None]
     ) -> None:
-        from rclpy.event_handler import SubscriptionEventCallbacks
-
         self._node = node
         self._on_message, self._on_gone = on_message, on_gone
         self._lock = threading.Lock()
-        self._matched = 0
+        #: Writers matched, from the matched event; None where rclpy has none (before Iron): the graph then
+        #: counts them, and a writer that goes is left to the deadman.
+        self._matched: int | None = None
         self._writers: dict[str, str] = {}  # gid (hex) -> the node that owns it
         self._seen: set[str] = set()
-        events = SubscriptionEventCallbacks(matched=self._match)
         self.subscription = node.create_subscription(
             message_class(topic.type),
             topic.name,
             self._taken,
             qos_profile(topic.qos),
             callback_group=MutuallyExclusiveCallbackGroup(),
-            event_callbacks=events,
+            **self._events(),
         )
+
+    def _events(self) -> dict[str, Any]:
+        """The matched event's callback, where this rclpy has it (Iron on)."""
+        try:
+            from rclpy.event_handler import SubscriptionEventCallbacks
+
+            events = SubscriptionEventCallbacks(matched=self._match)
+        except (ImportError, TypeError):
+            return {}
+        self._matched = 0
+        return {"event_callbacks": events}
 
     def _taken(self, message: Any, info: Any) -> None:
         gid = info.get("publisher_gid") if isinstance(info, dict) else None
@@ -424,8 +437,9 @@ class CmdVelReader:
         """The topic's writer when it has exactly one, matched and in the graph; else None."""
         with self._lock:
             matched, writers = self._matched, dict(self._writers)
-        if matched == 1 and len(writers) != 1:
+        if matched is None or (matched == 1 and len(writers) != 1):
             writers = self._refresh()
+            matched = len(writers) if matched is None else matched
         return next(iter(writers)) if matched == 1 and len(writers) == 1 else None
 
     def _refresh(self) -> dict[str, str]:
