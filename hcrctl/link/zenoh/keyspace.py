@@ -295,7 +295,6 @@ REASONS = (
     "operator gone",
     "port lost",
     "released",
-    "second sender",
     "error",
     "other",
 )

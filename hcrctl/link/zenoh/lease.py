@@ -80,7 +80,6 @@ HALT_HINTS = {
     "port lost": "the robot's serial port went away: check its cable and power on the robot's side",
     "operator gone": "the robot side lost this operator's liveliness token or its renewals: a frozen "
     "process or a broken network",
-    "second sender": "someone on the fleet sends as you; restrict who may drive with Zenoh's access control",
 }
 
 
