@@ -58,11 +58,12 @@ never written through. A turn is written once and held under the lease.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import secrets
 import threading
 import time
-from collections import OrderedDict
+from collections import OrderedDict, deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple, Protocol, SupportsBytes
@@ -70,6 +71,7 @@ from typing import Any, NamedTuple, Protocol, SupportsBytes
 from ..errors import ProtocolError
 from ..inputs import PeerJsonError, peer_json
 from ..link.zenoh import identity, keyspace
+from ..link.zenoh.robotkey import UNASKED, ask_of
 from ..motion.governor import STILL, Governor, Kind, Source, Verdict, Wheels, refusal
 from ..motion.reasons import Reason
 from ..protocol import commands as C
@@ -91,6 +93,8 @@ GONE_ENV = "HCRCTL_TEST_FLEET_GONE"
 #: stopped this long after its last renewal (its lease renews every ``lease.RENEW_S``), whatever subscriber,
 #: queryable or token copy anyone declares; only its key can sign.
 HOLD_S = 0.15
+#: The nonces of stops not yet answered by a ``stopped`` word, at most: a flood of stops pushes out the oldest.
+MAX_STOP_ASKS = 16
 #: Tokens that wait for room, at most (first come, first admitted); one beyond this is counted and forgotten.
 MAX_WAITING = 256
 #: Say = (operator a refusal is for or about, its text or a built status, the sequence number it is
@@ -251,6 +255,8 @@ class FleetDrive:
         words.know(self._present.__contains__)
         self._lock = threading.Lock()
         self._max_gone = int(os.environ.get(GONE_ENV) or MAX_GONE)
+        #: The nonces of the stops taken since the last ``stopped`` word (``robotkey``), which names them.
+        self._stop_asks: deque[str] = deque(maxlen=MAX_STOP_ASKS)
 
     # -- messages ---------------------------------------------------------------
 
@@ -292,6 +298,14 @@ class FleetDrive:
                 present.stopped = None  # it moves again: the last stop's words are told
         if not drove and self.governor.driver == source:  # not a zero that stopped another
             self._say(op, keyspace.drives_status(op, self.robot), None)
+
+    def stops_asked(self) -> tuple[str, ...]:
+        """The nonces of the stops taken since the last time (a ``stopped`` word names them, ``robotkey``)."""
+        asks = []
+        with contextlib.suppress(IndexError):
+            while True:
+                asks.append(self._stop_asks.popleft())
+        return tuple(asks)
 
     def stopped_for(self, op: keyspace.Who, text: str, reason: str) -> None:
         """The motion ``op`` drove was stopped (``text``, for ``reason``): kept for its next claims' answers."""
@@ -390,7 +404,11 @@ class FleetDrive:
         """Anyone may stop; the lease is freed. Said as its sender's only when that session signed it."""
         parsed = keyspace.parse_attachment(attachment)
         by = None
-        if parsed is not None and self.check("stop", parsed, payload, _named_key(payload)).why is None:
+        message = keyspace.loads(payload)  # its size and nesting bounded, as every peer's JSON
+        if (ask := ask_of(message)) != UNASKED:
+            self._stop_asks.append(ask)
+        named_key = message.get("key") if isinstance(message, dict) else None
+        if parsed is not None and self.check("stop", parsed, payload, named_key).why is None:
             who, by = str(parsed.who), operator_source(parsed.who)
         elif parsed is not None:
             who = f"someone unverified calling itself {parsed.who}"  # a name: letters, digits, _ . -
@@ -629,12 +647,6 @@ class FleetDrive:
             self.governor.release(
                 driver, f"operator {op} gone: no signed word of its for {silent:.2f} s", Reason.OPERATOR_GONE
             )
-
-
-def _named_key(payload: bytes) -> object:
-    """The public key a stop's payload names (``{"key": HEX}``, as a claim's does), or None."""
-    message = keyspace.loads(payload)  # its size and nesting bounded, as every peer's JSON
-    return message.get("key") if isinstance(message, dict) else None
 
 
 def named(driver: Source | None) -> str | None:
