@@ -78,12 +78,13 @@ from ..protocol import commands as C
 from ..protocol.profiles import Profile
 from ..served.cmdvel import BadTwist, parse_twist, twist_wheels
 from ..served.peerwords import PeerWords
+from .admission import Admissions
 from .queries import QueryError, code_text
 
 #: Operator sessions present at once (their tokens); a token beyond this waits for room.
 MAX_OPERATORS = 256
 #: Sessions gone remembered with their keys and numbers, the oldest forgotten first.
-MAX_GONE = 16384
+MAX_GONE = 4096
 #: ... and for this long at most: forgetting one is safe, since its next admission draws a new lease value
 #: (``Present.lease``) that none of its old messages was signed for.
 GONE_S = 300.0
@@ -132,6 +133,8 @@ class DriveCounters:
     stops: int = 0
     #: Operator tokens not admitted when they came: ``MAX_OPERATORS`` sessions were present already.
     unadmitted: int = 0
+    #: Operator tokens not admitted when they came: new sessions came faster than ``admission`` admits.
+    churned: int = 0
 
 
 @dataclass
@@ -250,6 +253,8 @@ class FleetDrive:
         self.challenge = keyspace.new_challenge()
         #: Sessions whose token came while ``MAX_OPERATORS`` were present, in the order they came.
         self._waiting: dict[keyspace.Who, None] = {}
+        #: How fast new sessions are admitted (``admission``): churn beyond it waits in that line too.
+        self._admissions = Admissions()
         #: The serving process's budget for words about peers; each session present has one of its own.
         self.words = words
         words.know(self._present.__contains__)
@@ -380,6 +385,9 @@ class FleetDrive:
         full = f"{len(self._present)} operator sessions are present on {self.robot}"
         if op in self._waiting:
             place = list(self._waiting).index(op) + 1
+            if len(self._present) < MAX_OPERATORS:
+                churn = self._admissions.why(op.name)
+                return f"refused: {churn} came to {self.robot}, the most it admits; {op}'s token waits its turn (#{place} in line)"
             return f"refused: {full}, the most it admits; {op}'s token waits for room (#{place} in line)"
         said = (
             f"refused: {op} has no liveliness token on {self.robot} "
@@ -536,20 +544,28 @@ class FleetDrive:
         return False, {"error": why, "driver": named(self.governor.driver)}
 
     def operator_here(self, key: str) -> None:
-        """An operator's token appeared: its session may claim, or, with MAX_OPERATORS present, it waits
-        for room (at most MAX_WAITING wait; one beyond them is counted and forgotten)."""
+        """An operator's token appeared: its session may claim, or it waits its turn (at most MAX_WAITING
+        wait; one beyond them is counted and forgotten): for room, with MAX_OPERATORS present, or for the
+        admission rate (``admission``), behind those already waiting (first come, first admitted)."""
         op = keyspace.operator_of(key)
         if op is None:
             return
         with self._lock:
             if op in self._present or op in self._waiting:
                 return
-            if len(self._present) < MAX_OPERATORS:
+            room = len(self._present) < MAX_OPERATORS
+            if room and not self._waiting and (op in self._gone or self._admissions.take(op.name)):
                 self._admit(op)
                 return
-            self.counters.unadmitted += 1
             if len(self._waiting) < MAX_WAITING:
                 self._waiting[op] = None
+            self._admit_waiting()
+            if op in self._present:
+                return
+            if room:
+                self.counters.churned += 1
+            else:
+                self.counters.unadmitted += 1
             why = self._not_admitted(op)
         self._tell(op, why, proven=False)
 
@@ -558,7 +574,18 @@ class FleetDrive:
         back = self._gone.pop(op) if op in self._gone else None
         if back is not None:
             back.rejoined = True
+            back.key = identity.verifier(back.key)
         self._present[op] = back if back is not None else Present()
+
+    def _admit_waiting(self) -> None:
+        """Admit the tokens waiting (under the lock), first come first, while there is room and each may be
+        admitted now (``admission``): one name over its rate does not hold back the others."""
+        for op in list(self._waiting):
+            if len(self._present) >= MAX_OPERATORS:
+                return
+            if op in self._gone or self._admissions.take(op.name):
+                del self._waiting[op]
+                self._admit(op)
 
     def operator_gone(self, key: str) -> None:
         """An operator's token went (a killed laptop, a closed session): forgotten, its room given to the
@@ -579,6 +606,8 @@ class FleetDrive:
             now = time.monotonic()
             if present is not None and present.key is not None:
                 present.gone_at = now
+                present.key = identity.raw(present.key)  # 32 bytes while gone, not a verifier object
+                present.dropped = present.stopped = None
                 self._gone[op] = present
             while self._gone and (
                 len(self._gone) > self._max_gone or now - next(iter(self._gone.values())).gone_at > GONE_S
@@ -588,10 +617,7 @@ class FleetDrive:
             if present is not None:
                 hold, present.hold = present.hold, None
             self._waiting.pop(op, None)
-            while self._waiting and len(self._present) < MAX_OPERATORS:
-                first = next(iter(self._waiting))
-                del self._waiting[first]
-                self._admit(first)
+            self._admit_waiting()
         if hold is not None and self._holds is not None:
             self._holds.drop(keyspace.hold(self.robot, hold))
         if operator_source(op) == self.governor.driver:
@@ -630,8 +656,12 @@ class FleetDrive:
             self._say(op, text, seq)
 
     def tick(self) -> None:
-        """The driver's life (``HOLD_S``): an operator whose motion runs and whose last signed word is older
-        is gone (a lease held still waits for the deadman: it moves nothing)."""
+        """The tokens waiting their turn admitted as the rate allows (``admission``); the driver's life
+        (``HOLD_S``): an operator whose motion runs and whose last signed word is older is gone (a lease
+        held still waits for the deadman: it moves nothing)."""
+        if self._waiting:
+            with self._lock:
+                self._admit_waiting()
         driver = self.governor.driver
         if (
             driver is None

@@ -350,6 +350,7 @@ class Fleet(FrontEnd):
             refused=drive.refused,
             stops=drive.stops,
             unadmitted=drive.unadmitted,
+            churned=drive.churned,
             queries=self.answers.answered,
             queries_failed=self.answers.failed,
         )
