@@ -20,6 +20,7 @@ import subprocess
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from helpers import TIMEOUT, clean_env, hcrctl_exe, wait_until
 from helpers_netns import OPERATOR_HOST, ROBOT_HOST, ROUTER_HOST, Topology
@@ -164,6 +165,13 @@ class Fleet:
             stdin=subprocess.DEVNULL,
             start_new_session=True,
         )
+
+    def listed(self) -> list[dict[str, Any]]:
+        """``fleet list --json`` on the operator's host: each robot's info."""
+        done = self.run_on(OPERATOR_HOST, ["--zenoh", self.endpoint, "--json", "fleet", "list"])
+        assert done.returncode == 0, done.stderr
+        found: list[dict[str, Any]] = json.loads(done.stdout)
+        return found
 
     def sim_tcp(self, *options: str) -> str:
         """``hcrctl sim --tcp 0`` on the robot's host (any number of clients share it): its ``socket://`` URL."""

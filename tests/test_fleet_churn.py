@@ -26,7 +26,6 @@ pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip instal
 
 from helpers import TIMEOUT, wait_until
 from helpers_fleet_port import Fleet, fleet, is_motion
-from helpers_netns import OPERATOR_HOST
 
 #: The churn's pace: several times the overall admission rate, bounded so a shared machine stays usable.
 CHURN_PER_S = 300.0
@@ -95,7 +94,6 @@ def test_churn_beyond_the_admission_rate_waits_its_turn_and_an_operator_still_dr
         done = robot.run("r1", "drive", "power", "20", "20", "--for", "0.2")
         assert done.returncode == 0, done.stderr
         wire.wait_sent(is_motion, what="the operator's drive, while the churn runs")
-        listed = robot.run_on(OPERATOR_HOST, ["--zenoh", robot.endpoint, "--json", "fleet", "list"])
-    (info,) = json.loads(listed.stdout)
+        (info,) = robot.listed()
     assert info["counters"]["churned"] > 0, info["counters"]
     assert churn.count > info["counters"]["churned"] > 0

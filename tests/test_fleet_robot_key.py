@@ -28,7 +28,6 @@ pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip instal
 
 from helpers import TIMEOUT, wait_until
 from helpers_fleet_port import Fleet, Served, fleet, is_motion
-from helpers_netns import OPERATOR_HOST
 
 from hcrctl.link.zenoh.remote import LIST_HINT
 
@@ -164,8 +163,7 @@ def test_a_fake_met_first_is_refused_too(lab: tuple[Fleet, Served, Fake]) -> Non
     _kill(served)
     fake.impersonate()
     _one_line(running.run("r1", "read", "compass"))
-    listed = running.run_on(OPERATOR_HOST, ["--zenoh", running.endpoint, "--json", "fleet", "list"])
-    (robot,) = json.loads(listed.stdout)
+    (robot,) = running.listed()
     assert robot["error"].startswith(
         "r1 could not prove it is r1: its info is not signed by the key it names"
     )
@@ -217,9 +215,7 @@ def test_a_changed_robot_key_is_refused_naming_both_fingerprints(tmp_path: Path)
         assert done.returncode == 1
         (line,) = done.stderr.splitlines()
         assert f"r1's key has changed: it answers with {after}, but {before} is known" in line, line
-        listed = json.loads(
-            running.run_on(OPERATOR_HOST, ["--zenoh", running.endpoint, "--json", "fleet", "list"]).stdout
-        )
+        listed = running.listed()
         assert listed[0]["error"].startswith("r1's key has changed") and listed[0]["fingerprint"] == after
         known = keys / "known_robots"
         known.write_text(
@@ -234,9 +230,7 @@ def test_the_serve_and_the_list_show_the_same_fingerprint_and_the_key_is_the_use
     with fleet(tmp_path) as running:
         served = running.serve("r1", "sim://")
         shown = served.said().split("its key ")[1].split(";")[0]
-        listed = json.loads(
-            running.run_on(OPERATOR_HOST, ["--zenoh", running.endpoint, "--json", "fleet", "list"]).stdout
-        )
+        listed = running.listed()
         assert [robot["fingerprint"] for robot in listed] == [shown]
         key = tmp_path / "data" / "hcrctl" / "fleet" / "keys" / "r1.key"
         assert key.stat().st_mode & 0o777 == 0o600

@@ -304,6 +304,11 @@ class FleetDrive:
         if not drove and self.governor.driver == source:  # not a zero that stopped another
             self._say(op, keyspace.drives_status(op, self.robot), None)
 
+    def sessions(self) -> tuple[int, int]:
+        """(operator sessions present, tokens waiting their turn): in ``info``'s counters."""
+        with self._lock:
+            return len(self._present), len(self._waiting)
+
     def stops_asked(self) -> tuple[str, ...]:
         """The nonces of the stops taken since the last time (a ``stopped`` word names them, ``robotkey``)."""
         asks = []

@@ -94,9 +94,14 @@ def payload_object(query: Any) -> dict[str, Any]:
 
 
 def asked(query: Any) -> str:
-    """The nonce a query's payload carries (``robotkey.ask_of``), ``-`` when it carries none."""
+    """The nonce a query's payload carries (``robotkey.ask_of``), ``-`` when it carries none (a payload
+    without the word is not parsed again: a flood of them costs nothing more)."""
+    payload = query.payload
+    data = bytes(payload) if payload is not None else b""
+    if b'"nonce"' not in data:
+        return UNASKED
     try:
-        return ask_of(payload_object(query))
+        return ask_of(query_object(data))
     except QueryError:
         return UNASKED
 

@@ -351,6 +351,7 @@ class Fleet(FrontEnd):
             stops=drive.stops,
             unadmitted=drive.unadmitted,
             churned=drive.churned,
+            **dict(zip(("operators", "waiting"), self.drive.sessions(), strict=True)),
             queries=self.answers.answered,
             queries_failed=self.answers.failed,
         )
