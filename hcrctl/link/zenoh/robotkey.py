@@ -34,11 +34,13 @@ import os
 import re
 import secrets
 import stat
+import subprocess
+import sys
 from collections.abc import Mapping
 from typing import Any
 
 from ...errors import NotTheRobot
-from .identity import PUBLIC_KEY, _ed25519, verified
+from .identity import PUBLIC_KEY, _ed25519, check_installed, verified
 from .join import FleetError
 
 #: What this scheme is: the first line of what a robot signs, never mistaken for an operator's ``hcr-fleet-2``.
@@ -131,8 +133,7 @@ class RobotKey:
         try:
             lines = _read_private(path).split()
         except FileNotFoundError:
-            private = _ed25519().Ed25519PrivateKey.generate()
-            made = cls(private.private_bytes_raw().hex(), private.public_key().public_bytes_raw().hex())
+            made = cls(*_made_apart())
             _write_private(path, f"{made._private_hex}\n{made.public_hex}")
             return made
         except OSError as exc:
@@ -152,6 +153,25 @@ class RobotKey:
                 raise FleetError("the robot key's two halves do not match: it signs nothing")
             self._private = private
         return seal(body, self._private.sign(answer_bytes(key_expr, ask, body)).hex())
+
+
+#: Makes a key pair and prints its two halves, in a process of its own (``_made_apart``).
+MAKE_KEY = (
+    "from cryptography.hazmat.primitives.asymmetric import ed25519\n"
+    "k = ed25519.Ed25519PrivateKey.generate()\n"
+    "print(k.private_bytes_raw().hex(), k.public_key().public_bytes_raw().hex())\n"
+)
+
+
+def _made_apart() -> tuple[str, str]:
+    """A new key pair's (private, public) hex, made by a short-lived Python process: a first serve does not
+    carry the signatures' library (7 MB) before anyone asks it anything."""
+    check_installed()  # MissingExtra, naming the zenoh extra, when cryptography is absent (not imported)
+    done = subprocess.run([sys.executable, "-c", MAKE_KEY], capture_output=True, text=True, check=False)
+    halves = done.stdout.split()
+    if done.returncode != 0 or len(halves) != 2 or not all(PUBLIC_KEY.fullmatch(h) for h in halves):
+        raise FleetError(f"could not make the robot's key: {done.stderr.strip()[-200:] or 'no output'}")
+    return halves[0], halves[1]
 
 
 def _read_private(path: str) -> str:
