@@ -18,6 +18,7 @@ import contextlib
 import json
 import os
 import signal
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -243,6 +244,19 @@ def test_a_stop_is_said_made_only_on_the_robots_signed_word_naming_it(
     are not taken for it."""
     running, _, fake = lab
     fake.session.declare_subscriber("hcr/r1/stop", fake._stop)
-    done = running.run("r1", "stop")
+    replaying = threading.Event()
+
+    def replay() -> None:  # the real robot's recorded word, over and over, from before the stop to its end
+        while not replaying.wait(0.005):
+            fake.session.put("hcr/r1/status", fake.recorded[-1])
+
+    thread = threading.Thread(target=replay, daemon=True)
+    thread.start()
+    try:
+        done = running.run("r1", "stop")
+    finally:
+        replaying.set()
+        thread.join()
     assert done.returncode == 0, done.stderr
     assert done.stdout.startswith("stop put on hcr/r1/stop; r1 said: stopped: stop from "), done.stdout
+    assert "calling itself " in done.stdout, done.stdout  # its own stop's word, not the recorded one replayed
