@@ -52,7 +52,7 @@ from .keyspace import HOLD, LEASE, Status, Who, attachment, cmd_vel, loads
 from .keyspace import drive as drive_key
 from .keyspace import hold as hold_key
 from .keyspace import stop as stop_key
-from .robotkey import HINT, NotProven, RobotProof, new_nonce
+from .robotkey import HINT, NotProven, RobotProof, new_nonce, unproven
 
 #: The longest wait for the robot side's answer to a claim or release.
 CLAIM_TIMEOUT_S = 2.0
@@ -354,8 +354,11 @@ class DriveLease:
         unheard = time.monotonic() - self._proven_at
         if unheard > UNPROVEN_S:
             self._halt(
-                f"could not prove it is {self._robot}: its answers to {self._op}'s renewals were not signed by "
-                f"its key for {unheard:.1f} s: its serve may be gone and the robot unattended",
+                unproven(
+                    self._robot,
+                    f"its answers to {self._op}'s renewals were not signed by its key for {unheard:.1f} s: "
+                    "its serve may be gone and the robot unattended",
+                ).removeprefix(f"{self._robot} "),  # _halt puts the robot's name first
                 None,
                 hint=HINT,
             )
@@ -415,16 +418,17 @@ class DriveLease:
             encoding=zenoh.Encoding.APPLICATION_JSON,
             timeout=CLAIM_TIMEOUT_S,
         )
-        unproven = False
+        stray = False  # an answer came that the robot did not sign
         for reply in replies:
             proven = self._proven(reply, nonce)
             if proven is not None:
                 return proven
-            unproven = unproven or reply.ok is not None or isinstance(loads(_payload(reply)), dict)
-        if unproven:
+            stray = stray or reply.ok is not None or isinstance(loads(_payload(reply)), dict)
+        if stray:
             raise NotProven(
-                f"{self._robot} could not prove it is {self._robot}: its answer to the drive {do} is not "
-                "signed by its key for this question",
+                unproven(
+                    self._robot, f"its answer to the drive {do} is not signed by its key for this question"
+                ),
                 hint=HINT,
             )
         sent = (

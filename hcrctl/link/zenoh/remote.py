@@ -68,7 +68,7 @@ from .keyspace import read as read_key
 from .keyspace import stop as stop_key
 from .keyspace import write as write_key
 from .lease import DriveLease, Unanswered
-from .robotkey import HINT, UNASKED, KnownRobots, NotProven, RobotProof, new_nonce, proof_of
+from .robotkey import HINT, UNASKED, KnownRobots, NotProven, RobotProof, new_nonce, proof_of, unproven
 
 SCHEME = "zenoh://"
 #: How long the robot's presence, its info and a write may take to answer.
@@ -409,7 +409,7 @@ class RemoteLink(Carrier):
         return None if self.proof is None else self.proof.body(key_expr, nonce, sample.payload.to_bytes())
 
     def _unproven(self, what: str) -> str:
-        return f"{self.name} could not prove it is {self.name}: its answer to the {what} is not signed by its key"
+        return unproven(self.name, f"its answer to the {what} is not signed by its key")
 
     def _answered(self, key: tuple[int, int]) -> None:
         with self._cond:
@@ -462,13 +462,11 @@ class RemoteLink(Carrier):
             encoding=zenoh.Encoding.APPLICATION_JSON,
             timeout=ASK_TIMEOUT_S,
         )
-        unproven = False
+        stray = False  # an answer came that the robot did not sign
         for reply in replies:
             body = self._proven(write_key(self.name), nonce, reply)
             if body is None:
-                unproven = (
-                    unproven or reply.ok is not None or isinstance(_json(reply.err.payload.to_bytes()), dict)
-                )
+                stray = stray or reply.ok is not None or isinstance(_json(reply.err.payload.to_bytes()), dict)
                 continue
             if reply.ok is not None:
                 answer = _json(body)
@@ -479,7 +477,7 @@ class RemoteLink(Carrier):
             text = said.get("error") if isinstance(said, dict) else None
             shown = quoted(text, SAID_CHARS) if isinstance(text, str) and text else "no reason given"
             raise DeviceRefused(f"{self.name} refused {cmd.name}: {shown}")
-        if unproven:
+        if stray:
             raise NotProven(self._unproven(f"{cmd.name} write"), hint=HINT)
         raise DeviceRefused(
             f"{self.name} did not answer the {cmd.name} write within {ASK_TIMEOUT_S:g} s",

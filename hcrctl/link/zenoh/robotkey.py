@@ -59,6 +59,11 @@ class NotProven(FleetError, NotTheRobot):
     """An answer that its robot's key did not sign for this question (exit 1): a fake, or a changed key."""
 
 
+def unproven(robot: str, why: str) -> str:
+    """How every refusal of an answer begins: ``R could not prove it is R: <why>``."""
+    return f"{robot} could not prove it is {robot}: {why}"
+
+
 def data_dir(environ: Mapping[str, str] = os.environ) -> str:
     """``$XDG_DATA_HOME/hcrctl`` when that is absolute, else ``~/.local/share/hcrctl``."""
     base = environ.get("XDG_DATA_HOME", "")
@@ -217,12 +222,13 @@ def proof_of(robot: str, key_expr: str, ask: str, data: bytes, named: object) ->
     """The proof of a robot's ``info`` answer (``named``: the key it names), checked against itself: the
     answer must be that key's over this question. NotProven otherwise; the known key is ``KnownRobots``'."""
     if not isinstance(named, str) or not PUBLIC_KEY.fullmatch(named):
-        raise NotProven(f"{robot} could not prove it is {robot}: its info names no robot key", hint=HINT)
+        raise NotProven(unproven(robot, "its info names no robot key"), hint=HINT)
     proof = RobotProof(robot, named)
     if proof.body(key_expr, ask, data) is None:
         raise NotProven(
-            f"{robot} could not prove it is {robot}: its info is not signed by the key it names "
-            f"({proof.fingerprint}) for this question",
+            unproven(
+                robot, f"its info is not signed by the key it names ({proof.fingerprint}) for this question"
+            ),
             hint=HINT,
         )
     return proof
