@@ -57,6 +57,12 @@ QUIET_SIM = f"sim://?{QUIET}"
 # -- the installed executable ---------------------------------------------------------
 
 
+def default_sigint() -> None:
+    """SIGINT as a terminal gives it, for a child a test sends Ctrl-C (``pytest &`` ignores it): a
+    ``preexec_fn``."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def hcrctl_exe() -> str:
     """The installed console script: next to this interpreter, else on PATH."""
     beside = Path(sys.executable).parent / "hcrctl"

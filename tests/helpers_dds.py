@@ -33,7 +33,7 @@ from typing import Any
 from xml.sax.saxutils import quoteattr
 
 import pytest
-from helpers import TIMEOUT, hcrctl_exe, wait_until
+from helpers import TIMEOUT, default_sigint, hcrctl_exe, wait_until
 from helpers_fleet_robot import Serve
 
 from hcrctl.protocol import ros2srv as S
@@ -44,8 +44,10 @@ typesys = pytest.importorskip("rosbags.typesys", reason="rosbags (the Jazzy type
 Nodetype = pytest.importorskip("rosbags.interfaces").Nodetype
 
 STORE = typesys.get_typestore(typesys.Stores.ROS2_JAZZY)
-#: The longest string either side sends here (frame ids, joint names, a namespace).
+#: The longest string either side sends here (frame ids, joint names, a namespace)...
 STRING_BOUND = 256
+#: ... but in these types, whose strings are documents (a URDF).
+LONG_STRINGS = {"std_msgs/msg/String": 1 << 16}
 BASE = {"char": "uint8", "byte": "uint8", "bool": "boolean", "octet": "uint8"}
 SENSOR_QOS = "<reliability><kind>BEST_EFFORT_RELIABILITY_QOS</kind></reliability>"
 LATCHED_QOS = (
@@ -106,23 +108,23 @@ def dds_type(ros_type: str) -> str:
 # -- the Connector's XML, from the Jazzy type store -------------------------------------------------
 
 
-def _element(node: Any, arg: Any) -> str:
+def _element(node: Any, arg: Any, longest: int = STRING_BOUND) -> str:
     """The XML attributes of one element type (a base type, or a message by name)."""
     if node == Nodetype.NAME:
         return f'type="nonBasic" nonBasicTypeName="{dds_type(arg)}"'
     name, bound = arg
     if name == "string":  # bounded: an RTI writer preallocates its samples (bounds are no part of the CDR)
-        return f'type="string" stringMaxLength="{bound or STRING_BOUND}"'
+        return f'type="string" stringMaxLength="{bound or longest}"'
     return f'type="{BASE.get(name, name)}"'
 
 
-def _member(name: str, desc: tuple[Any, Any]) -> str:
+def _member(name: str, desc: tuple[Any, Any], longest: int = STRING_BOUND) -> str:
     node, arg = desc
     if node == Nodetype.ARRAY:
         return f'<member name="{name}" {_element(*arg[0])} arrayDimensions="{arg[1]}"/>'
     if node == Nodetype.SEQUENCE:
         return f'<member name="{name}" {_element(*arg[0])} sequenceMaxLength="{arg[1] or -1}"/>'
-    return f'<member name="{name}" {_element(node, arg)}/>'
+    return f'<member name="{name}" {_element(node, arg, longest)}/>'
 
 
 def _needed(ros_type: str, out: dict[str, None]) -> None:
@@ -136,7 +138,8 @@ def _needed(ros_type: str, out: dict[str, None]) -> None:
 
 def _struct(ros_type: str) -> str:
     package, kind, name = ros_type.split("/")
-    members = "".join(_member(n, d) for n, d in STORE.fielddefs[ros_type][1]) or (
+    longest = LONG_STRINGS.get(ros_type, STRING_BOUND)
+    members = "".join(_member(n, d, longest) for n, d in STORE.fielddefs[ros_type][1]) or (
         '<member name="structure_needs_at_least_one_field" type="uint8"/>'
     )
     return (
@@ -245,18 +248,28 @@ def as_dict(sample: Any) -> dict[str, Any]:
 
 @contextlib.contextmanager
 def ros2_node(
-    port: str, place: Place, env: dict[str, str], *options: str, log: Path | None = None
+    port: str,
+    place: Place,
+    env: dict[str, str],
+    *options: str,
+    log: Path | None = None,
+    middleware: str = "cyclonedds",
+    on: tuple[str, ...] = (),
 ) -> Iterator[Serve]:
-    """``hcrctl --port PORT [--log LOG] --json ros2 --namespace NS --domain-id N OPTIONS``, serving."""
+    """``hcrctl --port PORT [--log LOG] --json ros2 --namespace NS --domain-id N --middleware M OPTIONS``,
+    serving (on Cyclone DDS unless ``middleware`` says otherwise: a sourced ROS 2 in the tests' own
+    environment does not change which row a test tries); ``on`` is the prefix that runs it on another host
+    (``helpers_netns.Host.exec``)."""
     logged = ["--log", str(log)] if log is not None else []
     args = ["--port", port, *logged, "--json", "ros2", "--namespace", place.namespace]
     proc = subprocess.Popen(
-        [hcrctl_exe(), *args, "--domain-id", str(place.domain), *options],
+        [*on, hcrctl_exe(), *args, "--domain-id", str(place.domain), "--middleware", middleware, *options],
         env=env,
         stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         start_new_session=True,
+        preexec_fn=default_sigint,  # a test may send it Ctrl-C, under a pytest started with SIGINT ignored
     )
     node = Serve(proc, "ros2", log)
     try:

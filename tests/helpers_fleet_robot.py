@@ -28,7 +28,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from helpers import TIMEOUT, hcrctl_exe, wait_until
+from helpers import TIMEOUT, default_sigint, hcrctl_exe, wait_until
 from helpers_netns import OPERATOR_HOST, ROBOT_HOST, ROUTER_HOST, Topology
 
 from hcrctl.protocol.dialect import decode_all
@@ -40,10 +40,6 @@ def free_port() -> int:
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
         return int(sock.getsockname()[1])
-
-
-def _default_sigint() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 class Fleet:
@@ -71,7 +67,7 @@ class Fleet:
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             start_new_session=True,
-            preexec_fn=_default_sigint,
+            preexec_fn=default_sigint,
         )
         self.procs.append(proc)
         return proc
@@ -108,7 +104,7 @@ class Fleet:
             text=True,
             timeout=timeout,
             stdin=subprocess.DEVNULL,
-            preexec_fn=_default_sigint,
+            preexec_fn=default_sigint,
         )
 
     def listed(self, *options: str) -> list[dict[str, Any]]:

@@ -11,10 +11,12 @@ with 127.0.0.1 as its peer (``LOOPBACK``), and a domain per test (``place``).
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import os
 import select
 import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -41,6 +43,35 @@ def rclpy_python(module: bool = False) -> str:
             allow_module_level=module,
         )
     return python
+
+
+@functools.cache
+def _paths(python: str) -> tuple[str, str]:
+    """(site-packages, its libraries' directories) of the environment with the wheels."""
+    ask = "import site, sys; print(site.getsitepackages()[0]); print(sys.prefix)"
+    site_packages, prefix = subprocess.run(
+        [python, "-c", ask], capture_output=True, text=True, check=True, timeout=TIMEOUT
+    ).stdout.split()
+    libraries = [str(Path(prefix) / "lib"), *map(str, sorted(Path(site_packages).glob("ros_*.libs")))]
+    return site_packages, os.pathsep.join(libraries)
+
+
+def sourced(env: dict[str, str]) -> dict[str, str]:
+    """``env`` as a sourced ROS 2 makes it for the installed ``hcrctl``: rclpy importable (the wheels'
+    packages on PYTHONPATH, their libraries on LD_LIBRARY_PATH, as a ROS 2 ``setup.bash`` does), discovery
+    on loopback. The wheels are CPython 3.12's: on another interpreter the test skips, saying so."""
+    python = rclpy_python()
+    if sys.version_info[:2] != (3, 12):
+        pytest.skip(
+            f"no Jazzy rclpy for CPython {sys.version_info[0]}.{sys.version_info[1]}: its wheels are 3.12's"
+        )
+    site_packages, libraries = _paths(python)
+    return {
+        **env,
+        "PYTHONPATH": site_packages,
+        "LD_LIBRARY_PATH": libraries,
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+    }
 
 
 def numbers(value: Any) -> Any:
@@ -75,7 +106,8 @@ class Peer:
 
 
 @contextlib.contextmanager
-def rclpy_peer(domain: int, name: str = "rclpy_peer") -> Iterator[Peer]:
+def rclpy_peer(domain: int, name: str = "rclpy_peer", on: tuple[str, ...] = ()) -> Iterator[Peer]:
+    """The peer on ``domain``, localhost-only; ``on`` is the prefix that runs it on another host."""
     env = {
         "PATH": os.environ.get("PATH", ""),
         "HOME": os.environ.get("HOME", "/tmp"),
@@ -83,7 +115,7 @@ def rclpy_peer(domain: int, name: str = "rclpy_peer") -> Iterator[Peer]:
         "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
     }
     proc = subprocess.Popen(
-        [rclpy_python(), str(PEER), name],
+        [*on, rclpy_python(), str(PEER), name],
         env=env,
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,

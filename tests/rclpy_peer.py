@@ -69,9 +69,14 @@ def plain(value: Any) -> Any:
 
 
 def filled(message: Any, values: dict[str, Any]) -> Any:
+    """``message`` with ``values``: nested dicts for nested messages, lists of dicts for their sequences."""
     for key, value in values.items():
         if isinstance(value, dict):
             filled(getattr(message, key), value)
+        elif isinstance(value, list) and value and isinstance(value[0], dict):
+            inner = message.get_fields_and_field_types()[key].partition("<")[2].rstrip(">").split(",")[0]
+            package, _, name = inner.partition("/")
+            setattr(message, key, [filled(kind(f"{package}/msg/{name}")(), v) for v in value])
         else:
             setattr(message, key, value)
     return message
@@ -143,8 +148,10 @@ class Peer:
         srv = kind(type)
         client = self.node.create_client(srv, service)
         try:
-            future = client.call_async(filled(srv.Request(), request))
             end = time.monotonic() + timeout
+            # a request sent before the server's reader matched this client's writer is lost (volatile)
+            client.wait_for_service(timeout_sec=timeout)
+            future = client.call_async(filled(srv.Request(), request))
             while not future.done() and time.monotonic() < end:
                 rclpy.spin_once(self.node, timeout_sec=0.05)
             if not future.done():

@@ -285,7 +285,8 @@ def test_bridge_is_the_foxglove_row_built_with_its_options(tmp_path: Path) -> No
 def test_ros2_is_the_ros2_row(tmp_path: Path) -> None:
     pytest.importorskip("cyclonedds", reason="the ros2 extra is not installed")
     built, summary = composed(tmp_path, ["ros2", "--namespace", "/r1", "--domain-id", "7", "--stamped"])
-    assert built == [["Ros2Options", {"namespace": "/r1", "domain_id": 7, "stamped": True}]]
+    options = {"namespace": "/r1", "domain_id": 7, "stamped": True, "middleware": "auto", "ros_args": []}
+    assert built == [["Ros2Options", options]]
     assert summary["ros2"] == {"spied": "Ros2Options"}
 
 
@@ -310,7 +311,13 @@ def test_fleet_serve_composes_the_fleet_row_with_the_others_beside_it(tmp_path: 
     assert [name for name, _ in built] == ["FleetOptions", "BridgeOptions", "Ros2Options"]
     fleet, foxglove, ros2 = (options for _, options in built)
     assert fleet["name"] == "r1" and foxglove["beside"] is True and foxglove["port"] == 0
-    assert ros2 == {"namespace": "/r1", "domain_id": 3, "stamped": False}
+    assert ros2 == {
+        "namespace": "/r1",
+        "domain_id": 3,
+        "stamped": False,
+        "middleware": "auto",
+        "ros_args": [],
+    }
     assert {k: summary[k] for k in ("fleet", "foxglove", "ros2")} == {
         "fleet": {"spied": "FleetOptions"},
         "foxglove": {"spied": "BridgeOptions"},

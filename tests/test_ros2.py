@@ -236,7 +236,9 @@ def test_without_cyclonedds_one_line_names_the_extra(tmp_path: Path) -> None:
     )
     assert done.returncode == 1 and done.stdout == ""
     (line,) = done.stderr.splitlines()
-    assert "hcrctl ros2 needs the cyclonedds package" in line and checkout_extra("ros2") in line, line
+    assert "hcrctl ros2 needs the cyclonedds package (or rclpy" in line and checkout_extra("ros2") in line, (
+        line
+    )
 
 
 def test_fleet_serve_with_ros2_is_the_same_node_in_the_robots_name(
@@ -268,6 +270,48 @@ def test_fleet_serve_with_ros2_is_the_same_node_in_the_robots_name(
     assert over_ros2 and int(over_ros2[1]) >= 1, line  # the cmd_vel that drove, counted where it came from
 
 
+def test_fleet_serve_with_ros2_stamped_drives_from_a_twist_stamped(
+    env: dict[str, str], tmp_path: Path
+) -> None:
+    """``fleet serve NAME --ros2 --ros2-stamped``: cmd_vel is a TwistStamped (Nav2 from Kilted), as with
+    ``hcrctl ros2 --stamped``."""
+    from helpers_fleet_robot import fleet
+
+    here = place()
+    name = "r" + here.namespace.lstrip("/")
+    robot = Place(here.domain, f"/{name}")
+    env = {**env, "ROS_DOMAIN_ID": str(here.domain)}
+    with (
+        fleet(env) as group,
+        ros_side(robot, tmp_path, {}, {"cmd_vel": "geometry_msgs/msg/TwistStamped"}) as ros,
+    ):
+        group.router()
+        serve = group.serve(name, group.sim(*QUIET), "--ros2", "--ros2-stamped", log=tmp_path / "wire.jsonl")
+
+        def moving() -> bool:
+            ros.write("cmd_vel", {"twist.angular.z": 1.0})
+            return bool(velocities(serve))
+
+        wait_until(moving, what="a velocity frame from a TwistStamped through fleet serve")
+        assert {w for _, w in velocities(serve)} == {(-12, 12)}
+
+
+@pytest.mark.parametrize(
+    "flag", [("--ros2-stamped",), ("--ros2-may-loosen",), ("--ros2-middleware", "rclpy")]
+)
+def test_fleet_serve_s_ros2_flags_need_ros2(env: dict[str, str], flag: tuple[str, ...]) -> None:
+    done = subprocess.run(
+        [hcrctl_exe(), "--port", "sim://", "fleet", "serve", "lab", *flag],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2, done.stderr
+    (line,) = [line for line in done.stderr.splitlines() if line.strip()]
+    assert flag[0] in line and "needs --ros2" in line, line
+
+
 def test_fleet_serve_with_ros2_needs_a_name_that_is_a_namespace(env: dict[str, str]) -> None:
     done = subprocess.run(
         [hcrctl_exe(), "--port", "sim://", "fleet", "serve", "lab-3", "--ros2"],
@@ -295,3 +339,58 @@ def test_a_dds_that_cannot_start_is_one_error_line_and_exit_1(env: dict[str, str
     last = done.stderr.strip().splitlines()[-1]
     assert last.startswith("hcrctl: error: could not join DDS domain") and "CYCLONEDDS_URI" in last, last
     assert "Traceback" not in done.stderr and "serving" not in done.stderr
+
+
+def test_ros_args_on_the_cyclone_row_is_a_usage_error_naming_it(env: dict[str, str]) -> None:
+    """``--ros-args`` are rclpy's: on Cyclone DDS nothing would read them, so they are refused, not ignored."""
+    done = subprocess.run(
+        [
+            hcrctl_exe(),
+            "--port",
+            "sim://",
+            "ros2",
+            "--middleware",
+            "cyclonedds",
+            "--ros-args",
+            "-p",
+            "deadman:=0.3",
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2 and done.stdout == "", done.stderr
+    (line,) = done.stderr.splitlines()
+    assert "--ros-args needs the rclpy middleware" in line and "cyclonedds" in line, line
+
+
+def test_the_rclpy_row_without_rclpy_says_how_to_get_it(env: dict[str, str], tmp_path: Path) -> None:
+    shadow = tmp_path / "shadow" / "rclpy"
+    shadow.mkdir(parents=True)
+    (shadow / "__init__.py").write_text(
+        "raise ModuleNotFoundError(\"No module named 'rclpy'\", name='rclpy')\n"
+    )
+    done = subprocess.run(
+        [hcrctl_exe(), "--port", "sim://", "ros2", "--middleware", "rclpy"],
+        env={**env, "PYTHONPATH": str(shadow.parent)},
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 1 and done.stdout == "", done.stderr
+    (line,) = done.stderr.splitlines()
+    assert "--middleware rclpy needs the rclpy package" in line and "source a ROS 2 installation" in line, (
+        line
+    )
+
+
+def test_an_unknown_option_is_not_taken_for_ros_arguments(env: dict[str, str]) -> None:
+    done = subprocess.run(
+        [hcrctl_exe(), "--port", "sim://", "ros2", "--namspace", "/x"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2 and "--namspace" in done.stderr, done.stderr

@@ -156,6 +156,24 @@ def test_a_link_that_garbles_frames_is_a_warning(env: dict[str, str], tmp_path: 
         assert int(values["checksum errors"]) + int(values["timeouts"]) > 0
 
 
+def test_noise_on_the_line_is_a_warning_with_its_count(env: dict[str, str], tmp_path: Path) -> None:
+    """A robot whose replies come with junk bytes before them (``noise=0.2``): every frame still decodes,
+    and the link is a WARN saying how many junk bytes came in the last period, the total among its values."""
+    here = place()
+    readers = {"/diagnostics": ("diagnostic_msgs/msg/DiagnosticArray", SENSOR_QOS)}
+    noisy = ("--options", "noise=0.2&broadcast_hz=0&map_hz=0&seed=7")
+    with sim_pty(env, *noisy) as port, ros_side(here, tmp_path, readers) as ros, ros2_node(port, here, env):
+        warned = latest(
+            ros,
+            "/diagnostics",
+            lambda a: a["status"][0]["level"] == R.DIAG_WARN and "junk byte(s)" in a["status"][0]["message"],
+        )
+        link = warned["status"][0]
+        counted = int(link["message"].split(" junk byte(s)")[0].rsplit(" ", 1)[-1])
+        values = {kv["key"]: kv["value"] for kv in link["values"]}
+        assert 0 < counted <= int(values["junk bytes"]), (link["message"], values)
+
+
 def test_rosout_carries_the_node_s_lines_with_levels(env: dict[str, str], tmp_path: Path) -> None:
     """A console started after the node still gets its start-up lines (transient local); a stop is a WARN."""
     here = place()

@@ -17,6 +17,7 @@ from hcrctl.ros2 import diagnostics as D
 from hcrctl.ros2 import rosout
 from hcrctl.ros2.graph import MAX_WRITERS, Graph
 from hcrctl.served.notes import Level, Notes
+from hcrctl.served.view import LinkState
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 HEALTHY = D.Link("/dev/ttyUSB0", "ok", 9.9, 10.0, 0, 0, 0, 0, 0.05, 0.5)
@@ -36,6 +37,8 @@ NOBODY = D.Driver("", 0, 0, 0, True)
         ({"new_timeouts": 1}, R.DIAG_WARN, "1 timeout(s)"),
         ({"new_checksum_errors": 2, "checksum_errors": 9}, R.DIAG_WARN, "2 checksum error(s)"),
         ({"timeouts": 40}, R.DIAG_OK, "ok"),  # old timeouts, none in the last period
+        ({"new_junk_bytes": 7, "junk_bytes": 30}, R.DIAG_WARN, "7 junk byte(s) on the line"),
+        ({"junk_bytes": 30}, R.DIAG_OK, "ok"),
     ],
 )
 def test_link_levels(change: dict[str, Any], level: int, words: str) -> None:
@@ -104,6 +107,15 @@ def test_the_graph_names_writers_by_node_and_forgets_what_a_participant_no_longe
     assert graph.node_of((21).to_bytes(16, "big")) is None
 
 
+def test_the_graph_lists_the_other_participants_nodes_writers_or_not() -> None:
+    graph = Graph(own=(1).to_bytes(16, "big"))
+    graph.update(_info(1, [("/", "hcrctl", [10])]))
+    graph.update(_info(2, [("/", "hcrctl", []), ("/ns", "mux", [22])]))
+    assert sorted(graph.nodes()) == ["/hcrctl", "/ns/mux"]
+    graph.update(_info(2, [("/ns", "mux", [22])]))
+    assert graph.nodes() == ["/ns/mux"]
+
+
 def test_a_peer_cannot_fill_the_graph_or_the_terminal() -> None:
     graph = Graph()
     graph.update(_info(2, [("/", "flood", list(range(MAX_WRITERS + 500)))]))
@@ -134,9 +146,9 @@ class _Counters:
     """The figures ``frontend.Health`` reads from the runtime's view and the cmd_vel source, set by hand."""
 
     def __init__(self) -> None:
-        self.status, self.timeouts, self.checksum, self.refused = "ok", 0, 0, 0
+        self.status, self.timeouts, self.checksum, self.refused, self.junk = "ok", 0, 0, 0, 0
         self.view = SimpleNamespace(
-            link_state=lambda: (self.status, 9.9, self.timeouts, self.checksum),
+            link_state=lambda: LinkState(self.status, 9.9, self.timeouts, self.checksum, self.junk),
             rate=10.0,
             governor=SimpleNamespace(driver=None),
             robot=SimpleNamespace(port="/dev/ttyUSB0"),
@@ -173,4 +185,7 @@ def test_each_report_counts_only_its_own_period_and_a_quiet_period_after_trouble
     counts.status, counts.timeouts = "no reply", 8
     assert counts.levels(health)[0][0] == R.DIAG_ERROR
     counts.status = "ok"
+    assert counts.levels(health)[0] == (R.DIAG_OK, "ok")
+    counts.junk = 12
+    assert counts.levels(health)[0] == (R.DIAG_WARN, "12 junk byte(s) on the line")
     assert counts.levels(health)[0] == (R.DIAG_OK, "ok")

@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 import pytest
+from helpers import default_sigint
 from helpers_live import FakeRobot, hcrctl_exe, is_stop, speed_of, terminal, terminal_env, usage_error
 
 from hcrctl.live.teleop import HOLD_GRACE
@@ -31,10 +32,6 @@ ALT_SCREEN_ON = b"\x1b[?1049h"
 ASCII_LOCALE = {"LC_ALL": "C", "PYTHONUTF8": "0", "PYTHONCOERCECLOCALE": "0"}
 #: Long enough for anything on a loaded machine; the bench measures the real times.
 GENEROUS = 20.0
-
-
-def _default_sigint() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 # -- 1. a stalled terminal: stop and the deadman do not wait on the screen ----------------------
@@ -179,7 +176,7 @@ def _no_terminal(*args: str) -> subprocess.Popen[str]:
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
-        preexec_fn=_default_sigint,
+        preexec_fn=default_sigint,
     )
 
 
@@ -342,6 +339,6 @@ def test_ctrl_c_while_the_modules_load_is_one_line(tmp_path: Path) -> None:
         capture_output=True,
         text=True,
         timeout=60,
-        preexec_fn=_default_sigint,
+        preexec_fn=default_sigint,
     )
     assert (proc.returncode, proc.stdout, proc.stderr) == (130, "", "hcrctl: interrupted\n")

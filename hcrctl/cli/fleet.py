@@ -18,6 +18,7 @@ from ..fleet.listing import ANSWER_WAIT_S
 from ..link.defaults import DEADMAN_S
 from ..motion.governor import HOLD_RULE
 from ..protocol.encodings import ENCODINGS
+from ..ros2.middleware import AUTO
 from .params import (
     Endpoint,
     FloatRange,
@@ -25,8 +26,10 @@ from .params import (
     allow_origin_option,
     deadman_option,
     domain_option,
+    middleware_option,
     namespace_of,
     rate_option,
+    stamped_option,
 )
 from .serverend import PREFIX, ServerEnd
 from .settings import Settings, json_option, stdout_is_terminal
@@ -122,6 +125,11 @@ def router(settings: Settings, listen: tuple[str, ...]) -> None:
     help="Also be a ROS 2 node (namespace /NAME), from the same link and governor (needs the ros2 extra).",
 )
 @domain_option("--ros2-domain-id", "With --ros2: the DDS domain, as ROS_DOMAIN_ID.")
+@stamped_option(
+    "--ros2-stamped",
+    "With --ros2: read cmd_vel as geometry_msgs/msg/TwistStamped (Nav2 from Kilted; hcrctl ros2's --stamped).",
+)
+@middleware_option("--ros2-middleware")
 @click.option(
     "--ros2-may-loosen",
     is_flag=True,
@@ -141,6 +149,8 @@ def serve(
     allow_origins: tuple[str, ...],
     ros2: bool,
     domain_id: int,
+    stamped: bool,
+    middleware: str,
     ros2_may_loosen: bool,
 ) -> None:
     """Publish this robot (--port) to the fleet as NAME, and let one operator at a time drive it.
@@ -161,8 +171,15 @@ def serve(
 
     if ros2:
         _ros2_name(name)
-    elif ros2_may_loosen:
-        raise click.BadParameter("it needs --ros2", param_hint="--ros2-may-loosen")
+    else:
+        given_flags = (
+            ("--ros2-may-loosen", ros2_may_loosen),
+            ("--ros2-stamped", stamped),
+            ("--ros2-middleware", middleware != AUTO),
+        )
+        for flag, given in given_flags:
+            if given:
+                raise click.BadParameter("it needs --ros2", param_hint=flag)
     fronts: dict[str, dict[str, Any]] = {
         "fleet": dict(
             name=name,
@@ -178,9 +195,11 @@ def serve(
             host=foxglove[0], port=foxglove[1], encoding=encoding, allow_origins=allow_origins, beside=True
         )
     if ros2:
-        fronts["ros2"] = dict(namespace=f"/{name}", domain_id=domain_id)
+        fronts["ros2"] = dict(
+            namespace=f"/{name}", domain_id=domain_id, stamped=stamped, middleware=middleware
+        )
     for front in fronts:  # each absent package said before anything opens, the flag that needs it named
-        require_front_end(front, "the fleet" if front == "fleet" else f"fleet serve --{front}")
+        require_front_end(front, "the fleet" if front == "fleet" else f"fleet serve --{front}", fronts[front])
     with ServerEnd(f"fleet serve {name}", as_json=settings.as_json) as end:
         serve_robot(
             settings,

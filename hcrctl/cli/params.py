@@ -416,6 +416,35 @@ def namespace_param(ctx: click.Context, param: click.Parameter, value: str) -> s
         raise click.BadParameter(str(exc), ctx, param) from exc
 
 
+def stamped_option(
+    name: str = "--stamped", help: str = ""
+) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """cmd_vel as ``geometry_msgs/msg/TwistStamped`` instead of Twist (``hcrctl ros2``, ``fleet serve --ros2``)."""
+    return click.option(
+        name,
+        "stamped",
+        is_flag=True,
+        help=help
+        or "Read cmd_vel as geometry_msgs/msg/TwistStamped (teleop_twist_keyboard's stamped:=true; Nav2 from Kilted).",
+    )
+
+
+def middleware_option(name: str = "--middleware") -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Which row of ``ros2.middleware`` hosts the ROS 2 node (``hcrctl ros2``, ``fleet serve --ros2``)."""
+    from ..ros2.middleware import AUTO, CHOICES
+
+    return click.option(
+        name,
+        "middleware",
+        type=click.Choice(CHOICES),
+        default=AUTO,
+        show_default=True,
+        help="rclpy: a ROS 2 node on the middleware ROS 2 is set to (RMW_IMPLEMENTATION), where a sourced "
+        "ROS 2 makes rclpy importable; cyclonedds: hcrctl's own DDS node, no ROS 2 needed; auto: rclpy if it "
+        "imports.",
+    )
+
+
 def domain_option(
     name: str = "--domain-id", help: str = ""
 ) -> Callable[[Callable[..., Any]], Callable[..., Any]]:

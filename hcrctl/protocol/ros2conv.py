@@ -94,8 +94,11 @@ class Qos:
 
 #: ``rclcpp::SensorDataQoS``: every reading, and hcrctl's own topics.
 SENSOR_QOS = Qos(reliable=False, transient_local=False, depth=5)
+#: What is said once and holds (``robot_state_publisher``'s ``robot_description``): reliable, transient
+#: local, keep last 1, so a reader that joins later still gets it.
+LATCHED_QOS = Qos(reliable=True, transient_local=True, depth=1)
 #: ``/tf_static``: late joiners get the layout.
-TF_STATIC_QOS = Qos(reliable=True, transient_local=True, depth=1)
+TF_STATIC_QOS = LATCHED_QOS
 #: ROS 2's default profile (``rclcpp::QoS(10)``): what a reader that asks for nothing special gets.
 DEFAULT_QOS = Qos(reliable=True, transient_local=False, depth=10)
 #: The default profile, as teleop_twist_keyboard publishes ``cmd_vel``.
@@ -203,6 +206,14 @@ class Layout:
 
     def frame(self, name: str) -> str:
         return self.frame_prefix + name
+
+    def sensor_frames(self) -> list[tuple[str, Pose]]:
+        """Every sensor's frame (unprefixed) and where it sits in ``base_frame``: the one table of the frames
+        that ``/tf_static`` and ``/robot_description`` both place."""
+        frames = [(self.imu_frame, self.imu)]
+        for prefix, poses in (("sonar", self.sonar), ("ir", self.ir), ("bumper", self.bumpers)):
+            frames += [(f"{prefix}_{i}", pose) for i, pose in enumerate(poses)]
+        return frames
 
     @property
     def wheel_radius(self) -> float:
@@ -517,10 +528,9 @@ class Converter:
         """``base_link`` to every sensor frame, as one ``tf2_msgs/TFMessage`` stamped ``t``."""
         lay = self.layout
         base = lay.frame(lay.base_frame)
-        frames = [(lay.imu_frame, lay.imu)]
-        for prefix, poses in (("sonar", lay.sonar), ("ir", lay.ir), ("bumper", lay.bumpers)):
-            frames += [(f"{prefix}_{i}", pose) for i, pose in enumerate(poses)]
-        return {"transforms": [transform(t, base, lay.frame(name), pose) for name, pose in frames]}
+        return {
+            "transforms": [transform(t, base, lay.frame(name), pose) for name, pose in lay.sensor_frames()]
+        }
 
 
 _LAYOUT = [DEFAULT_LAYOUT]

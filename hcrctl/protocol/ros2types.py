@@ -32,6 +32,7 @@ IMU = "sensor_msgs/msg/Imu"
 TEMPERATURE = "sensor_msgs/msg/Temperature"
 RELATIVE_HUMIDITY = "sensor_msgs/msg/RelativeHumidity"
 JOINT_STATE = "sensor_msgs/msg/JointState"
+STRING = "std_msgs/msg/String"
 
 #: ``sensor_msgs/Range``'s radiation types.
 ULTRASOUND = 0
@@ -73,6 +74,7 @@ MSG_TEXT: dict[str, str] = {
     JOINT_STATE: (
         "std_msgs/Header header\nstring[] name\nfloat64[] position\nfloat64[] velocity\nfloat64[] effort\n"
     ),
+    STRING: "string data\n",
 }
 
 TYPE_HASHES: dict[str, str] = {
@@ -90,6 +92,7 @@ TYPE_HASHES: dict[str, str] = {
     TEMPERATURE: "RIHS01_72514a14126ab9f8a9abec974c78e5610a367b59db5da355ff1fb982d5bad4b8",
     RELATIVE_HUMIDITY: "RIHS01_8687c99b4fb393cb2e545e407b5ea7fd0b5d8960bcd849a0f86c544740138839",
     JOINT_STATE: "RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e",
+    STRING: "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18",
 }
 
 

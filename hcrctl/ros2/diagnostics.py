@@ -9,8 +9,9 @@ link
   ERROR  the robot does not answer (a sweep's worth of timeouts in a row) or
          the port is gone; or no bumper reading is fresh enough (older than
          the bumper rule's bound): forward motion is refused until one is.
-  WARN   sweeps achieved below ``SLOW`` of the rate asked for, or timeouts or
-         checksum errors in the last period (the link loses or garbles frames).
+  WARN   sweeps achieved below ``SLOW`` of the rate asked for, or timeouts,
+         checksum errors or junk bytes (bytes that belong to no frame) in the
+         last period (the link loses or garbles frames, or noise is on it).
   OK     otherwise.
 driver
   WARN   cmd_vel refused in the last period (a second writer, or Twists that
@@ -50,6 +51,9 @@ class Link:
     new_checksum_errors: int
     bumper_age: float | None
     bumper_bound: float
+    #: Bytes that belonged to no frame (noise on the line), so far and since the last report.
+    junk_bytes: int = 0
+    new_junk_bytes: int = 0
 
 
 @dataclass(frozen=True)
@@ -73,6 +77,8 @@ def link_level(link: Link) -> tuple[int, str]:
         warnings.append(f"{rate:.1f} sweeps/s of {target:g} asked")
     if link.new_timeouts or link.new_checksum_errors:
         warnings.append(f"{link.new_timeouts} timeout(s), {link.new_checksum_errors} checksum error(s)")
+    if link.new_junk_bytes:
+        warnings.append(f"{link.new_junk_bytes} junk byte(s) on the line")
     return (R.DIAG_WARN, "; ".join(warnings)) if warnings else (R.DIAG_OK, "ok")
 
 
@@ -108,6 +114,7 @@ def array(t: float, node: str, link: Link, driver: Driver) -> dict[str, Any]:
         "rate asked": _number(link.target_rate),
         "timeouts": str(link.timeouts),
         "checksum errors": str(link.checksum_errors),
+        "junk bytes": str(link.junk_bytes),
         "bumper reading age (s)": _number(link.bumper_age, 3),
         "bumper reading bound (s)": _number(link.bumper_bound, 3),
     }

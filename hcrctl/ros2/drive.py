@@ -39,6 +39,12 @@ TOPIC = "cmd_vel"
 AXES = ("x", "y", "z")
 
 
+#: Whoever sent a sample the middleware cannot attribute (rclpy before Kilted, with two writers on cmd_vel).
+UNNAMED = Source(Kind.NODE, "?", "one of the ROS 2 writers")
+#: Why such a sample never moves the robot: two writers could take turns as one.
+UNNAMED_RULE = (
+    "cmd_vel has more than one writer and this ROS 2 cannot say which sent it; none drives until one is left"
+)
 #: The node (``/ns/name``) that owns a writer, if known.
 Names = Callable[[str], "str | None"]
 
@@ -82,8 +88,12 @@ class RosCmdVel:
         self._names = names
         self._words = words
 
-    def message(self, writer: str, message: Any) -> None:
-        """One sample from ``writer``: offered, or refused and counted (said on the budget)."""
+    def message(self, writer: str | None, message: Any) -> None:
+        """One sample from ``writer``: offered, or refused and counted (said on the budget). A sample whose
+        writer the middleware cannot name (``None``) may stop the robot, never move it."""
+        if writer is None:
+            self._unnamed(message)
+            return
         source = writer_source(writer, self._names(writer))
         driver, refused = self.governor.driver, self.governor.would_refuse(source)
         wheels = read_wheels(message)
@@ -100,6 +110,15 @@ class RosCmdVel:
         self.taken += 1
         if driver != source == self.governor.driver:
             self._note(f"{source} drives the robot ({TOPIC})")
+
+    def _unnamed(self, message: Any) -> None:
+        wheels = read_wheels(message)
+        if wheels == STILL:
+            self.governor.offer(UNNAMED, STILL)
+            return
+        self._refused(
+            UNNAMED, "unnamed", "refused: " + UNNAMED_RULE if not isinstance(wheels, str) else wheels
+        )
 
     def _refused(self, source: Source, kind: str | None, why: str) -> None:
         self.refused += 1

@@ -20,6 +20,8 @@ from ..served.untrusted import shown
 
 #: Writers remembered in all, whatever the peers send.
 MAX_WRITERS = 10_000
+#: Participants whose nodes are remembered, and nodes of each, whatever the peers send.
+MAX_NODES = 1000
 #: Characters of a node's name kept.
 NAME_CHARS = 120
 
@@ -37,6 +39,8 @@ class Graph:
         self._lock = threading.Lock()
         self._participants: dict[bytes, dict[bytes, str]] = {}
         self._writers: dict[bytes, str] = {}
+        #: Each participant's nodes, by name (a node with no writer is a node all the same).
+        self._nodes: dict[bytes, list[str]] = {}
 
     def update(self, info: Any) -> None:
         """One participant's announcement: it replaces what that participant said before."""
@@ -44,11 +48,16 @@ class Graph:
         if participant == self._own:
             return
         writers: dict[bytes, str] = {}
-        for node in info.node_entities_info_seq:
+        names = []
+        for node in info.node_entities_info_seq[:MAX_NODES]:
             name = node_name(node.node_namespace, node.node_name)
+            names.append(name)
             for gid in node.writer_gid_seq:
                 writers[bytes(gid.data)] = name
         with self._lock:
+            self._nodes.pop(participant, None)
+            if len(self._nodes) < MAX_NODES:
+                self._nodes[participant] = names
             self._participants.pop(participant, None)
             room = MAX_WRITERS - sum(len(w) for w in self._participants.values())
             if len(writers) > room:
@@ -57,6 +66,16 @@ class Graph:
             self._writers = {
                 gid: name for known in self._participants.values() for gid, name in known.items()
             }
+
+    def nodes(self) -> list[str]:
+        """Every other participant's nodes (``/ns/name``), as they announced them."""
+        with self._lock:
+            return [name for names in self._nodes.values() for name in names]
+
+    def participants(self) -> int:
+        """How many participants (other than the node's own) have announced themselves."""
+        with self._lock:
+            return len(self._participants)
 
     def node_of(self, guid: bytes) -> str | None:
         return self._writers.get(guid)

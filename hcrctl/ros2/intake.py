@@ -18,7 +18,6 @@ block either: they hand anything slow to a thread of its own.
 from __future__ import annotations
 
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -37,6 +36,7 @@ from cyclonedds.sub import DataReader
 from cyclonedds.util import duration
 
 from ..served.notes import Level, Note
+from .worker import yield_lock
 
 #: Samples taken from a reader at a time.
 BATCH = 64
@@ -62,13 +62,6 @@ class _Watch:
     on_gone: OnGone | None
     #: The writers matched when last looked (only kept where ``on_gone`` is).
     matched: set[int] = field(default_factory=set)
-
-
-def yield_lock() -> None:
-    """Let another thread waiting for the interpreter lock (a stop's) have it now, not after a switch
-    interval (5 ms): called between two pieces of a burst's work, so a flood of requests costs a stop
-    the work in hand, not the flood's."""
-    time.sleep(0)
 
 
 class Intake:

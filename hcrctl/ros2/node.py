@@ -14,6 +14,11 @@ writer's USER_DATA carries ``typehash=RIHS01_...;`` (the type's hash, REP
 node and the GUIDs of its readers and writers, so ``ros2 node list`` and
 ``ros2 node info`` show it.
 
+Its DDS domain is made as rmw_cyclonedds makes one: ROS 2's discovery
+settings (``ROS_AUTOMATIC_DISCOVERY_RANGE``, ``ROS_STATIC_PEERS``,
+``ROS_LOCALHOST_ONLY``; ``discovery``) first, the user's ``CYCLONEDDS_URI``
+after them.
+
 What the node reads (``cmd_vel``, ``ros_discovery_info``, the services'
 requests) is taken on a thread of its own (``intake.Intake``): no Python
 listener runs on Cyclone's threads, so no DDS call waits for the interpreter
@@ -25,13 +30,15 @@ thread instead of pushing samples out.
 from __future__ import annotations
 
 import contextlib
+import os
 import threading
+import time
 from collections.abc import Callable, Hashable, Mapping
 from dataclasses import replace
 from typing import Any
 
 from cyclonedds.core import DDSException
-from cyclonedds.domain import DomainParticipant
+from cyclonedds.domain import Domain, DomainParticipant
 from cyclonedds.pub import DataWriter
 from cyclonedds.qos import Policy, Qos
 from cyclonedds.sub import DataReader
@@ -41,10 +48,11 @@ from ..errors import HcrError
 from ..protocol import ros2conv, ros2msg, ros2srv
 from ..protocol.ros2types import TYPE_HASHES
 from ..protocol.topics import microseconds
-from ..served.notes import Note
-from . import idl
+from ..served.notes import Level, Note
+from . import discovery, idl
 from .graph import Graph
 from .intake import Intake
+from .middleware import MAX_BUILT, SETTLE_MAX, SETTLE_QUIET
 
 DISCOVERY_TOPIC = "ros_discovery_info"
 #: rmw's own topic: reliable, transient local, keep last 1, so a tool started later learns the node.
@@ -54,8 +62,6 @@ NODE_NAME = "hcrctl"
 HASHES = {**TYPE_HASHES, **ros2srv.TYPE_HASHES}
 #: Writers' GUIDs remembered (by instance handle) before the memo starts afresh.
 MAX_GUIDS = 4096
-#: Messages kept built for their next stamp (``publish_stamped``) before the memo starts afresh.
-MAX_BUILT = 256
 
 #: (the writer that sent it; its message) for every valid sample a reader takes.
 OnMessage = Callable[[str, Any], None]
@@ -67,6 +73,8 @@ INTAKE = "ros2-intake"
 #: comes faster than one thread takes it, and a sample pushed out of a keyless topic's history is lost
 #: (a zero Twist among them, or a participant's announcement).
 READER_DEPTH = 1000
+#: DDS's "no limit" for a resource limit.
+UNLIMITED = -1
 
 
 def dds_topic(name: str, namespace: str) -> str:
@@ -75,12 +83,19 @@ def dds_topic(name: str, namespace: str) -> str:
 
 
 def dds_qos(qos: ros2conv.Qos, ros_type: str, hashes: Mapping[str, str] = HASHES) -> Qos:
-    """Cyclone's QoS for a ROS one, with the type's hash (from ``hashes``) in USER_DATA as rmw puts it there."""
+    """Cyclone's QoS for a ROS one, with the type's hash (from ``hashes``) in USER_DATA as rmw puts it there.
+
+    Transient local keeps for a late reader as many samples as the history does: Cyclone serves late
+    readers from the durability service's history (keep last 1 by default, whatever the writer's history),
+    so it is set to the writer's, as rmw_cyclonedds sets it."""
     reliability = (
         Policy.Reliability.Reliable(max_blocking_time=0) if qos.reliable else Policy.Reliability.BestEffort
     )
     durability = Policy.Durability.TransientLocal if qos.transient_local else Policy.Durability.Volatile
-    policies = [reliability, durability, Policy.History.KeepLast(qos.depth)]
+    history = Policy.History.KeepLast(qos.depth)
+    policies = [reliability, durability, history]
+    if qos.transient_local:  # what a late reader gets is the durability service's history, 1 unless set
+        policies.append(Policy.DurabilityService(0, history, UNLIMITED, UNLIMITED, UNLIMITED))
     if qos.lifespan:
         policies.append(Policy.Lifespan(int(qos.lifespan * 1e9)))
     if ros_type in hashes:
@@ -97,13 +112,20 @@ class DdsError(HcrError):
     """DDS could not be joined (a bad ``CYCLONEDDS_URI``, no usable network interface): exit 1, with a hint."""
 
 
-def _participant(domain: int) -> DomainParticipant:
+def _participant(domain: int, note: Note) -> tuple[DomainParticipant, Domain | None]:
+    """A participant on ``domain``, its domain made with ROS 2's discovery settings (``discovery``) before the
+    user's ``CYCLONEDDS_URI``, as rmw_cyclonedds makes it; each warning about those settings said once."""
+    config, warnings = discovery.cyclone_config(os.environ, os.getpid())
+    for warning in warnings:
+        note(f"warning: {warning}", Level.WARN)
     try:
-        return DomainParticipant(domain)
-    except DDSException:  # its text names only the class; Cyclone logged the reason on stderr
+        made = Domain(domain, config) if config is not None else None
+        return DomainParticipant(domain), made
+    except (DDSException, UnicodeEncodeError):  # its text names only the class; Cyclone logged the reason
         raise DdsError(
             f"could not join DDS domain {domain}",
-            hint="Cyclone DDS says why on the line above; check CYCLONEDDS_URI (its network interface)",
+            hint="Cyclone DDS says why on the line above; check CYCLONEDDS_URI (its network interface) "
+            f"and {discovery.PEERS_ENV}",
         ) from None
 
 
@@ -112,7 +134,7 @@ class Node:
 
     def __init__(self, domain: int, namespace: str, note: Note) -> None:
         self.namespace = namespace
-        self.participant = _participant(domain)
+        self.participant, self._domain = _participant(domain, note)
         #: Takes every sample the node's readers hold, on a thread of its own (see the module).
         self.intake = Intake(self.participant, INTAKE, note)
         self._writers: dict[str, tuple[DataWriter, str]] = {}
@@ -122,6 +144,9 @@ class Node:
         self._more_readers: list[DataReader] = []
         self._more_writers: list[DataWriter] = []
         self._lock = threading.Lock()
+        self._advertised = self._quiet_since = time.monotonic()
+        self._last_heard = (0, 0)
+        self._settled = False
         discovery = Topic(self.participant, DISCOVERY_TOPIC, idl.dds_type(idl.PARTICIPANT_ENTITIES))
         self._discovery = DataWriter(self.participant, discovery, qos=dds_qos(DISCOVERY_QOS, ""))
         #: Which node each writer of the domain belongs to, from the other participants' announcements.
@@ -136,7 +161,8 @@ class Node:
         return f"{self.namespace.rstrip('/')}/{NODE_NAME}"
 
     def advertise(self, topics: list[ros2conv.RosTopic]) -> None:
-        """A writer for each topic, then the node announced once with all of them."""
+        """A writer for each topic, then the node announced once with all of them; discovery's quiet is
+        counted from here (``settled``)."""
         for topic in topics:
             kind = idl.dds_type(topic.type)
             dds = Topic(self.participant, dds_topic(topic.name, self.namespace), kind)
@@ -144,6 +170,27 @@ class Node:
             with self._lock:
                 self._writers[topic.name] = (writer, topic.type)
         self.announce()
+        self._advertised = self._quiet_since = time.monotonic()
+
+    def settled(self) -> bool:
+        """Whether discovery has gone quiet since the writers were made: no participant newly heard on
+        ``ros_discovery_info`` and no reader newly matched to the node's writers for ``SETTLE_QUIET``
+        (``SETTLE_MAX`` at most). A volatile message written after it (the start-up ``/parameter_events``)
+        reaches the readers that were there before the node; DDS says no more (a reader is matched the
+        moment it is discovered, and nothing tells who is yet to be). From one thread (the main loop's)."""
+        if self._settled:
+            return True
+        now, heard = time.monotonic(), self._heard()
+        if heard != self._last_heard:
+            self._last_heard, self._quiet_since = heard, now
+        self._settled = now - self._quiet_since >= SETTLE_QUIET or now - self._advertised >= SETTLE_MAX
+        return self._settled
+
+    def _heard(self) -> tuple[int, int]:
+        """(participants the graph knows, readers matched to the node's writers in all)."""
+        with self._lock:
+            writers = [writer for writer, _ in self._writers.values()]
+        return self.graph.participants(), sum(len(w.get_matched_subscriptions()) for w in writers)
 
     def publish(self, name: str, fields: dict[str, Any]) -> bool:
         """One message on ROS topic ``name``; False if the topic was never advertised."""
@@ -198,6 +245,10 @@ class Node:
             self._more_writers += writers
         self.announce()
 
+    def nodes(self) -> list[str]:
+        """The other nodes of the domain (``/ns/name``), as the graph (``ros_discovery_info``) has them now."""
+        return self.graph.nodes()
+
     def writer_name(self, writer: str) -> str | None:
         """The node (``/ns/name``) that owns ``writer`` (a reader's instance handle of it), if rmw said."""
         guid = self._guids.get(writer)
@@ -246,6 +297,8 @@ class Node:
         # dds_delete of the participant deletes every reader and writer in it and tells the peers at
         # once (a remote reader sees the writers go); Cyclone's Python binding calls it from __del__ only.
         self.participant.__del__()
+        if self._domain is not None:
+            self._domain.__del__()
         self._readers.clear()
         self._writers.clear()
         self._more_readers.clear()

@@ -125,6 +125,26 @@ def checked(param: Param, value: Any) -> float:
     return number
 
 
+def descriptor(name: str) -> dict[str, Any]:
+    """A ``ParameterDescriptor`` of parameter ``name``: its type, description and range (an unknown name's
+    says only the name, as rclcpp's does)."""
+    param = PARAMETERS.get(name)
+    if param is None:
+        return {"name": shown(name), "read_only": False, "dynamic_typing": False}
+    number = float if param.kind == S.DOUBLE else int
+    span = {"from_value": number(param.lo), "to_value": number(param.hi), "step": 0}
+    ranged = {"floating_point_range": [span]} if param.kind == S.DOUBLE else {"integer_range": [span]}
+    return {
+        "name": name,
+        "type": param.kind,
+        "description": param.description,
+        "additional_constraints": "",
+        "read_only": False,
+        "dynamic_typing": False,
+        **ranged,
+    }
+
+
 class Parameters:
     """The table over one served robot; ``announce`` is called with each change (``/parameter_events``)."""
 
@@ -214,23 +234,7 @@ class Parameters:
         }
 
     def describe_parameters(self, request: dict[str, Any]) -> dict[str, Any]:
-        return {"descriptors": [self._descriptor(str(n)) for n in request.get("names") or []]}
-
-    def _descriptor(self, name: str) -> dict[str, Any]:
-        param = PARAMETERS.get(name)
-        if param is None:
-            return {"name": shown(name), "read_only": False, "dynamic_typing": False}
-        span = {"from_value": param.lo, "to_value": param.hi, "step": 0}
-        ranged = {"floating_point_range": [span]} if param.kind == S.DOUBLE else {"integer_range": [span]}
-        return {
-            "name": name,
-            "type": param.kind,
-            "description": param.description,
-            "additional_constraints": "",
-            "read_only": False,
-            "dynamic_typing": False,
-            **ranged,
-        }
+        return {"descriptors": [descriptor(str(n)) for n in request.get("names") or []]}
 
     def set_parameters(self, request: dict[str, Any]) -> dict[str, Any]:
         results = []

@@ -34,7 +34,6 @@ Nothing a client does keeps a stop from running:
 
 from __future__ import annotations
 
-import queue
 import threading
 import time
 from collections import deque
@@ -49,8 +48,9 @@ from cyclonedds.topic import Topic
 from ..protocol import ros2conv, ros2msg, ros2srv
 from ..served.notes import Level
 from . import idl
-from .intake import Intake, yield_lock
+from .intake import Intake
 from .node import Node, Note, dds_qos, reader_qos
+from .worker import CLOSE_WAIT, MAX_FIRST, MAX_WAITING, Worker
 
 #: rmw's default service QoS.
 SERVICE_QOS = ros2conv.Qos(reliable=True, transient_local=False, depth=10)
@@ -74,16 +74,10 @@ Act = Callable[[Request], Any]
 Answer = Callable[[Any], dict[str, Any]]
 #: The longest a reply waits for its client's reader to be matched (seconds).
 MATCH_WAIT = 5.0
-#: Requests waiting for the worker: beyond this a burst is dropped (a client retries), never queued forever.
-MAX_WAITING = 64
-#: First-served requests acted on and waiting for their answer: beyond this the act still runs, unanswered.
-MAX_FIRST = 16
 #: Replies waiting for their client's reader: beyond this the oldest is dropped.
 MAX_PENDING = 256
 #: How often waiting replies look for their readers (seconds).
 RETRY = 0.01
-#: The longest ``close`` waits for a worker to finish what it holds (seconds).
-CLOSE_WAIT = 0.5
 
 
 @dataclass(frozen=True)
@@ -104,20 +98,23 @@ class Services:
         self.note = note
         self.dropped = 0
         self.replies = Replies(note)
-        self._ordinary = _Worker("ros2-services", MAX_WAITING, note, self._dropped)
-        self._paths: list[tuple[Intake, _Worker]] = []
+        self._ordinary = Worker("ros2-services", MAX_WAITING, note, self._dropped)
+        self._paths: list[tuple[Intake, Worker]] = []
 
     def serve(self, name: str, service: str, handler: Handler) -> None:
         """Answer ROS service ``name`` (relative to the node: ``list_parameters``) of type ``service``, in turn."""
         ends = self._endpoints(name, service)
         self.node.intake.watch(
-            ends.reader, lambda sample: self._ordinary.put(lambda: self._answer(ends, sample, handler))
+            ends.reader, lambda sample: self._queue(lambda: self._answer(ends, sample, handler))
         )
+
+    def _queue(self, job: Callable[[], None]) -> None:
+        self._ordinary.put(job)
 
     def serve_first(self, name: str, service: str, act: Act, answer: Answer) -> None:
         """Serve ``name`` on a path of its own: ``act`` runs as each request is taken, ``answer`` after it."""
         ends = self._endpoints(name, service)
-        worker = _Worker(f"ros2-{name}", MAX_FIRST, self.note, self._dropped)
+        worker = Worker(f"ros2-{name}", MAX_FIRST, self.note, self._dropped)
         intake = Intake(self.node.participant, f"ros2-{name}-intake", self.note)
 
         def taken(sample: Any) -> None:
@@ -168,37 +165,6 @@ class Services:
         for worker in [self._ordinary, *(worker for _, worker in self._paths)]:
             worker.close(deadline)
         self.replies.close(deadline)
-
-
-class _Worker:
-    """One thread running jobs in the order they came; beyond ``room`` waiting, a job is dropped."""
-
-    def __init__(self, name: str, room: int, note: Note, dropped: Callable[[], None]) -> None:
-        self._jobs: queue.Queue[Callable[[], None] | None] = queue.Queue(room)
-        self._note, self._dropped = note, dropped
-        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
-        self._thread.start()
-
-    def put(self, job: Callable[[], None]) -> None:
-        try:
-            self._jobs.put_nowait(job)
-        except queue.Full:
-            self._dropped()
-
-    def _run(self) -> None:
-        while (job := self._jobs.get()) is not None:
-            job()
-            yield_lock()
-
-    def close(self, deadline: float) -> None:
-        """Ends after the jobs it holds; waited for until ``deadline`` (a daemon thread, it dies with us)."""
-        while True:
-            try:
-                self._jobs.put(None, timeout=max(0.0, deadline - time.monotonic()))
-                break
-            except queue.Full:
-                return
-        self._thread.join(timeout=max(0.0, deadline - time.monotonic()))
 
 
 @dataclass

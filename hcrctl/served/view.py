@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 from ..motion.bumpers import BumperRule
 from ..motion.governor import Governor
@@ -26,6 +26,18 @@ from .tuning import Setter, Tuning
 
 if TYPE_CHECKING:
     from ..link.client import Robot
+
+
+class LinkState(NamedTuple):
+    """The link as the poller sees it: its status (connecting, ok, no reply, disconnected), the sweeps a second
+    achieved lately (None before two), and what it counted so far: timeouts, checksum errors, and bytes that
+    belonged to no frame (junk: noise on the line, a baud rate that disagrees)."""
+
+    status: str
+    sweeps_per_s: float | None
+    timeouts: int
+    checksum_errors: int
+    junk_bytes: int
 
 
 class Flag(Protocol):
@@ -135,11 +147,13 @@ class RuntimeView:
         """Messages the feed has published so far."""
         return self._feed.messages
 
-    def link_state(self) -> tuple[str, float | None, int, int]:
-        """The link as the poller sees it: its status (connecting, ok, no reply, disconnected), the sweeps a
-        second achieved lately (None before two), and the timeouts and checksum errors counted so far."""
+    def link_state(self) -> LinkState:
+        """The link as the poller sees it now (``LinkState``)."""
         view = self._feed.state.view()
-        return view.status, view.poll_rate, view.counters.timeouts, view.counters.checksum_errors
+        counters = view.counters
+        return LinkState(
+            view.status, view.poll_rate, counters.timeouts, counters.checksum_errors, counters.junk_bytes
+        )
 
     @property
     def bumper_bound(self) -> float:

@@ -49,6 +49,9 @@ class Row:
     prefix: str
     #: ``module:class`` of the ``Notes`` its stderr is, made from (stream, prefix), when not plain ``Notes``.
     notes: str = ""
+    #: ``module:function`` checking, from its options, what it needs instead of ``package`` alone (a front
+    #: end that runs on one of several packages), called as ``f(options, needed_by)``.
+    requires: str = ""
 
 
 FRONT_ENDS: dict[str, Row] = {
@@ -79,14 +82,18 @@ FRONT_ENDS: dict[str, Row] = {
         silence="no cmd_vel",
         summary_line="hcrctl.ros2.frontend:summary_line",
         prefix="hcrctl: ros2: ",
+        requires="hcrctl.ros2.middleware:needs",
     ),
 }
 
 
-def require_front_end(name: str, needed_by: str) -> None:
-    """The package front end ``name`` needs, or one line naming its extra (``MissingExtra``)."""
+def require_front_end(name: str, needed_by: str, options: Mapping[str, Any] | None = None) -> None:
+    """The package front end ``name`` needs for ``options``, or one line saying how to get it (``MissingExtra``)."""
     row = FRONT_ENDS[name]
-    require(row.package, row.extra, needed_by)
+    if row.requires:
+        imported(row.requires)(options or {}, needed_by)
+    else:
+        require(row.package, row.extra, needed_by)
 
 
 def summary_line(name: str) -> Callable[[dict[str, Any]], str]:
@@ -115,8 +122,8 @@ def serve(
     """Serve the robot behind ``settings`` through ``fronts`` (name -> its options), the first speaking for
     the run (its stderr, its deadman's words); the summary, as ``ServedRobot.run``. ``guarded``: as
     ``ServedRobot``'s (no unauthenticated peer loosens the rate or the deadman)."""
-    for name in fronts:
-        require_front_end(name, needed_by)
+    for name, options in fronts.items():
+        require_front_end(name, needed_by, options)
     first = FRONT_ENDS[next(iter(fronts))]
     notes = (imported(first.notes) if first.notes else Notes)(sys.stderr, first.prefix)
     served = ServedRobot(
