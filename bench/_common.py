@@ -6,15 +6,18 @@ exit non-zero when a target is missed, and the test suite never asserts on time.
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import json
 import math
 import os
 import platform
+import shutil
 import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -27,6 +30,12 @@ ROOT = Path(__file__).resolve().parent.parent
 
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
+
+#: A bench run's fleet robot keys and known robots are its own, never the user's: a robot served by a bench
+#: under a lab's name (r1) must not be remembered as that robot by the user's operator (its key refused then).
+DATA_HOME = tempfile.mkdtemp(prefix="hcrctl-bench-data-")
+os.environ["XDG_DATA_HOME"] = DATA_HOME
+atexit.register(shutil.rmtree, DATA_HOME, True)
 
 
 def best_of(run: Callable[[], object], repeat: int = 5) -> float:

@@ -16,13 +16,15 @@ from __future__ import annotations
 
 import hashlib
 import json
+import secrets
 import sys
 import threading
 import time
 from typing import Any
 
 import zenoh
-from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
+from cryptography.exceptions import InvalidSignature
+from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
 
 WAIT_S = 10.0
 
@@ -60,9 +62,15 @@ class Client:
         self.token = self.s.liveliness().declare_token(f"hcr/{self.robot}/op/{self.name}/{self.session}")
 
     def info(self) -> dict[str, Any]:
-        """Step 3: the robot's info, with the challenge every signature covers."""
-        for reply in self.s.get(f"hcr/{self.robot}/info", timeout=WAIT_S):
-            info: dict[str, Any] = json.loads(reply.ok.payload.to_bytes())
+        """Step 3: the robot's info, with the challenge every signature covers, believed only when signed for
+        this question by the robot key it names."""
+        nonce = secrets.token_hex(16)
+        key = f"hcr/{self.robot}/info"
+        for reply in self.s.get(key, payload=json.dumps({"nonce": nonce}), timeout=WAIT_S):
+            data = reply.ok.payload.to_bytes()
+            info: dict[str, Any] = json.loads(data)
+            if not proven(info.get("key", ""), key, nonce, data):
+                raise SystemExit("the info is not signed by the robot key it names")
             self.challenge = info.get("challenge", "")  # an older serve has none: its failure is the test's
             return info
         raise SystemExit("no info")
@@ -99,10 +107,12 @@ class Client:
         return (*self.send(key, payload, attachment), payload, attachment)
 
     def send(self, key: str, payload: bytes, attachment: bytes | None) -> tuple[bool, dict[str, Any]]:
+        """A query's answer, its signature left out (what it proves is checked on the info, step 3)."""
         for reply in self.s.get(key, payload=payload, attachment=attachment, timeout=WAIT_S):
-            if reply.ok is not None:
-                return True, json.loads(reply.ok.payload.to_bytes())
-            return False, json.loads(reply.err.payload.to_bytes())
+            ok = reply.ok is not None
+            answer: dict[str, Any] = json.loads((reply.ok if ok else reply.err).payload.to_bytes())
+            answer.pop("signature", None)
+            return ok, answer
         return False, {"error": "no answer"}
 
     def claim(self) -> tuple[bool, dict[str, Any], bytes, bytes]:
@@ -120,6 +130,23 @@ class Client:
     def put(self, key: str, message: dict[str, Any], what: str) -> None:
         payload = json.dumps(message).encode()
         self.s.put(key, payload, attachment=self.attachment(what, payload))
+
+
+def proven(public: str, key: str, nonce: str, data: bytes) -> bool:
+    """Whether ``data`` (an answer on ``key``) is signed by the robot key ``public`` for ``nonce``: its last
+    member ``, "signature": "HEX"`` taken out, the rest is what was signed, after the head lines."""
+    tail = b', "signature": "'
+    at = data.rfind(tail)
+    if at < 0 or not data.endswith(b'"}') or len(data) - at != len(tail) + 128 + 2:
+        return False
+    body, signature = data[:at] + b"}", bytes.fromhex(data[at + len(tail) : -2].decode())
+    try:
+        Ed25519PublicKey.from_public_bytes(bytes.fromhex(public)).verify(
+            signature, f"hcr-fleet-robot-1\n{key}\n{nonce}\n".encode() + body
+        )
+    except (InvalidSignature, ValueError):
+        return False
+    return True
 
 
 def robots(s: Any) -> list[str]:

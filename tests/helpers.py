@@ -84,6 +84,7 @@ def clean_env(home: Path, **extra: str) -> dict[str, str]:
     """The environment without HCRCTL_* and with a config dir of our own."""
     env = {k: v for k, v in os.environ.items() if not k.startswith("HCRCTL_") and k != "_HCRCTL_COMPLETE"}
     env["XDG_CONFIG_HOME"] = str(home)
+    env["XDG_DATA_HOME"] = str(home / "data")  # fleet robot keys and known robots: the test's own
     env["COLUMNS"] = "100"
     env.update(extra)
     return env

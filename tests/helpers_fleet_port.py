@@ -20,8 +20,9 @@ import subprocess
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-from helpers import TIMEOUT, clean_env, hcrctl_exe, wait_until
+from helpers import TIMEOUT, clean_env, hcrctl_exe, terminal_env, wait_until
 from helpers_netns import OPERATOR_HOST, ROBOT_HOST, ROUTER_HOST, Topology
 
 from hcrctl.protocol import commands as C
@@ -164,6 +165,18 @@ class Fleet:
             stdin=subprocess.DEVNULL,
             start_new_session=True,
         )
+
+    def terminal_env(self, *size: int) -> dict[str, str]:
+        """A terminal's environment (``helpers.terminal_env``) with this fleet's config and data homes: an
+        operator on a terminal knows the robots of this fleet only, never the user's."""
+        return terminal_env(*size) | {k: self.env[k] for k in ("XDG_CONFIG_HOME", "XDG_DATA_HOME")}
+
+    def listed(self) -> list[dict[str, Any]]:
+        """``fleet list --json`` on the operator's host: each robot's info."""
+        done = self.run_on(OPERATOR_HOST, ["--zenoh", self.endpoint, "--json", "fleet", "list"])
+        assert done.returncode == 0, done.stderr
+        found: list[dict[str, Any]] = json.loads(done.stdout)
+        return found
 
     def sim_tcp(self, *options: str) -> str:
         """``hcrctl sim --tcp 0`` on the robot's host (any number of clients share it): its ``socket://`` URL."""

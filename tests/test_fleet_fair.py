@@ -173,8 +173,13 @@ def test_a_session_that_came_while_the_room_was_full_drives_once_there_is_room(
     running, _ = robot
     wire = running.served["r1"]
     peer = Peer(running)
-    peer.ask(f"tokens {MAX_OPERATORS + 1}", "tokens")
-    wait_until(lambda: peer.told(f"filler{MAX_OPERATORS}"), what="the robot side full")
+    peer.ask(f"tokens {MAX_OPERATORS + 1}", "tokens")  # admitted at the rate new sessions are
+
+    def full() -> bool:
+        counters = running.listed()[0]["counters"]
+        return bool(counters["operators"] == MAX_OPERATORS and counters["waiting"] == 1)
+
+    wait_until(full, what="the robot side full, one token waiting")
     shell = Shell(running)
     shell.run("drive velocity -10 -10 --for 0.2")
     refused = wait_until(lambda: shell.errors(), what="the refused drive")[0]

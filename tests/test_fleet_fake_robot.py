@@ -56,17 +56,40 @@ INFOS = {
 }
 
 
+class Signer:
+    """A robot key of the fake's own, signing as docs/fleet.md says a robot signs its answers (by hand here,
+    not with hcrctl's code): so the fake is a robot met for the first time, and what it says is shown."""
+
+    def __init__(self) -> None:
+        from cryptography.hazmat.primitives.asymmetric import ed25519
+
+        self.private = ed25519.Ed25519PrivateKey.generate()
+        self.public = self.private.public_key().public_bytes_raw().hex()
+
+    def seal(self, key: str, query: Any, body: bytes) -> bytes:
+        """``body`` (a JSON object's bytes) with its signature for ``query``'s nonce as its last member."""
+        try:
+            nonce = json.loads(bytes(query.payload))["nonce"]
+        except Exception:
+            nonce = "-"
+        signature = self.private.sign(f"hcr-fleet-robot-1\n{key}\n{nonce}\n".encode() + body).hex()
+        return body[:-1] + b', "signature": "' + signature.encode() + b'"}'
+
+
 @contextlib.contextmanager
 def fake_robot(endpoint: str, info: bytes, name: str = "evil") -> Iterator[Any]:
-    """``hcr/NAME/alive``, an ``info`` answering ``info``, and a compass read answered by 1 MB of escapes."""
+    """``hcr/NAME/alive``, an ``info`` answering ``info``, and a compass read answered by 1 MB of escapes,
+    each signed by a robot key of its own (its info names it)."""
     session = open_session("client", Where((endpoint,), (), None))
     error = json.dumps({"error": (ESCAPES + "\n") * 80_000, "hint": ESCAPES * 1000}).encode()
+    signer = Signer()
+    keyed = info[:-1] + f', "key": "{signer.public}"}}'.encode()
 
     def answer(query: Any) -> None:
-        query.reply(keyspace.info(name), info)
+        query.reply(keyspace.info(name), signer.seal(keyspace.info(name), query, keyed))
 
     def refuse(query: Any) -> None:
-        query.reply_err(error)
+        query.reply_err(signer.seal(keyspace.read(name, "compass"), query, error))
 
     held = [
         session.declare_queryable(keyspace.info(name), answer),

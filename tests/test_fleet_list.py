@@ -63,7 +63,7 @@ def test_the_table_names_who_drives(lab_here: Fleet) -> None:
         done = lab.run([*lab.zenoh, "fleet", "list"])
     assert done.returncode == 0, done.stderr
     header, row = done.stdout.splitlines()[:2]
-    assert header.split() == ["robot", "port", "protocol", "driver", "age"]
+    assert header.split() == ["robot", "port", "protocol", "driver", "age", "key"]
     assert row.split()[:4] == ["gamma", serve.proc.args[2], "v0.15", "op7"]  # type: ignore[index]
 
 

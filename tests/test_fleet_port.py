@@ -18,7 +18,7 @@ import pytest
 
 pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip install 'hcrctl[zenoh]')")
 
-from helpers import terminal, terminal_env
+from helpers import terminal
 from helpers_cli import run
 from helpers_fleet_port import Fleet, fleet, is_motion, is_stop
 from helpers_netns import ROBOT_HOST, Topology
@@ -119,7 +119,7 @@ def test_monitor_shows_the_broadcasts_the_robots_wire_hears(robot: Fleet) -> Non
 
 def test_plot_draws_the_robots_heading(robot: Fleet) -> None:
     args = robot.operator("r1", "plot", "compass.heading")
-    env = terminal_env(100, 30) | {"XDG_CONFIG_HOME": str(robot.tmp)}
+    env = robot.terminal_env(100, 30)
     with terminal(args, size=(100, 30), env=env, on=robot.at_operator) as term:
         screen = term.wait_for(
             lambda t: re.search(r"compass\.heading \d", t) and len(BRAILLE.findall(t)) >= 4

@@ -18,7 +18,7 @@ import pytest
 
 pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip install 'hcrctl[zenoh]')")
 
-from helpers import TIMEOUT, terminal, terminal_env
+from helpers import TIMEOUT, terminal
 from helpers_fleet_port import Fleet, fleet, is_motion, is_stop
 from helpers_netns import Topology
 
@@ -69,7 +69,7 @@ def test_turn_is_written_once_and_stopped_when_the_compass_shows_it_done(robot: 
 
 
 def test_teleop_keys_move_the_robot_and_q_stops_it(robot: Fleet) -> None:
-    env = terminal_env() | {"XDG_CONFIG_HOME": str(robot.tmp)}
+    env = robot.terminal_env()
     with terminal(robot.operator("r1", "teleop", "--deadman", "5"), env=env, on=robot.at_operator) as term:
         term.wait_for("sending")
         term.send("w")
@@ -93,7 +93,7 @@ def test_a_second_operator_is_refused_naming_the_driver_and_a_third_stops_it(rob
     assert third.returncode == 0, third.stderr
     # No frame crossed the fleet: the line says what was put and what the robot side said of it.
     assert re.fullmatch(
-        r"stop put on hcr/r1/stop; hcr/r1/status said: stopped: stop from someone unverified calling itself "
+        r"stop put on hcr/r1/stop; r1 said: stopped: stop from someone unverified calling itself "
         r"\S+\n",
         third.stdout,
     ), third.stdout
@@ -112,7 +112,7 @@ def test_teleop_of_a_second_operator_ends_with_one_line_naming_the_driver(robot:
     first, _, first_err = robot.start("r1", "drive", *SPIN)
     wire = robot.served["r1"]
     moved = wire.wait_sent(power(*SPIN_POWER), what="the first operator's motion")
-    env = terminal_env() | {"XDG_CONFIG_HOME": str(robot.tmp)}
+    env = robot.terminal_env()
     with terminal(robot.operator("r1", "teleop"), env=env, on=robot.at_operator) as term:
         term.wait_for("sending")
         term.send("w")
@@ -142,7 +142,7 @@ def test_a_killed_operator_is_stopped_by_its_token_going_not_by_the_deadman(robo
 
 def test_a_killed_teleop_is_stopped_by_its_token_going(robot: Fleet) -> None:
     """teleop's own deadman (5 s here) would stop it later, and the robot side's is 10 s: the stop is the token's."""
-    env = terminal_env() | {"XDG_CONFIG_HOME": str(robot.tmp)}
+    env = robot.terminal_env()
     with terminal(robot.operator("r1", "teleop", "--deadman", "5"), env=env, on=robot.at_operator) as term:
         term.wait_for("sending")
         term.send("w")

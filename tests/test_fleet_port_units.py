@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import re
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -141,7 +142,7 @@ def test_the_word_of_this_sessions_own_stop_never_halts_its_next_motion() -> Non
     session = _Session()
     lease = DriveLease(session, "r1", OP, Identity(), 0.5)
     lease.held = lease.driving = True
-    lease.stop()
+    lease.stop("0" * 32)
     assert session.puts == [keyspace.stop("r1")]
     lease.held = lease.driving = True  # the next motion taken before the robot side's word of that stop came
     lease.heard(keyspace.stopped_status(OP, "stopped: stop from op1", "stop"))
@@ -196,25 +197,54 @@ class _Reply:
         self.ok = None if ok is None else type("Sample", (), {"payload": _Payload(ok)})()
         self.err = None if err is None else type("ReplyError", (), {"payload": _Payload(err)})()
 
+    def signed(self, nonce: str) -> _Reply:
+        """This reply as the robot side sends it: an answer of its (a JSON object) signed for ``nonce``."""
+        sample = self.ok if self.ok is not None else self.err
+        data = sample.payload.data
+        if not data.startswith(b"{"):
+            return self  # Zenoh's own error
+        sealed = _robot_key().sealed(keyspace.drive("r1"), nonce, data)
+        return _Reply(ok=sealed) if self.ok is not None else _Reply(err=sealed)
+
+
+def _robot_key() -> Any:
+    """r1's key, made once for these tests (``robotkey``)."""
+    global _ROBOT
+    if _ROBOT is None:
+        from cryptography.hazmat.primitives.asymmetric import ed25519
+
+        from hcrctl.link.zenoh.robotkey import RobotKey
+
+        private = ed25519.Ed25519PrivateKey.generate()
+        _ROBOT = RobotKey(private.private_bytes_raw().hex(), private.public_key().public_bytes_raw().hex())
+    return _ROBOT
+
+
+_ROBOT: Any = None
+
 
 class _Asked(_Session):
-    """A session whose drive queries are answered, one list of replies per query, in turn."""
+    """A session whose drive queries are answered, one list of replies per query, in turn, signed by r1's
+    key for the question's nonce."""
 
     def __init__(self, answers: list[list[_Reply]]) -> None:
         super().__init__()
         self.answers = answers
         self.asked = 0
 
-    def get(self, key: str, *handler: object, **options: object) -> list[_Reply]:
+    def get(self, key: str, *handler: object, **options: Any) -> list[_Reply]:
         self.asked += 1
-        return self.answers.pop(0) if self.answers else []
+        nonce = json.loads(options["payload"])["nonce"]
+        return [reply.signed(nonce) for reply in self.answers.pop(0)] if self.answers else []
 
 
 def _asking_lease(session: _Asked, present: list[bool]) -> object:
     from hcrctl.link.zenoh.identity import Identity
     from hcrctl.link.zenoh.lease import DriveLease
+    from hcrctl.link.zenoh.robotkey import RobotProof
 
     lease = DriveLease(session, "r1", OP, Identity(), 0.5, present=lambda: present[0])
+    lease.proof = RobotProof("r1", _robot_key().public_hex)
     lease.challenge = "c" * 32
     lease.admission = "a" * 32  # the session's lease value, as if asked already
     lease._start = lambda: None  # type: ignore[method-assign]  # no renewing thread in a unit test
@@ -257,12 +287,31 @@ def test_a_renewals_answer_with_the_stops_words_halts_the_motion_that_missed_its
     ):
         lease = _asking_lease(_Asked([]), [True])
         lease.held = lease.driving = True  # type: ignore[attr-defined]
-        lease._renewed(answer)  # type: ignore[attr-defined]
+        lease._renewed(answer.signed("9" * 32), "9" * 32)  # type: ignore[attr-defined]
         assert lease.halted is not None and lease.halted.message.startswith("r1 stopped: ")  # type: ignore[attr-defined]
         assert lease.halted.hint in (HALT_HINTS["stop"], HALT_HINTS["deadman"])  # type: ignore[attr-defined]
     lease = _asking_lease(_Asked([]), [True])
-    lease._renewed(_Reply(ok=json.dumps({"stopped": "stopped: stop from op1", "reason": "stop"}).encode()))  # type: ignore[attr-defined]
+    said = _Reply(ok=json.dumps({"stopped": "stopped: stop from op1", "reason": "stop"}).encode())
+    lease._renewed(said.signed("9" * 32), "9" * 32)  # type: ignore[attr-defined]
     assert lease.halted is None  # type: ignore[attr-defined]  # no motion of its ran: nothing to halt
     lease.held = lease.driving = True  # type: ignore[attr-defined]
-    lease._renewed(_Reply(err=b"Timeout"))  # type: ignore[attr-defined]
+    lease._renewed(_Reply(err=b"Timeout"), "9" * 32)  # type: ignore[attr-defined]
     assert lease.held and lease.halted is None  # type: ignore[attr-defined]  # Zenoh's timeout: renewed on
+
+
+def test_a_renewals_answer_the_robot_did_not_sign_for_it_is_nobodys_until_only_such_answers_come() -> None:
+    """A stop's words signed for another renewal, or not signed, halt nothing; answers that the robot did not
+    sign, and none that it did for ``UNPROVEN_S``, end the motion saying so."""
+    pytest.importorskip("zenoh", reason="the lease's puts name Zenoh's encodings")
+    from hcrctl.link.zenoh import lease as leases
+
+    words = _Reply(ok=json.dumps({"stopped": "stopped: stop from op2", "reason": "stop"}).encode())
+    lease = _asking_lease(_Asked([]), [True])
+    lease.held = lease.driving = True  # type: ignore[attr-defined]
+    lease._renewed(words.signed("8" * 32), "9" * 32)  # type: ignore[attr-defined]  # a replay of another's
+    lease._renewed(words, "9" * 32)  # type: ignore[attr-defined]  # unsigned: a fake's
+    assert lease.halted is None and lease.held  # type: ignore[attr-defined]
+    lease._proven_at -= leases.UNPROVEN_S + 0.1  # type: ignore[attr-defined]
+    lease._renewed(words, "9" * 32)  # type: ignore[attr-defined]
+    assert lease.halted is not None and not lease.held  # type: ignore[attr-defined]
+    assert lease.halted.message.startswith("r1 could not prove it is r1: its answers to ")  # type: ignore[attr-defined]

@@ -153,6 +153,11 @@ class DeviceRefused(HcrError):
     """The device answered, but said no (for example PID reply 0x00)."""
 
 
+class NotTheRobot(HcrError):
+    """What answered on a link could not prove it is the robot (a fleet robot signs with its key): nothing it
+    says is believed, a stop's word least of all."""
+
+
 class PortError(HcrError):
     """The port could not be opened, or failed while in use."""
 

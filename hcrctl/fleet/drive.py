@@ -58,11 +58,12 @@ never written through. A turn is written once and held under the lease.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import secrets
 import threading
 import time
-from collections import OrderedDict
+from collections import OrderedDict, deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple, Protocol, SupportsBytes
@@ -70,18 +71,20 @@ from typing import Any, NamedTuple, Protocol, SupportsBytes
 from ..errors import ProtocolError
 from ..inputs import PeerJsonError, peer_json
 from ..link.zenoh import identity, keyspace
+from ..link.zenoh.robotkey import UNASKED, ask_of
 from ..motion.governor import STILL, Governor, Kind, Source, Verdict, Wheels, refusal
 from ..motion.reasons import Reason
 from ..protocol import commands as C
 from ..protocol.profiles import Profile
 from ..served.cmdvel import BadTwist, parse_twist, twist_wheels
 from ..served.peerwords import PeerWords
+from .admission import Admissions
 from .queries import QueryError, code_text
 
 #: Operator sessions present at once (their tokens); a token beyond this waits for room.
 MAX_OPERATORS = 256
 #: Sessions gone remembered with their keys and numbers, the oldest forgotten first.
-MAX_GONE = 16384
+MAX_GONE = 4096
 #: ... and for this long at most: forgetting one is safe, since its next admission draws a new lease value
 #: (``Present.lease``) that none of its old messages was signed for.
 GONE_S = 300.0
@@ -91,6 +94,8 @@ GONE_ENV = "HCRCTL_TEST_FLEET_GONE"
 #: stopped this long after its last renewal (its lease renews every ``lease.RENEW_S``), whatever subscriber,
 #: queryable or token copy anyone declares; only its key can sign.
 HOLD_S = 0.15
+#: The nonces of stops not yet answered by a ``stopped`` word, at most: a flood of stops pushes out the oldest.
+MAX_STOP_ASKS = 16
 #: Tokens that wait for room, at most (first come, first admitted); one beyond this is counted and forgotten.
 MAX_WAITING = 256
 #: Say = (operator a refusal is for or about, its text or a built status, the sequence number it is
@@ -128,6 +133,8 @@ class DriveCounters:
     stops: int = 0
     #: Operator tokens not admitted when they came: ``MAX_OPERATORS`` sessions were present already.
     unadmitted: int = 0
+    #: Operator tokens not admitted when they came: new sessions came faster than ``admission`` admits.
+    churned: int = 0
 
 
 @dataclass
@@ -246,11 +253,15 @@ class FleetDrive:
         self.challenge = keyspace.new_challenge()
         #: Sessions whose token came while ``MAX_OPERATORS`` were present, in the order they came.
         self._waiting: dict[keyspace.Who, None] = {}
+        #: How fast new sessions are admitted (``admission``): churn beyond it waits in that line too.
+        self._admissions = Admissions()
         #: The serving process's budget for words about peers; each session present has one of its own.
         self.words = words
         words.know(self._present.__contains__)
         self._lock = threading.Lock()
         self._max_gone = int(os.environ.get(GONE_ENV) or MAX_GONE)
+        #: The nonces of the stops taken since the last ``stopped`` word (``robotkey``), which names them.
+        self._stop_asks: deque[str] = deque(maxlen=MAX_STOP_ASKS)
 
     # -- messages ---------------------------------------------------------------
 
@@ -292,6 +303,19 @@ class FleetDrive:
                 present.stopped = None  # it moves again: the last stop's words are told
         if not drove and self.governor.driver == source:  # not a zero that stopped another
             self._say(op, keyspace.drives_status(op, self.robot), None)
+
+    def sessions(self) -> tuple[int, int]:
+        """(operator sessions present, tokens waiting their turn): in ``info``'s counters."""
+        with self._lock:
+            return len(self._present), len(self._waiting)
+
+    def stops_asked(self) -> tuple[str, ...]:
+        """The nonces of the stops taken since the last time (a ``stopped`` word names them, ``robotkey``)."""
+        asks = []
+        with contextlib.suppress(IndexError):
+            while True:
+                asks.append(self._stop_asks.popleft())
+        return tuple(asks)
 
     def stopped_for(self, op: keyspace.Who, text: str, reason: str) -> None:
         """The motion ``op`` drove was stopped (``text``, for ``reason``): kept for its next claims' answers."""
@@ -366,6 +390,9 @@ class FleetDrive:
         full = f"{len(self._present)} operator sessions are present on {self.robot}"
         if op in self._waiting:
             place = list(self._waiting).index(op) + 1
+            if len(self._present) < MAX_OPERATORS:
+                churn = self._admissions.why(op.name)
+                return f"refused: {churn} came to {self.robot}, the most it admits; {op}'s token waits its turn (#{place} in line)"
             return f"refused: {full}, the most it admits; {op}'s token waits for room (#{place} in line)"
         said = (
             f"refused: {op} has no liveliness token on {self.robot} "
@@ -390,7 +417,11 @@ class FleetDrive:
         """Anyone may stop; the lease is freed. Said as its sender's only when that session signed it."""
         parsed = keyspace.parse_attachment(attachment)
         by = None
-        if parsed is not None and self.check("stop", parsed, payload, _named_key(payload)).why is None:
+        message = keyspace.loads(payload)  # its size and nesting bounded, as every peer's JSON
+        if (ask := ask_of(message)) != UNASKED:
+            self._stop_asks.append(ask)
+        named_key = message.get("key") if isinstance(message, dict) else None
+        if parsed is not None and self.check("stop", parsed, payload, named_key).why is None:
             who, by = str(parsed.who), operator_source(parsed.who)
         elif parsed is not None:
             who = f"someone unverified calling itself {parsed.who}"  # a name: letters, digits, _ . -
@@ -518,20 +549,28 @@ class FleetDrive:
         return False, {"error": why, "driver": named(self.governor.driver)}
 
     def operator_here(self, key: str) -> None:
-        """An operator's token appeared: its session may claim, or, with MAX_OPERATORS present, it waits
-        for room (at most MAX_WAITING wait; one beyond them is counted and forgotten)."""
+        """An operator's token appeared: its session may claim, or it waits its turn (at most MAX_WAITING
+        wait; one beyond them is counted and forgotten): for room, with MAX_OPERATORS present, or for the
+        admission rate (``admission``), behind those already waiting (first come, first admitted)."""
         op = keyspace.operator_of(key)
         if op is None:
             return
         with self._lock:
             if op in self._present or op in self._waiting:
                 return
-            if len(self._present) < MAX_OPERATORS:
+            room = len(self._present) < MAX_OPERATORS
+            if room and not self._waiting and (op in self._gone or self._admissions.take(op.name)):
                 self._admit(op)
                 return
-            self.counters.unadmitted += 1
             if len(self._waiting) < MAX_WAITING:
                 self._waiting[op] = None
+            self._admit_waiting()
+            if op in self._present:
+                return
+            if room:
+                self.counters.churned += 1
+            else:
+                self.counters.unadmitted += 1
             why = self._not_admitted(op)
         self._tell(op, why, proven=False)
 
@@ -540,7 +579,18 @@ class FleetDrive:
         back = self._gone.pop(op) if op in self._gone else None
         if back is not None:
             back.rejoined = True
+            back.key = identity.verifier(back.key)
         self._present[op] = back if back is not None else Present()
+
+    def _admit_waiting(self) -> None:
+        """Admit the tokens waiting (under the lock), first come first, while there is room and each may be
+        admitted now (``admission``): one name over its rate does not hold back the others."""
+        for op in list(self._waiting):
+            if len(self._present) >= MAX_OPERATORS:
+                return
+            if op in self._gone or self._admissions.take(op.name):
+                del self._waiting[op]
+                self._admit(op)
 
     def operator_gone(self, key: str) -> None:
         """An operator's token went (a killed laptop, a closed session): forgotten, its room given to the
@@ -561,6 +611,8 @@ class FleetDrive:
             now = time.monotonic()
             if present is not None and present.key is not None:
                 present.gone_at = now
+                present.key = identity.raw(present.key)  # 32 bytes while gone, not a verifier object
+                present.dropped = present.stopped = None
                 self._gone[op] = present
             while self._gone and (
                 len(self._gone) > self._max_gone or now - next(iter(self._gone.values())).gone_at > GONE_S
@@ -570,10 +622,7 @@ class FleetDrive:
             if present is not None:
                 hold, present.hold = present.hold, None
             self._waiting.pop(op, None)
-            while self._waiting and len(self._present) < MAX_OPERATORS:
-                first = next(iter(self._waiting))
-                del self._waiting[first]
-                self._admit(first)
+            self._admit_waiting()
         if hold is not None and self._holds is not None:
             self._holds.drop(keyspace.hold(self.robot, hold))
         if operator_source(op) == self.governor.driver:
@@ -612,8 +661,12 @@ class FleetDrive:
             self._say(op, text, seq)
 
     def tick(self) -> None:
-        """The driver's life (``HOLD_S``): an operator whose motion runs and whose last signed word is older
-        is gone (a lease held still waits for the deadman: it moves nothing)."""
+        """The tokens waiting their turn admitted as the rate allows (``admission``); the driver's life
+        (``HOLD_S``): an operator whose motion runs and whose last signed word is older is gone (a lease
+        held still waits for the deadman: it moves nothing)."""
+        if self._waiting:
+            with self._lock:
+                self._admit_waiting()
         driver = self.governor.driver
         if (
             driver is None
@@ -629,12 +682,6 @@ class FleetDrive:
             self.governor.release(
                 driver, f"operator {op} gone: no signed word of its for {silent:.2f} s", Reason.OPERATOR_GONE
             )
-
-
-def _named_key(payload: bytes) -> object:
-    """The public key a stop's payload names (``{"key": HEX}``, as a claim's does), or None."""
-    message = keyspace.loads(payload)  # its size and nesting bounded, as every peer's JSON
-    return message.get("key") if isinstance(message, dict) else None
 
 
 def named(driver: Source | None) -> str | None:

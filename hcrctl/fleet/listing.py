@@ -19,12 +19,13 @@ is refused for that robot alone, which is then listed by name with an
 
 from __future__ import annotations
 
+import json
 import queue
 import time
 from collections.abc import Callable, Iterable
 from typing import Any
 
-from ..link.zenoh import keyspace
+from ..link.zenoh import keyspace, robotkey
 from ..link.zenoh.join import Where, import_zenoh, join
 
 #: How long ``fleet list`` waits, by default, for the robots' tokens and for each one's ``info``.
@@ -43,23 +44,38 @@ def names(session: Any, timeout: float) -> list[str]:
 
 def infos(session: Any, robots: Iterable[str], timeout: float) -> list[dict[str, Any]]:
     """Each robot's ``info``, asked of all at once; one that does not answer is listed by name only."""
-    asked = [(name, session.get(keyspace.info(name), timeout=timeout)) for name in robots]
-    return [_info(name, replies) for name, replies in asked]
+    known = robotkey.KnownRobots()
+    asked = []
+    for name in robots:
+        nonce = robotkey.new_nonce()
+        replies = session.get(keyspace.info(name), payload=json.dumps({"nonce": nonce}), timeout=timeout)
+        asked.append((name, nonce, replies))
+    return [_info(name, nonce, replies, known) for name, nonce, replies in asked]
 
 
-def _info(name: str, replies: Any) -> dict[str, Any]:
-    """The robot's info (``age`` added), or its name and why its answer was refused (``error``)."""
+def _info(name: str, nonce: str, replies: Any, known: robotkey.KnownRobots) -> dict[str, Any]:
+    """The robot's info (``age`` added, and its key's ``fingerprint``), or its name and why its answer was
+    refused (``error``): not a robot's info, not signed for this question by the key it names, or that key
+    not the one this operator knows for it (``robotkey``; nothing is remembered by a list)."""
     found: dict[str, Any] = {"name": name}
     for reply in replies:
         if reply.ok is None:
             continue
-        body = keyspace.loads(bytes(reply.ok.payload))
+        data = bytes(reply.ok.payload)
+        body = keyspace.loads(data)
         if not isinstance(body, dict):
             return {"name": name, "error": f"{name}'s info is not a JSON object of finite numbers"}
         try:
             found.update(keyspace.check_info(body), name=name)
+            proof = robotkey.proof_of(name, keyspace.info(name), nonce, data, body.get("key"))
         except keyspace.BadInfo as exc:
             return {"name": name, "error": f"{name}'s info is refused: {exc}"}
+        except robotkey.NotProven as exc:
+            return {"name": name, "error": exc.message}
+        if (changed := known.changed(proof)) is not None:
+            return {"name": name, "error": changed, "fingerprint": proof.fingerprint}
+        found.update(fingerprint=proof.fingerprint)
+        found.pop("signature", None)
     started = found.get("started")
     if started is not None:
         found["age"] = round(max(0.0, time.time() - started), 1)

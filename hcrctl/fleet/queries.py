@@ -36,6 +36,7 @@ from ..errors import HcrError, ProtocolError
 from ..errors.described import describe
 from ..inputs import PeerJsonError, peer_json
 from ..link.client import Robot
+from ..link.zenoh.robotkey import UNASKED, ask_of
 from ..protocol import commands as C
 from ..protocol import topics as T
 from ..protocol.frames import Frame
@@ -57,6 +58,9 @@ MAX_PENDING = 32
 
 Answer = tuple[bool, dict[str, Any]]
 Work = Callable[[dict[str, Any]], dict[str, Any]]
+#: Signs an answer's bytes for its question (the key expression answered on, the question's nonce):
+#: ``link.zenoh.robotkey``.
+Seal = Callable[[str, str, bytes], bytes]
 
 
 class QueryError(HcrError):
@@ -87,6 +91,19 @@ def payload_object(query: Any) -> dict[str, Any]:
     """A Zenoh query's payload as its JSON object (``query_object``)."""
     payload = query.payload
     return query_object(bytes(payload) if payload is not None else None)
+
+
+def asked(query: Any) -> str:
+    """The nonce a query's payload carries (``robotkey.ask_of``), ``-`` when it carries none (a payload
+    without the word is not parsed again: a flood of them costs nothing more)."""
+    payload = query.payload
+    data = bytes(payload) if payload is not None else b""
+    if b'"nonce"' not in data:
+        return UNASKED
+    try:
+        return ask_of(query_object(data))
+    except QueryError:
+        return UNASKED
 
 
 def code_text(code: int) -> str:
@@ -206,8 +223,10 @@ class Turnstile:
 class Answers:
     """Queries answered off Zenoh's threads, at most ``MAX_PENDING`` waiting; every answer counted (``reply``)."""
 
-    def __init__(self) -> None:
+    def __init__(self, seal: Seal | None = None) -> None:
         self.pool = ThreadPoolExecutor(WORKERS, thread_name_prefix="hcrctl-fleet-query")
+        #: Every answer is signed by the robot's key for the question it answers.
+        self.seal = seal
         self.answered = 0
         self.failed = 0
         self.busy = 0
@@ -218,7 +237,7 @@ class Answers:
         if not self._pending.acquire(blocking=False):
             self.busy += 1
             busy = {"error": "the robot is busy with other queries", "hint": "ask again"}
-            send_reply(query, key, (False, busy))
+            send_reply(query, key, (False, busy), self.seal)
             return
         try:
             self.pool.submit(self._answer, query, key, work)
@@ -231,7 +250,7 @@ class Answers:
             self.answered += 1
         else:
             self.failed += 1
-        send_reply(query, key, answer)
+        send_reply(query, key, answer, self.seal)
 
     def _answer(self, query: Any, key: str, work: Work) -> None:
         try:
@@ -246,10 +265,13 @@ class Answers:
         self.pool.shutdown(wait=True, cancel_futures=True)
 
 
-def send_reply(query: Any, key: str, answer: Answer) -> None:
+def send_reply(query: Any, key: str, answer: Answer, seal: Seal | None = None) -> None:
+    """``answer`` to ``query`` on ``key``, signed (``seal``) for the question's nonce."""
     ok, body = answer
     data = json.dumps(body).encode()
     try:
+        if seal is not None:
+            data = seal(key, asked(query), data)
         if ok:
             query.reply(key, data, encoding="application/json")
         else:

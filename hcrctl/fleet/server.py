@@ -33,7 +33,9 @@ from typing import TYPE_CHECKING, Any
 from .. import __version__
 from ..link.zenoh import keyspace
 from ..link.zenoh.join import FleetError, Where, beyond_loopback, import_zenoh, open_member
+from ..link.zenoh.robotkey import UNASKED, RobotKey
 from ..motion.governor import Kind, Late, Source, Stopped
+from ..motion.reasons import Reason
 from ..numtext import plural
 from ..protocol import commands as C
 from ..recording.progress import sweeps
@@ -116,7 +118,9 @@ class Fleet(FrontEnd):
         self.governor = view.governor
         self.view = view
         self.started = time.time()
-        self.answers = queries.Answers()
+        #: The robot's own key (``robotkey``): every answer and status word is signed with it.
+        self.key = RobotKey.load(self.name)
+        self.answers = queries.Answers(self.key.sealed)
         self.holds = Holds(lambda: self.session)
         self.drive = FleetDrive(self.name, view.governor, self.say, self._profile, view.words, self.holds)
         view.words.count_to(lambda text: self.tell(keyspace.refused_status(None, text)))
@@ -145,7 +149,7 @@ class Fleet(FrontEnd):
     def start(self, view: RuntimeView) -> str:
         self.turnstile = queries.Turnstile(view.poller_pause, view.last_sweep)
         self.declare(list(view.sensors))
-        return f"{self.name} ({self.robot.port}) as {keyspace.ROOT}/{self.name}/..."
+        return f"{self.name} ({self.robot.port}) as {keyspace.ROOT}/{self.name}/..., its key {self.key.fingerprint}"
 
     def stopped(self, stopped: Stopped) -> None:
         """A stop told on ``status``: to the operator that drove, or to all when it names no operator.
@@ -162,7 +166,8 @@ class Fleet(FrontEnd):
         who = op if isinstance(op, keyspace.Who) else None
         if who is not None:
             self.drive.stopped_for(who, str(stopped), stopped.reason.value)
-        self.tell(keyspace.stopped_status(who, str(stopped), stopped.reason.value))
+        asks = self.drive.stops_asked() if stopped.reason is Reason.STOP else ()
+        self.tell(keyspace.stopped_status(who, str(stopped), stopped.reason.value, asks))
 
     def tick(self) -> None:
         self.drive.tick()
@@ -221,9 +226,12 @@ class Fleet(FrontEnd):
         self.tell(status)
 
     def tell(self, status: keyspace.Status) -> None:
-        """A word on ``status`` only."""
+        """A word on ``status`` only, signed by the robot's key (it answers no one question)."""
+        key = keyspace.status(self.name)
         with contextlib.suppress(Exception):  # the session is closing: stderr said it
-            self.session.put(keyspace.status(self.name), status.to_bytes(), encoding="application/json")
+            self.session.put(
+                key, self.key.sealed(key, UNASKED, status.to_bytes()), encoding="application/json"
+            )
 
     def renewal_late(self, source: Source, late: Late) -> None:
         """A driver's renewal after half its lease: said on stderr (at most once a second, with the count).
@@ -342,6 +350,8 @@ class Fleet(FrontEnd):
             refused=drive.refused,
             stops=drive.stops,
             unadmitted=drive.unadmitted,
+            churned=drive.churned,
+            **dict(zip(("operators", "waiting"), self.drive.sessions(), strict=True)),
             queries=self.answers.answered,
             queries_failed=self.answers.failed,
         )
@@ -358,6 +368,7 @@ class Fleet(FrontEnd):
             "sensors": list(view.sensors),
             "started": self.started,
             "challenge": self.drive.challenge,
+            "key": self.key.public_hex,
             "hcrctl": __version__,
             "counters": counters,
         }

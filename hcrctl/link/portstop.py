@@ -18,7 +18,7 @@ import time
 from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING
 
-from ..errors import HcrError
+from ..errors import HcrError, NotTheRobot
 from .stopline import DELIVERED, NOT_DELIVERED, WRITTEN, Outcome, StopLine
 
 if TYPE_CHECKING:
@@ -77,7 +77,11 @@ def answer(robot: Robot, who: str) -> Outcome:
         robot.stop(stop_frames(robot))
     except HcrError as exc:
         return Outcome(NOT_DELIVERED, holder=holder(), why=exc.message)
-    if not answers(robot):
+    try:
+        answered = answers(robot)
+    except NotTheRobot:  # what answered could not prove it is the robot: written, not delivered
+        answered = False
+    if not answered:
         return Outcome(WRITTEN, time.monotonic() - started, holder())
     why = "" if failed is None else f"(an owner failed: {failed})"
     return Outcome(DELIVERED, time.monotonic() - started, holder(), why)

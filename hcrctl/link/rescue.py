@@ -41,7 +41,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator
 from typing import TYPE_CHECKING
 
-from ..errors import DeviceTimeout, HcrError, LinkLostWhileMoving, PortError
+from ..errors import DeviceTimeout, HcrError, LinkLostWhileMoving, NotTheRobot, PortError
 from ..errors.status import ExitStatus
 from ..errors.terminal import warn
 from ..protocol import commands as C
@@ -119,7 +119,7 @@ def rescue(robot: Robot, frames: StopFrames, *, ending: str | None = None) -> Li
             )
         if getattr(reopen, "owned", True):
             robot.close()  # release the dead port (nothing can be sent on it) before re-opening
-        took, written = _wait_and_stop(robot.port, reopen, list(frames()), started + wait)
+        took, written, refused = _wait_and_stop(robot.port, reopen, list(frames()), started + wait)
     except KeyboardInterrupt:
         return _not_delivered(cause, "gave up on Ctrl-C", ExitStatus.INTERRUPTED)
     except Terminated as exc:
@@ -128,6 +128,14 @@ def rescue(robot: Robot, frames: StopFrames, *, ending: str | None = None) -> Li
     if took is None and not written:
         back = "was not back" if ending else "did not come back"
         return _not_delivered(cause, f"{robot.port} {back} {within}", ExitStatus.FAILED)
+    if took is None and refused is not None:
+        return _not_delivered(
+            cause,
+            f"{refused.message} ({within})",
+            1,
+            f"stop sent to {robot.port}, but only what could not prove it is the robot answered: "
+            "the robot may still be moving",
+        )
     if took is None:
         return _not_delivered(
             cause,
@@ -162,22 +170,28 @@ def _not_delivered(
 
 def _wait_and_stop(
     port: str, reopen: Callable[[], Robot], frames: list[bytes], deadline: float
-) -> tuple[float | None, bool]:
+) -> tuple[float | None, bool, NotTheRobot | None]:
     """Re-open until ``deadline``; send ``frames`` on each success until the robot answers.
 
-    When stop reached a device that answered (monotonic; None if none did), and
-    whether it was written at all (to a device that did not answer).
+    When stop reached a device that answered (monotonic; None if none did),
+    whether it was written at all (to a device that did not answer), and why
+    the last answer was not the robot's, when what answered could not prove it.
     """
-    written = False
+    written, refused = False, None
     while True:
         if _may_be_back(port):
-            with contextlib.suppress(HcrError):
+            try:
                 at, answered = _send_on(reopen, frames)
+            except NotTheRobot as exc:
+                written, refused = True, exc
+            except HcrError:
+                pass
+            else:
                 if answered:
-                    return at, True
+                    return at, True, None
                 written = True
         if time.monotonic() >= deadline:
-            return None, written
+            return None, written, refused
         time.sleep(RETRY_S)
 
 
@@ -214,6 +228,8 @@ def answers(robot: Robot) -> bool:
     probe = next(c for c in C.COMMANDS if c.kind == "read" and robot.profile.has(c.code))
     try:
         reply = robot.sweep([probe]).get(probe.name)
+    except NotTheRobot:
+        raise  # what answered is not the robot: said so, never "nothing answered"
     except HcrError:  # the link went away again while asking
         return False
     if not isinstance(reply, DeviceTimeout):

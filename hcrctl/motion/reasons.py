@@ -27,8 +27,6 @@ class Reason(Enum):
     RELEASED = "released"
     #: A fleet operator's liveliness token went away.
     OPERATOR_GONE = "operator gone"
-    #: Someone sent as the driver: its lease is ended.
-    SECOND_SENDER = "second sender"
     #: The serial port went away.
     PORT_LOST = "port lost"
     #: A failure inside hcrctl.

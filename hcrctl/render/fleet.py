@@ -13,7 +13,7 @@ from ..errors.terminal import quoted
 #: The most characters of a cell.
 CELL_CHARS = 80
 
-COLUMNS = ("robot", "port", "protocol", "driver", "age")
+COLUMNS = ("robot", "port", "protocol", "driver", "age", "key")
 
 
 def age_text(seconds: Any) -> str:
@@ -29,7 +29,8 @@ def age_text(seconds: Any) -> str:
 
 def fleet_row(info: dict[str, Any]) -> tuple[str, ...]:
     cells = (info.get("name", "?"), info.get("port"), info.get("protocol"), info.get("driver"))
-    return (*(quoted(cell or "-", CELL_CHARS) for cell in cells), age_text(info.get("age")))
+    key = quoted(info.get("fingerprint") or "-", CELL_CHARS)
+    return (*(quoted(cell or "-", CELL_CHARS) for cell in cells), age_text(info.get("age")), key)
 
 
 def fleet_table(robots: list[dict[str, Any]], *, borders: bool = True) -> object:

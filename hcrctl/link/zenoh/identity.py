@@ -104,6 +104,17 @@ def public_key(text: object, session: str) -> Any | None:
         return None
 
 
+def raw(key: Any) -> bytes:
+    """A verifying key's 32 raw bytes: how a session gone is remembered (a verifier object costs far more)."""
+    data: bytes = key.public_bytes_raw()
+    return data
+
+
+def verifier(data: bytes) -> Any:
+    """The verifying key of 32 raw bytes (``raw``'s)."""
+    return _ed25519().Ed25519PublicKey.from_public_bytes(data)
+
+
 def verified(key: Any | None, data: bytes, signature: str) -> bool:
     """Whether ``signature`` (128 hex digits) is ``key``'s over ``data``."""
     if key is None or len(signature) != 128:

@@ -295,7 +295,6 @@ REASONS = (
     "operator gone",
     "port lost",
     "released",
-    "second sender",
     "error",
     "other",
 )
@@ -312,12 +311,18 @@ class Status(NamedTuple):
     session: str | None = None
     seq: int | None = None
     reason: str | None = None
+    #: The nonces of the stops a ``stopped`` word answers (``robotkey``): each stop's sender knows its own.
+    asks: tuple[str, ...] | None = None
 
     def to_bytes(self) -> bytes:
         """The message as it goes on ``status``: a JSON object; ``op`` always (null: about nobody), the other
         fields that are None left out."""
         fields = self._asdict()
         return json.dumps({k: v for k, v in fields.items() if v is not None or k == "op"}).encode()
+
+    def answers(self, nonce: str) -> bool:
+        """Whether this word answers the stop whose nonce is ``nonce``."""
+        return self.asks is not None and nonce in self.asks
 
     def is_for(self, op: Who) -> bool:
         """Whether the message is about this operator session (a name alone is never enough)."""
@@ -335,10 +340,10 @@ def drives_status(op: Who, robot: str) -> Status:
     return Status("drives", f"{op} drives {robot}", op.name, op.session)
 
 
-def stopped_status(op: Hashable | None, said: str, reason: str) -> Status:
+def stopped_status(op: Hashable | None, said: str, reason: str, asks: tuple[str, ...] = ()) -> Status:
     """Motion stopped for ``reason`` (a ``REASONS`` word, decided where the stop was made; ``said`` tells it
-    to people and is never read for it), while ``op`` drove."""
-    return Status("stopped", said, *addressed(op), reason=reason)
+    to people and is never read for it), while ``op`` drove; ``asks``: the nonces of the stops it answers."""
+    return Status("stopped", said, *addressed(op), reason=reason, asks=asks or None)
 
 
 def refused_status(op: Hashable | None, text: str, seq: int | None = None) -> Status:
@@ -348,7 +353,7 @@ def refused_status(op: Hashable | None, text: str, seq: int | None = None) -> St
 
 def parse_status(data: bytes) -> Status | None:
     """A status message, its fields checked for their kinds; None for anything else."""
-    found = loads(data) if len(data) <= 4 * MAX_STATUS_TEXT else None
+    found = loads(data) if len(data) <= 4 * MAX_STATUS_TEXT + 1024 else None
     if not isinstance(found, dict):
         return None
     event, text, seq = found.get("event"), found.get("text"), found.get("seq")
@@ -359,4 +364,7 @@ def parse_status(data: bytes) -> Status | None:
         return None
     if seq is not None and not (isinstance(seq, int) and number_in(seq, 1, MAX_SEQ)):
         return None
-    return Status(event, text[:MAX_STATUS_TEXT], op, session, seq, reason)
+    asks = found.get("asks")
+    if asks is not None and not (isinstance(asks, list) and all(isinstance(a, str) for a in asks)):
+        return None
+    return Status(event, text[:MAX_STATUS_TEXT], op, session, seq, reason, tuple(asks) if asks else None)

@@ -52,6 +52,7 @@ from .keyspace import HOLD, LEASE, Status, Who, attachment, cmd_vel, loads
 from .keyspace import drive as drive_key
 from .keyspace import hold as hold_key
 from .keyspace import stop as stop_key
+from .robotkey import HINT, NotProven, RobotProof, new_nonce, unproven
 
 #: The longest wait for the robot side's answer to a claim or release.
 CLAIM_TIMEOUT_S = 2.0
@@ -64,6 +65,8 @@ TOKEN_RETRY_S = 0.05
 TOKEN_WAIT_S = 5.0
 #: How many times a motion's confirmation is asked again while the robot side has not seen it yet.
 CONFIRM_ASKS = 10
+#: The longest a driver goes on while its renewals are answered only by what the robot did not sign.
+UNPROVEN_S = CLAIM_TIMEOUT_S
 #: The longest a robot side's text is quoted in a command's error.
 SAID_CHARS = 200
 #: How long a motion already put is confirmed again while nobody answers and the robot is still in the
@@ -80,7 +83,6 @@ HALT_HINTS = {
     "port lost": "the robot's serial port went away: check its cable and power on the robot's side",
     "operator gone": "the robot side lost this operator's liveliness token or its renewals: a frozen "
     "process or a broken network",
-    "second sender": "someone on the fleet sends as you; restrict who may drive with Zenoh's access control",
 }
 
 
@@ -128,6 +130,11 @@ class DriveLease:
         self.challenge: str | None = None
         #: The lease value the robot side drew when it admitted this session (``admit``; None before).
         self.admission: str | None = None
+        #: The robot's key, from its info (``robotkey``; None before): only an answer it signed for the
+        #: question's nonce is believed.
+        self.proof: RobotProof | None = None
+        #: When the robot last answered with its key (monotonic): ``UNPROVEN_S``.
+        self._proven_at = time.monotonic()
         #: This session's subscriber of the hold the robot side answered its claim (``fleet.hold``).
         self._hold: Any = None
         # Reentrant: a renewal, under it, numbers and signs its claim under it too.
@@ -190,14 +197,16 @@ class DriveLease:
             asks += 1
             time.sleep(TOKEN_RETRY_S)
 
-    def stop(self) -> None:
-        """The fleet's stop (anyone's), unless this stop only closes a motion that was refused."""
+    def stop(self, nonce: str) -> bool:
+        """The fleet's stop (anyone's), its ``nonce`` for the robot's word (``robotkey``), unless this stop
+        only closes a motion that was refused; whether it was put."""
         if self.refused and not self.held:
-            return
+            return False
         with self._lock:
             self._own_stops += 1 if self.held else 0
             self.held = self.driving = False
-            self._put(stop_key(self._robot), "stop", {"key": self._identity.public_hex})
+            self._put(stop_key(self._robot), "stop", {"key": self._identity.public_hex, "nonce": nonce})
+        return True
 
     def claim(self, confirm: int | None = None) -> dict[str, Any]:
         """Take the lease now (``confirm``: and say whether that motion was taken); the robot side's answer.
@@ -217,24 +226,27 @@ class DriveLease:
             raise DriveRefused(_refusal(answer, self._robot), hint=_refused_hint(answer))
         with self._lock:
             self.held, self.refused, self.claimed_ever = True, False, True
+            self._proven_at = time.monotonic()
         self._subscribe_hold(answer.get("hold"))
         self._start()
         return answer
 
     def admit(self) -> None:
         """Learn the lease value of this session's admission (once): asked again while this session's token
-        is on its way. DriveRefused when it is not admitted in time (the robot side's words)."""
+        is on its way or waits its turn. DriveRefused when it is not admitted in time (the robot side's words)."""
         if self.admission is not None:
             return
-        payload = json.dumps({"op": self._op.name, "session": self._op.session, "do": "lease"}).encode()
         deadline = time.monotonic() + TOKEN_WAIT_S
         while True:
-            ok, answer = self._query(payload, None, "lease")
+            nonce = new_nonce()
+            asked = {"op": self._op.name, "session": self._op.session, "do": "lease", "nonce": nonce}
+            ok, answer = self._query(json.dumps(asked).encode(), None, "lease", nonce)
             lease = answer.get("lease")
             if ok and isinstance(lease, str) and LEASE.fullmatch(lease):
                 self.admission = lease
                 return
-            if ok or answer.get("token") is not False or time.monotonic() > deadline:
+            on_its_way = answer.get("token") is False or answer.get("waiting") is True  # or waiting its turn
+            if ok or not on_its_way or time.monotonic() > deadline:
                 self.refused = True
                 raise DriveRefused(_refusal(answer, self._robot), hint=_refused_hint(answer))
             time.sleep(TOKEN_RETRY_S)
@@ -261,11 +273,11 @@ class DriveLease:
                 return
         self._halt(quoted(said.text, SAID_CHARS), said.reason)
 
-    def _halt(self, text: str, reason: str | None) -> None:
+    def _halt(self, text: str, reason: str | None, hint: str | None = None) -> None:
         """The motion this session drives was stopped (``text``, the robot side's words): kept, lease lost."""
         with self._lock:
             if self.driving:
-                self.halted = MotionHalted(f"{self._robot} {text}", hint=HALT_HINTS.get(reason or ""))
+                self.halted = MotionHalted(f"{self._robot} {text}", hint=hint or HALT_HINTS.get(reason or ""))
             self.held = self.driving = False
 
     def close(self) -> None:
@@ -301,35 +313,55 @@ class DriveLease:
     def _claim_later(self) -> None:
         """A renewal: a claim whose answer is read on Zenoh's thread (a refusal means the lease was lost)."""
         zenoh = _zenoh()
-        payload, signed = self._asking("claim")
+        payload, signed, nonce = self._asking("claim")
         self._session.get(
             drive_key(self._robot),
-            zenoh.handlers.Callback(self._renewed),
+            zenoh.handlers.Callback(lambda reply: self._renewed(reply, nonce)),
             payload=payload,
             attachment=signed,
             encoding=zenoh.Encoding.APPLICATION_JSON,
             timeout=CLAIM_TIMEOUT_S,
         )
 
-    def _renewed(self, reply: Any) -> None:
+    def _renewed(self, reply: Any, nonce: str) -> None:
         """A renewal's answer. The robot side's words of the stop that ended this session's motion halt it
         (its status word may have been missed: frozen, or dropped on the way); refused by the robot side,
         the lease is lost (unanswered, it is renewed on: only the robot's loss or its refusal ends it);
         granted to a session that ``rejoined``, the robot side had lost its token for a while, and with it
-        the motion it drove, unheard here."""
-        if reply.err is not None:
-            answer = loads(reply.err.payload.to_bytes())
-            if not isinstance(answer, dict):  # Zenoh's own (a timeout), not the robot side's refusal
-                return
+        the motion it drove, unheard here. An answer the robot did not sign for it is nobody's."""
+        proven = self._proven(reply, nonce)
+        if proven is None:  # Zenoh's own (a timeout), or not the robot's
+            self._unproven(reply)
+            return
+        self._proven_at = time.monotonic()
+        ok, answer = proven
+        if not ok:
             self._told_stopped(answer)
             self.lost()
             return
-        answer = _object(reply.ok.payload.to_bytes())
         if answer.get("rejoined") is True:
             self._halt(
                 f"stopped: it lost {self._op}'s liveliness token, and the motion with it", "operator gone"
             )
         self._told_stopped(answer)
+
+    def _unproven(self, reply: Any) -> None:
+        """An answer to a renewal that the robot did not sign: while only such answers come (``UNPROVEN_S``),
+        a peer answers in the robot's name and the robot is not heard: the motion is said lost (a cut network,
+        where nothing answers, is the robot's leaving instead)."""
+        if reply.ok is None and not isinstance(loads(_payload(reply)), dict):
+            return  # Zenoh's own error: nobody answered
+        unheard = time.monotonic() - self._proven_at
+        if unheard > UNPROVEN_S:
+            self._halt(
+                unproven(
+                    self._robot,
+                    f"its answers to {self._op}'s renewals were not signed by its key for {unheard:.1f} s: "
+                    "its serve may be gone and the robot unattended",
+                ).removeprefix(f"{self._robot} "),  # _halt puts the robot's name first
+                None,
+                hint=HINT,
+            )
 
     def _told_stopped(self, answer: dict[str, Any]) -> None:
         said, reason = answer.get("stopped"), answer.get("reason")
@@ -338,16 +370,17 @@ class DriveLease:
 
     # -- the wire -------------------------------------------------------------------------
 
-    def _asking(self, do: str, confirm: int | None = None) -> tuple[bytes, bytes]:
-        """A ``drive`` query's payload (who asks, and a claim names this session's public key) and its
-        signed attachment."""
-        asked: dict[str, Any] = {"op": self._op.name, "session": self._op.session, "do": do}
+    def _asking(self, do: str, confirm: int | None = None) -> tuple[bytes, bytes, str]:
+        """A ``drive`` query's payload (who asks, and a claim names this session's public key), its signed
+        attachment, and the nonce the robot's answer must be signed for."""
+        nonce = new_nonce()
+        asked: dict[str, Any] = {"op": self._op.name, "session": self._op.session, "do": do, "nonce": nonce}
         if do == "claim":
             asked["key"] = self._identity.public_hex
         if confirm is not None:
             asked["confirm"] = confirm
         payload = json.dumps(asked).encode()
-        return payload, self.sign(do, payload)
+        return payload, self.sign(do, payload), nonce
 
     def sign(self, what: str, payload: bytes) -> bytes:
         """The attachment of a ``what`` message (``identity.WHATS``) of ``payload``: numbered, then signed.
@@ -369,12 +402,14 @@ class DriveLease:
     def _ask(self, do: str, confirm: int | None = None) -> tuple[bool, dict[str, Any]]:
         """A ``drive`` query: (granted, the robot side's answer); ``Unanswered`` when nobody answers. An error
         reply that is no JSON object is Zenoh's own (a timeout), not the robot side's refusal."""
-        payload, signed = self._asking(do, confirm)
-        return self._query(payload, signed, do, confirm)
+        payload, signed, nonce = self._asking(do, confirm)
+        return self._query(payload, signed, do, nonce, confirm)
 
     def _query(
-        self, payload: bytes, signed: bytes | None, do: str, confirm: int | None = None
+        self, payload: bytes, signed: bytes | None, do: str, nonce: str, confirm: int | None = None
     ) -> tuple[bool, dict[str, Any]]:
+        """A ``drive`` query's answer that the robot signed for ``nonce``; NotProven when answers came but
+        none was the robot's, ``Unanswered`` when none came."""
         zenoh = _zenoh()
         replies = self._session.get(
             drive_key(self._robot),
@@ -383,12 +418,19 @@ class DriveLease:
             encoding=zenoh.Encoding.APPLICATION_JSON,
             timeout=CLAIM_TIMEOUT_S,
         )
+        stray = False  # an answer came that the robot did not sign
         for reply in replies:
-            if reply.ok is not None:
-                return True, _object(reply.ok.payload.to_bytes())
-            refused = loads(reply.err.payload.to_bytes())
-            if isinstance(refused, dict):
-                return False, refused
+            proven = self._proven(reply, nonce)
+            if proven is not None:
+                return proven
+            stray = stray or reply.ok is not None or isinstance(loads(_payload(reply)), dict)
+        if stray:
+            raise NotProven(
+                unproven(
+                    self._robot, f"its answer to the drive {do} is not signed by its key for this question"
+                ),
+                hint=HINT,
+            )
         sent = (
             "nothing was sent"
             if confirm is None
@@ -398,6 +440,13 @@ class DriveLease:
             f"{self._robot} did not answer the drive {do} within {CLAIM_TIMEOUT_S:g} s: {sent}",
             hint="hcrctl fleet list shows whether it is still there",
         )
+
+    def _proven(self, reply: Any, nonce: str) -> tuple[bool, dict[str, Any]] | None:
+        """(granted, the answer) of a reply the robot signed for ``nonce``; None for anything else (an
+        answer it did not sign, Zenoh's own error)."""
+        body = None if self.proof is None else self.proof.body(drive_key(self._robot), nonce, _payload(reply))
+        answer = loads(body) if body is not None else None
+        return (reply.ok is not None, answer) if isinstance(answer, dict) else None
 
     def _next(self) -> int:
         self._seq += 1
@@ -427,9 +476,11 @@ class DriveLease:
         return self._seq
 
 
-def _object(data: bytes) -> dict[str, Any]:
-    found = loads(data)
-    return found if isinstance(found, dict) else {}
+def _payload(reply: Any) -> bytes:
+    """A reply's bytes, an answer's or an error's."""
+    sample = reply.ok if reply.ok is not None else reply.err
+    data: bytes = sample.payload.to_bytes()
+    return data
 
 
 def _refusal(answer: dict[str, Any], robot: str) -> str:

@@ -36,6 +36,7 @@ import contextlib
 import json
 import threading
 import time
+from collections import deque
 from typing import Any
 
 from ...errors import BadPortUrl, DeviceRefused, HcrError
@@ -67,6 +68,7 @@ from .keyspace import read as read_key
 from .keyspace import stop as stop_key
 from .keyspace import write as write_key
 from .lease import DriveLease, Unanswered
+from .robotkey import HINT, UNASKED, KnownRobots, NotProven, RobotProof, new_nonce, proof_of, unproven
 
 SCHEME = "zenoh://"
 #: How long the robot's presence, its info and a write may take to answer.
@@ -82,6 +84,8 @@ SAID_CHARS = 200
 #: the word is put after the stop is written on the robot's wire, and a loaded robot computer or network
 #: (a test's namespaces beside two busy loops) can take over a second; a stop never waits for it.
 STOP_WORD_S = 3.0
+#: Status words kept while the robot's key is not known yet (a stop's word may come before its info).
+EARLY_WORDS = 64
 #: What a frame message of a broadcast says it is (``"kind": "broadcast"``; the message is checked whole after).
 BROADCAST = b'"broadcast"'
 
@@ -134,6 +138,14 @@ class RemoteLink(Carrier):
         #: The first word on ``status`` that a stop was made, since this side's last stop (``stop_told``).
         self._stop_word: str | None = None
         self._stop_heard = threading.Event()
+        #: The nonce of this side's last stop: only a status word the robot signed naming it answers it.
+        self._stop_nonce: str | None = None
+        #: The robot's key (``robotkey``), from its info: only what it signed is believed.
+        self.proof: RobotProof | None = None
+        self.known = KnownRobots()
+        #: Status words that came before the robot's key was known, read for the stop's word once it is.
+        self._early: deque[bytes] = deque(maxlen=EARLY_WORDS)
+        self._words = threading.Lock()
 
     # -- opening and closing -------------------------------------------------------------
 
@@ -177,27 +189,41 @@ class RemoteLink(Carrier):
         with self._informed:
             if self._asked_info:
                 return
-            self.info = self._ask_info(self._session)
+            self.info, proof = self._ask_info(self._session)
             self.remote = _profile_of(self.info)
             assert self.lease is not None  # set by open()
             self.lease.pace(_deadman(self.info))
             challenge = self.info.get("challenge")
             self.lease.challenge = challenge if isinstance(challenge, str) else None
+            self.lease.proof = proof
             self._asked_info = True
+            with self._words:
+                self.proof, early = proof, list(self._early)
+                self._early.clear()
+        for data in early:
+            self._heard_status(proof, data, early=True)
 
-    def _ask_info(self, session: Any) -> dict[str, Any]:
-        """The robot's info, its numbers in range (``keys.check_info``); FleetError naming it otherwise."""
-        for reply in session.get(info_key(self.name), timeout=ASK_TIMEOUT_S):
+    def _ask_info(self, session: Any) -> tuple[dict[str, Any], RobotProof]:
+        """The robot's info, its numbers in range (``keys.check_info``), and the proof of its key: signed for
+        this question by the key it names, the one known for it (``robotkey``). FleetError naming it otherwise."""
+        nonce = new_nonce()
+        for reply in session.get(
+            info_key(self.name), payload=json.dumps({"nonce": nonce}), timeout=ASK_TIMEOUT_S
+        ):
             if reply.ok is not None:
-                answer = _json(reply.ok.payload.to_bytes())
+                data = reply.ok.payload.to_bytes()
+                answer = _json(data)
                 if not isinstance(answer, dict):
                     raise FleetError(
                         f"{self.name}'s info is not a JSON object of finite numbers", hint=LIST_HINT
                     )
                 try:
-                    return check_info(answer)
+                    check_info(answer)
                 except BadInfo as exc:
                     raise FleetError(f"{self.name}'s info is refused: {exc}", hint=LIST_HINT) from None
+                proof = proof_of(self.name, info_key(self.name), nonce, data, answer.get("key"))
+                self.known.check(proof)
+                return answer, proof
         raise FleetError(
             f"{self.name} is in the fleet at {self._where()} but did not answer its info within "
             f"{ASK_TIMEOUT_S:g} s",
@@ -249,17 +275,33 @@ class RemoteLink(Carrier):
             self._deliver(address, cmd, self.remote.to_document(cmd.code, payload))
 
     def _status(self, sample: Any) -> None:
-        """The robot side's word about this session: a stop or a refusal ends the lease and halts its motion."""
-        said = parse_status(sample.payload.to_bytes())
+        """A word on the robot's status, believed only when the robot signed it (``_heard_status``); one
+        that comes before its key is known is kept for the stop's word."""
+        data = sample.payload.to_bytes()
+        with self._words:
+            proof = self.proof
+            if proof is None:
+                self._early.append(data)
+                return
+        self._heard_status(proof, data)
+
+    def _heard_status(self, proof: RobotProof, data: bytes, early: bool = False) -> None:
+        """The robot's signed word: the word of this side's stop (it names the stop's nonce), and about this
+        session, a stop or a refusal that ends the lease and halts its motion."""
+        body = proof.body(status(self.name), UNASKED, data)
+        said = parse_status(body) if body is not None else None
+        if said is None:
+            return
+        nonce = self._stop_nonce
         if (
-            said is not None
+            nonce is not None
             and said.event == "stopped"
-            and said.reason == "stop"
+            and said.answers(nonce)
             and not self._stop_heard.is_set()
         ):
             self._stop_word = quoted(said.text, SAID_CHARS)
             self._stop_heard.set()
-        if self.lease is not None and said is not None and said.is_for(self.op):
+        if not early and self.lease is not None and said.is_for(self.op):
             self.lease.heard(said)
 
     # -- requests -------------------------------------------------------------------------------
@@ -275,7 +317,9 @@ class RemoteLink(Carrier):
             if stop:
                 assert self.lease is not None  # set by open()
                 self._stop_heard.clear()
-                self.lease.stop()
+                nonce = self._stop_nonce = new_nonce()  # before the put: the word may come at once
+                if not self.lease.stop(nonce):
+                    self._stop_nonce = None
             else:
                 self._drive(address, cmd, content)
         else:
@@ -296,13 +340,22 @@ class RemoteLink(Carrier):
         return None if self.lease is None else self.lease.halted
 
     def stop_told(self) -> tuple[str, bool]:
-        """A put on ``hcr/R/stop`` (no frame crosses the fleet), and the first ``stopped`` word on the
-        robot's status after it, waited for ``STOP_WORD_S`` (status is anyone's to put: it is quoted as
-        what was said there, not as proof)."""
+        """A put on ``hcr/R/stop`` (no frame crosses the fleet), and the robot's word that it stopped for it:
+        the first ``stopped`` word on its status that its key signed naming this stop's nonce, waited for
+        ``STOP_WORD_S``. The robot's key is asked for after the stop (a stop goes first): NotProven when what
+        answers as the robot cannot prove it is, with what was put."""
         sent = f"stop put on {stop_key(self.name)}"
+        try:
+            self._informed_of()
+        except FleetError as exc:
+            raise type(exc)(f"{sent}, but {exc.message}", hint=exc.hint) from None
         if self._stop_heard.wait(STOP_WORD_S):
-            return f"{sent}; {status(self.name)} said: {self._stop_word}", True
-        return f"{sent}; nothing on {status(self.name)} said a stop was made within {STOP_WORD_S:g} s", False
+            return f"{sent}; {self.name} said: {self._stop_word}", True
+        return (
+            f"{sent}; {self.name} did not say within {STOP_WORD_S:g} s that it stopped for it "
+            f"(nothing on {status(self.name)} signed by its key)",
+            False,
+        )
 
     # -- reads ----------------------------------------------------------------------------------
 
@@ -315,24 +368,33 @@ class RemoteLink(Carrier):
             self._asking.add(key)
             self._said.pop(key, None)
         zenoh = import_zenoh()
+        nonce = new_nonce()
         self._session.get(
             read_key(self.name, cmd.name),
             zenoh.handlers.Callback(
-                lambda reply: self._answer(address, cmd, reply), lambda: self._answered(key)
+                lambda reply: self._answer(address, cmd, reply, nonce), lambda: self._answered(key)
             ),
-            payload=json.dumps({"address": address}),
+            payload=json.dumps({"address": address, "nonce": nonce}),
             encoding=zenoh.Encoding.APPLICATION_JSON,
             timeout=READ_TIMEOUT_S,
         )
 
-    def _answer(self, address: int, cmd: C.Command, reply: Any) -> None:
+    def _answer(self, address: int, cmd: C.Command, reply: Any, nonce: str) -> None:
+        """A read's answer, believed only when the robot signed it for this read (``nonce``): another is
+        kept as the read's explanation (nothing reaches the Robot: it times out, as on a wire)."""
+        body = self._proven(read_key(self.name, cmd.name), nonce, reply)
+        if body is None:
+            if reply.ok is not None or isinstance(_json(reply.err.payload.to_bytes()), dict):
+                with self._cond:
+                    self._said[(address, cmd.code)] = (self._unproven("read"), HINT)
+            return
         if reply.ok is not None:
-            answer = _json(reply.ok.payload.to_bytes())
+            answer = _json(body)
             content = _hex(answer.get("content")) if isinstance(answer, dict) else None
             if content is not None:
                 self._deliver(address, cmd, content)
             return
-        said = _error_of(reply.err.payload.to_bytes())
+        said = _error_of(body)
         if isinstance(said, dict) and isinstance(said.get("error"), str):
             hint = said.get("hint")
             with self._cond:
@@ -340,6 +402,14 @@ class RemoteLink(Carrier):
                     quoted(said["error"], SAID_CHARS),
                     quoted(hint, SAID_CHARS) if isinstance(hint, str) else None,
                 )
+
+    def _proven(self, key_expr: str, nonce: str, reply: Any) -> bytes | None:
+        """A reply's body if the robot signed it for ``nonce`` on ``key_expr``; None otherwise."""
+        sample = reply.ok if reply.ok is not None else reply.err
+        return None if self.proof is None else self.proof.body(key_expr, nonce, sample.payload.to_bytes())
+
+    def _unproven(self, what: str) -> str:
+        return unproven(self.name, f"its answer to the {what} is not signed by its key")
 
     def _answered(self, key: tuple[int, int]) -> None:
         with self._cond:
@@ -374,7 +444,9 @@ class RemoteLink(Carrier):
         """A non-motion write, through the robot side's table; waited for, so a refusal is this write's error."""
         zenoh = import_zenoh()
         assert self.lease is not None  # set by open(): it numbers and signs this session's messages
+        nonce = new_nonce()
         payload = {
+            "nonce": nonce,
             "op": self.op.name,
             "session": self.op.session,
             "key": self.identity.public_hex,
@@ -390,16 +462,23 @@ class RemoteLink(Carrier):
             encoding=zenoh.Encoding.APPLICATION_JSON,
             timeout=ASK_TIMEOUT_S,
         )
+        stray = False  # an answer came that the robot did not sign
         for reply in replies:
+            body = self._proven(write_key(self.name), nonce, reply)
+            if body is None:
+                stray = stray or reply.ok is not None or isinstance(_json(reply.err.payload.to_bytes()), dict)
+                continue
             if reply.ok is not None:
-                answer = _json(reply.ok.payload.to_bytes())
+                answer = _json(body)
                 if isinstance(answer, dict) and isinstance(answer.get("reply"), dict):
                     self._reply_of(address, cmd, answer["reply"])
                 return
-            said = _json(reply.err.payload.to_bytes())
+            said = _json(body)
             text = said.get("error") if isinstance(said, dict) else None
             shown = quoted(text, SAID_CHARS) if isinstance(text, str) and text else "no reason given"
             raise DeviceRefused(f"{self.name} refused {cmd.name}: {shown}")
+        if stray:
+            raise NotProven(self._unproven(f"{cmd.name} write"), hint=HINT)
         raise DeviceRefused(
             f"{self.name} did not answer the {cmd.name} write within {ASK_TIMEOUT_S:g} s",
             hint="hcrctl fleet list shows whether it is still there",
