@@ -373,7 +373,7 @@ def to_motion(rounds: int, tmp: Path, nodes: dict[str, dict[str, Any]]) -> dict[
             }
             delays: dict[str, list[float]] = {label: [] for label in nodes}
             for k in range(rounds + 1):
-                speed = 10 + k  # a new wheel speed every round (cm/s), well inside the range
+                speed = 10 + k % 30  # a new wheel speed every round (cm/s), well inside the range
                 twist = Twist(linear=Vector3(x=speed / 100))
                 for label, writer in writers.items():
                     tail = tails[label]
