@@ -6,9 +6,11 @@ Run from the repository root with rclpy importable: Jazzy's PyPI wheels
 sourced ROS 2 (``source /opt/ros/jazzy/setup.bash && python
 bench/bench_ros2_rclpy.py``, from a virtualenv of the ROS 2's Python, 3.12
 for Jazzy, made with ``--system-site-packages`` and hcrctl installed in it
-with its ros2 extra). Options: ``[--seconds 15] [--rounds 21] [--source DIR]
-[--parts yardstick,motion,cyclone]``. Every process inherits
-``RMW_IMPLEMENTATION`` and ``ROS_AUTOMATIC_DISCOVERY_RANGE`` from the shell.
+with its ros2 and zenoh extras, which ``bench_ros2`` needs). Options:
+``[--seconds 15] [--rounds 21] [--source DIR] [--parts
+yardstick,motion,cyclone]``. Every process takes ``RMW_IMPLEMENTATION`` and
+``ROS_AUTOMATIC_DISCOVERY_RANGE`` from the shell, but for a Cyclone DDS
+node and its Twist writer (``discovery``).
 
 1. ``yardstick``: ``hcrctl --port PTY ros2 --middleware rclpy`` and
    ``bench/ref_rclpy_driver.py`` (rclpy, pyserial, typed messages, one loop,
@@ -28,7 +30,9 @@ with its ros2 extra). Options: ``[--seconds 15] [--rounds 21] [--source DIR]
    the other, and waits for its velocity frame in that node's ``--log``. The
    figure is the log's time of the frame less the wall time just before the
    write (same host, same clock), median and max over ``--rounds``. Target:
-   median <= 2 ms on both rows.
+   median <= 2 ms on both rows. Beside them, in the same rounds, what rclpy
+   itself costs: the Twist to the callback of a plain rclpy subscriber on
+   the node's executor (``--echo``, a process of its own).
 3. ``cyclone`` (with ``--source DIR``, a tree holding an older ``hcrctl``,
    e.g. ``git archive 402169c hcrctl | tar -x -C DIR``, the tree before the
    rclpy row): this tree's Cyclone row and that tree's node, 2. alternated
