@@ -1,5 +1,4 @@
-"""``hcrctl ros2`` on rclpy: CPU at 10 Hz beside a hand-written driver, Twist to motion on both rows, and
-the Cyclone row against an older tree.
+"""``hcrctl ros2`` on rclpy: CPU beside a hand-written driver, Twist to motion, the Cyclone row as before.
 
 Run from the repository root with rclpy importable: Jazzy's PyPI wheels
 (``. /work/brief/rcl_env.sh && python bench/bench_ros2_rclpy.py``), or a
