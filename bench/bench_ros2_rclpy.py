@@ -1,7 +1,9 @@
 """``hcrctl ros2`` on rclpy: CPU beside a hand-written driver, Twist to motion, the Cyclone row as before.
 
-Run from the repository root with rclpy importable: Jazzy's PyPI wheels
-(``. /work/brief/rcl_env.sh && python bench/bench_ros2_rclpy.py``), or a
+Run from the repository root with rclpy importable: Jazzy's PyPI wheels (in
+an environment of their own, CPython 3.12: its ``site-packages`` on
+``PYTHONPATH``, its ``lib`` and ``site-packages/ros_*.libs`` on
+``LD_LIBRARY_PATH``, as ``tests/helpers_rclpy.sourced`` sets them), or a
 sourced ROS 2 (``source /opt/ros/jazzy/setup.bash && python
 bench/bench_ros2_rclpy.py``, from a virtualenv of the ROS 2's Python, 3.12
 for Jazzy, made with ``--system-site-packages`` and hcrctl installed in it

@@ -1,7 +1,7 @@
 """The yardstick of ``bench_ros2_rclpy.py``: the HCR robot's ROS 2 driver as a person writes it by hand.
 
 ``python bench/ref_rclpy_driver.py --port PTY [--namespace /x] [--domain-id N] [--rate 10]``, with rclpy
-importable (a sourced ROS 2, or ``. /work/brief/rcl_env.sh``).
+importable (a sourced ROS 2, or Jazzy's wheels made importable: ``bench_ros2_rclpy``'s docstring).
 
 One loop, pyserial, rclpy's typed messages: each sweep writes a read request
 for the bumpers, IR, sonar, compass, wheels and environment in turn, waits
