@@ -277,7 +277,7 @@ def test_ros_args_rename_the_node_remap_a_topic_and_give_a_parameter(
         str(params),
     )
     with on_rclpy(ros_env, tmp_path, *ros_args) as (here, node, peer):
-        assert f"as ROS 2 node {here.namespace}/base " in node.said()
+        assert f"as ROS 2 node {here.namespace}/base " in node.said()  # __node renames, --namespace places
         names = {"names": ["deadman", "rate"]}
         values = call(peer, here, "get_parameters", SRV + "GetParameters", names, node="base")
         assert [v["double_value"] for v in values["values"]] == [0.3, 4.0]
@@ -290,6 +290,25 @@ def test_ros_args_rename_the_node_remap_a_topic_and_give_a_parameter(
         wait_until(moving, what="the remapped cmd_vel driving")
 
 
+def test_ros_args_namespace_places_every_topic_and_service_and_debug_logging_is_taken(
+    ros_env: dict[str, str], tmp_path: Path
+) -> None:
+    """``-r __ns:=/x`` overrides ``--namespace``, as ROS 2's remapping does for any node."""
+    moved = f"/x{place().namespace[1:]}"
+    with on_rclpy(ros_env, tmp_path, "--ros-args", "-r", f"__ns:={moved}", "--log-level", "debug") as (
+        here,
+        node,
+        peer,
+    ):
+        assert f"as ROS 2 node {moved}/hcrctl " in node.said()
+        there = Place(here.domain, moved)
+        assert [v["double_value"] for v in got(peer, there, "deadman")] == [0.5]
+        peer.ask("sub", topic=f"{moved}/imu", type="sensor_msgs/msg/Imu", qos="sensor")
+        wait_until(
+            lambda: peer.ask("take", topic=f"{moved}/imu")["messages"], what="imu in the new namespace"
+        )
+
+
 @pytest.mark.parametrize(
     ("ros_args", "words"),
     [
@@ -299,8 +318,9 @@ def test_ros_args_rename_the_node_remap_a_topic_and_give_a_parameter(
         (("-p", "deadman:=1"), "deadman:=1.0"),  # ROS 2's own rule at start, as rclcpp's: 1 is an integer
         (("-p", "pid.p:=3"), "pid.p, pid.i and pid.d together"),
         (("-r",), "--ros-args"),
+        (("--log-level", "loud"), "--ros-args"),
     ],
-    ids=["nan", "out-of-range", "wrong-type", "integer", "lone-gain", "bad-argument"],
+    ids=["nan", "out-of-range", "wrong-type", "integer", "lone-gain", "bad-argument", "bad-log-level"],
 )
 def test_a_bad_ros_argument_is_a_usage_error_and_nothing_is_sent(
     ros_env: dict[str, str], tmp_path: Path, ros_args: tuple[str, ...], words: str

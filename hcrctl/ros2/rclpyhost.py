@@ -46,16 +46,14 @@ from collections.abc import Callable, Hashable, Iterator
 from typing import Any
 
 import rclpy
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.context import Context
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from rclpy.utilities import get_rmw_implementation_identifier, try_shutdown
 
-from ..extras import imported
 from ..protocol import ros2conv, ros2msg
 from ..protocol import ros2srv as S
 from ..protocol.topics import microseconds
@@ -63,6 +61,8 @@ from ..served.notes import Level, Note
 from ..served.tuning import Setter
 from .host import MAX_BUILT, SETTLE_MAX, SETTLE_QUIET, Ros2UsageError
 from .params import FIRST, PARAMETERS, PID_GAINS, Parameters, Refused, checked, descriptor
+from .rclpycmdvel import CmdVelReader, OnMessage
+from .rclpytypes import message_class, message_of, no_events, qos_profile
 from .worker import CLOSE_WAIT, MAX_FIRST, Worker
 
 NODE_NAME = "hcrctl"
@@ -74,41 +74,6 @@ COMMAND_LINE = Setter("the command line (--ros-args)", authenticated=True)
 ROS2_PEER = Setter("a ROS 2 peer (unauthenticated)", authenticated=False)
 #: What a bad ROS 2 argument's line suggests.
 ROS_ARGS_HINT = "ROS 2's arguments: -r FROM:=TO, -p NAME:=VALUE, --params-file FILE, --log-level LEVEL"
-#: The cmd_vel callback's parameters: (message, message info).
-OnMessage = Callable[[str | None, Any], None]
-
-
-def message_class(ros_type: str) -> Any:
-    """The rosidl class of ``pkg/msg/Type`` or ``pkg/srv/Type`` (ImportError where this ROS 2 lacks it)."""
-    package, kind, name = ros_type.split("/")
-    return imported(f"{package}.{kind}:{name}")
-
-
-def qos_profile(qos: ros2conv.Qos) -> QoSProfile:
-    """rclpy's profile of a ROS QoS (``ros2conv.Qos``)."""
-    profile = QoSProfile(
-        history=HistoryPolicy.KEEP_LAST,
-        depth=qos.depth,
-        reliability=ReliabilityPolicy.RELIABLE if qos.reliable else ReliabilityPolicy.BEST_EFFORT,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL if qos.transient_local else DurabilityPolicy.VOLATILE,
-    )
-    if qos.lifespan:
-        from rclpy.duration import Duration
-
-        profile.lifespan = Duration(nanoseconds=int(qos.lifespan * 1e9))
-    return profile
-
-
-def _no_events() -> Any:
-    """A publisher's middleware events: none. rclpy's defaults (a warning on ``/rosout``, where the node's rcl
-    log lines go, when a reader asks for an incompatible QoS or type: the reader's own side says so too) are
-    two waitables a publisher, which the executor walks on every wake: ~0.3 ms more per cmd_vel sample or
-    service request with this node's publishers, on a loaded 2-core machine (bench/bench_ros2_rclpy.py)."""
-    try:
-        from rclpy.event_handler import PublisherEventCallbacks
-    except ImportError:  # Humble: the module's older name
-        from rclpy.qos_event import PublisherEventCallbacks
-    return PublisherEventCallbacks(use_default_callbacks=False)
 
 
 def _init(options: Any) -> Context:
@@ -195,7 +160,7 @@ class RclpyHost:
                 self._left_out(topic)
                 continue
             publisher = self.node.create_publisher(
-                kind, topic.name, qos_profile(topic.qos), event_callbacks=_no_events()
+                kind, topic.name, qos_profile(topic.qos), event_callbacks=no_events()
             )
             self._publishers[topic.name] = (publisher, topic.type)
 
@@ -381,117 +346,3 @@ def _as_doubles(parameters: list[Parameter]) -> list[Parameter]:
         else p
         for p in parameters
     ]
-
-
-def message_of(ros_type: str, fields: dict[str, Any]) -> Any:
-    """A rosidl message of ``ros_type`` from a dict (nested dicts and lists of dicts for nested messages)."""
-    message = message_class(ros_type)()
-    types = message.get_fields_and_field_types()
-    for key, value in fields.items():
-        kind = types[key]
-        if isinstance(value, dict):
-            value = message_of(_full(kind), value)
-        elif isinstance(value, list) and "/" in kind:
-            value = [message_of(_full(kind.partition("<")[2].rstrip(">").split(",")[0]), v) for v in value]
-        setattr(message, key, value)
-    return message
-
-
-def _full(kind: str) -> str:
-    """rosidl's ``pkg/Type`` as ``pkg/msg/Type``."""
-    package, _, name = kind.partition("/")
-    return f"{package}/msg/{name}"
-
-
-class CmdVelReader:
-    """cmd_vel's subscription: each message handed on with its writer (None where it cannot be known)."""
-
-    def __init__(
-        self, node: Node, topic: ros2conv.RosTopic, on_message: OnMessage, on_gone: Callable[[str], None]
-    ) -> None:
-        self._node = node
-        self._on_message, self._on_gone = on_message, on_gone
-        self._lock = threading.Lock()
-        #: Writers matched, from the matched event; None where rclpy has none (before Iron): the graph then
-        #: counts them, and a writer that goes is left to the deadman.
-        self._matched: int | None = None
-        self._writers: dict[str, str] = {}  # gid (hex) -> the node that owns it
-        self._seen: set[str] = set()
-        self.subscription = node.create_subscription(
-            message_class(topic.type),
-            topic.name,
-            self._taken,
-            qos_profile(topic.qos),
-            callback_group=MutuallyExclusiveCallbackGroup(),
-            **self._events(),
-        )
-
-    def _events(self) -> dict[str, Any]:
-        """The matched event's callback, where this rclpy has it (Iron on)."""
-        try:
-            from rclpy.event_handler import SubscriptionEventCallbacks
-
-            events = SubscriptionEventCallbacks(matched=self._match)
-        except (ImportError, TypeError):
-            return {}
-        self._matched = 0
-        return {"event_callbacks": events}
-
-    def _taken(self, message: Any, info: Any) -> None:
-        gid = info.get("publisher_gid") if isinstance(info, dict) else None
-        writer = (
-            _hex(gid["data"] if isinstance(gid, dict) else gid) if gid is not None else self._only_writer()
-        )
-        if writer is not None:
-            with self._lock:
-                self._seen.add(writer)
-        self._on_message(writer, message)
-
-    def _only_writer(self) -> str | None:
-        """The topic's writer when it has exactly one, matched and in the graph; else None."""
-        with self._lock:
-            matched, writers = self._matched, dict(self._writers)
-        if matched is None or (matched == 1 and len(writers) != 1):
-            writers = self._refresh()
-            matched = len(writers) if matched is None else matched
-        return next(iter(writers)) if matched == 1 and len(writers) == 1 else None
-
-    def _refresh(self) -> dict[str, str]:
-        """The topic's writers as the graph has them now: gid -> node ('' while rmw has not learnt it)."""
-        infos = self._node.get_publishers_info_by_topic(self.subscription.topic_name)
-        writers = {_hex(i.endpoint_gid): _node_name(i) for i in infos}
-        with self._lock:
-            self._writers = writers
-        return writers
-
-    def _match(self, status: Any) -> None:
-        """Writers came or went: the graph asked again, and each writer seen that is no longer there is gone."""
-        with self._lock:
-            self._matched = status.current_count
-        writers = self._refresh()
-        if status.current_count_change >= 0:
-            return
-        with self._lock:
-            gone = {w for w in self._seen if status.current_count == 0 or w not in writers}
-            self._seen -= gone
-        for writer in gone:
-            self._on_gone(writer)
-
-    def name_of(self, writer: str) -> str | None:
-        """The node that owns ``writer``, asking the graph again while it does not know."""
-        with self._lock:
-            name = self._writers.get(writer)
-        if not name:
-            name = self._refresh().get(writer)
-        return name or None
-
-
-def _node_name(info: Any) -> str:
-    """``/ns/name`` of an endpoint's node; '' for the placeholder rmw gives before the node is announced."""
-    if info.node_name.startswith("_NODE_NAME_UNKNOWN"):
-        return ""
-    return f"{info.node_namespace.rstrip('/')}/{info.node_name}"
-
-
-def _hex(gid: Any) -> str:
-    return bytes(gid).hex()
