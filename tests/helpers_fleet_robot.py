@@ -486,9 +486,17 @@ class Attacker:
 
         self._start(rate, send)
 
-    def puts(self, key: str, payload: bytes, attachment: Any, rate: float = 1000.0) -> None:
-        """Puts on ``key``; ``attachment(n)`` is the n-th message's attachment."""
-        self._start(rate, lambda n: self.session.put(key, payload, attachment=attachment(n)))
+    def puts(
+        self, key: str, payload: bytes, attachment: Any, rate: float = 1000.0, lossless: bool = False
+    ) -> None:
+        """Puts on ``key``; ``attachment(n)`` is the n-th message's attachment. ``lossless``: each put blocks
+        rather than being dropped where a queue on the way is full (Zenoh's default drops), for a test that
+        counts what arrived against what was sent, on a machine too loaded to drain the queues in time."""
+        control = self.zenoh.CongestionControl.BLOCK if lossless else self.zenoh.CongestionControl.DROP
+        self._start(
+            rate,
+            lambda n: self.session.put(key, payload, attachment=attachment(n), congestion_control=control),
+        )
 
     def stop(self) -> None:
         self._done.set()
