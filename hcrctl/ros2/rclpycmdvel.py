@@ -1,7 +1,7 @@
 """cmd_vel on the rclpy row: each message handed on with its writer, where ROS 2 can say which.
 
 The writer of a message is the message info's ``publisher_gid`` where rclpy
-gives it, else the one writer the topic has (the matched event's count and
+gives it, else the one writer the topic has (the middleware's matched count and
 the graph agreeing); with more than one and no gid (Jazzy's rclpy), it is
 unknown (``None``), and ``drive.RosCmdVel`` lets such a message stop the
 robot, never move it. A writer seen before that is no longer matched is gone.
@@ -32,9 +32,6 @@ class CmdVelReader:
         self._node = node
         self._on_message, self._on_gone = on_message, on_gone
         self._lock = threading.Lock()
-        #: Writers matched, from the matched event; None where rclpy has none (before Iron): the graph then
-        #: counts them, and a writer that goes is left to the deadman.
-        self._matched: int | None = None
         self._writers: dict[str, str] = {}  # gid (hex) -> the node that owns it
         self._seen: set[str] = set()
         self.subscription = node.create_subscription(
@@ -47,14 +44,14 @@ class CmdVelReader:
         )
 
     def _events(self) -> dict[str, Any]:
-        """The matched event's callback, where this rclpy has it (Iron on)."""
+        """The matched event's callback, where this rclpy has it (Iron on): without it, a writer that goes is
+        left to the deadman."""
         try:
             from rclpy.event_handler import SubscriptionEventCallbacks
 
             events = SubscriptionEventCallbacks(matched=self._match)
         except (ImportError, TypeError):
             return {}
-        self._matched = 0
         return {"event_callbacks": events}
 
     def _taken(self, message: Any, info: Any) -> None:
@@ -68,12 +65,13 @@ class CmdVelReader:
         self._on_message(writer, message)
 
     def _only_writer(self) -> str | None:
-        """The topic's writer when it has exactly one, matched and in the graph; else None."""
-        with self._lock:
-            matched, writers = self._matched, dict(self._writers)
-        if matched is None or (matched == 1 and len(writers) != 1):
-            writers = self._refresh()
-            matched = len(writers) if matched is None else matched
+        """The topic's writer when it has exactly one, asked as each message is taken: the middleware's own
+        count of the writers matched now, and the graph, both one; else None. The matched event comes on the
+        executor in its own time, so it may trail a new writer's first message: counted by the event, that
+        message would be taken for the old writer's."""
+        count = getattr(self.subscription, "get_publisher_count", None)  # from Iron on
+        writers = self._refresh()
+        matched = count() if count is not None else len(writers)
         return next(iter(writers)) if matched == 1 and len(writers) == 1 else None
 
     def _refresh(self) -> dict[str, str]:
@@ -86,8 +84,6 @@ class CmdVelReader:
 
     def _match(self, status: Any) -> None:
         """Writers came or went: the graph asked again, and each writer seen that is no longer there is gone."""
-        with self._lock:
-            self._matched = status.current_count
         writers = self._refresh()
         if status.current_count_change >= 0:
             return
