@@ -124,7 +124,14 @@ def test_diagnostics_say_the_link_and_the_driver_with_levels(env: dict[str, str]
     here = place()
     readers = {"/diagnostics": ("diagnostic_msgs/msg/DiagnosticArray", SENSOR_QOS)}
     with sim_pty(env, *QUIET) as port, ros_side(here, tmp_path, readers) as ros, ros2_node(port, here, env):
-        answered = latest(ros, "/diagnostics", lambda a: a["status"][0]["level"] != R.DIAG_ERROR)
+
+        def measured(array: dict[str, Any]) -> bool:
+            """No ERROR, and the sweeps' rate known ('' until two sweeps were timed)."""
+            link = array["status"][0]
+            rate = {kv["key"]: kv["value"] for kv in link["values"]}.get("sweeps per second")
+            return bool(link["level"] != R.DIAG_ERROR and rate)
+
+        answered = latest(ros, "/diagnostics", measured)
         link, driver = answered["status"]
         node = f"{here.namespace}/hcrctl"
         assert (link["name"], driver["name"]) == (f"{node}: link", f"{node}: driver")
