@@ -11,7 +11,8 @@ loaded to check them.
 A few top-level tables hold no command's options but a description the
 program uses (``TABLES``): ``[layout]`` is the robot's frames and sensors as
 its ROS 2 messages give them (``protocol.ros2conv``: ``wheel-radius``,
-``sonar-yaw``...). The caller hands the function that checks such a table and
+``sonar-yaw``...); ``[robot-keys]`` pins each fleet robot's key
+(``link.robotpins``: ``r1 = "SHA256:..."``). The caller hands the function that checks such a table and
 puts it to use; a bad value is reported as that file, key and line.
 
 Every value is checked here, with the option's own Click type, so a typo in a
@@ -173,7 +174,10 @@ Commands = Callable[[str], "click.Command | None"]
 #: and puts it to use.
 Tables = Mapping[str, Callable[[dict[str, Any]], None]]
 #: The tables a config file may hold besides the commands', and what each describes.
-TABLES = {"layout": "the robot's frames and sensors for its ROS 2 messages (docs/ros2.md)"}
+TABLES = {
+    "layout": "the robot's frames and sensors for its ROS 2 messages (docs/ros2.md)",
+    "robot-keys": "each fleet robot's key fingerprint, pinned (docs/fleet.md)",
+}
 
 
 def option_defaults(

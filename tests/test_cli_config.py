@@ -85,6 +85,9 @@ BAD_FILES = [
     ('checksum-from = "middle"\n', ["checksum-from", "'header', 'address'"]),
     ('prot = "sim://"\n', ["prot", "unknown key", "did you mean 'port'"]),
     ("baud = \n", ["not valid TOML"]),
+    ('[robot-keys]\nr1 = "SHA256:abc"\n', ["config.toml:2: robot-keys.r1", "fingerprint", "'SHA256:abc'"]),
+    ("[robot-keys]\nr1 = 5\n", ["config.toml:2: robot-keys.r1", "fingerprint", "got 5"]),
+    (f'[robot-keys]\nr1 = "SHA256:{"A" * 42}B"\n', ["config.toml:2: robot-keys.r1", "fingerprint"]),
 ]
 
 

@@ -1,8 +1,10 @@
 """A robot proves who it is: once its serve is gone, a peer answering in its name fools no operator.
 
 The robot is ``hcrctl sim --tcp`` served by ``fleet serve r1`` (so the robot
-outlives its serve, keeping its last speed, as a real one does). The fake is
-a raw Zenoh session in this process, not hcrctl's code: while the real serve
+outlives its serve, keeping its last speed, as a real one does), on loopback
+and with the router, the robot and the operator on hosts of their own
+(``topology``). The fake is ``fleet_fake_robot.py`` on the robot's host, a raw
+Zenoh session, not hcrctl's code: while the real serve
 runs it records the real robot's signed answers (its info, a compass read, a
 stop's status word), then, the serve killed with SIGKILL, it declares
 ``hcr/r1/alive`` and answers ``info``, ``drive``, ``read/*`` and ``write``
@@ -18,7 +20,8 @@ import contextlib
 import json
 import os
 import signal
-import threading
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -27,96 +30,79 @@ import pytest
 
 pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip install 'hcrctl[zenoh]')")
 
-from helpers import TIMEOUT, wait_until
+from helpers import TIMEOUT
 from helpers_fleet_port import Fleet, Served, fleet, is_motion
+from helpers_netns import ROBOT_HOST, Topology
 
+from hcrctl.link.zenoh import robotkey
 from hcrctl.link.zenoh.remote import LIST_HINT
 
+FAKE = Path(__file__).with_name("fleet_fake_robot.py")
 #: What no operator may say on a fake's word.
 BELIEVED = ("stop delivered", "the robot is stopped", "r1 said:", "compass ")
 
 
-def _session(endpoint: str) -> Any:
-    import zenoh
-
-    cfg = zenoh.Config()
-    cfg.insert_json5("mode", '"client"')
-    cfg.insert_json5("connect/endpoints", json.dumps([endpoint]))
-    cfg.insert_json5("scouting/multicast/enabled", "false")
-    return zenoh.open(cfg)
-
-
 class Fake:
-    """Records r1's real answers while it is served, then answers in its name (``impersonate``)."""
+    """The fake r1 (``fleet_fake_robot.py``), a process on the robot's host: each method one of its commands,
+    returning once it has done it."""
 
-    def __init__(self, endpoint: str) -> None:
-        self.session = _session(endpoint)
-        self.info = b""
-        self.read = b""
-        self.words: list[bytes] = []
-        self.recorded: list[bytes] = []
-        self.stops: list[bytes] = []
-        self._held: list[Any] = []
-        self._heard = self.session.declare_subscriber(
-            "hcr/r1/status", lambda s: self.words.append(bytes(s.payload))
+    def __init__(self, running: Fleet) -> None:
+        command = [*running.topology.on(ROBOT_HOST), sys.executable, str(FAKE), running.endpoint]
+        self.proc = subprocess.Popen(
+            command,
+            env=running.env,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+            start_new_session=True,
         )
+        running.procs.append(self.proc)  # type: ignore[arg-type]
 
-    def _ask(self, key: str, payload: dict[str, Any]) -> bytes:
-        (reply,) = list(self.session.get(key, payload=json.dumps(payload), timeout=TIMEOUT / 3))
-        assert reply.ok is not None, bytes(reply.err.payload)
-        return bytes(reply.ok.payload)
+    def _do(self, command: str) -> dict[str, Any]:
+        stdin, stdout = self.proc.stdin, self.proc.stdout
+        assert stdin is not None and stdout is not None
+        stdin.write(command + "\n")
+        stdin.flush()
+        text = stdout.readline()
+        assert text, f"the fake ended at {command!r} (status {self.proc.wait(timeout=TIMEOUT)})"
+        found: dict[str, Any] = json.loads(text)
+        return found
 
     def record(self) -> None:
         """The real robot's signed info and compass read (for nonces of its own), and a stop's word."""
-        self.info = self._ask("hcr/r1/info", {"nonce": "1" * 32})
-        self.read = self._ask("hcr/r1/read/compass", {"nonce": "2" * 32})
-        self.session.put("hcr/r1/stop", json.dumps({"nonce": "3" * 32}))
-        wait_until(lambda: any(b'"stopped"' in w for w in self.words), what="the real robot's word of a stop")
-        self.recorded = list(self.words)
+        assert self._do("record")["recorded"]
 
     def impersonate(self) -> None:
         """``hcr/r1/alive`` and r1's queryables, answered with the recordings and forgeries."""
-        s = self.session
-        self._held += [
-            s.declare_queryable("hcr/r1/info", lambda q: q.reply("hcr/r1/info", self.info)),
-            s.declare_queryable("hcr/r1/read/*", lambda q: q.reply(str(q.key_expr), self.read)),
-            s.declare_queryable("hcr/r1/drive", self._drive),
-            s.declare_queryable("hcr/r1/write", lambda q: q.reply("hcr/r1/write", b'{"frame": "55 AA"}')),
-            s.declare_subscriber("hcr/r1/stop", self._stop),
-            s.liveliness().declare_token("hcr/r1/alive"),
-        ]
+        self._do("impersonate")
 
-    def _drive(self, query: Any) -> None:
-        asked = json.loads(bytes(query.payload))
-        if asked.get("do") == "lease":
-            query.reply("hcr/r1/drive", json.dumps({"lease": "4" * 32}))
-        else:
-            query.reply(
-                "hcr/r1/drive", json.dumps({"driver": asked.get("op"), "seen": 10**6, "hold": "5" * 32})
-            )
-
-    def _stop(self, sample: Any) -> None:
+    def answer_stops(self) -> None:
         """Every stop answered with the real robot's recorded word, then a forged one naming its nonce."""
-        asked = json.loads(bytes(sample.payload) or b"{}")
-        self.stops.append(bytes(sample.payload))
-        for word in self.recorded:
-            self.session.put("hcr/r1/status", word)
-        forged = {"event": "stopped", "text": "stopped: stop from you", "op": None, "reason": "stop"}
-        self.session.put("hcr/r1/status", json.dumps(forged | {"asks": [asked.get("nonce")]}))
+        self._do("answer-stops")
+
+    def replay(self) -> None:
+        """The real robot's last recorded word, over and over, until ``quiet``."""
+        self._do("replay")
+
+    def quiet(self) -> None:
+        self._do("quiet")
+
+    def stops(self) -> int:
+        return int(self._do("stops")["stops"])
 
     def close(self) -> None:
-        for thing in [*self._held, self._heard]:
-            with contextlib.suppress(Exception):
-                thing.undeclare()
-        self.session.close()
+        with contextlib.suppress(OSError):
+            self.proc.stdin.close()  # type: ignore[union-attr]
+        self.proc.wait(timeout=TIMEOUT)
 
 
 @pytest.fixture
-def lab(tmp_path: Path) -> Iterator[tuple[Fleet, Served, Fake]]:
-    """r1 served on a simulator of its own (it outlives the serve), and a fake that has recorded r1."""
-    with fleet(tmp_path) as running:
+def lab(tmp_path: Path, topology: Topology) -> Iterator[tuple[Fleet, Served, Fake]]:
+    """r1 served on a simulator of its own (it outlives the serve), and a fake that has recorded r1, on
+    loopback and with the router, the robot (and the fake) and the operator on hosts of their own."""
+    with fleet(tmp_path, topology) as running:
         served = running.serve("r1", running.sim_tcp(), "--deadman", "10")
-        fake = Fake(running.endpoint)
+        fake = Fake(running)
         try:
             fake.record()
             yield running, served, fake
@@ -155,7 +141,7 @@ def test_a_fake_in_a_killed_robots_place_is_refused_with_one_line(
     line = _one_line(done)
     if command == ["stop"]:
         assert line.startswith("hcrctl: error: stop put on hcr/r1/stop, but r1 could not prove"), line
-        assert fake.stops, "the stop was not put"
+        assert fake.stops(), "the stop was not put"
 
 
 def test_a_fake_met_first_is_refused_too(lab: tuple[Fleet, Served, Fake]) -> None:
@@ -200,9 +186,9 @@ def test_a_driver_whose_serve_is_killed_never_says_stopped_on_a_fakes_word(
         assert "r1 could not prove it is r1" in last, text  # killed before its motion was confirmed: no more
 
 
-def test_a_changed_robot_key_is_refused_naming_both_fingerprints(tmp_path: Path) -> None:
+def test_a_changed_robot_key_is_refused_naming_both_fingerprints(tmp_path: Path, topology: Topology) -> None:
     """r1 served again with a key made anew: refused until its line is taken out of the known robots."""
-    with fleet(tmp_path) as running:
+    with fleet(tmp_path, topology) as running:
         first = running.serve("r1", "sim://")
         before = first.said().split("its key ")[1].split(";")[0]
         assert running.run("r1", "read", "compass").returncode == 0
@@ -243,20 +229,41 @@ def test_a_stop_is_said_made_only_on_the_robots_signed_word_naming_it(
     """While the real robot is there, its word answers the stop: the fake's replayed and forged words beside it
     are not taken for it."""
     running, _, fake = lab
-    fake.session.declare_subscriber("hcr/r1/stop", fake._stop)
-    replaying = threading.Event()
-
-    def replay() -> None:  # the real robot's recorded word, over and over, from before the stop to its end
-        while not replaying.wait(0.005):
-            fake.session.put("hcr/r1/status", fake.recorded[-1])
-
-    thread = threading.Thread(target=replay, daemon=True)
-    thread.start()
+    fake.answer_stops()
+    fake.replay()  # the real robot's recorded word, over and over, from before the stop to its end
     try:
         done = running.run("r1", "stop")
     finally:
-        replaying.set()
-        thread.join()
+        fake.quiet()
     assert done.returncode == 0, done.stderr
     assert done.stdout.startswith("stop put on hcr/r1/stop; r1 said: stopped: stop from "), done.stdout
     assert "calling itself " in done.stdout, done.stdout  # its own stop's word, not the recorded one replayed
+
+
+def test_a_key_pinned_in_the_config_wins_over_the_known_one(tmp_path: Path, topology: Topology) -> None:
+    """A pin refuses any other key, naming both and where it is pinned, and believes its own key whatever
+    known_robots says; a pinned robot is never remembered there."""
+    with fleet(tmp_path, topology) as running:
+        served = running.serve("r1", "sim://")
+        shown = served.said().split("its key ")[1].split(";")[0]
+        other = robotkey.fingerprint("00" * 32)
+        config = tmp_path / "hcrctl" / "config.toml"
+        config.parent.mkdir(exist_ok=True)
+        config.write_text(f'[robot-keys]\nr1 = "{other}"\n')
+        done = running.run("r1", "read", "compass")
+        assert done.returncode == 1, done.stderr
+        (line,) = done.stderr.splitlines()
+        assert (
+            f"r1's key is not the pinned one: it answers with {shown}, but {other} is pinned for it in "
+            f"the config file {config} (robot-keys.r1)"
+        ) in line, line
+        assert "change robot-keys.r1 in" in line, line
+        (robot,) = running.listed()
+        assert robot["error"].startswith("r1's key is not the pinned one") and robot["fingerprint"] == shown
+        known = tmp_path / "data" / "hcrctl" / "fleet" / "known_robots"
+        known.parent.mkdir(parents=True, exist_ok=True)
+        known.write_text(f"r1 {'00' * 32}\n")  # another key remembered: the pin wins
+        config.write_text(f'[robot-keys]\nr1 = "{shown}"\n')
+        done = running.run("r1", "read", "compass")
+        assert done.returncode == 0, done.stderr
+        assert known.read_text() == f"r1 {'00' * 32}\n"

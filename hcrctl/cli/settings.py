@@ -185,7 +185,7 @@ def config_defaults(group: click.Group) -> dict[str, Any]:
     return option_defaults(
         config_keys(group),
         commands=lambda name: group.get_command(click.Context(group), name),
-        tables={"layout": use_layout},
+        tables={"layout": use_layout, "robot-keys": use_robot_keys},
     )
 
 
@@ -194,6 +194,14 @@ def use_layout(table: dict[str, Any]) -> None:
     from ..protocol import ros2conv
 
     ros2conv.use_layout(ros2conv.layout_from(table))
+
+
+def use_robot_keys(table: dict[str, Any]) -> None:
+    """The config's ``[robot-keys]``: the robots' keys every fleet answer of this run is checked against."""
+    from ..config import config_path
+    from ..link import robotpins
+
+    robotpins.use_pins(robotpins.pins_from(table, config_path()))
 
 
 _F = TypeVar("_F", bound=Callable[..., Any])

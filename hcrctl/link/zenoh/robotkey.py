@@ -22,7 +22,8 @@ the stops it answers (``asks``).
 The operator remembers each robot's public key in ``known_path`` the first time
 it reaches it (trust on first use, as ssh's ``known_hosts``) and from then on
 believes only that key: a robot answering with another is refused, naming both
-fingerprints. A line written there by hand pins a robot's key before first use.
+fingerprints. A line written there by hand, or the config's ``[robot-keys]``
+(``robotpins``, which wins over it), pins a robot's key before first use.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from ...errors import NotTheRobot
+from .. import robotpins
 from .identity import PUBLIC_KEY, _ed25519, check_installed, verified
 from .join import FleetError
 
@@ -84,7 +86,7 @@ def known_path() -> str:
 def fingerprint(public_hex: str) -> str:
     """A public key as people compare it, as ssh does: ``SHA256:`` and its digest in base64."""
     digest = hashlib.sha256(bytes.fromhex(public_hex)).digest()
-    return "SHA256:" + base64.b64encode(digest).decode().rstrip("=")
+    return robotpins.PREFIX + base64.b64encode(digest).decode().rstrip("=")
 
 
 def new_nonce() -> str:
@@ -258,7 +260,15 @@ class KnownRobots:
         return found
 
     def changed(self, proof: RobotProof) -> str | None:
-        """Why ``proof``'s key is refused (another is known for its robot), or None."""
+        """Why ``proof``'s key is refused (another is pinned for its robot in the config, else known), or None."""
+        pin = robotpins.pinned(proof.robot)
+        if pin is not None:
+            if pin.fingerprint == proof.fingerprint:
+                return None
+            return (
+                f"{proof.robot}'s key is not the pinned one: it answers with {proof.fingerprint}, "
+                f"but {pin.fingerprint} is pinned for it in {pin.where(proof.robot)}"
+            )
         known = self.read().get(proof.robot)
         if known is None or known == proof.public_hex:
             return None
@@ -268,16 +278,20 @@ class KnownRobots:
         )
 
     def check(self, proof: RobotProof) -> None:
-        """Believe ``proof`` if its key is the one known for its robot; remember it when none is (first use).
-        NotProven, naming both fingerprints, when another is known."""
+        """Believe ``proof`` if its key is the one pinned or known for its robot; remember it when none is
+        (first use). NotProven, naming both fingerprints, when another is."""
         why = self.changed(proof)
+        pin = robotpins.pinned(proof.robot)
         if why is not None:
-            raise NotProven(
-                why,
-                hint=f"if {proof.robot}'s key was made anew, remove its line from {self.path}; "
-                "else a peer answers in its name",
+            anew = (
+                f"change {robotpins.TABLE}.{proof.robot} in {pin.path}"
+                if pin is not None
+                else f"remove its line from {self.path}"
             )
-        if proof.robot not in self.read():
+            raise NotProven(
+                why, hint=f"if {proof.robot}'s key was made anew, {anew}; else a peer answers in its name"
+            )
+        if pin is None and proof.robot not in self.read():
             self._remember(proof)
 
     def _remember(self, proof: RobotProof) -> None:
