@@ -260,10 +260,11 @@ def test_a_key_pinned_in_the_config_wins_over_the_known_one(tmp_path: Path, topo
         assert "change robot-keys.r1 in" in line, line
         (robot,) = running.listed()
         assert robot["error"].startswith("r1's key is not the pinned one") and robot["fingerprint"] == shown
-        known = tmp_path / "data" / "hcrctl" / "fleet" / "known_robots"
-        known.parent.mkdir(parents=True, exist_ok=True)
-        known.write_text(f"r1 {'00' * 32}\n")  # another key remembered: the pin wins
         config.write_text(f'[robot-keys]\nr1 = "{shown}"\n')
+        assert running.run("r1", "read", "compass").returncode == 0
+        known = tmp_path / "data" / "hcrctl" / "fleet" / "known_robots"
+        assert not known.exists(), "a pinned robot was remembered"
+        known.write_text(f"r1 {'00' * 32}\n")  # another key remembered: the pin wins
         done = running.run("r1", "read", "compass")
         assert done.returncode == 0, done.stderr
         assert known.read_text() == f"r1 {'00' * 32}\n"
