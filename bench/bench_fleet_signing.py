@@ -1,4 +1,4 @@
-"""The robot's signature under a read-query flood: the serve's CPU per answered query, and the deadman.
+"""The robot's signature under a read-query flood: the serve's CPU per answered query, and a stop's time.
 
 Run from the repository root: ``python bench/bench_fleet_signing.py [--seconds 5] [--rounds 3]``;
 with ``PYTHONPATH=DIR`` the serve runs from another checkout (the tree before robot keys), this
@@ -12,7 +12,8 @@ flood is as fast as the serve answers. Each round measures the serve's CPU (utim
 extra CPU divided by the queries answered (median over rounds). Then a driver (``_fleet_floods``'
 ``Driver``, its renewals included) puts ``PUBLISHES`` Twists and falls silent, with the flood and
 without in turn: the time to the stop frame on the robot's wire (the serve's ``--log``): a moving
-driver's 0.15 s without a signed word, the deadman (``DEADMAN``) behind it. It records, it sets no target: compare two trees' figures (bench/README.md).
+driver's 0.15 s without a signed word, the deadman (``DEADMAN``) behind it. It records, it sets
+no target: compare two trees' figures (bench/README.md).
 """
 
 from __future__ import annotations
