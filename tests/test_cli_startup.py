@@ -98,6 +98,19 @@ def test_the_config_parser_loads_only_when_there_is_a_file(tmp_path, device):
     assert loaded(modules, "tomllib") or loaded(modules, "tomli")
 
 
+def test_pinned_robot_keys_load_nothing_of_the_fleet_for_a_serial_read(tmp_path, device):
+    """``[robot-keys]`` is checked at every start: a read on a serial port pays for no fleet, Zenoh or
+    signature code to do it."""
+    (tmp_path / "hcrctl").mkdir()
+    pin = "SHA256:47DEQpj8HBSa+/TImW+5JCeuQeRkm5NMpJWZG3hSuFU"
+    (tmp_path / "hcrctl" / "config.toml").write_text(f'[robot-keys]\nr1 = "{pin}"\n')
+    code, modules = modules_after(["--port", device, "read", "compass"], clean_env(tmp_path))
+    assert code == 0
+    assert "hcrctl.link.robotpins" in modules  # the table was checked
+    for name in ("hcrctl.link.zenoh", "hcrctl.fleet", "zenoh", "cryptography"):
+        assert not loaded(modules, name), name
+
+
 FAST_EXIT = """
 import atexit, sys, threading
 from hcrctl.cli.fastexit import fast_exit
