@@ -519,8 +519,8 @@ def part_lost(rounds: int, tmp: Path, metrics: dict[str, Any]) -> bool:
 #: A killed driver whose token a peer copied: stopped within this, its hold's going, not the deadman.
 COPIED_STOP_S = 0.1
 #: ... and while the peer also subscribes to ``hcr/**`` (its hold matched for ever): stopped when its signed
-#: renewals are missed (``fleet.drive.HOLD_S``): no copy keeps a killed driver moving past this.
-WILDCARD_STOP_S = 0.1
+#: renewals are missed (``fleet.drive.HOLD_S``), give or take the life watch's wake-up (``fleet.life``).
+WILDCARD_STOP_S = HOLD_S + 0.025
 
 
 def part_copied(rounds: int, tmp: Path, metrics: dict[str, Any]) -> bool:

@@ -5,7 +5,7 @@ serve's loop ticks every ``feed.STEP`` (0.05 s), which would let a killed
 driver's motion run up to a tick past its time. This thread instead sleeps
 until the exact moment the driver's last word runs out (``due``) and ends it
 then (``expire``): a killed driver is stopped ``HOLD_S`` after its last
-renewal, give or take the thread's wake-up. With nobody moving it looks
+renewal, give or take the thread's wake-up and ``DRAIN_S``. With nobody moving it looks
 again every ``IDLE_S``: a motion's own message is a signed word, so a driver
 that starts moving is due ``HOLD_S`` after that at the earliest, and a look
 at most ``IDLE_S`` (no more than ``HOLD_S``) later is never late.
@@ -17,6 +17,9 @@ import threading
 import time
 from collections.abc import Callable
 
+#: Before a driver is ended, its words already on their way in (a receive thread waiting for the
+#: interpreter while this one ran) are given this long to be taken: its silence must be its own.
+DRAIN_S = 0.005
 #: How often the thread looks at least: at most ``drive.HOLD_S`` (above), so a driver that starts moving,
 #: or one whose turn passed to another, is never seen late.
 IDLE_S = 0.05
@@ -47,6 +50,10 @@ class LifeWatch:
                 wait = IDLE_S
             elif now < due:
                 wait = min(due - now, IDLE_S)  # a renewal meanwhile moves ``due`` on: looked at again then
+            elif self._closed.wait(DRAIN_S):
+                return
             else:
-                self._expire()
+                due = self._due()  # a renewal taken meanwhile moved it on
+                if due is not None and time.monotonic() >= due:
+                    self._expire()
                 wait = IDLE_S

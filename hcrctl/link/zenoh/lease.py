@@ -57,8 +57,8 @@ from .robotkey import HINT, NotProven, RobotProof, new_nonce, unproven
 #: The longest wait for the robot side's answer to a claim or release.
 CLAIM_TIMEOUT_S = 2.0
 #: Renewals are at most this far apart, and at least four to a deadman: three to the robot side's
-#: ``HOLD_S`` (0.08 s), so one late renewal never stops a live driver.
-RENEW_S = 0.025
+#: ``HOLD_S`` (0.15 s), so one late renewal never stops a live driver.
+RENEW_S = 0.05
 #: How often a claim refused for want of this session's token is asked again (the token on its way),
 #: and for how long: the token was declared before the robot's info was asked, so it is only late.
 TOKEN_RETRY_S = 0.05
