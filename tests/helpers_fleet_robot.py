@@ -31,6 +31,7 @@ from typing import Any
 from helpers import TIMEOUT, default_sigint, hcrctl_exe, wait_until
 from helpers_netns import OPERATOR_HOST, ROBOT_HOST, ROUTER_HOST, Topology
 
+from hcrctl.link.zenoh.lease import RENEW_S
 from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import Frame
 
@@ -325,19 +326,23 @@ class Operator:
         return found
 
     def renew(self) -> None:
-        """Claim again every 0.05 s from now until ``silent`` (a driver's signed renewals are its life on
-        the robot side), as hcrctl's own lease does."""
+        """Claim again every ``RENEW_S`` from now until ``silent`` (a driver's signed renewals are its life
+        on the robot side), as hcrctl's own lease does: each claim sent without waiting for its answer, so
+        a slow answer never stretches the gap between two."""
         if self._renewing is None:
             self._renewing = threading.Thread(target=self._renew, daemon=True)
             self._renewing.start()
 
     def _renew(self) -> None:
         silent = self._silent
-        while not silent.wait(0.05):
+        while not silent.wait(RENEW_S):
             with contextlib.suppress(Exception):
                 data = json.dumps(self.asking()).encode()
                 self.session.get(
-                    self.keys.drive(self.robot), payload=data, attachment=self.attachment("claim", data)
+                    self.keys.drive(self.robot),
+                    lambda reply: None,
+                    payload=data,
+                    attachment=self.attachment("claim", data),
                 )
 
     def silent(self) -> None:

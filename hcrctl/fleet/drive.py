@@ -661,12 +661,33 @@ class FleetDrive:
             self._say(op, text, seq)
 
     def tick(self) -> None:
-        """The tokens waiting their turn admitted as the rate allows (``admission``); the driver's life
-        (``HOLD_S``): an operator whose motion runs and whose last signed word is older is gone (a lease
-        held still waits for the deadman: it moves nothing)."""
+        """The tokens waiting their turn admitted as the rate allows (``admission``)."""
         if self._waiting:
             with self._lock:
                 self._admit_waiting()
+
+    def life_due(self) -> float | None:
+        """When the moving driver's life runs out (``HOLD_S`` after its last signed word; monotonic), or None
+        while no operator's motion runs (a lease held still waits for the deadman: it moves nothing)."""
+        heard = self._moving_driver_heard()
+        return None if heard is None else heard[1] + HOLD_S
+
+    def life_ended(self) -> None:
+        """The moving driver whose life has run out is gone (``fleet.life`` calls this when it is due)."""
+        heard = self._moving_driver_heard()
+        if heard is None:
+            return
+        driver, last = heard
+        silent = time.monotonic() - last
+        if silent > HOLD_S:
+            self.governor.release(
+                driver,
+                f"operator {driver.id} gone: no signed word of its for {silent:.2f} s",
+                Reason.OPERATOR_GONE,
+            )
+
+    def _moving_driver_heard(self) -> tuple[Source, float] | None:
+        """The driver, when an operator's motion runs, and when its last signed word was taken."""
         driver = self.governor.driver
         if (
             driver is None
@@ -674,14 +695,10 @@ class FleetDrive:
             or not isinstance(op := driver.id, keyspace.Who)
             or self.governor.asked == STILL
         ):
-            return
+            return None
         with self._lock:
             present = self._present.get(op)
-            silent = None if present is None else time.monotonic() - present.heard
-        if silent is not None and silent > HOLD_S:
-            self.governor.release(
-                driver, f"operator {op} gone: no signed word of its for {silent:.2f} s", Reason.OPERATOR_GONE
-            )
+        return None if present is None else (driver, present.heard)
 
 
 def named(driver: Source | None) -> str | None:

@@ -46,6 +46,7 @@ from ..signals import Terminated
 from . import queries
 from .drive import BadMotion, FleetDrive, named
 from .hold import Holds
+from .life import LifeWatch
 from .publish import Publishers
 
 if TYPE_CHECKING:
@@ -123,6 +124,8 @@ class Fleet(FrontEnd):
         self.answers = queries.Answers(self.key.sealed)
         self.holds = Holds(lambda: self.session)
         self.drive = FleetDrive(self.name, view.governor, self.say, self._profile, view.words, self.holds)
+        #: The moving driver's life (``drive.HOLD_S``) ended the moment it runs out, not at the next tick.
+        self.life = LifeWatch(self.drive.life_due, self.drive.life_ended)
         view.words.count_to(lambda text: self.tell(keyspace.refused_status(None, text)))
         self.declared: list[Any] = []
         self.session: Any = None
@@ -149,6 +152,7 @@ class Fleet(FrontEnd):
     def start(self, view: RuntimeView) -> str:
         self.turnstile = queries.Turnstile(view.poller_pause, view.last_sweep)
         self.declare(list(view.sensors))
+        self.life.start()
         return f"{self.name} ({self.robot.port}) as {keyspace.ROOT}/{self.name}/..., its key {self.key.fingerprint}"
 
     def stopped(self, stopped: Stopped) -> None:
@@ -272,6 +276,7 @@ class Fleet(FrontEnd):
             with contextlib.suppress(Exception):
                 thing.undeclare()
         self.declared.clear()
+        self.life.close()
         self.holds.close()
         self.answers.close()
 
