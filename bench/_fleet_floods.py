@@ -162,6 +162,11 @@ class Driver:
         self.op.cmd_vel(twist)  # claims first, the first time
         return at
 
+    def silent(self) -> None:
+        """No renewal any more (its token stays): a stop's hold lets it drive again once it was silent for
+        the deadman."""
+        self.op.silent()
+
     def close(self) -> None:
         self.op.gone()
         self.op.session.close()

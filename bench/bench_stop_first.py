@@ -274,10 +274,16 @@ def fleet_part(rounds: int, rate: float) -> dict[str, list[float]]:
             def busy(kind: str) -> contextlib.AbstractContextManager[Any]:
                 return Flood("baseline" if kind == "quiet" else kind, endpoint, rate)
 
+            def stop() -> None:
+                """The second operator's stop, then the driver silent (its renewals too, which a stop's
+                hold counts as its words) until its next round."""
+                stopper.stop()
+                driver.silent()
+
             return rounds_of(
                 FLEET_KINDS,
                 rounds,
-                lambda kind: round_of(kind, robot, busy, lambda: driver.publish(1), stopper.stop),
+                lambda kind: round_of(kind, robot, busy, lambda: driver.publish(1), stop),
             )
         except RuntimeError:
             print((Path(tmp) / "serve.err").read_text()[-3000:], file=sys.stderr)
