@@ -110,39 +110,54 @@ def _sender(kind: str, session: Any, zenoh: Any) -> Callable[[int], None]:
     raise ValueError(kind)
 
 
-class Flood:
-    """This module as a flood process of ``kind`` while the block runs (nothing for the baseline)."""
+#: Flooding peers at once, each a process (and a Zenoh session) of its own, unless told.
+PEERS = 1
 
-    def __init__(self, kind: str, endpoint: str, rate: float = 0.0) -> None:
-        """``rate``: messages a second (0: as fast as it goes)."""
+
+class Flood:
+    """This module as ``peers`` flood processes of ``kind`` while the block runs (nothing for the baseline);
+    ``stats`` their counts summed (``sent``) and the longest one's ``seconds``."""
+
+    def __init__(self, kind: str, endpoint: str, rate: float = 0.0, peers: int | None = None) -> None:
+        """``rate``: messages a second of each peer (0: as fast as it goes); ``peers``: ``PEERS`` unless told."""
         self.kind, self.endpoint, self.rate = kind, endpoint, rate
-        self.proc: subprocess.Popen[str] | None = None
+        self.peers = PEERS if peers is None else peers
+        self.procs: list[subprocess.Popen[str]] = []
         self.stats: dict[str, Any] = {}
 
     def __enter__(self) -> Flood:
-        if self.kind != "baseline":
-            args = [
-                sys.executable,
-                __file__,
-                self.kind,
-                self.endpoint,
-                *([str(self.rate)] if self.rate else []),
-            ]
-            self.proc = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-            assert self.proc.stdout is not None
-            if self.proc.stdout.readline().strip() != "flooding":
+        if self.kind == "baseline":
+            return self
+        args = [sys.executable, __file__, self.kind, self.endpoint, *([str(self.rate)] if self.rate else [])]
+        for _ in range(self.peers):
+            self.procs.append(
+                subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+            )
+        for proc in self.procs:
+            assert proc.stdout is not None
+            if proc.stdout.readline().strip() != "flooding":
+                self.__exit__()
                 raise RuntimeError(f"the {self.kind} flood did not start")
         return self
 
     def __exit__(self, *exc: object) -> None:
-        if self.proc is None:
-            return
-        try:
-            out, _ = self.proc.communicate(timeout=10)
-            self.stats = json.loads(out.strip().splitlines()[-1])
-        except (subprocess.TimeoutExpired, ValueError, IndexError):
-            self.proc.kill()
-            self.proc.wait()
+        for proc in self.procs:
+            assert proc.stdin is not None
+            with contextlib.suppress(OSError):
+                proc.stdin.close()
+        counts = []
+        for proc in self.procs:
+            try:
+                out, _ = proc.communicate(timeout=10)
+                counts.append(json.loads(out.strip().splitlines()[-1]))
+            except (subprocess.TimeoutExpired, ValueError, IndexError):
+                proc.kill()
+                proc.wait()
+        if counts:
+            self.stats = {
+                "sent": sum(c["sent"] for c in counts),
+                "seconds": max(c["seconds"] for c in counts),
+            }
 
 
 class Driver:

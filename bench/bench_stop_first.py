@@ -69,6 +69,7 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))  # the tests' FakeRobot
 
+import _fleet_floods
 from _common import free_endpoint, kill_groups, record
 from _simpty import hcrctl_exe
 from bench_bridge_flood import ADVERTISE, CMD_VEL, SUBPROTOCOL, Bridge, flood
@@ -255,6 +256,12 @@ def started(args: list[str], err: Path | None) -> subprocess.Popen[bytes]:
         )
 
 
+#: What the serve says when a live driver's lease lapsed (no signed word of its within ``drive.HOLD_S``).
+LEASE_LOST = "no signed word of its"
+#: Over the fleet part: the driver's lease lost (``lost``) and the lines saying late renewals.
+LEASES: dict[str, int] = {}
+
+
 def fleet_part(rounds: int, rate: float) -> dict[str, list[float]]:
     """The ``fleet`` part; ``rate``: each flood's messages a second (0: as fast as it goes)."""
     from _fleet_floods import Driver as FleetDriver
@@ -274,11 +281,15 @@ def fleet_part(rounds: int, rate: float) -> dict[str, list[float]]:
             def busy(kind: str) -> contextlib.AbstractContextManager[Any]:
                 return Flood("baseline" if kind == "quiet" else kind, endpoint, rate)
 
-            return rounds_of(
+            times = rounds_of(
                 FLEET_KINDS,
                 rounds,
                 lambda kind: round_of(kind, robot, busy, lambda: driver.publish(1), stopper.stop),
             )
+            said = (Path(tmp) / "serve.err").read_text()
+            LEASES["lost"] = said.count(LEASE_LOST)
+            LEASES["late_said"] = said.count("late renewal")
+            return times
         except RuntimeError:
             print((Path(tmp) / "serve.err").read_text()[-3000:], file=sys.stderr)
             raise
@@ -399,7 +410,11 @@ def main() -> int:
     parser.add_argument(
         "--fleet-rate", type=float, default=FLEET_RATE, help="fleet floods' msg/s (0: unpaced)"
     )
+    parser.add_argument(
+        "--fleet-peers", type=int, default=1, help="flooding peers at once, each its own process"
+    )
     args = parser.parse_args()
+    _fleet_floods.PEERS = args.fleet_peers
     parts = [p for p in args.parts.split(",") if p]
     run_dir = tempfile.mkdtemp(prefix="hcrctl-run-")  # where the holder's stop line lives, for it and us
     os.environ["XDG_RUNTIME_DIR"] = run_dir
@@ -407,8 +422,18 @@ def main() -> int:
     if "fleet" in parts:
         found["fleet"] = fleet_part(args.rounds, args.fleet_rate)
     linkdown = linkdown_part(args.rounds) if "linkdown" in parts else {}
-    metrics: dict[str, Any] = {"rounds": args.rounds, "load": round(os.getloadavg()[0], 1)}
+    metrics: dict[str, Any] = {
+        "rounds": args.rounds,
+        "fleet_peers": args.fleet_peers,
+        "load": round(os.getloadavg()[0], 1),
+    }
     ok = all([judged(part, times, metrics) for part, times in found.items()])
+    if LEASES:
+        metrics["fleet_leases_lost"] = LEASES["lost"]
+        metrics["fleet_late_renewal_lines"] = LEASES["late_said"]
+        print(
+            f"fleet: the driver's lease lost {LEASES['lost']} times, {LEASES['late_said']} late-renewal lines"
+        )
     ok = (judged_linkdown(linkdown, metrics) if linkdown else True) and ok
     record("stop_first", metrics)
     return 0 if ok else 1

@@ -46,6 +46,7 @@ from ..signals import Terminated
 from . import queries
 from .drive import BadMotion, FleetDrive, named
 from .hold import Holds
+from .inlet import Drain, StopLink
 from .publish import Publishers
 
 if TYPE_CHECKING:
@@ -126,6 +127,8 @@ class Fleet(FrontEnd):
         view.words.count_to(lambda text: self.tell(keyspace.refused_status(None, text)))
         self.declared: list[Any] = []
         self.session: Any = None
+        #: ``stop``'s own link to the router (``inlet``), none for a peer serve.
+        self.stop_link: StopLink | None = None
         self.publishers: Publishers | None = None
         self._late_said = -LATE_SAY_S
         view.governor.attach(on_late=self.renewal_late)
@@ -140,6 +143,9 @@ class Fleet(FrontEnd):
         if self.session is None:
             raise Terminated(view.signum or 0)
         _refuse_taken(self.session, self.name)
+        self.stop_link = StopLink.open(self.where, lambda: view.signum is not None, self.notes.note)
+        if self.stop_link is None and view.signum is not None:
+            raise Terminated(view.signum)
         self.publishers = Publishers(self.zenoh, self.session, self.name, view.topics, self.options.encoding)
 
     def publish(self, topic: str, message: dict[str, Any], at: float) -> None:
@@ -180,6 +186,8 @@ class Fleet(FrontEnd):
         self._quietly("undeclaring the robot's queryables and subscribers", self.undeclare)
         if self.publishers is not None:
             self._quietly("undeclaring the publishers", self.publishers.close)
+        if self.stop_link is not None:
+            self._quietly("closing the stop's Zenoh session", self.stop_link.close)
         if self.session is not None:
             self._quietly("closing the Zenoh session", self.session.close)
 
@@ -249,15 +257,20 @@ class Fleet(FrontEnd):
     # -- declarations -------------------------------------------------------------
 
     def declare(self, sensors: list[str]) -> None:
+        """The robot's keys; ``stop`` and ``cmd_vel`` as ``inlet`` takes them (no flood delays a stop)."""
         s, name = self.session, self.name
+        stop = self._guarded(self._stop)
+        link = self.stop_link
+        self.declared.append(
+            link.declare(name, stop) if link is not None else s.declare_subscriber(keyspace.stop(name), stop)
+        )
         for sensor in sensors:
             key = keyspace.read(name, sensor)
             self.declared.append(s.declare_queryable(key, self._guarded(self._read_query(key, sensor))))
         self.declared.append(s.declare_queryable(keyspace.write(name), self._guarded(self._write_query)))
         self.declared.append(s.declare_queryable(keyspace.info(name), self._guarded(self._info_query)))
         self.declared.append(s.declare_queryable(keyspace.drive(name), self._guarded(self._drive)))
-        self.declared.append(s.declare_subscriber(keyspace.cmd_vel(name), self._guarded(self._cmd_vel)))
-        self.declared.append(s.declare_subscriber(keyspace.stop(name), self._guarded(self._stop)))
+        self.declared.append(Drain(self.zenoh, s, keyspace.cmd_vel(name), self._guarded(self._cmd_vel)))
         liveliness = s.liveliness()
         self.declared.append(
             liveliness.declare_subscriber(
