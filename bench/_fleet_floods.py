@@ -19,9 +19,11 @@ The kinds (``KINDS``), each against ``fleet serve r1`` while a driver drives:
   payload is read.
 
 In each round the driver (this process: a Zenoh peer with its liveliness
-token) puts ``PUBLISHES`` Twists ``PERIOD`` apart, then falls silent; the
+token, renewing its claim as an operator does) puts ``PUBLISHES`` Twists
+``PERIOD`` apart, its renewals ending before the last, then falls silent; the
 figure is the time from its last put (wall clock) to the stop frame on the
-robot's wire (the serve's ``--log``, wall clock): the deadman, 0.5 s. Kinds
+robot's wire (the serve's ``--log``, wall clock): the robot side's bound on a
+silent driver (``fleet.drive.HOLD_S``, shorter than the 0.5 s deadman). Kinds
 take turns, the order rotating every round; the target is each flood's median
 at most ``TARGET`` times the no-flood median of the same run.
 """
@@ -177,6 +179,11 @@ class Driver:
         self.op.cmd_vel(twist)  # claims first, the first time
         return at
 
+    def silent(self) -> None:
+        """No renewal any more (its token stays) until its next ``publish``: a stop's hold lets it drive
+        again once it was silent for the deadman."""
+        self.op.silent()
+
     def close(self) -> None:
         self.op.gone()
         self.op.session.close()
@@ -200,10 +207,13 @@ def one_round(kind: str, endpoint: str, driver: Driver, log: Path, way: int) -> 
     """One round; ``way``: forward or back (rounds alternate, so the robot never reaches a wall)."""
     with Flood(kind, endpoint) as flood:
         time.sleep(FLOOD_LEAD if kind != "baseline" else 0.0)
-        last = driver.publish(way)
-        for _ in range(PUBLISHES - 1):
+        driver.publish(way)
+        for _ in range(PUBLISHES - 2):
             time.sleep(PERIOD)
-            last = driver.publish(way)
+            driver.publish(way)
+        driver.silent()  # its renewals end here: its last cmd_vel is its last word
+        time.sleep(PERIOD)
+        last = driver.publish(way)
         deadline = time.monotonic() + 10 * DEADMAN + 10
         while (stop := stop_after(log, last)) is None:
             if time.monotonic() > deadline:

@@ -580,6 +580,7 @@ def main() -> int:
     parser.add_argument("--seconds", type=float, default=10.0, help="measuring window per robot count")
     parser.add_argument("--rounds", type=int, default=7)
     parser.add_argument("--flood-rounds", type=int, default=5, help="rounds of each flood kind (0: none)")
+    parser.add_argument("--flood-kinds", default="", help="flood kinds, comma-separated (all unless told)")
     parser.add_argument(
         "--flood-peers", type=int, default=1, help="flooding peers at once, each its own process"
     )
@@ -590,6 +591,8 @@ def main() -> int:
     )
     args = parser.parse_args()
     _fleet_floods.PEERS = args.flood_peers
+    if args.flood_kinds:
+        _fleet_floods.KINDS = ("baseline", *args.flood_kinds.split(","))
     parts = set(args.parts.split(","))
     metrics: dict[str, Any] = {}
     ok = True

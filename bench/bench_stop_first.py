@@ -31,8 +31,11 @@ order rotating every round: for the bridge the floods of
 refused motion from 20 other clients; ``reads``: ~1 kHz of subscribing to
 every channel and unsubscribing), for the fleet those of ``_fleet_floods.py``
 (``reads``: queries of a reading and of a silent address, which need the
-serial line; ``refusals``: cmd_vel from ever new operators, each refused),
-paced at ``--fleet-rate`` messages a second (default 2,000).
+serial line; ``refusals``: cmd_vel from ever new operators, each refused;
+``garbage``: cmd_vel with garbage attachments), paced at ``--fleet-rate``
+messages a second (default 2,000), from ``--fleet-peers`` flooding peers at
+once (each a process and a session of its own; default 1). The serve's
+stderr is then read for a live driver's lease lost (``LEASE_LOST``).
 
 ``linkdown``: a server told to end with its link down mid-drive. A client
 drives (the bridge, and ``fleet serve`` with its router), the pty closes,
@@ -98,7 +101,7 @@ LINKDOWN_TARGET_S = 2.0
 #: How long the bench waits for that exit: past the rescue's default wait (30 s), so a miss is measured.
 LINKDOWN_WAIT = 60.0
 BRIDGE_KINDS = ("quiet", "clients", "reads")
-FLEET_KINDS = ("quiet", "reads", "refusals")
+FLEET_KINDS = ("quiet", "reads", "refusals", "garbage")
 #: The fleet floods' messages a second: as the bridge's (~1 kHz), twice over. Unpaced (0), a refusals flood
 #: (~200,000 a second) leaves a backlog the serve takes many seconds to drain (see bench/README.md).
 FLEET_RATE = 2000.0
@@ -281,10 +284,14 @@ def fleet_part(rounds: int, rate: float) -> dict[str, list[float]]:
             def busy(kind: str) -> contextlib.AbstractContextManager[Any]:
                 return Flood("baseline" if kind == "quiet" else kind, endpoint, rate)
 
+            def stop() -> None:
+                """The second operator's stop, then the driver silent (its renewals too, which a stop's
+                hold counts as its words) until its next round."""
+                stopper.stop()
+                driver.silent()
+
             times = rounds_of(
-                FLEET_KINDS,
-                rounds,
-                lambda kind: round_of(kind, robot, busy, lambda: driver.publish(1), stopper.stop),
+                FLEET_KINDS, rounds, lambda kind: round_of(kind, robot, busy, lambda: driver.publish(1), stop)
             )
             said = (Path(tmp) / "serve.err").read_text()
             LEASES["lost"] = said.count(LEASE_LOST)

@@ -1,26 +1,31 @@
 """How a served robot takes the fleet's ``stop`` and ``cmd_vel``, so that no flood delays a stop or a lease.
 
-Through a router, every peer's messages reach the serve over one link, and a
-Python callback runs on that link's receive thread holding the interpreter
-lock: a peer flooding ``cmd_vel`` at Zenoh's rate (100,000+ a second) keeps
-that thread busy in Python, the link's socket fills, and whatever comes
-after the flood on the same link (a stop, a driver's renewal, a token) waits
-behind its backlog. Priorities do not help: the backlog is in this process.
-So the flood is shed before it costs the serve anything, by two rules:
+Through a router, every peer's messages reach the serve over one link. zenoh-python
+hands each sample of a Python callback to a thread of that callback's own
+through a bounded queue (a few hundred); once the queue is full, the link's
+receive thread waits for it. A peer flooding ``cmd_vel`` at Zenoh's rate
+(100,000+ a second) fills it at once, the receive thread waits on Python
+(and the interpreter lock), the link's socket fills, and whatever comes
+after the flood on the same link (a stop, a driver's renewal, a token)
+waits behind its backlog. Priorities do not help: the backlog is in this
+process. So the flood is shed before it costs the serve anything, by two
+rules:
 
 - **A stop has a link of its own** (``StopLink``): a second client session
   to the router, which subscribes to ``stop`` and nothing else. Its samples
   come over their own TCP connection, read by their own receive thread, so
-  no backlog on another key is ahead of them; a stop from anyone goes
+  no backlog on another key (``cmd_vel``, or the queries ``read``, ``write``
+  and ``drive``, whose callbacks can fill as ``cmd_vel``'s did) is ahead of
+  them; a stop from anyone goes
   first, and nothing queues it. A flood *of stops* stops the robot, as any
   stop does (anyone may stop). A serve that is a peer (``--listen``) has
   no router to reach twice: its operators' links are their own already, and
   its stops come on its one session.
 - **cmd_vel is taken through a ring** (``Drain``): Zenoh's receive thread
   puts each sample in a ring of ``CMD_VEL_RING`` (in Rust, without the
-  interpreter lock; the oldest dropped when full) and one thread of ours
-  takes them out. The receive thread never waits for Python on a
-  ``cmd_vel``, so no socket backlog forms ahead of a driver's renewals
+  interpreter lock; the oldest dropped when full, never waiting) and one
+  thread of ours takes them out. The receive thread never waits for Python
+  on a ``cmd_vel``, so no socket backlog forms ahead of a driver's renewals
   (``drive`` queries), the operators' tokens or the readings' queries; what
   the flood costs is one thread's share of the interpreter. A driver's
   motion may be dropped from the ring with the flood's, which costs it a
@@ -75,6 +80,19 @@ class Drain:
         self.subscriber.undeclare()
         if threading.current_thread() is not self._thread:
             self._thread.join(DRAIN_JOIN_S)
+
+
+def declare_motion(
+    zenoh: Any, session: Any, link: StopLink | None, name: str, cmd_vel: Handle, stop: Handle
+) -> list[Any]:
+    """``name``'s ``stop`` (on ``link`` when there is one, else on ``session``) and its ``cmd_vel`` (through
+    a ``Drain`` on ``session``): what to undeclare, the stop first."""
+    stopping = (
+        link.declare(name, stop)
+        if link is not None
+        else session.declare_subscriber(keyspace.stop(name), stop)
+    )
+    return [stopping, Drain(zenoh, session, keyspace.cmd_vel(name), cmd_vel)]
 
 
 class StopLink:

@@ -46,7 +46,7 @@ from ..signals import Terminated
 from . import queries
 from .drive import BadMotion, FleetDrive, named
 from .hold import Holds
-from .inlet import Drain, StopLink
+from .inlet import StopLink, declare_motion
 from .publish import Publishers
 
 if TYPE_CHECKING:
@@ -259,10 +259,8 @@ class Fleet(FrontEnd):
     def declare(self, sensors: list[str]) -> None:
         """The robot's keys; ``stop`` and ``cmd_vel`` as ``inlet`` takes them (no flood delays a stop)."""
         s, name = self.session, self.name
-        stop = self._guarded(self._stop)
-        link = self.stop_link
-        self.declared.append(
-            link.declare(name, stop) if link is not None else s.declare_subscriber(keyspace.stop(name), stop)
+        self.declared += declare_motion(
+            self.zenoh, s, self.stop_link, name, self._guarded(self._cmd_vel), self._guarded(self._stop)
         )
         for sensor in sensors:
             key = keyspace.read(name, sensor)
@@ -270,7 +268,6 @@ class Fleet(FrontEnd):
         self.declared.append(s.declare_queryable(keyspace.write(name), self._guarded(self._write_query)))
         self.declared.append(s.declare_queryable(keyspace.info(name), self._guarded(self._info_query)))
         self.declared.append(s.declare_queryable(keyspace.drive(name), self._guarded(self._drive)))
-        self.declared.append(Drain(self.zenoh, s, keyspace.cmd_vel(name), self._guarded(self._cmd_vel)))
         liveliness = s.liveliness()
         self.declared.append(
             liveliness.declare_subscriber(
