@@ -20,10 +20,11 @@ The kinds (``KINDS``), each against ``fleet serve r1`` while a driver drives:
 
 In each round the driver (this process: a Zenoh peer with its liveliness
 token, renewing its claim as an operator does) puts ``PUBLISHES`` Twists
-``PERIOD`` apart, its renewals ending before the last, then falls silent; the
-figure is the time from its last put (wall clock) to the stop frame on the
-robot's wire (the serve's ``--log``, wall clock): the robot side's bound on a
-silent driver (``fleet.drive.HOLD_S``, shorter than the 0.5 s deadman). Kinds
+``PERIOD`` apart, then falls silent, its renewals too; the figure is the time
+from its last word (wall clock, once its renewing thread has ended: its last
+claim was answered by then) to the stop frame on the robot's wire (the
+serve's ``--log``, wall clock): the robot side's bound on a silent driver
+(``fleet.drive.HOLD_S``, well under the 0.5 s deadman). Kinds
 take turns, the order rotating every round; the target is each flood's median
 at most ``TARGET`` times the no-flood median of the same run.
 """
@@ -54,6 +55,8 @@ PERIOD = 0.05
 #: The flood runs this long before the driver's first message.
 FLOOD_LEAD = 0.3
 SETTLE = 0.3
+#: How long a round waits for the stop on the wire; a round without one counts as this long.
+NO_STOP_S = 10 * DEADMAN + 10
 #: The driver's speed, m/s (forward and back in turn).
 SPEED = 0.2
 STOP = C.encode_request(C.STOP)
@@ -143,15 +146,16 @@ class Flood:
         return self
 
     def __exit__(self, *exc: object) -> None:
-        for proc in self.procs:
+        for proc in self.procs:  # every peer told to end at once
             assert proc.stdin is not None
             with contextlib.suppress(OSError):
                 proc.stdin.close()
         counts = []
         for proc in self.procs:
+            assert proc.stdout is not None
             try:
-                out, _ = proc.communicate(timeout=10)
-                counts.append(json.loads(out.strip().splitlines()[-1]))
+                proc.wait(timeout=10)
+                counts.append(json.loads(proc.stdout.read().strip().splitlines()[-1]))
             except (subprocess.TimeoutExpired, ValueError, IndexError):
                 proc.kill()
                 proc.wait()
@@ -208,16 +212,17 @@ def one_round(kind: str, endpoint: str, driver: Driver, log: Path, way: int) -> 
     with Flood(kind, endpoint) as flood:
         time.sleep(FLOOD_LEAD if kind != "baseline" else 0.0)
         driver.publish(way)
-        for _ in range(PUBLISHES - 2):
+        for _ in range(PUBLISHES - 1):
             time.sleep(PERIOD)
             driver.publish(way)
-        driver.silent()  # its renewals end here: its last cmd_vel is its last word
-        time.sleep(PERIOD)
-        last = driver.publish(way)
-        deadline = time.monotonic() + 10 * DEADMAN + 10
+        driver.silent()  # its renewals end: each was answered (or timed out) by the time this returns
+        last = time.time()
+        deadline = time.monotonic() + NO_STOP_S
         while (stop := stop_after(log, last)) is None:
             if time.monotonic() > deadline:
-                raise RuntimeError(f"no stop on the wire after the {kind} round")
+                print(f"  NO STOP on the wire within {NO_STOP_S:g} s of the driver's last word ({kind})")
+                stop = last + NO_STOP_S  # counted as that long: a miss whatever the target
+                break
             time.sleep(0.01)
         time.sleep(SETTLE)
     return {"kind": kind, "stop_s": stop - last, **{f"flood_{k}": v for k, v in flood.stats.items()}}

@@ -48,6 +48,7 @@ from .drive import BadMotion, FleetDrive, named
 from .hold import Holds
 from .inlet import StopLink, declare_motion
 from .publish import Publishers
+from .shed import Shed
 
 if TYPE_CHECKING:
     from ..link.client import Robot
@@ -124,6 +125,8 @@ class Fleet(FrontEnd):
         self.answers = queries.Answers(self.key.sealed)
         self.holds = Holds(lambda: self.session)
         self.drive = FleetDrive(self.name, view.governor, self.say, self._profile, view.words, self.holds)
+        #: Each cmd_vel admitted or shed on its sender's budget before it is read (``shed``).
+        self.shed = Shed(self.drive.present)
         view.words.count_to(lambda text: self.tell(keyspace.refused_status(None, text)))
         self.declared: list[Any] = []
         self.session: Any = None
@@ -361,6 +364,7 @@ class Fleet(FrontEnd):
             stops=drive.stops,
             unadmitted=drive.unadmitted,
             churned=drive.churned,
+            shed=self.shed.shed,
             **dict(zip(("operators", "waiting"), self.drive.sessions(), strict=True)),
             queries=self.answers.answered,
             queries_failed=self.answers.failed,
@@ -394,7 +398,9 @@ class Fleet(FrontEnd):
         self.answers.reply(query, keyspace.drive(self.name), (ok, body))
 
     def _cmd_vel(self, sample: Any) -> None:
-        self.drive.cmd_vel(_bytes(sample.attachment), sample.payload)
+        attachment = _bytes(sample.attachment)
+        if self.shed.admits(attachment):
+            self.drive.cmd_vel(attachment, sample.payload)
 
     def _stop(self, sample: Any) -> None:
         self.drive.stop(_bytes(sample.attachment), bytes(sample.payload))
