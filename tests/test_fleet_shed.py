@@ -26,7 +26,7 @@ def attachment(who: keyspace.Who, seq: int) -> bytes:
 
 def shed_of(*present: keyspace.Who) -> tuple[Shed, Clock]:
     clock = Clock()
-    return Shed(lambda who: who in present, clock), clock
+    return Shed(lambda who: who in present, clock=clock), clock
 
 
 def test_a_flood_of_strangers_is_shed_past_its_budget_and_the_driver_still_read() -> None:

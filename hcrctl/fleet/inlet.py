@@ -47,8 +47,8 @@ from ..link.zenoh import keyspace
 from ..link.zenoh.join import CLIENT, Where, member, open_member
 
 #: cmd_vel samples held for the drain thread, at most: the oldest is dropped past this. Small, so a sample
-#: taken is never much older than the newest (at ~100,000 a second drained, 256 are ~3 ms).
-CMD_VEL_RING = 256
+#: taken is never much older than the newest (1024 are 10 ms at 100,000 a second drained, 0.5 s at 2,000).
+CMD_VEL_RING = 1024
 #: How long closing waits for the drain thread to finish the sample in hand, s.
 DRAIN_JOIN_S = 2.0
 #: The drain thread's name (seen in a thread dump).

@@ -126,7 +126,7 @@ class Fleet(FrontEnd):
         self.holds = Holds(lambda: self.session)
         self.drive = FleetDrive(self.name, view.governor, self.say, self._profile, view.words, self.holds)
         #: Each cmd_vel admitted or shed on its sender's budget before it is read (``shed``).
-        self.shed = Shed(self.drive.present)
+        self.shed = Shed(self.drive.present, view.words.held_back)
         view.words.count_to(lambda text: self.tell(keyspace.refused_status(None, text)))
         self.declared: list[Any] = []
         self.session: Any = None

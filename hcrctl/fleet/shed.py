@@ -13,10 +13,11 @@ rest of its attachment is read:
   session into a flood spends that session's budget, never another's;
 - every other sender (no attachment, garbage, names never admitted: none of
   them can drive) shares one budget, ``STRANGER_RATE``: every zero Twist a
-  lab's bystanders send (a stop) and a flood of a few thousand a second are
-  still read, counted and told; a flood at Zenoh's full rate is shed.
+  lab's bystanders send (a stop) is still read, and a flood is shed past
+  it.
 
-What is over its budget is counted (``shed``) and dropped unread, unsaid; a
+What is over its budget is counted (``shed``, and in the words' summary of
+messages held back: ``... and N more refusals``) and dropped unread; a
 stop from anyone is sure on ``stop``, which has a link of its own
 (``inlet.StopLink``), not on a zero ``cmd_vel`` amid a flood. Only the
 router's access control, which names users, can tell a peer that copies a
@@ -36,9 +37,11 @@ from .admission import Bucket
 SESSION_RATE = 500.0
 SESSION_BURST = 100.0
 #: cmd_vel a second read from all other senders together, and their burst: each is read, counted and
-#: told (on the words' budget) up to this; a flood at Zenoh's full rate (100,000+ a second) is shed past it.
-STRANGER_RATE = 5000.0
-STRANGER_BURST = 1000.0
+#: told (on the words' budget) up to this. Low, since reading one costs up to a few hundred microseconds
+#: (a name never seen is remembered by the governor's streams and the words' budget): past it, a
+#: flood costs one lookup a message.
+STRANGER_RATE = 500.0
+STRANGER_BURST = 500.0
 #: Sessions whose budgets are kept, at most (the least recently heard forgotten first: it starts full).
 MAX_BUDGETS = 256
 
@@ -61,9 +64,14 @@ class Shed:
     strangers' shared one) must hold a token. ``present`` says whether a session is admitted here."""
 
     def __init__(
-        self, present: Callable[[keyspace.Who], bool], clock: Callable[[], float] = time.monotonic
+        self,
+        present: Callable[[keyspace.Who], bool],
+        held_back: Callable[[], None] = lambda: None,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
+        """``held_back`` is told of each message shed (the words' summary counts it)."""
         self._present = present
+        self._held_back = held_back
         self._clock = clock
         self._strangers = Bucket(STRANGER_RATE, STRANGER_BURST, clock())
         self._sessions: OrderedDict[keyspace.Who, Bucket] = OrderedDict()
@@ -82,6 +90,7 @@ class Shed:
                 self._sessions.popitem(last=False)
         if bucket.fill(now) < 1:
             self.shed += 1
+            self._held_back()
             return False
         bucket.level -= 1
         return True
