@@ -200,7 +200,10 @@ def stop_after(log: Path, after: float) -> float | None:
     for line in log.read_text().splitlines(keepends=True):
         if not line.endswith("\n") or '"tx"' not in line:
             continue
-        record = json.loads(line)
+        try:
+            record = json.loads(line)
+        except ValueError:  # a line that is no JSON record (seen once under a flood): not a stop
+            continue
         at = datetime.fromisoformat(record["time"]).timestamp()
         if at >= after and bytes.fromhex(record.get("hex", "")) == STOP:
             return at
