@@ -67,6 +67,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
+import _fleet_floods
 from _common import ROOT, TICK, cpu_ticks, free_endpoint, kill_groups, record, rss_mb
 from _simpty import hcrctl_exe, sim_pty
 
@@ -579,12 +580,19 @@ def main() -> int:
     parser.add_argument("--seconds", type=float, default=10.0, help="measuring window per robot count")
     parser.add_argument("--rounds", type=int, default=7)
     parser.add_argument("--flood-rounds", type=int, default=5, help="rounds of each flood kind (0: none)")
+    parser.add_argument("--flood-kinds", default="", help="flood kinds, comma-separated (all unless told)")
+    parser.add_argument(
+        "--flood-peers", type=int, default=1, help="flooding peers at once, each its own process"
+    )
     parser.add_argument(
         "--parts",
         default="scaling,reads,lost,hosts,floods,renewals,copied",
         help="which parts to run (comma-separated)",
     )
     args = parser.parse_args()
+    _fleet_floods.PEERS = args.flood_peers
+    if args.flood_kinds:
+        _fleet_floods.KINDS = ("baseline", *args.flood_kinds.split(","))
     parts = set(args.parts.split(","))
     metrics: dict[str, Any] = {}
     ok = True

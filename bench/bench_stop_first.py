@@ -31,8 +31,11 @@ order rotating every round: for the bridge the floods of
 refused motion from 20 other clients; ``reads``: ~1 kHz of subscribing to
 every channel and unsubscribing), for the fleet those of ``_fleet_floods.py``
 (``reads``: queries of a reading and of a silent address, which need the
-serial line; ``refusals``: cmd_vel from ever new operators, each refused),
-paced at ``--fleet-rate`` messages a second (default 2,000).
+serial line; ``refusals``: cmd_vel from ever new operators, each refused;
+``garbage``: cmd_vel with garbage attachments), paced at ``--fleet-rate``
+messages a second (default 2,000), from ``--fleet-peers`` flooding peers at
+once (each a process and a session of its own; default 1). The serve's
+stderr is then read for a live driver's lease lost (``LEASE_LOST``).
 
 ``linkdown``: a server told to end with its link down mid-drive. A client
 drives (the bridge, and ``fleet serve`` with its router), the pty closes,
@@ -69,6 +72,7 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))  # the tests' FakeRobot
 
+import _fleet_floods
 from _common import free_endpoint, kill_groups, record
 from _simpty import hcrctl_exe
 from bench_bridge_flood import ADVERTISE, CMD_VEL, SUBPROTOCOL, Bridge, flood
@@ -97,7 +101,7 @@ LINKDOWN_TARGET_S = 2.0
 #: How long the bench waits for that exit: past the rescue's default wait (30 s), so a miss is measured.
 LINKDOWN_WAIT = 60.0
 BRIDGE_KINDS = ("quiet", "clients", "reads")
-FLEET_KINDS = ("quiet", "reads", "refusals")
+FLEET_KINDS = ("quiet", "reads", "refusals", "garbage")
 #: The fleet floods' messages a second: as the bridge's (~1 kHz), twice over. Unpaced (0), a refusals flood
 #: (~200,000 a second) leaves a backlog the serve takes many seconds to drain (see bench/README.md).
 FLEET_RATE = 2000.0
@@ -255,6 +259,12 @@ def started(args: list[str], err: Path | None) -> subprocess.Popen[bytes]:
         )
 
 
+#: What the serve says when a live driver's lease lapsed (no signed word of its within ``drive.HOLD_S``).
+LEASE_LOST = "no signed word of its"
+#: Over the fleet part: the driver's lease lost (``lost``) and the lines saying late renewals.
+LEASES: dict[str, int] = {}
+
+
 def fleet_part(rounds: int, rate: float) -> dict[str, list[float]]:
     """The ``fleet`` part; ``rate``: each flood's messages a second (0: as fast as it goes)."""
     from _fleet_floods import Driver as FleetDriver
@@ -280,11 +290,13 @@ def fleet_part(rounds: int, rate: float) -> dict[str, list[float]]:
                 stopper.stop()
                 driver.silent()
 
-            return rounds_of(
-                FLEET_KINDS,
-                rounds,
-                lambda kind: round_of(kind, robot, busy, lambda: driver.publish(1), stop),
+            times = rounds_of(
+                FLEET_KINDS, rounds, lambda kind: round_of(kind, robot, busy, lambda: driver.publish(1), stop)
             )
+            said = (Path(tmp) / "serve.err").read_text()
+            LEASES["lost"] = said.count(LEASE_LOST)
+            LEASES["late_said"] = said.count("late renewal")
+            return times
         except RuntimeError:
             print((Path(tmp) / "serve.err").read_text()[-3000:], file=sys.stderr)
             raise
@@ -405,7 +417,11 @@ def main() -> int:
     parser.add_argument(
         "--fleet-rate", type=float, default=FLEET_RATE, help="fleet floods' msg/s (0: unpaced)"
     )
+    parser.add_argument(
+        "--fleet-peers", type=int, default=1, help="flooding peers at once, each its own process"
+    )
     args = parser.parse_args()
+    _fleet_floods.PEERS = args.fleet_peers
     parts = [p for p in args.parts.split(",") if p]
     run_dir = tempfile.mkdtemp(prefix="hcrctl-run-")  # where the holder's stop line lives, for it and us
     os.environ["XDG_RUNTIME_DIR"] = run_dir
@@ -413,8 +429,18 @@ def main() -> int:
     if "fleet" in parts:
         found["fleet"] = fleet_part(args.rounds, args.fleet_rate)
     linkdown = linkdown_part(args.rounds) if "linkdown" in parts else {}
-    metrics: dict[str, Any] = {"rounds": args.rounds, "load": round(os.getloadavg()[0], 1)}
+    metrics: dict[str, Any] = {
+        "rounds": args.rounds,
+        "fleet_peers": args.fleet_peers,
+        "load": round(os.getloadavg()[0], 1),
+    }
     ok = all([judged(part, times, metrics) for part, times in found.items()])
+    if LEASES:
+        metrics["fleet_leases_lost"] = LEASES["lost"]
+        metrics["fleet_late_renewal_lines"] = LEASES["late_said"]
+        print(
+            f"fleet: the driver's lease lost {LEASES['lost']} times, {LEASES['late_said']} late-renewal lines"
+        )
     ok = (judged_linkdown(linkdown, metrics) if linkdown else True) and ok
     record("stop_first", metrics)
     return 0 if ok else 1

@@ -236,8 +236,9 @@ def _accounted(serve: Any, sent: int) -> tuple[list[str], int, float] | None:
 
 
 def _refused(op: Any) -> int:
+    """Refused after they were read, or shed unread past their senders' budget (``fleet.shed``)."""
     ok, body = op.query(keyspace.info("r1"))
-    return int(body["counters"]["refused"]) if ok else 0
+    return int(body["counters"]["refused"]) + int(body["counters"]["shed"]) if ok else 0
 
 
 def test_a_bumper_reading_older_than_the_bound_stops_forward_motion(lab: Fleet, tmp_path: Path) -> None:

@@ -317,6 +317,11 @@ class FleetDrive:
                 asks.append(self._stop_asks.popleft())
         return tuple(asks)
 
+    def present(self, op: keyspace.Who) -> bool:
+        """Whether ``op``'s session is admitted here (its token present); read without the lock (one lookup
+        of a dict, for each ``cmd_vel`` before it is read: ``shed``)."""
+        return op in self._present
+
     def stopped_for(self, op: keyspace.Who, text: str, reason: str) -> None:
         """The motion ``op`` drove was stopped (``text``, for ``reason``): kept for its next claims' answers."""
         with self._lock:

@@ -46,8 +46,10 @@ from ..signals import Terminated
 from . import queries
 from .drive import BadMotion, FleetDrive, named
 from .hold import Holds
+from .inlet import StopLink, declare_motion
 from .life import LifeWatch
 from .publish import Publishers
+from .shed import Shed
 
 if TYPE_CHECKING:
     from ..link.client import Robot
@@ -126,9 +128,13 @@ class Fleet(FrontEnd):
         self.drive = FleetDrive(self.name, view.governor, self.say, self._profile, view.words, self.holds)
         #: The moving driver's life (``drive.HOLD_S``) ended the moment it runs out, not at the next tick.
         self.life = LifeWatch(self.drive.life_due, self.drive.life_ended)
+        #: Each cmd_vel admitted or shed on its sender's budget before it is read (``shed``).
+        self.shed = Shed(self.drive.present, view.words.held_back)
         view.words.count_to(lambda text: self.tell(keyspace.refused_status(None, text)))
         self.declared: list[Any] = []
         self.session: Any = None
+        #: ``stop``'s own link to the router (``inlet``), none for a peer serve.
+        self.stop_link: StopLink | None = None
         self.publishers: Publishers | None = None
         self._late_said = -LATE_SAY_S
         view.governor.attach(on_late=self.renewal_late)
@@ -143,6 +149,9 @@ class Fleet(FrontEnd):
         if self.session is None:
             raise Terminated(view.signum or 0)
         _refuse_taken(self.session, self.name)
+        self.stop_link = StopLink.open(self.where, lambda: view.signum is not None, self.notes.note)
+        if self.stop_link is None and view.signum is not None:
+            raise Terminated(view.signum)
         self.publishers = Publishers(self.zenoh, self.session, self.name, view.topics, self.options.encoding)
 
     def publish(self, topic: str, message: dict[str, Any], at: float) -> None:
@@ -184,6 +193,8 @@ class Fleet(FrontEnd):
         self._quietly("undeclaring the robot's queryables and subscribers", self.undeclare)
         if self.publishers is not None:
             self._quietly("undeclaring the publishers", self.publishers.close)
+        if self.stop_link is not None:
+            self._quietly("closing the stop's Zenoh session", self.stop_link.close)
         if self.session is not None:
             self._quietly("closing the Zenoh session", self.session.close)
 
@@ -253,15 +264,17 @@ class Fleet(FrontEnd):
     # -- declarations -------------------------------------------------------------
 
     def declare(self, sensors: list[str]) -> None:
+        """The robot's keys; ``stop`` and ``cmd_vel`` as ``inlet`` takes them (no flood delays a stop)."""
         s, name = self.session, self.name
+        self.declared += declare_motion(
+            self.zenoh, s, self.stop_link, name, self._guarded(self._cmd_vel), self._guarded(self._stop)
+        )
         for sensor in sensors:
             key = keyspace.read(name, sensor)
             self.declared.append(s.declare_queryable(key, self._guarded(self._read_query(key, sensor))))
         self.declared.append(s.declare_queryable(keyspace.write(name), self._guarded(self._write_query)))
         self.declared.append(s.declare_queryable(keyspace.info(name), self._guarded(self._info_query)))
         self.declared.append(s.declare_queryable(keyspace.drive(name), self._guarded(self._drive)))
-        self.declared.append(s.declare_subscriber(keyspace.cmd_vel(name), self._guarded(self._cmd_vel)))
-        self.declared.append(s.declare_subscriber(keyspace.stop(name), self._guarded(self._stop)))
         liveliness = s.liveliness()
         self.declared.append(
             liveliness.declare_subscriber(
@@ -356,6 +369,7 @@ class Fleet(FrontEnd):
             stops=drive.stops,
             unadmitted=drive.unadmitted,
             churned=drive.churned,
+            shed=self.shed.shed,
             **dict(zip(("operators", "waiting"), self.drive.sessions(), strict=True)),
             queries=self.answers.answered,
             queries_failed=self.answers.failed,
@@ -389,7 +403,9 @@ class Fleet(FrontEnd):
         self.answers.reply(query, keyspace.drive(self.name), (ok, body))
 
     def _cmd_vel(self, sample: Any) -> None:
-        self.drive.cmd_vel(_bytes(sample.attachment), sample.payload)
+        attachment = _bytes(sample.attachment)
+        if self.shed.admits(attachment):
+            self.drive.cmd_vel(attachment, sample.payload)
 
     def _stop(self, sample: Any) -> None:
         self.drive.stop(_bytes(sample.attachment), bytes(sample.payload))

@@ -113,6 +113,14 @@ class PeerWords:
             self._count(summary)
         return say
 
+    def held_back(self) -> None:
+        """A message dropped unread (``fleet.shed``): no word of its own, counted in the window's summary."""
+        with self._lock:
+            summary = self._roll(self._clock())
+            self._held += 1
+        if summary:
+            self._count(summary)
+
     def say(
         self, sender: Sender | None, text: str, level: Level = Level.WARN, kind: str | None = None
     ) -> None:

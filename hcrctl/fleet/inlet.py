@@ -1,0 +1,118 @@
+"""How a served robot takes the fleet's ``stop`` and ``cmd_vel``, so that no flood delays a stop or a lease.
+
+Through a router, every peer's messages reach the serve over one link. zenoh-python
+hands each sample of a Python callback to a thread of that callback's own
+through a bounded queue (a few hundred); once the queue is full, the link's
+receive thread waits for it. A peer flooding ``cmd_vel`` at Zenoh's rate
+(100,000+ a second) fills it at once, the receive thread waits on Python
+(and the interpreter lock), the link's socket fills, and whatever comes
+after the flood on the same link (a stop, a driver's renewal, a token)
+waits behind its backlog. Priorities do not help: the backlog is in this
+process. So the flood is shed before it costs the serve anything, by two
+rules:
+
+- **A stop has a link of its own** (``StopLink``): a second client session
+  to the router, which subscribes to ``stop`` and nothing else. Its samples
+  come over their own TCP connection, read by their own receive thread, so
+  no backlog on another key (``cmd_vel``, or the queries ``read``, ``write``
+  and ``drive``, whose callbacks can fill as ``cmd_vel``'s did) is ahead of
+  them; a stop from anyone goes
+  first, and nothing queues it. A flood *of stops* stops the robot, as any
+  stop does (anyone may stop). A serve that is a peer (``--listen``) has
+  no router to reach twice: its operators' links are their own already, and
+  its stops come on its one session.
+- **cmd_vel is taken through a ring** (``Drain``): Zenoh's receive thread
+  puts each sample in a ring of ``CMD_VEL_RING`` (in Rust, without the
+  interpreter lock; the oldest dropped when full, never waiting) and one
+  thread of ours takes them out. The receive thread never waits for Python
+  on a ``cmd_vel``, so no socket backlog forms ahead of a driver's renewals
+  (``drive`` queries), the operators' tokens or the readings' queries; what
+  the flood costs is one thread's share of the interpreter. A driver's
+  motion may be dropped from the ring with the flood's, which costs it a
+  velocity update, never its lease: the lease is renewed by ``drive``
+  claims (``lease.RENEW_S``), which do not pass through the ring, and the
+  deadman keeps its time on the robot side whatever the ring holds.
+
+What only the router's access control adds (docs/fleet.md): a bound on the
+flood's rate before it reaches this machine's loopback at all, per user.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from typing import Any
+
+from ..link.zenoh import keyspace
+from ..link.zenoh.join import CLIENT, Where, member, open_member
+
+#: cmd_vel samples held for the drain thread, at most: the oldest is dropped past this. Small, so a sample
+#: taken is never much older than the newest (1024 are 10 ms at 100,000 a second drained, 0.5 s at 2,000).
+CMD_VEL_RING = 1024
+#: How long closing waits for the drain thread to finish the sample in hand, s.
+DRAIN_JOIN_S = 2.0
+#: The drain thread's name (seen in a thread dump).
+DRAIN_THREAD = "fleet-cmd_vel"
+
+Handle = Callable[[Any], None]
+
+
+class Drain:
+    """A subscriber whose samples go through a ring of ``capacity`` and are handled on a thread of their own.
+
+    ``handle`` runs on that one thread, a sample at a time, in order; it must not raise (wrap it).
+    ``close`` undeclares the subscriber, which ends the thread once its sample in hand is done.
+    """
+
+    def __init__(
+        self, zenoh: Any, session: Any, key: str, handle: Handle, capacity: int = CMD_VEL_RING
+    ) -> None:
+        self.subscriber = session.declare_subscriber(key, zenoh.handlers.RingChannel(capacity))
+        self._handle = handle
+        self._thread = threading.Thread(target=self._run, name=DRAIN_THREAD, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        for sample in self.subscriber:  # recv() waits without the interpreter lock; ends on undeclare
+            self._handle(sample)
+
+    def undeclare(self) -> None:
+        self.subscriber.undeclare()
+        if threading.current_thread() is not self._thread:
+            self._thread.join(DRAIN_JOIN_S)
+
+
+def declare_motion(
+    zenoh: Any, session: Any, link: StopLink | None, name: str, cmd_vel: Handle, stop: Handle
+) -> list[Any]:
+    """``name``'s ``stop`` (on ``link`` when there is one, else on ``session``) and its ``cmd_vel`` (through
+    a ``Drain`` on ``session``): what to undeclare, the stop first."""
+    stopping = (
+        link.declare(name, stop)
+        if link is not None
+        else session.declare_subscriber(keyspace.stop(name), stop)
+    )
+    return [stopping, Drain(zenoh, session, keyspace.cmd_vel(name), cmd_vel)]
+
+
+class StopLink:
+    """``stop``'s own client session to the router (``open``), on which ``declare`` subscribes to ``stop``
+    alone; none when the serve is a peer (its stop is subscribed on the serve's session)."""
+
+    def __init__(self, session: Any) -> None:
+        self.session = session
+
+    @classmethod
+    def open(cls, where: Where, stopped: Callable[[], bool], note: Callable[[str], None]) -> StopLink | None:
+        """The link, once the router answers; None for a peer serve, or if ``stopped()`` first."""
+        if member(where) != CLIENT:
+            return None
+        session = open_member(where, stopped, note)
+        return None if session is None else cls(session)
+
+    def declare(self, name: str, handle: Handle) -> Any:
+        """The subscriber of ``name``'s ``stop`` on this link (undeclared by its owner)."""
+        return self.session.declare_subscriber(keyspace.stop(name), handle)
+
+    def close(self) -> None:
+        self.session.close()

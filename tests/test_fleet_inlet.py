@@ -1,0 +1,165 @@
+"""A served robot's stop and cmd_vel paths (``fleet.inlet``): no wait for Python on one path holds up another.
+
+Each test runs a Zenoh router, the serve's own session and the stop's link
+(what ``fleet serve`` declares, through ``inlet.declare_motion``) and a raw
+peer, all in this process on loopback. One path is made to wait for Python
+(a handler that blocks until the test lets it go, sent more than its
+hand-off holds), which is what a flood does to it for as long as it lasts;
+the test then checks what still gets through. Nothing is timed: each wait is for a condition.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+
+pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip install 'hcrctl[zenoh]')")
+
+from helpers import TIMEOUT, wait_until
+from helpers_fleet_robot import free_port
+
+from hcrctl.fleet.inlet import CMD_VEL_RING, StopLink, declare_motion
+from hcrctl.link.zenoh import keyspace
+from hcrctl.link.zenoh.join import CLIENT, PEER, ROUTER, Where, open_session
+
+ROBOT = "r1"
+#: cmd_vel put while the path is blocked: several rings' worth, and more than a Python callback's hand-off
+#: holds (zenoh-python runs a callback on a thread of its own, fed by a bounded queue of a few hundred).
+FLOODED = 4 * CMD_VEL_RING
+#: Samples put to a blocked callback of the serve's session: far more than its hand-off holds, so the
+#: session's receive thread waits, as a flood makes it wait.
+JAMS = 2000
+
+
+class Paths:
+    """The serve's session, its stop link and the motion declared on them, each handler recording what came
+    (``cmd_vel`` blocking, once ``jam`` is set, until ``free`` is)."""
+
+    def __init__(self, where: Where) -> None:
+        import zenoh
+
+        self.session = open_session(CLIENT, where)
+        self.link = StopLink.open(where, lambda: False, lambda line: None)
+        self.stops: list[bytes] = []
+        self.stopped = threading.Event()
+        self.cmd_vel: list[bytes] = []
+        self.jammed, self.free = threading.Event(), threading.Event()
+        self.declared = declare_motion(zenoh, self.session, self.link, ROBOT, self._cmd_vel, self._stop)
+
+    def _cmd_vel(self, sample: Any) -> None:
+        self.cmd_vel.append(bytes(sample.payload))
+        self.jammed.set()
+        self.free.wait(TIMEOUT)
+
+    def _stop(self, sample: Any) -> None:
+        self.stops.append(bytes(sample.payload))
+        self.stopped.set()
+
+    def close(self) -> None:
+        self.free.set()
+        for thing in self.declared:
+            thing.undeclare()
+        if self.link is not None:
+            self.link.close()
+        self.session.close()
+
+
+@pytest.fixture
+def fleet() -> Iterator[tuple[Paths, Any]]:
+    """(the serve's paths, a raw peer), both clients of a router of their own."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    router = open_session(ROUTER, Where(listen=(endpoint,)))
+    paths = Paths(Where(connect=(endpoint,)))
+    peer = open_session(CLIENT, Where(connect=(endpoint,)))
+    try:
+        yield paths, peer
+    finally:
+        paths.close()
+        peer.close()
+        router.close()
+
+
+def routed(peer: Any, key: str) -> None:
+    """Wait until the router routes ``key`` from ``peer`` to a subscriber (a put before is lost)."""
+    publisher = peer.declare_publisher(key)
+    try:
+        wait_until(lambda: publisher.matching_status.matching, what=f"a subscriber of {key}")
+    finally:
+        publisher.undeclare()
+
+
+def test_a_stop_is_taken_on_its_own_link_while_the_serves_session_waits_for_python(
+    fleet: tuple[Paths, Any],
+) -> None:
+    paths, peer = fleet
+    jam = f"{keyspace.ROOT}/{ROBOT}/jam"
+    entered, free = threading.Event(), threading.Event()
+
+    def blocking(sample: Any) -> None:  # its queue fills, then the session's receive thread waits
+        entered.set()
+        free.wait(TIMEOUT)
+
+    held = paths.session.declare_subscriber(jam, blocking)
+    try:
+        routed(peer, jam)
+        routed(peer, keyspace.stop(ROBOT))
+        for _ in range(JAMS):
+            peer.put(jam, b"hold")
+        assert entered.wait(TIMEOUT), "the jam never reached the serve's session"
+        peer.put(keyspace.stop(ROBOT), b"{}")
+        assert paths.stopped.wait(TIMEOUT), "the stop waited behind the serve's session"
+        assert not free.is_set()
+    finally:
+        free.set()
+        held.undeclare()
+
+
+def test_cmd_vel_waiting_for_python_holds_up_no_query_and_keeps_the_newest(fleet: tuple[Paths, Any]) -> None:
+    paths, peer = fleet
+    drive = keyspace.drive(ROBOT)
+    answered = paths.session.declare_queryable(drive, lambda query: query.reply(drive, b"granted"))
+    try:
+        routed(peer, keyspace.cmd_vel(ROBOT))
+        for n in range(FLOODED):
+            peer.put(keyspace.cmd_vel(ROBOT), str(n).encode())
+        assert paths.jammed.wait(TIMEOUT), "no cmd_vel reached its handler"
+        # A driver's renewal (a drive query) while the cmd_vel handler is blocked and the ring is full.
+        replies = list(peer.get(drive, timeout=TIMEOUT))
+        assert [bytes(r.ok.payload) for r in replies if r.ok is not None] == [b"granted"]
+        assert paths.cmd_vel == [b"0"], "the blocked handler took more than the sample in hand"
+        paths.free.set()
+        last = str(FLOODED - 1).encode()
+        wait_until(lambda: last in paths.cmd_vel, what="the newest cmd_vel taken")
+        assert paths.cmd_vel[-1] == last, "the newest cmd_vel was not taken last"
+        assert len(paths.cmd_vel) <= CMD_VEL_RING + 2, "more cmd_vel were kept than the ring holds"
+    finally:
+        answered.undeclare()
+
+
+def test_a_serve_that_is_a_peer_takes_its_stop_on_its_one_session() -> None:
+    """A peer serve (``--listen``) has no router to reach twice: no link is opened, and a stop put by an
+    operator connected to it directly is taken on the serve's session."""
+    import zenoh
+
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    where = Where(listen=(endpoint,))
+    session = open_session(PEER, where)
+    stopped = threading.Event()
+    try:
+        link = StopLink.open(where, lambda: False, lambda line: None)
+        assert link is None
+        declared = declare_motion(zenoh, session, link, ROBOT, lambda sample: None, lambda s: stopped.set())
+        operator = open_session(CLIENT, Where(connect=(endpoint,)))
+        try:
+            routed(operator, keyspace.stop(ROBOT))
+            operator.put(keyspace.stop(ROBOT), b"{}")
+            assert stopped.wait(TIMEOUT), "the stop never reached the peer serve"
+        finally:
+            operator.close()
+            for thing in declared:
+                thing.undeclare()
+    finally:
+        session.close()
