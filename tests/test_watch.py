@@ -142,7 +142,11 @@ def test_a_port_that_disappears_is_retried_and_recovers() -> None:
         proc.wait(timeout=30)
         term.wait_for("disconnected, retrying")
         with sim_server("--tcp", f"127.0.0.1:{port}"):
-            screen = term.wait_for(lambda t: re.search(r"status +ok", t) and "reconnects 1" in t, timeout=15)
+            # Back and counted; on a loaded machine a first read after the reconnect may time out and
+            # be retried once more, so the count is at least one, not exactly one.
+            screen = term.wait_for(
+                lambda t: re.search(r"status +ok", t) and re.search(r"reconnects [1-9]", t), timeout=15
+            )
             assert HEADING.search(screen)
             term.send("q")
             assert term.finish() == 0
