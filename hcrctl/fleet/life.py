@@ -22,7 +22,7 @@ from collections.abc import Callable
 DRAIN_S = 0.005
 #: How often the thread looks at least: at most ``drive.HOLD_S`` (above), so a driver that starts moving,
 #: or one whose turn passed to another, is never seen late.
-IDLE_S = 0.05
+IDLE_S = 0.1
 
 
 class LifeWatch:
