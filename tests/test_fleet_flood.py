@@ -21,6 +21,7 @@ pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip instal
 from helpers import clean_env, wait_until
 from helpers_fleet_robot import VELOCITY, Fleet, attacker, fleet, is_stop, operator, readline, twist
 
+from hcrctl.fleet.inlet import CMD_VEL_RING
 from hcrctl.link.zenoh import keyspace
 from hcrctl.motion.bumpers import freshness_bound
 from hcrctl.protocol import commands as C
@@ -209,8 +210,10 @@ def test_refusals_of_alternating_names_are_said_on_a_budget(lab: Fleet, tmp_path
             keyspace.cmd_vel("r1"),
             payload,
             lambda n: keyspace.attachment(keyspace.Who(f"evil{n % 500}", f"{n:016x}"), n),
-            rate=2000,
-            lossless=True,  # every one sent is one the serve heard: the count is checked against it
+            # Every one sent is one the serve heard (the count is checked against it), at a rate of which the
+            # serve's cmd_vel ring holds a second: a drain stalled that long by a loaded machine loses none.
+            rate=CMD_VEL_RING,
+            lossless=True,
         )
         wait_until(lambda: peer.sent >= 3000, what="3000 refused messages sent")
         peer.stop()
