@@ -24,13 +24,15 @@ import socket
 import subprocess
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from importlib import import_module
 from pathlib import Path
 from typing import Any
 
 from helpers import TIMEOUT, default_sigint, hcrctl_exe, wait_until
 from helpers_netns import OPERATOR_HOST, ROBOT_HOST, ROUTER_HOST, Topology
 
+from hcrctl.fleet.inlet import CMD_VEL_RING
 from hcrctl.link.zenoh.lease import RENEW_S
 from hcrctl.protocol.dialect import decode_all
 from hcrctl.protocol.frames import Frame
@@ -491,17 +493,10 @@ class Attacker:
 
         self._start(rate, send)
 
-    def puts(
-        self, key: str, payload: bytes, attachment: Any, rate: float = 1000.0, lossless: bool = False
-    ) -> None:
-        """Puts on ``key``; ``attachment(n)`` is the n-th message's attachment. ``lossless``: each put blocks
-        rather than being dropped where a queue on the way is full (Zenoh's default drops), for a test that
-        counts what arrived against what was sent, on a machine too loaded to drain the queues in time."""
-        control = self.zenoh.CongestionControl.BLOCK if lossless else self.zenoh.CongestionControl.DROP
-        self._start(
-            rate,
-            lambda n: self.session.put(key, payload, attachment=attachment(n), congestion_control=control),
-        )
+    def puts(self, key: str, payload: bytes, attachment: Any, rate: float = 1000.0) -> None:
+        """Puts on ``key``, dropped where a queue on the way is full (Zenoh's default, as a real flood's);
+        ``attachment(n)`` is the n-th message's attachment. A test that counts what arrived: ``put_counted``."""
+        self._start(rate, lambda n: self.session.put(key, payload, attachment=attachment(n)))
 
     def stop(self) -> None:
         self._done.set()
@@ -513,6 +508,32 @@ class Attacker:
         self.stop()
         with contextlib.suppress(Exception):
             self.session.close()
+
+
+def put_counted(
+    session: Any,
+    key: str,
+    payload: bytes,
+    attachment: Callable[[int], bytes],
+    count: int,
+    counted: Callable[[], int],
+) -> None:
+    """``count`` puts on ``key`` that the robot side counts each of (``counted()``, read from its ``info``).
+
+    Sent in batches smaller than the serve's cmd_vel ring (``inlet.CMD_VEL_RING``), each waited for until
+    counted before the next, and blocking where a queue on the way is full: a full ring drops its oldest
+    uncounted, so a burst, or a flood paced faster than a loaded machine drains it, could be counted short.
+    """
+    block = import_module("zenoh").CongestionControl.BLOCK
+    for first in range(0, count, PUT_BATCH):
+        last = min(first + PUT_BATCH, count)
+        for n in range(first, last):
+            session.put(key, payload, attachment=attachment(n), congestion_control=block)
+        wait_until(lambda last=last: counted() >= last, what=f"{last} of {count} counted")
+
+
+#: Messages ``put_counted`` sends at once: well under the serve's cmd_vel ring.
+PUT_BATCH = CMD_VEL_RING // 4
 
 
 @contextlib.contextmanager

@@ -19,9 +19,18 @@ import pytest
 pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip install 'hcrctl[zenoh]')")
 
 from helpers import clean_env, wait_until
-from helpers_fleet_robot import VELOCITY, Fleet, attacker, fleet, is_stop, operator, readline, twist
+from helpers_fleet_robot import (
+    VELOCITY,
+    Fleet,
+    attacker,
+    fleet,
+    is_stop,
+    operator,
+    put_counted,
+    readline,
+    twist,
+)
 
-from hcrctl.fleet.inlet import CMD_VEL_RING
 from hcrctl.link.zenoh import keyspace
 from hcrctl.motion.bumpers import freshness_bound
 from hcrctl.protocol import commands as C
@@ -206,18 +215,15 @@ def test_refusals_of_alternating_names_are_said_on_a_budget(lab: Fleet, tmp_path
         op.cmd_vel(twist(0.2))
         op.wait_said("op1 drives r1")
         payload = json.dumps(twist(-0.5)).encode()
-        peer.puts(
+        sent = 3000
+        put_counted(
+            peer.session,
             keyspace.cmd_vel("r1"),
             payload,
             lambda n: keyspace.attachment(keyspace.Who(f"evil{n % 500}", f"{n:016x}"), n),
-            # Every one sent is one the serve heard (the count is checked against it), at a rate of which the
-            # serve's cmd_vel ring holds a second: a drain stalled that long by a loaded machine loses none.
-            rate=CMD_VEL_RING,
-            lossless=True,
+            sent,
+            lambda: _refused(op),
         )
-        wait_until(lambda: peer.sent >= 3000, what="3000 refused messages sent")
-        peer.stop()
-        sent = peer.sent
         counted = wait_until(lambda: _refused(op) >= sent and _refused(op), what="every refusal counted")
         assert op.wait_said("more refusals in the last")["op"] is None
     # Each message's name differs from the last one's: every refusal is a line or counted in a summary.

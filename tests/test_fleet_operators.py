@@ -23,10 +23,8 @@ import pytest
 pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip install 'hcrctl[zenoh]')")
 
 from helpers import TIMEOUT, clean_env, wait_until
-from helpers_fleet_robot import POWER, Fleet, Operator, Serve, fleet, is_stop, operator
-from zenoh import CongestionControl
+from helpers_fleet_robot import POWER, Fleet, Operator, Serve, fleet, is_stop, operator, put_counted
 
-from hcrctl.fleet.inlet import CMD_VEL_RING
 from hcrctl.link.zenoh import keyspace
 from hcrctl.protocol import commands as C
 
@@ -36,9 +34,6 @@ def lab(tmp_path: Path) -> Any:
     with fleet(clean_env(tmp_path)) as group:
         group.router()
         yield group
-
-
-BLOCK = CongestionControl.BLOCK
 
 
 def served(lab: Fleet, tmp_path: Path, name: str = "r1") -> Serve:
@@ -236,26 +231,17 @@ def test_a_flood_of_bad_messages_is_counted_and_said_a_few_times(lab: Fleet, tmp
     with operator(lab.endpoint, "r1", "eve") as eve, operator(lab.endpoint, "r1", "op1") as listener:
         data = json.dumps(power(50, 50)).encode()
         # Each one counted: ignored once read, or shed unread past the strangers' budget (``fleet.shed``).
-        # Sent in batches smaller than the serve's cmd_vel ring (``inlet.CMD_VEL_RING``), each counted before
-        # the next: a ring full drops its oldest uncounted, so one burst of 2000 may be counted short.
-        for first in range(0, 2000, BATCH):
-            for n in range(first, first + BATCH):
-                eve.session.put(
-                    keyspace.cmd_vel("r1"),
-                    data,
-                    attachment=f"eve{n % 2} {n}".encode(),
-                    congestion_control=BLOCK,
-                )
-            wait_until(
-                lambda n=n: _ignored_or_shed(info(eve)["counters"]) > n, what=f"{n + 1} ignored or shed"
-            )
+        put_counted(
+            eve.session,
+            keyspace.cmd_vel("r1"),
+            data,
+            lambda n: f"eve{n % 2} {n}".encode(),
+            2000,
+            lambda: _ignored_or_shed(info(eve)["counters"]),
+        )
         heard = len(listener.status)
     assert 1 <= heard <= 40, heard
     assert not powered(serve, 50, 50)
-
-
-#: Bad messages sent at once, well under the serve's cmd_vel ring.
-BATCH = CMD_VEL_RING // 4
 
 
 def _ignored_or_shed(counters: dict[str, int]) -> int:
