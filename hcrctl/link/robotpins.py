@@ -21,6 +21,7 @@ import re
 from typing import Any, NamedTuple
 
 from ..errors.terminal import quoted
+from .fleetname import NAME_RULE, is_name
 
 #: The config file's table of pins.
 TABLE = "robot-keys"
@@ -67,6 +68,11 @@ def pins_from(table: dict[str, Any], path: str) -> dict[str, Pin]:
     """The table's pins, each value checked; PinError naming the first robot whose value is wrong."""
     found = {}
     for robot, value in table.items():
+        if not is_name(robot):
+            raise PinError(
+                robot,
+                f"expected a robot's fleet name ({NAME_RULE}) as the key, got {quoted(repr(robot), 60)}",
+            )
         if not is_fingerprint(value):
             shown = quoted(repr(value), 60)
             raise PinError(robot, f"expected a robot key's fingerprint ({SPELLING}), got {shown}")

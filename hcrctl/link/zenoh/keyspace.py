@@ -42,11 +42,9 @@ from collections.abc import Hashable
 from typing import Any, NamedTuple
 
 from ...inputs import PeerJsonError, peer_json
+from ..fleetname import NAME, NAME_RULE
 
 ROOT = "hcr"
-#: A robot's or an operator's name: one key chunk, no Zenoh wildcard or separator, not "@"-led.
-NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}")
-NAME_RULE = "1-64 letters, digits, '_', '.' or '-', not starting with '.' or '-'"
 #: An operator session's id: 16 lowercase hex digits, derived from the session's public key (``identity``).
 SESSION = re.compile(r"[0-9a-f]{16}")
 #: A signature: the 128 lower-case hex digits of an Ed25519 signature (``identity``).
