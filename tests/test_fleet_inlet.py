@@ -129,7 +129,9 @@ def test_cmd_vel_waiting_for_python_holds_up_no_query_and_keeps_the_newest(fleet
         # A driver's renewal (a drive query) while the cmd_vel handler is blocked and the ring is full.
         replies = list(peer.get(drive, timeout=TIMEOUT))
         assert [bytes(r.ok.payload) for r in replies if r.ok is not None] == [b"granted"]
-        assert paths.cmd_vel == [b"0"], "the blocked handler took more than the sample in hand"
+        # One sample in hand, whichever the ring held when the drain thread first took one (a loaded
+        # machine may start it after the ring has dropped the first puts).
+        assert len(paths.cmd_vel) == 1, "the blocked handler took more than the sample in hand"
         paths.free.set()
         last = str(FLOODED - 1).encode()
         wait_until(lambda: last in paths.cmd_vel, what="the newest cmd_vel taken")
