@@ -5,7 +5,7 @@ The clock is the test's: nothing waits and nothing is timed.
 
 from __future__ import annotations
 
-from hcrctl.fleet.shed import SESSION_BURST, STRANGER_BURST, STRANGER_RATE, Shed, sender
+from hcrctl.fleet.shed import MAX_BUDGETS, SESSION_BURST, STRANGER_BURST, STRANGER_RATE, Shed, sender
 from hcrctl.link.zenoh import keyspace
 
 DRIVER = keyspace.Who("driver", "0123456789abcdef")
@@ -56,3 +56,18 @@ def test_the_sender_is_the_first_two_fields_and_nothing_else_is_read() -> None:
     assert sender(b"one-field") is None
     assert sender(b"\xff\xfe x y") is None
     assert sender(None) is None
+
+
+def test_budgets_are_kept_for_the_most_recently_heard_sessions_only() -> None:
+    """MAX_BUDGETS sessions' budgets at most: the least recently heard is forgotten first (and starts full),
+    while one heard since keeps its spent budget."""
+    first, second, *others = [keyspace.Who(f"op{n}", f"{n:016x}") for n in range(MAX_BUDGETS + 1)]
+    shed = Shed(lambda who: True, clock=Clock())
+    for who in (first, second):
+        assert sum(shed.admits(attachment(who, 1)) for _ in range(2 * int(SESSION_BURST))) == SESSION_BURST
+    for who in others[:-1]:  # the budgets kept are full now
+        assert shed.admits(attachment(who, 1))
+    assert not shed.admits(attachment(second, 2))  # heard again: spent still, and now the most recent
+    assert shed.admits(attachment(others[-1], 1))  # one more session: the least recently heard is forgotten
+    assert shed.admits(attachment(first, 2)), "the least recently heard session's budget was kept"
+    assert not shed.admits(attachment(second, 3)), "a session heard since lost its spent budget"
