@@ -27,7 +27,7 @@ from cryptography.exceptions import InvalidSignature
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
 
 WAIT_S = 10.0
-#: Step 6's renewal period, as docs/fleet.md gives hcrctl's (a moving driver silent 0.15 s is gone).
+#: Step 6's renewal period, as docs/fleet.md gives hcrctl's (a moving driver silent 0.25 s is gone).
 RENEW_S = 0.05
 
 

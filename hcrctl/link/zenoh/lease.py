@@ -56,8 +56,8 @@ from .robotkey import HINT, NotProven, RobotProof, new_nonce, unproven
 
 #: The longest wait for the robot side's answer to a claim or release.
 CLAIM_TIMEOUT_S = 2.0
-#: Renewals are at most this far apart, and at least four to a deadman: three to the robot side's
-#: ``HOLD_S`` (0.15 s), so one late renewal never stops a live driver.
+#: Renewals are at most this far apart, and at least four to a deadman: five to the robot side's
+#: ``HOLD_S`` (0.25 s), so a few late renewals never stop a live driver.
 RENEW_S = 0.05
 #: How often a claim refused for want of this session's token is asked again (the token on its way),
 #: and for how long: the token was declared before the robot's info was asked, so it is only late.
