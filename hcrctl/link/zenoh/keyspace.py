@@ -14,7 +14,7 @@ and a bad one is a usage error, not a Zenoh exception.
     hcr/<robot>/info             queryable: port, protocol, driver, deadman, counters
     hcr/<robot>/drive            queryable: claim or release the drive lease
     hcr/<robot>/cmd_vel          motion in (Twist or wheels), from anyone: one ring shared by every sender
-    hcr/<robot>/cmd_vel/@<session>  motion in from one operator session, through a ring of its own
+    hcr/<robot>/cmd_vel/<session>  motion in from one operator session, through a ring of its own
     hcr/<robot>/stop             anyone may stop
     hcr/<robot>/status           the robot's word to operators: a refusal, a deadman stop, who drives
     hcr/<robot>/op/<operator>/<session>  liveliness token of each operator session that opened the robot
@@ -46,8 +46,6 @@ from ...inputs import PeerJsonError, peer_json
 from ..fleetname import NAME, NAME_RULE
 
 ROOT = "hcr"
-#: What makes a key chunk verbatim: Zenoh's ``*`` and ``**`` never match a chunk that begins with it.
-VERBATIM = "@"
 #: An operator session's id: 16 lowercase hex digits, derived from the session's public key (``identity``).
 SESSION = re.compile(r"[0-9a-f]{16}")
 #: A signature: the 128 lower-case hex digits of an Ed25519 signature (``identity``).
@@ -117,13 +115,17 @@ def session_cmd_vel(robot: str, session: str) -> str:
     The robot side reads it through a ring of that session's own while the
     session is admitted (``fleet.inlet``), and drops unread a message on it
     whose attachment names another session: a flood on ``cmd_vel`` or on
-    another session's key never crowds it out, only a flood aimed at this
-    very key can (a copy of the session's messages; the router's access
-    control tells those apart). The session is a verbatim chunk (``@``):
-    Zenoh's wildcards never match one, so a put on ``hcr/R/cmd_vel/**``
-    reaches no session's ring.
+    another session's key never crowds it out; a flood put on this key can
+    (a copy of the session's, whose signatures fail), and so can one put on
+    a wildcard under ``cmd_vel`` (``hcr/R/cmd_vel/*``), which Zenoh routes to
+    every session's key: only the router tells those senders apart.
+
+    Not a verbatim chunk (``@SESSION``, which no wildcard matches): no
+    access-control rule could then allow every session's key (``hcr/**``
+    does not cover it), and a lab whose router denies by default would
+    drop every driver's motion.
     """
-    return f"{ROOT}/{robot}/cmd_vel/{VERBATIM}{session}"
+    return f"{ROOT}/{robot}/cmd_vel/{session}"
 
 
 def stop(robot: str) -> str:
