@@ -123,9 +123,16 @@ class SessionDrains:
     """
 
     def __init__(
-        self, zenoh: Any, session: Callable[[], Any], robot: str, handle: Callable[[keyspace.Who], Handle]
+        self,
+        zenoh: Any,
+        session: Callable[[], Any],
+        robot: str,
+        handle: Callable[[keyspace.Who], Handle],
+        note: Callable[[str], None] = lambda line: None,
     ) -> None:
+        """``note`` is told of a drain that could not be declared (its session then gets no lease value)."""
         self._zenoh, self._session, self._robot, self._handle = zenoh, session, robot, handle
+        self._note = note
         self._drains: dict[keyspace.Who, Drain] = {}
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="hcrctl-fleet-inlet")
 
@@ -141,14 +148,18 @@ class SessionDrains:
         """Whether ``op``'s drain is declared (one lookup of a dict, without a lock)."""
         return op in self._drains
 
-    def __len__(self) -> int:
-        return len(self._drains)
-
     def _declare(self, op: keyspace.Who) -> None:
-        if op not in self._drains:
-            key = keyspace.session_cmd_vel(self._robot, op.session)
-            name = f"{DRAIN_THREAD}/{op.session}"
-            self._drains[op] = Drain(self._zenoh, self._session(), key, self._handle(op), name=name)
+        if op in self._drains:
+            return
+        key = keyspace.session_cmd_vel(self._robot, op.session)
+        try:
+            drain = Drain(
+                self._zenoh, self._session(), key, self._handle(op), name=f"{DRAIN_THREAD}/{op.session}"
+            )
+        except Exception as exc:  # the session closing: a note, and the operator is never answered its lease
+            self._note(f"subscribing {key} failed (ignored): {exc!r}")
+            return
+        self._drains[op] = drain
 
     def _undeclare(self, op: keyspace.Who) -> None:
         drain = self._drains.pop(op, None)

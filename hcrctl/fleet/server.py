@@ -126,7 +126,13 @@ class Fleet(FrontEnd):
         self.answers = queries.Answers(self.key.sealed)
         self.holds = Holds(lambda: self.session)
         #: Each admitted session's own cmd_vel key, through a ring of its own (``inlet``).
-        self.inlets = SessionDrains(self.zenoh, lambda: self.session, self.name, self._session_cmd_vel)
+        self.inlets = SessionDrains(
+            self.zenoh,
+            lambda: self.session,
+            self.name,
+            self._session_cmd_vel,
+            lambda line: notes.note(line, Level.ERROR),
+        )
         self.drive = FleetDrive(
             self.name, view.governor, self.say, self._profile, view.words, self.holds, self.inlets
         )
