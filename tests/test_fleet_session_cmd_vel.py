@@ -67,13 +67,15 @@ def routed(session: Any, key: str) -> None:
         publisher.undeclare()
 
 
-def driving_lease(session: Any) -> DriveLease:
-    """hcrctl's own operator lease, as if its claim had been granted (the robot side here is only drains)."""
+def driving_lease(session: Any) -> tuple[DriveLease, keyspace.Who]:
+    """hcrctl's own operator lease, as if its claim had been granted (the robot side here is only drains),
+    and its operator session."""
     me = identity.Identity()
-    lease = DriveLease(session, ROBOT, keyspace.Who("driver", me.session), me, deadman=10.0)
+    op = keyspace.Who("driver", me.session)
+    lease = DriveLease(session, ROBOT, op, me, deadman=10.0)
     lease.challenge, lease.admission, lease.held = keyspace.new_challenge(), keyspace.new_lease(), True
     lease._confirmed = lambda seq: {"seen": seq}  # type: ignore[method-assign]
-    return lease
+    return lease, op
 
 
 def test_a_drivers_motion_is_all_taken_while_a_peer_floods_the_shared_key(router: Where) -> None:
@@ -85,14 +87,14 @@ def test_a_drivers_motion_is_all_taken_while_a_peer_floods_the_shared_key(router
     free = threading.Event()
     shared, own = Held(free), Held(free)
     done = threading.Event()
-    lease = driving_lease(driver)
+    lease, op = driving_lease(driver)
     drains = SessionDrains(zenoh, lambda: serve, ROBOT, lambda op: own)
     plain = Drain(zenoh, serve, keyspace.cmd_vel(ROBOT), shared)
     flooded = serve.declare_subscriber(f"{keyspace.ROOT}/{ROBOT}/flooded", lambda sample: done.set())
     try:
-        drains.open(lease._op)
-        wait_until(lambda: drains.ready(lease._op), what="the session's drain declared")
-        routed(driver, keyspace.session_cmd_vel(ROBOT, lease._op.session))
+        drains.open(op)
+        wait_until(lambda: drains.ready(op), what="the session's drain declared")
+        routed(driver, keyspace.session_cmd_vel(ROBOT, op.session))
         routed(peer, keyspace.cmd_vel(ROBOT))
         velocity = C.BY_NAME["velocity"]
         for n in range(MOTIONS):
@@ -107,7 +109,7 @@ def test_a_drivers_motion_is_all_taken_while_a_peer_floods_the_shared_key(router
         wait_until(lambda: last in shared.taken, what="the shared ring drained")
         wait_until(lambda: len(own.taken) >= MOTIONS, what=f"the driver's motions taken (got {own.taken})")
         sent = [keyspace.parse_attachment(a) for a in own.taken]
-        assert [a.seq for a in sent if a is not None and a.who == lease._op] == list(range(1, MOTIONS + 1))
+        assert [a.seq for a in sent if a is not None and a.who == op] == list(range(1, MOTIONS + 1))
         assert len(own.taken) == MOTIONS, "the session's ring took another's messages"
     finally:
         free.set()

@@ -37,7 +37,8 @@ rules:
   through a ``Drain`` of its own while it is admitted, so a flood on the
   shared ``cmd_vel`` (or on another session's key) fills rings that are not
   its own; a message there naming another session is dropped unread. Only a
-  copy of the session's own messages can crowd its ring.
+  flood put on that very key (or on a wildcard under ``cmd_vel``, which
+  Zenoh routes to every session's key) can crowd its ring.
 
 What only the router's access control adds (docs/fleet.md): a bound on the
 flood's rate before it reaches this machine's loopback at all, per user.
