@@ -60,6 +60,8 @@ NO_STOP_S = 10 * DEADMAN + 10
 #: The driver's speed, m/s (forward and back in turn).
 SPEED = 0.2
 STOP = C.encode_request(C.STOP)
+#: Where the driver puts its motion: its session's own key (``own``, as hcrctl does) or the shared one.
+DRIVER_KEY = "own"
 
 
 def flood_main(kind: str, endpoint: str, rate: float = 0.0) -> int:
@@ -180,7 +182,7 @@ class Driver:
         """One Twist, forward (``way`` 1) or back (-1); when it was put (wall clock, taken just before)."""
         twist = {"linear": {"x": SPEED * way}, "angular": {"z": 0.0}}
         at = time.time()
-        self.op.cmd_vel(twist)  # claims first, the first time
+        self.op.cmd_vel(twist, own=DRIVER_KEY == "own")  # claims first, the first time
         return at
 
     def silent(self) -> None:

@@ -589,8 +589,15 @@ def main() -> int:
         default="scaling,reads,lost,hosts,floods,renewals,copied",
         help="which parts to run (comma-separated)",
     )
+    parser.add_argument(
+        "--flood-driver-key",
+        choices=("own", "shared"),
+        default="own",
+        help="the floods' driver puts its motion on its session's own key (as hcrctl does) or the shared one",
+    )
     args = parser.parse_args()
     _fleet_floods.PEERS = args.flood_peers
+    _fleet_floods.DRIVER_KEY = args.flood_driver_key
     if args.flood_kinds:
         _fleet_floods.KINDS = ("baseline", *args.flood_kinds.split(","))
     parts = set(args.parts.split(","))

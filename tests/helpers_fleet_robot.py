@@ -400,10 +400,12 @@ class Operator:
                 return ok, body
             time.sleep(0.05)
 
-    def cmd_vel(self, message: dict[str, Any]) -> None:
+    def cmd_vel(self, message: dict[str, Any], own: bool = False) -> None:
+        """A signed motion on the robot's shared ``cmd_vel``, or (``own``) on this session's own key."""
         if self.seq == 0 or self._renewing is None:
             self.claim()
-        self.put(self.keys.cmd_vel(self.robot), json.dumps(message).encode())
+        key = self.keys.session_cmd_vel(self.robot, self.op.session) if own else self.keys.cmd_vel(self.robot)
+        self.put(key, json.dumps(message).encode())
 
     def put(self, key: str, data: bytes, what: str = "cmd_vel") -> bytes:
         """``data`` put on ``key`` with this session's next signed attachment; the attachment."""

@@ -88,7 +88,10 @@ BAD_FILES = [
     ('[robot-keys]\nr1 = "SHA256:abc"\n', ["config.toml:2: robot-keys.r1", "fingerprint", "'SHA256:abc'"]),
     ("[robot-keys]\nr1 = 5\n", ["config.toml:2: robot-keys.r1", "fingerprint", "got 5"]),
     (f'[robot-keys]\nr1 = "SHA256:{"A" * 42}B"\n', ["config.toml:2: robot-keys.r1", "fingerprint"]),
-    (f'[robot-keys]\n"r 1" = "SHA256:{"A" * 43}"\n', ["config.toml:2: robot-keys.r 1", "fleet name", "'r 1'"]),
+    (
+        f'[robot-keys]\n"r 1" = "SHA256:{"A" * 43}"\n',
+        ["config.toml:2: robot-keys.r 1", "fleet name", "'r 1'"],
+    ),
 ]
 
 

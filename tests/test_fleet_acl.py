@@ -35,7 +35,7 @@ ACCESS_CONTROL = {
             "permission": "deny",
             "flows": ["ingress"],
             "messages": ["put", "query"],
-            "key_exprs": ["hcr/*/cmd_vel", "hcr/*/drive", "hcr/*/write"],
+            "key_exprs": ["hcr/*/cmd_vel", "hcr/*/cmd_vel/*", "hcr/*/drive", "hcr/*/write"],
         }
     ],
     "subjects": [{"id": "visitors", "usernames": ["visitor"]}],

@@ -30,6 +30,9 @@ Who may drive, and which messages count:
   its numbers, its lease value), so a session back after a network cut carries
   on; one forgotten is admitted afresh, with a new lease value its old messages
   were never signed for;
+- each session admitted has its own ``cmd_vel`` key and ring (``inlets``,
+  ``inlet.SessionDrains``), subscribed before its lease value is answered
+  and undeclared when it goes;
 - a driver whose motion runs is alive while its signed words come (``HOLD_S``,
   ``tick``): no subscriber, token copy or queryable anyone declares keeps it;
 - a stop is anyone's (a ``stop``, or a zero Twist on ``cmd_vel``), and is said as the sender's only
@@ -109,6 +112,14 @@ class Holds(Protocol):
 
     def watch(self, key: str, gone: Callable[[], None]) -> None: ...
     def drop(self, key: str) -> None: ...
+
+
+class Inlets(Protocol):
+    """Where each admitted session's own ``cmd_vel`` key is subscribed (``inlet.SessionDrains``)."""
+
+    def open(self, op: keyspace.Who) -> None: ...
+    def close(self, op: keyspace.Who) -> None: ...
+    def ready(self, op: keyspace.Who) -> bool: ...
 
 
 def operator_source(op: keyspace.Who) -> Source:
@@ -238,10 +249,13 @@ class FleetDrive:
         profile: Callable[[], tuple[Profile, int]],
         words: PeerWords,
         holds: Holds | None = None,
+        inlets: Inlets | None = None,
     ) -> None:
+        """``inlets`` is told of each session admitted and gone, under the lock (so in that order)."""
         identity.check_installed()
         self.robot = robot
         self._holds = holds
+        self._inlets = inlets
         self.governor = governor
         self.counters = DriveCounters()
         self._say = say
@@ -469,11 +483,16 @@ class FleetDrive:
 
     def _lease(self, op: keyspace.Who) -> tuple[bool, dict[str, Any]]:
         """The value ``op``'s admission drew (``Present.lease``), which its signatures cover: anyone may ask
-        (it proves nothing and is good for nothing without the session's key), nobody before admission."""
+        (it proves nothing and is good for nothing without the session's key), nobody before admission, nor
+        before its own ``cmd_vel`` key is subscribed (``inlets``): until then the answer is ``"token": false``,
+        asked again, so no motion is signed that would reach no subscriber."""
         with self._lock:
             present = self._present.get(op)
-            if present is not None:
+            if present is not None and (self._inlets is None or self._inlets.ready(op)):
                 return True, {"lease": present.lease}
+            if present is not None:  # its motion key is being subscribed: asked again, as for a token
+                key = keyspace.session_cmd_vel(self.robot, op.session)
+                return False, {"error": f"refused: {key} is not subscribed yet", "token": False}
             return False, {"error": self._not_admitted(op), "driver": named(self.governor.driver)} | (
                 {"token": True, "waiting": True} if op in self._waiting else {"token": False}
             )
@@ -587,6 +606,8 @@ class FleetDrive:
             back.rejoined = True
             back.key = identity.verifier(back.key)
         self._present[op] = back if back is not None else Present()
+        if self._inlets is not None:
+            self._inlets.open(op)
 
     def _admit_waiting(self) -> None:
         """Admit the tokens waiting (under the lock), first come first, while there is room and each may be
@@ -614,6 +635,8 @@ class FleetDrive:
         the robot stops at once."""
         with self._lock:
             present = self._present.pop(op, None)
+            if present is not None and self._inlets is not None:
+                self._inlets.close(op)
             now = time.monotonic()
             if present is not None and present.key is not None:
                 present.gone_at = now

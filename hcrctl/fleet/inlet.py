@@ -32,6 +32,13 @@ rules:
   velocity update, never its lease: the lease is renewed by ``drive``
   claims (``lease.RENEW_S``), which do not pass through the ring, and the
   deadman keeps its time on the robot side whatever the ring holds.
+- **each operator session has a ring of its own** (``SessionDrains``): its
+  motion on ``hcr/R/cmd_vel/SESSION`` (``keyspace.session_cmd_vel``) goes
+  through a ``Drain`` of its own while it is admitted, so a flood on the
+  shared ``cmd_vel`` (or on another session's key) fills rings that are not
+  its own; a message there naming another session is dropped unread. Only a
+  flood put on that very key (or on a wildcard under ``cmd_vel``, which
+  Zenoh routes to every session's key) can crowd its ring.
 
 What only the router's access control adds (docs/fleet.md): a bound on the
 flood's rate before it reaches this machine's loopback at all, per user.
@@ -39,8 +46,10 @@ flood's rate before it reaches this machine's loopback at all, per user.
 
 from __future__ import annotations
 
+import contextlib
 import threading
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 from ..link.zenoh import keyspace
@@ -65,11 +74,17 @@ class Drain:
     """
 
     def __init__(
-        self, zenoh: Any, session: Any, key: str, handle: Handle, capacity: int = CMD_VEL_RING
+        self,
+        zenoh: Any,
+        session: Any,
+        key: str,
+        handle: Handle,
+        capacity: int = CMD_VEL_RING,
+        name: str = DRAIN_THREAD,
     ) -> None:
         self.subscriber = session.declare_subscriber(key, zenoh.handlers.RingChannel(capacity))
         self._handle = handle
-        self._thread = threading.Thread(target=self._run, name=DRAIN_THREAD, daemon=True)
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
         self._thread.start()
 
     def _run(self) -> None:
@@ -93,6 +108,71 @@ def declare_motion(
         else session.declare_subscriber(keyspace.stop(name), stop)
     )
     return [stopping, Drain(zenoh, session, keyspace.cmd_vel(name), cmd_vel)]
+
+
+class SessionDrains:
+    """A ``Drain`` for each operator session admitted, on its own key (``keyspace.session_cmd_vel``).
+
+    ``open`` and ``close`` (told when a session is admitted and when it goes)
+    are carried out on a thread of their own, in the order told: never on the
+    Zenoh callback that admitted the session or saw it go (declaring there
+    may deadlock), and, told under the admitting side's lock, never more
+    drains than sessions present. ``ready`` says whether a session's drain
+    is declared: its lease is answered only then, so it signs no motion
+    before its key is subscribed. ``handle(op)`` is the handler of ``op``'s
+    samples, which drops those naming another session.
+    """
+
+    def __init__(
+        self,
+        zenoh: Any,
+        session: Callable[[], Any],
+        robot: str,
+        handle: Callable[[keyspace.Who], Handle],
+        note: Callable[[str], None] = lambda line: None,
+    ) -> None:
+        """``note`` is told of a drain that could not be declared (its session then gets no lease value)."""
+        self._zenoh, self._session, self._robot, self._handle = zenoh, session, robot, handle
+        self._note = note
+        self._drains: dict[keyspace.Who, Drain] = {}
+        self._pool = ThreadPoolExecutor(1, thread_name_prefix="hcrctl-fleet-inlet")
+
+    def open(self, op: keyspace.Who) -> None:
+        with contextlib.suppress(RuntimeError):  # shutting down
+            self._pool.submit(self._declare, op)
+
+    def close(self, op: keyspace.Who) -> None:
+        with contextlib.suppress(RuntimeError):
+            self._pool.submit(self._undeclare, op)
+
+    def ready(self, op: keyspace.Who) -> bool:
+        """Whether ``op``'s drain is declared (one lookup of a dict, without a lock)."""
+        return op in self._drains
+
+    def _declare(self, op: keyspace.Who) -> None:
+        if op in self._drains:
+            return
+        key = keyspace.session_cmd_vel(self._robot, op.session)
+        try:
+            drain = Drain(
+                self._zenoh, self._session(), key, self._handle(op), name=f"{DRAIN_THREAD}/{op.session}"
+            )
+        except Exception as exc:  # the session closing: a note, and the operator is never answered its lease
+            self._note(f"subscribing {key} failed (ignored): {exc!r}")
+            return
+        self._drains[op] = drain
+
+    def _undeclare(self, op: keyspace.Who) -> None:
+        drain = self._drains.pop(op, None)
+        if drain is not None:
+            with contextlib.suppress(Exception):  # the session is closing
+                drain.undeclare()
+
+    def shutdown(self) -> None:
+        """Every drain undeclared, and nothing declared after."""
+        self._pool.shutdown(wait=True)
+        for op in list(self._drains):
+            self._undeclare(op)
 
 
 class StopLink:

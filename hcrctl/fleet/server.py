@@ -46,7 +46,7 @@ from ..signals import Terminated
 from . import queries
 from .drive import BadMotion, FleetDrive, named
 from .hold import Holds
-from .inlet import StopLink, declare_motion
+from .inlet import SessionDrains, StopLink, declare_motion
 from .life import LifeWatch
 from .publish import Publishers
 from .shed import Shed
@@ -125,7 +125,17 @@ class Fleet(FrontEnd):
         self.key = RobotKey.load(self.name)
         self.answers = queries.Answers(self.key.sealed)
         self.holds = Holds(lambda: self.session)
-        self.drive = FleetDrive(self.name, view.governor, self.say, self._profile, view.words, self.holds)
+        #: Each admitted session's own cmd_vel key, through a ring of its own (``inlet``).
+        self.inlets = SessionDrains(
+            self.zenoh,
+            lambda: self.session,
+            self.name,
+            self._session_cmd_vel,
+            lambda line: notes.note(line, Level.ERROR),
+        )
+        self.drive = FleetDrive(
+            self.name, view.governor, self.say, self._profile, view.words, self.holds, self.inlets
+        )
         #: The moving driver's life (``drive.HOLD_S``) ended the moment it runs out, not at the next tick.
         self.life = LifeWatch(self.drive.life_due, self.drive.life_ended)
         #: Each cmd_vel admitted or shed on its sender's budget before it is read (``shed``).
@@ -290,6 +300,7 @@ class Fleet(FrontEnd):
                 thing.undeclare()
         self.declared.clear()
         self.life.close()
+        self.inlets.shutdown()
         self.holds.close()
         self.answers.close()
 
@@ -406,6 +417,16 @@ class Fleet(FrontEnd):
         attachment = _bytes(sample.attachment)
         if self.shed.admits(attachment):
             self.drive.cmd_vel(attachment, sample.payload)
+
+    def _session_cmd_vel(self, op: keyspace.Who) -> Callable[[Any], None]:
+        """The handler of ``op``'s own cmd_vel key: a sample naming another session (or none) is shed unread."""
+
+        def taken(sample: Any) -> None:
+            attachment = _bytes(sample.attachment)
+            if self.shed.admits_from(op, attachment):
+                self.drive.cmd_vel(attachment, sample.payload)
+
+        return self._guarded(taken)
 
     def _stop(self, sample: Any) -> None:
         self.drive.stop(_bytes(sample.attachment), bytes(sample.payload))

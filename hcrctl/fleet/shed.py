@@ -16,6 +16,10 @@ rest of its attachment is read:
   lab's bystanders send (a stop) is still read, and a flood is shed past
   it.
 
+A sample on a session's own key (``keyspace.session_cmd_vel``) whose
+attachment names another session, or none, is counted shed and dropped
+unread (``admits_from``): the key says whose it is, so it can move nothing.
+
 What is over its budget is counted (``shed``, and in the words' summary of
 messages held back: ``... and N more refusals``) and dropped unread; a
 stop from anyone is sure on ``stop``, which has a link of its own
@@ -26,6 +30,7 @@ driver's session from the driver (docs/fleet.md).
 
 from __future__ import annotations
 
+import threading
 import time
 from collections import OrderedDict
 from collections.abc import Callable
@@ -75,22 +80,34 @@ class Shed:
         self._clock = clock
         self._strangers = Bucket(STRANGER_RATE, STRANGER_BURST, clock())
         self._sessions: OrderedDict[keyspace.Who, Bucket] = OrderedDict()
-        #: Samples dropped unread, over their sender's budget.
+        #: Each session's ring and the shared one are drained on threads of their own.
+        self._lock = threading.Lock()
+        #: Samples dropped unread, over their sender's budget or on another session's key.
         self.shed = 0
 
     def admits(self, attachment: bytes | None) -> bool:
-        now = self._clock()
         who = sender(attachment)
-        bucket = self._strangers
-        if who is not None and self._present(who):
-            kept = self._sessions.pop(who, None)
-            bucket = kept if kept is not None else Bucket(SESSION_RATE, SESSION_BURST, now)
-            self._sessions[who] = bucket
-            while len(self._sessions) > MAX_BUDGETS:
-                self._sessions.popitem(last=False)
-        if bucket.fill(now) < 1:
+        with self._lock:
+            now = self._clock()
+            bucket = self._strangers
+            if who is not None and self._present(who):
+                kept = self._sessions.pop(who, None)
+                bucket = kept if kept is not None else Bucket(SESSION_RATE, SESSION_BURST, now)
+                self._sessions[who] = bucket
+                while len(self._sessions) > MAX_BUDGETS:
+                    self._sessions.popitem(last=False)
+            if bucket.fill(now) >= 1:
+                bucket.level -= 1
+                return True
             self.shed += 1
-            self._held_back()
-            return False
-        bucket.level -= 1
-        return True
+        self._held_back()
+        return False
+
+    def admits_from(self, op: keyspace.Who, attachment: bytes | None) -> bool:
+        """``admits``, for a sample on ``op``'s own key: one naming another session (or none) is shed."""
+        if sender(attachment) == op:
+            return self.admits(attachment)
+        with self._lock:
+            self.shed += 1
+        self._held_back()
+        return False

@@ -13,7 +13,8 @@ and a bad one is a usage error, not a Zenoh exception.
     hcr/<robot>/write            queryable: a non-motion request of the command table (pid, servo...)
     hcr/<robot>/info             queryable: port, protocol, driver, deadman, counters
     hcr/<robot>/drive            queryable: claim or release the drive lease
-    hcr/<robot>/cmd_vel          motion in (Twist or wheels); each message renews the driver's lease
+    hcr/<robot>/cmd_vel          motion in (Twist or wheels), from anyone: one ring shared by every sender
+    hcr/<robot>/cmd_vel/<session>  motion in from one operator session, through a ring of its own
     hcr/<robot>/stop             anyone may stop
     hcr/<robot>/status           the robot's word to operators: a refusal, a deadman stop, who drives
     hcr/<robot>/op/<operator>/<session>  liveliness token of each operator session that opened the robot
@@ -103,7 +104,28 @@ def drive(robot: str) -> str:
 
 
 def cmd_vel(robot: str) -> str:
+    """Motion in from anyone: the robot side reads it through one ring that every sender shares, so a
+    flood on it crowds out whoever else puts there (``session_cmd_vel`` is a session's own)."""
     return f"{ROOT}/{robot}/cmd_vel"
+
+
+def session_cmd_vel(robot: str, session: str) -> str:
+    """Motion in from the operator session ``session`` (``SESSION``): what an operator puts its motion on.
+
+    The robot side reads it through a ring of that session's own while the
+    session is admitted (``fleet.inlet``), and drops unread a message on it
+    whose attachment names another session: a flood on ``cmd_vel`` or on
+    another session's key never crowds it out; a flood put on this key can
+    (a copy of the session's, whose signatures fail), and so can one put on
+    a wildcard under ``cmd_vel`` (``hcr/R/cmd_vel/*``), which Zenoh routes to
+    every session's key: only the router tells those senders apart.
+
+    Not a verbatim chunk (``@SESSION``, which no wildcard matches): no
+    access-control rule could then allow every session's key (``hcr/**``
+    does not cover it), and a lab whose router denies by default would
+    drop every driver's motion.
+    """
+    return f"{ROOT}/{robot}/cmd_vel/{session}"
 
 
 def stop(robot: str) -> str:

@@ -13,7 +13,9 @@ liveliness token goes (a killed one). This side only asks and keeps asking:
   ``admit``), and a claim names the public key, so nobody else on the fleet
   can send as this operator, nothing signed for one serving process is good
   for the next, and nothing signed in one admission is good in another;
-- each motion is a ``cmd_vel`` put with ``attachment(op, seq, signature)``,
+- each motion is a put on this session's own ``cmd_vel`` key
+  (``keyspace.session_cmd_vel``: no other sender's flood crowds it out)
+  with ``attachment(op, seq, signature)``,
   then confirmed by a claim naming its sequence number: when the robot side
   dropped it (another drives, a bumper is pressed, its firmware lacks the
   command), the command fails with the robot side's reason, so nothing says
@@ -48,7 +50,7 @@ from ...protocol import commands as C
 from ...protocol.records import hexs
 from .identity import Identity, signed_bytes
 from .join import LEASE_MS, FleetError
-from .keyspace import HOLD, LEASE, Status, Who, attachment, cmd_vel, loads
+from .keyspace import HOLD, LEASE, Status, Who, attachment, loads, session_cmd_vel
 from .keyspace import drive as drive_key
 from .keyspace import hold as hold_key
 from .keyspace import stop as stop_key
@@ -164,7 +166,7 @@ class DriveLease:
     # -- motion ---------------------------------------------------------------------
 
     def drive(self, address: int, cmd: C.Command, content: bytes) -> None:
-        """Claim if not held, put the motion as ``cmd_vel``, and confirm the robot side took it.
+        """Claim if not held, put the motion on this session's ``cmd_vel``, and confirm the robot side took it.
 
         DriveRefused names who drives, or why the robot side dropped the motion.
         """
@@ -172,7 +174,7 @@ class DriveLease:
         if not self.held:
             self.claim()
         payload = {"address": address, "command": cmd.code, "content": hexs(content)}
-        seq = self._put(cmd_vel(self._robot), "cmd_vel", payload)
+        seq = self._put(session_cmd_vel(self._robot, self._op.session), "cmd_vel", payload)
         answer = self._confirmed(seq)
         dropped = answer.get("dropped")
         if dropped is not None:
