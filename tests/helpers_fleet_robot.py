@@ -131,6 +131,15 @@ class Fleet:
                     stream.close()
 
 
+def routed(session: Any, key: str) -> None:
+    """Wait until the router routes ``key`` from ``session`` to a subscriber (a put before is lost)."""
+    publisher = session.declare_publisher(key)
+    try:
+        wait_until(lambda: publisher.matching_status.matching, what=f"a subscriber of {key}")
+    finally:
+        publisher.undeclare()
+
+
 @contextlib.contextmanager
 def fleet(
     env: dict[str, str], endpoint: str | None = None, topology: Topology | None = None

@@ -19,7 +19,7 @@ import pytest
 pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip install 'hcrctl[zenoh]')")
 
 from helpers import TIMEOUT, wait_until
-from helpers_fleet_robot import free_port
+from helpers_fleet_robot import free_port, routed
 
 from hcrctl.fleet.inlet import CMD_VEL_RING, StopLink, declare_motion
 from hcrctl.link.zenoh import keyspace
@@ -80,15 +80,6 @@ def fleet() -> Iterator[tuple[Paths, Any]]:
         paths.close()
         peer.close()
         router.close()
-
-
-def routed(peer: Any, key: str) -> None:
-    """Wait until the router routes ``key`` from ``peer`` to a subscriber (a put before is lost)."""
-    publisher = peer.declare_publisher(key)
-    try:
-        wait_until(lambda: publisher.matching_status.matching, what=f"a subscriber of {key}")
-    finally:
-        publisher.undeclare()
 
 
 def test_a_stop_is_taken_on_its_own_link_while_the_serves_session_waits_for_python(

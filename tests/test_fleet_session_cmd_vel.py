@@ -21,7 +21,7 @@ import pytest
 pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip install 'hcrctl[zenoh]')")
 
 from helpers import TIMEOUT, clean_env, wait_until
-from helpers_fleet_robot import VELOCITY, Fleet, fleet, free_port, operator, twist
+from helpers_fleet_robot import VELOCITY, Fleet, fleet, free_port, operator, routed, twist
 
 from hcrctl.fleet.inlet import CMD_VEL_RING, Drain, SessionDrains
 from hcrctl.link.zenoh import identity, keyspace
@@ -56,15 +56,6 @@ def router() -> Iterator[Where]:
         yield Where(connect=(endpoint,))
     finally:
         session.close()
-
-
-def routed(session: Any, key: str) -> None:
-    """Wait until the router routes ``key`` from ``session`` to a subscriber (a put before is lost)."""
-    publisher = session.declare_publisher(key)
-    try:
-        wait_until(lambda: publisher.matching_status.matching, what=f"a subscriber of {key}")
-    finally:
-        publisher.undeclare()
 
 
 def driving_lease(session: Any) -> tuple[DriveLease, keyspace.Who]:
