@@ -21,7 +21,7 @@ pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip instal
 from helpers import TIMEOUT, wait_until
 from helpers_fleet_robot import free_port, routed
 
-from hcrctl.fleet.inlet import CMD_VEL_RING, StopLink, declare_motion
+from hcrctl.fleet.inlet import CMD_VEL_RING, Drain, Pace, StopLink, declare_motion
 from hcrctl.link.zenoh import keyspace
 from hcrctl.link.zenoh.join import CLIENT, PEER, ROUTER, Where, open_session
 
@@ -156,3 +156,70 @@ def test_a_serve_that_is_a_peer_takes_its_stop_on_its_one_session() -> None:
                 thing.undeclare()
     finally:
         session.close()
+
+
+class FakeTime:
+    """A clock that moves only when slept on, and what was slept."""
+
+    def __init__(self) -> None:
+        self.now, self.slept = 50.0, 0.0
+
+    def clock(self) -> float:
+        return self.now
+
+    def sleep(self, seconds: float) -> None:
+        self.slept += seconds
+        self.now += seconds
+
+
+def test_a_pace_takes_its_burst_at_once_then_its_rate() -> None:
+    fake = FakeTime()
+    pace = Pace(100.0, 5.0, fake.clock, fake.sleep)
+    for _ in range(5):
+        pace.step()
+    assert fake.slept == 0.0, "the burst was waited for"
+    for _ in range(200):
+        pace.step()
+    assert fake.slept == pytest.approx(200 / 100.0), "more than the rate was taken"
+
+
+def test_a_drain_past_its_pace_leaves_the_flood_to_the_ring(fleet: tuple[Paths, Any]) -> None:
+    """Once its pace is spent, the drain's thread waits (here until the test lets it go) and takes nothing
+    more: the flood is dropped in the ring, unread, and the newest is taken after."""
+    import zenoh
+
+    paths, peer = fleet
+    key = f"{keyspace.ROOT}/{ROBOT}/paced"
+    taken: list[bytes] = []
+    waiting, free = threading.Event(), threading.Event()
+
+    def sleep(seconds: float) -> None:
+        waiting.set()
+        free.wait(TIMEOUT)
+
+    heard: list[bytes] = []
+    drain = Drain(
+        zenoh,
+        paths.session,
+        key,
+        lambda s: taken.append(bytes(s.payload)),
+        pace=Pace(1.0, 1.0, sleep=sleep),
+    )
+    seen = paths.session.declare_subscriber(key, lambda s: heard.append(bytes(s.payload)))
+    try:
+        routed(peer, key)
+        for n in range(2):  # the burst's one, then one that empties the bucket
+            peer.put(key, str(n).encode())
+        assert waiting.wait(TIMEOUT), "the drain never waited for its pace"
+        last = str(FLOODED - 1).encode()
+        for n in range(2, FLOODED):
+            peer.put(key, str(n).encode())
+        wait_until(lambda: last in heard, what="the flood's last put heard")
+        assert taken == [b"0", b"1"], "the drain read past its pace"
+        free.set()
+        wait_until(lambda: last in taken, what="the newest taken once the pace allows")
+        assert len(taken) <= 2 + CMD_VEL_RING + 1, "more was read than the ring holds"
+    finally:
+        free.set()
+        seen.undeclare()
+        drain.undeclare()

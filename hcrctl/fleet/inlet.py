@@ -26,8 +26,9 @@ rules:
   interpreter lock; the oldest dropped when full, never waiting) and one
   thread of ours takes them out. The receive thread never waits for Python
   on a ``cmd_vel``, so no socket backlog forms ahead of a driver's renewals
-  (``drive`` queries), the operators' tokens or the readings' queries; what
-  the flood costs is one thread's share of the interpreter. A driver's
+  (``drive`` queries), the operators' tokens or the readings' queries; and
+  that thread takes them at a sender's budget at most (``Pace``), so what a
+  flood costs the interpreter is bounded whatever its rate. A driver's
   motion may be dropped from the ring with the flood's, which costs it a
   velocity update, never its lease: the lease is renewed by ``drive``
   claims (``lease.RENEW_S``), which do not pass through the ring, and the
@@ -48,12 +49,15 @@ from __future__ import annotations
 
 import contextlib
 import threading
+import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 from ..link.zenoh import keyspace
 from ..link.zenoh.join import CLIENT, Where, member, open_member
+from .admission import Bucket
+from .shed import SESSION_BURST, SESSION_RATE, STRANGER_BURST, STRANGER_RATE
 
 #: cmd_vel samples held for the drain thread, at most: the oldest is dropped past this. Small, so a sample
 #: taken is never much older than the newest (1024 are 10 ms at 100,000 a second drained, 0.5 s at 2,000).
@@ -66,11 +70,45 @@ DRAIN_THREAD = "fleet-cmd_vel"
 Handle = Callable[[Any], None]
 
 
+class Pace:
+    """At most ``rate`` samples a second taken, ``burst`` at once (a token bucket): ``step`` after each
+    sample waits, when the bucket is empty, until it holds one again (``clock`` and ``sleep`` a test's own)."""
+
+    def __init__(
+        self,
+        rate: float,
+        burst: float,
+        clock: Callable[[], float] = time.monotonic,
+        sleep: Callable[[float], None] = time.sleep,
+    ) -> None:
+        self._clock, self._sleep = clock, sleep
+        self._bucket = Bucket(rate, burst, clock())
+
+    def step(self) -> None:
+        bucket = self._bucket
+        if bucket.fill(self._clock()) < 1:
+            self._sleep((1 - bucket.level) / bucket.rate)
+            bucket.fill(self._clock())
+        bucket.level -= 1
+
+
+#: The shared ``cmd_vel`` ring's pace: every stranger's budget and one session's together (``shed``).
+SHARED_PACE = (STRANGER_RATE + SESSION_RATE, STRANGER_BURST + SESSION_BURST)
+#: A session's own ring's pace: its budget (``shed``).
+SESSION_PACE = (SESSION_RATE, SESSION_BURST)
+
+
 class Drain:
     """A subscriber whose samples go through a ring of ``capacity`` and are handled on a thread of their own.
 
     ``handle`` runs on that one thread, a sample at a time, in order; it must not raise (wrap it).
     ``close`` undeclares the subscriber, which ends the thread once its sample in hand is done.
+
+    The thread takes samples at ``pace`` at most (rate, burst; a ``Pace``): past it, a flood is dropped
+    from the ring by Zenoh (in Rust, without the interpreter lock) instead of being read and shed by
+    Python, so however fast it comes it costs the serve's interpreter no more than ``pace`` samples a
+    second, and the stop's handler and the drivers' renewals never queue behind it for the lock. The
+    pace is a sender's budget (``shed``): what it holds back would have been shed unread anyway.
     """
 
     def __init__(
@@ -81,15 +119,18 @@ class Drain:
         handle: Handle,
         capacity: int = CMD_VEL_RING,
         name: str = DRAIN_THREAD,
+        pace: Pace | None = None,
     ) -> None:
         self.subscriber = session.declare_subscriber(key, zenoh.handlers.RingChannel(capacity))
         self._handle = handle
+        self._pace = pace if pace is not None else Pace(*SHARED_PACE)
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
         self._thread.start()
 
     def _run(self) -> None:
         for sample in self.subscriber:  # recv() waits without the interpreter lock; ends on undeclare
             self._handle(sample)
+            self._pace.step()
 
     def undeclare(self) -> None:
         self.subscriber.undeclare()
@@ -155,7 +196,12 @@ class SessionDrains:
         key = keyspace.session_cmd_vel(self._robot, op.session)
         try:
             drain = Drain(
-                self._zenoh, self._session(), key, self._handle(op), name=f"{DRAIN_THREAD}/{op.session}"
+                self._zenoh,
+                self._session(),
+                key,
+                self._handle(op),
+                name=f"{DRAIN_THREAD}/{op.session}",
+                pace=Pace(*SESSION_PACE),
             )
         except Exception as exc:  # the session closing: a note, and the operator is never answered its lease
             self._note(f"subscribing {key} failed (ignored): {exc!r}")
