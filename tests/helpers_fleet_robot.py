@@ -131,13 +131,18 @@ class Fleet:
                     stream.close()
 
 
-def routed(session: Any, key: str) -> None:
-    """Wait until the router routes ``key`` from ``session`` to a subscriber (a put before is lost)."""
-    publisher = session.declare_publisher(key)
+def routed(session: Any, key: str, query: bool = False) -> None:
+    """Wait until the router routes ``key`` from ``session`` to a subscriber (``query``: a queryable): a put
+    before is lost, and a query before is answered by nobody at once. A process that says it serves has
+    declared its keys, but the router may take them in a moment later."""
+    declared = session.declare_querier(key) if query else session.declare_publisher(key)
     try:
-        wait_until(lambda: publisher.matching_status.matching, what=f"a subscriber of {key}")
+        wait_until(
+            lambda: declared.matching_status.matching,
+            what=f"a {'queryable' if query else 'subscriber'} of {key}",
+        )
     finally:
-        publisher.undeclare()
+        declared.undeclare()
 
 
 @contextlib.contextmanager
@@ -280,6 +285,8 @@ class Operator:
         self.status: list[dict[str, Any]] = []
         self._status = self.session.declare_subscriber(keys.status(robot), self._heard)
         self.token: Any = None
+        #: The keys a query of this session's is routed for (``routed``), waited for once each.
+        self._routed: set[str] = set()
         #: Numbering and signing one message at a time: the renewing thread signs claims too.
         self._numbering = threading.RLock()
         self._silent = threading.Event()
@@ -314,6 +321,9 @@ class Operator:
         data = json.dumps(payload).encode() if payload is not None else raw
         if sign is not None:
             attachment = self.attachment(sign, data or b"")
+        if key not in self._routed:
+            routed(self.session, key, query=True)
+            self._routed.add(key)
         replies = list(self.session.get(key, payload=data, attachment=attachment, timeout=TIMEOUT / 3))
         assert replies, f"no reply from {key}"
         reply = replies[0]
