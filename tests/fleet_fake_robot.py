@@ -23,21 +23,7 @@ import sys
 import threading
 from typing import Any
 
-import zenoh
-
-WAIT_S = 10.0
-
-
-def say(**fields: Any) -> None:
-    print(json.dumps(fields), flush=True)
-
-
-def open_session(endpoint: str) -> Any:
-    cfg = zenoh.Config()
-    cfg.insert_json5("mode", '"client"')
-    cfg.insert_json5("connect/endpoints", json.dumps([endpoint]))
-    cfg.insert_json5("scouting/multicast/enabled", "false")
-    return zenoh.open(cfg)
+from fleet_raw_client import WAIT_S, open_session, say  # a raw peer's session, as the docs open it
 
 
 class Fake:

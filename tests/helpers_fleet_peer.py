@@ -25,6 +25,8 @@ import threading
 import time
 from typing import Any
 
+from fleet_raw_client import open_session  # a raw peer's session, as the docs open it
+
 #: The longest a flood runs, whatever the test does.
 MAX_FLOOD_S = 120.0
 _print_lock = threading.Lock()
@@ -34,16 +36,6 @@ def say(line: str) -> None:
     with _print_lock:
         sys.stdout.write(line + "\n")
         sys.stdout.flush()
-
-
-def session(endpoint: str) -> Any:
-    import zenoh
-
-    cfg = zenoh.Config()
-    cfg.insert_json5("mode", '"client"')
-    cfg.insert_json5("connect/endpoints", json.dumps([endpoint]))
-    cfg.insert_json5("scouting/multicast/enabled", "false")
-    return zenoh.open(cfg)
 
 
 def flood(s: Any, robot: str, rate: float, done: threading.Event) -> None:
@@ -63,7 +55,7 @@ def flood(s: Any, robot: str, rate: float, done: threading.Event) -> None:
 
 
 def main(endpoint: str, robot: str) -> None:
-    s = session(endpoint)
+    s = open_session(endpoint)
     s.declare_subscriber(
         f"hcr/{robot}/status", lambda sample: say(f"status {bytes(sample.payload).decode()}")
     )
