@@ -123,6 +123,16 @@ def test_the_motion_requests_docs_fleet_md_lists_are_the_tables() -> None:
         )
 
 
+class _Routed:
+    """A publisher whose key the router routes to a subscriber already."""
+
+    class matching_status:  # Zenoh's attribute, read as such
+        matching = True
+
+    def undeclare(self) -> None:
+        pass
+
+
 class _Session:
     """Where a lease puts its messages, kept to look at (no Zenoh session needed)."""
 
@@ -131,6 +141,9 @@ class _Session:
 
     def put(self, key: str, data: bytes, **options: object) -> None:
         self.puts.append(key)
+
+    def declare_publisher(self, key: str) -> _Routed:
+        return _Routed()
 
 
 def test_the_word_of_this_sessions_own_stop_never_halts_its_next_motion() -> None:

@@ -111,6 +111,33 @@ def test_a_drivers_motion_is_all_taken_while_a_peer_floods_the_shared_key(router
             session.close()
 
 
+def test_a_motion_waits_until_the_router_routes_its_sessions_key(router: Where) -> None:
+    """A drive that begins before the robot side's subscription of the session's key has reached the router
+    (it is declared as the session is admitted, the router learns of it a moment later) puts its motion
+    once the key is routed: it is taken, not lost to a key nobody reads yet."""
+    import zenoh
+
+    serve, driver = (open_session(CLIENT, router) for _ in range(2))
+    free = threading.Event()
+    free.set()
+    own = Held(free)
+    lease, op = driving_lease(driver)
+    drains = SessionDrains(zenoh, lambda: serve, ROBOT, lambda op: own)
+    driving = threading.Thread(target=lease.drive, args=(1, C.BY_NAME["velocity"], bytes([10, 10])))
+    try:
+        driving.start()
+        drains.open(op)
+        wait_until(lambda: own.taken, what="the motion put before its key was routed, taken")
+        (taken,) = [keyspace.parse_attachment(a) for a in own.taken]
+        assert taken is not None and (taken.who, taken.seq) == (op, 1)
+    finally:
+        driving.join(TIMEOUT)
+        drains.shutdown()
+        lease.close()
+        for session in (serve, driver):
+            session.close()
+
+
 @pytest.fixture
 def lab(tmp_path: Path) -> Iterator[Fleet]:
     with fleet(clean_env(tmp_path)) as group:

@@ -139,6 +139,8 @@ class DriveLease:
         self._proven_at = time.monotonic()
         #: This session's subscriber of the hold the robot side answered its claim (``fleet.hold``).
         self._hold: Any = None
+        #: This session's publisher of its motion key (``_routed``), declared at its first motion.
+        self._motion: Any = None
         # Reentrant: a renewal, under it, numbers and signs its claim under it too.
         self._lock = threading.RLock()
         self.held = False
@@ -174,7 +176,9 @@ class DriveLease:
         if not self.held:
             self.claim()
         payload = {"address": address, "command": cmd.code, "content": hexs(content)}
-        seq = self._put(session_cmd_vel(self._robot, self._op.session), "cmd_vel", payload)
+        key = session_cmd_vel(self._robot, self._op.session)
+        self._routed(key)
+        seq = self._put(key, "cmd_vel", payload)
         answer = self._confirmed(seq)
         dropped = answer.get("dropped")
         if dropped is not None:
@@ -282,6 +286,26 @@ class DriveLease:
                 self.halted = MotionHalted(f"{self._robot} {text}", hint=hint or HALT_HINTS.get(reason or ""))
             self.held = self.driving = False
 
+    def _routed(self, key: str) -> None:
+        """Wait, up to ``CLAIM_TIMEOUT_S``, until the router routes this session's motion ``key`` to a
+        subscriber. The robot side subscribes it as it admits the session, before answering its lease value,
+        but the router may learn of that a moment later, and a put before then reaches nobody: the motion
+        would be lost and its confirmation wait in vain. A publisher is kept declared for the key, so the
+        router's answer is known here at once for every motion after (and waited for again after a cut)."""
+        if self._motion is None:
+            self._motion = self._session.declare_publisher(key)
+        if self._motion.matching_status.matching:
+            return
+        matched = threading.Event()
+        listener = self._motion.declare_matching_listener(
+            lambda status: matched.set() if status.matching else None
+        )
+        try:
+            if not self._motion.matching_status.matching:
+                matched.wait(CLAIM_TIMEOUT_S)
+        finally:
+            listener.undeclare()
+
     def close(self) -> None:
         """Stop renewing and give the lease back (best effort: the robot side frees it when we go anyway)."""
         self._done.set()
@@ -290,9 +314,10 @@ class DriveLease:
         if self.claimed_ever:
             with contextlib.suppress(Exception):
                 self._ask("release")
-        if self._hold is not None:
-            with contextlib.suppress(Exception):
-                self._hold.undeclare()
+        for declared in (self._hold, self._motion):
+            if declared is not None:
+                with contextlib.suppress(Exception):
+                    declared.undeclare()
         self.held = self.driving = False
 
     # -- the renewing thread ------------------------------------------------------------
