@@ -328,3 +328,71 @@ def test_a_renewals_answer_the_robot_did_not_sign_for_it_is_nobodys_until_only_s
     lease._renewed(words, "9" * 32)  # type: ignore[attr-defined]
     assert lease.halted is not None and not lease.held  # type: ignore[attr-defined]
     assert lease.halted.message.startswith("r1 could not prove it is r1: its answers to ")  # type: ignore[attr-defined]
+
+
+def test_a_motion_the_robot_side_never_takes_fails_saying_so_and_counts_as_sent(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Claims answered with ``seen`` below the motion's number (it was lost on the way) are asked again for
+    ``TAKE_WAIT_S``, then the drive fails saying the motion was not taken, as one that may still move the
+    robot; one taken on a later ask goes on."""
+    pytest.importorskip("zenoh", reason="the lease's puts name Zenoh's encodings")
+    from hcrctl.link.carrier import MotionUnconfirmed
+    from hcrctl.link.zenoh import lease as leases
+
+    monkeypatch.setattr(leases, "TAKE_WAIT_S", 0.3)
+    behind = [_Reply(ok=json.dumps({"driver": "op1", "seen": 0}).encode())]
+    session = _Asked([behind] * 1000)
+    lease = _asking_lease(session, [True])
+    with pytest.raises(leases.NotTaken) as raised:
+        lease.drive(1, C.BY_NAME["velocity"], C.Velocity(20, 20).content())  # type: ignore[attr-defined]
+    assert isinstance(raised.value, MotionUnconfirmed) and raised.value.exit_code == 1
+    assert (
+        "did not take this motion (message #" in raised.value.message
+        and "within 0.3 s" in raised.value.message
+    )
+    assert not lease.driving and session.asked >= 3  # type: ignore[attr-defined]  # asked again meanwhile
+    taken_late = [_Reply(ok=json.dumps({"driver": "op1", "seen": 1000}).encode())]
+    session = _Asked([behind, behind, taken_late])
+    lease = _asking_lease(session, [True])
+    lease.drive(1, C.BY_NAME["velocity"], C.Velocity(20, 20).content())  # type: ignore[attr-defined]
+    assert lease.driving and session.asked == 3  # type: ignore[attr-defined]
+
+
+class _Unconfirmed:
+    """A carrier whose motion leaves but is never confirmed taken (``MotionUnconfirmed``); it records the
+    requests it was given."""
+
+    port = "fake://r1"
+    lost_hint = ""
+
+    def __init__(self) -> None:
+        self.sent: list[tuple[str, bytes]] = []
+
+    def bind(self, deliver: object, lost: object) -> None:
+        pass
+
+    def send(self, address: int, cmd: C.Command, content: bytes) -> None:
+        from hcrctl.link.carrier import MotionUnconfirmed, is_stop
+
+        self.sent.append((cmd.name, content))
+        if cmd.motion and not is_stop(cmd, content):
+            raise MotionUnconfirmed("r1 did not take this motion")
+
+    def close(self) -> None:
+        pass
+
+
+def test_a_motion_that_left_unconfirmed_is_stopped_when_the_link_ends() -> None:
+    """The Robot counts a motion the carrier put but could not confirm as motion sent: closing it sends stop."""
+    from hcrctl.link.carrier import Carrier, MotionUnconfirmed
+    from hcrctl.link.client import Robot
+
+    carrier = type("Fake", (_Unconfirmed, Carrier), {})()
+    robot = Robot(carrier)
+    with pytest.raises(MotionUnconfirmed):
+        robot.send(C.MotorPower(60, 60))
+    assert robot.moved
+    robot.close()
+    (moved, _), (stopped, stop) = carrier.sent
+    assert (moved, stopped) == ("power", "power") and stop == C.STOP.content()

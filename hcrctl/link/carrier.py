@@ -9,7 +9,9 @@ a port is declared here and nowhere else:
 
 - ``send`` may refuse a request before anything leaves (``HcrError``: another
   operator drives, raw bytes that are no request): that is the request's
-  error, never a lost link;
+  error, never a lost link; ``MotionUnconfirmed`` when a motion left but the
+  far side never said it took it: the Robot counts it as moved (it may yet
+  arrive) and stops it when it ends;
 - ``why_no_reply`` adds to a timeout what the far side said about it;
 - ``halted`` is why the far side stopped the motion this link asked for (a
   bumper, a deadman, someone's stop, its port gone), None while it runs.
@@ -58,6 +60,11 @@ class RawRefused(HcrError):
             f"{port}: only requests of the command table go over this link, not raw bytes ({shown})",
             hint="hex send writes raw frames only to a local port; use read, drive, turn, stop, pid, servo",
         )
+
+
+class MotionUnconfirmed(HcrError):
+    """A motion request that left, but that the far side never said it took (exit 1): late or lost on the way,
+    it may still move the robot, so the Robot counts it as motion sent and stops the robot when it ends."""
 
 
 def requests_in(events: list[Event]) -> list[tuple[Frame, C.Command]] | None:

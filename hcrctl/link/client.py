@@ -49,7 +49,7 @@ from ..protocol.motionscan import MotionScan
 from ..protocol.profiles import DEFAULT, Profile, profile
 from ..signals import leave_to_main_thread, signals_deferred, start_worker
 from ..stdout import urgent
-from .carrier import Carrier, RawRefused, is_stop, requests_in
+from .carrier import Carrier, MotionUnconfirmed, RawRefused, is_stop, requests_in
 from .defaults import BAUD, REPLY_TIMEOUT_S, RETRIES
 from .dialects import HEAR_FIRST, Dialect, stop_frames
 from .reads import TypedReads
@@ -338,10 +338,14 @@ class Robot(TypedReads, Dialect):
             raise self._lost(exc) from exc
 
     def _carry(self, carrier: Carrier, requests: list[tuple[int, C.Command, bytes]]) -> None:
-        """Each request to the carrier; the robot moved once it took motion other than the stop request
-        (the far side says what a refused one did: nothing)."""
+        """Each request to the carrier; the robot moved once it took motion other than the stop request, or
+        once such motion left unconfirmed (the far side says what a refused one did: nothing)."""
         for address, cmd, content in requests:
-            carrier.send(address, cmd, content)
+            try:
+                carrier.send(address, cmd, content)
+            except MotionUnconfirmed:
+                self.moved = True  # it left: it may yet move the robot, so the end of this link stops it
+                raise
             if cmd.motion and not is_stop(cmd, content):
                 self.moved = True
 

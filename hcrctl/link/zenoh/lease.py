@@ -48,6 +48,7 @@ from ...errors import HcrError
 from ...errors.terminal import quoted
 from ...protocol import commands as C
 from ...protocol.records import hexs
+from ..carrier import MotionUnconfirmed
 from .identity import Identity, signed_bytes
 from .join import LEASE_MS, FleetError
 from .keyspace import HOLD, LEASE, Status, Who, attachment, loads, session_cmd_vel
@@ -65,8 +66,9 @@ RENEW_S = 0.05
 #: and for how long: the token was declared before the robot's info was asked, so it is only late.
 TOKEN_RETRY_S = 0.05
 TOKEN_WAIT_S = 5.0
-#: How many times a motion's confirmation is asked again while the robot side has not seen it yet.
-CONFIRM_ASKS = 10
+#: How long a motion put is confirmed again while the robot side has not taken it yet (on its way): past
+#: that it was lost (a full ring, a key routed too late) or is too late to trust, and the command fails.
+TAKE_WAIT_S = CLAIM_TIMEOUT_S
 #: The longest a driver goes on while its renewals are answered only by what the robot did not sign.
 UNPROVEN_S = CLAIM_TIMEOUT_S
 #: The longest a robot side's text is quoted in a command's error.
@@ -105,6 +107,14 @@ class MotionHalted(HcrError):
 
 class Unanswered(FleetError):
     """Nothing answered a drive query in time: no answer from the robot side, only Zenoh's own (a timeout)."""
+
+
+class UnansweredMotion(Unanswered, MotionUnconfirmed):
+    """Nothing answered whether a motion put was taken: it may still move the robot."""
+
+
+class NotTaken(FleetError, MotionUnconfirmed):
+    """The robot side answered, but never took a motion put within ``TAKE_WAIT_S``: it may still arrive."""
 
 
 class DriveLease:
@@ -189,7 +199,7 @@ class DriveLease:
         """The robot side's answer to the claim naming motion ``seq``, asked again while it has not seen the
         motion yet (still on its way), and while nobody answers but the robot is still in the fleet: the
         motion is out, so only an answer or the robot's loss ends the wait (``Unanswered`` then)."""
-        asks, since = 0, time.monotonic()
+        since = time.monotonic()
         while True:
             try:
                 answer = self.claim(confirm=seq)
@@ -198,9 +208,15 @@ class DriveLease:
                     raise
                 continue
             seen = answer.get("seen")
-            if not isinstance(seen, int) or seen >= seq or asks >= CONFIRM_ASKS:
+            if not isinstance(seen, int) or seen >= seq:
                 return answer
-            asks += 1
+            if time.monotonic() - since > TAKE_WAIT_S:
+                raise NotTaken(
+                    f"{self._robot}'s robot side did not take this motion (message #{seq}; the last it took "
+                    f"was #{seen}) within {TAKE_WAIT_S:g} s of its put: it may still arrive, so stop follows",
+                    hint="a flood on the fleet or a busy robot side drops motion: hcrctl fleet list, and the "
+                    "serve's log, say which",
+                )
             time.sleep(TOKEN_RETRY_S)
 
     def stop(self, nonce: str) -> bool:
@@ -463,7 +479,7 @@ class DriveLease:
             if confirm is None
             else "the motion was sent: the robot side's deadman stops it"
         )
-        raise Unanswered(
+        raise (Unanswered if confirm is None else UnansweredMotion)(
             f"{self._robot} did not answer the drive {do} within {CLAIM_TIMEOUT_S:g} s: {sent}",
             hint="hcrctl fleet list shows whether it is still there",
         )
