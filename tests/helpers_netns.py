@@ -150,7 +150,8 @@ def hosts(*names: str) -> Iterator[Hosts]:
         made.close()
 
 
-#: The roles of a fleet and the host each runs on when they run apart.
+#: The roles of a fleet and the host each runs on when they run apart; a peer that is none of them (a fake
+#: robot, a flooder) gets a host of its own (``Topology.of_its_own``).
 ROUTER_HOST, ROBOT_HOST, OPERATOR_HOST = "lab", "bot", "op"
 #: The router's port on its host (each test's hosts are a network of their own: no port clashes).
 ROUTER_PORT = 7447
@@ -170,6 +171,13 @@ class Topology:
     def on(self, host: str) -> list[str]:
         """The prefix that runs a command on ``host`` (nothing over loopback)."""
         return self.hosts[host].exec() if self.hosts is not None else []
+
+    def of_its_own(self, host: str) -> list[str]:
+        """``on(host)`` for a role of its own (a fake robot beside the real one): on hosts, ``host`` is cabled
+        to the same switch first if it is not there yet."""
+        if self.hosts is not None and host not in self.hosts.hosts:
+            self.hosts.add(host)
+        return self.on(host)
 
     def endpoint(self, scheme: str = "tcp") -> str:
         """Where the router listens and everyone connects: the lab's address, or a free loopback port."""

@@ -3,7 +3,7 @@
 The robot is ``hcrctl sim --tcp`` served by ``fleet serve r1`` (so the robot
 outlives its serve, keeping its last speed, as a real one does), on loopback
 and with the router, the robot and the operator on hosts of their own
-(``topology``). The fake is ``fleet_fake_robot.py`` on the robot's host, a raw
+(``topology``). The fake is ``fleet_fake_robot.py`` on a host of its own, a raw
 Zenoh session, not hcrctl's code: while the real serve
 runs it records the real robot's signed answers (its info, a compass read, a
 stop's status word), then, the serve killed with SIGKILL, it declares
@@ -32,22 +32,24 @@ pytest.importorskip("zenoh", reason="the fleet needs the zenoh extra (pip instal
 
 from helpers import TIMEOUT
 from helpers_fleet_port import Fleet, Served, fleet, is_motion
-from helpers_netns import ROBOT_HOST, Topology
+from helpers_netns import Topology
 
 from hcrctl.link.zenoh import robotkey
 from hcrctl.link.zenoh.remote import LIST_HINT
 
 FAKE = Path(__file__).with_name("fleet_fake_robot.py")
+#: The fake's host: neither the robot's nor the operator's (it reaches them only through the router).
+FAKE_HOST = "fake"
 #: What no operator may say on a fake's word.
 BELIEVED = ("stop delivered", "the robot is stopped", "r1 said:", "compass ")
 
 
 class Fake:
-    """The fake r1 (``fleet_fake_robot.py``), a process on the robot's host: each method one of its commands,
+    """The fake r1 (``fleet_fake_robot.py``), a process on a host of its own: each method one of its commands,
     returning once it has done it."""
 
     def __init__(self, running: Fleet) -> None:
-        command = [*running.topology.on(ROBOT_HOST), sys.executable, str(FAKE), running.endpoint]
+        command = [*running.topology.of_its_own(FAKE_HOST), sys.executable, str(FAKE), running.endpoint]
         self.proc = subprocess.Popen(
             command,
             env=running.env,
@@ -99,7 +101,7 @@ class Fake:
 @pytest.fixture
 def lab(tmp_path: Path, topology: Topology) -> Iterator[tuple[Fleet, Served, Fake]]:
     """r1 served on a simulator of its own (it outlives the serve), and a fake that has recorded r1, on
-    loopback and with the router, the robot (and the fake) and the operator on hosts of their own."""
+    loopback and with the router, the robot, the fake and the operator on hosts of their own."""
     with fleet(tmp_path, topology) as running:
         served = running.serve("r1", running.sim_tcp(), "--deadman", "10")
         fake = Fake(running)
