@@ -14,7 +14,9 @@ A parameter or service is called as rmw_cyclonedds's clients call it
 
 Every test takes a domain id and namespace of its own (``place``), so tests
 running beside each other under pytest-xdist never hear each other: each
-worker owns the domain ids congruent to its number, and walks through them.
+worker owns the domain ids congruent to its number, and walks through them,
+passing over any whose discovery port a socket on this machine holds (another
+test run's node, or this worker's last one not gone yet).
 Without the DDS wheels for this interpreter the tests skip, saying so.
 """
 
@@ -96,8 +98,32 @@ def _own_domains() -> Iterator[int]:
 _DOMAINS = _own_domains()
 
 
+def _bound_udp_ports() -> set[int]:
+    """The local UDP ports some socket on this machine is bound to (``/proc/net/udp``, ``udp6``)."""
+    ports: set[int] = set()
+    for table in ("/proc/net/udp", "/proc/net/udp6"):
+        with contextlib.suppress(OSError), open(table) as lines:
+            next(lines, None)  # the header
+            ports.update(int(line.split()[1].rsplit(":", 1)[1], 16) for line in lines)
+    return ports
+
+
+def _discovery_port(domain: int) -> int:
+    """The domain's discovery multicast port (the DDS spec's PB + DG * domain: 7400 + 250 * domain), which
+    every participant in it binds."""
+    return 7400 + 250 * domain
+
+
 def place() -> Place:
-    return Place(next(_DOMAINS), f"/t{random.SystemRandom().getrandbits(40):010x}")
+    """A domain nobody on this machine uses now (another test run's node, a worker's node not gone yet):
+    this worker's next one whose discovery port no socket holds, and a namespace of its own."""
+    taken = _bound_udp_ports()
+    domain = next(_DOMAINS)
+    for _ in range(len(DOMAINS)):
+        if _discovery_port(domain) not in taken:
+            break
+        domain = next(_DOMAINS)
+    return Place(domain, f"/t{random.SystemRandom().getrandbits(40):010x}")
 
 
 def dds_type(ros_type: str) -> str:
