@@ -42,8 +42,11 @@ Run from the repository root: ``python bench/bench_fleet.py [--robots 1,5,20] [-
 
 7. A driver killed with ``kill -9`` while a raw Zenoh peer
    (``tests/fleet_raw_client.py copy``) holds a copy of its liveliness
-   token, to the stop on the wire, on the default 0.5 s deadman: the stop
-   must be the driver's hold going, not the deadman. Target 0.1 s.
+   token, to the stop on the wire, on the default 0.5 s deadman (or
+   ``--deadman``): the stop must be the driver's hold going, not the
+   deadman. Target 0.1 s. Then the same with the peer also subscribed to
+   ``hcr/**`` (the hold matched for ever): stopped by the driver's missing
+   signed renewals, its hold (half the deadman, at most 0.25 s) + 25 ms.
 
 It prints the figures, writes ``bench/results/bench_fleet.json`` and exits 1
 if a target is missed. Needs the zenoh extra.
@@ -75,7 +78,7 @@ from _simpty import hcrctl_exe, sim_pty
 sys.path.insert(0, str(ROOT / "tests"))
 import helpers_netns
 
-from hcrctl.fleet.drive import HOLD_S
+from hcrctl.fleet.drive import hold_for
 from hcrctl.link.zenoh.join import Where, open_session
 from hcrctl.protocol import commands as C
 
@@ -520,12 +523,15 @@ def part_lost(rounds: int, tmp: Path, metrics: dict[str, Any]) -> bool:
 #: A killed driver whose token a peer copied: stopped within this, its hold's going, not the deadman.
 COPIED_STOP_S = 0.1
 #: ... and while the peer also subscribes to ``hcr/**`` (its hold matched for ever): stopped when its signed
-#: renewals are missed (``fleet.drive.HOLD_S``), give or take the life watch's wake-up (``fleet.life``).
-WILDCARD_STOP_S = HOLD_S + 0.025
+#: renewals are missed for its hold (``fleet.drive.hold_for`` the deadman), give or take the life watch's
+#: wake-up (``fleet.life``).
+WILDCARD_SLACK_S = 0.025
 
 
-def part_copied(rounds: int, tmp: Path, metrics: dict[str, Any]) -> bool:
-    deadman = str(DEADMAN_S)
+def part_copied(rounds: int, tmp: Path, metrics: dict[str, Any], seconds: float = DEADMAN_S) -> bool:
+    """A killed driver whose token a peer copied, and also one whose hold a peer's ``hcr/**`` subscriber
+    matches, on a serve of ``seconds`` deadman."""
+    deadman = f"{seconds:g}"
     figures = lost_operator(signal.SIGKILL, deadman, rounds, tmp, copied=True)
     ok = stop_figures("kill -9, token copied,", figures, deadman, COPIED_STOP_S, metrics, "copied_kill_stop")
     figures = lost_operator(signal.SIGKILL, deadman, rounds, tmp, copied=True, subscribed=("hcr/**",))
@@ -533,7 +539,7 @@ def part_copied(rounds: int, tmp: Path, metrics: dict[str, Any]) -> bool:
         "kill -9, token copied, hcr/** subscribed,",
         figures,
         deadman,
-        WILDCARD_STOP_S,
+        hold_for(seconds) + WILDCARD_SLACK_S,
         metrics,
         "wildcard_kill_stop",
     )
@@ -542,7 +548,7 @@ def part_copied(rounds: int, tmp: Path, metrics: dict[str, Any]) -> bool:
 def part_renewals(seconds: float, tmp: Path, metrics: dict[str, Any]) -> bool:
     quiet, loaded = renewals(seconds, 0, tmp), renewals(seconds, 2, tmp)
     ratio = round(loaded["longest_gap_ms"] / quiet["longest_gap_ms"], 2)
-    target = min(DEADMAN_S / 2, HOLD_S) * 1e3  # a gap past HOLD_S stops a live driver as gone
+    target = hold_for(DEADMAN_S) * 1e3  # a gap past the hold stops a live driver as gone
     good = loaded["stops"] == 0 and loaded["longest_gap_ms"] <= target
     metrics["renewals"] = {"quiet": quiet, "two_busy_loops": loaded, "longest_gap_ratio": ratio}
     for row in (quiet, loaded):
@@ -553,7 +559,7 @@ def part_renewals(seconds: float, tmp: Path, metrics: dict[str, Any]) -> bool:
         )
     print(
         f"  {'ok  ' if good else 'MISS'} renewals under load: longest gap {ratio}x the quiet one "
-        f"(target <= {target:.0f} ms, the driver's life HOLD_S, and no stop)"
+        f"(target <= {target:.0f} ms, the driver's hold, and no stop)"
     )
     return good
 
@@ -595,6 +601,12 @@ def main() -> int:
         default="own",
         help="the floods' driver puts its motion on its session's own key (as hcrctl does) or the shared one",
     )
+    parser.add_argument(
+        "--deadman",
+        type=float,
+        default=DEADMAN_S,
+        help="the serve's deadman in part copied (its hold of a silent driver is half that, at most 0.25 s)",
+    )
     args = parser.parse_args()
     _fleet_floods.PEERS = args.flood_peers
     _fleet_floods.DRIVER_KEY = args.flood_driver_key
@@ -618,7 +630,7 @@ def main() -> int:
         if "renewals" in parts:
             ok &= part_renewals(args.seconds, tmp, metrics)
         if "copied" in parts:
-            ok &= part_copied(args.rounds, tmp, metrics)
+            ok &= part_copied(args.rounds, tmp, metrics, args.deadman)
     metrics["load"] = round(os.getloadavg()[0], 2)
     record("bench_fleet", metrics)
     return 0 if ok else 1

@@ -259,7 +259,7 @@ def started(args: list[str], err: Path | None) -> subprocess.Popen[bytes]:
         )
 
 
-#: What the serve says when a live driver's lease lapsed (no signed word of its within ``drive.HOLD_S``).
+#: What the serve says when a live driver's lease lapsed (no signed word of its within its hold, ``drive.hold_for``).
 LEASE_LOST = "no signed word of its"
 #: Over the fleet part: the driver's lease lost (``lost``) and the lines saying late renewals.
 LEASES: dict[str, int] = {}

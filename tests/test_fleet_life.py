@@ -5,6 +5,7 @@ from __future__ import annotations
 import threading
 import time
 
+import pytest
 from helpers import wait_until
 
 from hcrctl.fleet.life import LifeWatch
@@ -50,3 +51,26 @@ def test_nobody_moving_is_nobody_ended_and_close_ends_the_thread() -> None:
     watch.close()
     assert driver.expired == []
     assert not [t for t in threading.enumerate() if t.name == "hcrctl-fleet-life"]
+
+
+def test_the_hold_is_half_the_deadman_at_most_a_quarter_second_and_follows_it_at_run_time() -> None:
+    """A moving driver's hold is made from the deadman now: set at run time (a ROS 2 parameter), the next
+    look at the driver's life uses the new one."""
+    pytest.importorskip("cryptography", reason="the fleet's drive needs the zenoh extra")
+    from hcrctl.fleet.drive import FleetDrive
+    from hcrctl.motion.governor import Governor
+    from hcrctl.protocol import commands as C
+    from hcrctl.protocol.dialect import DEFAULT
+    from hcrctl.served.peerwords import PeerWords
+
+    governor = Governor(C.Velocity, deadman=0.5)
+    drive = FleetDrive(
+        "r1", governor, lambda *said: None, lambda: (DEFAULT, 1), PeerWords(lambda *line: None)
+    )
+    assert drive.hold == 0.25
+    governor.set_deadman(0.2)
+    assert drive.hold == 0.1
+    governor.set_deadman(10.0)
+    assert drive.hold == 0.25
+    governor.set_deadman(0.05)
+    assert drive.hold == 0.025

@@ -173,7 +173,7 @@ def test_a_frozen_operator_is_stopped_by_the_deadman_while_still_frozen(
         # Thawed, it learns its motion was stopped and ends saying why; it never sends motion again.
         assert driver.wait(timeout=TIMEOUT) == 1
         error = driver_err.read_text().rstrip().splitlines()[-1]
-        # The deadman, or its renewals missed for the driver's life (``HOLD_S``), or its token lost.
+        # The deadman, or its renewals missed for its hold (``drive.hold_for``), or its token lost.
         assert re.match(
             r"hcrctl: error: r1 stopped: (deadman|operator \S+ gone|it lost \S+'s liveliness token)", error
         ), error

@@ -396,3 +396,19 @@ def test_a_motion_that_left_unconfirmed_is_stopped_when_the_link_ends() -> None:
     robot.close()
     (moved, _), (stopped, stop) = carrier.sent
     assert (moved, stopped) == ("power", "power") and stop == C.STOP.content()
+
+
+@pytest.mark.parametrize("said", [1e400, float("nan"), True, "0.2", 0, -1, 3601, None])
+def test_a_claims_answer_paces_the_renewals_to_the_deadman_it_says_when_it_is_one(said: object) -> None:
+    """A granted renewal saying the deadman (set at run time on the robot side) paces the next renewals to
+    it, ten to the deadman; a value that is no deadman in the info's range changes nothing."""
+    pytest.importorskip("zenoh", reason="the lease's puts name Zenoh's encodings")
+    lease = _asking_lease(_Asked([]), [True])
+    assert lease.interval == 0.05  # type: ignore[attr-defined]  # paced for its 0.5 s deadman
+    lease.held = True  # type: ignore[attr-defined]
+    renewed = _Reply(ok=json.dumps({"driver": "op1", "deadman": 0.2}).encode())
+    lease._renewed(renewed.signed("9" * 32), "9" * 32)  # type: ignore[attr-defined]
+    assert lease.interval == pytest.approx(0.02)  # type: ignore[attr-defined]
+    odd = _Reply(ok=json.dumps({"driver": "op1", "deadman": said}).encode())
+    lease._renewed(odd.signed("9" * 32), "9" * 32)  # type: ignore[attr-defined]
+    assert lease.interval == pytest.approx(0.02)  # type: ignore[attr-defined]

@@ -33,8 +33,9 @@ Who may drive, and which messages count:
 - each session admitted has its own ``cmd_vel`` key and ring (``inlets``,
   ``inlet.SessionDrains``), subscribed before its lease value is answered
   and undeclared when it goes;
-- a driver whose motion runs is alive while its signed words come (``HOLD_S``,
-  ``tick``): no subscriber, token copy or queryable anyone declares keeps it;
+- a driver whose motion runs is alive while its signed words come (``hold_for``:
+  half the deadman, at most ``HOLD_S``): no subscriber, token copy or queryable
+  anyone declares keeps it;
 - a stop is anyone's (a ``stop``, or a zero Twist on ``cmd_vel``), and is said as the sender's only
   when signed by it; it holds (``governor.HOLD_RULE``);
 - every message ignored or refused is said on ``status`` to its sender and
@@ -93,11 +94,20 @@ MAX_GONE = 4096
 GONE_S = 300.0
 #: A test's smaller table of gone sessions (a count): the same rule, at a size a test can churn through.
 GONE_ENV = "HCRCTL_TEST_FLEET_GONE"
-#: The driver is alive while its signed words (claims, motion) come within this: a killed driver's motion is
-#: stopped this long after its last renewal (its lease renews every ``lease.RENEW_S``), whatever subscriber,
-#: queryable or token copy anyone declares; only its key can sign. Five renewals long: on a loaded machine
-#: (two cores, a test suite's four workers) a live driver's renewals were measured up to 0.18 s apart.
+#: The driver is alive while its signed words (claims, motion) come within its hold (``hold_for``): a killed
+#: driver's motion is stopped that long after its last renewal, whatever subscriber, queryable or token copy
+#: anyone declares; only its key can sign. At most this: on a loaded machine (two cores, a test suite's four
+#: workers) a live driver's renewals were measured up to 0.18 s apart.
 HOLD_S = 0.25
+
+
+def hold_for(deadman: float) -> float:
+    """How long a moving driver may go without a signed word: half the deadman, at most ``HOLD_S``. A
+    shorter deadman asks for a faster stop of a silent driver, and its operator renews five times to a hold
+    (``lease.DriveLease.pace``), following the deadman the claims' answers say (it may change at run time)."""
+    return min(HOLD_S, deadman / 2)
+
+
 #: The nonces of stops not yet answered by a ``stopped`` word, at most: a flood of stops pushes out the oldest.
 MAX_STOP_ASKS = 16
 #: Tokens that wait for room, at most (first come, first admitted); one beyond this is counted and forgotten.
@@ -165,7 +175,7 @@ class Present:
     #: The value drawn when it was admitted (``identity``'s ``LEASE``): every signature of this admission
     #: covers it, so no message signed in another admission of the same session is good here.
     lease: str = field(default_factory=keyspace.new_lease)
-    #: When its last signed word (a claim or a motion, fresh) was taken: its life as a driver (``HOLD_S``).
+    #: When its last signed word (a claim or a motion, fresh) was taken: its life as a driver (``hold_for``).
     heard: float = 0.0
     #: When its token went (monotonic), while remembered as gone (``GONE_S``).
     gone_at: float = 0.0
@@ -516,7 +526,8 @@ class FleetDrive:
             }
         if fresh and not (verdict := self.governor.claim(operator_source(op))):
             return self._claim_refused(op, verdict.why)
-        answer: dict[str, Any] = {"driver": op.name}
+        # The deadman now: the driver paces its renewals to it (``hold_for``), also after a change at run time.
+        answer: dict[str, Any] = {"driver": op.name, "deadman": self.governor.deadman}
         with self._lock:
             if fresh and present.hold is None and self._holds is not None:
                 present.hold = secrets.token_hex(16)
@@ -695,11 +706,16 @@ class FleetDrive:
             with self._lock:
                 self._admit_waiting()
 
+    @property
+    def hold(self) -> float:
+        """How long the moving driver may be silent now (``hold_for`` the deadman now)."""
+        return hold_for(self.governor.deadman)
+
     def life_due(self) -> float | None:
-        """When the moving driver's life runs out (``HOLD_S`` after its last signed word; monotonic), or None
+        """When the moving driver's life runs out (``hold`` after its last signed word; monotonic), or None
         while no operator's motion runs (a lease held still waits for the deadman: it moves nothing)."""
         heard = self._moving_driver_heard()
-        return None if heard is None else heard[1] + HOLD_S
+        return None if heard is None else heard[1] + self.hold
 
     def life_ended(self) -> None:
         """The moving driver whose life has run out is gone (``fleet.life`` calls this when it is due)."""
@@ -708,7 +724,7 @@ class FleetDrive:
             return
         driver, last = heard
         silent = time.monotonic() - last
-        if silent > HOLD_S:
+        if silent > self.hold:
             self.governor.release(
                 driver,
                 f"operator {driver.id} gone: no signed word of its for {silent:.2f} s",

@@ -14,7 +14,7 @@ querier alone; it is never put on a key anyone may subscribe to.
 The listener counts any subscriber whose key expression intersects the
 hold's (one on ``hcr/**`` matches every hold for ever), so a hold only ever
 ends a lease sooner: what keeps a moving driver alive is what only its key can
-sign, its renewals (``drive.HOLD_S``).
+sign, its renewals (``drive.hold_for``).
 
 Declaring is done on a thread of its own, never on the Zenoh thread that
 answered the claim.

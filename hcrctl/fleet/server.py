@@ -136,8 +136,8 @@ class Fleet(FrontEnd):
         self.drive = FleetDrive(
             self.name, view.governor, self.say, self._profile, view.words, self.holds, self.inlets
         )
-        #: The moving driver's life (``drive.HOLD_S``) ended the moment it runs out, not at the next tick.
-        self.life = LifeWatch(self.drive.life_due, self.drive.life_ended)
+        #: The moving driver's life (``drive.hold_for``) ended the moment it runs out, not at the next tick.
+        self.life = LifeWatch(self.drive.life_due, self.drive.life_ended, lambda: self.drive.hold)
         #: Each cmd_vel admitted or shed on its sender's budget before it is read (``shed``).
         self.shed = Shed(self.drive.present, view.words.held_back)
         view.words.count_to(lambda text: self.tell(keyspace.refused_status(None, text)))

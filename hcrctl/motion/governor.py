@@ -590,6 +590,11 @@ class Governor:
         return self.lease.driver
 
     @property
+    def deadman(self) -> float:
+        """The deadman now (``set_deadman`` changes it at run time)."""
+        return self.lease.deadman
+
+    @property
     def asked(self) -> Wheels:
         """What the lease asks of the wheels now (``STILL`` when it asks for no motion)."""
         return self.lease.wheels

@@ -21,9 +21,10 @@ liveliness token goes (a killed one). This side only asks and keeps asking:
   command), the command fails with the robot side's reason, so nothing says
   "sent" of a command that moved nothing;
 - while the lease is held, a thread claims it again every
-  ``min(RENEW_S, deadman / 4)``, so a one-shot ``drive --for 2`` holds it for
-  2 s; these signed renewals are the driver's life on the robot side (which
-  stops a driver unheard for ``fleet.drive.HOLD_S``), since only this
+  ``min(RENEW_S, deadman / 10)`` (the deadman the robot side's last answer
+  said), so a one-shot ``drive --for 2`` holds it for 2 s; these signed
+  renewals are the driver's life on the robot side (which stops a driver
+  unheard for half its deadman, at most 0.25 s: ``fleet.drive.hold_for``), since only this
   process can sign them. It renews with ``claim``, never by re-sending the motion: once the
   robot side has stopped this operator (another's ``stop``, its deadman), a
   renewal must not set it going again;
@@ -51,7 +52,17 @@ from ...protocol.records import hexs
 from ..carrier import MotionUnconfirmed
 from .identity import Identity, signed_bytes
 from .join import LEASE_MS, FleetError
-from .keyspace import HOLD, LEASE, Status, Who, attachment, loads, session_cmd_vel
+from .keyspace import (
+    HOLD,
+    INFO_NUMBERS,
+    LEASE,
+    Status,
+    Who,
+    attachment,
+    loads,
+    number_in,
+    session_cmd_vel,
+)
 from .keyspace import drive as drive_key
 from .keyspace import hold as hold_key
 from .keyspace import stop as stop_key
@@ -59,8 +70,8 @@ from .robotkey import HINT, NotProven, RobotProof, new_nonce, unproven
 
 #: The longest wait for the robot side's answer to a claim or release.
 CLAIM_TIMEOUT_S = 2.0
-#: Renewals are at most this far apart, and at least four to a deadman: five to the robot side's
-#: ``HOLD_S`` (0.25 s), so a few late renewals never stop a live driver.
+#: Renewals are at most this far apart, and ten to a deadman: five to the robot side's hold of a silent
+#: driver (half its deadman, at most 0.25 s), so a few late renewals never stop a live driver.
 RENEW_S = 0.05
 #: How often a claim refused for want of this session's token is asked again (the token on its way),
 #: and for how long: the token was declared before the robot's info was asked, so it is only late.
@@ -172,8 +183,15 @@ class DriveLease:
         self._own_stops = 0
 
     def pace(self, deadman: float) -> None:
-        """Renew often enough for a robot side whose deadman is ``deadman`` s (four renewals to one)."""
-        self.interval = min(RENEW_S, max(deadman, 0.01) / 4)
+        """Renew often enough for a robot side whose deadman is ``deadman`` s (ten renewals to one)."""
+        self.interval = min(RENEW_S, max(deadman, 0.01) / 10)
+
+    def _follow(self, answer: dict[str, Any]) -> None:
+        """Pace the renewals to the deadman a claim's answer says: set at run time, it reaches this driver at
+        its next renewal. A number out of the info's range is no deadman (the pace stays)."""
+        deadman = answer.get("deadman")
+        if number_in(deadman, *INFO_NUMBERS["deadman"]):
+            self.pace(float(deadman))  # type: ignore[arg-type]  # number_in checked it
 
     # -- motion ---------------------------------------------------------------------
 
@@ -249,6 +267,7 @@ class DriveLease:
         with self._lock:
             self.held, self.refused, self.claimed_ever = True, False, True
             self._proven_at = time.monotonic()
+        self._follow(answer)
         self._subscribe_hold(answer.get("hold"))
         self._start()
         return answer
@@ -382,6 +401,7 @@ class DriveLease:
             self._told_stopped(answer)
             self.lost()
             return
+        self._follow(answer)
         if answer.get("rejoined") is True:
             self._halt(
                 f"stopped: it lost {self._op}'s liveliness token, and the motion with it", "operator gone"
