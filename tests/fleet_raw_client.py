@@ -271,8 +271,10 @@ def churn(s: Any, robot: str, count: str) -> None:
         me.claim()
         me.ask(f"hcr/{robot}/drive", {"op": me.name, "session": me.session, "do": "release"}, "release")
         me.token.undeclare()
+        asked = json.dumps({"op": me.name, "session": me.session, "do": "lease"}).encode()
         deadline = time.monotonic() + WAIT_S
-        while me.admit().get("lease") and time.monotonic() < deadline:
+        # Asked once a turn (``admit`` would ask again while the answer is "token": false, which is gone)
+        while me.send(f"hcr/{robot}/drive", asked, None)[0] and time.monotonic() < deadline:
             time.sleep(0.05)
     say(churned=int(count))
 

@@ -91,7 +91,6 @@ def test_a_claim_signed_for_one_serve_is_refused_by_the_next(robot: Fleet, tmp_p
     assert not said["claimed"] and "not signed with its session's key" in said["answer"]["error"], said
 
 
-@pytest.mark.long(30)  # a serve of its own, three sessions churned through its table
 def test_a_replay_after_the_gone_table_forgot_its_session_moves_nothing(robot: Fleet) -> None:
     """Served with a table of 2 gone sessions (the same rule as 4096): a drive captured, its session gone
     and forgotten behind 3 others, then its claim and motion sent again under a copy of its token."""
