@@ -8,9 +8,9 @@ what it did from a file, waiting for a line, never for a time:
 - ``tokens N``: declares N operator liveliness tokens (``filler<i>``, fresh
   session ids) on the one session; answers ``tokens N``;
 - ``untokens``: undeclares them; answers ``untokens``;
-- ``flood RATE``: puts ``cmd_vel`` at RATE a second, each under a name never
-  used before (no token, no key), until ``stop``; answers ``flooding``, then
-  ``sent N`` every 1,000 and ``stopped N``;
+- ``flood RATE``: puts ``cmd_vel`` at RATE a second (0: as fast as it can),
+  each under a name never used before (no token, no key), until ``stop``;
+  answers ``flooding``, then ``sent N`` every 1,000 and ``stopped N``;
 - always: every message on ``hcr/ROBOT/status`` as ``status JSON``.
 
 Stdin closed ends it (its tokens go with its session).
@@ -39,7 +39,7 @@ def say(line: str) -> None:
 
 
 def flood(s: Any, robot: str, rate: float, done: threading.Event) -> None:
-    """cmd_vel under ever new names, paced at ``rate``, until ``done`` or MAX_FLOOD_S."""
+    """cmd_vel under ever new names, paced at ``rate`` (0: unpaced), until ``done`` or MAX_FLOOD_S."""
     payload = json.dumps({"linear": {"x": -0.5}, "angular": {"z": 0.0}}).encode()
     key, start, sent = f"hcr/{robot}/cmd_vel", time.monotonic(), 0
     while not done.is_set() and time.monotonic() - start < MAX_FLOOD_S:
@@ -48,7 +48,7 @@ def flood(s: Any, robot: str, rate: float, done: threading.Event) -> None:
         sent += 1
         if sent % 1000 == 0:
             say(f"sent {sent}")
-        wait = start + sent / rate - time.monotonic()
+        wait = start + sent / rate - time.monotonic() if rate > 0 else 0.0
         if wait > 0:
             done.wait(wait)
     say(f"stopped {sent}")
