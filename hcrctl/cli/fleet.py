@@ -158,8 +158,9 @@ def serve(
     Every reading goes out as hcr/NAME/<topic> (the bridge's topics), with a
     one-shot read per sensor (hcr/NAME/read/<sensor>), info, and cmd_vel in.
     Motion goes through the motion governor: one driver at a time, stopped
-    when its messages stop for --deadman, when its operator's session goes,
-    on a stop from anyone, and when this command ends. NAME is 1-64 letters,
+    when its messages stop for --deadman, when its operator's session goes
+    or its signed renewals stop for half the deadman (at most 0.25 s), on a
+    stop from anyone, and when this command ends. NAME is 1-64 letters,
     digits, '_', '.' or '-'. With --json a summary is printed at the end.
 
     With --ros2, a ROS 2 peer may set the node's rate and deadman parameters
