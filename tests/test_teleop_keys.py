@@ -71,6 +71,12 @@ def test_a_held_key_never_stutters(name: str) -> None:
     with FakeRobot() as robot, terminal(["--port", robot.path, "teleop", "--deadman", "0.5"]) as term:
         term.wait_for("sending")
         for _ in range(TRIES):
+            # Each try begins with the stop key and its stop on the wire. Keys are taken in order, so the
+            # try's first "w" is then a first press (leased past the repeat delay) even when the last try's
+            # deadman stop, seen on the wire, had not yet reached teleop's state when that "w" came.
+            asked = time.monotonic()
+            os.write(term.child.child_fd, b" ")  # type: ignore[attr-defined]
+            robot.wait_frame(is_stop, after=asked)
             start = time.monotonic()
             kept = type_schedule(term, b"w", pattern.times(HOLD))
             held_until = time.monotonic()
