@@ -190,8 +190,8 @@ class DriveLease:
         """Pace the renewals to the deadman a claim's answer says: set at run time, it reaches this driver at
         its next renewal. A number out of the info's range is no deadman (the pace stays)."""
         deadman = answer.get("deadman")
-        if number_in(deadman, *INFO_NUMBERS["deadman"]):
-            self.pace(float(deadman))  # type: ignore[arg-type]  # number_in checked it
+        if isinstance(deadman, (int, float)) and number_in(deadman, *INFO_NUMBERS["deadman"]):
+            self.pace(float(deadman))
 
     # -- motion ---------------------------------------------------------------------
 
@@ -216,7 +216,8 @@ class DriveLease:
     def _confirmed(self, seq: int) -> dict[str, Any]:
         """The robot side's answer to the claim naming motion ``seq``, asked again while it has not seen the
         motion yet (still on its way), and while nobody answers but the robot is still in the fleet: the
-        motion is out, so only an answer or the robot's loss ends the wait (``Unanswered`` then)."""
+        motion is out, so only an answer or the robot's loss ends the wait (``UnansweredMotion`` then). Not
+        taken within ``TAKE_WAIT_S``, it was lost or is too late to trust: ``NotTaken``."""
         since = time.monotonic()
         while True:
             try:
