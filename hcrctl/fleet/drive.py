@@ -183,11 +183,10 @@ class Present:
     #: again: answered to its claims too, so a driver that missed the status word (frozen, the word
     #: dropped on the way) still learns that its motion is over.
     stopped: tuple[str, str] | None = None
-
-    @property
-    def seq(self) -> int:
-        """The last motion's number: what a claim's answer says was ``seen``."""
-        return self.taken.get("cmd_vel", 0)
+    #: The last motion whose fate is decided (made motion, or ``dropped`` with its reason): what a claim's
+    #: answer says was ``seen``. Not ``taken``'s number, set when the signature is checked: a claim answered
+    #: between that and the decision would call a motion about to be dropped taken.
+    seen: int = 0
 
 
 class Checked(NamedTuple):
@@ -326,6 +325,7 @@ class FleetDrive:
         with self._lock:
             if (present := self._present.get(op)) is not None:
                 present.stopped = None  # it moves again: the last stop's words are told
+                present.seen = max(present.seen, seq)
         if not drove and self.governor.driver == source:  # not a zero that stopped another
             self._say(op, keyspace.drives_status(op, self.robot), None)
 
@@ -536,7 +536,7 @@ class FleetDrive:
                 fresh and present.hold is not None
             ):  # never to a copy of a claim: whoever sent it may not be its session
                 answer["hold"] = present.hold
-            answer["seen"] = present.seq
+            answer["seen"] = present.seen
             asked = message.get("confirm")
             if present.dropped is not None and present.dropped[0] == asked:
                 answer["dropped"] = present.dropped[1]
@@ -684,7 +684,7 @@ class FleetDrive:
         with self._lock:
             present = self._present.get(op)
             if present is not None:
-                present.dropped = (seq, text)
+                present.dropped, present.seen = (seq, text), max(present.seen, seq)
         self._tell(op, text, seq)
 
     def _tell(
