@@ -36,11 +36,13 @@ from hcrctl.protocol import commands as C
 PEER = Path(__file__).with_name("helpers_fleet_peer.py")
 #: The host of a peer of its own (``Peer``'s ``apart``): neither an operator's nor the robot's.
 PEER_HOST = "peer"
-#: cmd_vel a second from the flooding peer: twenty times the budget of all strangers together. Unpaced (one
-#: Python process, some 50,000 a second here) the flood, the router and the serve need more than this
-#: 2-core machine has, and the driver's renewals then miss its hold in about half the runs, even when the
-#: flood goes to a key nobody subscribes: that is the machine's limit, not the serve's (bench/README.md).
-FLOOD_RATE = 20_000.0
+#: cmd_vel a second from the flooding peer: ten times the budget of all strangers together, so the ring
+#: drops most of it. Unpaced (one Python process, some 50,000 a second here) the flood, the router and the
+#: serve need more than this 2-core machine has, and the driver's renewals then miss its hold in about half
+#: the runs, even when the flood goes to a key nobody subscribes: that is the machine's limit, not the
+#: serve's (bench/README.md). At 20,000 a second it was missed once in a whole suite's run (the suite's
+#: other tests on the same cores).
+FLOOD_RATE = 10_000.0
 #: A refusal of a second operator while another drives: for want of the lease, or the hold of a stop.
 REFUSED = re.compile(r"refused: (\S+ drives r1|stopped by \S+; send nothing for 10 s, then drive again)$")
 #: An address nobody answers on the simulated line.
@@ -194,7 +196,8 @@ def test_through_a_cmd_vel_flood_a_driver_keeps_its_lease_and_anothers_stop_ends
     driver, _, err = running.start("r1", "drive", "velocity", "20", "20", "--for", "120")
     moved = wire.wait_sent(velocity(20, 20), what="the driver's velocity 20 20")
     peer = Peer(running, apart=True)
-    peer.ask(f"flood {FLOOD_RATE:g}", "sent 20000")  # well under way
+    under_way = f"sent {FLOOD_RATE:.0f}"  # a second of it ("sent N" every 1,000)
+    peer.ask(f"flood {FLOOD_RATE:g}", under_way)
     stop = running.run("r1", "stop")
     assert stop.returncode == 0, stop.stderr
     wire.wait_sent(is_stop, after=moved, what="the stop through the flood")
@@ -202,7 +205,7 @@ def test_through_a_cmd_vel_flood_a_driver_keeps_its_lease_and_anothers_stop_ends
     peer.ask("stop", "stopped")
     line = error_line(err.read_text())
     assert line.startswith("hcrctl: error: r1 stopped: stop from "), line  # not gone, refused or the deadman
-    assert "sent 20000" in peer.lines()  # the flood ran through the stop (it was asked to end only after)
+    assert under_way in peer.lines()  # the flood ran through the stop (it was asked to end only after)
 
 
 def test_a_session_that_came_while_the_room_was_full_drives_once_there_is_room(
