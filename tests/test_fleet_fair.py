@@ -190,11 +190,12 @@ def test_through_a_cmd_vel_flood_a_driver_keeps_its_lease_and_anothers_stop_ends
 ) -> None:
     """A peer on a host of its own floods cmd_vel under ever new names (``FLOOD_RATE``); the driver's
     renewals still get through (its lease holds: it is not stopped as gone, nor refused), and another
-    operator's stop, sent while the flood runs, reaches the wire and is what ends the drive."""
+    operator's stop, sent while the flood runs, reaches the wire and is what ends the drive. The driver backs
+    up: forward motion would also be stopped, safely, by a bumper reading gone stale on a loaded machine."""
     running, _ = robot
     wire = running.served["r1"]
-    driver, _, err = running.start("r1", "drive", "velocity", "20", "20", "--for", "120")
-    moved = wire.wait_sent(velocity(20, 20), what="the driver's velocity 20 20")
+    driver, _, err = running.start("r1", "drive", "velocity", "-20", "-20", "--for", "120")
+    moved = wire.wait_sent(velocity(-20, -20), what="the driver's velocity -20 -20")
     peer = Peer(running, apart=True)
     under_way = f"sent {FLOOD_RATE:.0f}"  # a second of it ("sent N" every 1,000)
     peer.ask(f"flood {FLOOD_RATE:g}", under_way)
