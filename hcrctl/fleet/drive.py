@@ -188,6 +188,12 @@ class Present:
     #: between that and the decision would call a motion about to be dropped taken.
     seen: int = 0
 
+    def decided(self, seq: int, dropped: str | None = None) -> None:
+        """Motion ``seq`` was made motion, or dropped for ``dropped``: claims now answer it as seen."""
+        self.seen = max(self.seen, seq)
+        if dropped is not None:
+            self.dropped = (seq, dropped)
+
 
 class Checked(NamedTuple):
     """What became of a signed message: ``why`` None when it counts (then its sender is proven)."""
@@ -325,7 +331,7 @@ class FleetDrive:
         with self._lock:
             if (present := self._present.get(op)) is not None:
                 present.stopped = None  # it moves again: the last stop's words are told
-                present.seen = max(present.seen, seq)
+                present.decided(seq)
         if not drove and self.governor.driver == source:  # not a zero that stopped another
             self._say(op, keyspace.drives_status(op, self.robot), None)
 
@@ -684,7 +690,7 @@ class FleetDrive:
         with self._lock:
             present = self._present.get(op)
             if present is not None:
-                present.dropped, present.seen = (seq, text), max(present.seen, seq)
+                present.decided(seq, text)
         self._tell(op, text, seq)
 
     def _tell(
