@@ -72,9 +72,11 @@ def test_teleop_keys_move_the_robot_and_q_stops_it(robot: Fleet) -> None:
     env = robot.terminal_env()
     with terminal(robot.operator("r1", "teleop", "--deadman", "5"), env=env, on=robot.at_operator) as term:
         term.wait_for("sending")
-        term.send("w")
+        term.send(
+            "s"
+        )  # backward: the robot side's bumper rule, tripped by a slow reading, guards forward only
         wire = robot.served["r1"]
-        moved = wire.wait_sent(is_motion, what="teleop's forward")
+        moved = wire.wait_sent(is_motion, what="teleop's motion")
         term.send("q")
         assert term.finish() == 0
         wire.wait_sent(is_stop, after=moved, what="stop after q")
@@ -145,9 +147,11 @@ def test_a_killed_teleop_is_stopped_by_its_token_going(robot: Fleet) -> None:
     env = robot.terminal_env()
     with terminal(robot.operator("r1", "teleop", "--deadman", "5"), env=env, on=robot.at_operator) as term:
         term.wait_for("sending")
-        term.send("w")
+        term.send(
+            "s"
+        )  # backward: the robot side's bumper rule, tripped by a slow reading, guards forward only
         wire = robot.served["r1"]
-        moved = wire.wait_sent(is_motion, what="teleop's forward")
+        moved = wire.wait_sent(is_motion, what="teleop's motion")
         os.kill(term.child.pid, signal.SIGKILL)
         wire.wait_sent(is_stop, after=moved, what="stop after kill -9")
         said = wire.wait_said("stopped:")

@@ -284,7 +284,7 @@ def test_teleop_gets_stop_delivered_when_the_device_returns(tmp_path):
         plugged.append(PtyRobot(link))
         with terminal(["--port", str(link), "teleop", "--deadman", "10"], timeout=TIMEOUT) as term:
             term.wait_for("sending", timeout=TIMEOUT)
-            term.send("w")
+            term.send("s")  # backward: a slow bumper reading (the rule) stops forward motion
             plugged[0].wait_for(moving, timeout=TIMEOUT)
             plugged[0].close()
             term.wait_for(lambda _: WARNING in " ".join(term.output().split()), timeout=TIMEOUT)

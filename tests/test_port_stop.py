@@ -232,8 +232,8 @@ def test_teleop_stopped_from_the_port_holds_the_keys_out(
     monkeypatch.setenv("XDG_RUNTIME_DIR", port_env["XDG_RUNTIME_DIR"])  # teleop's environment
     with FakeRobot() as robot, terminal(["--port", robot.path, "teleop", "--deadman", "2"]) as term:
         term.wait_for("sending")
-        with repeating(lambda: term.send("w"), 0.03):  # a held key repeats
-            moved = robot.wait_frame(lambda f: speed_of(f) == (50, 50))
+        with repeating(lambda: term.send("s"), 0.03):  # a held key repeats (backward: no bumper rule's stop)
+            moved = robot.wait_frame(lambda f: speed_of(f) == (-50, -50))
             stopped = stopped_from_the_port(robot, port_env, after=moved)
         assert [
             s for t, f in robot.frames() if t > stopped and (s := speed_of(f)) not in (None, (0, 0))

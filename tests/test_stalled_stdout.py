@@ -163,8 +163,10 @@ def test_a_signal_ends_teleop_on_a_terminal_that_stopped_reading(signum: int, co
     with FakeRobot() as robot, terminal(["--port", robot.path, "teleop", "--deadman", "5"]) as term:
         term.wait_for(r"sending +(stop|nothing yet)", timeout=TIMEOUT)
         with term.stalled():
-            term.fill(lambda: term.send("w"))  # a held key: the screen changes ten times a second
-            moved = robot.wait_frame(lambda f: speed_of(f) == (50, 50))
+            term.fill(lambda: term.send("s"))  # a held key: the screen changes ten times a second
+            moved = robot.wait_frame(
+                lambda f: speed_of(f) == (-50, -50)
+            )  # backward: only the signal stops it
             os.kill(term.child.pid, signum)
             robot.wait_frame(is_stop, after=moved)
             wait_until(lambda: not term.child.isalive(), what="teleop to end with its terminal stalled")

@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 import pytest
+from helpers import wait_until
 from helpers_live import FakeRobot, Terminal, is_stop, speed_of, terminal, terminal_env, usage_error
 
 from hcrctl.link.client import Robot
@@ -31,6 +32,59 @@ def _teleop(
     return terminal(["--port", robot.path, "teleop", "--deadman", timeout, *extra])
 
 
+#: The teleop screen's row that says why nothing moves.
+STOPPED_ROW = re.compile(r"│ stopped +(.*?) *│")
+
+
+def _refusal(term: Terminal) -> str | None:
+    """Why teleop is stopped, as its screen says, unless for the stop key (``_cleared``)."""
+    row = STOPPED_ROW.search(term.text())
+    return row.group(1) if row and row.group(1) != "stop key" else None
+
+
+def _cleared(term: Terminal) -> None:
+    """Space: the screen's reason becomes "stop key", so the next press's outcome is its own."""
+    term.send(" ")
+    term.wait_for(r"│ stopped +stop key +│")
+
+
+def _press_forward(term: Terminal, robot: FakeRobot, key: str = "w") -> float:
+    """Press ``key`` until the robot is sent 50 % forward; when (monotonic) that press was made.
+
+    The bumper rule refuses forward motion on a reading older than its bound,
+    and a loaded machine can leave teleop's poller that far behind: the rule at
+    work, said on the screen as stale. Such a press is pressed again, as a held
+    key repeats; any other refusal (the fake robot's bumpers are clear) fails.
+    """
+    while True:
+        _cleared(term)
+        pressed = time.monotonic()
+        term.send(key)
+        refused = wait_until(
+            lambda: _sent_after(robot, (50, 50), pressed) or _refusal(term),  # noqa: B023
+            what=f"forward motion or its refusal after {key!r}",
+        )
+        if refused is True:
+            return pressed
+        assert "stale" in refused, refused
+
+
+def _refused_for(term: Terminal, reason: str) -> float:
+    """Press w until forward is refused for ``reason`` (a stale reading may be said first); when that press was made."""
+    while True:
+        _cleared(term)
+        pressed = time.monotonic()
+        term.send("w")
+        refused = wait_until(lambda: _refusal(term), what="forward refused")
+        if reason in refused:
+            return pressed
+        assert "stale" in refused, refused
+
+
+def _sent_after(robot: FakeRobot, speed: tuple[int, int], after: float) -> bool:
+    return any(t >= after and speed_of(f) == speed for t, f in robot.frames())
+
+
 def _speed_after(robot: FakeRobot, after: float) -> tuple[int, int]:
     t = robot.wait_frame(lambda f: speed_of(f) is not None, after=after)
     return next(speed_of(f) for ft, f in robot.frames() if ft == t and speed_of(f) is not None)
@@ -44,8 +98,11 @@ def _speed_after(robot: FakeRobot, after: float) -> tuple[int, int]:
 def test_each_key_sends_its_differential_mix(key: str, expected: tuple[int, int]) -> None:
     with FakeRobot() as robot, _teleop(robot, "--speed", "50", "--turn", "30") as term:
         term.wait_for("sending")
-        sent = time.monotonic()
-        term.send(key)
+        if expected == (50, 50):
+            sent = _press_forward(term, robot, key)
+        else:
+            sent = time.monotonic()
+            term.send(key)
         assert _speed_after(robot, sent) == expected
         term.wait_for(r"sending +\w+ +left +[-+]\d+ %")
         term.send("q")
@@ -78,8 +135,8 @@ def test_the_deadman_stops_when_no_key_comes() -> None:
     """A tap is a first press: leased past the key-repeat delay (HOLD_GRACE), then stopped."""
     with FakeRobot() as robot, _teleop(robot, timeout="0.4") as term:
         term.wait_for("sending")
-        term.send("w")
-        moved = robot.wait_frame(lambda f: speed_of(f) == (50, 50))
+        term.send("s")  # backward: only the deadman may stop it (the bumper rule guards forward)
+        moved = robot.wait_frame(lambda f: speed_of(f) == (-50, -50))
         stopped = robot.wait_frame(is_stop, after=moved)
         assert stopped - moved >= 0.8  # not before the grace's time (no upper bound: noisy machine)
         term.wait_for(f"deadman: no key for {HOLD_GRACE:g} s")
@@ -91,8 +148,10 @@ def test_key_repeat_keeps_the_deadman_alive() -> None:
     with FakeRobot() as robot, _teleop(robot, timeout="0.4") as term:
         term.wait_for("sending")
         start = time.monotonic()
-        while time.monotonic() - start < 1.2:  # a held key: repeats every 50 ms
-            term.send("w")
+        while (
+            time.monotonic() - start < 1.2
+        ):  # a held key (backward, so the bumper rule has no say): every 50 ms
+            term.send("s")
             term.pump(0.05)
         assert not [t for t, f in robot.frames() if is_stop(f) and t >= start]
         term.send("q")
@@ -102,14 +161,10 @@ def test_key_repeat_keeps_the_deadman_alive() -> None:
 def test_a_bumper_hit_stops_forward_but_not_reverse() -> None:
     with FakeRobot() as robot, _teleop(robot, timeout="5") as term:
         term.wait_for("sending")
-        term.send("w")
-        moved = robot.wait_frame(lambda f: speed_of(f) == (50, 50))
+        moved = robot.wait_frame(lambda f: speed_of(f) == (50, 50), after=_press_forward(term, robot))
         robot.values["bump"] = C.Bumpers((False, True, False))
-        robot.wait_frame(is_stop, after=moved)
-        term.wait_for("bumper hit")
-        tried = time.monotonic()
-        term.send("w")
-        term.wait_for("forward blocked")
+        robot.wait_frame(is_stop, after=moved)  # for the hit, or first for a reading gone stale
+        tried = _refused_for(term, "bumper hit")
         term.send("s")
         robot.wait_frame(lambda f: speed_of(f) == (-50, -50), after=tried)
         # Keys are taken in order: a forward frame for the blocked w would have come before the reverse one.
@@ -131,8 +186,9 @@ def test_space_and_k_send_stop() -> None:
     with FakeRobot() as robot, _teleop(robot, timeout="5") as term:
         term.wait_for("sending")
         for key in (" ", "k"):
-            term.send("w")
-            moved = robot.wait_frame(lambda f: speed_of(f) == (50, 50), after=time.monotonic() - 0.05)
+            pressed = time.monotonic()
+            term.send("s")
+            moved = robot.wait_frame(lambda f: speed_of(f) == (-50, -50), after=pressed)
             term.send(key)
             robot.wait_frame(is_stop, after=moved)
         term.send("q")
@@ -143,8 +199,8 @@ def test_space_and_k_send_stop() -> None:
 def test_every_way_out_sends_stop(how: str, status: int) -> None:
     with FakeRobot() as robot, _teleop(robot, timeout="5") as term:
         term.wait_for("sending")
-        term.send("w")
-        moved = robot.wait_frame(lambda f: speed_of(f) == (50, 50))
+        term.send("s")
+        moved = robot.wait_frame(lambda f: speed_of(f) == (-50, -50))
         if how == "ctrl-c":
             term.send("\x03")
         else:

@@ -41,8 +41,8 @@ def test_the_deadman_stops_while_nobody_reads_the_terminal() -> None:
     with FakeRobot() as robot, terminal(["--port", robot.path, "teleop", "--deadman", "0.5"]) as term:
         term.wait_for(r"sending +(stop|nothing yet)", timeout=30)
         with term.stalled():
-            term.send("w")
-            moved = robot.wait_frame(lambda f: speed_of(f) == (50, 50), timeout=GENEROUS)
+            term.send("s")  # backward: only the deadman may stop it (a slow bumper reading stops forward)
+            moved = robot.wait_frame(lambda f: speed_of(f) == (-50, -50), timeout=GENEROUS)
             term.fill(lambda: robot.values.update(wheels=C.WheelSpeed((int(time.monotonic() * 10) % 90, 5))))
             robot.wait_frame(is_stop, after=moved, timeout=GENEROUS)  # still not reading the terminal
         term.wait_for(f"deadman: no key for {HOLD_GRACE:g} s", timeout=30)  # one tap: leased past key repeat
@@ -232,7 +232,7 @@ def test_teleop_at_40x10_keeps_the_key_line_after_the_deadman_notice() -> None:
     ):
         screen = term.wait_for(r"sending +(stop|nothing yet)", timeout=30)
         assert screen.splitlines()[-1].rstrip().endswith("q quit")
-        term.send("w")
+        term.send("s")  # backward: only the deadman may stop it (a slow bumper reading stops forward)
         screen = term.wait_for("deadman: no key", timeout=30)
         assert screen.splitlines()[-1].rstrip().endswith("q quit")
         term.send("q")
