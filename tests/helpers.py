@@ -90,15 +90,19 @@ def clean_env(home: Path, **extra: str) -> dict[str, str]:
     return env
 
 
-def wait_until(check: Callable[[], Any], timeout: float = TIMEOUT, what: str = "condition") -> Any:
-    """Poll ``check`` until it returns something truthy; that value (fails after ``timeout``)."""
+def wait_until(
+    check: Callable[[], Any], timeout: float = TIMEOUT, what: str | Callable[[], str] = "condition"
+) -> Any:
+    """Poll ``check`` until it returns something truthy; that value (fails after ``timeout``, saying
+    ``what``: a callable is asked then, so the failure tells what the state was)."""
     deadline = time.monotonic() + timeout
     while True:
         value = check()
         if value:
             return value
         if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+            said = what() if callable(what) else what
+            raise AssertionError(f"timed out after {timeout} s waiting for {said}")
         time.sleep(0.02)
 
 
