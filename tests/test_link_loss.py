@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import TypeVar
 
 import pytest
-from helpers import DevicePty, Terminal, pty_number_freed
+from helpers import DevicePty, Terminal, open_pty, pty_number_freed
 from helpers_cli import TIMEOUT, hcrctl_exe, run
 from helpers_live import terminal
 from helpers_shell import STOP_FRAME, PtyRobot
@@ -197,7 +197,7 @@ def test_the_robot_back_after_a_stranger_is_called_delivered(env, tmp_path):
 def test_stop_is_delivered_when_the_device_node_is_recreated(env, tmp_path):
     """/dev/pts/N goes away with its device and comes back as the same path (the kernel reuses the number)."""
     with robots(tmp_path) as plugged:
-        plugged.append(PtyRobot())
+        plugged.append(_with_room_below(PtyRobot))
         node = plugged[0].path
         hcr = Hcrctl(["--port", node, "drive", "power", "40", "40"], env)
         try:
@@ -236,6 +236,26 @@ def _robot_at(node: str, plugged: list[PtyRobot], tries: int = 64) -> PtyRobot:
 
 _Device = TypeVar("_Device", bound=DevicePty)
 
+#: Pty numbers left free below a device whose number a test frees and takes back.
+ROOM = 16
+
+
+def _with_room_below(make: Callable[[], _Device]) -> _Device:
+    """``make()`` a device with ``ROOM`` pty numbers free below its own.
+
+    Linux hands out the lowest free number, and a program outside the tests
+    (or a simulator a test started) opens ptys without the tests' lock: when
+    this device's number is freed, such a program takes one of those below it,
+    and ``_device_at`` passes them by to get this number back.
+    """
+    held = [open_pty() for _ in range(ROOM)]
+    try:
+        return make()
+    finally:
+        for fds in held:
+            for fd in fds:
+                os.close(fd)
+
 
 def _device_at(node: str, make: Callable[[], _Device], tries: int = 64) -> _Device:
     """A new pty pair (``make()``) whose slave is ``node`` again: Linux hands out the lowest free number."""
@@ -257,7 +277,7 @@ def _device_at(node: str, make: Callable[[], _Device], tries: int = 64) -> _Devi
 def test_a_stranger_that_took_the_robots_pty_number_is_not_called_the_robot(env, tmp_path):
     """The next program to open a pty gets the robot's old /dev/pts number: stop goes to it, unanswered."""
     with robots(tmp_path) as plugged:
-        plugged.append(PtyRobot())
+        plugged.append(_with_room_below(PtyRobot))
         node = plugged[0].path
         hcr = Hcrctl(["--port", node, "--stop-wait", "2", "drive", "power", "40", "40"], env)
         try:
