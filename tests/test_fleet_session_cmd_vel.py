@@ -90,10 +90,12 @@ def test_a_drivers_motion_is_all_taken_while_a_peer_floods_the_shared_key(router
         velocity = C.BY_NAME["velocity"]
         for n in range(MOTIONS):
             lease.drive(1, velocity, bytes([10 + n, 10 + n]))
-        for n in range(FLOODED):
-            peer.put(keyspace.cmd_vel(ROBOT), b"{}", attachment=f"evil {n:016x} {n}".encode())
+        block = zenoh.CongestionControl.BLOCK
+        for n in range(FLOODED):  # the last so that no queue on the way drops it, as a loaded link may
+            last_one = {"congestion_control": block} if n == FLOODED - 1 else {}
+            peer.put(keyspace.cmd_vel(ROBOT), b"{}", attachment=f"evil {n:016x} {n}".encode(), **last_one)
         # In order on the peer's one link: once this is heard, the flood is in the serve's rings.
-        peer.put(f"{keyspace.ROOT}/{ROBOT}/flooded", b"", congestion_control=zenoh.CongestionControl.BLOCK)
+        peer.put(f"{keyspace.ROOT}/{ROBOT}/flooded", b"", congestion_control=block)
         assert done.wait(TIMEOUT), "the flood never reached the serve"
         free.set()
         last = f"evil {FLOODED - 1:016x} {FLOODED - 1}".encode()

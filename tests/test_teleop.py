@@ -148,9 +148,8 @@ def test_key_repeat_keeps_the_deadman_alive() -> None:
     with FakeRobot() as robot, _teleop(robot, timeout="0.4") as term:
         term.wait_for("sending")
         start = time.monotonic()
-        while (
-            time.monotonic() - start < 1.2
-        ):  # a held key (backward, so the bumper rule has no say): every 50 ms
+        # A held key (backward, so the bumper rule has no say): it repeats every 50 ms.
+        while time.monotonic() - start < 1.2:
             term.send("s")
             term.pump(0.05)
         assert not [t for t, f in robot.frames() if is_stop(f) and t >= start]
