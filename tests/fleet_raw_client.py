@@ -167,6 +167,10 @@ def operators(s: Any, robot: str) -> list[tuple[str, str]]:
 def drive(s: Any, robot: str) -> None:
     say(robots=robots(s))
     me = Client(s, robot, "rawclient")
+    words: list[bytes] = []  # step 7: the robot's word on status, declared before anything is asked of it
+    status = s.declare_subscriber(
+        f"hcr/{robot}/status", lambda sample: words.append(sample.payload.to_bytes())
+    )
     me.declare()
     info = me.info()
     say(deadman=info["deadman"], challenge=len(me.challenge))
@@ -186,13 +190,29 @@ def drive(s: Any, robot: str) -> None:
     sys.stdin.readline()  # the test has seen the motion on the wire
     renewing.set()
     renewer.join()
-    me.put(f"hcr/{robot}/stop", {"key": me.key}, "stop")
+    nonce = secrets.token_hex(16)
+    me.put(f"hcr/{robot}/stop", {"key": me.key, "nonce": nonce}, "stop")
+    stopped = made(words, info["key"], robot, nonce)
     ok, answer, _, _ = me.ask(
         f"hcr/{robot}/drive", {"op": me.name, "session": me.session, "do": "release"}, "release"
     )
-    say(stopped=True, released=ok, driver=answer.get("driver"))
+    say(stopped=stopped, released=ok, driver=answer.get("driver"))
+    status.undeclare()
     hold.undeclare()
     me.token.undeclare()
+
+
+def made(words: list[bytes], robot_key: str, robot: str, nonce: str) -> bool:
+    """Step 8: whether the stop asked with ``nonce`` was made: a ``stopped`` word on status, signed by the
+    robot's key, naming the nonce in its ``asks`` (waited for ``WAIT_S``)."""
+    key, deadline = f"hcr/{robot}/status", time.monotonic() + WAIT_S
+    while time.monotonic() < deadline:
+        for data in list(words):
+            word = json.loads(data)
+            if word.get("event") == "stopped" and nonce in (word.get("asks") or []):
+                return proven(robot_key, key, "-", data)
+        time.sleep(0.02)
+    return False
 
 
 def renew(me: Client, done: threading.Event) -> None:
