@@ -194,3 +194,23 @@ def test_a_number_option_given_a_word_says_it_is_not_a_number(
 
 def test_help_spells_the_filter_forms_as_typed() -> None:
     assert "--filter NAME|0xCODE|@ADDR" in run("monitor", "--help").stdout
+
+
+def test_a_dialect_followed_before_the_drain_starts_is_still_said(capsys: pytest.CaptureFixture[str]) -> None:
+    """The reader may switch to v0.11 before monitor's loop reads its first traffic: the note is said all the same."""
+    import queue
+    import time
+    from types import SimpleNamespace
+
+    from hcrctl.cli.monitor import _drain
+    from hcrctl.protocol.profiles import DEFAULT, profile
+
+    v011 = profile("v0.11")
+    robot = SimpleNamespace(error=None, profile=v011, rule=None)  # switched while the port was opening
+    inbox: queue.SimpleQueue = queue.SimpleQueue()
+    inbox.put("traffic")
+    shown: list[object] = []
+    printer = SimpleNamespace(show_traffic=lambda traffic, rule, prof: shown.append((traffic, prof)))
+    _drain(robot, inbox, printer, time.monotonic() + 0.3, DEFAULT)  # type: ignore[arg-type]
+    assert "decoding them as v0.11" in capsys.readouterr().err
+    assert shown == [("traffic", v011)]

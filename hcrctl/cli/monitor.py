@@ -170,11 +170,14 @@ def _listen(settings: Settings, printer: TrafficPrinter | SummaryPrinter, durati
     try:
         with settings.robot(on_traffic=listener) as robot:
             # a robot of its own only: the shell's shared one keeps the session's --protocol
+            opened_as = robot.profile  # a switch made before the drain starts is said all the same
             robot.follow_dialect = settings.shared_robot is None and _protocol_not_given()
             start = time.monotonic()  # the duration counts from an open port, however slow opening was
             until = f"for {duration:g} s" if duration is not None else "until Ctrl-C"
             deadline = None if duration is None else start + duration
-            _drain_until(robot, inbox, printer, deadline, f"hcrctl: monitoring {robot.port} {until}")
+            _drain_until(
+                robot, inbox, printer, deadline, f"hcrctl: monitoring {robot.port} {until}", opened_as
+            )
     finally:
         if robot is not None:
             robot.remove_traffic_hook(listener)
@@ -218,6 +221,7 @@ def _drain_until(
     printer: TrafficPrinter | SummaryPrinter,
     deadline: float | None,
     said: str,
+    opened_as: Profile,
 ) -> None:
     """Say ``said`` (how long it listens), then print traffic until the deadline. Ctrl-C is the normal end
     of an open-ended monitor wherever it lands once that was said.
@@ -227,18 +231,22 @@ def _drain_until(
     (``tests/test_signal_safe_loops.py``)."""
     try:
         click.echo(said, err=True)
-        _drain(robot, inbox, printer, deadline)
+        _drain(robot, inbox, printer, deadline, opened_as)
     except KeyboardInterrupt:
         if deadline is not None:
             raise
 
 
 def _drain(
-    robot: Any, inbox: queue.SimpleQueue, printer: TrafficPrinter | SummaryPrinter, deadline: float | None
+    robot: Any,
+    inbox: queue.SimpleQueue,
+    printer: TrafficPrinter | SummaryPrinter,
+    deadline: float | None,
+    heard_as: Profile,
 ) -> None:
+    """Traffic printed until the deadline; a dialect followed since ``heard_as`` is said before its first row."""
     import queue
 
-    heard_as = robot.profile
     while deadline is None or time.monotonic() < deadline:
         if robot.error is not None:
             raise robot.error
